@@ -1,0 +1,41 @@
+"""fabkit: mechanical networks as iterated maps, from design to fabrication.
+
+The core (network, rigidity, kinematics, maps, design, assemble, templates) never imports the
+fabrication, export or command-line layers.
+"""
+
+from .errors import (
+    ConstructionError,
+    DesignError,
+    FabkitError,
+    FabricationError,
+    KinematicsError,
+    NetworkError,
+    TemplateError,
+)
+from .network import Network
+from .rigidity import ModeCount, count_modes, rigid_body_basis, rigidity_matrix
+from .kinematics import METHODS, Trajectory, trace
+from .templates import Design, load_template
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ConstructionError",
+    "Design",
+    "DesignError",
+    "FabkitError",
+    "FabricationError",
+    "KinematicsError",
+    "METHODS",
+    "ModeCount",
+    "Network",
+    "NetworkError",
+    "TemplateError",
+    "Trajectory",
+    "count_modes",
+    "load_template",
+    "rigid_body_basis",
+    "rigidity_matrix",
+    "trace",
+]

@@ -1,0 +1,68 @@
+"""``fabkit simulate TEMPLATE``: trace the template's motion, write .npz + PNG, print a summary."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+NAME = "simulate"
+HELP = "trace a template's motion; writes trajectory.npz and motion.png"
+
+
+def add_arguments(p):
+    p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
+    p.add_argument("--method", default=None,
+                   help="auto, constructive, projected or rk4-nullspace (default: the template's)")
+    p.add_argument("--to", type=float, default=None, help="target value of the drive")
+    p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
+
+
+def trajectory_npz(traj) -> bytes:
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf,
+        positions=traj.positions,
+        drive=traj.drive,
+        arclength=traj.arclength,
+        edge_error=traj.edge_error,
+        edges=traj.network.edges,
+        method=np.array(traj.method),
+        status=np.array(str(traj.status)),
+        message=np.array(traj.message),
+        **{f"port_{k}": np.array(v) for k, v in traj.network.ports.items()},
+    )
+    return buf.getvalue()
+
+
+def simulate_design(design, outdir: Path, method=None, to=None):
+    from ..export import write_atomic
+    from ..viz import figure_png, motion_figure
+
+    overrides = {}
+    if method:
+        overrides["method"] = method
+    if to is not None:
+        overrides["to"] = to
+    traj = design.trace(**overrides)
+    npz = trajectory_npz(traj)
+    png = figure_png(motion_figure(traj, title=design.name))
+    folder = outdir / design.name
+    write_atomic(folder / "trajectory.npz", npz)
+    write_atomic(folder / "motion.png", png)
+    return traj, folder
+
+
+def run(args) -> int:
+    from ..templates import load_template
+    from . import expand_templates
+
+    failed = 0
+    for path in expand_templates(args.templates):
+        design = load_template(path)
+        traj, folder = simulate_design(design, Path(args.out), args.method, args.to)
+        print(f"== {design.name} -> {folder}")
+        print(traj.summary())
+        failed += str(traj.status) == "failed"
+    return 1 if failed else 0

@@ -1,0 +1,98 @@
+"""Exporters: one module per file format behind one :func:`export` entry (like trimesh.exchange).
+
+Each format module defines ``FORMAT`` (its name) and ``export_design(design, settings) ->
+ExportResult``: pure, it returns the bytes of every file to write and a report dict, and never
+opens a file. Only :func:`write_outputs` writes, through a temporary file in the target folder
+and ``os.replace``, so that no half-written file is ever left behind.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import FabkitError
+
+__all__ = ["EXPORTERS", "ExportResult", "get_exporter", "write_atomic", "write_outputs", "export"]
+
+#: Format name → module implementing it (imported only when the format is used, so a missing
+#: optional dependency matters only to its own format).
+EXPORTERS: dict[str, str] = {
+    "dxf": "fabkit.export.dxf",
+    "svg": "fabkit.export.svg",
+    "fold": "fabkit.export.fold",
+    "stl": "fabkit.export.stl",
+}
+
+
+@dataclass
+class ExportResult:
+    """What an exporter produces.
+
+    Attributes
+    ----------
+    files : dict of str to bytes
+        File name (relative to the design's output folder) → content.
+    report : dict
+        JSON-serialisable facts for report.json (checks, measurements, warnings).
+    """
+
+    files: dict[str, bytes] = field(default_factory=dict)
+    report: dict = field(default_factory=dict)
+
+
+def get_exporter(fmt: str):
+    """The module that implements a format; ``FabkitError`` listing the valid ones otherwise."""
+    try:
+        name = EXPORTERS[fmt]
+    except KeyError:
+        raise FabkitError(f"unknown export format {fmt!r}; valid: {', '.join(EXPORTERS)}") from None
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        raise FabkitError(f"export format {fmt!r} is not available: {exc}") from None
+
+
+def write_atomic(path, data: bytes) -> Path:
+    """Write bytes to ``path`` through a temporary file in the same folder and ``os.replace``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        # remove the temporary file whatever happened (also on Ctrl-C), then re-raise
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    return path
+
+
+def write_outputs(files: dict[str, bytes], outdir) -> list[Path]:
+    """Write every file of an :class:`ExportResult` atomically; returns the paths written."""
+    outdir = Path(outdir)
+    return [write_atomic(outdir / name, data) for name, data in sorted(files.items())]
+
+
+def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
+    """Export a design in one format into ``outdir``.
+
+    All content is computed first; nothing is written when the exporter raises.
+
+    Returns
+    -------
+    paths : list of pathlib.Path
+    report : dict
+    """
+    module = get_exporter(fmt)
+    result: ExportResult = module.export_design(design, settings)
+    return write_outputs(result.files, outdir), result.report

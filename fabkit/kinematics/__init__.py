@@ -1,0 +1,132 @@
+"""Tracing the one-parameter motion of a network: :func:`trace` and its ``METHODS``.
+
+Like ``scipy.integrate.solve_ivp``: one front function, a registry of interchangeable methods
+(one file each), and a result object with a status and a message. A method that cannot reach the
+target returns what it has, with the reason, rather than raising deep inside its loop.
+
+Levels of model, cheapest first: the 1-D map (``fabkit.maps``), ``"constructive"`` (exact
+placement by intersections, where a construction order exists), ``"projected"`` (pseudo-arclength
+predictor-corrector on the constraint set, any network with one motion) and ``"rk4-nullspace"``
+(the paper's reference method, kept as a baseline).
+"""
+
+from __future__ import annotations
+
+from ..errors import ConstructionError, KinematicsError
+from ..network import Network
+from .base import Method, Problem, align_to_gauge, choose_gauge, make_problem
+from .constructive import ConstructionPlan, Constructive, place, plan_construction
+from .projected import Projected
+from .rk4_nullspace import RK4Nullspace
+from .trajectory import Event, Status, Trajectory
+
+__all__ = [
+    "METHODS",
+    "trace",
+    "select_method",
+    "Trajectory",
+    "Status",
+    "Event",
+    "Method",
+    "Problem",
+    "ConstructionPlan",
+    "plan_construction",
+    "place",
+    "choose_gauge",
+    "align_to_gauge",
+]
+
+#: Registry of tracing methods: name → class. A user's own :class:`Method` subclass may be passed
+#: to :func:`trace` directly.
+METHODS: dict[str, type[Method]] = {
+    Constructive.name: Constructive,
+    Projected.name: Projected,
+    RK4Nullspace.name: RK4Nullspace,
+}
+
+
+def select_method(net: Network, drive, *, start=None) -> str:
+    """The cheapest adequate method: ``"constructive"`` where a construction order exists from
+    the drive pair (and the start is not a flat state), else ``"projected"``."""
+    problem = make_problem(net, drive, to=1.0, start=start)
+    try:
+        plan_construction(problem.work, problem.drive, problem.start)
+    except ConstructionError:
+        return Projected.name
+    return Constructive.name
+
+
+def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=(), gauge=None,
+          **options) -> Trajectory:
+    """Trace the motion of a network while a distance (the drive) moves to a target value.
+
+    Parameters
+    ----------
+    net : Network
+        A network with one conformational motion (after held ports are fixed).
+    drive : str or (int, int)
+        Port name (``"d1"``) or node pair whose distance is driven.
+    to : float
+        Target value of the drive (design units).
+    method : str or Method subclass
+        ``"auto"`` (cheapest adequate), ``"constructive"``, ``"projected"``, ``"rk4-nullspace"``,
+        or a :class:`Method` subclass.
+    start : array_like, shape (N, d), optional
+        Start configuration (must keep the edge lengths); ``net.nodes`` by default.
+    hold : str or sequence, optional
+        Ports whose distances are held at their start values (added as virtual edges); use it to
+        drive one branch of a network with several motions.
+    gauge : sequence of int, optional
+        Nodes held still in the output (an edge in 2D, a triangle in 3D); chosen near the drive's
+        first node by default.
+    **options
+        Method options (see each method's docstring); an unknown option raises ``TypeError``.
+
+    Returns
+    -------
+    Trajectory
+        With ``status`` ``finished``, ``turning_point``, ``branch_point`` or ``failed`` and a
+        message that says where and why.
+
+    Raises
+    ------
+    ValueError
+        Unknown method name (the message lists the valid ones).
+    TypeError
+        Unknown option.
+    KinematicsError
+        Invalid drive, target or start; ``ConstructionError`` when ``method="constructive"`` and
+        the network has no construction order.
+
+    Examples
+    --------
+    >>> import fabkit
+    >>> net = fabkit.Network([[-1, -1], [-1, 1], [1, -1], [1, 1]], [[0, 2], [0, 3], [1, 2], [1, 3]],
+    ...                      ports={"d1": (0, 1), "d2": (2, 3)})
+    >>> traj = fabkit.trace(net, drive="d1", to=2.5)
+    >>> traj.method, str(traj.status)
+    ('constructive', 'finished')
+    >>> round(float(traj.distance("d1")[-1] * traj.distance("d2")[-1]), 12)
+    4.0
+    """
+    if to is None:
+        raise KinematicsError("`to` (the target value of the drive) is required")
+    problem = make_problem(net, drive, to, start=start, hold=hold, gauge=gauge)
+    if isinstance(method, type) and issubclass(method, Method):
+        cls = method
+    elif method == "auto":
+        try:
+            plan = plan_construction(problem.work, problem.drive, problem.start)
+        except ConstructionError:
+            cls = Projected
+        else:
+            cls = Constructive
+            options = {**options, "plan": plan} if "plan" not in options else options
+            # options meant for the other methods would be a caller's mistake even under auto
+    else:
+        try:
+            cls = METHODS[method]
+        except (KeyError, TypeError):
+            valid = ", ".join(["auto", *METHODS])
+            raise ValueError(f"unknown method {method!r}; valid methods: {valid}") from None
+    return cls(problem, **options).run()

@@ -1,0 +1,270 @@
+"""What every tracing method shares: the problem statement, the gauge, option checking.
+
+A method is a subclass of :class:`Method` that declares its options (name → default) and
+implements :meth:`Method.run`. :func:`fabkit.trace` builds the :class:`Problem` once and hands it
+to the method named in ``METHODS``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import KinematicsError
+from ..network import Network
+from .trajectory import Event, Status, Trajectory
+
+__all__ = ["Problem", "Method", "make_problem", "choose_gauge", "align_to_gauge"]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A tracing task after validation.
+
+    Attributes
+    ----------
+    network : Network
+        The network as given by the caller.
+    work : Network
+        The network actually traced: ``network`` plus one virtual edge per held port.
+    start : numpy.ndarray, shape (N, d)
+        Start configuration (satisfies the edge lengths of ``work``).
+    drive : tuple of int
+        Node pair whose distance is driven.
+    drive_name : str
+    target : float
+        Drive value to reach.
+    gauge : tuple of int
+        Nodes held still: an edge (2D) or a triangle (3D) of ``work``.
+    """
+
+    network: Network
+    work: Network
+    start: np.ndarray
+    drive: tuple[int, int]
+    drive_name: str
+    target: float
+    gauge: tuple[int, ...]
+
+    @property
+    def dim(self) -> int:
+        return self.work.dim
+
+    def drive_of(self, positions) -> np.ndarray:
+        """Drive value(s) of configurations (N, d) or (S, N, d)."""
+        i, j = self.drive
+        x = np.asarray(positions)
+        return np.linalg.norm(x[..., i, :] - x[..., j, :], axis=-1)
+
+    @property
+    def start_drive(self) -> float:
+        return float(self.drive_of(self.start))
+
+    def trajectory(self, positions, method: str, status: Status, message: str,
+                   events=(), stats=None, arclength=None) -> Trajectory:
+        """Package configurations as a :class:`Trajectory` (edge errors against ``network``)."""
+        pos = np.ascontiguousarray(positions, dtype=np.float64)
+        if arclength is None:
+            steps = np.linalg.norm((pos[1:] - pos[:-1]).reshape(len(pos) - 1, -1), axis=1)
+            arclength = np.concatenate([[0.0], np.cumsum(steps)])
+        return Trajectory(
+            network=self.network,
+            positions=pos,
+            drive=self.drive_of(pos),
+            arclength=np.asarray(arclength, dtype=np.float64),
+            edge_error=np.atleast_1d(self.network.edge_error(pos)),
+            method=method,
+            status=status,
+            message=message,
+            drive_port=self.drive,
+            target=self.target,
+            events=tuple(events),
+            stats=dict(stats or {}),
+        )
+
+
+def _resolve_port(net: Network, drive) -> tuple[tuple[int, int], str]:
+    if isinstance(drive, str):
+        try:
+            return net.port(drive), drive
+        except KeyError as exc:
+            raise KinematicsError(str(exc.args[0])) from None
+    try:
+        i, j = (int(v) for v in drive)
+    except (TypeError, ValueError):
+        raise KinematicsError(f"`drive` must be a port name or a node pair, got {drive!r}") from None
+    for v in (i, j):
+        if not 0 <= v < net.n_nodes:
+            raise KinematicsError(f"`drive` names node {v}, outside 0..{net.n_nodes - 1}")
+    if i == j:
+        raise KinematicsError(f"`drive` joins node {i} to itself")
+    return (i, j), f"({i}, {j})"
+
+
+def choose_gauge(net: Network, positions, drive: tuple[int, int]) -> tuple[int, ...]:
+    """Nodes to hold still: a rigid element near the drive's first node.
+
+    In 2D an edge incident to the first drive node (else the longest edge); in 3D a triangle of
+    edges through that node if one exists, else any triangle of edges, else an edge and the node
+    farthest from its line. Holding a rigid element (not the drive pair) keeps the gauge valid
+    over the whole motion: the element never changes shape.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    edges = net.edges
+    if edges.shape[0] == 0:
+        raise KinematicsError("the network has no edges: nothing constrains its motion")
+    a = drive[0]
+    incident = np.flatnonzero((edges == a).any(axis=1))
+    lengths = net.lengths_at(x)
+    if net.dim == 2:
+        k = incident[np.argmax(lengths[incident])] if incident.size else int(np.argmax(lengths))
+        return (int(edges[k, 0]), int(edges[k, 1]))
+    nbrs = [set() for _ in range(net.n_nodes)]
+    for i, j in edges.tolist():
+        nbrs[i].add(j)
+        nbrs[j].add(i)
+
+    def best_triangle(candidates):
+        best, best_area = None, 0.0
+        for i in candidates:
+            for j in nbrs[i]:
+                for k in nbrs[i] & nbrs[j]:
+                    area = np.linalg.norm(np.cross(x[j] - x[i], x[k] - x[i]))
+                    if area > best_area:
+                        best, best_area = (i, j, k), area
+        return best, best_area
+
+    tri, area = best_triangle([a])
+    if tri is None:
+        tri, area = best_triangle(range(net.n_nodes))
+    scale = max(net.size, 1e-300) ** 2
+    if tri is not None and area > 1e-9 * scale:
+        return tuple(int(v) for v in tri)
+    k = incident[np.argmax(lengths[incident])] if incident.size else int(np.argmax(lengths))
+    i, j = int(edges[k, 0]), int(edges[k, 1])
+    u = (x[j] - x[i]) / np.linalg.norm(x[j] - x[i])
+    off = x - x[i]
+    dist = np.linalg.norm(off - np.outer(off @ u, u), axis=1)
+    third = int(np.argmax(dist))
+    if dist[third] <= 1e-9 * net.size:
+        return (i, j)  # all nodes collinear: rotation about the line is not a motion anyway
+    return (i, j, third)
+
+
+def align_to_gauge(positions, reference, gauge) -> np.ndarray:
+    """Move each configuration rigidly so that the gauge nodes best match the reference.
+
+    Parameters
+    ----------
+    positions : array_like, shape (S, N, d)
+    reference : array_like, shape (N, d)
+    gauge : sequence of int
+
+    Returns
+    -------
+    numpy.ndarray, shape (S, N, d)
+        Proper rotations only (no reflection), Kabsch fit on the gauge nodes.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    ref = np.asarray(reference, dtype=np.float64)[list(gauge)]
+    g = x[:, list(gauge)]
+    cg = g.mean(axis=1, keepdims=True)
+    cr = ref.mean(axis=0)
+    h = np.einsum("sni,nj->sij", g - cg, ref - cr)
+    u, _, vt = np.linalg.svd(h)
+    det = np.linalg.det(np.einsum("sij,sjk->sik", u, vt))
+    d = np.ones((x.shape[0], x.shape[2]))
+    d[:, -1] = np.sign(det)
+    d[d == 0] = 1.0
+    rot = np.einsum("sij,sj,sjk->sik", u, d, vt)  # maps (x - cg) @ rot ≈ ref - cr
+    return np.einsum("sni,sij->snj", x - cg, rot) + cr
+
+
+def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) -> Problem:
+    """Validate a tracing request and build the :class:`Problem` every method solves."""
+    if not isinstance(net, Network):
+        raise TypeError(f"`net` must be a fabkit.Network, got {type(net).__name__}")
+    pair, name = _resolve_port(net, drive)
+    try:
+        target = float(to)
+    except (TypeError, ValueError):
+        raise KinematicsError(f"`to` must be a number, got {to!r}") from None
+    if not np.isfinite(target) or target <= 0:
+        raise KinematicsError(f"`to` must be a positive finite distance, got {to!r}")
+    key = tuple(sorted(pair))
+    if any(tuple(sorted(e)) == key for e in net.edges.tolist()):
+        raise KinematicsError(
+            f"the drive {name} joins nodes {pair[0]} and {pair[1]}, which share an edge: "
+            "its distance cannot change"
+        )
+    x0 = net.nodes if start is None else np.asarray(start, dtype=np.float64)
+    if x0.shape != net.nodes.shape:
+        raise KinematicsError(f"`start` must have shape {net.nodes.shape}, got {x0.shape}")
+    if not np.isfinite(x0).all():
+        raise KinematicsError("`start` has non-finite coordinates")
+    if start is not None:
+        err = float(net.edge_error(x0))
+        if err > 1e-8:
+            raise KinematicsError(
+                f"`start` does not keep the edge lengths (largest relative error {err:.2e})"
+            )
+    extra = []
+    for h in ([hold] if isinstance(hold, str) else list(hold or ())):
+        hp, hname = _resolve_port(net, h)
+        if tuple(sorted(hp)) == key:
+            raise KinematicsError(f"cannot both drive and hold {hname}")
+        extra.append(hp)
+    work = net
+    if extra or start is not None:
+        # Held ports become virtual edges whose lengths are measured at the start.
+        edges = np.vstack([net.edges, np.array(extra, dtype=np.int64).reshape(-1, 2)])
+        work = Network(x0, edges, net.ports, net.labels)
+    if gauge is None:
+        gauge = choose_gauge(work, x0, pair)
+    else:
+        gauge = tuple(int(v) for v in gauge)
+        if any(not 0 <= v < net.n_nodes for v in gauge) or len(set(gauge)) != len(gauge):
+            raise KinematicsError(f"`gauge` must name distinct nodes of the network, got {gauge}")
+    return Problem(network=net, work=work, start=np.array(x0), drive=pair, drive_name=name,
+                   target=target, gauge=gauge)
+
+
+class Method:
+    """Base class of tracing methods.
+
+    Subclasses set ``name``, ``options`` (a dict of option name → default) and implement
+    :meth:`run`. Unknown options raise ``TypeError`` naming the valid ones, so that a typo in a
+    template or a call never passes silently.
+    """
+
+    name: str = ""
+    options: dict = {}
+
+    def __init__(self, problem: Problem, **options):
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            valid = ", ".join(sorted(self.options)) or "none"
+            raise TypeError(
+                f"method {self.name!r} got unknown option(s) {', '.join(unknown)}; valid: {valid}"
+            )
+        self.problem = problem
+        self.opts = {**self.options, **options}
+
+    def run(self) -> Trajectory:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    # Helpers shared by the methods -------------------------------------------------------------
+    def direction(self) -> float:
+        """+1 when the drive must grow to reach the target, -1 when it must shrink."""
+        return 1.0 if self.problem.target >= self.problem.start_drive else -1.0
+
+    def finished_message(self) -> str:
+        p = self.problem
+        return f"reached {p.drive_name} = {p.target:.10g}"
+
+
+def event(kind: str, index: int, drive: float, arclength: float, detail: str) -> Event:
+    """Shorthand for :class:`Event`."""
+    return Event(kind=kind, index=int(index), drive=float(drive), arclength=float(arclength),
+                 detail=detail)

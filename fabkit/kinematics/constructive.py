@@ -1,0 +1,362 @@
+"""Constructive placement: nodes placed one by one by circle (2D) or sphere (3D) intersections.
+
+Starting from the two nodes of the drive, every further node is placed from 2 (2D) or 3 (3D)
+already placed neighbours whose distances to it are edge lengths. Of the two intersection points
+the one on the same side as in the reference configuration is taken, so the construction follows
+the branch of the reference. Exact to round-off; the motion ends where an intersection vanishes
+(a node becomes collinear/coplanar with its parents: a flat state, where the drive turns back).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConstructionError, KinematicsError
+from ..network import Network
+from .base import Method, Problem, align_to_gauge, event
+from .trajectory import Status
+
+__all__ = ["ConstructionPlan", "plan_construction", "place", "Constructive"]
+
+# A reference configuration whose node lies this close (relative sine) to the line/plane of its
+# parents has no well-defined side: the start is a flat state.
+_FLAT_RTOL = 1e-12
+
+
+@dataclass(frozen=True)
+class ConstructionPlan:
+    """Order and data of a construction by intersections.
+
+    Attributes
+    ----------
+    dim : int
+    seed : tuple of int
+        The drive's node pair (a, b): a stays at its reference position, b moves along the
+        reference direction from a.
+    order : numpy.ndarray of int, shape (K,)
+        Nodes in the order they are placed.
+    parents : numpy.ndarray of int, shape (K, dim)
+        Already placed nodes each is placed from (-1 for the free slot of the 3D gauge node).
+    radii : numpy.ndarray, shape (K, dim)
+        Edge lengths to the parents.
+    signs : numpy.ndarray, shape (K,)
+        Side of the parents' line (2D) or plane (3D) in the reference: +1 or -1 (0 for the 3D
+        gauge node, which is placed in the half-plane it has in the reference).
+    reference : numpy.ndarray, shape (N, dim)
+    gauge_perp : numpy.ndarray, shape (dim,)
+        3D only: unit vector fixing the rotation about the seed axis.
+    """
+
+    dim: int
+    seed: tuple[int, int]
+    order: np.ndarray
+    parents: np.ndarray
+    radii: np.ndarray
+    signs: np.ndarray
+    reference: np.ndarray
+    gauge_perp: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.reference.shape[0])
+
+
+def _edge_index(net: Network) -> dict[tuple[int, int], int]:
+    e = net.edges
+    return {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(e.tolist())}
+
+
+def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> ConstructionPlan:
+    """Find an order that places every node by intersections, starting from the drive pair.
+
+    Parameters
+    ----------
+    net : Network
+        Topology and rest lengths.
+    drive : (int, int)
+        The seed pair.
+    reference : array_like, shape (N, d), optional
+        Configuration that decides the side of every intersection (``net.nodes`` by default).
+
+    Returns
+    -------
+    ConstructionPlan
+
+    Raises
+    ------
+    ConstructionError
+        When some nodes cannot be reached (no construction order for this drive), or when a node
+        of the reference lies on the line/plane of its parents (a flat state: its side, and so
+        the branch, is undetermined).
+    """
+    x = net.nodes if reference is None else np.asarray(reference, dtype=np.float64)
+    n, d = x.shape
+    a, b = drive
+    nbrs = net.adjacency()
+    eidx = _edge_index(net)
+    lengths = net.edge_lengths
+    placed = np.zeros(n, dtype=bool)
+    placed[[a, b]] = True
+    count = np.zeros(n, dtype=np.int64)
+    for s in (a, b):
+        for v in nbrs[s]:
+            count[v] += 1
+    gauge_done = d == 2  # in 3D the first node after the seed fixes the rotation about a-b
+    queue: deque[int] = deque(v for v in range(n) if not placed[v] and count[v] >= 2)
+    queued = np.zeros(n, dtype=bool)
+    queued[list(queue)] = True
+    order, parents, radii, signs = [], [], [], []
+    gauge_perp = np.zeros(d)
+    u_seed = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
+
+    def radius(v, p):
+        return lengths[eidx[(min(v, p), max(v, p))]]
+
+    while queue:
+        v = queue.popleft()
+        queued[v] = False
+        if placed[v]:
+            continue
+        cand = [p for p in nbrs[v] if placed[p]]
+        if d == 2:
+            best, best_sin = None, -1.0
+            for ii in range(len(cand)):
+                for jj in range(ii + 1, len(cand)):
+                    p, q = cand[ii], cand[jj]
+                    dp, dq = x[p] - x[v], x[q] - x[v]
+                    sin = abs(dp[0] * dq[1] - dp[1] * dq[0]) / (np.linalg.norm(dp) * np.linalg.norm(dq))
+                    if sin > best_sin:
+                        best, best_sin = (p, q), sin
+            p, q = best
+            if best_sin < _FLAT_RTOL:
+                raise ConstructionError(
+                    f"node {v} is collinear with nodes {p} and {q} in the start configuration: a flat "
+                    "state, where the side of the intersection (and so the branch) is undetermined"
+                )
+            D = x[q] - x[p]
+            side = D[0] * (x[v, 1] - x[p, 1]) - D[1] * (x[v, 0] - x[p, 0])
+            order.append(v)
+            parents.append((p, q))
+            radii.append((radius(v, p), radius(v, q)))
+            signs.append(np.sign(side))
+        elif not gauge_done:
+            off = x[v] - x[a]
+            perp = off - (off @ u_seed) * u_seed
+            if np.linalg.norm(perp) <= 1e-9 * max(net.size, 1e-300):
+                continue  # on the seed axis: fixes no rotation; placed later from 3 parents
+            p, q = cand[0], cand[1]
+            gauge_perp = perp / np.linalg.norm(perp)
+            order.append(v)
+            parents.append((p, q, -1))
+            radii.append((radius(v, p), radius(v, q), 0.0))
+            signs.append(0.0)
+            gauge_done = True
+        else:
+            if len(cand) < 3:
+                continue  # queued again when a third neighbour is placed
+            best, best_score = None, -1.0
+            for i1 in range(len(cand)):
+                for i2 in range(i1 + 1, len(cand)):
+                    for i3 in range(i2 + 1, len(cand)):
+                        p1, p2, p3 = cand[i1], cand[i2], cand[i3]
+                        m = np.stack([x[p1] - x[v], x[p2] - x[v], x[p3] - x[v]])
+                        m = m / np.linalg.norm(m, axis=1, keepdims=True)
+                        score = abs(np.linalg.det(m))
+                        if score > best_score:
+                            best, best_score = (p1, p2, p3), score
+            p1, p2, p3 = best
+            ez = np.cross(x[p2] - x[p1], x[p3] - x[p1])
+            nz = np.linalg.norm(ez)
+            side = (x[v] - x[p1]) @ ez / (nz * np.linalg.norm(x[v] - x[p1])) if nz > 0 else 0.0
+            if abs(side) < _FLAT_RTOL:
+                raise ConstructionError(
+                    f"node {v} lies in the plane of nodes {p1}, {p2} and {p3} in the start "
+                    "configuration: a flat state, where the side of the intersection (and so the "
+                    "branch) is undetermined"
+                )
+            order.append(v)
+            parents.append((p1, p2, p3))
+            radii.append(tuple(radius(v, p) for p in (p1, p2, p3)))
+            signs.append(np.sign(side))
+        placed[v] = True
+        need = 2 if gauge_done is False or d == 2 else 3
+        for w in nbrs[v]:
+            if not placed[w]:
+                count[w] += 1
+        # every unplaced node with enough placed neighbours gets (another) turn
+        for w in (range(n) if (d == 3 and len(order) == 1) else nbrs[v]):
+            if not placed[w] and not queued[w] and count[w] >= need:
+                queue.append(w)
+                queued[w] = True
+    missing = np.flatnonzero(~placed)
+    if missing.size:
+        shown = ", ".join(str(int(m)) for m in missing[:8]) + (" ..." if missing.size > 8 else "")
+        raise ConstructionError(
+            f"no construction order from the drive pair ({a}, {b}): node(s) {shown} cannot be "
+            f"placed from {d} already placed neighbours; use method='projected'"
+        )
+    return ConstructionPlan(
+        dim=d,
+        seed=(a, b),
+        order=np.array(order, dtype=np.int64),
+        parents=np.array(parents, dtype=np.int64).reshape(len(order), d),
+        radii=np.array(radii, dtype=np.float64).reshape(len(order), d),
+        signs=np.array(signs, dtype=np.float64),
+        reference=np.array(x),
+        gauge_perp=gauge_perp,
+    )
+
+
+def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Place all nodes for many drive values at once.
+
+    Parameters
+    ----------
+    plan : ConstructionPlan
+    drive_values : array_like, shape (K,)
+
+    Returns
+    -------
+    positions : numpy.ndarray, shape (K, N, d)
+        In the seed frame (node a at its reference position, b along the reference direction).
+    margin : numpy.ndarray, shape (K,)
+        Smallest ``h² / r²`` over the intersections (h: distance of the node from its parents'
+        line/plane); negative where some intersection does not exist.
+    worst : numpy.ndarray of int, shape (K,)
+        Index into ``plan.order`` of the intersection with the smallest margin.
+    """
+    dv = np.atleast_1d(np.asarray(drive_values, dtype=np.float64))
+    k = dv.size
+    ref = plan.reference
+    n, d = ref.shape
+    a, b = plan.seed
+    u = ref[b] - ref[a]
+    u = u / np.linalg.norm(u)
+    X = np.full((k, n, d), np.nan)
+    X[:, a] = ref[a]
+    X[:, b] = ref[a] + dv[:, None] * u
+    margins = np.empty((plan.order.size, k))
+    for idx, v in enumerate(plan.order.tolist()):
+        par = plan.parents[idx]
+        r = plan.radii[idx]
+        s = plan.signs[idx]
+        if d == 2:
+            p, q = X[:, par[0]], X[:, par[1]]
+            D = q - p
+            dist2 = np.einsum("ki,ki->k", D, D)
+            dist = np.sqrt(dist2)
+            along = (r[0] ** 2 - r[1] ** 2 + dist2) / (2.0 * dist)
+            h2 = r[0] ** 2 - along ** 2
+            h = np.sqrt(np.maximum(h2, 0.0))
+            perp = np.stack([-D[:, 1], D[:, 0]], axis=1)
+            X[:, v] = p + (along / dist)[:, None] * D + (s * h / dist)[:, None] * perp
+            margins[idx] = h2 / r[0] ** 2
+        elif par[2] < 0:  # 3D gauge node: circle about the seed axis, in the reference half-plane
+            p, q = X[:, par[0]], X[:, par[1]]
+            D = q - p
+            dist2 = np.einsum("ki,ki->k", D, D)
+            dist = np.sqrt(dist2)
+            along = (r[0] ** 2 - r[1] ** 2 + dist2) / (2.0 * dist)
+            h2 = r[0] ** 2 - along ** 2
+            ex = D / dist[:, None]
+            g = plan.gauge_perp - (ex @ plan.gauge_perp)[:, None] * ex
+            g = g / np.linalg.norm(g, axis=1, keepdims=True)
+            X[:, v] = p + along[:, None] * ex + np.sqrt(np.maximum(h2, 0.0))[:, None] * g
+            margins[idx] = h2 / r[0] ** 2
+        else:
+            p1, p2, p3 = X[:, par[0]], X[:, par[1]], X[:, par[2]]
+            e12 = p2 - p1
+            dd = np.linalg.norm(e12, axis=1)
+            ex = e12 / dd[:, None]
+            w = p3 - p1
+            i = np.einsum("ki,ki->k", ex, w)
+            ey = w - i[:, None] * ex
+            j = np.linalg.norm(ey, axis=1)
+            ey = ey / j[:, None]
+            ez = np.cross(ex, ey)
+            xx = (r[0] ** 2 - r[1] ** 2 + dd ** 2) / (2.0 * dd)
+            yy = (r[0] ** 2 - r[2] ** 2 + i ** 2 + j ** 2) / (2.0 * j) - (i / j) * xx
+            z2 = r[0] ** 2 - xx ** 2 - yy ** 2
+            z = np.sqrt(np.maximum(z2, 0.0))
+            X[:, v] = p1 + xx[:, None] * ex + yy[:, None] * ey + (s * z)[:, None] * ez
+            margins[idx] = z2 / r[0] ** 2
+    if margins.size:
+        worst = np.argmin(margins, axis=0)
+        margin = margins[worst, np.arange(k)]
+    else:
+        worst = np.zeros(k, dtype=np.int64)
+        margin = np.full(k, np.inf)
+    return X, margin, worst
+
+
+class Constructive(Method):
+    """Exact placement by intersections, vectorised over drive values (see module docstring).
+
+    Options
+    -------
+    samples : int
+        Number of configurations from the start to the target (default 101).
+    plan : ConstructionPlan or None
+        A plan to reuse (skips the search for a construction order).
+    """
+
+    name = "constructive"
+    options = {"samples": 101, "plan": None}
+
+    def run(self):
+        p = self.problem
+        samples = int(self.opts["samples"])
+        if samples < 2:
+            raise KinematicsError(f"`samples` must be at least 2, got {samples}")
+        plan = self.opts["plan"] or plan_construction(p.work, p.drive, p.start)
+        d0 = p.start_drive
+        values = np.linspace(d0, p.target, samples)
+        X, margin, worst = place(plan, values)
+        valid = margin >= 0.0
+        valid[0] = True  # the start exists by definition; round-off must not say otherwise
+        status, message, events = Status.FINISHED, self.finished_message(), []
+        if not valid.all():
+            k = int(np.argmin(valid))
+            lo, hi = values[k - 1], values[k]
+            for _ in range(8):  # vectorised bisection: 32^8 ≈ 1e12 refinement of the bracket
+                grid = np.linspace(lo, hi, 33)
+                _, m, _ = place(plan, grid)
+                ok = m >= 0.0
+                ok[0] = True
+                if ok.all():
+                    lo = grid[-1]
+                    break
+                last = int(np.argmin(ok)) - 1
+                lo, hi = grid[last], grid[last + 1]
+            Xe, _, we = place(plan, [lo])
+            node = int(plan.order[we[0]])
+            par = [int(v) for v in plan.parents[we[0]] if v >= 0]
+            shape = "collinear" if plan.dim == 2 else "coplanar"
+            what = "smallest" if p.target < d0 else "largest"
+            detail = (
+                f"node {node} becomes {shape} with nodes {', '.join(map(str, par))} "
+                f"(a flat state): {p.drive_name} = {lo:.10g} is its {what} value on this branch"
+            )
+            X = np.concatenate([X[:k], Xe], axis=0)
+            status = Status.TURNING_POINT
+            message = f"stopped at a turning point of {p.drive_name} = {lo:.10g}: {detail}"
+            events.append(event("turning_point", len(X) - 1, lo, np.nan, detail))
+        X = align_to_gauge(X, p.start, p.gauge)
+        traj = p.trajectory(X, self.name, status, message, events,
+                            stats={"samples": int(X.shape[0]), "nodes_placed": int(plan.order.size)})
+        # Over-constrained networks: edges not used by the construction must still hold.
+        bad = np.flatnonzero(traj.edge_error > 1e-9)
+        if bad.size and bad[0] > 0:
+            k = int(bad[0])
+            X = traj.positions[:k]
+            msg = (f"the construction breaks edges beyond {p.drive_name} = {traj.drive[k - 1]:.10g} "
+                   "(the network is over-constrained along this drive)")
+            traj = p.trajectory(X, self.name, Status.FAILED, msg, events, stats=traj.stats)
+        arclength_fix = [event(e.kind, min(e.index, traj.n_steps - 1), e.drive,
+                               traj.arclength[min(e.index, traj.n_steps - 1)], e.detail)
+                         for e in traj.events]
+        object.__setattr__(traj, "events", tuple(arclength_fix))
+        return traj

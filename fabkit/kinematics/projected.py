@@ -1,0 +1,518 @@
+"""Pseudo-arclength continuation on the constraint set, with sparse factorisations.
+
+The configuration x (d·N coordinates) satisfies ``F(x) = 0``: one equation
+``(|x_i - x_j|² - L²) / 2`` per edge and one gauge row per fixed coordinate (an edge, or in 3D a
+triangle, is held still). With one conformational motion the Jacobian ``J = [R; G]`` has a
+one-dimensional null space, the tangent t. It is found from the square sparse system
+``A = [J; e_j]`` with ``A t = e_last``, where j is the largest component of the previous tangent
+(a local parametrisation, as in PITCON), factorised with SuperLU: a chain costs O(N) per step.
+
+Each step: Euler predictor ``x + h t``; chord-Newton corrector reusing the LU of A (the row e_j
+keeps x_j at its predicted value); the step is rejected and halved when the corrector contracts
+worse than a ratio of 0.4, fails to converge, or the tangent turns by more than 30°; after easy
+steps h grows. Along the way:
+
+- target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
+  equation, so the trace ends exactly on the target value;
+- turning points of the drive: a sign change of ``∇drive · t``; located by a secant search and
+  reported (the trace stops there, it never reverses the drive silently);
+- branch points: a sign change of ``τ = sign(det A) · sign(t_j)`` (the AUTO/MATCONT test function
+  ``det [J; tᵀ]``), with det A's sign read off the LU factors; located by bisection and reported.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import KinematicsError
+from .base import Method, event
+from .trajectory import Status
+
+__all__ = ["Projected", "gauge_rows", "permutation_parity"]
+
+
+def permutation_parity(perm: np.ndarray) -> int:
+    """+1 for an even permutation, -1 for an odd one (vectorised cycle count, O(n log n))."""
+    perm = np.asarray(perm, dtype=np.int64)
+    n = perm.size
+    label = np.arange(n)
+    p = perm.copy()
+    for _ in range(max(1, int(math.ceil(math.log2(max(n, 2))))) + 1):
+        label = np.minimum(label, label[p])
+        p = p[p]
+    cycles = np.unique(label).size
+    return 1 if (n - cycles) % 2 == 0 else -1
+
+
+def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
+    """Columns (flat coordinate indices) fixed to hold the gauge element still.
+
+    2D, edge (g0, g1): both coordinates of g0 and the coordinate of g1 along which a rotation
+    about g0 moves it most. 3D, triangle (g0, g1, g2): g0's three coordinates, the two of g1 most
+    perpendicular to g1 - g0, and the coordinate of g2 along the triangle's normal that is
+    largest (the direction a rotation about g0-g1 moves g2).
+    """
+    n, d = x.shape
+    g = list(gauge)
+    cols = [d * g[0] + c for c in range(d)]
+    if d == 2:
+        u = x[g[1]] - x[g[0]]
+        rot = np.array([-u[1], u[0]])
+        cols.append(d * g[1] + int(np.argmax(np.abs(rot))))
+        return np.array(cols, dtype=np.int64)
+    u = x[g[1]] - x[g[0]]
+    for c in np.argsort(np.abs(u))[:2]:
+        cols.append(d * g[1] + int(c))
+    if len(g) > 2:
+        normal = np.cross(u, x[g[2]] - x[g[0]])
+        cols.append(d * g[2] + int(np.argmax(np.abs(normal))))
+    return np.array(cols, dtype=np.int64)
+
+
+class _System:
+    """The square sparse system A = [R; gauge rows; last row] and its factorisation."""
+
+    def __init__(self, edges: np.ndarray, rest2: np.ndarray, n: int, d: int, gcols: np.ndarray,
+                 gvals: np.ndarray, rows_keep: np.ndarray | None):
+        self.edges = edges if rows_keep is None else edges[rows_keep]
+        self.rest2 = rest2 if rows_keep is None else rest2[rows_keep]
+        self.n, self.d = n, d
+        self.gcols, self.gvals = gcols, gvals
+        e = self.edges.shape[0]
+        self.n_rows = e + gcols.size + 1
+        if self.n_rows != d * n:
+            raise KinematicsError("internal: the bordered system is not square")
+        self._rows = np.repeat(np.arange(e), 2 * d)
+        self._cols = np.concatenate(
+            [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
+        ).ravel()
+        self._grow = np.arange(e, e + gcols.size)
+
+    def residual(self, xf: np.ndarray) -> np.ndarray:
+        """Edge and gauge residuals (without the last row), shape (n_rows - 1,)."""
+        x = xf.reshape(self.n, self.d)
+        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        fe = 0.5 * (np.einsum("ij,ij->i", diff, diff) - self.rest2)
+        return np.concatenate([fe, xf[self.gcols] - self.gvals])
+
+    def rel_edge_residual(self, xf: np.ndarray) -> float:
+        x = xf.reshape(self.n, self.d)
+        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        return float(np.max(np.abs(np.einsum("ij,ij->i", diff, diff) / self.rest2 - 1.0)) / 2.0)
+
+    def matrix(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray) -> sp.csc_matrix:
+        x = xf.reshape(self.n, self.d)
+        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        vals = np.concatenate([diff, -diff], axis=1).ravel()
+        rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, self.n_rows - 1)])
+        cols = np.concatenate([self._cols, self.gcols, last_cols])
+        data = np.concatenate([vals, np.ones(self.gcols.size), last_vals])
+        m = self.n_rows
+        return sp.csc_matrix((data, (rows, cols)), shape=(m, m))
+
+    @staticmethod
+    def factor(a: sp.csc_matrix):
+        """LU factors, or None when SuperLU finds the matrix exactly singular."""
+        try:
+            return spla.splu(a, permc_spec="COLAMD")
+        except RuntimeError:
+            return None
+
+    @staticmethod
+    def det_sign(lu) -> int:
+        diag = lu.U.diagonal()
+        s = int(np.prod(np.sign(diag)))
+        return s * permutation_parity(lu.perm_r) * permutation_parity(lu.perm_c)
+
+    @staticmethod
+    def sigma_min(lu, n: int, iterations: int = 4, seed: int = 0) -> float:
+        """Estimate of the smallest singular value of A by inverse iteration on AᵀA."""
+        v = np.random.default_rng(seed).standard_normal(n)
+        v /= np.linalg.norm(v)
+        growth = 1.0
+        for _ in range(iterations):
+            w = lu.solve(lu.solve(v, trans="T"))
+            growth = np.linalg.norm(w)
+            if not np.isfinite(growth) or growth == 0:
+                return 0.0
+            v = w / growth
+        return float(1.0 / math.sqrt(growth))
+
+
+class Projected(Method):
+    """Pseudo-arclength predictor-corrector (see the module docstring).
+
+    Options
+    -------
+    step : float
+        First step in arclength (default 0.1 × median edge length).
+    max_step : float
+        Largest step (default unlimited); lower it for finer output.
+    min_step : float
+        Smallest step before giving up (default 1e-10 × median edge length).
+    tol : float
+        Newton tolerance on the relative edge-length residual (default 1e-14).
+    max_steps : int
+        Largest number of accepted steps (default 20000).
+    contraction : float
+        Largest accepted contraction ratio of the chord-Newton corrector (default 0.4).
+    max_angle : float
+        Largest turn of the tangent in one step, degrees (default 30).
+    detect_branch_points : bool
+        Watch the sign of det [J; tᵀ] (default True).
+    """
+
+    name = "projected"
+    options = {
+        "step": None,
+        "max_step": None,
+        "min_step": None,
+        "tol": 1e-14,
+        "max_steps": 20000,
+        "contraction": 0.4,
+        "max_angle": 30.0,
+        "detect_branch_points": True,
+    }
+
+    # -- set-up ---------------------------------------------------------------------------------
+    def _setup(self):
+        p = self.problem
+        work = p.work
+        x0 = p.start
+        n, d = x0.shape
+        self.n, self.d = n, d
+        gcols = gauge_rows(x0, p.gauge)
+        rest2 = work.edge_lengths ** 2
+        e = work.n_edges
+        rows_keep = None
+        if e + gcols.size + 1 != d * n:
+            rows_keep = self._independent_rows(work, x0, gcols)
+        self.sys = _System(work.edges, rest2, n, d, gcols, x0.ravel()[gcols], rows_keep)
+        self.scale = float(np.median(work.edge_lengths))
+        self.all_edges_rest2 = rest2
+
+    def _independent_rows(self, work, x0, gcols):
+        from ..rigidity import count_modes, rigidity_matrix, DENSE_LIMIT
+
+        n, d = x0.shape
+        if d * n > DENSE_LIMIT:
+            raise KinematicsError(
+                f"the network has {work.n_edges} edges for {d * n} coordinates; 'projected' needs "
+                f"exactly dN - {gcols.size + 1} = {d * n - gcols.size - 1} independent edges when it is this large"
+            )
+        m = count_modes(work, x0)
+        if m.conformational != 1:
+            raise KinematicsError(
+                f"the network has {m.conformational} conformational motions at the start ({m}); "
+                "trace follows one motion: add edges, or hold ports with hold=[...]"
+            )
+        import scipy.linalg
+
+        r = rigidity_matrix(work, x0, normalized=True).toarray()
+        _, _, piv = scipy.linalg.qr(r.T, pivoting=True, mode="economic")
+        keep = np.sort(piv[: d * n - gcols.size - 1])
+        return keep
+
+    def _tangent(self, xf, j, orient_like=None, direction_grad=None):
+        """Factor A(x, e_j) and solve for the unit tangent; returns (t, lu, tau) or None."""
+        a = self.sys.matrix(xf, np.array([j]), np.array([1.0]))
+        lu = self.sys.factor(a)
+        self.n_factor += 1
+        if lu is None:
+            return None
+        rhs = np.zeros(self.sys.n_rows)
+        rhs[-1] = 1.0
+        t = lu.solve(rhs)
+        if not np.isfinite(t).all():
+            return None
+        t /= np.linalg.norm(t)
+        if orient_like is not None:
+            sgn = 1.0 if t @ orient_like >= 0 else -1.0
+        else:
+            sgn = 1.0 if (direction_grad @ t) >= 0 else -1.0
+        t *= sgn
+        tau = self.sys.det_sign(lu) * int(np.sign(t[j])) if self.opts["detect_branch_points"] else 1
+        return t, lu, tau
+
+    def _drive_grad(self, xf):
+        a, b = self.problem.drive
+        x = xf.reshape(self.n, self.d)
+        u = x[a] - x[b]
+        u = u / np.linalg.norm(u)
+        g = np.zeros_like(xf)
+        g[self.d * a: self.d * a + self.d] = u
+        g[self.d * b: self.d * b + self.d] = -u
+        return g
+
+    def _drive(self, xf):
+        a, b = self.problem.drive
+        x = xf.reshape(self.n, self.d)
+        return float(np.linalg.norm(x[a] - x[b]))
+
+    def _correct(self, xp, lu, j, cj):
+        """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None."""
+        tol = self.opts["tol"]
+        kappa = self.opts["contraction"]
+        x = xp.copy()
+        prev = None
+        theta_max = 0.0
+        for it in range(1, 16):
+            r = np.concatenate([self.sys.residual(x), [x[j] - cj]])
+            dx = lu.solve(-r)
+            if not np.isfinite(dx).all():
+                return None
+            x += dx
+            nrm = float(np.linalg.norm(dx))
+            if prev is not None and prev > 0:
+                theta = nrm / prev
+                theta_max = max(theta_max, theta)
+                if theta > kappa and nrm > 1e-12 * self.scale:
+                    return None
+            prev = nrm
+            if self.sys.rel_edge_residual(x) <= tol and nrm <= 1e-11 * self.scale:
+                return x, it, theta_max
+        return None
+
+    def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=12):
+        """Full Newton with the last row replaced by a scalar equation (value, gradient)."""
+        x = xg.copy()
+        tol = self.opts["tol"]
+        for _ in range(iterations):
+            g = row_grad_fn(x)
+            nz = np.flatnonzero(g)
+            a = self.sys.matrix(x, nz, g[nz])
+            lu = self.sys.factor(a)
+            self.n_factor += 1
+            if lu is None:
+                return None
+            r = np.concatenate([self.sys.residual(x), [row_res_fn(x)]])
+            dx = lu.solve(-r)
+            if not np.isfinite(dx).all():
+                return None
+            x += dx
+            if (self.sys.rel_edge_residual(x) <= tol and abs(row_res_fn(x)) <= 1e-14 * self.scale
+                    and np.linalg.norm(dx) <= 1e-11 * self.scale):
+                return x
+        return x if self.sys.rel_edge_residual(x) <= 100 * tol else None
+
+    # -- main loop ------------------------------------------------------------------------------
+    def run(self):
+        p = self.problem
+        self.n_factor = 0
+        self._setup()
+        scale = self.scale
+        h = self.opts["step"] or 0.1 * scale
+        h_max = self.opts["max_step"] or math.inf
+        h_min = self.opts["min_step"] or 1e-10 * scale
+        max_cos = math.cos(math.radians(self.opts["max_angle"]))
+        direction = self.direction()
+        target = p.target
+
+        x = p.start.ravel().copy()
+        if self.sys.rel_edge_residual(x) > 1e-10:
+            raise KinematicsError("the start configuration does not keep the edge lengths")
+        grad = self._drive_grad(x) * direction
+        # First tangent from [J; ∇drive] t = e_last (needs no guess of a good row); then switch
+        # to the local parametrisation by the tangent's largest component.
+        first = None
+        nz = np.flatnonzero(grad)
+        lu0 = self.sys.factor(self.sys.matrix(x, nz, grad[nz]))
+        self.n_factor += 1
+        if lu0 is not None:
+            rhs = np.zeros(self.sys.n_rows)
+            rhs[-1] = 1.0
+            t0 = lu0.solve(rhs)
+            if np.isfinite(t0).all() and np.linalg.norm(t0) > 0:
+                j = int(np.argmax(np.abs(t0)))
+                first = self._tangent(x, j, direction_grad=grad)
+        if first is None:  # the drive may be stationary: try the coordinates one by one
+            for j in np.argsort(-np.abs(grad))[: 4 * self.d]:
+                if j in set(self.sys.gcols.tolist()):
+                    continue
+                first = self._tangent(x, int(j), direction_grad=grad)
+                if first is not None:
+                    break
+        positions = [x.copy()]
+        arclength = [0.0]
+        events = []
+        stats = {"steps": 0, "rejected": 0, "newton_iterations": 0}
+
+        def finish(status, message):
+            stats["factorizations"] = self.n_factor
+            stats.update(steps=len(positions) - 1)
+            X = np.array(positions).reshape(len(positions), self.n, self.d)
+            return p.trajectory(X, self.name, status, message, events, stats, arclength)
+
+        if first is None:
+            return finish(Status.FAILED, self._singular_message("start"))
+        t, lu, tau = first
+        sig = self.sys.sigma_min(lu, self.sys.n_rows)
+        if sig < 1e-9:
+            return finish(Status.FAILED, self._singular_message("start", sig))
+        g_prev = float(self._drive_grad(x) @ t) * direction
+        if abs(g_prev) < 1e-12:
+            events.append(event("turning_point", 0, self._drive(x), 0.0,
+                                "the drive is stationary at the start"))
+            return finish(Status.TURNING_POINT,
+                          f"the start is a turning point of {p.drive_name}: it cannot move towards "
+                          f"{target:.10g} to first order")
+        f_prev = (self._drive(x) - target) * direction  # < 0 until the target is passed
+        if f_prev >= 0:
+            return finish(Status.FINISHED, self.finished_message())
+
+        while len(positions) <= self.opts["max_steps"]:
+            h = min(h, h_max)
+            if h < h_min:
+                return finish(Status.FAILED,
+                              f"the step size fell below {h_min:.1e} at {p.drive_name} = "
+                              f"{self._drive(x):.10g}: the corrector does not converge (a "
+                              "singular configuration ahead?)")
+            xp = x + h * t
+            corr = self._correct(xp, lu, j, xp[j])
+            if corr is None:
+                stats["rejected"] += 1
+                h *= 0.5
+                continue
+            x_new, its, theta = corr
+            stats["newton_iterations"] += its
+            j_new = int(np.argmax(np.abs(t)))
+            nxt = self._tangent(x_new, j_new, orient_like=t)
+            if nxt is None or float(nxt[0] @ t) < max_cos:
+                stats["rejected"] += 1
+                h *= 0.5
+                continue
+            t_new, lu_new, tau_new = nxt
+            f_new = (self._drive(x_new) - target) * direction
+            g_new = float(self._drive_grad(x_new) @ t_new) * direction
+            if f_new >= 0:  # the target lies in this step: land on it exactly
+                frac = -f_prev / (f_new - f_prev) if f_new != f_prev else 1.0
+                guess = x + frac * (x_new - x)
+                a, b = p.drive
+
+                def res(xx):
+                    y = xx.reshape(self.n, self.d)
+                    return 0.5 * (float(np.sum((y[a] - y[b]) ** 2)) - target ** 2)
+
+                def gr(xx):
+                    return self._drive_grad(xx) * self._drive(xx)
+
+                landed = self._newton_on(guess, gr, res)
+                if landed is not None and (g_new > 0 or g_prev > 0):
+                    arclength.append(arclength[-1] + float(np.linalg.norm(landed - x)))
+                    positions.append(landed)
+                    return finish(Status.FINISHED, self.finished_message())
+                if landed is None:
+                    h *= 0.5
+                    stats["rejected"] += 1
+                    continue
+            if tau_new != tau and self.opts["detect_branch_points"]:
+                return self._stop_at_branch(x, t, lu, j, h, tau, positions, arclength, events,
+                                            finish, g_prev * g_new < 0)
+            if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
+                return self._stop_at_turning(x, t, lu, j, h, g_prev, positions, arclength,
+                                             events, finish)
+            arclength.append(arclength[-1] + float(np.linalg.norm(x_new - x)))
+            positions.append(x_new)
+            x, t, lu, j, tau, f_prev, g_prev = x_new, t_new, lu_new, j_new, tau_new, f_new, g_new
+            if theta < 0.1:
+                h *= 2.0
+            elif theta < 0.2:
+                h *= 1.5
+        return finish(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
+                                     f"({p.drive_name} = {self._drive(x):.10g})")
+
+    # -- events ---------------------------------------------------------------------------------
+    def _point_at(self, x, t, lu, j, hh):
+        corr = self._correct(x + hh * t, lu, j, x[j] + hh * t[j])
+        if corr is None:
+            return None
+        xn = corr[0]
+        nxt = self._tangent(xn, int(np.argmax(np.abs(t))), orient_like=t)
+        if nxt is None:
+            return xn, None, None
+        return xn, nxt[0], nxt[2]
+
+    def _stop_at_turning(self, x, t, lu, j, h, g0, positions, arclength, events, finish):
+        """Secant search for ∇drive·t = 0 within the step, then stop there."""
+        p = self.problem
+        direction = self.direction()
+        lo, glo, hi, ghi = 0.0, g0, h, None
+        best = None
+        for _ in range(40):
+            mid = 0.5 * (lo + hi) if ghi is None else lo + (hi - lo) * glo / (glo - ghi)
+            if not lo < mid < hi:
+                mid = 0.5 * (lo + hi)
+            pt = self._point_at(x, t, lu, j, mid)
+            if pt is None or pt[1] is None:
+                hi = mid
+                continue
+            xm, tm, _ = pt
+            gm = float(self._drive_grad(xm) @ tm) * direction
+            best = xm
+            if gm > 0:
+                lo, glo = mid, gm
+            else:
+                hi, ghi = mid, gm
+            if hi - lo <= 1e-13 * max(h, self.scale) or abs(gm) < 1e-13:
+                break
+        if best is not None:
+            arclength.append(arclength[-1] + float(np.linalg.norm(best - x)))
+            positions.append(best)
+        dval = self._drive(positions[-1].ravel())
+        kind = "largest" if direction > 0 else "smallest"
+        detail = (f"{p.drive_name} reaches its {kind} value {dval:.10g} on this branch; beyond it "
+                  "the motion continues with the drive moving back")
+        events.append(event("turning_point", len(positions) - 1, dval, arclength[-1], detail))
+        return finish(Status.TURNING_POINT,
+                      f"stopped at a turning point of {p.drive_name} = {dval:.10g} before the "
+                      f"target {p.target:.10g}: {detail}")
+
+    def _stop_at_branch(self, x, t, lu, j, h, tau0, positions, arclength, events, finish,
+                        also_turning):
+        """Bisection on the sign of det [J; tᵀ] within the step; stop just before the branch."""
+        p = self.problem
+        lo, hi = 0.0, h
+        best = None
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            pt = self._point_at(x, t, lu, j, mid)
+            if pt is None or pt[1] is None:
+                hi = mid
+                continue
+            xm, _, taum = pt
+            if taum == tau0:
+                lo, best = mid, xm
+            else:
+                hi = mid
+            if hi - lo <= 1e-12 * self.scale:
+                break
+        if best is not None:
+            arclength.append(arclength[-1] + float(np.linalg.norm(best - x)))
+            positions.append(best)
+        dval = self._drive(positions[-1].ravel())
+        sig = None
+        xb = positions[-1]
+        nxt = self._tangent(xb, int(np.argmax(np.abs(t))), orient_like=t)
+        if nxt is not None:
+            sig = self.sys.sigma_min(nxt[1], self.sys.n_rows)
+        extra = " (the drive also turns back there)" if also_turning else ""
+        detail = (f"det [J; t] changes sign at {p.drive_name} ≈ {dval:.10g}: the rigidity matrix "
+                  f"drops rank (a state of self-stress), where other branches of motion meet"
+                  f"{extra}")
+        if sig is not None:
+            detail += f"; smallest singular value of the bordered matrix {sig:.1e}"
+        events.append(event("branch_point", len(positions) - 1, dval, arclength[-1], detail))
+        return finish(Status.BRANCH_POINT,
+                      f"stopped at a branch point at {p.drive_name} ≈ {dval:.10g} before the "
+                      f"target {p.target:.10g}: {detail}")
+
+    def _singular_message(self, where, sig=None):
+        p = self.problem
+        s = f" (smallest singular value {sig:.1e})" if sig is not None else ""
+        return (f"the {where} configuration is singular{s}: the rigidity matrix has a state of "
+                f"self-stress there, so the motion may branch or there may be several motions; "
+                f"hold a port (hold=[...]) or start off the singular state")

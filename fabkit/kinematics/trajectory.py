@@ -1,0 +1,144 @@
+"""The result of tracing a motion: :class:`Trajectory`, with its status and the events met."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from ..network import Network
+
+__all__ = ["Status", "Event", "Trajectory"]
+
+
+class Status(str, Enum):
+    """How a trace ended."""
+
+    FINISHED = "finished"            #: reached the target drive value
+    TURNING_POINT = "turning_point"  #: the drive reaches an extremum before the target
+    BRANCH_POINT = "branch_point"    #: a bifurcation of the motion lies ahead; not crossed
+    FAILED = "failed"                #: the method could not continue (see message)
+
+    def __str__(self) -> str:  # "finished", not "Status.FINISHED"
+        return self.value
+
+
+@dataclass(frozen=True)
+class Event:
+    """Something a trace met on its way.
+
+    Attributes
+    ----------
+    kind : str
+        ``"turning_point"``, ``"branch_point"``, ``"end_of_motion"``, ``"singular_start"``, ...
+    index : int
+        Index of the configuration in the trajectory nearest to the event.
+    drive : float
+        Drive value at the event.
+    arclength : float
+        Arclength at the event.
+    detail : str
+        A sentence that says what happened.
+    """
+
+    kind: str
+    index: int
+    drive: float
+    arclength: float
+    detail: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Configurations along a one-parameter motion, as returned by :func:`fabkit.trace`.
+
+    Attributes
+    ----------
+    network : Network
+        The network traced (with any held ports added as virtual edges removed).
+    positions : numpy.ndarray, shape (S, N, d)
+        Node positions at each accepted step, in the gauge frame (the gauge edge held still).
+    drive : numpy.ndarray, shape (S,)
+        Value of the driven distance at each step.
+    arclength : numpy.ndarray, shape (S,)
+        Arclength of the path in configuration space (design units), 0 at the start.
+    edge_error : numpy.ndarray, shape (S,)
+        Largest relative edge-length error ``max |l - L| / L`` at each step.
+    method : str
+        Name of the method that produced the trajectory.
+    status : Status
+        ``finished``, ``turning_point``, ``branch_point`` or ``failed``.
+    message : str
+        One sentence: where and why the trace ended.
+    drive_port : tuple of int
+        The node pair whose distance is the drive.
+    target : float
+        The drive value asked for.
+    events : tuple of Event
+    stats : dict
+        Method-specific counters (steps, rejected steps, factorisations, ...).
+    """
+
+    network: Network
+    positions: np.ndarray
+    drive: np.ndarray
+    arclength: np.ndarray
+    edge_error: np.ndarray
+    method: str
+    status: Status
+    message: str
+    drive_port: tuple[int, int]
+    target: float
+    events: tuple[Event, ...] = ()
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        """True when the trace reached its target."""
+        return self.status is Status.FINISHED
+
+    @property
+    def n_steps(self) -> int:
+        """Number of configurations S."""
+        return int(self.positions.shape[0])
+
+    @property
+    def max_edge_error(self) -> float:
+        """Largest relative edge-length error over the whole trajectory."""
+        return float(self.edge_error.max()) if self.edge_error.size else 0.0
+
+    @property
+    def final(self) -> np.ndarray:
+        """The last configuration, shape (N, d)."""
+        return self.positions[-1]
+
+    def distance(self, port) -> np.ndarray:
+        """Distance of a port (name or node pair) at every step, shape (S,)."""
+        i, j = self.network.port(port) if isinstance(port, str) else port
+        return np.linalg.norm(self.positions[:, i] - self.positions[:, j], axis=-1)
+
+    def distances(self, names=None) -> dict[str, np.ndarray]:
+        """Distances of several ports (all by default) along the trajectory."""
+        names = list(self.network.ports) if names is None else list(names)
+        return {n: self.distance(n) for n in names}
+
+    def summary(self) -> str:
+        """A few lines for a terminal."""
+        lines = [
+            f"method        {self.method}",
+            f"status        {self.status}: {self.message}",
+            f"steps         {self.n_steps}",
+            f"drive         {self.drive[0]:.10g} -> {self.drive[-1]:.10g} (target {self.target:.10g})",
+            f"arclength     {self.arclength[-1]:.6g}",
+            f"max edge err  {self.max_edge_error:.3e} (relative)",
+        ]
+        for ev in self.events:
+            lines.append(f"event         {ev.kind} at drive {ev.drive:.10g}: {ev.detail}")
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        return (
+            f"Trajectory(method={self.method!r}, status={self.status.value!r}, steps={self.n_steps}, "
+            f"drive={self.drive[0]:.6g}->{self.drive[-1]:.6g}, max_edge_error={self.max_edge_error:.2e})"
+        )

@@ -1,0 +1,361 @@
+"""Template files (TOML): a design's network, its motion and its fabrication settings.
+
+A template has one section that builds the network and optional sections around it::
+
+    name = "fourbar"                 # optional, defaults to the file name
+    description = "4-bar linkage (antiparallelogram)"
+
+    [network]                        # explicit network ...
+    nodes = [[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]
+    edges = [[0, 2], [0, 3], [1, 2], [1, 3]]
+    ports = { d1 = [0, 1], d2 = [2, 3] }
+
+    [motion]                         # what `fabkit simulate` traces
+    drive = "d1"
+    to = 3.0
+    method = "auto"                  # auto | constructive | projected | rk4-nullspace
+    hold = []                        # ports held at their start values
+    options = { samples = 101 }      # method options
+
+    [fabrication.laser]              # read by the fabrication stages, not by the core
+
+Instead of ``[network]`` a template may have ``[chain]`` (copies of another template joined port
+to port, see :mod:`fabkit.assemble`) or another builder section registered in ``BUILDERS``.
+Every error is a :class:`~fabkit.errors.TemplateError` naming the file, the key path and the
+reason.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+from .errors import FabkitError, TemplateError
+from .network import Network
+
+__all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
+           "TOP_LEVEL_KEYS"]
+
+#: Sections that build the network: name → "module:function". The function takes the section
+#: (a dict) and a :class:`TemplateContext` and returns a Network. Exactly one must be present.
+BUILDERS: dict[str, str] = {
+    "network": "fabkit.templates:build_network",
+    "chain": "fabkit.assemble:build_chain",
+    "design": "fabkit.design:build_designed_module",
+}
+
+#: Keys allowed at the top level besides the builder sections.
+TOP_LEVEL_KEYS = {"name", "description", "figure", "notes", "motion", "fabrication", "analysis",
+                  "tags"}
+
+_MOTION_KEYS = {"drive", "to", "method", "hold", "options", "start"}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The motion a template asks to trace.
+
+    Attributes
+    ----------
+    drive : str
+        Port driven.
+    to : float or None
+        Target value of the drive (None: the template only describes geometry).
+    method : str
+    hold : tuple of str
+    options : dict
+        Method options.
+    """
+
+    drive: str = "d1"
+    to: float | None = None
+    method: str = "auto"
+    hold: tuple[str, ...] = ()
+    options: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A loaded template.
+
+    Attributes
+    ----------
+    name : str
+    description : str
+    path : pathlib.Path or None
+    network : Network
+    motion : Motion
+    fabrication : dict
+        The raw ``[fabrication]`` section (validated by the fabrication stage that reads it).
+    raw : dict
+        The whole parsed file.
+    meta : dict
+        Anything a builder reports about how it built the network (e.g. design residuals).
+    """
+
+    name: str
+    description: str
+    path: Path | None
+    network: Network
+    motion: Motion
+    fabrication: dict
+    raw: dict
+    meta: dict = field(default_factory=dict)
+
+    def trace(self, **overrides):
+        """Trace the template's motion (keywords override ``method``, ``to``, options)."""
+        from .kinematics import trace
+
+        m = self.motion
+        to = overrides.pop("to", m.to)
+        method = overrides.pop("method", m.method)
+        if to is None:
+            raise TemplateError(self.path or self.name, "motion.to",
+                                "no target value of the drive is given")
+        opts = {**m.options, **overrides}
+        return trace(self.network, drive=m.drive, to=to, method=method, hold=m.hold, **opts)
+
+
+class TemplateContext:
+    """What a builder gets besides its section: the file, key paths, typed getters, errors."""
+
+    def __init__(self, path: Path | str, raw: dict, stack: tuple[str, ...] = ()):
+        self.path = Path(path)
+        self.raw = raw
+        self.stack = stack
+        self.meta: dict = {}
+
+    # errors and typed access ----------------------------------------------------------------
+    def error(self, key: str, reason: str) -> TemplateError:
+        return TemplateError(self.path, key, reason)
+
+    def get(self, table: dict, key: str, where: str, kind, *, required=True, default=None):
+        """``table[key]`` checked against ``kind`` (a type, tuple of types, or "number")."""
+        full = f"{where}.{key}" if where else key
+        if key not in table:
+            if required:
+                raise self.error(full, "missing required key")
+            return default
+        value = table[key]
+        if kind == "number":
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise self.error(full, f"must be a number, got {_describe(value)}")
+            if not math.isfinite(value):
+                raise self.error(full, f"must be finite, got {value}")
+            return float(value)
+        if kind is int and isinstance(value, bool):
+            raise self.error(full, f"must be an integer, got {_describe(value)}")
+        if not isinstance(value, kind):
+            want = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+            want = {"dict": "a table", "list": "an array", "str": "a string", "int": "an integer",
+                    "bool": "true or false"}.get(want, want)
+            raise self.error(full, f"must be {want}, got {_describe(value)}")
+        return value
+
+    def check_keys(self, table: dict, where: str, allowed) -> None:
+        unknown = sorted(set(table) - set(allowed))
+        if unknown:
+            raise self.error(f"{where}.{unknown[0]}" if where else unknown[0],
+                             f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
+
+    def load(self, relative: str, key: str) -> "Design":
+        """Load another template named relative to this one (for chains and sequences)."""
+        target = (self.path.parent / relative).resolve()
+        if str(target) in self.stack:
+            raise self.error(key, f"template {relative!r} refers back to itself")
+        if not target.exists():
+            raise self.error(key, f"no template file {relative!r} next to this one")
+        return load_template(target, _stack=self.stack + (str(self.path.resolve()),))
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, bool):
+        return f"boolean {str(value).lower()}"
+    if isinstance(value, str):
+        return f"string {value!r}"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return f"an array of {len(value)}"
+    return f"{type(value).__name__} {value!r}"
+
+
+def _matrix(ctx: TemplateContext, value, key: str, width, integer: bool) -> list[list]:
+    if not isinstance(value, list) or not value:
+        raise ctx.error(key, f"must be a non-empty array of rows, got {_describe(value)}")
+    rows = []
+    for i, row in enumerate(value):
+        k = f"{key}[{i}]"
+        if not isinstance(row, list):
+            raise ctx.error(k, f"must be an array, got {_describe(row)}")
+        if len(row) not in width:
+            raise ctx.error(k, f"must have {' or '.join(map(str, width))} entries, got {len(row)}")
+        for c, v in enumerate(row):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise ctx.error(f"{k}[{c}]", f"must be a number, got {_describe(v)}")
+            if integer and not isinstance(v, int):
+                raise ctx.error(f"{k}[{c}]", f"must be an integer node index, got {v!r}")
+            if not integer and not math.isfinite(v):
+                raise ctx.error(f"{k}[{c}]", f"must be finite, got {v}")
+        rows.append(row)
+    return rows
+
+
+def build_network(section: dict, ctx: TemplateContext) -> Network:
+    """Builder of the explicit ``[network]`` section: nodes, edges, ports, labels, dim."""
+    ctx.check_keys(section, "network", {"nodes", "edges", "ports", "labels", "dim"})
+    nodes = _matrix(ctx, ctx.get(section, "nodes", "network", list), "network.nodes", (2, 3), False)
+    dims = {len(r) for r in nodes}
+    if len(dims) > 1:
+        raise ctx.error("network.nodes", "rows mix 2 and 3 coordinates")
+    dim = dims.pop()
+    if "dim" in section:
+        want = ctx.get(section, "dim", "network", int)
+        if want != dim:
+            raise ctx.error("network.dim", f"says {want} but the nodes have {dim} coordinates")
+    n = len(nodes)
+    edges = _matrix(ctx, ctx.get(section, "edges", "network", list), "network.edges", (2,), True)
+    for k, (i, j) in enumerate(edges):
+        for c, v in enumerate((i, j)):
+            if not 0 <= v < n:
+                raise ctx.error(f"network.edges[{k}][{c}]",
+                                f"node index {v} is out of range 0..{n - 1}")
+    ports = ctx.get(section, "ports", "network", dict, required=False, default={})
+    clean_ports = {}
+    for name, pair in ports.items():
+        key = f"network.ports.{name}"
+        if (not isinstance(pair, list) or len(pair) != 2
+                or any(isinstance(v, bool) or not isinstance(v, int) for v in pair)):
+            raise ctx.error(key, f"must be a pair of node indices, got {_describe(pair)}")
+        for c, v in enumerate(pair):
+            if not 0 <= v < n:
+                raise ctx.error(f"{key}[{c}]", f"node index {v} is out of range 0..{n - 1}")
+        clean_ports[name] = tuple(pair)
+    labels = ctx.get(section, "labels", "network", list, required=False)
+    try:
+        return Network(nodes, edges, clean_ports, labels)
+    except FabkitError as exc:
+        raise ctx.error(_network_key(str(exc)), str(exc)) from None
+
+
+def _network_key(message: str) -> str:
+    import re
+
+    m = re.match(r"edges? (\d+)", message)
+    if m:
+        return f"network.edges[{m.group(1)}]"
+    m = re.match(r"node (\d+)", message)
+    if m:
+        return f"network.nodes[{m.group(1)}]"
+    m = re.match(r"port '([^']+)'", message)
+    if m:
+        return f"network.ports.{m.group(1)}"
+    return "network"
+
+
+def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
+    ctx.check_keys(section, "motion", _MOTION_KEYS)
+    drive = ctx.get(section, "drive", "motion", str, required=False, default="d1")
+    if drive not in net.ports:
+        known = ", ".join(sorted(net.ports)) or "none"
+        raise ctx.error("motion.drive", f"unknown port {drive!r}; the network has ports: {known}")
+    to = ctx.get(section, "to", "motion", "number", required=False)
+    if to is not None and to <= 0:
+        raise ctx.error("motion.to", f"must be a positive distance, got {to}")
+    method = ctx.get(section, "method", "motion", str, required=False, default="auto")
+    from .kinematics import METHODS
+
+    if method != "auto" and method not in METHODS:
+        raise ctx.error("motion.method",
+                        f"unknown method {method!r}; valid: auto, {', '.join(METHODS)}")
+    hold = ctx.get(section, "hold", "motion", list, required=False, default=[])
+    for i, h in enumerate(hold):
+        if not isinstance(h, str) or h not in net.ports:
+            raise ctx.error(f"motion.hold[{i}]", f"must name a port of the network, got {h!r}")
+    options = ctx.get(section, "options", "motion", dict, required=False, default={})
+    if options:
+        cls = METHODS.get(method)
+        allowed = set(cls.options) if cls else set().union(*(c.options for c in METHODS.values()))
+        allowed.discard("plan")
+        ctx.check_keys(options, "motion.options", allowed)
+    return Motion(drive=drive, to=to, method=method, hold=tuple(hold), options=dict(options))
+
+
+def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Design:
+    """Parse template text (see the module docstring). ``path`` is used in messages and to
+    resolve relative references."""
+    path = Path(path)
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise TemplateError(path, "", f"not valid TOML: {exc}") from None
+    ctx = TemplateContext(path, raw, tuple(_stack))
+    present = [k for k in BUILDERS if k in raw]
+    if not present:
+        raise ctx.error("", f"no section that builds the network; give one of: "
+                            f"{', '.join('[' + k + ']' for k in BUILDERS)}")
+    if len(present) > 1:
+        raise ctx.error(present[1], f"give only one of {', '.join(present)}")
+    ctx.check_keys(raw, "", TOP_LEVEL_KEYS | set(BUILDERS))
+    builder_key = present[0]
+    section = ctx.get(raw, builder_key, "", dict)
+    module_name, func_name = BUILDERS[builder_key].split(":")
+    try:
+        builder: Callable = getattr(importlib.import_module(module_name), func_name)
+    except (ImportError, AttributeError):
+        raise ctx.error(builder_key, f"this fabkit cannot build [{builder_key}] sections") from None
+    try:
+        net = builder(section, ctx)
+    except TemplateError:
+        raise
+    except FabkitError as exc:
+        raise ctx.error(builder_key, str(exc)) from None
+    name = ctx.get(raw, "name", "", str, required=False, default=path.stem)
+    description = ctx.get(raw, "description", "", str, required=False, default="")
+    motion_section = ctx.get(raw, "motion", "", dict, required=False, default={})
+    motion = _parse_motion(ctx, motion_section, net)
+    fabrication = ctx.get(raw, "fabrication", "", dict, required=False, default={})
+    return Design(name=name, description=description, path=path, network=net, motion=motion,
+                  fabrication=fabrication, raw=raw, meta=ctx.meta)
+
+
+def load_template(path, *, _stack=()) -> Design:
+    """Read and validate a template file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    TemplateError
+        Unreadable file, TOML syntax error, missing or unknown key, wrong type, bad index,
+        invalid network; the message names the file, the key path and the reason.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise TemplateError(path, "", "no such file") from None
+    except IsADirectoryError:
+        raise TemplateError(path, "", "is a folder, not a template file") from None
+    except OSError as exc:
+        raise TemplateError(path, "", f"cannot read: {exc.strerror}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise TemplateError(path, "", "not a text file (not UTF-8): a template is TOML text") from None
+    return parse_template(text, path, _stack)

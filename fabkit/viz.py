@@ -1,0 +1,77 @@
+"""Pictures of networks and motions (matplotlib figures; saving is the caller's job)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["draw_network", "motion_figure", "figure_png"]
+
+
+def _mpl():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def draw_network(ax, net, positions=None, *, color="C0", alpha=1.0, lw=1.5, nodes=True,
+                 ports=False, zorder=2):
+    """Draw a 2D network (3D: projected on x-y) into a matplotlib axis."""
+    from matplotlib.collections import LineCollection
+
+    x = net.nodes if positions is None else np.asarray(positions)
+    seg = x[net.edges][:, :, :2]
+    ax.add_collection(LineCollection(seg, colors=color, linewidths=lw, alpha=alpha, zorder=zorder))
+    if nodes and net.n_nodes <= 5000:
+        ax.plot(x[:, 0], x[:, 1], "o", ms=3 if net.n_nodes > 50 else 4, color=color, alpha=alpha,
+                zorder=zorder + 1)
+    if ports:
+        for name, (i, j) in net.ports.items():
+            ax.plot(x[[i, j], 0], x[[i, j], 1], ":", color="0.4", lw=0.8, zorder=zorder - 1)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+
+
+def motion_figure(traj, *, frames: int = 3, title: str | None = None):
+    """Initial, intermediate and final geometry overlaid, plus the drive along the path.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _mpl()
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [2, 1]})
+    s = traj.n_steps
+    idx = sorted(set(np.linspace(0, s - 1, max(frames, 2)).round().astype(int).tolist()))
+    cmap = plt.get_cmap("Blues")
+    for k, i in enumerate(idx):
+        shade = 0.9 - 0.6 * k / max(len(idx) - 1, 1)
+        draw_network(ax, traj.network, traj.positions[i], color=cmap(shade),
+                     lw=1.8 if i in (0, s - 1) else 1.0)
+    a, b = traj.drive_port
+    ax.plot(*traj.positions[-1][[a, b], :2].T, "--", color="C3", lw=1, label="drive (final)")
+    ax.set_title(title or "motion: dark = start, light = end")
+    ax.legend(loc="best", fontsize=8)
+    ax2.plot(traj.arclength, traj.drive, "-", color="C0", label="drive")
+    ax2.set_xlabel("arclength")
+    ax2.set_ylabel("drive distance")
+    ax2.set_title(f"{traj.method}: {traj.status}")
+    ax2b = ax2.twinx()
+    err = np.maximum(traj.edge_error, 1e-17)
+    ax2b.semilogy(traj.arclength, err, ".", color="C3", ms=3)
+    ax2b.set_ylabel("max relative edge error", color="C3")
+    fig.tight_layout()
+    return fig
+
+
+def figure_png(fig, dpi: int = 110) -> bytes:
+    """Render a figure to PNG bytes (deterministic metadata) and close it."""
+    import io
+
+    plt = _mpl()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()
