@@ -20,6 +20,25 @@ from .templates import Design, load_template
 
 __version__ = "0.1.0"
 
+# Names provided by modules that are imported on first use (keeps `import fabkit` light).
+_LAZY = {
+    "chain": "fabkit.assemble",
+    "join_transform": "fabkit.assemble",
+    "module_map": "fabkit.maps",
+    "Map1D": "fabkit.maps",
+    "design_module": "fabkit.design",
+    "SolutionSpace": "fabkit.design",
+}
+
+
+def __getattr__(name):
+    import importlib
+
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'fabkit' has no attribute {name!r}")
+
+
 __all__ = [
     "ConstructionError",
     "Design",
