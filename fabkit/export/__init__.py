@@ -25,6 +25,7 @@ EXPORTERS: dict[str, str] = {
     "svg": "fabkit.export.svg",
     "fold": "fabkit.export.fold",
     "stl": "fabkit.export.stl",
+    "cp": "fabkit.export.cp",
 }
 
 
