@@ -190,25 +190,26 @@ def _rank_dense(r: sp.csr_matrix, rtol: float) -> tuple[int, float, float]:
     return rank, gap, smallest
 
 
-def _rank_sparse(r: sp.csr_matrix, rtol: float, expected_null: int) -> tuple[int, float, float]:
-    """Rank from the smallest eigenvalues of RᵀR (shift-invert), for networks too big for SVD."""
-    n = r.shape[1]
-    gram = (r.T @ r).tocsc()
-    k = min(n - 1, expected_null + 8)
-    shift = 1e-10  # makes RᵀR + shift·I positive definite so that it factorises
-    op = spla.splu((gram + shift * sp.identity(n, format="csc")).tocsc())
-    inv = spla.LinearOperator((n, n), matvec=op.solve, dtype=np.float64)
-    mu = spla.eigsh(inv, k=k, which="LM", return_eigenvectors=False, tol=1e-12)
-    lam = np.sort(1.0 / mu - shift)  # eigenvalues of RᵀR, smallest first
-    sv = np.sqrt(np.clip(lam, 0.0, None))
+def _rank_sparse(r: sp.csr_matrix, rtol: float, expected_zero: int) -> tuple[int, float, float]:
+    """Rank from the eigenvalues of B = [[0, R], [Rᵀ, 0]] nearest zero (shift-invert Lanczos).
+
+    B's eigenvalues are ±σ_i and, for each state of self-stress and each zero mode, a zero, so
+    ``zeros = S + M`` while ``M - S = dN - E``. Working on B rather than RᵀR keeps singular values
+    resolved to round-off (RᵀR would square them and blur everything below ~1e-8).
+    """
+    e, n = r.shape
+    b = sp.bmat([[None, r], [r.T, None]], format="csc")
     smax = float(spla.svds(r, k=1, return_singular_vectors=False)[0])
+    k = min(e + n - 1, expected_zero + 6)
+    ev = np.sort(np.abs(spla.eigsh(b, k=k, sigma=1e-9 * smax, which="LM",
+                                   return_eigenvectors=False)))
     tol = rtol * max(smax, 1.0)
-    null = int((sv <= tol).sum())
-    if null == k:  # all requested were zero: ask for more
-        return _rank_sparse(r, rtol, expected_null + 16)
-    rank = n - null
-    smallest = float(sv[null])
-    largest_zero = float(sv[null - 1]) if null else 0.0
+    zeros = int((ev <= tol).sum())
+    if zeros == k and k < e + n - 1:  # every eigenvalue found was zero: ask for more
+        return _rank_sparse(r, rtol, expected_zero + 16)
+    rank = (e + n - zeros) // 2
+    smallest = float(ev[zeros]) if zeros < ev.size else 0.0
+    largest_zero = float(ev[zeros - 1]) if zeros else 0.0
     gap = np.inf if largest_zero == 0.0 else smallest / largest_zero
     return rank, gap, smallest
 
@@ -239,7 +240,9 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
     so a caller can see how clear the decision was (a gap below ~1e3 means the configuration is
     close to singular and the count should not be trusted blindly). Up to ``DENSE_LIMIT``
     coordinates R̂ is decomposed by a dense SVD; beyond that the smallest eigenvalues of R̂ᵀR̂
-    are found by shift-invert Lanczos on a sparse LU.
+    are found by shift-invert Lanczos on the symmetric matrix ``[[0, R̂], [R̂ᵀ, 0]]`` (whose
+    eigenvalues are ±σ and zeros), which keeps the same threshold meaningful; it is slow for very
+    long chains, whose many small but non-zero singular values cluster near zero.
 
     The rigid motions are counted as the rank of the rigid-body basis of the node set (3 in 2D,
     6 in 3D, fewer for degenerate sets), S follows from ``M = dN - E + S``.
@@ -257,9 +260,8 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
     if d * n <= DENSE_LIMIT:
         rank, gap, smallest = _rank_dense(r, rtol)
     else:
-        rigid_guess = 3 if d == 2 else 6
-        expected = max(d * n - net.n_edges, 0) + rigid_guess
-        rank, gap, smallest = _rank_sparse(r, rtol, max(expected - rigid_guess, rigid_guess))
+        rigid = 3 if d == 2 else 6
+        rank, gap, smallest = _rank_sparse(r, rtol, 2 * rigid + abs(d * n - net.n_edges))
     total = d * n - rank
     rigid = rigid_body_basis(x).shape[1]
     self_stress = net.n_edges - rank

@@ -171,14 +171,13 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     g = x[:, list(gauge)]
     cg = g.mean(axis=1, keepdims=True)
     cr = ref.mean(axis=0)
-    h = np.einsum("sni,nj->sij", g - cg, ref - cr)
+    h = np.matmul((g - cg).transpose(0, 2, 1), ref - cr)
     u, _, vt = np.linalg.svd(h)
-    det = np.linalg.det(np.einsum("sij,sjk->sik", u, vt))
+    det = np.linalg.det(np.matmul(u, vt))
     d = np.ones((x.shape[0], x.shape[2]))
-    d[:, -1] = np.sign(det)
-    d[d == 0] = 1.0
-    rot = np.einsum("sij,sj,sjk->sik", u, d, vt)  # maps (x - cg) @ rot ≈ ref - cr
-    return np.einsum("sni,sij->snj", x - cg, rot) + cr
+    d[:, -1] = np.where(det < 0, -1.0, 1.0)
+    rot = np.matmul(u * d[:, None, :], vt)  # maps (x - cg) @ rot ≈ ref - cr
+    return np.matmul(x - cg, rot) + cr
 
 
 def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) -> Problem:

@@ -9,6 +9,7 @@ the branch of the reference. Exact to round-off; the motion ends where an inters
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass
 
@@ -112,6 +113,8 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
     gauge_perp = np.zeros(d)
     u_seed = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
 
+    xl = x.tolist()
+
     def radius(v, p):
         return lengths[eidx[(min(v, p), max(v, p))]]
 
@@ -123,11 +126,14 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
         cand = [p for p in nbrs[v] if placed[p]]
         if d == 2:
             best, best_sin = None, -1.0
+            xv, yv = xl[v]
             for ii in range(len(cand)):
                 for jj in range(ii + 1, len(cand)):
                     p, q = cand[ii], cand[jj]
-                    dp, dq = x[p] - x[v], x[q] - x[v]
-                    sin = abs(dp[0] * dq[1] - dp[1] * dq[0]) / (np.linalg.norm(dp) * np.linalg.norm(dq))
+                    ax_, ay_ = xl[p][0] - xv, xl[p][1] - yv
+                    bx_, by_ = xl[q][0] - xv, xl[q][1] - yv
+                    sin = abs(ax_ * by_ - ay_ * bx_) / math.sqrt(
+                        (ax_ * ax_ + ay_ * ay_) * (bx_ * bx_ + by_ * by_))
                     if sin > best_sin:
                         best, best_sin = (p, q), sin
             p, q = best
@@ -235,61 +241,70 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
     a, b = plan.seed
     u = ref[b] - ref[a]
     u = u / np.linalg.norm(u)
-    X = np.full((k, n, d), np.nan)
-    X[:, a] = ref[a]
-    X[:, b] = ref[a] + dv[:, None] * u
+    # One contiguous row of K values per node and coordinate: the loop below runs once per node
+    # (in construction order) and does a dozen ufunc calls on rows of length K.
+    X = np.full((d, n, k), np.nan)
+    for c in range(d):
+        X[c, a] = ref[a, c]
+        X[c, b] = ref[a, c] + dv * u[c]
     margins = np.empty((plan.order.size, k))
-    for idx, v in enumerate(plan.order.tolist()):
-        par = plan.parents[idx]
-        r = plan.radii[idx]
-        s = plan.signs[idx]
-        if d == 2:
-            p, q = X[:, par[0]], X[:, par[1]]
-            D = q - p
-            dist2 = np.einsum("ki,ki->k", D, D)
-            dist = np.sqrt(dist2)
-            along = (r[0] ** 2 - r[1] ** 2 + dist2) / (2.0 * dist)
-            h2 = r[0] ** 2 - along ** 2
-            h = np.sqrt(np.maximum(h2, 0.0))
-            perp = np.stack([-D[:, 1], D[:, 0]], axis=1)
-            X[:, v] = p + (along / dist)[:, None] * D + (s * h / dist)[:, None] * perp
-            margins[idx] = h2 / r[0] ** 2
-        elif par[2] < 0:  # 3D gauge node: circle about the seed axis, in the reference half-plane
-            p, q = X[:, par[0]], X[:, par[1]]
-            D = q - p
-            dist2 = np.einsum("ki,ki->k", D, D)
-            dist = np.sqrt(dist2)
-            along = (r[0] ** 2 - r[1] ** 2 + dist2) / (2.0 * dist)
-            h2 = r[0] ** 2 - along ** 2
-            ex = D / dist[:, None]
-            g = plan.gauge_perp - (ex @ plan.gauge_perp)[:, None] * ex
-            g = g / np.linalg.norm(g, axis=1, keepdims=True)
-            X[:, v] = p + along[:, None] * ex + np.sqrt(np.maximum(h2, 0.0))[:, None] * g
-            margins[idx] = h2 / r[0] ** 2
-        else:
-            p1, p2, p3 = X[:, par[0]], X[:, par[1]], X[:, par[2]]
-            e12 = p2 - p1
-            dd = np.linalg.norm(e12, axis=1)
-            ex = e12 / dd[:, None]
-            w = p3 - p1
-            i = np.einsum("ki,ki->k", ex, w)
-            ey = w - i[:, None] * ex
-            j = np.linalg.norm(ey, axis=1)
-            ey = ey / j[:, None]
-            ez = np.cross(ex, ey)
-            xx = (r[0] ** 2 - r[1] ** 2 + dd ** 2) / (2.0 * dd)
-            yy = (r[0] ** 2 - r[2] ** 2 + i ** 2 + j ** 2) / (2.0 * j) - (i / j) * xx
-            z2 = r[0] ** 2 - xx ** 2 - yy ** 2
-            z = np.sqrt(np.maximum(z2, 0.0))
-            X[:, v] = p1 + xx[:, None] * ex + yy[:, None] * ey + (s * z)[:, None] * ez
-            margins[idx] = z2 / r[0] ** 2
+    order = plan.order.tolist()
+    parents = plan.parents.tolist()
+    r0s = (plan.radii[:, 0] ** 2).tolist()
+    c0s = (plan.radii[:, 0] ** 2 - plan.radii[:, 1] ** 2).tolist()
+    signs = plan.signs.tolist()
+    sqrt, maximum = np.sqrt, np.maximum
+    if d == 2:
+        xs, ys = X[0], X[1]
+        for idx, v in enumerate(order):
+            p, q = parents[idx]
+            px, py = xs[p], ys[p]
+            dx = xs[q] - px
+            dy = ys[q] - py
+            dist2 = dx * dx + dy * dy
+            along = (c0s[idx] + dist2) / (2.0 * dist2)  # distance along p->q, over |pq|
+            h2 = r0s[idx] - along * along * dist2
+            hs = signs[idx] * sqrt(maximum(h2, 0.0) / dist2)  # side * height / |pq|
+            xs[v] = px + along * dx - hs * dy
+            ys[v] = py + along * dy + hs * dx
+            margins[idx] = h2 / r0s[idx]
+    else:
+        r2s = (plan.radii[:, 2] ** 2).tolist()
+        for idx, v in enumerate(order):
+            par = parents[idx]
+            r0 = r0s[idx]
+            p1 = X[:, par[0]]
+            e12 = X[:, par[1]] - p1
+            dist2 = (e12 * e12).sum(axis=0)
+            dd = sqrt(dist2)
+            ex = e12 / dd
+            xx = (c0s[idx] + dist2) / (2.0 * dd)
+            if par[2] < 0:  # 3D gauge node: circle about the seed axis, in the reference half-plane
+                g = plan.gauge_perp[:, None] - (ex * plan.gauge_perp[:, None]).sum(axis=0) * ex
+                g = g / sqrt((g * g).sum(axis=0))
+                h2 = r0 - xx * xx
+                X[:, v] = p1 + xx * ex + sqrt(maximum(h2, 0.0)) * g
+                margins[idx] = h2 / r0
+                continue
+            w = X[:, par[2]] - p1
+            i = (ex * w).sum(axis=0)
+            ey = w - i * ex
+            j = sqrt((ey * ey).sum(axis=0))
+            ey = ey / j
+            ez = np.stack([ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
+                           ex[0] * ey[1] - ex[1] * ey[0]])
+            yy = (r0 - r2s[idx] + i * i + j * j) / (2.0 * j) - (i / j) * xx
+            z2 = r0 - xx * xx - yy * yy
+            X[:, v] = p1 + xx * ex + yy * ey + (signs[idx] * sqrt(maximum(z2, 0.0))) * ez
+            margins[idx] = z2 / r0
+    positions = np.ascontiguousarray(X.transpose(2, 1, 0))
     if margins.size:
         worst = np.argmin(margins, axis=0)
         margin = margins[worst, np.arange(k)]
     else:
         worst = np.zeros(k, dtype=np.int64)
         margin = np.full(k, np.inf)
-    return X, margin, worst
+    return positions, margin, worst
 
 
 class Constructive(Method):

@@ -193,6 +193,7 @@ class Projected(Method):
             rows_keep = self._independent_rows(work, x0, gcols)
         self.sys = _System(work.edges, rest2, n, d, gcols, x0.ravel()[gcols], rows_keep)
         self.scale = float(np.median(work.edge_lengths))
+        self.min_length = float(np.min(work.edge_lengths))
         self.all_edges_rest2 = rest2
 
     def _independent_rows(self, work, x0, gcols):
@@ -253,9 +254,21 @@ class Projected(Method):
         x = xf.reshape(self.n, self.d)
         return float(np.linalg.norm(x[a] - x[b]))
 
+    def _noise(self, x) -> tuple[float, float]:
+        """Round-off floors: of a coordinate update (absolute), and of the relative edge residual.
+
+        Coordinates of size |x| carry an absolute error of eps·|x|, so a long chain far from the
+        origin cannot keep edges better than about eps·max|x| / min L; asking for more makes
+        Newton chase noise.
+        """
+        big = float(np.max(np.abs(x)))
+        eps = np.finfo(float).eps
+        return 16.0 * eps * max(big, self.scale), 4.0 * eps * big / self.min_length
+
     def _correct(self, xp, lu, j, cj):
         """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None."""
-        tol = self.opts["tol"]
+        dx_floor, res_floor = self._noise(xp)
+        tol = max(self.opts["tol"], res_floor)
         kappa = self.opts["contraction"]
         x = xp.copy()
         prev = None
@@ -266,21 +279,26 @@ class Projected(Method):
             if not np.isfinite(dx).all():
                 return None
             x += dx
-            nrm = float(np.linalg.norm(dx))
-            if prev is not None and prev > 0:
+            nrm = float(np.max(np.abs(dx)))
+            if nrm <= dx_floor:  # at round-off: converged if the residual agrees
+                if self.sys.rel_edge_residual(x) <= tol:
+                    return x, it, theta_max
+                return None
+            if prev is not None:
                 theta = nrm / prev
                 theta_max = max(theta_max, theta)
-                if theta > kappa and nrm > 1e-12 * self.scale:
+                if theta > kappa:
                     return None
             prev = nrm
-            if self.sys.rel_edge_residual(x) <= tol and nrm <= 1e-11 * self.scale:
+            if self.sys.rel_edge_residual(x) <= tol:
                 return x, it, theta_max
         return None
 
     def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=12):
         """Full Newton with the last row replaced by a scalar equation (value, gradient)."""
         x = xg.copy()
-        tol = self.opts["tol"]
+        dx_floor, res_floor = self._noise(xg)
+        tol = max(self.opts["tol"], res_floor)
         for _ in range(iterations):
             g = row_grad_fn(x)
             nz = np.flatnonzero(g)
@@ -294,8 +312,8 @@ class Projected(Method):
             if not np.isfinite(dx).all():
                 return None
             x += dx
-            if (self.sys.rel_edge_residual(x) <= tol and abs(row_res_fn(x)) <= 1e-14 * self.scale
-                    and np.linalg.norm(dx) <= 1e-11 * self.scale):
+            if (self.sys.rel_edge_residual(x) <= tol
+                    and abs(row_res_fn(x)) <= max(tol * self.scale ** 2, dx_floor * self.scale)):
                 return x
         return x if self.sys.rel_edge_residual(x) <= 100 * tol else None
 

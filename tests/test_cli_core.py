@@ -1,0 +1,90 @@
+"""The command line: info, simulate; one-line errors, exit codes, no partial files."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fabkit.cli import main
+
+from conftest import TEMPLATES
+
+
+def run_cli(args, capsys):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_info_reports_modes_and_construction(capsys):
+    code, out, err = run_cli(["info", TEMPLATES / "fourbar.toml"], capsys)
+    assert code == 0 and err == ""
+    assert "4 zero modes = 3 rigid + 1 conformational; 0 state(s) of self-stress" in out
+    assert "constructive  yes" in out
+    assert "nodes, edges  4, 4" in out
+
+
+def test_simulate_writes_npz_and_png(tmp_path, capsys):
+    code, out, err = run_cli(["simulate", TEMPLATES / "fourbar.toml", "--method", "projected",
+                              "-o", tmp_path], capsys)
+    assert code == 0, err
+    assert "method        projected" in out and "max edge err" in out
+    folder = tmp_path / "fourbar"
+    data = np.load(folder / "trajectory.npz")
+    d1 = np.linalg.norm(data["positions"][:, 0] - data["positions"][:, 1], axis=1)
+    d2 = np.linalg.norm(data["positions"][:, 2] - data["positions"][:, 3], axis=1)
+    assert np.abs(d1 * d2 - 4).max() < 1e-10
+    assert str(data["status"]) == "finished"
+    png = (folder / "motion.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not list(folder.glob("*.part"))
+
+
+def test_simulate_to_override_reports_turning_point(tmp_path, capsys):
+    code, out, _ = run_cli(["simulate", TEMPLATES / "fourbar.toml", "--to", "0.5",
+                            "--method", "constructive", "-o", tmp_path], capsys)
+    assert code == 0
+    assert "turning_point" in out and "0.8284271247" in out
+
+
+BAD = {
+    "syntax.toml": ("[network\nnodes = [[0.0, 0.0]]", "not valid TOML"),
+    "missing.toml": ("[network]\nnodes = [[0.0, 0.0], [1.0, 0.0]]\n", "network.edges: missing required key"),
+    "type.toml": ('[network]\nnodes = [[0.0, 0.0], [1.0, 0.0]]\nedges = "0-1"\n', "network.edges: must be an array, got string"),
+    "index.toml": ("[network]\nnodes = [[0.0, 0.0], [1.0, 0.0]]\nedges = [[0, 3]]\n", "network.edges[0][1]: node index 3 is out of range"),
+    "zero.toml": ("[network]\nnodes = [[0.0, 0.0], [0.0, 0.0], [1.0, 0.0]]\nedges = [[0, 1], [0, 2]]\n", "network.edges[0]: edge 0 [0, 1] has zero length"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+@pytest.mark.parametrize("command", ["info", "simulate"])
+def test_malformed_templates_one_line_error_no_files(tmp_path, capsys, name, command):
+    text, expected = BAD[name]
+    path = tmp_path / name
+    path.write_text(text)
+    out_dir = tmp_path / "out"
+    args = [command, path] + (["-o", out_dir] if command == "simulate" else [])
+    code, out, err = run_cli(args, capsys)
+    assert code != 0
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("fabkit: error: ") and str(path) in lines[0] and expected in lines[0]
+    assert "Traceback" not in err
+    assert not out_dir.exists() or not any(out_dir.rglob("*"))
+
+
+def test_console_script_exit_code(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("not toml at all ][")
+    proc = subprocess.run([sys.executable, "-m", "fabkit.cli", "info", str(bad)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 1
+    assert proc.stderr.count("\n") == 1 and "not valid TOML" in proc.stderr
+
+
+def test_usage_errors(capsys):
+    assert main(["simulate"]) == 2
+    assert main(["no-such-command"]) == 2
+    assert main([]) == 2
