@@ -207,3 +207,10 @@ def test_start_configuration(fourbar):
     again = trace(fourbar, to=3.0, start=first.final, method="projected")
     assert again.success and again.drive[0] == pytest.approx(2.5, abs=1e-12)
     assert np.abs(again.distance("d1") * again.distance("d2") - 4).max() < 1e-10
+
+
+def test_auto_accepts_options_of_any_method(fourbar):
+    traj = trace(fourbar, to=2.5, method="auto", max_step=0.1, samples=11)
+    assert traj.method == "constructive" and traj.n_steps == 11
+    with pytest.raises(TypeError, match="unknown option"):
+        trace(fourbar, to=2.5, method="auto", nonsense=1)

@@ -115,14 +115,19 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
     if isinstance(method, type) and issubclass(method, Method):
         cls = method
     elif method == "auto":
+        known = set().union(*(c.options for c in METHODS.values()))
+        unknown = sorted(set(options) - known)
+        if unknown:
+            raise TypeError(f"unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
         try:
             plan = plan_construction(problem.work, problem.drive, problem.start)
         except ConstructionError:
             cls = Projected
         else:
             cls = Constructive
-            options = {**options, "plan": plan} if "plan" not in options else options
-            # options meant for the other methods would be a caller's mistake even under auto
+            options = {**options, "plan": options.get("plan") or plan}
+        # under auto, options meant for the method not chosen are dropped
+        options = {k: v for k, v in options.items() if k in cls.options}
     else:
         try:
             cls = METHODS[method]
