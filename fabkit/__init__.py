@@ -28,6 +28,8 @@ _LAZY = {
     "Map1D": "fabkit.maps",
     "design_module": "fabkit.design",
     "SolutionSpace": "fabkit.design",
+    "fold_through": "fabkit.kinematics.branching",
+    "analyze_bifurcation": "fabkit.kinematics.branching",
 }
 
 

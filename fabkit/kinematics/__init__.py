@@ -15,6 +15,7 @@ from __future__ import annotations
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from .base import Method, Problem, align_to_gauge, choose_gauge, make_problem
+from .branching import BranchSwitch, analyze_bifurcation, fold_through
 from .constructive import ConstructionPlan, Constructive, place, plan_construction
 from .projected import Projected
 from .rk4_nullspace import RK4Nullspace
@@ -34,6 +35,8 @@ __all__ = [
     "place",
     "choose_gauge",
     "align_to_gauge",
+    "analyze_bifurcation",
+    "fold_through",
 ]
 
 #: Registry of tracing methods: name → class. A user's own :class:`Method` subclass may be passed
@@ -42,6 +45,7 @@ METHODS: dict[str, type[Method]] = {
     Constructive.name: Constructive,
     Projected.name: Projected,
     RK4Nullspace.name: RK4Nullspace,
+    BranchSwitch.name: BranchSwitch,
 }
 
 

@@ -66,7 +66,7 @@ class Problem:
         """Package configurations as a :class:`Trajectory` (edge errors against ``network``)."""
         pos = np.ascontiguousarray(positions, dtype=np.float64)
         if arclength is None:
-            steps = np.linalg.norm((pos[1:] - pos[:-1]).reshape(len(pos) - 1, -1), axis=1)
+            steps = np.linalg.norm((pos[1:] - pos[:-1]).reshape(len(pos) - 1, pos[0].size), axis=1)
             arclength = np.concatenate([[0.0], np.cumsum(steps)])
         return Trajectory(
             network=self.network,

@@ -99,16 +99,18 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
     nbrs = net.adjacency()
     eidx = _edge_index(net)
     lengths = net.edge_lengths
-    placed = np.zeros(n, dtype=bool)
-    placed[[a, b]] = True
-    count = np.zeros(n, dtype=np.int64)
+    # plain Python lists: this loop runs once per node and numpy scalar access would dominate
+    placed = [False] * n
+    placed[a] = placed[b] = True
+    count = [0] * n
     for s in (a, b):
         for v in nbrs[s]:
             count[v] += 1
     gauge_done = d == 2  # in 3D the first node after the seed fixes the rotation about a-b
     queue: deque[int] = deque(v for v in range(n) if not placed[v] and count[v] >= 2)
-    queued = np.zeros(n, dtype=bool)
-    queued[list(queue)] = True
+    queued = [False] * n
+    for v in queue:
+        queued[v] = True
     order, parents, radii, signs = [], [], [], []
     gauge_perp = np.zeros(d)
     u_seed = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
@@ -142,12 +144,12 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
                     f"node {v} is collinear with nodes {p} and {q} in the start configuration: a flat "
                     "state, where the side of the intersection (and so the branch) is undetermined"
                 )
-            D = x[q] - x[p]
-            side = D[0] * (x[v, 1] - x[p, 1]) - D[1] * (x[v, 0] - x[p, 0])
+            side = ((xl[q][0] - xl[p][0]) * (xl[v][1] - xl[p][1])
+                    - (xl[q][1] - xl[p][1]) * (xl[v][0] - xl[p][0]))
             order.append(v)
             parents.append((p, q))
             radii.append((radius(v, p), radius(v, q)))
-            signs.append(np.sign(side))
+            signs.append(1.0 if side > 0 else -1.0)
         elif not gauge_done:
             off = x[v] - x[a]
             perp = off - (off @ u_seed) * u_seed
@@ -197,7 +199,7 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
             if not placed[w] and not queued[w] and count[w] >= need:
                 queue.append(w)
                 queued[w] = True
-    missing = np.flatnonzero(~placed)
+    missing = np.flatnonzero(~np.array(placed))
     if missing.size:
         shown = ", ".join(str(int(m)) for m in missing[:8]) + (" ..." if missing.size > 8 else "")
         raise ConstructionError(

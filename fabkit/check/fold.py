@@ -1,0 +1,268 @@
+"""As-built check of a FOLD file: read it back, rebuild the network, re-fold, compare the map.
+
+Checks, each reported as ``{"name", "ok", "value", "limit", "detail"}``:
+
+- ``structure``: the FOLD fields fabkit relies on are present and consistent (array lengths,
+  assignments in B/M/V/F/U/C/J, fold angles in [-180, 180], faces made of edges, vertex
+  indices in range);
+- ``frames_keep_lengths``: every frame keeps the edge lengths of the root frame (relative);
+- ``modes``: the network rebuilt from the file has one conformational motion (after leaving the
+  flat state, for a crease pattern);
+- ``refold_map``: the rebuilt network, folded again by the simulator from the file alone
+  (branch chosen by its mountain/valley assignment), reproduces every port distance stored in
+  ``fabkit:map`` at the file's drive values (absolute, design units, limit 1e-8);
+- ``design_map`` (with a design): the same against the design's own simulation;
+- ``maekawa_kawasaki``: for a crease pattern, Maekawa and Kawasaki at every interior vertex
+  (reported; a failure means the pattern cannot fold flat, which is not required).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FabkitError, FabricationError
+
+FORMAT = "fold"
+SUFFIXES = (".fold",)
+
+#: Largest difference of a port distance between the file and the re-folded network.
+MAP_TOL = 1e-8
+
+
+def _check(name, ok, value, limit, detail):
+    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
+
+
+def read_fold(path) -> dict:
+    """Parse a FOLD file; FabricationError naming the file when it is not FOLD JSON."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FabricationError(f"{path}: no such file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FabricationError(f"{path}: not FOLD JSON ({exc})") from None
+    if not isinstance(doc, dict):
+        raise FabricationError(f"{path}: not FOLD JSON (the top level is not an object)")
+    return doc
+
+
+def structure_problems(doc: dict) -> list[str]:
+    """Inconsistencies in the FOLD fields fabkit uses (empty when none)."""
+    from ..fab.creases import ASSIGNMENTS
+
+    out = []
+    for key in ("vertices_coords", "edges_vertices", "edges_assignment", "faces_vertices"):
+        if not isinstance(doc.get(key), list):
+            out.append(f"{key} is missing")
+    if out:
+        return out
+    nv = len(doc["vertices_coords"])
+    ne = len(doc["edges_vertices"])
+    if len(doc["edges_assignment"]) != ne:
+        out.append(f"edges_assignment has {len(doc['edges_assignment'])} entries for {ne} edges")
+    bad = [a for a in doc["edges_assignment"] if a not in ASSIGNMENTS]
+    if bad:
+        out.append(f"unknown edge assignment {bad[0]!r}")
+    angles = doc.get("edges_foldAngle")
+    if angles is not None:
+        if len(angles) != ne:
+            out.append(f"edges_foldAngle has {len(angles)} entries for {ne} edges")
+        elif any(not -180.0 <= float(a) <= 180.0 for a in angles):
+            out.append("edges_foldAngle outside [-180, 180]")
+    if angles is not None and len(angles) == ne:
+        wrong = [k for k, (a, t) in enumerate(zip(doc["edges_assignment"], angles))
+                 if (a == "M" and float(t) > 0) or (a == "V" and float(t) < 0)]
+        if wrong:
+            out.append(f"edge {wrong[0]} is {doc['edges_assignment'][wrong[0]]} but its fold "
+                       f"angle is {angles[wrong[0]]} (valley positive, mountain negative)")
+    ev = np.asarray(doc["edges_vertices"])
+    if ev.ndim != 2 or ev.shape[1] != 2 or ev.min() < 0 or ev.max() >= nv:
+        out.append("edges_vertices names vertices that do not exist")
+        return out
+    keys = {tuple(sorted(e)) for e in ev.tolist()}
+    for f, cyc in enumerate(doc["faces_vertices"]):
+        for a, b in zip(cyc, cyc[1:] + cyc[:1]):
+            if tuple(sorted((a, b))) not in keys:
+                out.append(f"face {f} uses the side {a}-{b}, which is not an edge")
+                break
+    for k, fr in enumerate(doc.get("file_frames", [])):
+        if len(fr.get("vertices_coords", [])) != nv:
+            out.append(f"file_frames[{k}] has {len(fr.get('vertices_coords', []))} vertices, "
+                       f"not {nv}")
+    for key in ("fabkit:ports", "fabkit:motion", "fabkit:map", "fabkit:scale"):
+        if key not in doc:
+            out.append(f"{key} is missing (not written by fabkit: nothing to re-fold against)")
+    return out
+
+
+def model_from_fold(doc: dict, name: str = "fold"):
+    """Rebuild an :class:`~fabkit.fab.creases.OrigamiModel` from a FOLD document (design units)."""
+    from ..fab.creases import (CreasePattern, OrigamiModel, Sheet, network_from_pattern)
+    from ..network import Network
+
+    scale = float(doc["fabkit:scale"])
+    x = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
+    edges = np.asarray(doc["edges_vertices"], dtype=np.int64)
+    assignment = tuple(doc["edges_assignment"])
+    faces = tuple(tuple(f) for f in doc["faces_vertices"])
+    ports = {k: tuple(v) for k, v in doc["fabkit:ports"].items()}
+    motion = doc["fabkit:motion"]
+    settings = {"samples": int(motion["samples"]), "branch": "assignment", "sign": None,
+                "spacing": motion.get("spacing", "uniform"),
+                "step_off": float(motion.get("step_off", 1e-3)), "sheet_size": 1.0}
+    if x.shape[1] == 2:
+        cp = CreasePattern(x, edges, assignment, faces)
+        net, _ = network_from_pattern(cp, ports)
+        size = float(np.ptp(x, axis=0).max()) * scale
+        settings["sheet_size"] = size
+        return OrigamiModel(name, net, x.shape[0], edges, assignment, faces,
+                            (Sheet(cp, np.arange(x.shape[0])),), True, size, settings)
+    keep = [k for k, a in enumerate(assignment) if a != "C"]
+    net = Network(x, edges[keep], ports)
+    flat = CreasePattern(np.zeros((x.shape[0], 2)), np.zeros((0, 2)), (), ())
+    return OrigamiModel(name, net, x.shape[0], edges, assignment, faces,
+                        (Sheet(flat, np.arange(x.shape[0])),), False, scale, settings)
+
+
+def _map_at(model, fold, drive: str, values: np.ndarray) -> dict:
+    """Port distances of the re-folded network at given drive values (exact placement)."""
+    from ..kinematics import place, plan_construction
+
+    net = model.network
+    ref = fold.positions[1] if model.flat_start else net.nodes
+    plan = plan_construction(net, net.port(drive), ref)
+    vals = np.asarray(values, dtype=np.float64)
+    start = 1 if model.flat_start else 0  # the flat frame itself is the bifurcation
+    pos, margin, _ = place(plan, vals[start:])
+    out = {}
+    for k in net.ports:
+        d = net.port_distance(k, pos)
+        if start:
+            d = np.concatenate([[net.port_distance(k)], d])
+        out[k] = d
+    return out
+
+
+def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
+    """Every sheet's map d_out = f(d_in), re-folded from the file, against the stored frames.
+
+    A chain's configuration as a function of its end distance is ill-conditioned (errors grow by
+    the map's slope at every sheet), so a chain is checked where it is well-conditioned: sheet
+    by sheet, each rebuilt from the file alone and folded at the stored input distances.
+    """
+    from ..kinematics import place, plan_construction
+    from ..network import Network
+
+    net = model.network
+    worst, n = 0.0, 0
+    for k, sh in enumerate(sheets):
+        if len(sh.get("map", [])) != 2:
+            continue
+        verts = [int(v) for v in sh["vertices"]]
+        local = {g: i for i, g in enumerate(verts)}
+        sub_edges = [(local[a], local[b]) for a, b in net.edges.tolist()
+                     if a in local and b in local]
+        din, dout = sh["map"]
+        ports = {"in": tuple(local[v] for v in net.ports[din]),
+                 "out": tuple(local[v] for v in net.ports[dout])}
+        sub = Network(net.nodes[verts], np.array(sub_edges), ports)
+        plan = plan_construction(sub, sub.port("in"))
+        pos, margin, _ = place(plan, stored[din])
+        if (margin < -1e-12).any():
+            raise FabricationError(f"sheet {k + 1} cannot reach the stored {din} values")
+        worst = max(worst, float(np.max(np.abs(sub.port_distance("out", pos) - stored[dout]))))
+        n += 1
+    return worst, (f"{n} sheets re-folded from the file, each map d_out = f(d_in) at "
+                   f"{len(next(iter(stored.values())))} frames")
+
+
+def check_file(path, design=None, settings=None) -> dict:
+    """Read a FOLD file back and re-fold it (see the module docstring).
+
+    Returns
+    -------
+    dict
+        ``ok``, ``checks``, and ``max_map_difference``.
+    """
+    from ..fab.creases import flat_foldability, fold_model, origami_model
+    from ..rigidity import count_modes
+
+    doc = read_fold(path)
+    checks = []
+    problems = structure_problems(doc)
+    checks.append(_check("structure", not problems, len(problems), 0,
+                         "; ".join(problems) or "fields present and consistent"))
+    if problems:
+        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    model = model_from_fold(doc, Path(path).stem)
+    motion = doc["fabkit:motion"]
+    drive, to = motion["drive"], float(motion["to"])
+    # frames keep the root edge lengths
+    net = model.network
+    scale = float(doc["fabkit:scale"])
+    frames = np.asarray([f["vertices_coords"] for f in doc.get("file_frames", [])],
+                        dtype=np.float64) / scale
+    nv = model.n_vertices
+    root = np.zeros((nv, 3))
+    root[:, : net.nodes.shape[1]] = net.nodes[:nv]
+    rest = np.linalg.norm(root[model.edges[:, 0]] - root[model.edges[:, 1]], axis=1)
+    if frames.size:
+        lens = np.linalg.norm(frames[:, model.edges[:, 0]] - frames[:, model.edges[:, 1]], axis=-1)
+        worst = float(np.max(np.abs(lens / rest - 1.0)))
+    else:
+        worst = 0.0
+    checks.append(_check("frames_keep_lengths", worst <= 1e-8, worst, 1e-8,
+                         f"{len(frames)} frames; largest relative edge-length change {worst:.1e}"))
+    try:
+        fold = fold_model(model, drive, to)
+    except FabkitError as exc:
+        checks.append(_check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
+        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    after = fold.positions[1] if model.flat_start else net.nodes
+    m = count_modes(net, after)
+    checks.append(_check("modes", m.conformational == 1, m.conformational, 1,
+                         f"rebuilt network: {m}" + (" (just off the flat state)"
+                                                   if model.flat_start else "")))
+    stored = {k: np.asarray(v, dtype=np.float64) for k, v in doc["fabkit:map"].items()}
+    values = stored[drive]
+    sheets = doc.get("fabkit:sheets") or []
+    try:
+        if len(sheets) > 1:
+            diff, detail = _sheet_maps(model, sheets, stored)
+        else:
+            again = _map_at(model, fold, drive, values)
+            diff = max(float(np.max(np.abs(again[k] - stored[k]))) for k in stored)
+            detail = (f"{len(values)} drive values, ports {', '.join(sorted(stored))}; branch "
+                      f"{fold.branch} (file: {motion.get('branch')})")
+    except FabkitError as exc:
+        checks.append(_check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
+        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    checks.append(_check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail))
+    report = {"format": FORMAT, "file": str(path), "checks": checks, "max_map_difference": diff,
+              "branches": fold.branches, "branch": fold.branch}
+    if design is not None:
+        dm = origami_model(design, (settings or {}).get("origami"))
+        dfold = fold_model(dm, design.motion.drive, design.motion.to)
+        if len(dm.sheets) > 1:
+            # the design's own frames, input by input: the same well-conditioned comparison
+            dmaps = {k: np.asarray(v) for k, v in dfold.ports.items()}
+            ddiff = max(float(np.max(np.abs(dmaps[k] - stored[k]))) for k in stored if k in dmaps)
+        else:
+            dmap = _map_at(dm, dfold, drive, values)
+            ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in stored if k in dmap)
+        checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
+                             f"file map against the design {design.name}"))
+        report["max_design_difference"] = ddiff
+    if model.flat_start:
+        ff = flat_foldability(model.pattern())
+        ok = all(v["maekawa"] and v["kawasaki"] for v in ff)
+        checks.append(_check("maekawa_kawasaki", True, ok, True,
+                             "; ".join(f"vertex {v['vertex']}: M-V = {v['mountains'] - v['valleys']}"
+                                       f", alternating angle sum {v['kawasaki_deg']:.2e} deg"
+                                       for v in ff) or "no interior vertex"))
+        report["flat_foldable"] = ok
+    report["ok"] = all(c["ok"] for c in checks)
+    return report

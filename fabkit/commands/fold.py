@@ -1,0 +1,106 @@
+"""``fabkit fold TEMPLATE``: fold an origami template in the simulator and report it.
+
+Prints the bifurcation at the flat state (self-stress, first-order motions, the branches the
+second-order test finds), the branch taken (the one matching the mountain/valley assignment, or
+``--branch``), the drive and ports at the start and end, and the fold angle of every crease at
+the end. With ``-o`` it also writes the SVG, FOLD (and ORIPA .cp for a single sheet) and checks
+the FOLD file by re-folding it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "fold"
+HELP = "fold an origami template: bifurcation, branches, fold angles; -o writes SVG/FOLD/CP"
+
+
+def add_arguments(p):
+    p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="origami template file(s)")
+    p.add_argument("--branch", type=int, default=None,
+                   help="branch number to leave the flat state on (default: by assignment)")
+    p.add_argument("--sign", type=int, choices=(1, -1), default=None,
+                   help="direction along the branch (the two are mirror images)")
+    p.add_argument("--drive", default=None, help="port to drive (default: the template's)")
+    p.add_argument("--to", type=float, default=None, help="target value of the drive")
+    p.add_argument("-o", "--out", default=None,
+                   help="also write svg/fold/cp files into OUT/<name>/ and check the FOLD file")
+
+
+def describe(design, model, fold) -> str:
+    """The report printed for one template."""
+    lines = [f"== {design.name}: {design.description}".rstrip(": ")]
+    if fold.bifurcation:
+        lines.append("flat state   " + fold.bifurcation.replace("\n", "\n             "))
+        lines.append(f"taken        branch {fold.branch}, direction "
+                     f"{'+' if (fold.sign or 1) > 0 else '-'}")
+    else:
+        lines.append("start        regular configuration (no branch choice)")
+    lines.append(f"method       {fold.method}: {fold.message}")
+    for name, d in sorted(fold.ports.items(), key=lambda kv: (len(kv[0]), kv[0]))[:14]:
+        lines.append(f"{name:<12} {d[0]:.10g} -> {d[-1]:.10g}")
+    lines.append(f"edge error   {fold.max_edge_error:.1e} (relative, largest over "
+                 f"{fold.positions.shape[0]} frames)")
+    labels = model.network.labels
+    final = fold.angles[-1]
+    shown = 0
+    for k, (a, b) in enumerate(model.edges.tolist()):
+        lab = model.assignment[k]
+        if lab not in ("M", "V", "F", "U"):
+            continue
+        if shown == 24:
+            lines.append("...")
+            break
+        na = labels[a] if labels else str(a)
+        nb = labels[b] if labels else str(b)
+        lines.append(f"crease {na}-{nb:<6} {lab}  fold angle {final[k]:+9.4f} deg")
+        shown += 1
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from dataclasses import replace
+
+    from ..errors import FabkitError
+    from ..export import export
+    from ..fab.creases import fold_model, origami_model
+    from ..templates import load_template
+    from . import expand_templates
+
+    failed = 0
+    for path in expand_templates(args.templates):
+        design = load_template(path)
+        overrides = {k: v for k, v in (("branch", args.branch), ("sign", args.sign))
+                     if v is not None}
+        model = origami_model(design, overrides)
+        drive = args.drive or design.motion.drive
+        if drive not in design.network.ports:
+            known = ", ".join(sorted(design.network.ports))
+            raise FabkitError(f"{path}: --drive {drive!r} is not a port; ports: {known}")
+        # the command-line motion replaces the template's, for the report and the files alike
+        motion = replace(design.motion, drive=drive,
+                         to=args.to if args.to is not None else design.motion.to)
+        design = replace(design, motion=motion)
+        fold = fold_model(model, motion.drive, motion.to)
+        print(describe(design, model, fold))
+        if args.out:
+            from ..check import check_file
+            from ..export import get_exporter
+
+            folder = Path(args.out) / design.name
+            settings = {"origami": overrides} if overrides else {}
+            for fmt in ("svg", "fold", "cp"):
+                if get_exporter(fmt).applies(design):
+                    paths, _ = export(design, fmt, folder, **settings)
+                    print("wrote        " + ", ".join(str(p) for p in paths))
+            try:
+                report = check_file(folder / f"{design.name}.fold", design=design,
+                                    settings=settings)
+            except FabkitError as exc:
+                print(f"check        failed: {exc}")
+                failed += 1
+                continue
+            for c in report["checks"]:
+                print(f"check        {c['name']}: {'ok' if c['ok'] else 'FAILED'} ({c['detail']})")
+            failed += not report["ok"]
+    return 1 if failed else 0

@@ -1,0 +1,136 @@
+"""The 12-sheet origami chain (Fig 5g-h): joining, one motion, sequential unfolding, files."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.check import check_file
+from fabkit.export import export
+from fabkit.fab.creases import fold_model, kabsch, origami_model, sheet_chain
+from fabkit.kinematics.branching import analyze_bifurcation, step_off
+from conftest import TEMPLATES
+
+D2_STAR = 2.0 - np.sqrt(2.0)
+FLAT = np.sqrt(2.0)
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+@pytest.fixture(scope="module")
+def sheet_design():
+    return fabkit.load_template(TEMPLATES / "origami_sheet.toml")
+
+
+@pytest.fixture(scope="module")
+def reference(sheet_design):
+    net = sheet_design.network
+    return step_off(net, analyze_bifurcation(net), 2, -1.0, 1e-2)
+
+
+@pytest.fixture(scope="module")
+def design():
+    return fabkit.load_template(TEMPLATES / "origami_chain12.toml")
+
+
+def _two_corner_chain(sheet, x, copies):
+    """Sheets joined by the d2/d1 corner pair only (no third node), for comparison."""
+    nodes, edges, last = [x], [tuple(e) for e in sheet.edges.tolist()], list(range(5))
+    n = 5
+    for _ in range(copies - 1):
+        allx = np.vstack(nodes)
+        rot, shift, _ = kabsch(x[[0, 2, 1]], allx[[last[1], last[3], last[0]]])
+        y = x @ rot.T + shift
+        local = [last[1], n, last[3], n + 1, n + 2]  # A', C' shared; B', D', P' new
+        nodes.append(y[[1, 3, 4]])
+        n += 3
+        edges += [(local[a], local[b]) for a, b in sheet.edges.tolist()]
+        last = local
+    return fabkit.Network(np.vstack(nodes), edges)
+
+
+@pytest.mark.parametrize("copies", [2, 3, 12])
+def test_three_corner_join_keeps_one_motion(sheet_design, reference, copies):
+    net, maps = sheet_chain(sheet_design.network, copies, D2_STAR, reference=reference)
+    assert (net.n_nodes, net.n_edges) == (3 + 2 * copies, 2 + 6 * copies)
+    m = fabkit.count_modes(net)
+    assert (m.conformational, m.self_stress) == (1, 0)
+    # two shared corners leave a hinge about the shared diagonal at every join
+    x = sheet_design.network.nodes * 0 + net.nodes[:5]
+    loose = _two_corner_chain(sheet_design.network, x, copies)
+    assert fabkit.count_modes(loose).conformational == copies
+
+
+def test_template_is_the_generated_chain(design, sheet_design, reference):
+    net, maps = sheet_chain(sheet_design.network, 12, D2_STAR, reference=reference)
+    assert np.abs(design.network.nodes - net.nodes).max() < 1e-12
+    assert design.network.edges.tolist() == net.edges.tolist()
+    assert design.network.ports == net.ports
+    assert design.fabrication["origami"]["sheets"] == maps
+    # the crystal D2*: every distance of the chain at the fixed point
+    for name in design.network.ports:
+        assert design.network.port_distance(name) == pytest.approx(D2_STAR, abs=1e-12)
+
+
+def test_unfolds_sequentially_from_sheet_one(design):
+    model = origami_model(design)
+    fold = fold_model(model, design.motion.drive, design.motion.to)
+    assert fold.max_edge_error < 1e-12
+    d = np.array([fold.ports[f"d{k}"] for k in range(1, 14)]).T  # (frames, 13)
+    u = (d - D2_STAR) / (FLAT - D2_STAR)  # 0 folded, 1 flat
+    assert np.all(np.diff(u, axis=1) <= 1e-12)  # at every frame: sheet k ahead of sheet k+1
+    assert np.all(u[-1] > 1.0 - 1e-9)  # every sheet ends flat (the relay port resolves the end)
+    half = [int(np.argmax(u[:, k] >= 0.5)) for k in range(13)]
+    assert np.all(np.diff(half) > 0)  # the front passes one sheet after another, from sheet 1
+    assert "handed the drive to d13" in fold.message
+    # the chain's map: d_k = f(d_{k+1}) with f the sheet's map, stable fixed point at D2*
+    assert u[1, 1] < 0.3 * u[1, 0]
+
+
+def test_assignment_matches_the_folded_sheets(design):
+    model = origami_model(design)
+    angles = fold_model(model, design.motion.drive, design.motion.to, samples=2).angles[0]
+    lab = np.array(model.assignment)
+    assert np.all(angles[lab == "V"] > 100) and np.all(angles[lab == "M"] < -100)
+    assert np.all(angles[lab == "B"] == 0)
+
+
+def test_layout_svg_marks_every_join(design, tmp_path):
+    _, report = export(design, "svg", tmp_path)
+    root = ET.parse(tmp_path / "origami_chain12_layout.svg").getroot()
+    assert not root.findall(f".//{SVG}g")
+    lines = root.findall(f"{SVG}line")
+    texts = [t.text for t in root.findall(f"{SVG}text")]
+    assert len(lines) == 12 * 8 and sum(t.startswith("sheet ") for t in texts) == 12
+    # sheet 2: A on sheet 1's B; B on sheet 1's C and sheet 3's A; C on 1D, 3B, 4A; P free
+    i = texts.index("sheet 2")
+    assert texts[i + 1:i + 6] == ["A=1B", "B=1C,3A", "C=1D,3B,4A", "D=3C,4B,5A", "P"]
+    assert texts[texts.index("sheet 12") + 1] == "A=9D,10C,11B"
+    assert report["sheets"] == 12
+
+
+def test_chain_fold_file_round_trip(design, tmp_path):
+    export(design, "fold", tmp_path)
+    doc = json.loads((tmp_path / "origami_chain12.fold").read_text())
+    assert doc["frame_classes"] == ["foldedForm"] and len(doc["file_frames"]) == 61
+    assert len(doc["faces_vertices"]) == 48 and len(doc["vertices_coords"]) == 27
+    report = check_file(tmp_path / "origami_chain12.fold", design=design)
+    assert report["ok"], report["checks"]
+    assert {c["name"]: c for c in report["checks"]}["refold_map"]["value"] < 1e-8
+
+
+def test_cp_refuses_a_chain(design, tmp_path):
+    with pytest.raises(fabkit.FabricationError, match="one sheet"):
+        export(design, "cp", tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_layout_opacity_is_the_folded_crystal(design, tmp_path):
+    export(design, "svg", tmp_path)
+    root = ET.parse(tmp_path / "origami_chain12_layout.svg").getroot()
+    ops = sorted({round(float(x.get("stroke-opacity")), 4)
+                  for x in root.findall(f"{SVG}line") if x.get("stroke") != "#000000"})
+    assert ops == [0.7281, 0.919]  # |131.06| / 180 and |165.42| / 180 on every sheet
