@@ -24,6 +24,13 @@ __version__ = "0.1.0"
 _LAZY = {
     "chain": "fabkit.assemble",
     "join_transform": "fabkit.assemble",
+    "join": "fabkit.assemble",
+    "branch": "fabkit.assemble",
+    "tessellate": "fabkit.assemble",
+    "design_curve": "fabkit.letters",
+    "design_word": "fabkit.letters",
+    "glyph": "fabkit.letters",
+    "motion_gif": "fabkit.animate",
     "module_map": "fabkit.maps",
     "Map1D": "fabkit.maps",
     "design_module": "fabkit.design",

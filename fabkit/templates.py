@@ -51,6 +51,7 @@ BUILDERS: dict[str, str] = {
     "network": "fabkit.templates:build_network",
     "chain": "fabkit.assemble:build_chain",
     "design": "fabkit.design:build_designed_module",
+    "tessellation": "fabkit.assemble:build_tessellation",
 }
 
 #: Keys allowed at the top level besides the builder sections.

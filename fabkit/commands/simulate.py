@@ -17,6 +17,7 @@ def add_arguments(p):
                    help="auto, constructive, projected or rk4-nullspace (default: the template's)")
     p.add_argument("--to", type=float, default=None, help="target value of the drive")
     p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
+    p.add_argument("--gif", action="store_true", help="also write an animated motion.gif")
 
 
 def trajectory_npz(traj) -> bytes:
@@ -36,7 +37,7 @@ def trajectory_npz(traj) -> bytes:
     return buf.getvalue()
 
 
-def simulate_design(design, outdir: Path, method=None, to=None):
+def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
     from ..export import write_atomic
     from ..viz import figure_png, motion_figure
 
@@ -48,9 +49,16 @@ def simulate_design(design, outdir: Path, method=None, to=None):
     traj = design.trace(**overrides)
     npz = trajectory_npz(traj)
     png = figure_png(motion_figure(traj, title=design.name))
+    extra = {}
+    if gif:
+        from ..animate import motion_gif
+
+        extra["motion.gif"] = motion_gif(traj)
     folder = outdir / design.name
     write_atomic(folder / "trajectory.npz", npz)
     write_atomic(folder / "motion.png", png)
+    for name, data in extra.items():
+        write_atomic(folder / name, data)
     return traj, folder
 
 
@@ -61,7 +69,7 @@ def run(args) -> int:
     failed = 0
     for path in expand_templates(args.templates):
         design = load_template(path)
-        traj, folder = simulate_design(design, Path(args.out), args.method, args.to)
+        traj, folder = simulate_design(design, Path(args.out), args.method, args.to, args.gif)
         print(f"== {design.name} -> {folder}")
         print(traj.summary())
         failed += str(traj.status) == "failed"

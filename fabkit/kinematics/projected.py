@@ -192,6 +192,13 @@ class Projected(Method):
         if e + gcols.size + 1 != d * n:
             rows_keep = self._independent_rows(work, x0, gcols)
         self.sys = _System(work.edges, rest2, n, d, gcols, x0.ravel()[gcols], rows_keep)
+        # Edges left out of the square system because they were redundant at the start (a state
+        # of self-stress) are still watched: if the self-stress does not persist along the
+        # motion, they would break silently.
+        dropped = np.setdiff1d(np.arange(e), rows_keep) if rows_keep is not None else np.zeros(0, int)
+        self.dropped = dropped
+        self.dropped_edges = work.edges[dropped]
+        self.dropped_rest2 = rest2[dropped]
         self.scale = float(np.median(work.edge_lengths))
         self.min_length = float(np.min(work.edge_lengths))
         self.all_edges_rest2 = rest2
@@ -419,6 +426,8 @@ class Projected(Method):
                     return self._drive_grad(xx) * self._drive(xx)
 
                 landed = self._newton_on(guess, gr, res)
+                if landed is not None and self._broken_dropped(landed) is not None:
+                    return finish(Status.FAILED, self._locked_message(landed, x))
                 if landed is not None and (g_new > 0 or g_prev > 0):
                     arclength.append(arclength[-1] + float(np.linalg.norm(landed - x)))
                     positions.append(landed)
@@ -433,6 +442,8 @@ class Projected(Method):
             if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
                 return self._stop_at_turning(x, t, lu, j, h, g_prev, positions, arclength,
                                              events, finish)
+            if self._broken_dropped(x_new) is not None:
+                return finish(Status.FAILED, self._locked_message(x_new, x))
             arclength.append(arclength[-1] + float(np.linalg.norm(x_new - x)))
             positions.append(x_new)
             x, t, lu, j, tau, f_prev, g_prev = x_new, t_new, lu_new, j_new, tau_new, f_new, g_new
@@ -442,6 +453,24 @@ class Projected(Method):
                 h *= 1.5
         return finish(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
                                      f"({p.drive_name} = {self._drive(x):.10g})")
+
+    def _locked_message(self, x_bad, x_last) -> str:
+        k, err = self._broken_dropped(x_bad)
+        i0, i1 = (int(v) for v in self.dropped_edges[k])
+        p = self.problem
+        return (f"edge ({i0}, {i1}), redundant at the start (a state of self-stress), would break "
+                f"by {err:.1e} (relative) beyond {p.drive_name} = {self._drive(x_last):.10g}: the "
+                "self-stress does not persist there, so the network cannot follow this drive")
+
+    def _broken_dropped(self, xf, limit: float = 1e-9):
+        """(index, relative error) of the worst dropped edge beyond ``limit``, else None."""
+        if self.dropped.size == 0:
+            return None
+        x = xf.reshape(self.n, self.d)
+        diff = x[self.dropped_edges[:, 0]] - x[self.dropped_edges[:, 1]]
+        rel = np.abs(np.sqrt(np.einsum("ij,ij->i", diff, diff) / self.dropped_rest2) - 1.0)
+        k = int(np.argmax(rel))
+        return (k, float(rel[k])) if rel[k] > limit else None
 
     # -- events ---------------------------------------------------------------------------------
     def _point_at(self, x, t, lu, j, hh):
