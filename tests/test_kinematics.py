@@ -60,9 +60,12 @@ def test_projected_reports_branch_point_at_flat_fourbar(fourbar):
     traj = trace(fourbar, drive="d1", to=0.5, method="projected")
     assert traj.status is Status.BRANCH_POINT
     assert "self-stress" in traj.message
-    # at the located point the rigidity matrix is (numerically) singular: a state of self-stress
-    m = fabkit.count_modes(fourbar, traj.final, rtol=1e-6)
-    assert m.self_stress == 1
+    # at the located point the rigidity matrix is nearly singular (a state of self-stress there):
+    # its smallest singular value has dropped by more than three orders from the start's 0.77
+    from fabkit.rigidity import rigidity_matrix
+
+    sv = np.linalg.svd(rigidity_matrix(fourbar, traj.final, normalized=True).toarray(), compute_uv=False)
+    assert sv[-1] < 1e-3 and sv[-2] > 1.0
 
 
 def test_constructive_turning_point_names_collinear_node(fourbar):

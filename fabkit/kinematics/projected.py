@@ -99,6 +99,11 @@ class _System:
         fe = 0.5 * (np.einsum("ij,ij->i", diff, diff) - self.rest2)
         return np.concatenate([fe, xf[self.gcols] - self.gvals])
 
+    def rel_from_residual(self, r: np.ndarray) -> float:
+        """Relative edge residual max |l² - L²| / (2 L²) from a residual vector."""
+        e = self.rest2.size
+        return float(np.max(np.abs(r[:e]) / self.rest2))
+
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
         diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
@@ -246,6 +251,19 @@ class Projected(Method):
         tau = self.sys.det_sign(lu) * int(np.sign(t[j])) if self.opts["detect_branch_points"] else 1
         return t, lu, tau
 
+    def _tangent_from(self, lu, j, orient_like):
+        """Unit tangent and branch test τ from existing factors of A = [J; e_j]."""
+        rhs = np.zeros(self.sys.n_rows)
+        rhs[-1] = 1.0
+        t = lu.solve(rhs)
+        if not np.isfinite(t).all():
+            return None
+        t /= np.linalg.norm(t)
+        if t @ orient_like < 0:
+            t = -t
+        tau = self.sys.det_sign(lu) * int(np.sign(t[j])) if self.opts["detect_branch_points"] else 1
+        return t, tau
+
     def _drive_grad(self, xf):
         a, b = self.problem.drive
         x = xf.reshape(self.n, self.d)
@@ -273,32 +291,35 @@ class Projected(Method):
         return 16.0 * eps * max(big, self.scale), 4.0 * eps * big / self.min_length
 
     def _correct(self, xp, lu, j, cj):
-        """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None."""
+        """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None.
+
+        The residual is evaluated once per iteration and tested before the next solve; the step
+        is refused as soon as the iteration contracts worse than ``contraction``.
+        """
         dx_floor, res_floor = self._noise(xp)
         tol = max(self.opts["tol"], res_floor)
         kappa = self.opts["contraction"]
         x = xp.copy()
+        r = self.sys.residual(x)
         prev = None
         theta_max = 0.0
-        for it in range(1, 16):
-            r = np.concatenate([self.sys.residual(x), [x[j] - cj]])
-            dx = lu.solve(-r)
+        for it in range(0, 16):
+            if self.sys.rel_from_residual(r) <= tol:
+                return x, it, theta_max
+            dx = lu.solve(-np.append(r, x[j] - cj))
             if not np.isfinite(dx).all():
                 return None
             x += dx
+            r = self.sys.residual(x)
             nrm = float(np.max(np.abs(dx)))
             if nrm <= dx_floor:  # at round-off: converged if the residual agrees
-                if self.sys.rel_edge_residual(x) <= tol:
-                    return x, it, theta_max
-                return None
+                return (x, it + 1, theta_max) if self.sys.rel_from_residual(r) <= tol else None
             if prev is not None:
                 theta = nrm / prev
                 theta_max = max(theta_max, theta)
                 if theta > kappa:
                     return None
             prev = nrm
-            if self.sys.rel_edge_residual(x) <= tol:
-                return x, it, theta_max
         return None
 
     def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=12):
@@ -389,6 +410,7 @@ class Projected(Method):
         if f_prev >= 0:
             return finish(Status.FINISHED, self.finished_message())
 
+        curvature = None
         while len(positions) <= self.opts["max_steps"]:
             h = min(h, h_max)
             if h < h_min:
@@ -397,20 +419,27 @@ class Projected(Method):
                               f"{self._drive(x):.10g}: the corrector does not converge (a "
                               "singular configuration ahead?)")
             xp = x + h * t
-            corr = self._correct(xp, lu, j, xp[j])
+            if curvature is not None:
+                xp += (0.5 * h * h) * curvature  # second-order predictor: smaller first residual
+            # Newton on the Jacobian at the predicted point: contracts far better than reusing the
+            # previous point's LU, and the same factors then give the new tangent and det sign.
+            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            self.n_factor += 1
+            corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
             if corr is None:
                 stats["rejected"] += 1
                 h *= 0.5
                 continue
             x_new, its, theta = corr
             stats["newton_iterations"] += its
-            j_new = int(np.argmax(np.abs(t)))
-            nxt = self._tangent(x_new, j_new, orient_like=t)
+            nxt = self._tangent_from(lu_p, j, t)
             if nxt is None or float(nxt[0] @ t) < max_cos:
                 stats["rejected"] += 1
                 h *= 0.5
                 continue
-            t_new, lu_new, tau_new = nxt
+            t_new, tau_new = nxt
+            lu_new = lu_p
+            j_new = int(np.argmax(np.abs(t_new)))
             f_new = (self._drive(x_new) - target) * direction
             g_new = float(self._drive_grad(x_new) @ t_new) * direction
             if f_new >= 0:  # the target lies in this step: land on it exactly
@@ -444,13 +473,13 @@ class Projected(Method):
                                              events, finish)
             if self._broken_dropped(x_new) is not None:
                 return finish(Status.FAILED, self._locked_message(x_new, x))
-            arclength.append(arclength[-1] + float(np.linalg.norm(x_new - x)))
+            step = float(np.linalg.norm(x_new - x))
+            arclength.append(arclength[-1] + step)
             positions.append(x_new)
+            curvature = (t_new - t) / step if step > 0 else None
             x, t, lu, j, tau, f_prev, g_prev = x_new, t_new, lu_new, j_new, tau_new, f_new, g_new
-            if theta < 0.1:
-                h *= 2.0
-            elif theta < 0.2:
-                h *= 1.5
+            # with the Jacobian at the predicted point the contraction grows like h²: aim at 0.1
+            h *= min(2.0, max(0.7, math.sqrt(0.1 / max(theta, 0.025))))
         return finish(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
                                      f"({p.drive_name} = {self._drive(x):.10g})")
 
@@ -474,7 +503,19 @@ class Projected(Method):
 
     # -- events ---------------------------------------------------------------------------------
     def _point_at(self, x, t, lu, j, hh):
-        corr = self._correct(x + hh * t, lu, j, x[j] + hh * t[j])
+        """The curve point at arclength ~hh from x along t, with its exact tangent and branch
+        test; None where Newton fails.
+
+        Chord Newton on ``lu`` (the factors at x, a regular point) first: next to a branch point a
+        Jacobian taken there keeps the corrector on the branch it came from; the Jacobian at the
+        predicted point is the fallback.
+        """
+        xp = x + hh * t
+        corr = self._correct(xp, lu, j, xp[j])
+        if corr is None:
+            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            self.n_factor += 1
+            corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
         if corr is None:
             return None
         xn = corr[0]
@@ -487,6 +528,11 @@ class Projected(Method):
         """Secant search for ∇drive·t = 0 within the step, then stop there."""
         p = self.problem
         direction = self.direction()
+        exact = self._tangent(x, int(np.argmax(np.abs(t))), orient_like=t)
+        if exact is not None:
+            t, lu = exact[0], exact[1]
+            j = int(np.argmax(np.abs(t)))
+            g0 = float(self._drive_grad(x) @ t) * direction
         lo, glo, hi, ghi = 0.0, g0, h, None
         best = None
         for _ in range(40):
@@ -522,6 +568,9 @@ class Projected(Method):
                         also_turning):
         """Bisection on the sign of det [J; tᵀ] within the step; stop just before the branch."""
         p = self.problem
+        exact = self._tangent(x, int(np.argmax(np.abs(t))), orient_like=t)
+        if exact is not None:  # the test function at x itself (the step's one was off the curve)
+            tau0, lu, j = exact[2], exact[1], int(np.argmax(np.abs(t)))
         lo, hi = 0.0, h
         best = None
         for _ in range(50):
