@@ -1,0 +1,191 @@
+"""``fabkit map TEMPLATE``: a module's map d2 = f(d1), its cobweb diagram and a JSON summary."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FabkitError
+
+NAME = "map"
+HELP = "a module's iterated map: map.png, cobweb.png and map.json (fixed points, cycles, λ)"
+DESCRIPTION = (
+    "Compute the map d2 = f(d1) of a module template on the branch through its start "
+    "configuration: fixed points with slopes and stability, cycles, optionally the Lyapunov "
+    "exponent. Writes DIR/<name>/map.png, cobweb.png, map.json (and lyapunov.png, design.png).")
+
+
+def add_arguments(p):
+    p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="module template file(s)")
+    p.add_argument("--d1", default=None, metavar="VALUES",
+                   help="comma-separated initial d1 values for the cobweb (default: the fixed "
+                        "points and a value between them)")
+    p.add_argument("--steps", type=int, default=16, help="iterations in the cobweb (default 16)")
+    p.add_argument("--period", type=int, action="append", default=None, metavar="M",
+                   help="look for cycles of this period (repeatable; default 2)")
+    p.add_argument("--in", dest="d_in", default="d1", help="input port (default d1)")
+    p.add_argument("--out", dest="d_out", default="d2", help="output port (default d2)")
+    p.add_argument("--lyapunov", action="store_true",
+                   help="compute Lyapunov exponents (1000 orbits, 5000 discarded, 20000 averaged)")
+    p.add_argument("--orbits", type=int, default=1000, help="orbits for --lyapunov (default 1000)")
+    p.add_argument("--discard", type=int, default=5000, help="discarded iterations (default 5000)")
+    p.add_argument("--average", type=int, default=20000, help="averaged iterations (default 20000)")
+    p.add_argument("-o", "--outdir", default="out", help="output folder (default: out)")
+
+
+def parse_values(text: str) -> list[float]:
+    """``"1.8, 2.0"`` -> [1.8, 2.0], with a one-line error naming the bad entry."""
+    out = []
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        try:
+            v = float(item)
+        except ValueError:
+            raise FabkitError(f"--d1: {item!r} is not a number (give comma-separated values, "
+                              "e.g. --d1 1.8,2.0)") from None
+        if not np.isfinite(v):
+            raise FabkitError(f"--d1: {item!r} is not a finite number")
+        out.append(v)
+    if not out:
+        raise FabkitError("--d1: no values given (e.g. --d1 1.8,2.0)")
+    return out
+
+
+def design_map(design, d_in="d1", d_out="d2"):
+    """The map of a loaded template: constructive where possible, else read off a projected
+    trace of the template's motion."""
+    from ..errors import ConstructionError, DesignError
+    from ..maps import map_from_trajectory, module_map
+
+    net = design.network
+    for port in (d_in, d_out):
+        if port not in net.ports:
+            known = ", ".join(sorted(net.ports)) or "none"
+            raise FabkitError(f"{design.path}: no port {port!r} (the network has: {known})")
+    try:
+        try:
+            # `toward` only matters when the start is a turning point of d1 (on two branches)
+            return module_map(net, d_in, d_out, toward=design.motion.to, name=design.name)
+        except DesignError:  # the target lies beyond the branch: still map the start's branch
+            return module_map(net, d_in, d_out, name=design.name)
+    except ConstructionError as exc:
+        if design.motion.to is None:
+            raise FabkitError(f"{design.path}: {exc}; and the template gives no motion.to to "
+                              "trace instead") from None
+        traj = design.trace(method="projected")
+        return map_from_trajectory(traj, d_in, d_out, name=design.name)
+
+
+def default_d1(fmap, fixed) -> list[float]:
+    lo, hi = fmap.domain
+    vals = [p.value for p in fixed if lo <= p.value <= hi][:3]
+    if len(vals) >= 2:
+        vals.insert(1, 0.5 * (vals[0] + vals[1]))
+    elif vals:
+        v = vals[0]
+        vals.append(v + (0.02 if v + 0.02 * (hi - lo) < hi else -0.02) * (hi - lo))
+    else:
+        vals = [0.5 * (lo + hi)]
+    return vals
+
+
+def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapunov=False,
+               orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2") -> dict:
+    """Compute everything for one template and write its files; returns the summary."""
+    from ..export import write_atomic
+    from ..mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
+    from ..viz import figure_png
+
+    fmap = design_map(design, d_in, d_out)
+    fixed = fmap.fixed_points()
+    cycles = [c for m in periods for c in fmap.cycles(m)]
+    values = default_d1(fmap, fixed) if d1 is None else list(d1)
+    lo, hi = fmap.domain
+    for v in values:
+        if not lo - 1e-12 <= v <= hi + 1e-12:
+            raise FabkitError(f"--d1 {v:g} is outside the map's domain [{lo:.6g}, {hi:.6g}] "
+                              f"for {design.name}: no configuration there")
+    lyap = None
+    if lyapunov:
+        lyap = fmap.lyapunov(initial=orbits, discard=discard, average=average)
+    summary = fmap.summary(periods=periods, lyapunov=lyap)
+    summary["template"] = str(design.path)
+    summary["cobweb"] = [{"d1": v, "orbit": fmap.orbit(v, steps).tolist()} for v in values]
+    claims = []
+    powers = summary["identity_powers"]
+    for m in ([1] if 1 in powers else powers):  # f = id makes every power the identity too
+        claims.append("f(d) = d on the whole branch: every d1 is a neutral fixed point" if m == 1
+                      else f"f^{m}(d) = d on the whole branch: every d1 lies on a {m}-cycle")
+    for p in summary["fixed_points"]:
+        claims.append(f"fixed point {p['value']:.10g}: slope {p['slope']:.6g} ({p['kind']})")
+    for c in summary["cycles"]:
+        vals = ", ".join(f"{x:.10g}" for x in c["values"])
+        claims.append(f"{c['period']}-cycle ({vals}): multiplier {c['multiplier']:.6g} "
+                      f"({c['kind']})")
+    if lyap is not None:
+        claims.append(f"Lyapunov exponent {lyap.mean:.4f} ± {lyap.std:.4f} "
+                      f"({'chaotic' if lyap.mean > 0 else 'not chaotic'})")
+    summary["claims"] = claims
+    if "design" in design.meta:
+        summary["design"] = design.meta["design"]
+    folder = outdir / design.name
+    files = {
+        "map.png": figure_png(map_figure(fmap, fixed=fixed, cycles=cycles, title=design.name)),
+        "cobweb.png": figure_png(cobweb_figure(fmap, values, steps, title=f"{design.name}: cobweb")),
+    }
+    if lyap is not None:
+        files["lyapunov.png"] = figure_png(lyapunov_figure(lyap))
+    section = design.raw.get("design")
+    if isinstance(section, dict) and design.network.dim == 2:
+        from ..design import displacement_space, velocity_space
+
+        spaces = []
+        if "velocities" in section:
+            spaces.append(velocity_space(section["designed"], section["velocities"]))
+        if "final" in section:
+            spaces.append(displacement_space(section["designed"], section["final"]))
+        if spaces:
+            var = design.network.nodes[len(section["designed"]):]
+            files["design.png"] = figure_png(solution_space_figure(spaces, variable=var,
+                                                                   title=design.name))
+    text = json.dumps(summary, indent=2, default=_json_default) + "\n"
+    files["map.json"] = text.encode()
+    for name, data in files.items():  # everything computed first: no half-written folder
+        write_atomic(folder / name, data)
+    return summary
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def run(args) -> int:
+    from ..templates import load_template
+    from . import expand_templates
+
+    if args.steps < 1:
+        raise FabkitError(f"--steps must be at least 1, got {args.steps}")
+    periods = tuple(args.period or (2,))
+    if any(m < 2 for m in periods):
+        raise FabkitError("--period must be at least 2 (fixed points are always reported)")
+    d1 = parse_values(args.d1) if args.d1 is not None else None
+    for path in expand_templates(args.templates):
+        design = load_template(path)
+        summary = map_design(design, Path(args.outdir), d1=d1, steps=args.steps, periods=periods,
+                             lyapunov=args.lyapunov, orbits=args.orbits, discard=args.discard,
+                             average=args.average, d_in=args.d_in, d_out=args.d_out)
+        lo, hi = summary["domain"]
+        print(f"== {design.name} -> {Path(args.outdir) / design.name}")
+        print(f"map {summary['name']} ({summary['source']}), domain [{lo:.10g}, {hi:.10g}], "
+              f"{len(summary['branches'])} branch(es) in the whole motion")
+        for line in summary["claims"]:
+            print("  " + line)
+    return 0
