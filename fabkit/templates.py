@@ -119,9 +119,9 @@ class Design:
         m = self.motion
         to = overrides.pop("to", m.to)
         method = overrides.pop("method", m.method)
-        if to is None:
-            raise TemplateError(self.path or self.name, "motion.to",
-                                "no target value of the drive is given")
+        if to is None or not m.drive:
+            raise TemplateError(self.path or self.name, "motion",
+                                "no [motion] with a drive port and a target `to` is given")
         opts = {**m.options, **overrides}
         return trace(self.network, drive=m.drive, to=to, method=method, hold=m.hold, **opts)
 
@@ -322,8 +322,10 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
         raise ctx.error(builder_key, str(exc)) from None
     name = ctx.get(raw, "name", "", str, required=False, default=path.stem)
     description = ctx.get(raw, "description", "", str, required=False, default="")
-    motion_section = ctx.get(raw, "motion", "", dict, required=False, default={})
-    motion = _parse_motion(ctx, motion_section, net)
+    if "motion" in raw:
+        motion = _parse_motion(ctx, ctx.get(raw, "motion", "", dict), net)
+    else:  # geometry only: drive d1 if there is such a port, nothing to trace otherwise
+        motion = Motion(drive="d1" if "d1" in net.ports else "")
     fabrication = ctx.get(raw, "fabrication", "", dict, required=False, default={})
     return Design(name=name, description=description, path=path, network=net, motion=motion,
                   fabrication=fabrication, raw=raw, meta=ctx.meta)
