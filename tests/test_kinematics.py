@@ -217,3 +217,19 @@ def test_auto_accepts_options_of_any_method(fourbar):
     assert traj.method == "constructive" and traj.n_steps == 11
     with pytest.raises(TypeError, match="unknown option"):
         trace(fourbar, to=2.5, method="auto", nonsense=1)
+
+
+def test_projected_reaches_a_target_next_to_a_flat_turning_point(paper_modules):
+    # the physical 4-bar turns at its flat state d1 = 1 (slope ∞ there); a chain driven to
+    # 1e-9 above it must finish on this side, where constructive placement finishes too
+    m = paper_modules["physical_fourbar"]
+    flat = Network(m["nodes"], m["edges"], ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+    open_ = trace(flat, drive="d2", to=1.2, method="projected")  # d2 is regular at the flat start
+    assert open_.success
+    module = flat.with_nodes(open_.final)
+    net = fabkit.chain(module, 8)
+    a = trace(net, drive="d1", to=1 + 1e-9, method="constructive")
+    b = trace(net, drive="d1", to=1 + 1e-9, method="projected")
+    assert a.success and b.success, b.message
+    for k in range(1, 10):
+        assert b.distance(f"d{k}")[-1] == pytest.approx(a.distance(f"d{k}")[-1], abs=1e-6)

@@ -192,7 +192,8 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) ->
     if not np.isfinite(target) or target <= 0:
         raise KinematicsError(f"`to` must be a positive finite distance, got {to!r}")
     key = tuple(sorted(pair))
-    if any(tuple(sorted(e)) == key for e in net.edges.tolist()):
+    if np.any((np.minimum(net.edges[:, 0], net.edges[:, 1]) == key[0])
+              & (np.maximum(net.edges[:, 0], net.edges[:, 1]) == key[1])):
         raise KinematicsError(
             f"the drive {name} joins nodes {pair[0]} and {pair[1]}, which share an edge: "
             "its distance cannot change"

@@ -36,15 +36,14 @@ __all__ = ["Projected", "gauge_rows", "permutation_parity"]
 
 
 def permutation_parity(perm: np.ndarray) -> int:
-    """+1 for an even permutation, -1 for an odd one (vectorised cycle count, O(n log n))."""
+    """+1 for an even permutation, -1 for an odd one: parity = (n - number of cycles) mod 2,
+    the cycles counted as connected components of the graph i -> perm[i]."""
+    from scipy.sparse.csgraph import connected_components
+
     perm = np.asarray(perm, dtype=np.int64)
     n = perm.size
-    label = np.arange(n)
-    p = perm.copy()
-    for _ in range(max(1, int(math.ceil(math.log2(max(n, 2))))) + 1):
-        label = np.minimum(label, label[p])
-        p = p[p]
-    cycles = np.unique(label).size
+    graph = sp.csr_matrix((np.ones(n, dtype=np.int8), (np.arange(n), perm)), shape=(n, n))
+    cycles = connected_components(graph, directed=True, connection="weak", return_labels=False)
     return 1 if (n - cycles) % 2 == 0 else -1
 
 
@@ -251,6 +250,40 @@ class Projected(Method):
         tau = self.sys.det_sign(lu) * int(np.sign(t[j])) if self.opts["detect_branch_points"] else 1
         return t, lu, tau
 
+    def _walk_to_target(self, x, t, h):
+        """Land on drive values approaching the target geometrically from x (each Newton solve
+        starting from the last); the final configuration, or None if the walk fails or turns."""
+        direction = self.direction()
+        target = self.problem.target
+        d0 = self._drive(x)
+        y = x
+        for k in list(range(1, 9)) + [None]:
+            value = target if k is None else target + (d0 - target) * 0.3 ** k
+            landed = self._land(y, value)
+            if landed is None or np.linalg.norm(landed - y) > 2 * h:
+                return None
+            tl = self._tangent(landed, int(np.argmax(np.abs(t))), orient_like=t)
+            if tl is None or self._broken_dropped(landed) is not None:
+                return None
+            if float(self._drive_grad(landed) @ tl[0]) * direction < 0:
+                return None  # beyond the turning point: the mirror-image configuration
+            y, t = landed, tl[0]
+        return y
+
+    def _land(self, guess, value=None):
+        """Newton onto the configuration near ``guess`` whose drive equals the target."""
+        a, b = self.problem.drive
+        target = self.problem.target if value is None else value
+
+        def res(xx):
+            y = xx.reshape(self.n, self.d)
+            return 0.5 * (float(np.sum((y[a] - y[b]) ** 2)) - target ** 2)
+
+        def grad(xx):
+            return self._drive_grad(xx) * self._drive(xx)
+
+        return self._newton_on(guess, grad, res)
+
     def _tangent_from(self, lu, j, orient_like):
         """Unit tangent and branch test τ from existing factors of A = [J; e_j]."""
         rhs = np.zeros(self.sys.n_rows)
@@ -445,16 +478,7 @@ class Projected(Method):
             if f_new >= 0:  # the target lies in this step: land on it exactly
                 frac = -f_prev / (f_new - f_prev) if f_new != f_prev else 1.0
                 guess = x + frac * (x_new - x)
-                a, b = p.drive
-
-                def res(xx):
-                    y = xx.reshape(self.n, self.d)
-                    return 0.5 * (float(np.sum((y[a] - y[b]) ** 2)) - target ** 2)
-
-                def gr(xx):
-                    return self._drive_grad(xx) * self._drive(xx)
-
-                landed = self._newton_on(guess, gr, res)
+                landed = self._land(guess)
                 if landed is not None and self._broken_dropped(landed) is not None:
                     return finish(Status.FAILED, self._locked_message(landed, x))
                 if landed is not None and (g_new > 0 or g_prev > 0):
@@ -469,6 +493,13 @@ class Projected(Method):
                 return self._stop_at_branch(x, t, lu, j, h, tau, positions, arclength, events,
                                             finish, g_prev * g_new < 0)
             if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
+                # the target may lie between x and the turning point, too close to the turn for
+                # the step to have crossed it on this side: walk the drive towards it by landing
+                landed = self._walk_to_target(x, t, h)
+                if landed is not None:
+                    arclength.append(arclength[-1] + float(np.linalg.norm(landed - x)))
+                    positions.append(landed)
+                    return finish(Status.FINISHED, self.finished_message())
                 return self._stop_at_turning(x, t, lu, j, h, g_prev, positions, arclength,
                                              events, finish)
             if self._broken_dropped(x_new) is not None:

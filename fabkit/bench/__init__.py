@@ -1,0 +1,222 @@
+"""Speed against accuracy: the studies behind ``fabkit bench``.
+
+- :mod:`fabkit.bench.workprecision`: wall time against accuracy for every tracing method on chains
+  of 10 to 10 000 modules, and how the time per configuration grows with the size;
+- :mod:`fabkit.bench.stability`: what each method does where methods fail (flat states,
+  bifurcations, turning points, super-stable and super-unstable fixed points, self-stress, chaos).
+
+This module holds what both share: the paper's module geometry used as benchmark inputs, the
+iterated map that serves as the exact reference, machine information and single-threaded BLAS
+(the machines this runs on are small and shared; a fair comparison gives every method one core).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import platform
+
+import numpy as np
+
+from ..network import Network
+
+__all__ = ["PAPER_MODULES", "paper_module", "ModuleMap", "machine_info", "single_thread_blas",
+           "finite", "pyplot"]
+
+_S3 = 0.8660254037844386  # sqrt(3)/2
+
+#: Geometry of the paper's modules used by the studies (design units; nodes 0-based). Inputs only:
+#: every property (fixed points, slopes, ranges) is computed from them.
+PAPER_MODULES: dict[str, dict] = {
+    "fourbar": {
+        "nodes": [[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]],
+        "edges": [[0, 2], [0, 3], [1, 2], [1, 3]],
+        "d1": (0, 1), "d2": (2, 3),
+    },
+    "super_stable": {
+        "nodes": [[-_S3, -0.5], [0.0, 1.0], [_S3, -0.5], [-0.3, -0.5],
+                  [0.2830127018922193, 0.5098076211353315]],
+        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
+        "d1": (0, 1), "d2": (1, 2),
+    },
+    "chaotic": {
+        "nodes": [[-1.299038105676658, -0.75], [0.0, 0.0], [1.299038105676658, -0.75],
+                  [0.22499999999999998, -0.75], [-0.33, -1.35]],
+        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
+        "d1": (0, 1), "d2": (1, 2),
+    },
+    "curvature_contract": {
+        "nodes": [[-_S3, -0.5], [0.0, 1.0], [_S3, -0.5], [-0.7084841432387589, 2.209629214105522],
+                  [0.7084841055399557, 2.2096291504934826]],
+        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
+        "d1": (0, 1), "d2": (1, 2),
+    },
+    "physical_fourbar": {
+        "nodes": [[1.0, 0.0], [2.0, 0.0], [0.0, 0.0], [0.5, _S3]],
+        "edges": [[0, 2], [1, 2], [0, 3], [1, 3]],
+        "d1": (0, 1), "d2": (2, 3),
+    },
+    "origami_sheet": {
+        "nodes": [[-0.7071067811865476, 0.0, 0.0], [0.0, 0.7071067811865476, 0.0],
+                  [0.7071067811865476, 0.0, 0.0], [0.0, -0.7071067811865476, 0.0],
+                  [0.0, 0.20710678118654757, 0.0]],
+        "edges": [[0, 1], [0, 3], [1, 2], [2, 3], [0, 4], [1, 4], [2, 4], [3, 4]],
+        "d1": (1, 3), "d2": (0, 2),
+    },
+}
+
+
+def paper_module(name: str, nodes=None) -> Network:
+    """One of the paper's modules as a :class:`~fabkit.Network` with ports ``d1`` and ``d2``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PAPER_MODULES`.
+    nodes : array_like, shape (N, d), optional
+        Other coordinates with the same topology (the module in another configuration).
+
+    Raises
+    ------
+    KeyError
+        Unknown name (the message lists the valid ones).
+
+    Examples
+    --------
+    >>> net = paper_module("fourbar")
+    >>> net.n_nodes, round(float(net.port_distance("d1")), 12)
+    (4, 2.0)
+    """
+    try:
+        m = PAPER_MODULES[name]
+    except KeyError:
+        raise KeyError(f"unknown module {name!r}; valid: {', '.join(PAPER_MODULES)}") from None
+    x = np.array(m["nodes"] if nodes is None else nodes, dtype=np.float64)
+    return Network(x, m["edges"], ports={"d1": m["d1"], "d2": m["d2"]})
+
+
+class ModuleMap:
+    """The 1-D map ``d2 = f(d1)`` of a module, evaluated by constructive placement.
+
+    The branch is that of the module's reference configuration (the side of every intersection),
+    which is also the branch :func:`fabkit.chain` builds every copy on, so iterating this map
+    gives the exact distances ``d_{k+1}`` of a chain: the reference the methods are measured
+    against. Vectorised over drive values; one placement per module.
+
+    Parameters
+    ----------
+    module : Network
+        A module with ports ``d1`` and ``d2`` and a construction order from ``d1``.
+
+    Examples
+    --------
+    >>> f = ModuleMap(paper_module("fourbar"))
+    >>> [round(float(v), 12) for v in f([2.0, 1.0])]   # d1 * d2 = 4 for this 4-bar
+    [2.0, 4.0]
+    """
+
+    def __init__(self, module: Network):
+        from ..kinematics import plan_construction, place
+
+        self._place = place
+        self.plan = plan_construction(module, module.port("d1"))
+        self.out = module.port("d2")
+
+    def __call__(self, d1) -> np.ndarray:
+        """``f(d1)``, shape like ``d1``; NaN where the module has no configuration."""
+        d = np.asarray(d1, dtype=np.float64)
+        x, margin, _ = self._place(self.plan, d.ravel())
+        i, j = self.out
+        out = np.linalg.norm(x[:, i] - x[:, j], axis=-1)
+        out[margin < 0] = np.nan
+        return out.reshape(d.shape)
+
+    def iterate(self, d1, k: int) -> np.ndarray:
+        """The distances ``d_1 … d_{k+1}`` of a k-module chain, shape (k + 1, S).
+
+        Examples
+        --------
+        >>> f = ModuleMap(paper_module("fourbar"))
+        >>> f.iterate([1.0], 2)[:, 0].round(12).tolist()
+        [1.0, 4.0, 1.0]
+        """
+        d = np.atleast_1d(np.asarray(d1, dtype=np.float64))
+        out = np.empty((int(k) + 1, d.size))
+        out[0] = d
+        for c in range(int(k)):
+            out[c + 1] = self(out[c])
+        return out
+
+
+def machine_info() -> dict:
+    """What the timings were measured on (CPU, cores, load, library versions, BLAS threads)."""
+    import scipy
+
+    info = {
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    info["cpu_model"] = line.split(":", 1)[1].strip()
+                    break
+    with contextlib.suppress(OSError, AttributeError):
+        info["load_average"] = [round(v, 2) for v in os.getloadavg()]
+    try:
+        import threadpoolctl
+
+        info["blas"] = [{"api": p.get("internal_api"), "threads": p.get("num_threads")}
+                        for p in threadpoolctl.threadpool_info()]
+    except ImportError:
+        info["blas"] = "unknown (threadpoolctl not installed)"
+    return info
+
+
+@contextlib.contextmanager
+def single_thread_blas():
+    """Limit BLAS/LAPACK to one thread inside the block (no-op without threadpoolctl).
+
+    On a shared two-core machine a multi-threaded dense SVD of a small matrix runs up to 20x
+    slower than a single-threaded one (threads wait on each other), which would make the dense
+    baseline look worse than it is. Every method is timed with one thread.
+    """
+    try:
+        import threadpoolctl
+    except ImportError:
+        yield False
+        return
+    with threadpoolctl.threadpool_limits(1):
+        yield True
+
+
+def finite(doc):
+    """A copy of a JSON-like document with NaN and infinities replaced by None (strict JSON).
+
+    Examples
+    --------
+    >>> finite({"a": [1.0, float("nan")], "b": float("inf")})
+    {'a': [1.0, None], 'b': None}
+    """
+    if isinstance(doc, dict):
+        return {k: finite(v) for k, v in doc.items()}
+    if isinstance(doc, (list, tuple)):
+        return [finite(v) for v in doc]
+    if isinstance(doc, (float, np.floating)) and not np.isfinite(doc):
+        return None
+    return doc
+
+
+def pyplot():
+    """matplotlib's pyplot on the non-interactive Agg backend (figures are rendered to bytes)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt

@@ -1,0 +1,290 @@
+"""``fabkit bench [-o DIR] [--quick]``: speed against accuracy of the tracing methods.
+
+Writes ``DIR/bench/``: ``work_precision.png``, ``scaling.png`` (fitted exponents),
+``stability.md`` (the stability table with its evidence), ``failure_cases.png``, ``bench.json``
+(every measured point, the targets, machine information) and, with ``--profile``,
+``profile.txt``. Nothing is written until every result exists.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+NAME = "bench"
+HELP = "speed against accuracy: work-precision and scaling charts, stability study"
+DESCRIPTION = (
+    "Time every tracing method against its accuracy on chains of 10 to 10 000 super-stable "
+    "modules, fit how the time grows with size, and run the stability study where methods fail. "
+    "--quick finishes in about two minutes.")
+
+#: Parameters of the two modes.
+MODES = {
+    "quick": {"sizes": (10, 100, 1000), "budget": 8.0, "repeats": 3, "compare_modules": 300,
+              "lyapunov": (1000, 500, 2000),
+              "stability": {"super_stable_modules": 8}, "rk4_step": 0.05,
+              "horizon_modules": 200, "profile_modules": 1000},
+    "full": {"sizes": (10, 100, 1000, 10000), "budget": 30.0, "repeats": 3,
+             "compare_modules": 300,
+             "lyapunov": (1000, 500, 2000), "stability": {}, "rk4_step": 0.02,
+             "horizon_modules": 200, "profile_modules": 10000},
+}
+
+
+def add_arguments(p):
+    p.add_argument("-o", "--out", default="out", help="output folder (default: out); results go "
+                   "to OUT/bench/")
+    p.add_argument("--quick", action="store_true",
+                   help="small sizes and budgets (about two minutes)")
+    p.add_argument("--budget", type=float, default=None,
+                   help="seconds allowed per method, setting and size (default 30; quick 8)")
+    p.add_argument("--sizes", default=None,
+                   help="comma-separated numbers of modules (default 10,100,1000,10000)")
+    p.add_argument("--parts", default="workprecision,targets,stability",
+                   help="comma-separated parts to run: workprecision (charts), targets (rk4 "
+                        "comparison at 300 modules, Lyapunov protocol), stability (table, "
+                        "failure cases, horizon); default all")
+    p.add_argument("--profile", action="store_true",
+                   help="also profile 'projected' on the largest chain (profile.txt)")
+
+
+def _sizes(text):
+    from ..errors import FabkitError
+
+    try:
+        sizes = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise FabkitError(f"--sizes must be comma-separated integers, got {text!r}") from None
+    if not sizes or min(sizes) < 1:
+        raise FabkitError(f"--sizes must list positive numbers of modules, got {text!r}")
+    return sizes
+
+
+def _say(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _point_line(p):
+    t = "-" if p["time_s"] is None else f"{p['time_s']:.3g} s"
+    e = "-" if p["max_edge_error"] is None else f"{p['max_edge_error']:.1e}"
+    return f"  {p['modules']:>6} modules  {p['label']:<34} {p['status']:<30} {t:>10}  edge {e}"
+
+
+def comparison_at(k, points, settings, budget, repeats, rk4_step):
+    """Best method against ``rk4-nullspace`` at k modules.
+
+    The dense method is timed per evaluation at 10, 30, 100 and k modules (its scaling, where
+    whole runs are over budget); its time at k modules is the evaluation measured there times
+    the evaluations of its largest finished run with the same step (the count depends on the
+    step and the arclength, which for the super-stable chain does not grow with k).
+    """
+    from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
+
+    problem = chain_problem(k)
+    best = None
+    for s in settings:
+        if s.method in ("map", "rk4-nullspace"):
+            continue
+        pt = measure(problem, s, budget, repeats)
+        if pt["outcome"] == "ok" and pt["status"] == "finished" and (
+                best is None or pt["time_s"] < best["time_s"]):
+            best = pt
+    evals = []
+    for kk in (10, 30, 100, k):
+        est = rk4_estimate(kk, rk4_step, 1, repeats=3 if kk < k else 1)
+        evals.append({"modules": kk, "nodes": est["nodes"], "evaluation_s": est["evaluation_s"]})
+        if est["evaluation_s"] > budget:
+            break
+    fit = fit_exponent([e["nodes"] for e in evals], [e["evaluation_s"] for e in evals])
+    fit_last = fit_exponent([e["nodes"] for e in evals[-2:]],
+                            [e["evaluation_s"] for e in evals[-2:]])
+    rk4_runs = [p for p in points if p["method"] == "rk4-nullspace" and p["outcome"] == "ok"
+                and p["options"].get("step") == rk4_step and p["status"] == "finished"]
+    rk4 = None
+    if rk4_runs and evals[-1]["modules"] == k:
+        ref = max(rk4_runs, key=lambda p: p["modules"])
+        n_evals = int(ref["stats"].get("evaluations", 0))
+        rk4 = {"label": f"rk4-nullspace (step={rk4_step:g})", "estimated": True,
+               "time_s": n_evals * evals[-1]["evaluation_s"],
+               "evaluation_s": evals[-1]["evaluation_s"], "evaluations": n_evals,
+               "max_edge_error": ref["max_edge_error"],
+               "note": f"one dense evaluation measured at {k} modules x the {n_evals} "
+                       f"evaluations of the {ref['modules']}-module run with the same step; "
+                       "edge error of that run"}
+    return {"modules": k, "best": best, "rk4": rk4, "rk4_evaluations": evals,
+            "rk4_evaluation_exponent": fit[0] if fit else None,
+            "rk4_evaluation_exponent_largest": fit_last[0] if fit_last else None}
+
+
+PARTS = ("workprecision", "targets", "stability")
+
+
+def _parts(text):
+    from ..errors import FabkitError
+
+    parts = [v.strip() for v in text.split(",") if v.strip()]
+    bad = [v for v in parts if v not in PARTS]
+    if bad or not parts:
+        raise FabkitError(f"--parts must name some of {', '.join(PARTS)}, got {text!r}")
+    return parts
+
+
+def run(args) -> int:
+    from ..bench import finite, machine_info
+    from ..bench import stability as stab
+    from ..bench.workprecision import (FULL_SETTINGS, QUICK_SETTINGS, lyapunov_protocol,
+                                       maps_lyapunov, profile_method, scaling, scaling_figure,
+                                       targets, work_precision, work_precision_figure)
+    from ..errors import FabkitError
+    from ..export import write_atomic
+    from ..viz import figure_png
+
+    import signal
+
+    # a terminated bench stops its measuring child process too (cleanup runs on SystemExit)
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    mode = "quick" if args.quick else "full"
+    cfg = dict(MODES[mode])
+    sizes = _sizes(args.sizes) if args.sizes else cfg["sizes"]
+    budget = cfg["budget"] if args.budget is None else float(args.budget)
+    if not budget > 0:
+        raise FabkitError(f"--budget must be a positive number of seconds, got {args.budget}")
+    parts = _parts(args.parts)
+    settings = QUICK_SETTINGS if args.quick else FULL_SETTINGS
+    rk4_step = cfg["rk4_step"]
+    if not any(s.method == "rk4-nullspace" and s.options.get("step") == rk4_step
+               for s in settings):
+        rk4_step = next(s.options["step"] for s in settings if s.method == "rk4-nullspace")
+    outdir = Path(args.out) / "bench"
+    t_start = time.perf_counter()
+    doc = {"command": "fabkit bench" + (" --quick" if args.quick else ""), "mode": mode,
+           "parts": parts, "sizes": list(sizes), "budget_s": budget, "machine": machine_info()}
+    files = {}
+
+    points, scal = [], {}
+    if "workprecision" in parts or "targets" in parts:
+        _say(f"fabkit bench ({mode}): work-precision on {', '.join(map(str, sizes))} modules, "
+             f"budget {budget:g} s per run")
+        points = work_precision(sizes, settings, budget=budget, repeats=cfg["repeats"],
+                                progress=lambda p: _say(_point_line(p)))
+        scal = scaling(points)
+        doc.update(points=points, scaling=scal)
+        files["work_precision.png"] = figure_png(work_precision_figure(points))
+
+    comparison = lyap = None
+    if "targets" in parts:
+        _say(f"comparison with rk4-nullspace at {cfg['compare_modules']} modules")
+        comparison = comparison_at(cfg["compare_modules"], points, settings, budget,
+                                   cfg["repeats"], rk4_step)
+        starts, transient, iterations = cfg["lyapunov"]
+        _say(f"Lyapunov protocol ({starts} x {transient + iterations} map iterations)")
+        lyap = lyapunov_protocol(starts, transient, iterations)
+        if (starts, transient, iterations) != (1000, 5000, 20000):
+            # the protocol's cost is linear in the number of map evaluations
+            lyap["extrapolated_time_s"] = lyap["time_per_map_evaluation_s"] * 1000 * (
+                5000 + 3 * 20000)
+        lib_cfg = (1000, 500, 2000) if args.quick else (1000, 5000, 20000)
+        _say(f"Lyapunov protocol of fabkit.maps ({lib_cfg[0]} x {lib_cfg[1] + lib_cfg[2]})")
+        lyap["library"] = maps_lyapunov(*lib_cfg, budget=max(budget, 60.0))
+        doc.update(comparison=comparison, lyapunov=lyap)
+    if points:
+        doc["targets"] = targets(points, scal, comparison, lyap)
+        files["scaling.png"] = figure_png(scaling_figure(
+            scal, points, comparison["rk4_evaluations"] if comparison else None))
+
+    study = horizon = None
+    if "stability" in parts:
+        _say("stability study")
+        study = stab.stability_study(
+            None, budget=max(budget, 30.0),
+            cases=stab.stability_cases(**cfg["stability"]),
+            progress=lambda r: _say(f"  {r['case']:<20} {r['method']:<14} {r['class']}"))
+        _say("predictability horizon of the chaotic chain")
+        horizon = stab.predictability_horizon(cfg["horizon_modules"], budget=max(budget, 30.0))
+        doc.update(stability=study, horizon=horizon)
+        files["failure_cases.png"] = figure_png(stab.failure_figure(study, horizon))
+        files["stability.md"] = _stability_markdown(study, horizon).encode()
+
+    if args.profile:
+        k = max(sizes) if args.sizes else cfg["profile_modules"]
+        _say(f"profiling projected on {k} modules")
+        prof = profile_method(k, "projected")
+        files["profile.txt"] = prof.pop("text").encode()
+        doc["profile"] = prof
+
+    doc["elapsed_s"] = time.perf_counter() - t_start
+    # everything measured and rendered: only now write
+    files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
+                                     allow_nan=False).encode()
+    for name, data in files.items():
+        write_atomic(outdir / name, data)
+
+    print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_s']:.0f} s)")
+    for s in scal.values():
+        e = "-" if s["exponent"] is None else f"{s['exponent']:.2f}"
+        e2 = "-" if s.get("exponent_largest") is None else f"{s['exponent_largest']:.2f}"
+        print(f"  scaling   {s['label']:<34} time per configuration ~ N^{e} "
+              f"(between the two largest sizes N^{e2})")
+    if comparison and comparison.get("rk4_evaluation_exponent") is not None:
+        print(f"  scaling   rk4-nullspace, one dense evaluation        ~ "
+              f"N^{comparison['rk4_evaluation_exponent']:.2f} (between the two largest sizes "
+              f"N^{comparison['rk4_evaluation_exponent_largest']:.2f}; "
+              + ", ".join(f"{e['nodes']} nodes {e['evaluation_s']:.3g} s"
+                          for e in comparison["rk4_evaluations"]) + ")")
+    for name, g in doc.get("targets", {}).items():
+        shown = ", ".join(f"{k}={_short(v)}" for k, v in g.items() if k not in ("target", "met"))
+        print(f"  target    {name:<22} {'met' if g['met'] else 'NOT met'}: {g['target']} "
+              f"[{shown}]")
+    if study is not None:
+        counts = {}
+        for r in study["rows"]:
+            counts.setdefault(r["method"], {}).setdefault(r["class"], 0)
+            counts[r["method"]][r["class"]] += 1
+        for m, c in counts.items():
+            print(f"  stability {m:<14} " + ", ".join(f"{v} {k}" for k, v in c.items()))
+        print(f"  horizon   chaotic chain, λ = {horizon['lyapunov_orbit']:.3f}: " + ", ".join(
+            f"{m} {('-' if h['horizon'] is None else format(h['horizon'], '.0f'))}"
+            f"{' (extrapolated)' if h['extrapolated'] else ''}"
+            for m, h in horizon["methods"].items()) + " modules")
+    return 0
+
+
+def _short(v):
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, list):
+        return f"[{len(v)} items]" if len(v) > 3 else str(v)
+    return str(v)
+
+
+def _stability_markdown(study, horizon) -> str:
+    from ..bench.stability import stability_table
+
+    lines = ["# Stability study", "", stability_table(study), "## Predictability horizon of the "
+             "chaotic chain", "",
+             f"{horizon['modules']} chaotic modules built at d1 = {horizon['d1']}, driven by "
+             f"{horizon['delta']:g}; exact distances by placement in 60-digit decimal arithmetic. "
+             f"Horizon = first module where the error exceeds {horizon['threshold']:g}. "
+             f"Lyapunov exponent along the orbit λ = {horizon['lyapunov_orbit']:.4f}; "
+             f"ε·e^(λk) reaches the threshold at k = {horizon['expected_horizon']:.1f}.", "",
+             "| compared | horizon (modules) | fitted growth rate of the error |", "|---|---|---|"]
+    for name, h in list(horizon["methods"].items()) + list(horizon["pairs"].items()):
+        hz = "–" if h["horizon"] is None else f"{h['horizon']:.1f}"
+        if h["extrapolated"]:
+            hz += " (extrapolated)"
+        rate = "–" if h["growth_rate"] is None else f"{h['growth_rate']:.3f}"
+        label = name if " vs " in name else f"{name} vs exact"
+        lines.append(f"| {label} | {hz} | {rate} |")
+    return "\n".join(lines) + "\n"
+
+
+def _jsonable(v):
+    import numpy as np
+
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return str(v)

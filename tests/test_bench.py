@@ -1,0 +1,258 @@
+"""`fabkit bench`: the work-precision study at tiny sizes, the budget, the classification of
+outcomes on cases whose truth is known, and the predictability horizon. No timing assertions."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+
+from fabkit.bench import ModuleMap, finite, paper_module
+from fabkit.bench import stability as stab
+from fabkit.bench.workprecision import (SKIPPED, STOPPED, Setting, fit_exponent, run_budgeted,
+                                        scaling, work_precision)
+from fabkit.cli import main
+
+
+# -- shared inputs ----------------------------------------------------------------------------
+def test_module_map_is_the_fourbar_hyperbola():
+    f = ModuleMap(paper_module("fourbar"))
+    d1 = np.array([1.0, 1.5, 2.0, 3.0, 4.0])
+    assert np.allclose(d1 * f(d1), 4.0, rtol=0, atol=1e-13)
+    # outside the motion (below the flat state 2√2 - 2) there is no configuration
+    assert np.isnan(f(np.array([0.5]))[0])
+    # two copies give back d1
+    assert np.allclose(f.iterate(d1, 2)[-1], d1, atol=1e-13)
+
+
+def test_module_map_matches_the_chain_it_references():
+    from fabkit.assemble import chain
+
+    ss = paper_module("super_stable")
+    net = chain(ss, 5)
+    ref = ModuleMap(ss).iterate([float(net.port_distance("d1"))], 5)[:, 0]
+    got = [float(net.port_distance(f"d{c + 1}")) for c in range(6)]
+    assert np.allclose(got, ref, atol=1e-13)
+
+
+def test_fit_exponent_recovers_a_power_law():
+    n = np.array([10, 100, 1000, 10000])
+    p, c = fit_exponent(n, 3e-6 * n ** 1.1)
+    assert p == pytest.approx(1.1, abs=1e-12) and c == pytest.approx(3e-6, rel=1e-10)
+    assert fit_exponent([10], [1.0]) is None
+
+
+# -- work-precision at tiny sizes ---------------------------------------------------------------
+SETTINGS = (
+    Setting("map", {"samples": 21}),
+    Setting("constructive", {"samples": 21}),
+    Setting("projected", {}),
+    Setting("rk4-nullspace", {"step": 0.1}),
+)
+POINT_KEYS = {"method", "options", "label", "modules", "nodes", "coordinates", "outcome", "status",
+              "time_s", "times", "repeats", "configurations", "time_per_configuration_s",
+              "max_edge_error", "d_last_error", "d_last_final_error", "budget_s"}
+
+
+@pytest.fixture(scope="module")
+def points():
+    return work_precision([2, 4], SETTINGS, budget=40.0, repeats=2)
+
+
+def test_points_have_every_field_and_real_errors(points):
+    assert len(points) == 2 * len(SETTINGS)
+    for p in points:
+        assert POINT_KEYS <= set(p), p["label"]
+        assert p["outcome"] == "ok" and p["status"] == "finished", (p["label"], p.get("message"))
+        assert 1 <= p["repeats"] <= 2 and p["time_s"] == pytest.approx(np.median(p["times"]))
+    by = {(p["method"], p["modules"]): p for p in points}
+    for k in (2, 4):
+        # exact methods keep edges and d_{k+1} to round-off ...
+        assert by["constructive", k]["max_edge_error"] < 1e-13
+        assert by["constructive", k]["d_last_error"] < 1e-12
+        assert by["projected", k]["max_edge_error"] < 1e-12
+        assert by["projected", k]["d_last_error"] < 1e-11
+        # ... the uncorrected dense RK4 at a coarse step drifts
+        assert 1e-9 < by["rk4-nullspace", k]["max_edge_error"] < 1e-3
+        # the library's map iteration against the bench's own placement map
+        assert by["map", k]["d_last_error"] < 1e-12 and by["map", k]["max_edge_error"] is None
+        assert by["constructive", k]["configurations"] == 21
+        assert by["constructive", k]["nodes"] == 3 * k + 2
+    # the whole study serialises as strict JSON
+    json.dumps(points, allow_nan=False)
+
+
+def test_scaling_uses_the_first_setting_of_each_method(points):
+    s = scaling(points)
+    assert set(s) == {"map", "constructive", "projected", "rk4-nullspace"}
+    assert s["constructive"]["nodes"] == [8, 14]
+    assert s["constructive"]["exponent"] is not None
+
+
+def test_over_budget_runs_are_skipped_with_the_estimate():
+    pts = work_precision([2, 40], [Setting("rk4-nullspace", {"step": 0.1})], budget=1e-4,
+                         repeats=1)
+    # the first run cannot be estimated, so it runs (and exceeds the tiny budget: killed or,
+    # if it returns in time, recorded); the next size is never run
+    assert pts[1]["outcome"] == SKIPPED
+    assert pts[1]["time_s"] is None
+    if pts[0]["outcome"] == STOPPED:
+        assert "smaller chain" in pts[1]["message"]
+    else:
+        assert pts[1]["estimated_time_s"] > 1e-4
+
+
+def test_a_run_over_budget_is_killed_and_marked():
+    t0 = time.perf_counter()
+    outcome, times, info = run_budgeted(lambda: time.sleep(30), lambda r: {}, budget=0.3,
+                                        grace=0.2)
+    assert outcome == STOPPED and times == [] and "budget" in info
+    assert time.perf_counter() - t0 < 15
+
+
+def test_an_error_in_a_run_is_reported_not_raised():
+    outcome, _, info = run_budgeted(lambda: 1 / 0, lambda r: {}, budget=5)
+    assert outcome == "error" and "ZeroDivisionError" in info
+
+
+# -- classification -----------------------------------------------------------------------------
+@pytest.mark.parametrize("args, kwargs, expected", [
+    (("finish", "finished"), {"edge_error": 1e-15, "ref_error": 1e-14}, stab.FINISHED),
+    (("finish", "finished"), {"edge_error": 3e-7, "ref_error": 1e-10}, stab.INACCURATE),
+    (("finish", "finished"), {"edge_error": 1e-12, "ref_error": 0.04}, stab.WRONG_BRANCH),
+    (("finish", "finished"), {"edge_error": 0.2, "ref_error": 0.04}, stab.DIVERGED),
+    (("finish", "finished"), {"edge_error": math.nan}, stab.DIVERGED),
+    (("finish", "turning_point"), {"edge_error": 1e-15}, stab.NO_CAUSE),
+    (("stop", "turning_point"), {"edge_error": 1e-15, "stop_error": 1e-12}, stab.STOPPED_OK),
+    (("stop", "turning_point"), {"edge_error": 1e-15, "stop_error": 0.1}, stab.MISPLACED),
+    (("stop", "raised"), {}, stab.STOPPED_OK),
+    (("stop", "finished"), {"edge_error": 1e-14}, stab.WRONG_BRANCH),
+    (("stop", "finished"), {"edge_error": 0.25}, stab.DIVERGED),
+    (("stop", "crashed"), {}, stab.CRASHED),
+])
+def test_classify(args, kwargs, expected):
+    assert stab.classify(*args, **kwargs) == expected
+
+
+@pytest.fixture(scope="module")
+def cases():
+    return {c.name: c for c in stab.stability_cases(chaotic_modules=10, super_stable_modules=4)}
+
+
+def test_cases_have_the_truth_they_claim(cases):
+    assert cases["fourbar_flat"].stop_drive == pytest.approx(2 * math.sqrt(2) - 2, abs=1e-14)
+    tp = cases["turning_point"]
+    assert 0 < tp.facts["start_d1"] - tp.stop_drive < 2e-5  # the turning point hugs the start
+    from fabkit.rigidity import count_modes
+
+    gate = count_modes(cases["self_stress"].network)
+    assert (gate.conformational, gate.self_stress) == (2, 1)
+    sheet = count_modes(cases["origami_flat"].network)
+    assert sheet.self_stress >= 1 and sheet.conformational >= 2
+
+
+@pytest.mark.parametrize("name, method, expected", [
+    ("fourbar_flat", "constructive", stab.STOPPED_OK),
+    ("fourbar_flat", "projected", stab.STOPPED_OK),
+    ("turning_point", "constructive", stab.STOPPED_OK),
+    ("turning_point_away", "constructive", stab.FINISHED),
+    ("origami_flat", "constructive", stab.STOPPED_OK),
+    ("super_stable", "constructive", stab.FINISHED),
+    ("super_stable", "rk4-nullspace", stab.INACCURATE),
+])
+def test_known_outcomes(cases, name, method, expected):
+    opts = {"step": 0.1} if method == "rk4-nullspace" else None
+    row = stab.run_case(cases[name], method, opts, budget=40)
+    assert row["class"] == expected, row["message"]
+    if expected == stab.STOPPED_OK and row["status"] != "raised":
+        assert row["stop_error"] <= cases[name].tol_stop
+        if method == "constructive":  # exact placement stops at the end of the motion itself
+            assert row["stop_error"] < 1e-9
+    if expected == stab.INACCURATE:
+        assert 1e-9 < row["edge_error"] < 1e-3  # RK4 without correction drifts off the edges
+
+
+def test_stability_table_lists_every_row(cases):
+    study = stab.stability_study(["constructive"], cases=[cases["fourbar_flat"]], budget=30)
+    text = stab.stability_table(study)
+    assert "| fourbar_flat | constructive | **stopped with a correct report** |" in text
+    json.dumps(finite(study), allow_nan=False)
+
+
+# -- chaos ----------------------------------------------------------------------------------------
+def test_decimal_map_agrees_with_float_map_before_the_horizon():
+    f = ModuleMap(paper_module("chaotic"))
+    exact = stab.decimal_map(f, 0.9, 40)
+    approx = f.iterate([0.9], 40)[:, 0]
+    err = np.abs(exact - approx)
+    assert err[:5].max() < 1e-14
+    assert 1e-13 < err[30:].max() < 1e-6  # round-off has grown by orders of magnitude
+
+
+def test_predictability_horizon_small():
+    h = stab.predictability_horizon(80, projected_modules=20, threshold=1e-8)
+    assert 0.2 < h["lyapunov_orbit"] < 0.45
+    assert set(h["methods"]) == {"map", "constructive", "projected"}
+    m = h["methods"]["map"]
+    assert m["horizon"] is not None and 30 < m["horizon"] < 90
+    assert m["growth_rate"] == pytest.approx(h["lyapunov_orbit"], abs=0.15)
+
+
+# -- command line -------------------------------------------------------------------------------
+def test_cli_rejects_bad_options(capsys):
+    assert main(["bench", "--sizes", "ten"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--sizes must be comma-separated integers" in err[0]
+    assert main(["bench", "--parts", "charts"]) == 1
+    assert main(["bench", "--budget", "0"]) == 1
+
+
+def test_cli_workprecision_part_writes_charts_and_json(tmp_path):
+    rc = main(["bench", "--quick", "--sizes", "2,3", "--budget", "30", "--parts",
+               "workprecision", "-o", str(tmp_path)])
+    assert rc == 0
+    out = tmp_path / "bench"
+    assert sorted(p.name for p in out.iterdir()) == ["bench.json", "scaling.png",
+                                                    "work_precision.png"]
+    for png in ("scaling.png", "work_precision.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    doc = json.loads((out / "bench.json").read_text())
+    assert {"machine", "points", "scaling", "targets", "sizes", "budget_s"} <= set(doc)
+    assert doc["sizes"] == [2, 3]
+    assert {p["modules"] for p in doc["points"]} == {2, 3}
+    assert doc["machine"]["cpu_count"] >= 1
+
+
+# -- targets -------------------------------------------------------------------------------------
+def _pt(method, k, t, edge, dlast=0.0, status="finished"):
+    return {"method": method, "label": f"{method} (x)", "modules": k, "nodes": 3 * k + 2,
+            "outcome": "ok", "status": status, "time_s": t, "time_per_configuration_s": t / 10,
+            "configurations": 10, "max_edge_error": edge, "d_last_error": dlast, "options": {}}
+
+
+def test_targets_judge_the_measured_figures():
+    from fabkit.bench.workprecision import targets
+
+    pts = [_pt("constructive", 100, 0.1, 1e-15), _pt("constructive", 10000, 0.8, 1e-15),
+           _pt("projected", 10000, 5.0, 1e-14), _pt("rk4-nullspace", 100, 0.05, 1e-6),
+           _pt("rk4-nullspace", 100, 3.0, 1e-9)]
+    goals = targets(pts, scaling(pts))
+    assert goals["largest_chain"]["met"] and goals["largest_chain"]["time_s"] == 0.8
+    # the cheap rk4 run (0.05 s) has no rival as fast: reported as an exception
+    assert not goals["dominates_rk4"]["met"]
+    assert goals["dominates_rk4"]["exceptions"] == ["rk4-nullspace (x) at 100 modules"]
+    goals = targets([_pt("constructive", 10000, 1.5, 1e-15)], {})
+    assert not goals["largest_chain"]["met"]
+
+
+def test_library_lyapunov_is_timed_when_available():
+    from fabkit.bench.workprecision import maps_lyapunov
+
+    res = maps_lyapunov(200, 100, 400, budget=60)
+    if res is None:
+        pytest.skip("fabkit.maps is not available")
+    assert res["outcome"] == "ok" and res["time_s"] > 0
+    assert res["exponent"] == pytest.approx(0.312, abs=0.02)  # the paper's λ ≈ 0.312
