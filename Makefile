@@ -14,9 +14,10 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-# Runs the main job on the bundled templates; everything goes to out/.
+# Runs the main job on the bundled templates: every design simulated, exported in every format
+# that applies, checked as built, with report.md/report.json per design; everything in out/.
 demo: $(STAMP)
-	$(VENV)/bin/fabkit demo templates -o out
+	$(VENV)/bin/fabkit export templates -o out --jobs 2
 
 # The fast suite (what CI runs); `make test-all` adds the slow studies.
 test: $(STAMP)

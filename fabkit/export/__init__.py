@@ -16,7 +16,8 @@ from pathlib import Path
 
 from ..errors import FabkitError
 
-__all__ = ["EXPORTERS", "ExportResult", "get_exporter", "write_atomic", "write_outputs", "export"]
+__all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
+           "write_outputs", "export"]
 
 #: Format name → module implementing it (imported only when the format is used, so a missing
 #: optional dependency matters only to its own format).
@@ -55,6 +56,21 @@ def get_exporter(fmt: str):
         return importlib.import_module(name)
     except ImportError as exc:
         raise FabkitError(f"export format {fmt!r} is not available: {exc}") from None
+
+
+def skip_reason(design, fmt: str) -> str | None:
+    """Why a template opts out of a format (``[fabrication] skip = { dxf = "reason" }``), or None."""
+    skip = (getattr(design, "fabrication", None) or {}).get("skip", {})
+    if isinstance(skip, dict) and fmt in skip:
+        return str(skip[fmt])
+    return None
+
+
+def applies(design, fmt: str, module=None) -> bool:
+    """True when a format's exporter applies to a design and the template does not opt out."""
+    module = module or get_exporter(fmt)
+    check = getattr(module, "applies", None)
+    return (check is None or bool(check(design))) and skip_reason(design, fmt) is None
 
 
 def write_atomic(path, data: bytes) -> Path:

@@ -1,0 +1,358 @@
+"""As-built check of laser-cut DXF sheets: read them back and prove the parts move as designed.
+
+Steps (each a named entry of the report's ``checks``):
+
+* ``units``: every sheet says ``$INSUNITS = 4`` (mm);
+* ``audit``: ezdxf's structural audit finds no error;
+* ``layers``: entities only on CUT, CUT_INNER and ENGRAVE;
+* ``parts``: every bar outline found once, with exactly two holes, on the layers it belongs to;
+* ``holes_centred``: the round ends of each outline are centred on its holes (<= 1e-6 mm);
+* ``width_after_kerf`` / ``hole_after_kerf``: drawn sizes with the kerf undone equal the
+  designed bar width and hole (<= 1e-6 mm);
+* ``lengths``: hole-centre distances equal the designed bar lengths (<= 1e-6 mm);
+* ``topology``: the bars join the designed joints;
+* ``modes``: the rebuilt network (joint positions fitted to the measured lengths, starting from
+  the design) has exactly one conformational motion;
+* ``module_map``: re-simulating the rebuilt network gives the design's port distances along
+  the drive;
+* ``same_layer``: over the re-simulated motion, sampled more finely than the stacking was
+  planned with (no node moves more than clearance / 4 between samples), no two bars of one
+  layer come closer than clearance / 2 (the stacking's guarantee), and no bar or screw column
+  enters another screw's layers nearby.
+
+Without a design only the file-level checks run (the report says so).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FabkitError
+
+__all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
+
+FORMAT = "dxf"
+SUFFIXES = (".dxf",)
+#: Largest difference allowed between a read-back length and the design (mm).
+LENGTH_TOL = 1e-6
+#: Largest difference allowed between the re-simulated and designed port distances, relative
+#: to the network size (design units): the map is compared away from exact flat states.
+MAP_RTOL = 1e-6
+_LAYERS = {"CUT", "CUT_INNER", "ENGRAVE"}
+_APPID = "FABKIT"
+
+
+def _mm(v: float) -> str:
+    return "none" if math.isinf(v) else f"{v:.3f}"
+
+
+def _check(name, ok, value=None, limit=None, detail=""):
+    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
+
+
+def read_sheet(doc) -> dict:
+    """Parts of one DXF document.
+
+    Returns
+    -------
+    dict
+        ``header`` (fabkit custom variables), ``insunits``, ``layers`` (layer names used),
+        ``parts``: id -> {"kind", "meta" (list of ints), "arcs": [(centre, r)],
+        "holes": [(centre, r)], "outer": [(centre, r)]}, ``untagged`` (CUT/CUT_INNER entities
+        without a part id).
+    """
+    header = {k: v for k, v in doc.header.custom_vars}
+    parts: dict[str, dict] = {}
+    used_layers = set()
+    untagged = 0
+    for e in doc.modelspace():
+        layer = e.dxf.layer
+        used_layers.add(layer)
+        if not e.has_xdata(_APPID):
+            if layer in ("CUT", "CUT_INNER"):
+                untagged += 1
+            continue
+        tags = [t.value for t in e.get_xdata(_APPID)]
+        pid, kind, meta = str(tags[0]), str(tags[1]), [int(v) for v in tags[2:]]
+        part = parts.setdefault(pid, {"kind": kind, "meta": meta, "arcs": [], "holes": [],
+                                      "outer": [], "layers": set()})
+        part["layers"].add(layer)
+        t = e.dxftype()
+        if t == "CIRCLE":
+            c = (float(e.dxf.center.x), float(e.dxf.center.y))
+            (part["holes"] if layer == "CUT_INNER" else part["outer"]).append((c, float(e.dxf.radius)))
+        elif t == "ARC":
+            part["arcs"].append(((float(e.dxf.center.x), float(e.dxf.center.y)),
+                                 float(e.dxf.radius)))
+        elif t == "LWPOLYLINE":
+            part["closed"] = bool(e.closed)
+            for v in e.virtual_entities():
+                if v.dxftype() == "ARC":
+                    part["arcs"].append(((float(v.dxf.center.x), float(v.dxf.center.y)),
+                                         float(v.dxf.radius)))
+    return {"header": header, "insunits": doc.header.get("$INSUNITS", 0),
+            "layers": used_layers, "parts": parts, "untagged": untagged}
+
+
+def _fit_positions(edges, lengths, start, iterations=20):
+    """Joint positions whose distances equal ``lengths``: Gauss-Newton from ``start``."""
+    from scipy.sparse.linalg import lsqr
+
+    from ..network import Network
+    from ..rigidity import rigidity_matrix
+
+    x = np.array(start, dtype=np.float64)
+    net = Network(x, edges)
+    for _ in range(iterations):
+        d = x[edges[:, 0]] - x[edges[:, 1]]
+        cur = np.sqrt((d * d).sum(1))
+        res = cur - lengths
+        if np.abs(res).max() <= 1e-13 * max(lengths.max(), 1.0):
+            break
+        r = rigidity_matrix(net, x, normalized=True)  # d(length)/dx
+        dx = lsqr(r, -res, atol=1e-15, btol=1e-15, iter_lim=10 * r.shape[1])[0]
+        x = x + dx.reshape(x.shape)
+    return x
+
+
+def check_documents(texts: dict, design=None, settings=None) -> dict:
+    """As-built check of a set of DXF sheets given as text.
+
+    Parameters
+    ----------
+    texts : dict of str to str
+        File name -> DXF text, every sheet of one export.
+    design : Design, optional
+        The design the sheets were made from (without it only file-level checks run).
+    settings : dict, optional
+        The laser overrides used for the export.
+
+    Returns
+    -------
+    dict
+        ``ok``, ``checks`` (list of {"name", "ok", "value", "limit", "detail"}), ``bars``
+        (read-back length per bar, mm) and ``files``.
+    """
+    import ezdxf
+
+    docs = {}
+    checks = []
+    for name in sorted(texts):
+        try:
+            docs[name] = ezdxf.read(io.StringIO(texts[name]))
+        except Exception as exc:  # ezdxf raises several types for malformed files
+            checks.append(_check("readable", False, name, None, f"{name}: {exc}"))
+    if checks:
+        return {"ok": False, "checks": checks, "files": sorted(texts)}
+    return _check_docs(docs, design, settings)
+
+
+def _check_docs(docs: dict, design, settings) -> dict:
+    checks = []
+    sheets = {name: read_sheet(doc) for name, doc in docs.items()}
+    units = {name: sh["insunits"] for name, sh in sheets.items()}
+    checks.append(_check("units", all(u == 4 for u in units.values()),
+                         sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
+    n_err = {name: len(doc.audit().errors) for name, doc in docs.items()}
+    checks.append(_check("audit", not any(n_err.values()), sum(n_err.values()), 0,
+                         "errors found by ezdxf's audit"))
+    used = set().union(*(sh["layers"] for sh in sheets.values())) if sheets else set()
+    checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
+                         "layers that carry entities"))
+    head = next(iter(sheets.values()))["header"] if sheets else {}
+    try:
+        kerf = float(head["FABKIT_KERF"])
+        width = float(head["FABKIT_BAR_WIDTH"])
+        hole = float(head["FABKIT_HOLE"])
+        n_bars = int(head["FABKIT_BARS"])
+        scale = float(head["FABKIT_SCALE"])
+    except (KeyError, ValueError):
+        checks.append(_check("parts", False, None, None,
+                             "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"))
+        return {"ok": False, "checks": checks, "files": sorted(docs)}
+    bars, problems = {}, []
+    for name, sh in sheets.items():
+        for pid, part in sh["parts"].items():
+            if part["kind"] != "bar":
+                continue
+            k, i, j, layer = part["meta"]
+            if k in bars:
+                problems.append(f"bar {k} appears twice")
+            holes = part["holes"]
+            if len(holes) != 2:
+                problems.append(f"bar {k} has {len(holes)} holes")
+                continue
+            if "CUT" not in part["layers"] or len(part["arcs"]) != 2:
+                problems.append(f"bar {k} has no closed round-ended outline on CUT")
+                continue
+            bars[k] = {"joints": (i, j), "layer": layer, "holes": holes, "arcs": part["arcs"],
+                       "sheet": name}
+        problems += [f"{name}: {sh['untagged']} cut entities belong to no part"
+                     for name, sh in sheets.items() if sh["untagged"]]
+    missing = sorted(set(range(n_bars)) - set(bars))
+    if missing:
+        problems.append(f"bars {missing[:5]} missing")
+    checks.append(_check("parts", not problems, len(bars), n_bars, "; ".join(problems[:3]) or
+                         "every bar found once with two holes and a closed outline"))
+    if problems:
+        return {"ok": False, "checks": checks, "files": sorted(docs)}
+    ks = sorted(bars)
+    hc = np.array([[bars[k]["holes"][0][0], bars[k]["holes"][1][0]] for k in ks])  # (E, 2, 2)
+    hr = np.array([[bars[k]["holes"][0][1], bars[k]["holes"][1][1]] for k in ks])
+    ac = np.array([[bars[k]["arcs"][0][0], bars[k]["arcs"][1][0]] for k in ks])
+    ar = np.array([[bars[k]["arcs"][0][1], bars[k]["arcs"][1][1]] for k in ks])
+    # match each arc to the nearer hole
+    d_same = np.linalg.norm(ac - hc, axis=2).max(1)
+    d_swap = np.linalg.norm(ac[:, ::-1] - hc, axis=2).max(1)
+    off = np.minimum(d_same, d_swap)
+    checks.append(_check("holes_centred", off.max() <= LENGTH_TOL, float(off.max()), LENGTH_TOL,
+                         "largest distance (mm) from a hole centre to its round end's centre"))
+    from ..fab.bars import undo_kerf
+
+    w_built, h_built = undo_kerf(ar, hr, kerf)
+    dw = float(np.abs(w_built - width).max())
+    dh = float(np.abs(h_built - hole).max())
+    checks.append(_check("width_after_kerf", dw <= LENGTH_TOL, dw, LENGTH_TOL,
+                         f"bar width with the {kerf:g} mm kerf undone vs {width:g} mm"))
+    checks.append(_check("hole_after_kerf", dh <= LENGTH_TOL, dh, LENGTH_TOL,
+                         f"hole diameter with the kerf undone vs {hole:g} mm"))
+    lengths = np.linalg.norm(hc[:, 0] - hc[:, 1], axis=1)
+    edges = np.array([bars[k]["joints"] for k in ks], dtype=np.int64)
+    layer = np.array([bars[k]["layer"] for k in ks], dtype=np.int64)
+    report = {"files": sorted(docs), "bars": [round(float(v), 9) for v in lengths],
+              "scale": scale}
+    if design is None:
+        checks.append(_check("design", True, None, None,
+                             "no design given: network, motion and collision checks skipped"))
+        report.update(ok=all(c["ok"] for c in checks), checks=checks)
+        return report
+    net = design.network
+    want = net.edge_lengths * scale
+    dl = float(np.abs(lengths - want).max())
+    checks.append(_check("lengths", dl <= LENGTH_TOL, dl, LENGTH_TOL,
+                         "largest |read-back - designed| bar length (mm)"))
+    same_topology = np.array_equal(np.sort(edges, 1), np.sort(net.edges, 1))
+    checks.append(_check("topology", same_topology, None, None,
+                         "bars join the designed joints" if same_topology else
+                         "the bars read back join other joints than the design's"))
+    if not same_topology:
+        report.update(ok=False, checks=checks)
+        return report
+    checks += _motion_checks(design, edges, lengths, layer, scale, settings, report)
+    report.update(ok=all(c["ok"] for c in checks), checks=checks)
+    return report
+
+
+def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) -> list:
+    from ..fab.laser import laser_overrides, laser_settings
+    from ..fab.layers import JointStack, sample_motion, stacking_gaps
+    from ..kinematics import trace
+    from ..network import Network
+    from ..rigidity import count_modes
+
+    net = design.network
+    out = []
+    x_mm = _fit_positions(edges, lengths_mm, net.nodes * scale)
+    built = Network(x_mm / scale, edges, net.ports, net.labels)
+    err = float(np.abs(built.edge_lengths * scale - lengths_mm).max())
+    modes = count_modes(built)
+    out.append(_check("modes", modes.conformational == 1 and err <= LENGTH_TOL,
+                      modes.conformational, 1,
+                      f"conformational motions of the rebuilt network (fit residual {err:.1e} mm, "
+                      f"{modes.self_stress} states of self-stress)"))
+    m = design.motion
+    if m.to is None:
+        out.append(_check("module_map", False, None, None, "the design has no motion target"))
+        return out
+    ref = design.trace()
+    got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)
+    n = min(ref.n_steps, got.n_steps)
+    worst, worst_port = 0.0, None
+    for port in net.ports:
+        if port == m.drive:
+            continue
+        diff = float(np.abs(ref.distance(port)[:n] - got.distance(port)[:n]).max())
+        if diff >= worst:
+            worst, worst_port = diff, port
+    limit = MAP_RTOL * net.size
+    same_end = ref.n_steps == got.n_steps and str(ref.status) == str(got.status)
+    out.append(_check("module_map", worst <= limit and same_end, worst, limit,
+                      f"largest port-distance difference (design units, at {worst_port}) between "
+                      f"the design's and the rebuilt network's motion; both {got.status}"))
+    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
+                       network_size=net.size)
+    fine = sample_motion(built, m, scale, 0.25 * s.clearance)
+    inc = {}
+    for b, (i, j) in enumerate(edges.tolist()):
+        inc.setdefault(i, []).append(b)
+        inc.setdefault(j, []).append(b)
+    joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
+              for j, bs in sorted(inc.items()) if len(bs) >= 2]
+    head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
+    col = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
+    gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
+                         head_slots=head, column_radius=col)
+    need = 0.5 * s.clearance
+    worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
+    report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
+                        **{k: (None if isinstance(v, float) and math.isinf(v) else v)
+                           for k, v in gaps.items()}}
+    out.append(_check(
+        "same_layer", worst_gap >= need, None if math.isinf(worst_gap) else round(worst_gap, 6),
+        need, f"smallest gap (mm) between parts sharing a layer over {fine.n_samples} samples "
+              f"(bar to bar {_mm(gaps['bar_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, "
+              f"screw to screw {_mm(gaps['column_gap'])})"))
+    return out
+
+
+def _sheet_set(path: Path) -> list[Path]:
+    """The sheets of one export: ``laser_sheet<k>.dxf`` beside the given one, else itself."""
+    m = re.fullmatch(r"(.*sheet)(\d+)\.dxf", path.name, flags=re.IGNORECASE)
+    if not m:
+        return [path]
+    found = sorted(path.parent.glob(f"{m.group(1)}*.dxf"),
+                   key=lambda p: int(re.sub(r"\D", "", p.name[len(m.group(1)):]) or 0))
+    return found or [path]
+
+
+def check_file(path, design=None, settings=None) -> dict:
+    """As-built check of a laser-cut DXF (and the other sheets of its export beside it).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        One ``laser_sheet<k>.dxf``; the sibling sheets are read too.
+    design : Design, optional
+    settings : dict, optional
+
+    Returns
+    -------
+    dict
+        See :func:`check_documents`.
+
+    Raises
+    ------
+    FabkitError
+        When the file does not exist.
+    """
+    from ezdxf import recover
+
+    path = Path(path)
+    if not path.is_file():
+        raise FabkitError(f"{path}: no such file")
+    docs, checks = {}, []
+    for p in _sheet_set(path):
+        try:
+            doc, auditor = recover.readfile(str(p))
+        except Exception as exc:  # not a DXF at all
+            checks.append(_check("readable", False, p.name, None, f"{p.name}: {exc}"))
+            continue
+        docs[p.name] = doc
+    if checks:
+        return {"ok": False, "checks": checks, "files": [str(p) for p in _sheet_set(path)]}
+    return _check_docs(docs, design, settings)

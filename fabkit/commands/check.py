@@ -1,0 +1,68 @@
+"""``fabkit check FILE... [--design TEMPLATE]``: the as-built check of exported files alone.
+
+Reads an exported DXF, FOLD or STL file back (through :func:`fabkit.check.check_file`), rebuilds
+the network from it and, given the design's template, compares mode count and motion with the
+design. Prints one line per check; exits 1 when any check fails.
+"""
+
+from __future__ import annotations
+
+NAME = "check"
+HELP = "as-built check of exported DXF / FOLD / STL files (optionally against their template)"
+
+
+def add_arguments(p):
+    p.add_argument("files", nargs="+", metavar="FILE", help="exported file(s)")
+    p.add_argument("--design", default=None, metavar="TEMPLATE",
+                   help="the template the files were exported from")
+    p.add_argument("--set", dest="settings", action="append", default=[],
+                   metavar="SECTION.KEY=VALUE",
+                   help="fabrication settings used for the export (as for fabkit export)")
+    p.add_argument("--json", action="store_true", help="print the check reports as JSON")
+
+
+def _value(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return "-" if v is None else str(v)
+
+
+def format_report(path, report: dict) -> str:
+    """A check report as lines: ``ok|FAIL name value (limit) detail``, then a verdict."""
+    lines = []
+    for c in report.get("checks", []):
+        lim = f" (limit {_value(c.get('limit'))})" if c.get("limit") is not None else ""
+        detail = f"  {c['detail']}" if c.get("detail") else ""
+        lines.append(f"  {'ok  ' if c.get('ok') else 'FAIL'}  {c.get('name')}: "
+                     f"{_value(c.get('value'))}{lim}{detail}")
+    lines.append(f"{path}: {'ok' if report.get('ok') else 'FAILED'}")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    import json
+    from pathlib import Path
+
+    from ..check import check_file
+    from ..errors import FabkitError
+    from ..report import jsonable
+    from ..templates import load_template
+    from .export import parse_settings
+
+    settings = parse_settings(args.settings)
+    design = load_template(args.design) if args.design else None
+    failed = 0
+    out = {}
+    for name in args.files:
+        path = Path(name)
+        if not path.is_file():
+            raise FabkitError(f"{path}: no such file")
+        report = check_file(path, design=design, settings=settings)
+        failed += not report.get("ok")
+        if args.json:
+            out[str(path)] = report
+        else:
+            print(format_report(path, report))
+    if args.json:
+        print(json.dumps(jsonable(out), indent=2, sort_keys=True))
+    return 1 if failed else 0

@@ -1,0 +1,92 @@
+"""``fabkit tolerance TEMPLATE... [-o DIR] [--samples N] [--seed S] [--set tolerance.key=value]``.
+
+Monte Carlo over manufacturing errors (bar lengths, joint play, sheet thickness; see
+:mod:`fabkit.tolerance`): prints the spread of the final port distances and of the far-end
+positions, the verdict, and for chains the Lyapunov exponent and predictability horizon; writes
+``tolerance.png`` and ``tolerance.json`` into ``DIR/<name>/``. Exits 1 when a design is flagged
+(its intended final state is not reached within tolerance), so scripts can gate on it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "tolerance"
+HELP = "Monte Carlo of manufacturing errors: final distances, end positions, horizon"
+
+
+def add_arguments(p):
+    p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
+    p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
+    p.add_argument("--samples", type=int, default=None,
+                   help="simulated builds (default: the template's, else 200)")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default: 0)")
+    p.add_argument("--set", dest="settings", action="append", default=[],
+                   metavar="SECTION.KEY=VALUE",
+                   help="override a setting, e.g. --set tolerance.length_sigma=0.1 or "
+                        "--set laser.scale=40")
+    p.add_argument("--no-files", action="store_true", help="print only; write no files")
+
+
+def describe(result) -> str:
+    """Terminal lines for a :class:`~fabkit.tolerance.ToleranceResult`."""
+    d = result.as_dict()
+    s = result.spec
+    lines = [f"  builds        {d['samples']} ({result.method}); "
+             f"bar error σ {s.length_sigma:g} mm, "
+             f"hole clearance {s.hole_clearance:g} ± {s.kerf_sigma:g} mm, sheet "
+             f"{s.thickness:g} ± {s.thickness_sigma:g} mm, scale {s.scale:g} mm/unit",
+             f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS",
+             f"  reached       {100 * d['reached_fraction']:.1f}% of builds reach the target"]
+    for p in d["ports"]:
+        if p["mean"] is None:
+            continue
+        lines.append(f"  {p['port']:<13} designed {p['nominal']:.6g}, built {p['mean']:.6g} ± "
+                     f"{p['std']:.2g}; 95% |error| {p['p95_abs_error_mm']:.3g} mm "
+                     f"(limit {p['limit_mm']:.3g} mm)")
+    if "end_position_p95_mm" in d:
+        lines.append(f"  far end       nodes {', '.join(map(str, result.end_nodes))}: 95% within "
+                     f"{d['end_position_p95_mm']:.3g} mm, worst {d['end_position_max_mm']:.3g} mm")
+    hz = d.get("horizon")
+    if hz:
+        lines.append(f"  lyapunov      λ = {hz['lyapunov']:.4g} per module ({hz['source']})")
+        lines.append(f"  horizon       {hz['detail']}")
+    lines.append(f"  verdict       {d['verdict']}")
+    return "\n".join(lines)
+
+
+def run(args) -> int:
+    from ..errors import FabkitError
+    from ..export import write_atomic
+    from ..report import report_json
+    from ..templates import load_template
+    from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
+    from ..viz import figure_png
+    from . import expand_templates
+    from .export import parse_settings, traced_motion
+
+    if args.samples is not None and args.samples < 1:
+        raise FabkitError(f"--samples must be at least 1, got {args.samples}")
+    settings = parse_settings(args.settings)
+    overrides = {k: v for k, v in (("samples", args.samples), ("seed", args.seed)) if v is not None}
+    flagged = 0
+    for path in expand_templates(args.templates):
+        design = load_template(path)
+        traj = traced_motion(design)
+        if traj is None:
+            raise FabkitError(f"{path}: motion.to: the tolerance analysis needs a target value "
+                              "of the drive")
+        spec = tolerance_spec(design, settings, **overrides)
+        result = analyse_tolerance(design, spec, trajectory=traj)
+        # compute every byte before writing any
+        files = {} if args.no_files else {
+            "tolerance.json": report_json(result.as_dict()),
+            "tolerance.png": figure_png(tolerance_figure(result, title=design.name)),
+        }
+        folder = Path(args.out) / design.name
+        for name, data in sorted(files.items()):
+            write_atomic(folder / name, data)
+        print(f"== {design.name}" + (f" -> {folder}" if files else ""))
+        print(describe(result))
+        flagged += result.flagged
+    return 1 if flagged else 0

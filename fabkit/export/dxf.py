@@ -1,0 +1,478 @@
+"""Laser-cut acrylic: DXF sheets, SVG previews, bill of materials and assembly pictures.
+
+The pipeline (all pure, nothing is written here):
+
+1. settings: the template's ``[fabrication.laser]`` table merged with the caller's overrides
+   (:func:`fabkit.fab.laser.laser_settings`);
+2. bars: design units to mm, outlines and holes, refusal of bars that cannot be cut
+   (:mod:`fabkit.fab.bars`);
+3. stacking layers over the sampled motion (:mod:`fabkit.fab.layers`);
+4. parts nested on sheets (:mod:`fabkit.fab.nest`);
+5. one DXF per sheet (R2010, ``$INSUNITS = 4`` mm; layers CUT, CUT_INNER, ENGRAVE; closed
+   LWPOLYLINE with bulges or LINE + ARC; CIRCLE holes), identical bytes for identical input;
+6. the as-built check reads the DXF text back (:mod:`fabkit.check.dxf`); a failed check is an
+   error, so no file leaves fabkit that does not rebuild the designed network.
+
+Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``laser_bom.md``,
+``laser_assembly.png``, ``laser_layers_motion.png``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FabricationError
+from . import ExportResult
+
+__all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
+           "sheet_svg", "bill_of_materials", "bom_markdown", "LAYERS", "APPID"]
+
+FORMAT = "dxf"
+
+#: DXF layers and their ACI colours (red outer cut, blue inner cut, black/white engrave).
+LAYERS = {"CUT": 1, "CUT_INNER": 5, "ENGRAVE": 7}
+#: Application id of the extended data that names each part (ignored by cutting programs).
+APPID = "FABKIT"
+
+
+def applies(design) -> bool:
+    """Laser-cut bars need a planar network."""
+    return design.network.dim == 2
+
+
+@dataclass(eq=False)
+class LaserPlan:
+    """Everything decided before files are written."""
+
+    design: object
+    settings: object
+    bars: object
+    sweep: object
+    stacking: object
+    parts: list
+    sheets: list
+
+
+def laser_plan(design, settings: dict | None = None) -> LaserPlan:
+    """Decide bars, layers, parts and sheets for a design (no files).
+
+    Parameters
+    ----------
+    design : Design
+        A loaded template with a 2D network and a motion target.
+    settings : dict, optional
+        Overrides of ``[fabrication.laser]`` (``{"laser": {"kerf": 0.2}}`` or ``{"kerf": 0.2}``).
+
+    Returns
+    -------
+    LaserPlan
+
+    Raises
+    ------
+    FabricationError
+        Bad settings, bars that cannot be cut, no collision-free stacking, parts larger than
+        a sheet; one line each with a suggested fix.
+    """
+    from ..fab.bars import bar_set
+    from ..fab.laser import laser_overrides, laser_settings
+    from ..fab.layers import plan_layers, sample_motion
+    from ..fab.nest import make_parts, nest_parts
+
+    net = design.network
+    if net.dim != 2:
+        raise FabricationError(f"laser-cut bars need a 2D network; {design.name} is {net.dim}D")
+    table = design.fabrication.get("laser", {}) if isinstance(design.fabrication, dict) else {}
+    if not isinstance(table, dict):
+        raise FabricationError("[fabrication.laser] must be a table")
+    s = laser_settings(table, laser_overrides(settings), network_size=net.size)
+    bars = bar_set(net.edge_lengths * s.scale, net.edges, s, scale=s.scale)
+    sweep = sample_motion(net, design.motion, s.scale, s.sample_step)
+    stacking = plan_layers(net.edges, sweep, s)
+    parts = make_parts(bars, stacking, s)
+    sheets = nest_parts(parts, s)
+    return LaserPlan(design, s, bars, sweep, stacking, parts, sheets)
+
+
+# -- DXF ------------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def _fixed_metadata():
+    """ezdxf stamps dates, GUIDs and its version time into every file; fix them so identical
+    input gives identical bytes."""
+    import ezdxf
+
+    old = ezdxf.options.write_fixed_meta_data_for_testing
+    ezdxf.options.write_fixed_meta_data_for_testing = True
+    try:
+        yield
+    finally:
+        ezdxf.options.write_fixed_meta_data_for_testing = old
+
+
+def _fmt(v: float) -> str:
+    return repr(float(v))
+
+
+def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
+    """One sheet as DXF bytes (R2010, mm).
+
+    Parameters
+    ----------
+    sheet : Sheet
+    plan : LaserPlan
+    n_sheets : int
+
+    Returns
+    -------
+    bytes
+        ASCII DXF; entities in cutting order: engraving, inner contours (holes), outer contours.
+    """
+    import ezdxf
+    from ezdxf.enums import TextEntityAlignment
+
+    from ..fab.bars import bulge_primitives
+    from ..fab.nest import label_outlines
+
+    s = plan.settings
+    with _fixed_metadata():
+        doc = ezdxf.new("R2010", units=4, setup=False)
+        doc.header["$MEASUREMENT"] = 1
+        doc.header["$LUNITS"] = 2
+        for name, colour in LAYERS.items():
+            doc.layers.add(name, color=colour)
+        doc.appids.add(APPID)
+        custom = doc.header.custom_vars
+        meta = {
+            "FABKIT_DESIGN": plan.design.name,
+            "FABKIT_SHEET": f"{sheet.index}/{n_sheets}",
+            "FABKIT_SCALE": _fmt(s.scale),
+            "FABKIT_KERF": _fmt(s.kerf),
+            "FABKIT_BAR_WIDTH": _fmt(s.bar_width),
+            "FABKIT_HOLE": _fmt(s.screw.hole_diameter),
+            "FABKIT_THICKNESS": _fmt(s.thickness),
+            "FABKIT_LAYERS": str(plan.stacking.n_layers),
+            "FABKIT_BARS": str(plan.bars.n_bars),
+            "FABKIT_TEMPLATE": plan.design.path.name if plan.design.path else "",
+        }
+        for key, value in meta.items():
+            custom.append(key, value)
+        msp = doc.modelspace()
+
+        def tag(entity, part):
+            data = [(1000, part.id), (1000, part.kind)]
+            if part.kind == "bar":
+                data += [(1071, part.meta["bar"]), (1071, part.meta["joints"][0]),
+                         (1071, part.meta["joints"][1]), (1071, part.meta["layer"])]
+            elif part.kind == "spacer":
+                data += [(1071, part.meta["joint"]), (1071, part.meta["layer"])]
+            entity.set_xdata(APPID, data)
+
+        def closed_outline(vertices, layer, part):
+            if s.flavour == "lwpolyline":
+                e = msp.add_lwpolyline([tuple(map(float, v)) for v in vertices], format="xyb",
+                                       close=True, dxfattribs={"layer": layer})
+                tag(e, part)
+                return
+            for prim in bulge_primitives(vertices):
+                if prim[0] == "line":
+                    e = msp.add_line(prim[1], prim[2], dxfattribs={"layer": layer})
+                else:
+                    e = msp.add_arc(prim[1], prim[2], prim[3], prim[4], dxfattribs={"layer": layer})
+                tag(e, part)
+
+        for part in sheet.parts:  # engraving first: the parts are still held by the sheet
+            if part.engrave_outline:
+                closed_outline(part.outline, "ENGRAVE", part)
+            for label in part.labels:
+                if s.labels == "outlines":
+                    for poly in label_outlines(label):
+                        msp.add_lwpolyline([tuple(map(float, p)) for p in poly], format="xy",
+                                           close=True, dxfattribs={"layer": "ENGRAVE"})
+                else:
+                    t = msp.add_text(label.text, height=label.height, rotation=label.angle,
+                                     dxfattribs={"layer": "ENGRAVE"})
+                    t.set_placement(label.insert, align=TextEntityAlignment.MIDDLE_CENTER)
+        for part in sheet.parts:  # inner contours before outer ones
+            for c in part.holes:
+                e = msp.add_circle(tuple(map(float, c)), part.hole_radius,
+                                   dxfattribs={"layer": "CUT_INNER"})
+                tag(e, part)
+        for part in sheet.parts:
+            if part.ring is not None:
+                e = msp.add_circle(tuple(map(float, part.holes[0])), part.ring,
+                                   dxfattribs={"layer": "CUT"})
+                tag(e, part)
+            elif not part.engrave_outline:
+                closed_outline(part.outline, "CUT", part)
+        auditor = doc.audit()
+        if auditor.has_errors:  # pragma: no cover - would be a fabkit bug
+            raise FabricationError(f"ezdxf audit found {len(auditor.errors)} errors in sheet "
+                                   f"{sheet.index}: {auditor.errors[0]}")
+        # ezdxf adds the CLASS entries of the entity types in use while writing, iterating a
+        # set (order depends on the string hash seed): write once, sort them, write again.
+        doc.write(io.StringIO())
+        doc.classes.classes = OrderedDict(sorted(doc.classes.classes.items()))
+        stream = io.StringIO()
+        doc.write(stream)
+    return stream.getvalue().encode("ascii")
+
+
+# -- SVG preview ----------------------------------------------------------------------------
+
+def _svg_path(vertices) -> str:
+    v = np.asarray(vertices)
+    parts = [f"M {v[0, 0]:.4f} {v[0, 1]:.4f}"]
+    for k in range(v.shape[0]):
+        q = v[(k + 1) % v.shape[0]]
+        b = v[k, 2]
+        if b == 0:
+            parts.append(f"L {q[0]:.4f} {q[1]:.4f}")
+        else:
+            chord = math.hypot(q[0] - v[k, 0], q[1] - v[k, 1])
+            theta = 4 * math.atan(b)
+            r = chord / (2 * math.sin(abs(theta) / 2))
+            large = 1 if abs(theta) > math.pi else 0
+            sweep = 1 if b > 0 else 0
+            parts.append(f"A {r:.4f} {r:.4f} 0 {large} {sweep} {q[0]:.4f} {q[1]:.4f}")
+    return " ".join(parts) + " Z"
+
+
+def sheet_svg(sheet, plan: LaserPlan) -> bytes:
+    """A preview of one sheet (mm, y up as in the DXF): red cuts, blue holes, black engraving."""
+    W, H = sheet.width, sheet.height
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W:g}mm" height="{H:g}mm" '
+           f'viewBox="0 0 {W:g} {H:g}">',
+           f'<rect x="0" y="0" width="{W:g}" height="{H:g}" fill="#f7f7f2" stroke="#999" '
+           'stroke-width="0.3"/>',
+           f'<g transform="translate(0 {H:g}) scale(1 -1)" fill="none" stroke-width="0.25">']
+    for part in sheet.parts:
+        if part.ring is not None:
+            c = part.holes[0]
+            out.append(f'<circle cx="{c[0]:.4f}" cy="{c[1]:.4f}" r="{part.ring:.4f}" stroke="red"/>')
+        else:
+            colour = "black" if part.engrave_outline else "red"
+            out.append(f'<path d="{_svg_path(part.outline)}" stroke="{colour}"/>')
+        for c in part.holes:
+            out.append(f'<circle cx="{c[0]:.4f}" cy="{c[1]:.4f}" r="{part.hole_radius:.4f}" '
+                       'stroke="blue"/>')
+        for lb in part.labels:
+            out.append(
+                f'<text transform="translate({lb.insert[0]:.4f} {lb.insert[1]:.4f}) scale(1 -1) '
+                f'rotate({-lb.angle:g})" font-family="DejaVu Sans, sans-serif" '
+                f'font-size="{lb.height:g}" text-anchor="middle" dominant-baseline="central" '
+                f'fill="black" stroke="none">{lb.text}</text>')
+    out.append("</g></svg>")
+    return ("\n".join(out) + "\n").encode("utf-8")
+
+
+# -- bill of materials ----------------------------------------------------------------------
+
+def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -> dict:
+    """Parts, sheets, screws by length, spacer rings and the stack at every joint (JSON-able)."""
+    s, st, bars = plan.settings, plan.stacking, plan.bars
+    sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
+    screws: dict[float, int] = {}
+    for js in st.joints:
+        screws[js.screw_length] = screws.get(js.screw_length, 0) + 1
+    n_spacers = sum(len(js.spacers) for js in st.joints)
+    return {
+        "design": plan.design.name,
+        "scale_mm_per_unit": s.scale,
+        "settings": s.as_dict(),
+        "sheets": [{"index": sh.index, "file": f"laser_sheet{sh.index}.dxf",
+                    "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts]}
+                   for sh in plan.sheets],
+        "bars": [{"id": f"B{k}", "joints": [int(v) for v in bars.edges[k]],
+                  "layer": int(st.layer[k]), "length_mm": round(float(bars.lengths[k]), 6),
+                  "overall_length_mm": round(float(bars.lengths[k]) + s.bar_width, 6),
+                  "sheet": sheet_of[f"B{k}"]} for k in range(bars.n_bars)],
+        "layers": {"count": st.n_layers, "lower_bound": st.lower_bound, "method": st.strategy,
+                   "head_slots": st.head_slots},
+        "screws": [{"name": s.screw.name, "post_length_mm": length, "count": count}
+                   for length, count in sorted(screws.items())],
+        "spacer_rings": {"count": n_spacers, "outer_diameter_mm": s.spacer_diameter,
+                         "hole_diameter_mm": s.screw.hole_diameter, "thickness_mm": s.thickness,
+                         "note": "cut from the same sheet"},
+        "joints": [{"joint": js.joint, "bottom_to_top": js.order(), "layers": list(js.layers),
+                    "screw_length_mm": js.screw_length, "stack_mm": round(js.stack_height, 6),
+                    "play_mm": round(js.play, 6), "spacers": len(js.spacers)}
+                   for js in st.joints],
+        "motion": {"method": plan.sweep.method, "status": plan.sweep.status,
+                   "samples": plan.sweep.n_samples,
+                   "step_limit_mm": plan.sweep.step_limit,
+                   "max_node_step_mm": round(plan.sweep.max_step, 6),
+                   "guarantee": "no node moves more than step_limit_mm (= clearance / 2) between "
+                                "samples; bars of one layer are >= clearance apart at every "
+                                "sample and >= clearance / 2 between samples"},
+        "files": sorted(files),
+        "as_built_check": check,
+    }
+
+
+def bom_markdown(bom: dict) -> str:
+    """The bill of materials as Markdown for a person at the bench."""
+    s = bom["settings"]
+    lines = [f"# Laser-cut kit: {bom['design']}", "",
+             f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
+             f"acrylic; bars {s['bar_width']:g} mm wide; kerf {s['kerf']:g} mm; "
+             f"{bom['layers']['count']} layers (lower bound {bom['layers']['lower_bound']}).", "",
+             "## Sheets", "", "| sheet | file | parts |", "|---|---|---|"]
+    for sh in bom["sheets"]:
+        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} |")
+    lines += ["", "## Screws", "", "| screw | post length (mm) | count |", "|---|---|---|"]
+    for sc in bom["screws"]:
+        lines.append(f"| {sc['name']} | {sc['post_length_mm']:g} | {sc['count']} |")
+    sp = bom["spacer_rings"]
+    lines += ["", f"Spacer rings: {sp['count']} (outer {sp['outer_diameter_mm']:g} mm, hole "
+              f"{sp['hole_diameter_mm']:g} mm, {sp['thickness_mm']:g} mm thick, {sp['note']}).",
+              "", "## Bars", "", "| bar | joints | layer | hole spacing (mm) | sheet |",
+              "|---|---|---|---|---|"]
+    for b in bom["bars"]:
+        lines.append(f"| {b['id']} | {b['joints'][0]}-{b['joints'][1]} | {b['layer']} | "
+                     f"{b['length_mm']:.3f} | {b['sheet']} |")
+    lines += ["", "## Stack at each joint (bottom to top)", "",
+              "| joint | stack | screw (mm) | play (mm) |", "|---|---|---|---|"]
+    for j in bom["joints"]:
+        lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | "
+                     f"{j['screw_length_mm']:g} | {j['play_mm']:.2f} |")
+    chk = bom.get("as_built_check")
+    if chk:
+        lines += ["", "## As-built check", "", f"Result: {'passed' if chk['ok'] else 'FAILED'}",
+                  "", "| check | ok | value | limit |", "|---|---|---|---|"]
+        for c in chk["checks"]:
+            lines.append(f"| {c['name']} | {'yes' if c['ok'] else 'no'} | {c['value']} | "
+                         f"{c['limit']} |")
+    lines += ["", "Motion: " + bom["motion"]["guarantee"] + ".", ""]
+    return "\n".join(lines)
+
+
+# -- pictures -------------------------------------------------------------------------------
+
+def _stadium(p, q, r, n=12):
+    d = q - p
+    a = math.atan2(d[1], d[0])
+    t1 = np.linspace(a - math.pi / 2, a + math.pi / 2, n)
+    t0 = np.linspace(a + math.pi / 2, a + 3 * math.pi / 2, n)
+    return np.concatenate([q + r * np.stack([np.cos(t1), np.sin(t1)], 1),
+                           p + r * np.stack([np.cos(t0), np.sin(t0)], 1)])
+
+
+def _draw_layers(ax, plan, x, *, joint_labels):
+    from matplotlib.collections import PolyCollection
+
+    from ..viz import _mpl
+
+    plt = _mpl()
+    cmap = plt.get_cmap("tab10")
+    e = plan.bars.edges
+    r = 0.5 * plan.settings.bar_width
+    order = np.argsort(plan.stacking.layer, kind="stable")  # lower layers drawn first
+    polys = [_stadium(x[e[k, 0]], x[e[k, 1]], r) for k in order]
+    colours = [cmap(int(plan.stacking.layer[k]) % 10) for k in order]
+    ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="k", linewidths=0.4,
+                                     alpha=0.55))
+    joints = [js.joint for js in plan.stacking.joints]
+    ax.plot(x[joints, 0], x[joints, 1], "o", ms=3, color="k", zorder=50)
+    if joint_labels:
+        for js in plan.stacking.joints:
+            ax.annotate(f"J{js.joint}\n{js.screw_length:g} mm", x[js.joint], fontsize=6,
+                        zorder=51, ha="center", va="bottom", xytext=(0, 4),
+                        textcoords="offset points")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("mm")
+
+
+def assembly_png(plan: LaserPlan) -> bytes:
+    """Bars in the reference configuration coloured by layer, joints labelled with screws."""
+    from matplotlib.patches import Patch
+
+    from ..viz import _mpl, figure_png
+
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(8, 6))
+    _draw_layers(ax, plan, plan.design.network.nodes * plan.settings.scale, joint_labels=True)
+    cmap = plt.get_cmap("tab10")
+    ax.legend(handles=[Patch(color=cmap(z % 10), alpha=0.55, label=f"layer {z}")
+                       for z in range(plan.stacking.n_layers)], fontsize=7, loc="best")
+    ax.set_title(f"{plan.design.name}: assembly ({plan.stacking.n_layers} layers, bottom = 0)")
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.93)
+    return figure_png(fig, dpi=90)
+
+
+def motion_png(plan: LaserPlan, frames: int = 4) -> bytes:
+    """The motion with the layers: bars coloured by layer at a few configurations."""
+    from ..viz import _mpl, figure_png
+
+    plt = _mpl()
+    x = plan.sweep.positions
+    idx = np.unique(np.linspace(0, x.shape[0] - 1, frames).round().astype(int))
+    fig, axes = plt.subplots(1, idx.size, figsize=(3.2 * idx.size, 3.4))
+    for ax, i in zip(np.atleast_1d(axes), idx):
+        _draw_layers(ax, plan, x[i], joint_labels=False)
+        ax.set_title(f"drive {plan.sweep.drive[i]:.4g}", fontsize=8)
+        ax.tick_params(labelsize=6)
+    fig.suptitle(f"{plan.design.name}: motion with stacking layers "
+                 f"({plan.sweep.n_samples} samples checked)", fontsize=9)
+    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.15, top=0.85, wspace=0.3)
+    return figure_png(fig, dpi=90)
+
+
+# -- entry ----------------------------------------------------------------------------------
+
+def export_design(design, settings: dict | None = None) -> ExportResult:
+    """Laser-cut files for a design (pure: returns bytes, writes nothing).
+
+    Parameters
+    ----------
+    design : Design
+    settings : dict, optional
+        Overrides of ``[fabrication.laser]``, e.g. ``{"laser": {"kerf": 0.2, "scale": 60}}``.
+
+    Returns
+    -------
+    ExportResult
+        ``files``: ``laser_sheet<k>.dxf`` and ``.svg`` per sheet, ``laser_bom.json``,
+        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``. ``report``:
+        the bill of materials including the as-built check.
+
+    Raises
+    ------
+    FabricationError
+        Bad settings or geometry (see :func:`laser_plan`), or an as-built check that fails.
+
+    Examples
+    --------
+    >>> import fabkit
+    >>> from fabkit.export.dxf import export_design
+    >>> design = fabkit.load_template("templates/fourbar.toml")   # doctest: +SKIP
+    >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
+    ['laser_assembly.png', 'laser_bom.json']
+    """
+    from ..check.dxf import check_documents
+
+    plan = laser_plan(design, settings)
+    files: dict[str, bytes] = {}
+    n = len(plan.sheets)
+    for sheet in plan.sheets:
+        files[f"laser_sheet{sheet.index}.dxf"] = sheet_dxf(sheet, plan, n)
+        files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan)
+    texts = {name: data.decode("ascii") for name, data in files.items() if name.endswith(".dxf")}
+    check = check_documents(texts, design=design, settings=settings)
+    if not check["ok"]:
+        failed = next(c for c in check["checks"] if not c["ok"])
+        raise FabricationError(f"as-built check failed: {failed['name']}: {failed['detail']}")
+    files["laser_assembly.png"] = assembly_png(plan)
+    files["laser_layers_motion.png"] = motion_png(plan)
+    names = sorted([*files, "laser_bom.json", "laser_bom.md"])
+    bom = bill_of_materials(plan, names, check)
+    files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
+    files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
+    return ExportResult(files=files, report={"format": FORMAT, **bom})

@@ -1,0 +1,162 @@
+"""Chicago-screw catalogue: barrel, running hole, head and the post lengths one can buy.
+
+A Chicago screw (sex bolt) is a barrel with a female thread and a screw with a male one; the
+barrel's post length is the thickness it clamps. Vendors name it by that length ("3/16 in"),
+not by its diameter. The default entry is the metric set used for laser-cut linkages: M3
+thread, 4.0 mm barrel, 4.2 mm running hole, 8.5 mm heads 1.9 mm tall, posts 4-16 mm in 1 mm
+steps then 18, 20, 22, 25, 28, 30 mm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+from ..errors import FabricationError
+
+__all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length"]
+
+
+@dataclass(frozen=True)
+class ScrewSpec:
+    """One catalogue entry (all lengths in mm).
+
+    Attributes
+    ----------
+    name : str
+    barrel_diameter : float
+        Outer diameter of the barrel (the pin the bars turn on).
+    hole_diameter : float
+        Running hole cut in every bar (barrel + running clearance).
+    head_diameter, head_height : float
+        The heads at both ends of the stack.
+    lengths : tuple of float
+        Post lengths available, ascending.
+    allowance : float
+        Axial play added to the stack height before choosing a length.
+    """
+
+    name: str
+    barrel_diameter: float
+    hole_diameter: float
+    head_diameter: float
+    head_height: float
+    lengths: tuple[float, ...]
+    allowance: float = 0.1
+
+    def as_dict(self) -> dict:
+        return {f.name: (list(getattr(self, f.name)) if f.name == "lengths" else getattr(self, f.name))
+                for f in fields(self)}
+
+
+_METRIC_LENGTHS = tuple(float(v) for v in [*range(4, 17), 18, 20, 22, 25, 28, 30])
+
+#: Built-in entries; a template may override any field of one of them.
+CATALOGUE: dict[str, ScrewSpec] = {
+    "M3-chicago": ScrewSpec("M3-chicago", 4.0, 4.2, 8.5, 1.9, _METRIC_LENGTHS),
+    "M4-chicago": ScrewSpec("M4-chicago", 5.0, 5.2, 10.0, 2.0, _METRIC_LENGTHS[1:]),
+    "M5-chicago": ScrewSpec("M5-chicago", 6.0, 6.2, 12.0, 2.5, _METRIC_LENGTHS[2:]),
+}
+
+DEFAULT_SCREW = "M3-chicago"
+
+_FIELDS = {f.name for f in fields(ScrewSpec)}
+
+
+def screw_spec(entry=None) -> ScrewSpec:
+    """Resolve a catalogue entry: a name, a table of overrides, or None for the default.
+
+    Parameters
+    ----------
+    entry : str, dict or None
+        ``"M3-chicago"``; or ``{"name": "M3-chicago", "hole_diameter": 4.3, ...}`` (fields not
+        given come from the named entry, the default when no name is given).
+
+    Returns
+    -------
+    ScrewSpec
+
+    Raises
+    ------
+    FabricationError
+        Unknown entry or field, or a non-positive / inconsistent size.
+
+    Examples
+    --------
+    >>> screw_spec({"hole_diameter": 4.3}).hole_diameter
+    4.3
+    """
+    if entry is None:
+        return CATALOGUE[DEFAULT_SCREW]
+    if isinstance(entry, ScrewSpec):
+        spec = entry
+    elif isinstance(entry, str):
+        if entry not in CATALOGUE:
+            raise FabricationError(f"unknown screw {entry!r}; catalogue entries: "
+                                   f"{', '.join(CATALOGUE)} (or give a table with its sizes)")
+        return CATALOGUE[entry]
+    elif isinstance(entry, dict):
+        unknown = sorted(set(entry) - _FIELDS)
+        if unknown:
+            raise FabricationError(f"unknown screw field {unknown[0]!r}; fields: "
+                                   f"{', '.join(sorted(_FIELDS))}")
+        base = screw_spec(entry.get("name", DEFAULT_SCREW)) if entry.get("name") in CATALOGUE \
+            else CATALOGUE[DEFAULT_SCREW]
+        values = {}
+        for key, value in entry.items():
+            if key == "name":
+                if not isinstance(value, str):
+                    raise FabricationError(f"screw name must be a string, got {value!r}")
+                values[key] = value
+            elif key == "lengths":
+                if (not isinstance(value, (list, tuple)) or not value
+                        or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)):
+                    raise FabricationError(f"screw lengths must be a list of numbers (mm), got {value!r}")
+                values[key] = tuple(sorted(float(v) for v in value))
+            else:
+                if isinstance(value, bool) or not isinstance(value, (int, float)):
+                    raise FabricationError(f"screw {key} must be a number (mm), got {value!r}")
+                values[key] = float(value)
+        spec = replace(base, **values)
+    else:
+        raise FabricationError(f"screw must be a catalogue name or a table, got {entry!r}")
+    for key in ("barrel_diameter", "hole_diameter", "head_diameter", "head_height"):
+        v = getattr(spec, key)
+        if not (math.isfinite(v) and v > 0):
+            raise FabricationError(f"screw {key} must be a positive number of mm, got {v}")
+    if not (math.isfinite(spec.allowance) and spec.allowance >= 0):
+        raise FabricationError(f"screw allowance must be >= 0 mm, got {spec.allowance}")
+    if any(not (math.isfinite(v) and v > 0) for v in spec.lengths):
+        raise FabricationError(f"screw lengths must be positive, got {list(spec.lengths)}")
+    if spec.hole_diameter < spec.barrel_diameter:
+        raise FabricationError(
+            f"screw hole_diameter {spec.hole_diameter} mm is smaller than the barrel "
+            f"{spec.barrel_diameter} mm: the bars would not turn; use barrel + 0.2 mm")
+    if spec.head_diameter <= spec.hole_diameter:
+        raise FabricationError(
+            f"screw head_diameter {spec.head_diameter} mm must exceed the hole "
+            f"{spec.hole_diameter} mm, or the head pulls through")
+    return spec
+
+
+def choose_length(spec: ScrewSpec, stack: float) -> float:
+    """Shortest post length that clamps a stack of ``stack`` mm plus the allowance.
+
+    Raises
+    ------
+    FabricationError
+        When the stack is taller than the longest post in the catalogue entry.
+
+    Examples
+    --------
+    >>> choose_length(screw_spec(), 6.0)
+    7.0
+    """
+    need = stack + spec.allowance
+    for length in spec.lengths:
+        if length >= need - 1e-9:
+            return float(length)
+    raise FabricationError(
+        f"a joint stack of {stack:.2f} mm (+{spec.allowance} mm play) needs a screw longer than "
+        f"the longest {spec.name} post ({spec.lengths[-1]:g} mm); add longer lengths to the screw "
+        "entry, use thinner sheet, or reduce the layers (smaller bar_width or larger scale)")

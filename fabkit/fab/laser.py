@@ -1,0 +1,251 @@
+"""Laser-cutting settings: the template's ``[fabrication.laser]`` table merged with overrides.
+
+Every setting has a default that gives a working export for the bundled templates; each value
+is validated where it is read, and a bad one raises :class:`~fabkit.errors.FabricationError`
+with one line that names the setting, the value and a fix.
+
+Lengths are millimetres; design units become millimetres through ``scale`` (mm per design
+unit) or ``size`` (mm: the largest extent of the network's reference configuration).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+from ..errors import FabricationError
+from .hardware import ScrewSpec, screw_spec
+
+__all__ = ["LaserSettings", "laser_settings", "laser_overrides", "DEFAULT_SCALE", "LASER_KEYS"]
+
+#: mm per design unit when neither ``scale`` nor ``size`` is given: the paper's modules (edges
+#: 0.57-2.8 units) become bars of 57-283 mm, comfortably longer than two 4.2 mm holes.
+DEFAULT_SCALE = 100.0
+
+_CHOICES = {
+    "flavour": ("lwpolyline", "line-arc"),
+    "labels": ("text", "outlines", "none"),
+    "reference_square": ("engrave", "cut", "none"),
+}
+
+
+@dataclass(frozen=True)
+class LaserSettings:
+    """Resolved laser settings (mm unless said otherwise).
+
+    Attributes
+    ----------
+    scale : float
+        mm per design unit.
+    bar_width : float
+        Width of every bar (its round ends have radius ``bar_width / 2``).
+    thickness : float
+        Measured sheet thickness: the layer pitch and the basis of screw lengths.
+    kerf : float
+        Width of the laser's cut; outlines grow and holes shrink by ``kerf / 2`` (0 when the
+        cutting service compensates itself).
+    min_web : float
+        Least material between a hole and any edge (default 1.5 x thickness).
+    clearance : float
+        Least gap between two bars (or a bar and a screw head) of one layer over the motion.
+    sheet_width, sheet_height, spacing, margin : float
+        Sheet size, gap between parts, and border kept free.
+    screw : ScrewSpec
+    spacer_diameter : float
+        Outer diameter of the spacer rings cut for layers a screw passes without a bar.
+    flavour : str
+        ``"lwpolyline"`` (closed LWPOLYLINE with bulges) or ``"line-arc"`` (LINE + ARC, for
+        programs that ignore bulges).
+    labels : str
+        ``"text"`` (TEXT entities), ``"outlines"`` (glyph outlines, for lasers that ignore
+        text) or ``"none"``.
+    label_height : float
+        Largest text height; labels shrink to fit between a bar's holes.
+    reference_square : str
+        ``"engrave"``, ``"cut"`` or ``"none"``: a 100 mm square on the first sheet.
+    max_layers : int
+        Refuse designs that need more stacking layers than this.
+    """
+
+    scale: float = DEFAULT_SCALE
+    bar_width: float = 14.0
+    thickness: float = 3.0
+    kerf: float = 0.15
+    min_web: float = 4.5
+    clearance: float = 1.0
+    sheet_width: float = 600.0
+    sheet_height: float = 400.0
+    spacing: float = 3.0
+    margin: float = 5.0
+    screw: ScrewSpec = field(default_factory=screw_spec)
+    spacer_diameter: float = 8.5
+    flavour: str = "lwpolyline"
+    labels: str = "text"
+    label_height: float = 3.5
+    reference_square: str = "engrave"
+    max_layers: int = 12
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["screw"] = self.screw.as_dict()
+        return d
+
+    @property
+    def sample_step(self) -> float:
+        """Largest node displacement (mm) allowed between two samples of the motion."""
+        return 0.5 * self.clearance
+
+
+#: Keys accepted in ``[fabrication.laser]`` (and as overrides).
+LASER_KEYS = {f.name for f in fields(LaserSettings)} | {"size"}
+
+_POSITIVE = ("bar_width", "thickness", "clearance", "sheet_width", "sheet_height",
+             "label_height", "spacer_diameter")
+_NON_NEGATIVE = ("spacing", "margin")
+
+
+def laser_overrides(settings: dict | None) -> dict:
+    """Laser overrides from an exporter's settings: ``{"laser": {...}}`` and/or flat keys.
+
+    Tables of other sections (``{"stl": {...}}``) are ignored; a flat key that is not a laser
+    setting raises, so that a typo does not pass silently.
+
+    Examples
+    --------
+    >>> laser_overrides({"laser": {"kerf": 0.2}, "stl": {"hinge": 0.4}, "scale": 60})
+    {'scale': 60, 'kerf': 0.2}
+    """
+    settings = dict(settings or {})
+    nested = settings.pop("laser", None)
+    out = {}
+    for key, value in settings.items():
+        if isinstance(value, dict):
+            continue  # another format's section
+        if key not in LASER_KEYS:
+            raise FabricationError(f"unknown laser setting {key!r}; known: "
+                                   f"{', '.join(sorted(LASER_KEYS))}")
+        out[key] = value
+    if nested is not None:
+        if not isinstance(nested, dict):
+            raise FabricationError(f"laser settings must be a table, got {nested!r}")
+        out.update(nested)
+    return out
+
+
+def _number(key, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FabricationError(f"laser setting {key} must be a finite number, got {value!r}")
+    return float(value)
+
+
+def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
+                   network_size: float | None = None) -> LaserSettings:
+    """Resolve laser settings from a template table and overrides (overrides win).
+
+    Parameters
+    ----------
+    table : dict, optional
+        The template's ``[fabrication.laser]`` table.
+    overrides : dict, optional
+        Values from the command line or a caller, same keys.
+    network_size : float, optional
+        Largest extent of the network (design units); needed when ``size`` is given.
+
+    Returns
+    -------
+    LaserSettings
+
+    Raises
+    ------
+    FabricationError
+        Unknown key, wrong type, or a value that cannot be cut (negative kerf, web thinner
+        than the hole allows, ...), with a suggested fix.
+
+    Examples
+    --------
+    >>> s = laser_settings({"kerf": 0.2}, {"bar_width": 15})
+    >>> s.kerf, s.bar_width, s.min_web
+    (0.2, 15.0, 4.5)
+    """
+    merged = dict(table or {})
+    merged.update(overrides or {})
+    unknown = sorted(set(merged) - LASER_KEYS)
+    if unknown:
+        raise FabricationError(f"unknown laser setting {unknown[0]!r}; known: "
+                               f"{', '.join(sorted(LASER_KEYS))}")
+    values: dict = {}
+    for key in _POSITIVE + _NON_NEGATIVE + ("kerf", "min_web"):
+        if key in merged:
+            values[key] = _number(key, merged[key])
+    for key in _POSITIVE:
+        if key in values and values[key] <= 0:
+            raise FabricationError(f"laser setting {key} must be positive, got {values[key]:g} mm")
+    for key in _NON_NEGATIVE:
+        if key in values and values[key] < 0:
+            raise FabricationError(f"laser setting {key} must be >= 0, got {values[key]:g} mm")
+    if values.get("kerf", 0.0) < 0:
+        raise FabricationError(
+            f"kerf must be >= 0 mm, got {values['kerf']:g}: it is the width the laser burns away "
+            "(about 0.15 mm on 3 mm acrylic); use 0 if the cutting service compensates kerf")
+    if "scale" in merged and "size" in merged and merged["scale"] is not None \
+            and merged["size"] is not None:
+        raise FabricationError("give either laser scale (mm per design unit) or size (mm), not both")
+    if merged.get("size") is not None:
+        size = _number("size", merged["size"])
+        if size <= 0:
+            raise FabricationError(f"laser setting size must be positive, got {size:g} mm")
+        if not network_size:
+            raise FabricationError("laser setting size needs the network's extent; give scale instead")
+        values["scale"] = size / network_size
+    elif merged.get("scale") is not None:
+        values["scale"] = _number("scale", merged["scale"])
+        if values["scale"] <= 0:
+            raise FabricationError(f"laser setting scale must be positive (mm per design unit), "
+                                   f"got {values['scale']:g}")
+    for key, choices in _CHOICES.items():
+        if key in merged:
+            if merged[key] not in choices:
+                raise FabricationError(f"laser setting {key} must be one of "
+                                       f"{', '.join(choices)}, got {merged[key]!r}")
+            values[key] = merged[key]
+    if "max_layers" in merged:
+        v = merged["max_layers"]
+        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+            raise FabricationError(f"laser setting max_layers must be a positive integer, got {v!r}")
+        values["max_layers"] = v
+    values["screw"] = screw_spec(merged.get("screw"))
+    thickness = values.get("thickness", LaserSettings.thickness)
+    values.setdefault("min_web", 1.5 * thickness)
+    values.setdefault("spacer_diameter", values["screw"].head_diameter)
+    s = LaserSettings(**values)
+    _check_consistency(s)
+    return s
+
+
+def _check_consistency(s: LaserSettings) -> None:
+    hole = s.screw.hole_diameter
+    if hole >= s.bar_width:
+        raise FabricationError(
+            f"the {hole:g} mm screw hole is bigger than the {s.bar_width:g} mm bar: use "
+            f"bar_width >= {hole + 2 * s.min_web:.1f} mm or a smaller screw")
+    web = 0.5 * (s.bar_width - hole)
+    if web < s.min_web - 1e-12:
+        raise FabricationError(
+            f"hole-to-edge web {web:.2f} mm is below the minimum {s.min_web:.2f} mm "
+            f"(1.5 x sheet thickness by default): use bar_width >= {hole + 2 * s.min_web:.1f} mm "
+            "or lower min_web")
+    if s.kerf >= hole:
+        raise FabricationError(f"kerf {s.kerf:g} mm would close the {hole:g} mm holes; "
+                               "measure the kerf again (typically 0.1-0.25 mm)")
+    if s.spacer_diameter <= hole + s.kerf:
+        raise FabricationError(f"spacer_diameter {s.spacer_diameter:g} mm leaves no ring around "
+                               f"the {hole:g} mm hole; use at least {hole + 2:.1f} mm")
+    free_w = s.sheet_width - 2 * s.margin
+    free_h = s.sheet_height - 2 * s.margin
+    if free_w <= 0 or free_h <= 0:
+        raise FabricationError(f"sheet margin {s.margin:g} mm leaves no room on a "
+                               f"{s.sheet_width:g} x {s.sheet_height:g} mm sheet")
+    if s.reference_square != "none" and min(free_w, free_h) < 100.0:
+        raise FabricationError(
+            f"a {s.sheet_width:g} x {s.sheet_height:g} mm sheet (margin {s.margin:g}) cannot hold "
+            "the 100 mm reference square; use a larger sheet or reference_square = \"none\"")

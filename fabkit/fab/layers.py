@@ -1,0 +1,831 @@
+"""Stacking layers: which bar sits on which sheet layer so that nothing collides over the motion.
+
+Bars lie flat in parallel layers, one sheet thick each, and turn on Chicago screws through
+their holes. Two bars must sit on different layers when
+
+* they share a joint (both are threaded on its screw), or
+* their outlines come closer than ``clearance`` at some sampled configuration of the motion.
+
+A screw with its heads is a column at its joint spanning the layers of its bars plus
+``head_slots`` layers above and below (the heads). A bar that passes within ``clearance`` of a
+column during the motion must lie outside the column's layers, and two columns that come close
+must not share a layer. Those two rules depend on the order of the layers, not only on which
+bars share one, so the layers are found in two steps: a graph colouring of the conflict graph
+(networkx greedy strategies; the fewest colours wins, the largest clique is a lower bound), then
+the order of the colour classes that breaks no column rule and needs the shortest screws.
+
+Sampling guarantee. The motion is sampled (adaptively, see :func:`sample_motion`) so that no
+node moves more than ``h = clearance / 2`` between consecutive samples. Every point of a bar is
+a convex combination of its two joints, so on the straight-line interpolation between two
+samples every bar point is within ``h / 2`` of where it is at the nearer sample, and the gap
+between two bars can shrink by at most ``h = clearance / 2`` relative to the nearer sample.
+Bars of one layer are at least ``clearance`` apart at every sample, hence at least
+``clearance / 2`` apart between samples; the true path deviates from the chord between samples
+only to second order in ``h``, far below that margin.
+A motion that ends in (or passes) a flat state where nodes move while the drive stands still
+cannot be sampled this way; it is refused with the drive value where it happens.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FabricationError
+
+__all__ = ["Sweep", "sample_motion", "segment_distance", "point_segment_distance",
+           "Conflicts", "find_conflicts", "JointStack", "Stacking", "plan_layers",
+           "stacking_gaps"]
+
+# Samples per block when scanning pairs over the motion (bounds memory to ~block x pairs).
+_BLOCK = 256
+# Refuse motions that need more samples than this to meet the step bound.
+_MAX_SAMPLES = 200_000
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """The motion sampled finely enough for collision checks.
+
+    Attributes
+    ----------
+    positions : numpy.ndarray, shape (S, N, 2)
+        Node positions in mm.
+    drive : numpy.ndarray, shape (S,)
+        Drive values (design units).
+    step_limit : float
+        Bound on node displacement between samples (mm).
+    max_step : float
+        Largest node displacement between consecutive samples actually met (mm).
+    method, status, message : str
+        From the trace the samples were taken along.
+    """
+
+    positions: np.ndarray
+    drive: np.ndarray
+    step_limit: float
+    max_step: float
+    method: str
+    status: str
+    message: str
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.positions.shape[0])
+
+
+def _node_steps(x: np.ndarray) -> np.ndarray:
+    """Largest node displacement between consecutive configurations, shape (S-1,)."""
+    if x.shape[0] < 2:
+        return np.zeros(0)
+    return np.sqrt(((x[1:] - x[:-1]) ** 2).sum(axis=-1)).max(axis=-1)
+
+
+def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
+    """Sample a network's motion so that no node moves more than ``step_limit`` mm per sample.
+
+    Parameters
+    ----------
+    net : Network
+        2D network in design units.
+    motion : Motion
+        Drive, target, method, held ports and options (as in a template).
+    scale : float
+        mm per design unit.
+    step_limit : float
+        Bound on node displacement between consecutive samples (mm).
+
+    Returns
+    -------
+    Sweep
+        Positions in mm. With the constructive method samples are placed exactly and refined
+        by bisection where a step is too long; other methods are re-traced with a maximum
+        step small enough.
+
+    Raises
+    ------
+    FabricationError
+        No motion target, or the bound cannot be met within 200 000 samples.
+    """
+    from ..kinematics import trace
+    from ..kinematics.base import align_to_gauge, make_problem
+    from ..kinematics.constructive import place, plan_construction
+
+    if motion.to is None:
+        raise FabricationError("the template gives no [motion] target (motion.to): the stacking "
+                               "layers are planned over the motion, so it must be known")
+    traj = trace(net, drive=motion.drive, to=motion.to, method=motion.method, hold=motion.hold,
+                 **motion.options)
+    limit = step_limit / scale  # design units
+    if traj.method == "constructive":
+        problem = make_problem(net, motion.drive, motion.to, hold=motion.hold)
+        plan = plan_construction(problem.work, problem.drive, problem.start)
+        values = np.linspace(traj.drive[0], traj.drive[-1], 65)
+        for _ in range(60):
+            x = align_to_gauge(place(plan, values)[0], problem.start, problem.gauge)
+            steps = _node_steps(x)
+            bad = np.flatnonzero(steps > limit)
+            if bad.size == 0:
+                break
+            width = values[bad + 1] - values[bad]
+            stuck = np.abs(width) <= 1e-12 * (abs(values[bad]) + 1.0)
+            if stuck.any():
+                # Nodes jump while the drive stands still: a flat state the drive cannot
+                # parametrise, so no sampling by drive value meets the bound there.
+                k = int(bad[np.argmax(stuck)])
+                raise FabricationError(
+                    f"the motion passes a flat state at {motion.drive} = {values[k]:.10g} where "
+                    f"nodes move {steps[k] * scale:.3g} mm while the drive stands still; the "
+                    "collision check cannot sample it: end the motion before it (motion.to)")
+            if values.size + bad.size > _MAX_SAMPLES:
+                raise FabricationError(
+                    f"sampling the motion to {step_limit:g} mm steps needs more than "
+                    f"{_MAX_SAMPLES} samples; raise the clearance or check the motion")
+            mids = 0.5 * (values[bad] + values[bad + 1])
+            values = np.insert(values, bad + 1, mids)
+        else:  # pragma: no cover - bisection halves steps; 60 rounds cannot all fail
+            raise FabricationError("could not sample the motion finely enough")
+        drive = values
+    else:
+        # Re-trace with a step bound in arclength (a node moves at most the arclength), then
+        # shrink it while a method's own step measure still lets nodes move too far.
+        opts = dict(motion.options)
+        key = "max_step" if traj.method == "projected" else "step"
+        step = min(limit, opts.get(key) or np.inf)
+        for _ in range(6):
+            opts[key] = step
+            traj = trace(net, drive=motion.drive, to=motion.to, method=traj.method,
+                         hold=motion.hold, **opts)
+            worst = float(_node_steps(traj.positions).max(initial=0.0))
+            if worst <= limit:
+                break
+            step *= 0.9 * limit / worst
+        x, drive = traj.positions, traj.drive
+    steps = _node_steps(x)
+    max_step = float(steps.max() * scale) if steps.size else 0.0
+    if max_step > step_limit * (1 + 1e-9):
+        raise FabricationError(
+            f"the {traj.method} trace moves a node {max_step:.3g} mm between samples, more than "
+            f"the {step_limit:g} mm the collision check needs; use method = \"constructive\"")
+    return Sweep(positions=np.ascontiguousarray(x * scale), drive=np.asarray(drive),
+                 step_limit=float(step_limit), max_step=max_step, method=traj.method,
+                 status=str(traj.status), message=traj.message)
+
+
+# -- distances ------------------------------------------------------------------------------
+
+def point_segment_distance(x, p, q) -> np.ndarray:
+    """Distance from points ``x`` to segments ``p``-``q`` (broadcast over leading axes).
+
+    Examples
+    --------
+    >>> float(point_segment_distance([0.0, 1.0], [-1.0, 0.0], [1.0, 0.0]))
+    1.0
+    """
+    x, p, q = (np.asarray(a, dtype=np.float64) for a in (x, p, q))
+    d = q - p
+    dd = (d * d).sum(-1)
+    t = np.clip(((x - p) * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    return np.sqrt(((p + t[..., None] * d - x) ** 2).sum(-1))
+
+
+def _cross(a, b):
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def segment_distance(p1, q1, p2, q2) -> np.ndarray:
+    """Distance between 2D segments ``p1-q1`` and ``p2-q2`` (0 where they cross).
+
+    Examples
+    --------
+    >>> float(segment_distance([0, 0], [2, 0], [1, -1], [1, 1]))
+    0.0
+    >>> float(segment_distance([0, 0], [1, 0], [0, 2], [1, 2]))
+    2.0
+    """
+    p1, q1, p2, q2 = (np.asarray(a, dtype=np.float64) for a in (p1, q1, p2, q2))
+    d = np.minimum(np.minimum(point_segment_distance(p1, p2, q2), point_segment_distance(q1, p2, q2)),
+                   np.minimum(point_segment_distance(p2, p1, q1), point_segment_distance(q2, p1, q1)))
+    r, s = q1 - p1, q2 - p2
+    o1 = _cross(r, p2 - p1)
+    o2 = _cross(r, q2 - p1)
+    o3 = _cross(s, p1 - p2)
+    o4 = _cross(s, q1 - p2)
+    crossing = (o1 * o2 < 0) & (o3 * o4 < 0)
+    return np.where(crossing, 0.0, d)
+
+
+def _min_over_samples(func, positions, *index_arrays):
+    """Minimum over samples (and the sample where it occurs) of ``func(x, *index_arrays)``."""
+    n = index_arrays[0].shape[0]
+    best = np.full(n, np.inf)
+    where = np.zeros(n, dtype=np.int64)
+    if n == 0:
+        return best, where
+    for start in range(0, positions.shape[0], _BLOCK):
+        x = positions[start:start + _BLOCK]
+        d = func(x, *index_arrays)  # (block, n)
+        k = np.argmin(d, axis=0)
+        v = d[k, np.arange(n)]
+        better = v < best
+        best[better] = v[better]
+        where[better] = k[better] + start
+    return best, where
+
+
+def _pruned_min(func, positions, threshold: float, *index_arrays, stride: int = 32):
+    """Like :func:`_min_over_samples`, but scans every sample only for index pairs that can come
+    below ``threshold``.
+
+    Between a sample and the nearest of every ``stride``-th sample each point moves at most
+    ``stride / 2`` largest steps, so a distance between two moving points (or point sets) can
+    be at most ``stride x`` the largest node step smaller than at that coarse sample. Pairs whose
+    coarse minimum exceeds ``threshold`` by that much are left out of the full scan (their
+    reported minimum is the coarse one, an upper bound above the threshold).
+    """
+    n = index_arrays[0].shape[0]
+    s = positions.shape[0]
+    if n == 0 or s <= 2 * stride:
+        return _min_over_samples(func, positions, *index_arrays)
+    step = float(np.sqrt(((positions[1:] - positions[:-1]) ** 2).sum(-1)).max())
+    coarse_idx = np.unique(np.r_[np.arange(0, s, stride), s - 1])
+    best, where = _min_over_samples(func, positions[coarse_idx], *index_arrays)
+    where = coarse_idx[where]
+    maybe = np.flatnonzero(best - stride * step < threshold)
+    if maybe.size:
+        b2, w2 = _min_over_samples(func, positions, *(a[maybe] for a in index_arrays))
+        best[maybe], where[maybe] = b2, w2
+    return best, where
+
+
+def _bar_bar(edges):
+    """Kernel: segment distance between bars a and b at every sample of a block."""
+    def kernel(x, a, b):
+        return segment_distance(x[:, edges[a, 0]], x[:, edges[a, 1]],
+                                x[:, edges[b, 0]], x[:, edges[b, 1]])
+    return kernel
+
+
+@dataclass(frozen=True, eq=False)
+class Conflicts:
+    """Everything the stacking must respect, measured over a sweep.
+
+    Attributes
+    ----------
+    pairs : numpy.ndarray of int, shape (C, 2)
+        Bar pairs that must be on different layers.
+    kind : numpy.ndarray of str, shape (C,)
+        ``"joint"`` (share a joint) or ``"sweep"`` (come closer than the clearance).
+    gap : numpy.ndarray, shape (C,)
+        Smallest outline gap over the motion (mm; negative = overlap), NaN for joint pairs.
+    sample : numpy.ndarray of int, shape (C,)
+        Sample where the gap is smallest (-1 for joint pairs).
+    keepout : numpy.ndarray of int, shape (K, 2)
+        (bar, joint) pairs: the bar passes the joint's screw column (must avoid its layers).
+    joint_pairs : numpy.ndarray of int, shape (J, 2)
+        Joints whose screw columns come close (their layer spans must not meet).
+    screw_joints : numpy.ndarray of int
+        Joints that get a screw (two or more bars).
+    """
+
+    pairs: np.ndarray
+    kind: np.ndarray
+    gap: np.ndarray
+    sample: np.ndarray
+    keepout: np.ndarray
+    joint_pairs: np.ndarray
+    screw_joints: np.ndarray
+
+
+def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
+    inc = np.zeros((n_nodes, edges.shape[0]), dtype=bool)
+    inc[edges[:, 0], np.arange(edges.shape[0])] = True
+    inc[edges[:, 1], np.arange(edges.shape[0])] = True
+    return inc
+
+
+def find_conflicts(edges, positions, *, width: float, clearance: float,
+                   column_radius: float) -> Conflicts:
+    """Measure which bars, screws and columns come close anywhere along a sampled motion.
+
+    Parameters
+    ----------
+    edges : array_like of int, shape (E, 2)
+    positions : array_like, shape (S, N, 2)
+        Sampled configurations in mm.
+    width : float
+        Bar width (mm): outlines are the joint segments grown by ``width / 2``.
+    clearance : float
+        Least gap allowed between parts of one layer (mm).
+    column_radius : float
+        Radius of a screw column (largest of head and spacer radius, mm).
+
+    Returns
+    -------
+    Conflicts
+    """
+    edges = np.asarray(edges, dtype=np.int64)
+    x = np.asarray(positions, dtype=np.float64)
+    n_nodes, n_bars = x.shape[1], edges.shape[0]
+    inc = _incidence(edges, n_nodes)
+    a, b = np.triu_indices(n_bars, k=1)
+    share = (inc[:, a] & inc[:, b]).any(axis=0)
+    ja, jb = a[share], b[share]
+    # Only pairs whose swept boxes (over the whole motion) come within reach need the scan.
+    lo_n, hi_n = x.min(axis=0), x.max(axis=0)                      # (N, 2) each
+    reach = 0.5 * width + clearance + column_radius
+    bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]]) - reach
+    bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]]) + reach
+    near_box = ((bar_lo[a] <= bar_hi[b]) & (bar_lo[b] <= bar_hi[a])).all(axis=1)
+    fa, fb = a[~share & near_box], b[~share & near_box]
+    if fa.size:
+        seg_gap, where = _pruned_min(_bar_bar(edges), x, width + clearance, fa, fb)
+    else:
+        seg_gap, where = np.zeros(0), np.zeros(0, dtype=np.int64)
+    gap = seg_gap - width
+    close = gap < clearance
+    pairs = np.concatenate([np.stack([ja, jb], 1), np.stack([fa[close], fb[close]], 1)]).reshape(-1, 2)
+    kind = np.array(["joint"] * ja.size + ["sweep"] * int(close.sum()), dtype=object)
+    gaps = np.concatenate([np.full(ja.size, np.nan), gap[close]])
+    samples = np.concatenate([np.full(ja.size, -1), where[close]]).astype(np.int64)
+
+    degree = inc.sum(axis=1)
+    screw_joints = np.flatnonzero(degree >= 2)
+    # bar vs screw column at a joint the bar does not belong to
+    bb, jj = np.meshgrid(np.arange(n_bars), screw_joints, indexing="ij")
+    bb, jj = bb.ravel(), jj.ravel()
+    keep = ~inc[jj, bb]
+    bb, jj = bb[keep], jj[keep]
+    inside = ((lo_n[jj] - reach <= bar_hi[bb]) & (bar_lo[bb] <= hi_n[jj] + reach)).all(axis=1)
+    bb, jj = bb[inside], jj[inside]
+    if bb.size:
+        d, _ = _pruned_min(
+            lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
+                                                      xs[:, edges[bi, 1]]),
+            x, 0.5 * width + column_radius + clearance, bb, jj)
+        near = d - 0.5 * width - column_radius < clearance
+        keepout = np.stack([bb[near], jj[near]], 1)
+    else:
+        keepout = np.zeros((0, 2), dtype=np.int64)
+    # screw column vs screw column
+    if screw_joints.size >= 2:
+        ia, ib = np.triu_indices(screw_joints.size, k=1)
+        ia, ib = screw_joints[ia], screw_joints[ib]
+        r2 = 2 * reach
+        inside = ((lo_n[ia] - r2 <= hi_n[ib]) & (lo_n[ib] - r2 <= hi_n[ia])).all(axis=1)
+        ia, ib = ia[inside], ib[inside]
+        d, _ = _pruned_min(
+            lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
+            x, 2.0 * column_radius + clearance, ia, ib)
+        near = d - 2.0 * column_radius < clearance
+        joint_pairs = np.stack([ia[near], ib[near]], 1).reshape(-1, 2)
+    else:
+        joint_pairs = np.zeros((0, 2), dtype=np.int64)
+    return Conflicts(pairs=pairs.astype(np.int64), kind=kind, gap=gaps, sample=samples,
+                     keepout=keepout.astype(np.int64), joint_pairs=joint_pairs.astype(np.int64),
+                     screw_joints=screw_joints)
+
+
+# -- layer assignment -----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class JointStack:
+    """The screw at one joint, bottom to top.
+
+    Attributes
+    ----------
+    joint : int
+    bars : tuple of int
+        Bars threaded on the screw, bottom to top.
+    layers : tuple of int
+        Their layers.
+    spacers : tuple of int
+        Layers between the lowest and highest bar that the screw passes without a bar (each
+        gets a spacer ring).
+    stack_height : float
+        Clamped thickness (mm) = layers spanned x sheet thickness.
+    screw_length : float
+        Post length chosen from the catalogue (mm).
+    play : float
+        screw_length - stack_height (mm).
+    """
+
+    joint: int
+    bars: tuple[int, ...]
+    layers: tuple[int, ...]
+    spacers: tuple[int, ...]
+    stack_height: float
+    screw_length: float
+    play: float
+
+    def order(self) -> list[str]:
+        """Bottom-to-top description, e.g. ``["bar 3", "spacer", "bar 0"]``."""
+        lo, hi = min(self.layers), max(self.layers)
+        by_layer = dict(zip(self.layers, self.bars))
+        return [f"bar {by_layer[z]}" if z in by_layer else "spacer" for z in range(lo, hi + 1)]
+
+
+@dataclass(frozen=True, eq=False)
+class Stacking:
+    """Layer of every bar and the screw stack of every joint.
+
+    Attributes
+    ----------
+    layer : numpy.ndarray of int, shape (E,)
+        Layer of each bar (0 = bottom).
+    n_layers : int
+    joints : tuple of JointStack
+    conflicts : Conflicts
+    lower_bound : int
+        Size of the largest clique of the conflict graph: no stacking has fewer layers.
+    strategy : str
+        The colouring strategy that won.
+    head_slots : int
+        Layers a screw head occupies above and below its stack.
+    """
+
+    layer: np.ndarray
+    n_layers: int
+    joints: tuple[JointStack, ...]
+    conflicts: Conflicts
+    lower_bound: int
+    strategy: str
+    head_slots: int
+    stats: dict = field(default_factory=dict)
+
+    def joint_stack(self, joint: int) -> JointStack:
+        for js in self.joints:
+            if js.joint == joint:
+                return js
+        raise KeyError(f"joint {joint} has no screw")
+
+
+_STRATEGIES = ("saturation_largest_first", "largest_first", "smallest_last", "independent_set",
+               "connected_sequential_bfs", "connected_sequential_dfs")
+
+
+def _colourings(n_bars: int, pairs: np.ndarray):
+    import networkx as nx
+
+    g = nx.Graph()
+    g.add_nodes_from(range(n_bars))
+    g.add_edges_from(map(tuple, pairs.tolist()))
+    found = []
+    for strategy in _STRATEGIES:
+        col = nx.greedy_color(g, strategy=strategy, interchange=strategy in ("largest_first",
+                                                                            "smallest_last"))
+        colours = np.array([col[k] for k in range(n_bars)], dtype=np.int64)
+        # renumber classes by first appearance so equal colourings compare equal
+        _, first = np.unique(colours, return_index=True)
+        remap = np.empty(colours.max() + 1, dtype=np.int64)
+        remap[colours[np.sort(first)]] = np.arange(first.size)
+        found.append((strategy, remap[colours]))
+    clique = max((len(c) for c in nx.find_cliques(g)), default=1) if n_bars else 0
+    return found, clique
+
+
+def _spans(layer: np.ndarray, joint_bars: list[np.ndarray]):
+    """Lowest and highest layer at every screw joint; ``layer`` shape (P, E) -> (P, J) each."""
+    lo = np.stack([layer[:, jb].min(axis=1) for jb in joint_bars], axis=1)
+    hi = np.stack([layer[:, jb].max(axis=1) for jb in joint_bars], axis=1)
+    return lo, hi
+
+
+def _score(layer, joint_bars, jpos, keepout, joint_pairs, head):
+    """(violations, total span) for candidate layer assignments ``layer`` (P, E)."""
+    lo, hi = _spans(layer, joint_bars)
+    viol = np.zeros(layer.shape[0], dtype=np.int64)
+    if keepout.size:
+        zb = layer[:, keepout[:, 0]]
+        j = jpos[keepout[:, 1]]
+        viol += ((zb >= lo[:, j] - head) & (zb <= hi[:, j] + head)).sum(axis=1)
+    if joint_pairs.size:
+        i, j = jpos[joint_pairs[:, 0]], jpos[joint_pairs[:, 1]]
+        overlap = (lo[:, i] - head <= hi[:, j] + head) & (lo[:, j] - head <= hi[:, i] + head)
+        viol += overlap.sum(axis=1)
+    return viol, (hi - lo).sum(axis=1)
+
+
+def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
+    """Order of the k colour classes (class -> layer) with no violation and shortest screws."""
+    if k <= 7:
+        perms = np.array(list(itertools.permutations(range(k))), dtype=np.int64)
+        best_v, best_s, best_p = None, None, None
+        for start in range(0, perms.shape[0], 1024):
+            p = perms[start:start + 1024]
+            v, s = _score(p[:, colours], joint_bars, jpos, keepout, joint_pairs, head)
+            key = v * 10**9 + s
+            i = int(np.argmin(key))
+            if best_v is None or key[i] < best_v * 10**9 + best_s:
+                best_v, best_s, best_p = int(v[i]), int(s[i]), p[i]
+        return best_p, best_v
+    # many layers: pairwise swaps from the identity until no swap improves (deterministic)
+    perm = np.arange(k)
+    v, s = _score(perm[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+    best = (int(v[0]), int(s[0]))
+    improved = True
+    while improved:
+        improved = False
+        for i, j in itertools.combinations(range(k), 2):
+            cand = perm.copy()
+            cand[[i, j]] = cand[[j, i]]
+            v, s = _score(cand[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+            if (int(v[0]), int(s[0])) < best:
+                perm, best, improved = cand, (int(v[0]), int(s[0])), True
+    return perm, best[0]
+
+
+def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_000):
+    """Depth-first search for layers meeting every rule, fewest layers first.
+
+    Every rule is monotone in a partial assignment (a joint's span only grows as its bars get
+    layers), so a rule broken by a partial assignment stays broken and the branch is pruned.
+    Returns the layers (E,) or None when every layer count fails or the search has visited
+    ``node_limit`` partial assignments in all (a bound on time, about 1 s per 20 000).
+    """
+    screw = conf.screw_joints.tolist()
+    n_nodes = max(screw, default=-1) + 1
+    bars_of = {j: jb.tolist() for j, jb in zip(screw, joint_bars)}
+    joints_of = [[] for _ in range(n_bars)]
+    for j, jb in bars_of.items():
+        for b in jb:
+            joints_of[b].append(j)
+    nbrs = [[] for _ in range(n_bars)]
+    for a, b in conf.pairs.tolist():
+        nbrs[a].append(b)
+        nbrs[b].append(a)
+    avoid_of_bar = [[] for _ in range(n_bars)]   # joints whose columns bar b must avoid
+    avoiders = {j: [] for j in screw}            # bars that must avoid joint j's column
+    for b, j in conf.keepout.tolist():
+        avoid_of_bar[b].append(j)
+        avoiders[j].append(b)
+    partners = {j: [] for j in screw}
+    for i, j in conf.joint_pairs.tolist():
+        partners[i].append(j)
+        partners[j].append(i)
+    # static order: breadth first through shared joints from the most constrained bar
+    weight = [len(nbrs[b]) + len(avoid_of_bar[b]) for b in range(n_bars)]
+    order, seen = [], [False] * n_bars
+    for start in sorted(range(n_bars), key=lambda b: (-weight[b], b)):
+        if seen[start]:
+            continue
+        queue = [start]
+        seen[start] = True
+        while queue:
+            b = queue.pop(0)
+            order.append(b)
+            nxt = sorted({c for j in joints_of[b] for c in bars_of[j]} | set(nbrs[b]),
+                         key=lambda c: (-weight[c], c))
+            for c in nxt:
+                if not seen[c]:
+                    seen[c] = True
+                    queue.append(c)
+
+    budget = [node_limit]
+    for k in layer_counts:
+        if budget[0] < 0:
+            return None
+        z = [-1] * n_bars
+        lo = [None] * n_nodes
+        hi = [None] * n_nodes
+
+        def ok(b, v):
+            for c in nbrs[b]:
+                if z[c] == v:
+                    return False
+            for j in avoid_of_bar[b]:
+                if lo[j] is not None and lo[j] - head <= v <= hi[j] + head:
+                    return False
+            for j in joints_of[b]:
+                l2 = v if lo[j] is None else min(lo[j], v)
+                h2 = v if hi[j] is None else max(hi[j], v)
+                for c in avoiders[j]:
+                    if z[c] >= 0 and l2 - head <= z[c] <= h2 + head:
+                        return False
+                for i in partners[j]:
+                    if lo[i] is not None and l2 - head <= hi[i] + head and lo[i] - head <= h2 + head:
+                        return False
+            return True
+
+        def cost(b, v):
+            return sum(0 if lo[j] is None else max(lo[j] - v, v - hi[j], 0) for j in joints_of[b])
+
+        def place(pos):
+            if pos == len(order):
+                return True
+            budget[0] -= 1
+            if budget[0] < 0:
+                return False
+            b = order[pos]
+            for v in sorted(range(k), key=lambda v: (cost(b, v), v)):
+                if not ok(b, v):
+                    continue
+                saved = [(j, lo[j], hi[j]) for j in joints_of[b]]
+                z[b] = v
+                for j in joints_of[b]:
+                    lo[j] = v if lo[j] is None else min(lo[j], v)
+                    hi[j] = v if hi[j] is None else max(hi[j], v)
+                if place(pos + 1):
+                    return True
+                z[b] = -1
+                for j, l0, h0 in saved:
+                    lo[j], hi[j] = l0, h0
+            return False
+
+        limit = sys.getrecursionlimit()
+        sys.setrecursionlimit(max(limit, n_bars + 200))  # one frame per bar placed
+        try:
+            if place(0):
+                return np.array(z, dtype=np.int64)
+        finally:
+            sys.setrecursionlimit(limit)
+    return None
+
+
+def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
+    """Assign every bar a layer so that nothing collides over the sampled motion.
+
+    Parameters
+    ----------
+    edges : array_like of int, shape (E, 2)
+    sweep : Sweep
+        The motion, sampled by :func:`sample_motion` (positions in mm).
+    settings : LaserSettings
+        Bar width, clearance, sheet thickness, screw entry, spacer diameter, max_layers.
+
+    Returns
+    -------
+    Stacking
+
+    Raises
+    ------
+    FabricationError
+        When no stacking found keeps bars clear of the screws, or it needs more layers than
+        ``max_layers``, or a screw longer than the catalogue has.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fabkit.fab.laser import laser_settings
+    >>> x = np.array([[[0, 0], [100, 0], [100, 100]]], dtype=float)
+    >>> sw = Sweep(x, np.zeros(1), 0.5, 0.0, "given", "finished", "")
+    >>> plan_layers([[0, 1], [1, 2]], sw, laser_settings()).layer.tolist()
+    [0, 1]
+    """
+    edges = np.asarray(edges, dtype=np.int64)
+    s = settings
+    column_radius = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
+    conf = find_conflicts(edges, sweep.positions, width=s.bar_width, clearance=s.clearance,
+                          column_radius=column_radius)
+    head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
+    n_bars = edges.shape[0]
+    inc = _incidence(edges, sweep.positions.shape[1])
+    joint_bars = [np.flatnonzero(inc[j]) for j in conf.screw_joints]
+    jpos = np.full(sweep.positions.shape[1], -1, dtype=np.int64)
+    jpos[conf.screw_joints] = np.arange(conf.screw_joints.size)
+    colourings, clique = _colourings(n_bars, conf.pairs)
+    candidates, seen = [], set()
+    for strategy, colours in colourings:
+        if colours.tobytes() in seen:  # strategies often agree; order each colouring once
+            continue
+        seen.add(colours.tobytes())
+        k = int(colours.max()) + 1 if n_bars else 0
+        if joint_bars:
+            perm, viol = _best_order(colours, k, joint_bars, jpos, conf.keepout,
+                                     conf.joint_pairs, head)
+        else:
+            perm, viol = np.arange(k), 0
+        layer = perm[colours]
+        span = sum(int(layer[jb].max() - layer[jb].min()) for jb in joint_bars)
+        candidates.append((viol, k, span, strategy, layer))
+    viol, k, span, strategy, layer = min(candidates, key=lambda c: c[:3])
+    if viol:
+        # The column rules tie layers to their order: search layer numbers directly.
+        found = _search_layers(n_bars, conf, joint_bars, head,
+                               range(max(int(clique), 1), s.max_layers + 1))
+        if found is None:
+            x0 = sweep.positions[0][conf.screw_joints]
+            d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
+            np.fill_diagonal(d0, np.inf)
+            i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
+            if d0.size and d0[i, j] < 2 * column_radius:
+                ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
+                raise FabricationError(
+                    f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
+                    f"two screw heads ({2 * column_radius:g} mm), and no stacking separates their "
+                    "screws; merge them in the design, or for chains of modules try mirror = "
+                    "\"alternate\"")
+            raise FabricationError(_violation_message(layer, joint_bars, conf, head, edges))
+        layer, strategy = found, "backtracking"
+        k = int(layer.max()) + 1
+    if k > s.max_layers:
+        raise FabricationError(
+            f"the bars need {k} stacking layers (more than max_layers = {s.max_layers}); raise "
+            "max_layers, or make room: larger scale or narrower bars")
+    stacks = []
+    from .hardware import choose_length
+
+    for j, jb in zip(conf.screw_joints.tolist(), joint_bars):
+        order = np.argsort(layer[jb], kind="stable")
+        bars = tuple(int(v) for v in jb[order])
+        layers = tuple(int(v) for v in layer[jb][order])
+        lo, hi = layers[0], layers[-1]
+        spacers = tuple(z for z in range(lo, hi + 1) if z not in layers)
+        height = (hi - lo + 1) * s.thickness
+        try:
+            length = choose_length(s.screw, height)
+        except FabricationError as exc:
+            raise FabricationError(f"joint {j}: {exc}") from None
+        stacks.append(JointStack(joint=j, bars=bars, layers=layers, spacers=spacers,
+                                 stack_height=height, screw_length=length, play=length - height))
+    return Stacking(layer=layer, n_layers=k, joints=tuple(stacks), conflicts=conf,
+                    lower_bound=int(clique), strategy=strategy, head_slots=head,
+                    stats={"candidates": [(c[3], c[1], c[0]) for c in candidates]})
+
+
+def _violation_message(layer, joint_bars, conf, head, edges) -> str:
+    jpos = {int(j): i for i, j in enumerate(conf.screw_joints)}
+    lo = {j: int(layer[joint_bars[i]].min()) for j, i in jpos.items()}
+    hi = {j: int(layer[joint_bars[i]].max()) for j, i in jpos.items()}
+    for b, j in conf.keepout.tolist():
+        if lo[j] - head <= layer[b] <= hi[j] + head:
+            i0, i1 = edges[b]
+            return (f"no stacking order found keeps bar {b} (joints {i0}-{i1}) clear of the screw "
+                    f"at joint {j}, which it passes during the motion; use a larger scale or "
+                    "narrower bars")
+    for i, j in conf.joint_pairs.tolist():
+        return (f"the screws at joints {i} and {j} come too close during the motion and no "
+                "stacking separates them; the joints may coincide (for chains try mirror = "
+                "\"alternate\") or use a larger scale")
+    return "no collision-free stacking found"
+
+
+def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slots: int = 1,
+                  column_radius: float = 0.0) -> dict:
+    """Smallest gaps between parts that share a layer, over sampled configurations.
+
+    Parameters
+    ----------
+    edges : array_like of int, shape (E, 2)
+    layer : array_like of int, shape (E,)
+    positions : array_like, shape (S, N, 2)
+        Configurations in mm.
+    width : float
+    joints : sequence of JointStack
+        Screws to check bars and other screws against (none: bars only).
+    head_slots : int
+    column_radius : float
+
+    Returns
+    -------
+    dict
+        ``bar_gap`` (mm, smallest outline gap between non-adjacent bars of one layer; inf when
+        no two share a layer), ``bar_pair`` and ``sample`` where it occurs; ``screw_gap``
+        (smallest gap from a bar to a screw column whose layers it occupies) and
+        ``column_gap`` (between screw columns that share layers).
+    """
+    edges = np.asarray(edges, dtype=np.int64)
+    layer = np.asarray(layer)
+    x = np.asarray(positions, dtype=np.float64)
+    inc = _incidence(edges, x.shape[1])
+    a, b = np.triu_indices(edges.shape[0], k=1)
+    same = (layer[a] == layer[b]) & ~(inc[:, a] & inc[:, b]).any(axis=0)
+    a, b = a[same], b[same]
+    out = {"bar_gap": math.inf, "bar_pair": None, "sample": None,
+           "screw_gap": math.inf, "column_gap": math.inf}
+    if a.size:
+        d, where = _min_over_samples(_bar_bar(edges), x, a, b)
+        k = int(np.argmin(d))
+        out.update(bar_gap=float(d[k] - width), bar_pair=[int(a[k]), int(b[k])],
+                   sample=int(where[k]))
+    if joints:
+        js = list(joints)
+        span = {st.joint: (min(st.layers) - head_slots, max(st.layers) + head_slots) for st in js}
+        bb, jj = [], []
+        for st in js:
+            z0, z1 = span[st.joint]
+            inside = (layer >= z0) & (layer <= z1) & ~inc[st.joint]
+            bb.extend(np.flatnonzero(inside).tolist())
+            jj.extend([st.joint] * int(inside.sum()))
+        if bb:
+            bb, jj = np.array(bb), np.array(jj)
+            d, _ = _min_over_samples(
+                lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
+                                                          xs[:, edges[bi, 1]]), x, bb, jj)
+            out["screw_gap"] = float((d - 0.5 * width - column_radius).min())
+        pa, pb = [], []
+        for s1, s2 in itertools.combinations(js, 2):
+            (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]
+            if a0 <= b1 and b0 <= a1:
+                pa.append(s1.joint)
+                pb.append(s2.joint)
+        if pa:
+            pa, pb = np.array(pa), np.array(pb)
+            d, _ = _min_over_samples(
+                lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)), x, pa, pb)
+            out["column_gap"] = float((d - 2.0 * column_radius).min())
+    return out

@@ -1,0 +1,292 @@
+"""Nesting: parts (bars, spacer rings, a 100 mm reference square) packed onto sheets.
+
+Each part is packed by its bounding box plus the spacing (rectpack, MaxRects best-short-side
+fit, largest area first, quarter turns allowed) on as many sheets as needed, in integer units
+of 0.01 mm so that the result does not depend on float round-off. A quarter turn maps (x, y)
+to (-y, x) exactly, so hole centres keep their distances to round-off.
+
+Bars are engraved with a label ``B<bar> L<layer> J<i>-<j>`` along their axis between the holes,
+shrunk to fit (down to ``B<bar>`` on short bars); :func:`label_outlines` turns a label into
+glyph outlines for lasers that ignore text.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FabricationError
+from .bars import bar_outline, hole_radius, outline_radius
+
+__all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "label_outlines",
+           "REFERENCE_SIZE"]
+
+#: Side of the reference square (mm).
+REFERENCE_SIZE = 100.0
+_UNIT = 100  # rectpack works in 0.01 mm
+# Average advance of a character relative to the text height (sans-serif capitals, digits).
+_CHAR_WIDTH = 0.7
+_MIN_TEXT = 1.0  # mm; smaller labels are left off (and counted in the report)
+
+
+@dataclass(frozen=True)
+class Label:
+    """Engraved text: ``insert`` is its centre, ``angle`` in degrees."""
+
+    text: str
+    insert: tuple[float, float]
+    height: float
+    angle: float
+    part: str
+
+
+@dataclass(frozen=True, eq=False)
+class Part:
+    """A part in its own frame.
+
+    Attributes
+    ----------
+    id : str
+        ``"B3"`` (bar 3), ``"S5.2"`` (spacer at joint 5, layer 2) or ``"REF"``.
+    kind : str
+        ``"bar"``, ``"spacer"`` or ``"reference"``.
+    outline : numpy.ndarray, shape (K, 3) or None
+        Closed outer contour ``(x, y, bulge)``, kerf applied (None for a spacer ring, whose
+        outer contour is the circle ``ring``).
+    ring : float or None
+        Outer radius of a spacer ring (kerf applied).
+    holes : numpy.ndarray, shape (H, 2)
+        Hole centres.
+    hole_radius : float
+        Drawn hole radius (kerf applied).
+    labels : list of Label
+    bbox : (xmin, ymin, xmax, ymax)
+    meta : dict
+        ``bar``, ``joints``, ``layer`` for bars; ``joint``, ``layer`` for spacers.
+    """
+
+    id: str
+    kind: str
+    outline: np.ndarray | None
+    ring: float | None
+    holes: np.ndarray
+    hole_radius: float
+    labels: list
+    bbox: tuple[float, float, float, float]
+    meta: dict = field(default_factory=dict)
+    engrave_outline: bool = False
+
+
+@dataclass(eq=False)
+class Sheet:
+    """Parts placed on one sheet (sheet coordinates in mm, origin at the lower-left corner).
+
+    Attributes
+    ----------
+    index : int
+        1-based.
+    width, height : float
+    parts : list of Part
+        Parts moved into sheet coordinates.
+    placements : dict
+        part id -> {"x", "y", "rotated"}.
+    """
+
+    index: int
+    width: float
+    height: float
+    parts: list = field(default_factory=list)
+    placements: dict = field(default_factory=dict)
+
+
+def _bar_label(k: int, layer: int, i: int, j: int, length: float, settings):
+    width = settings.bar_width
+    room = length - settings.screw.hole_diameter - 2.0  # 1 mm clear of each hole
+    for text in (f"B{k} L{layer} J{i}-{j}", f"B{k} L{layer}", f"B{k}"):
+        h = min(settings.label_height, 0.45 * width, room / (_CHAR_WIDTH * len(text)))
+        if h >= _MIN_TEXT:
+            return Label(text, (0.5 * length, 0.0), float(round(h, 3)), 0.0, f"B{k}")
+    return None
+
+
+def make_parts(bars, stacking, settings) -> list[Part]:
+    """All parts to cut: one per bar, one spacer ring per empty layer a screw passes, and the
+    reference square.
+
+    Parameters
+    ----------
+    bars : BarSet
+    stacking : Stacking
+    settings : LaserSettings
+
+    Returns
+    -------
+    list of Part
+    """
+    parts = []
+    r_out = outline_radius(bars.width, bars.kerf)
+    r_hole = hole_radius(bars.hole_diameter, bars.kerf)
+    for k in range(bars.n_bars):
+        i, j = (int(v) for v in bars.edges[k])
+        L = float(bars.lengths[k])
+        layer = int(stacking.layer[k])
+        label = _bar_label(k, layer, i, j, L, settings) if settings.labels != "none" else None
+        parts.append(Part(
+            id=f"B{k}", kind="bar", outline=bar_outline(L, bars.width, bars.kerf), ring=None,
+            holes=np.array([[0.0, 0.0], [L, 0.0]]), hole_radius=r_hole,
+            labels=[label] if label else [], bbox=(-r_out, -r_out, L + r_out, r_out),
+            meta={"bar": k, "joints": [i, j], "layer": layer, "length": L}))
+    ring = 0.5 * (settings.spacer_diameter + bars.kerf)
+    for js in stacking.joints:
+        for z in js.spacers:
+            parts.append(Part(
+                id=f"S{js.joint}.{z}", kind="spacer", outline=None, ring=ring,
+                holes=np.zeros((1, 2)), hole_radius=r_hole, labels=[],
+                bbox=(-ring, -ring, ring, ring), meta={"joint": js.joint, "layer": z}))
+    if settings.reference_square != "none":
+        s = REFERENCE_SIZE
+        square = np.array([[0.0, 0.0, 0.0], [s, 0.0, 0.0], [s, s, 0.0], [0.0, s, 0.0]])
+        if settings.reference_square == "cut":
+            # grow by half the kerf so the square comes off the laser exactly 100 mm wide
+            h = 0.5 * bars.kerf
+            square[:, :2] = square[:, :2] * ((s + 2 * h) / s) - h
+        labels = [Label("100 mm", (0.5 * s, 0.5 * s), 5.0, 0.0, "REF")] \
+            if settings.labels != "none" else []
+        lo, hi = float(square[:, :2].min()), float(square[:, :2].max())
+        parts.append(Part(id="REF", kind="reference", outline=square, ring=None,
+                          holes=np.zeros((0, 2)), hole_radius=0.0, labels=labels,
+                          bbox=(lo, lo, hi, hi), meta={"size": s},
+                          engrave_outline=settings.reference_square == "engrave"))
+    return parts
+
+
+def _moved(part: Part, rotated: bool, shift) -> Part:
+    """The part turned a quarter (if asked) and shifted."""
+    tx, ty = float(shift[0]), float(shift[1])
+
+    def move(xy):
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if rotated:
+            xy = np.stack([-xy[:, 1], xy[:, 0]], axis=1)
+        return xy + [tx, ty]
+
+    outline = None
+    if part.outline is not None:
+        outline = part.outline.copy()
+        outline[:, :2] = move(part.outline[:, :2])
+    labels = [Label(lb.text, tuple(float(v) for v in move(lb.insert)[0]), lb.height,
+                    (lb.angle + (90.0 if rotated else 0.0)) % 360.0, lb.part) for lb in part.labels]
+    x0, y0, x1, y1 = part.bbox
+    corners = move([[x0, y0], [x1, y1]])
+    bbox = (float(corners[:, 0].min()), float(corners[:, 1].min()),
+            float(corners[:, 0].max()), float(corners[:, 1].max()))
+    return Part(id=part.id, kind=part.kind, outline=outline, ring=part.ring,
+                holes=move(part.holes) if part.holes.size else part.holes,
+                hole_radius=part.hole_radius, labels=labels, bbox=bbox, meta=dict(part.meta),
+                engrave_outline=part.engrave_outline)
+
+
+def nest_parts(parts, settings) -> list[Sheet]:
+    """Pack parts onto as many sheets as needed.
+
+    Parameters
+    ----------
+    parts : list of Part
+    settings : LaserSettings
+        ``sheet_width``, ``sheet_height``, ``spacing`` (gap between parts), ``margin``.
+
+    Returns
+    -------
+    list of Sheet
+
+    Raises
+    ------
+    FabricationError
+        A part larger than the usable sheet (the message names it and its size).
+    """
+    from rectpack import SORT_AREA, MaxRectsBssf, PackingBin, PackingMode, newPacker
+
+    s = settings
+    free_w = s.sheet_width - 2 * s.margin
+    free_h = s.sheet_height - 2 * s.margin
+    bin_w = int(math.floor((free_w + s.spacing) * _UNIT + 1e-6))
+    bin_h = int(math.floor((free_h + s.spacing) * _UNIT + 1e-6))
+    packer = newPacker(mode=PackingMode.Offline, bin_algo=PackingBin.BFF, pack_algo=MaxRectsBssf,
+                       sort_algo=SORT_AREA, rotation=True)
+    packer.add_bin(bin_w, bin_h, count=float("inf"))
+    sizes = {}
+    for n, p in enumerate(parts):
+        x0, y0, x1, y1 = p.bbox
+        w = int(math.ceil((x1 - x0 + s.spacing) * _UNIT - 1e-6))
+        h = int(math.ceil((y1 - y0 + s.spacing) * _UNIT - 1e-6))
+        if min(w, h) > min(bin_w, bin_h) or max(w, h) > max(bin_w, bin_h):
+            raise FabricationError(
+                f"part {p.id} ({x1 - x0:.1f} x {y1 - y0:.1f} mm) does not fit on a "
+                f"{s.sheet_width:g} x {s.sheet_height:g} mm sheet with {s.margin:g} mm margins; "
+                "use a larger sheet or a smaller scale")
+        sizes[n] = (w, h)
+        packer.add_rect(w, h, rid=n)
+    packer.pack()
+    placed = packer.rect_list()
+    if len(placed) != len(parts):  # pragma: no cover - infinite bins take every part that fits
+        raise FabricationError("nesting failed to place every part")
+    sheets: dict[int, Sheet] = {}
+    for b, x, y, w, h, rid in sorted(placed, key=lambda r: (r[0], r[5])):
+        part = parts[rid]
+        rotated = (w, h) != sizes[rid]  # a square part's turn does not matter
+        x0, y0, x1, y1 = part.bbox
+        if rotated:  # after (x, y) -> (-y, x) the box is [-y1, -y0] x [x0, x1]
+            min_x, min_y = -y1, x0
+        else:
+            min_x, min_y = x0, y0
+        shift = (s.margin + x / _UNIT - min_x, s.margin + y / _UNIT - min_y)
+        sheet = sheets.setdefault(b, Sheet(index=b + 1, width=s.sheet_width, height=s.sheet_height))
+        moved = _moved(part, rotated, shift)
+        sheet.parts.append(moved)
+        sheet.placements[part.id] = {"x": round(shift[0], 6), "y": round(shift[1], 6),
+                                     "rotated": bool(rotated)}
+    return [sheets[k] for k in sorted(sheets)]
+
+
+def label_outlines(label: Label) -> list[np.ndarray]:
+    """Glyph outlines of a label, for lasers that ignore text.
+
+    Parameters
+    ----------
+    label : Label
+
+    Returns
+    -------
+    list of numpy.ndarray, shape (K, 2)
+        Closed polylines (flattened to 0.01 mm) centred on ``label.insert`` and turned by
+        ``label.angle``.
+
+    Raises
+    ------
+    FabricationError
+        When no font is available to draw the glyphs.
+    """
+    try:
+        from ezdxf.addons import text2path
+        from ezdxf.enums import TextEntityAlignment
+        from ezdxf.fonts import fonts
+    except ImportError as exc:  # pragma: no cover - ezdxf is a dependency
+        raise FabricationError(f"labels as outlines need ezdxf's text2path: {exc}") from None
+    try:
+        face = fonts.FontFace(family="DejaVu Sans")
+        paths = text2path.make_paths_from_str(label.text, face, size=label.height,
+                                              align=TextEntityAlignment.MIDDLE_CENTER)
+    except Exception as exc:  # font lookup errors come in many types
+        raise FabricationError(f"cannot draw label {label.text!r} as outlines ({exc}); use "
+                               "labels = \"text\" or \"none\"") from None
+    a = math.radians(label.angle)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    out = []
+    for path in paths:
+        for sub in path.sub_paths():
+            pts = np.array([(v.x, v.y) for v in sub.flattening(distance=0.01)], dtype=np.float64)
+            if pts.shape[0] >= 3:
+                out.append(pts @ rot.T + np.asarray(label.insert))
+    return out

@@ -1,0 +1,241 @@
+"""Print settings for triangle-hinge networks: the ``[fabrication.print]`` table.
+
+A template's ``[fabrication.print]`` table is merged with command-line overrides (``--set
+print.gap=0.3``) over the defaults of the chosen material. Every value is checked here, once, and
+a bad one raises a :class:`~fabkit.errors.FabricationError` whose message is one line naming the
+key, the value and what to do.
+
+All lengths are in millimetres except ``scale`` (millimetres per design unit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+from ..errors import FabricationError
+
+__all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "print_settings"]
+
+#: Hinge styles. ``"neck"``: a narrow neck as tall as the plates less one layer, bending in the
+#: plane of the print (stiff out of the plane, compliant in it). ``"bridge"``: a thin bridge of
+#: whole layers on the build plate (the paper's "thin layer of material").
+HINGE_STYLES = ("neck", "bridge")
+
+#: Defaults per material (mm). ``strain_limit`` is the bending strain a hinge may see in repeated
+#: use (well under the material's yield strain): it sets how long a neck must be for a given
+#: width and rotation (see docs/printing.md).
+MATERIALS: dict[str, dict] = {
+    "PLA": {"plate_thickness": 3.0, "hinge_style": "neck", "hinge_layers": 2, "hinge_width": 0.8,
+            "hinge_length": 6.0, "gap": 0.4, "layer_height": 0.2, "nozzle_width": 0.4,
+            "strain_limit": 0.02},
+    "PETG": {"plate_thickness": 3.0, "hinge_style": "neck", "hinge_layers": 2, "hinge_width": 0.8,
+             "hinge_length": 6.0, "gap": 0.4, "layer_height": 0.2, "nozzle_width": 0.4,
+             "strain_limit": 0.03},
+    "TPU": {"plate_thickness": 3.0, "hinge_style": "bridge", "hinge_layers": 3, "hinge_width": 1.2,
+            "hinge_length": 6.0, "gap": 0.5, "layer_height": 0.2, "nozzle_width": 0.4,
+            "strain_limit": 0.25},
+}
+
+_DEFAULT_SCALE = 10.0
+
+_KEYS = {"material", "scale", "plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",
+         "hinge_width", "hinge_length", "gap", "layer_height", "nozzle_width", "strain_limit",
+         "rigid_triangles", "preview", "threemf"}
+
+
+@dataclass(frozen=True)
+class PrintSettings:
+    """Validated print settings (lengths in mm).
+
+    Attributes
+    ----------
+    material : str
+        ``"PLA"``, ``"PETG"`` or ``"TPU"``: picks the defaults below.
+    scale : float
+        Millimetres per design unit.
+    plate_thickness : float
+        Height of the rigid plates.
+    hinge_style : str
+        ``"neck"`` or ``"bridge"`` (see ``HINGE_STYLES``).
+    hinge_layers : int
+        Bridge thickness in layers (``"bridge"`` style).
+    hinge_width : float
+        In-plane width of a hinge arm; at least the nozzle width.
+    hinge_length : float
+        Free length of a hinge between two plates (twice the distance from the joint to where
+        a plate starts).
+    gap : float
+        Smallest distance between two plates (> 0: plates that touch are not a sound solid).
+    layer_height, nozzle_width : float
+    strain_limit : float
+        Bending strain allowed in a hinge (a warning is reported above it).
+    rigid_triangles : tuple of (int, int, int) or None
+        The rigid triangles; None: every 3-clique of the network.
+    preview : bool
+        Also make a PNG preview.
+    threemf : bool
+        Also write a 3MF file.
+    """
+
+    material: str
+    scale: float
+    plate_thickness: float
+    hinge_style: str
+    hinge_layers: int
+    hinge_width: float
+    hinge_length: float
+    gap: float
+    layer_height: float
+    nozzle_width: float
+    strain_limit: float
+    rigid_triangles: tuple | None = None
+    preview: bool = True
+    threemf: bool = True
+
+    @property
+    def hinge_thickness(self) -> float:
+        """Height of the hinge material (mm): ``hinge_layers`` layers for a bridge; for a neck
+        the plate thickness less its top layer (the plates' top layer stays free of hinge
+        material, which keeps every plate's outline readable from the printed solid)."""
+        if self.hinge_style == "neck":
+            return self.plate_thickness - self.layer_height
+        return self.hinge_layers * self.layer_height
+
+    @property
+    def arm_length(self) -> float:
+        """Distance from a joint to where a plate starts (half the hinge length)."""
+        return 0.5 * self.hinge_length
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["hinge_thickness"] = self.hinge_thickness
+        if d["rigid_triangles"] is not None:
+            d["rigid_triangles"] = [list(t) for t in d["rigid_triangles"]]
+        return d
+
+
+def _number(table: dict, key: str, where: str, *, positive=True) -> float:
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise FabricationError(f"{where}.{key}: must be a number, got {value!r}")
+    if positive and value <= 0:
+        raise FabricationError(f"{where}.{key}: must be positive, got {value!r}")
+    return float(value)
+
+
+def print_settings(table: dict | None = None, overrides: dict | None = None,
+                   where: str = "fabrication.print") -> PrintSettings:
+    """Merge a ``[fabrication.print]`` table with overrides over the material's defaults.
+
+    Parameters
+    ----------
+    table : dict, optional
+        The template's ``[fabrication.print]`` table.
+    overrides : dict, optional
+        Command-line values (same keys) that take precedence over ``table``.
+    where : str
+        Key path used in messages.
+
+    Returns
+    -------
+    PrintSettings
+
+    Raises
+    ------
+    FabricationError
+        Unknown key or material, a value of the wrong type, a gap that is not positive, a hinge
+        narrower than the nozzle, a hinge thickness that is not a whole number of layers or not
+        thinner than the plates.
+
+    Examples
+    --------
+    >>> s = print_settings({"material": "PLA", "scale": 4.0}, {"gap": 0.3})
+    >>> s.gap, s.hinge_thickness
+    (0.3, 2.8)
+    >>> print_settings({"hinge_style": "bridge", "hinge_thickness": 0.4}).hinge_layers
+    2
+    """
+    merged = {**(table or {}), **(overrides or {})}
+    unknown = sorted(set(merged) - _KEYS)
+    if unknown:
+        raise FabricationError(f"{where}.{unknown[0]}: unknown key; allowed keys: "
+                               f"{', '.join(sorted(_KEYS))}")
+    material = merged.get("material", "PLA")
+    if not isinstance(material, str) or material.upper() not in MATERIALS:
+        raise FabricationError(f"{where}.material: unknown material {material!r}; valid: "
+                               f"{', '.join(MATERIALS)}")
+    material = material.upper()
+    values = {**MATERIALS[material], "scale": _DEFAULT_SCALE}
+    for key in ("scale", "plate_thickness", "hinge_width", "hinge_length", "layer_height",
+                "nozzle_width", "strain_limit"):
+        if key in merged:
+            values[key] = _number(merged, key, where)
+    if "gap" in merged:
+        gap = _number(merged, "gap", where, positive=False)
+        if gap <= 0:
+            raise FabricationError(
+                f"{where}.gap: must be greater than 0 mm, got {gap:g}: plates that touch or "
+                "overlap fuse into a solid that is not watertight and cannot move; use 0.3-0.5")
+        values["gap"] = gap
+    style = merged.get("hinge_style", values["hinge_style"])
+    if style not in HINGE_STYLES:
+        raise FabricationError(f"{where}.hinge_style: unknown style {style!r}; valid: "
+                               f"{', '.join(HINGE_STYLES)}")
+    values["hinge_style"] = style
+    layer = values["layer_height"]
+    if "hinge_thickness" in merged and "hinge_layers" in merged:
+        raise FabricationError(f"{where}: give hinge_thickness or hinge_layers, not both")
+    if "hinge_thickness" in merged:
+        t = _number(merged, "hinge_thickness", where)
+        n = round(t / layer)
+        if n < 1 or abs(n * layer - t) > 1e-6 * layer:
+            lo, hi = max(1, math.floor(t / layer)), max(1, math.ceil(t / layer))
+            raise FabricationError(
+                f"{where}.hinge_thickness: {t:g} mm is not a whole number of {layer:g} mm "
+                f"layers; use {lo * layer:g} or {hi * layer:g}")
+        values["hinge_layers"] = int(n)
+    elif "hinge_layers" in merged:
+        n = merged["hinge_layers"]
+        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+            raise FabricationError(f"{where}.hinge_layers: must be a positive integer, got {n!r}")
+        values["hinge_layers"] = n
+    if values["hinge_width"] < values["nozzle_width"]:
+        raise FabricationError(
+            f"{where}.hinge_width: {values['hinge_width']:g} mm is thinner than the "
+            f"{values['nozzle_width']:g} mm nozzle; a printer cannot lay down that feature")
+    if values["plate_thickness"] < 2 * layer - 1e-9:
+        raise FabricationError(f"{where}.plate_thickness: {values['plate_thickness']:g} mm is "
+                               f"less than two {layer:g} mm layers")
+    plate_layers = values["plate_thickness"] / layer
+    if abs(plate_layers - round(plate_layers)) > 1e-6:
+        raise FabricationError(
+            f"{where}.plate_thickness: {values['plate_thickness']:g} mm is not a whole number "
+            f"of {layer:g} mm layers")
+    if style == "bridge" and values["hinge_layers"] * layer >= values["plate_thickness"]:
+        raise FabricationError(
+            f"{where}.hinge_layers: a {values['hinge_layers'] * layer:g} mm bridge is not "
+            f"thinner than the {values['plate_thickness']:g} mm plates; use fewer layers")
+    triangles = merged.get("rigid_triangles")
+    if triangles is not None:
+        ok = isinstance(triangles, list) and triangles and all(
+            isinstance(t, list) and len(t) == 3
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in t)
+            for t in triangles)
+        if not ok:
+            raise FabricationError(f"{where}.rigid_triangles: must be a non-empty array of "
+                                   "[i, j, k] node-index triples")
+        triangles = tuple(tuple(t) for t in triangles)
+    flags = {}
+    for key in ("preview", "threemf"):
+        v = merged.get(key, True)
+        if not isinstance(v, bool):
+            raise FabricationError(f"{where}.{key}: must be true or false, got {v!r}")
+        flags[key] = v
+    return PrintSettings(material=material, scale=values["scale"],
+                         plate_thickness=values["plate_thickness"], hinge_style=style,
+                         hinge_layers=int(values["hinge_layers"]),
+                         hinge_width=values["hinge_width"], hinge_length=values["hinge_length"],
+                         gap=values["gap"], layer_height=layer,
+                         nozzle_width=values["nozzle_width"],
+                         strain_limit=values["strain_limit"], rigid_triangles=triangles, **flags)

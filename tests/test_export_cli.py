@@ -1,0 +1,464 @@
+"""``fabkit export`` / ``check`` / ``templates``: folders per design, reports, identical bytes on
+a second run, no partial file after a kill or a failing writer, settings and format parsing."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fabkit.export
+from fabkit.cli import main
+from fabkit.commands.export import Progress, export_many, parse_formats, parse_settings
+from fabkit.errors import FabkitError
+from fabkit.templates import load_template
+
+ROOT = Path(__file__).resolve().parents[1]
+TEMPLATES = ROOT / "templates"
+FAKE_MODULE = "fabkit_test_lengths_format"
+
+# A small format of our own, so these tests do not depend on the state of the real exporters:
+# one text file with every edge length in mm (scale from --set lengths.scale or the template).
+FAKE_SOURCE = textwrap.dedent('''
+    FORMAT = "lengths"
+
+    def applies(design):
+        return design.network.dim == 2
+
+    def export_design(design, settings):
+        from fabkit.export import ExportResult
+
+        table = dict(design.fabrication.get("lengths", {}))
+        table.update(settings.get("lengths", {}))
+        scale = float(table.get("scale", 1.0))
+        text = "".join(f"{v * scale:.12g}\\n" for v in design.network.edge_lengths)
+        return ExportResult(files={design.name + "_lengths.txt": text.encode()},
+                            report={"edges": design.network.n_edges, "scale": scale})
+''')
+
+
+@pytest.fixture
+def lengths_format(tmp_path, monkeypatch):
+    """Register the small format (a real module file, so spawned workers import it too)."""
+    mods = tmp_path / "mods"
+    mods.mkdir()
+    (mods / f"{FAKE_MODULE}.py").write_text(FAKE_SOURCE)
+    monkeypatch.syspath_prepend(str(mods))
+    monkeypatch.setenv("PYTHONPATH", str(mods) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"lengths": FAKE_MODULE})
+    return mods
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under a folder (hidden ones too) → its bytes."""
+    return {p.relative_to(folder).as_posix(): p.read_bytes()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_path,
+                                                                         lengths_format, capsys):
+    out = tmp_path / "out"
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"),
+               str(TEMPLATES / "super_stable_chain8.toml"), "-o", str(out), "--jobs", "2",
+               "--set", "lengths.scale=10", "--tolerance-samples", "40"])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert captured.err == ""  # no progress bar when stderr is not a terminal
+    assert "2 exported, 0 failed" in captured.out
+    assert sorted(p.name for p in out.iterdir()) == ["fourbar", "super_stable_chain8"]
+
+    files = snapshot(out / "fourbar")
+    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "motion.png",
+                          "map.png", "tolerance.png"}
+    for name in ("motion.png", "map.png", "tolerance.png"):
+        assert files[name][:8] == b"\x89PNG\r\n\x1a\n"
+    # the --set value reached the exporter: lengths in mm at 10 mm per unit
+    mm = np.array(files["fourbar_lengths.txt"].decode().split(), dtype=float)
+    net = load_template(TEMPLATES / "fourbar.toml").network
+    np.testing.assert_allclose(mm, 10 * net.edge_lengths, rtol=1e-11)
+
+    report = json.loads(files["report.json"])
+    assert report["ok"] is True
+    assert report["formats"]["lengths"]["status"] == "exported"
+    assert report["formats"]["lengths"]["report"] == {"edges": 4, "scale": 10.0}
+    motion = report["motion"]
+    assert motion["status"] == "finished" and motion["method"] == "constructive"
+    # the antiparallelogram keeps d1 * d2 = 4
+    assert motion["final_distances"]["d1"] == pytest.approx(3.0, abs=1e-12)
+    assert motion["final_distances"]["d2"] == pytest.approx(4.0 / 3.0, abs=1e-12)
+    assert motion["max_edge_error"] < 1e-12
+    assert report["design"]["modes"] == {"total": 4, "rigid": 3, "conformational": 1,
+                                         "self_stress": 0}
+    assert report["tolerance"]["samples"] == 40
+    assert report["previews"] == ["map.png", "motion.png", "tolerance.png"]
+    # every picture the Markdown report shows is in the folder
+    md = files["report.md"].decode()
+    for name in report["previews"]:
+        assert f"]({name})" in md
+    assert "[`fourbar_lengths.txt`](fourbar_lengths.txt)" in md
+
+    chain = json.loads((out / "super_stable_chain8" / "report.json").read_text())
+    assert chain["design"]["nodes"] == 26 and chain["design"]["edges"] == 48
+    assert len(chain["motion"]["final_distances"]) == 9
+
+    # a second run, now in one process at a time, gives the same bytes (pictures included)
+    first = snapshot(out)
+    assert main(["export", str(TEMPLATES / "fourbar.toml"),
+                 str(TEMPLATES / "super_stable_chain8.toml"), "-o", str(out), "--set",
+                 "lengths.scale=10", "--tolerance-samples", "40"]) == 0
+    second = snapshot(out)
+    assert first.keys() == second.keys()
+    assert [k for k in first if first[k] != second[k]] == []
+    assert not [k for k in second if "/." in "/" + k]  # no hidden staging or temporary file left
+
+
+def test_no_previews_leaves_the_pictures_out(tmp_path, lengths_format):
+    out = tmp_path / "out"
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
+    assert rc == 0
+    assert set(snapshot(out)) == {"fourbar/fourbar_lengths.txt", "fourbar/report.json",
+                                  "fourbar/report.md"}
+    report = json.loads((out / "fourbar" / "report.json").read_text())
+    assert report["previews"] == [] and report["tolerance"]["samples"] == 200
+
+
+def test_folders_and_globs_expand_to_templates(tmp_path, lengths_format, capsys):
+    folder = tmp_path / "designs"
+    folder.mkdir()
+    for name in ("bar_a", "bar_b", "other"):
+        (folder / f"{name}.toml").write_text((TEMPLATES / "fourbar.toml").read_text().replace(
+            'name = "fourbar"', f'name = "{name}"'))
+    (folder / "notes.txt").write_text("not a template")
+    out = tmp_path / "out"
+    rc = main(["export", str(folder / "bar_*.toml"), "-o", str(out), "--tolerance-samples", "0",
+               "--no-previews", "--no-check"])
+    assert rc == 0
+    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b"]
+    assert "tolerance" not in json.loads((out / "bar_a" / "report.json").read_text())
+    rc = main(["export", str(folder), "-o", str(out), "--tolerance-samples", "0", "--no-previews"])
+    assert rc == 0
+    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b", "other"]
+    assert (out / "other" / "other_lengths.txt").is_file()
+    assert "3 exported, 0 failed" in capsys.readouterr().out
+    assert main(["export", str(folder / "nothing_*.toml"), "-o", str(out)]) == 1
+    assert "no file matches" in capsys.readouterr().err
+
+
+def test_two_designs_with_one_name_do_not_share_a_folder(tmp_path, lengths_format, capsys):
+    for sub in ("x", "y"):
+        (tmp_path / sub).mkdir()
+        (tmp_path / sub / "fourbar.toml").write_text((TEMPLATES / "fourbar.toml").read_text())
+    out = tmp_path / "out"
+    rc = main(["export", str(tmp_path / "x" / "fourbar.toml"), str(tmp_path / "y" / "fourbar.toml"),
+               "-o", str(out), "--tolerance-samples", "0", "--no-previews"])
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert "name: 'fourbar' is also the name of" in err
+    assert (out / "fourbar" / "report.json").is_file()
+
+
+def test_a_folder_that_is_not_an_export_is_never_replaced(tmp_path, lengths_format, capsys):
+    out = tmp_path / "out"
+    (out / "fourbar").mkdir(parents=True)
+    (out / "fourbar" / "notes.txt").write_text("mine")
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
+    assert rc == 1
+    assert "is not a fabkit export folder" in capsys.readouterr().err
+    assert snapshot(out) == {"fourbar/notes.txt": b"mine"}
+
+
+def test_singular_start_without_an_exporter_that_resolves_it_fails(tmp_path, lengths_format,
+                                                                    capsys):
+    # the flat creased sheet traced with the plain methods: its start is a bifurcation; only a
+    # format that picks the branch itself may export it, and the small 2D-only format does not
+    # apply, so the design fails with the simulator's reason
+    sheet = json.loads((ROOT / "tests" / "data" / "paper_modules.json").read_text())
+    m = sheet["modules"]["origami_sheet"]
+    template = tmp_path / "flat_sheet.toml"
+    template.write_text(
+        f"[network]\nnodes = {m['nodes']}\nedges = {m['edges']}\n"
+        f"ports = {{ d1 = {list(m['d1'])}, d2 = {list(m['d2'])} }}\n"
+        "[motion]\nto = 0.5857864376269051\nmethod = \"auto\"\n")
+    out = tmp_path / "out"
+    rc = main(["export", str(template), "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1
+    assert "flat_sheet.toml: network.nodes:" in err[0] and "singular" in err[0]
+    assert not out.exists() or snapshot(out) == {}
+
+
+# --- interrupted and failing writes -----------------------------------------------------------
+
+RUNNER = textwrap.dedent('''
+    import os, sys, time
+    from pathlib import Path
+
+    import fabkit.export
+    from fabkit.commands.export import export_many
+
+    fabkit.export.EXPORTERS.clear()
+    fabkit.export.EXPORTERS["lengths"] = sys.argv[3]
+    marker, victim = Path(sys.argv[2]), sys.argv[4]
+    real_fdopen = os.fdopen
+
+    class SlowFile:
+        """Writes half of the data, tells the test, then hangs until it is killed."""
+        def __init__(self, fh):
+            self.fh = fh
+        def write(self, data):
+            self.fh.write(data[: len(data) // 2])
+            self.fh.flush()
+            marker.write_text("writing")
+            time.sleep(120)
+        def __getattr__(self, name):
+            return getattr(self.fh, name)
+        def __enter__(self):
+            return self
+        def __exit__(self, *exc):
+            return self.fh.__exit__(*exc)
+
+    def fdopen(fd, *args, **kwargs):
+        fh = real_fdopen(fd, *args, **kwargs)
+        target = os.readlink(f"/proc/self/fd/{fd}")
+        return SlowFile(fh) if victim and victim in os.path.basename(target) else fh
+
+    os.fdopen = fdopen
+    rows = export_many([sys.argv[5]], None, sys.argv[1], {}, isolate=False, tolerance_samples=20,
+                       previews=False)
+    print(rows[0]["status"], rows[0]["error"])
+''')
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs /proc (Linux)")
+def test_killing_an_export_midway_leaves_no_partial_file(tmp_path, lengths_format):
+    runner = tmp_path / "runner.py"
+    runner.write_text(RUNNER)
+    out = tmp_path / "out"
+    template = str(TEMPLATES / "fourbar.toml")
+    env = {**os.environ, "PYTHONHASHSEED": "0"}
+
+    def run(victim, marker):
+        return subprocess.Popen([sys.executable, str(runner), str(out), str(marker), FAKE_MODULE,
+                                 victim, template], env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+
+    done = run("", tmp_path / "unused")
+    assert done.wait(timeout=120) == 0 and done.stdout.read().startswith("ok")
+    reference = snapshot(out)
+    assert "fourbar/report.md" in reference
+
+    # kill the second export while it writes the Markdown report
+    marker = tmp_path / "marker"
+    proc = run("report.md", marker)
+    deadline = time.monotonic() + 120
+    while not marker.exists():
+        assert proc.poll() is None, proc.stderr.read()
+        assert time.monotonic() < deadline, "the export never reached the file to interrupt"
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    after = snapshot(out)
+    visible = {k: v for k, v in after.items() if not any(p.startswith(".") for p in k.split("/"))}
+    assert visible == reference  # the earlier export is untouched
+    partial = [k for k in after if k.endswith(".part")]
+    assert partial and all(k.startswith(".fourbar.staging/") for k in partial)
+    assert 0 < len(after[partial[0]]) < len(reference["fourbar/report.md"])  # really cut off
+
+    # the next run clears what the killed one left and writes the same bytes
+    again = run("", tmp_path / "unused")
+    assert again.wait(timeout=120) == 0
+    assert snapshot(out) == reference
+
+
+def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_format,
+                                                             monkeypatch):
+    out = tmp_path / "out"
+    template = TEMPLATES / "fourbar.toml"
+    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
+                       previews=False)
+    assert rows[0]["ok"], rows[0]["error"]
+    reference = snapshot(out)
+
+    real_fdopen = os.fdopen
+
+    class FullDisk:
+        def __init__(self, fh):
+            self.fh = fh
+
+        def write(self, data):
+            self.fh.write(data[: len(data) // 3])
+            raise OSError(28, "No space left on device")
+
+        def __getattr__(self, name):
+            return getattr(self.fh, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return self.fh.__exit__(*exc)
+
+    def fdopen(fd, *args, **kwargs):
+        fh = real_fdopen(fd, *args, **kwargs)
+        name = os.path.basename(os.readlink(f"/proc/self/fd/{fd}"))
+        return FullDisk(fh) if "report.json" in name else fh
+
+    monkeypatch.setattr(os, "fdopen", fdopen)
+    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
+                       previews=False)
+    monkeypatch.undo()
+    assert not rows[0]["ok"]
+    assert "cannot write the export" in rows[0]["error"]
+    assert "No space left on device" in rows[0]["error"]
+    assert snapshot(out) == reference  # nothing half-written, staging removed, old export intact
+
+
+# --- command-line values ----------------------------------------------------------------------
+
+def test_settings_are_parsed_as_toml_values():
+    got = parse_settings(["laser.kerf=0.2", "laser.screw.name=\"M4-chicago\"", "origami.flat=true",
+                          "print.layers=[1, 2]", "laser.label=plain text"])
+    assert got == {"laser": {"kerf": 0.2, "screw": {"name": "M4-chicago"}, "label": "plain text"},
+                   "origami": {"flat": True}, "print": {"layers": [1, 2]}}
+
+
+@pytest.mark.parametrize("item, words", [
+    ("laser.kerf", "expected SECTION.KEY=VALUE"),
+    ("kerf=0.2", "must name a section and a key"),
+    ("laser..kerf=1", "must name a section and a key"),
+])
+def test_bad_settings_are_one_line_errors(item, words):
+    with pytest.raises(FabkitError, match=words):
+        parse_settings([item])
+
+
+def test_a_setting_given_twice_is_an_error():
+    with pytest.raises(FabkitError, match="given twice"):
+        parse_settings(["laser.kerf=0.1", "laser.kerf=0.2"])
+
+
+def test_formats_are_checked_against_the_registry(capsys, tmp_path):
+    assert parse_formats("dxf, STL,dxf") == ["dxf", "stl"]
+    assert parse_formats(None) is None
+    with pytest.raises(FabkitError, match="unknown format 'png'; valid: dxf"):
+        parse_formats("dxf,png")
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "gcode", "-o", str(tmp_path)])
+    assert rc == 1
+    assert capsys.readouterr().err.strip() == (
+        "fabkit: error: --to: unknown format 'gcode'; valid: " + ", ".join(fabkit.export.EXPORTERS))
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_progress_bar_only_on_a_terminal():
+    class Stream:
+        def __init__(self, tty):
+            self.tty, self.text = tty, ""
+
+        def isatty(self):
+            return self.tty
+
+        def write(self, s):
+            self.text += s
+
+        def flush(self):
+            pass
+
+    quiet, loud = Stream(False), Stream(True)
+    for stream in (quiet, loud):
+        bar = Progress(4, stream)
+        bar.step("a")
+        bar.step("b")
+        bar.close()
+    assert quiet.text == ""
+    assert "[###############...............] 2/4 b" in loud.text
+
+
+# --- fabkit check, fabkit templates -----------------------------------------------------------
+
+def test_check_needs_an_existing_file_of_a_known_kind(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "missing.dxf")]) == 1
+    missing = tmp_path / "missing.dxf"
+    assert capsys.readouterr().err.strip() == f"fabkit: error: {missing}: no such file"
+    odd = tmp_path / "part.gcode"
+    odd.write_text("G1 X0")
+    assert main(["check", str(odd)]) == 1
+    assert "no as-built check for .gcode files" in capsys.readouterr().err
+
+
+def test_templates_lists_every_bundled_template(capsys):
+    assert main(["templates"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    stems = sorted(p.stem for p in TEMPLATES.glob("*.toml"))
+    assert len(lines) == len(stems)
+    names = [load_template(TEMPLATES / f"{s}.toml").name for s in stems]
+    assert [ln.split()[0] for ln in lines] == names
+    fourbar = next(ln for ln in lines if ln.startswith("fourbar "))
+    assert "2D 4n/4e" in fourbar and "d1 * d2 = 4" in fourbar
+
+
+def test_templates_of_a_missing_folder_is_an_error(tmp_path, capsys):
+    assert main(["templates", str(tmp_path / "nowhere")]) == 1
+    assert "no such folder of templates" in capsys.readouterr().err
+
+
+# --- the real formats -------------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_every_bundled_template_exports_identically_twice(tmp_path):
+    """The acceptance run: every template, every format that applies, twice. Every design is
+    exported or refused with one line by a fabrication stage (never an internal error), and the
+    second run writes the same bytes."""
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "fabkit.cli", "export", str(TEMPLATES), "-o", str(out),
+           "--jobs", "2"]
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
+    reference = snapshot(out)
+    second = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
+    again = snapshot(out)
+    assert first.returncode == second.returncode
+    assert first.stderr == second.stderr
+    assert "internal error" not in first.stderr and "Traceback" not in first.stderr
+    assert reference.keys() == again.keys()
+    assert [k for k in reference if reference[k] != again[k]] == []
+    refused = {Path(line.split(": ")[2]).stem for line in first.stderr.splitlines()
+               if line.startswith("fabkit: error: ")}
+    for path in TEMPLATES.glob("*.toml"):
+        name = load_template(path).name
+        assert (out / name / "report.json").is_file() or path.stem in refused, path
+
+
+def test_check_reads_an_exported_fold_file_back(tmp_path, capsys):
+    out = tmp_path / "out"
+    design = TEMPLATES / "origami_sheet.toml"
+    assert main(["export", str(design), "--to", "fold", "-o", str(out), "--no-check"]) == 0
+    fold = out / "origami_sheet" / "origami_sheet.fold"
+    capsys.readouterr()
+    assert main(["check", str(fold), "--design", str(design)]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1] == f"{fold}: ok"
+    assert any(ln.strip().startswith("ok    modes: 1") for ln in lines)
+    assert main(["check", str(fold), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data[str(fold)]["ok"] is True
+
+
+# --- report bytes -----------------------------------------------------------------------------
+
+def test_report_json_is_plain_sorted_and_stable():
+    from fabkit.report import jsonable, report_json
+
+    report = {"b": np.float64(1.5), "a": (np.int64(2), float("nan")), "c": {"z": np.bool_(True)},
+              "p": Path("x/y.png")}
+    assert jsonable(report) == {"b": 1.5, "a": [2, None], "c": {"z": True}, "p": "x/y.png"}
+    text = report_json(report)
+    assert text == report_json(dict(reversed(list(report.items()))))
+    assert text.decode().splitlines()[1] == '  "a": ['
+    assert text.endswith(b"}\n")

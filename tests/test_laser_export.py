@@ -1,0 +1,201 @@
+"""DXF export of the paper's designs: real files read back with ezdxf and checked as built."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import ezdxf
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.check import check_file
+from fabkit.check.dxf import check_documents
+from fabkit.export import export, get_exporter
+from fabkit.export.dxf import applies, export_design
+
+from conftest import TEMPLATES
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    designs = {
+        "fourbar": fabkit.load_template(TEMPLATES / "fourbar.toml"),
+        "super_stable": fabkit.load_template(TEMPLATES / "super_stable.toml"),
+    }
+    out = {}
+    for key, design in designs.items():
+        folder = tmp_path_factory.mktemp(key)
+        paths, report = export(design, "dxf", folder)
+        out[key] = (design, folder, paths, report)
+    return out
+
+
+DESIGNS = ["fourbar", "super_stable"]  # the 8-module chain: tests/test_laser_chain.py
+
+
+def test_registry_and_applies():
+    assert get_exporter("dxf").FORMAT == "dxf"
+    assert applies(fabkit.load_template(TEMPLATES / "fourbar.toml"))
+
+
+@pytest.mark.parametrize("key", DESIGNS)
+def test_files_written(exported, key):
+    _, folder, paths, report = exported[key]
+    names = sorted(p.name for p in paths)
+    n = len(report["sheets"])
+    assert names == sorted(["laser_assembly.png", "laser_bom.json", "laser_bom.md",
+                            "laser_layers_motion.png",
+                            *[f"laser_sheet{k}.dxf" for k in range(1, n + 1)],
+                            *[f"laser_sheet{k}.svg" for k in range(1, n + 1)]])
+    for p in paths:
+        assert p.stat().st_size > 0
+    assert (folder / "laser_assembly.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (folder / "laser_layers_motion.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    svg = (folder / "laser_sheet1.svg").read_text()
+    assert svg.startswith("<svg") and svg.count('stroke="blue"') >= 2 * len(report["bars"]) // n
+
+
+@pytest.mark.parametrize("key", DESIGNS)
+def test_dxf_structure_read_back_with_ezdxf(exported, key):
+    design, folder, _, report = exported[key]
+    net = design.network
+    scale = report["scale_mm_per_unit"]
+    kerf = report["settings"]["kerf"]
+    holes, outlines = [], []
+    for sheet in sorted(folder.glob("laser_sheet*.dxf")):
+        doc = ezdxf.readfile(sheet)
+        assert doc.dxfversion == "AC1024"                       # R2010
+        assert doc.header["$INSUNITS"] == 4                     # mm, not ezdxf's default
+        assert not doc.audit().has_errors
+        msp = doc.modelspace()
+        assert {e.dxf.layer for e in msp} <= {"CUT", "CUT_INNER", "ENGRAVE"}
+        holes += [e for e in msp.query("CIRCLE[layer=='CUT_INNER']")]
+        outlines += [e for e in msp.query("LWPOLYLINE[layer=='CUT']")]
+        assert len(msp.query("TEXT[layer=='ENGRAVE']")) >= 1
+    n_spacers = report["spacer_rings"]["count"]
+    assert len(holes) == 2 * net.n_edges + n_spacers
+    assert len(outlines) == net.n_edges
+    for pl in outlines:
+        assert pl.closed and [round(p[0], 12) for p in pl.get_points("b")] == [0.0, 1.0, 0.0, 1.0]
+    # hole radius as drawn: 4.2 mm shrunk by half the kerf
+    radii = {round(h.dxf.radius, 9) for h in holes}
+    assert radii == {round(0.5 * (4.2 - kerf), 9)}
+    # rebuild bar lengths from hole centres (pairs tagged by part) and compare with the design
+    by_part = {}
+    for h in holes:
+        by_part.setdefault(h.get_xdata("FABKIT")[0].value, []).append(np.array(h.dxf.center)[:2])
+    lengths = np.array([np.linalg.norm(by_part[f"B{k}"][0] - by_part[f"B{k}"][1])
+                        for k in range(net.n_edges)])
+    assert np.abs(lengths - net.edge_lengths * scale).max() <= 1e-6
+
+
+@pytest.mark.parametrize("key", DESIGNS)
+def test_as_built_check_passes_on_the_written_files(exported, key):
+    design, folder, _, report = exported[key]
+    result = check_file(folder / "laser_sheet1.dxf", design=design)
+    assert result["ok"], [c for c in result["checks"] if not c["ok"]]
+    checks = {c["name"]: c for c in result["checks"]}
+    assert set(checks) >= {"units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
+                           "hole_after_kerf", "lengths", "topology", "modes", "module_map",
+                           "same_layer"}
+    assert checks["lengths"]["value"] <= 1e-6
+    assert checks["modes"]["value"] == 1
+    assert checks["module_map"]["value"] <= 1e-6 * design.network.size
+    assert checks["same_layer"]["value"] >= 0.5          # clearance / 2
+    assert report["as_built_check"]["ok"]
+    bom = json.loads((folder / "laser_bom.json").read_text())
+    assert bom["as_built_check"]["ok"] and bom["motion"]["max_node_step_mm"] <= 0.5
+
+
+def test_expected_layers_and_screws(exported):
+    layers = {k: exported[k][3]["layers"] for k in DESIGNS}
+    assert layers["fourbar"]["count"] == 3 == layers["fourbar"]["lower_bound"]
+    assert layers["super_stable"]["count"] == 3 == layers["super_stable"]["lower_bound"]
+    for k in DESIGNS:
+        report = exported[k][3]
+        n_screws = sum(s["count"] for s in report["screws"])
+        assert n_screws == len(report["joints"])
+        for j in report["joints"]:
+            assert j["screw_length_mm"] >= j["stack_mm"] + 0.1
+            assert j["stack_mm"] == pytest.approx(3.0 * len(j["bottom_to_top"]))
+            assert j["spacers"] == j["bottom_to_top"].count("spacer")
+    md = (exported["super_stable"][1] / "laser_bom.md").read_text()
+    assert "## Screws" in md and "M3-chicago" in md and "Result: passed" in md
+
+
+def test_identical_input_gives_identical_bytes():
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    a = export_design(design, {"laser": {"labels": "none"}}).files
+    b = export_design(design, {"laser": {"labels": "none"}}).files
+    assert sorted(a) == sorted(b)
+    for name in a:
+        assert a[name] == b[name], name
+    text = a["laser_sheet1.dxf"].decode()
+    assert "$TDCREATE" in text and "$TDCREATE\n 40\n2451545.0\n" in text   # 2000-01-01, not the clock
+    assert "0.0 @ 2000-01-01T00:00:00" in text
+
+
+def test_line_arc_flavour_and_text_outlines(tmp_path):
+    design = fabkit.load_template(TEMPLATES / "super_stable.toml")
+    paths, report = export(design, "dxf", tmp_path,
+                           laser={"flavour": "line-arc", "labels": "outlines"})
+    doc = ezdxf.readfile(tmp_path / "laser_sheet1.dxf")
+    msp = doc.modelspace()
+    assert len(msp.query("LWPOLYLINE[layer=='CUT']")) == 0
+    arcs = msp.query("ARC[layer=='CUT']")
+    lines = msp.query("LINE[layer=='CUT']")
+    assert len(arcs) == 2 * 6 and len(lines) == 2 * 6
+    assert len(msp.query("TEXT")) == 0                        # labels drawn as glyph outlines
+    assert len(msp.query("LWPOLYLINE[layer=='ENGRAVE']")) > 20
+    assert report["as_built_check"]["ok"]
+    result = check_file(tmp_path / "laser_sheet1.dxf", design=design)
+    assert result["ok"]
+
+
+def test_kerf_zero_and_check_catches_a_tampered_file(tmp_path):
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    files = export_design(design, {"laser": {"kerf": 0.0}}).files
+    text = files["laser_sheet1.dxf"].decode()
+    assert check_documents({"s.dxf": text}, design=design, settings={"laser": {"kerf": 0.0}})["ok"]
+    # move one hole centre by 0.01 mm: the length check must fail
+    doc = ezdxf.read(io.StringIO(text))
+    hole = doc.modelspace().query("CIRCLE[layer=='CUT_INNER']")[0]
+    c = hole.dxf.center
+    hole.dxf.center = (c.x + 0.01, c.y, 0)
+    buf = io.StringIO()
+    doc.write(buf)
+    result = check_documents({"s.dxf": buf.getvalue()}, design=design,
+                             settings={"laser": {"kerf": 0.0}})
+    bad = {c["name"] for c in result["checks"] if not c["ok"]}
+    assert not result["ok"] and {"lengths", "holes_centred", "module_map"} <= bad
+    assert result["checks"][[c["name"] for c in result["checks"]].index("lengths")]["value"] \
+        == pytest.approx(0.01, abs=1e-9)
+
+
+def test_check_without_design_and_on_garbage(tmp_path, exported):
+    _, folder, _, _ = exported["fourbar"]
+    result = check_file(folder / "laser_sheet1.dxf")
+    assert result["ok"] and any(c["name"] == "design" for c in result["checks"])
+    junk = tmp_path / "junk.dxf"
+    junk.write_bytes(b"\x00\x01 not a dxf")
+    assert not check_file(junk)["ok"]
+
+
+def test_cli_export_to_dxf(tmp_path, capsys):
+    from fabkit.cli import main
+
+    code = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "dxf", "-o", str(tmp_path),
+                 "--tolerance-samples", "0", "--set", "laser.kerf=0.2"])
+    assert code == 0, capsys.readouterr().err
+    sheets = list(tmp_path.rglob("laser_sheet1.dxf"))
+    assert len(sheets) == 1
+    doc = ezdxf.readfile(sheets[0])
+    assert doc.header.custom_vars.get("FABKIT_KERF") == "0.2"
+    code = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "dxf", "-o",
+                 str(tmp_path / "bad"), "--tolerance-samples", "0", "--set", "laser.kerf=-1"])
+    err = capsys.readouterr().err
+    assert code == 1 and "kerf must be >= 0 mm" in err
+    assert not list((tmp_path / "bad").rglob("*.dxf"))
+

@@ -1,0 +1,201 @@
+"""Bar outlines with exact arcs, distances, stacking layers over the motion, nesting."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.fab.bars import bar_outline, bulge_primitives, hole_radius, outline_radius, undo_kerf
+from fabkit.fab.laser import laser_settings
+from fabkit.fab.layers import (Sweep, find_conflicts, plan_layers, point_segment_distance,
+                               sample_motion, segment_distance, stacking_gaps)
+from fabkit.fab.nest import REFERENCE_SIZE, make_parts, nest_parts
+from fabkit.fab.bars import bar_set
+from fabkit.templates import Motion
+
+from conftest import TEMPLATES
+
+
+def test_outline_is_a_closed_stadium_with_half_circle_bulges():
+    v = bar_outline(30.0, 14.0, kerf=0.2)
+    assert v.tolist() == [[0.0, -7.1, 0.0], [30.0, -7.1, 1.0], [30.0, 7.1, 0.0], [0.0, 7.1, 1.0]]
+    prims = bulge_primitives(v)
+    kinds = [p[0] for p in prims]
+    assert kinds == ["line", "arc", "line", "arc"]
+    (_, c1, r1, a0, a1), (_, c2, r2, b0, b1) = prims[1], prims[3]
+    assert c1 == pytest.approx((30.0, 0.0), abs=1e-12) and r1 == pytest.approx(7.1)
+    assert (a0, a1) == pytest.approx((270.0, 90.0))       # right end: -90 deg to +90 deg, CCW
+    assert c2 == pytest.approx((0.0, 0.0), abs=1e-12) and (b0, b1) == pytest.approx((90.0, 270.0))
+    # kerf: the outline grows and the hole shrinks by half the kerf; undo_kerf inverts it
+    assert outline_radius(14.0, 0.2) == pytest.approx(7.1)
+    assert hole_radius(4.2, 0.2) == pytest.approx(2.0)
+    w, h = undo_kerf(7.1, 2.0, 0.2)
+    assert (float(w), float(h)) == pytest.approx((14.0, 4.2))
+
+
+def test_clockwise_bulge_becomes_a_counter_clockwise_dxf_arc():
+    (_, centre, r, a0, a1), = [p for p in bulge_primitives([[1, 0, -1.0], [-1, 0, -1.0]])
+                               if p[0] == "arc"][:1]
+    assert centre == pytest.approx((0.0, 0.0), abs=1e-12) and r == pytest.approx(1.0)
+    assert (a0, a1) == pytest.approx((180.0, 0.0))   # lower half from 1,0 clockwise to -1,0
+
+
+def test_segment_distances():
+    assert float(segment_distance([0, 0], [2, 0], [1, -1], [1, 1])) == 0.0
+    assert float(segment_distance([0, 0], [1, 0], [3, 4], [3, 9])) == pytest.approx(math.hypot(2, 4))
+    assert float(point_segment_distance([5, 5], [0, 0], [10, 0])) == 5.0
+    # parallel overlapping segments 2 apart
+    assert float(segment_distance([0, 0], [10, 0], [5, 2], [15, 2])) == pytest.approx(2.0)
+
+
+def _crank_past_a_bar(h=3.5):
+    """Ground 0-1 with a rigid triangle to node 4 above node 0, crank 0-2 swinging from 150 deg
+    to 30 deg through the vertical, where it crosses bar 1-4; coupler 2-3 and rocker 3-1."""
+    th = math.radians(150)
+    nodes = [[0, 0], [10, 0], [3 * math.cos(th), 3 * math.sin(th)],
+             [10 + 3 * math.cos(th), 3 * math.sin(th)], [0, h]]
+    net = fabkit.Network(nodes, [[0, 1], [0, 4], [1, 4], [0, 2], [2, 3], [3, 1]],
+                         ports={"d1": (1, 2)})
+    to = math.hypot(10 - 3 * math.cos(math.radians(30)), 3 * math.sin(math.radians(30)))
+    return net, Motion(drive="d1", to=to)
+
+
+def test_bars_that_collide_mid_motion_get_different_layers():
+    net, motion = _crank_past_a_bar()
+    s = laser_settings({"scale": 20})
+    sweep = sample_motion(net, motion, s.scale, s.sample_step)
+    crank, brace = 3, 2                           # bars 0-2 and 1-4
+    x = sweep.positions
+    gap = segment_distance(x[:, 0], x[:, 2], x[:, 1], x[:, 4]) - s.bar_width
+    assert gap[0] > 40 and gap[-1] > s.clearance       # apart at the start and at the end
+    assert gap.min() < 0                               # overlapping in between
+    assert 0 < int(np.argmin(gap)) < sweep.n_samples - 1
+    ends_only = find_conflicts(net.edges, x[[0, -1]], width=s.bar_width, clearance=s.clearance,
+                               column_radius=4.25)
+    assert [brace, crank] not in ends_only.pairs.tolist()   # invisible from start and end
+    stacking = plan_layers(net.edges, sweep, s)
+    pairs = stacking.conflicts.pairs.tolist()
+    k = pairs.index([brace, crank])
+    assert stacking.conflicts.kind[k] == "sweep"
+    assert 0 < stacking.conflicts.sample[k] < sweep.n_samples - 1
+    assert stacking.layer[brace] != stacking.layer[crank]
+    # the guarantee: steps bounded, and bars of one layer keep the clearance over the motion
+    assert sweep.max_step <= s.sample_step
+    gaps = stacking_gaps(net.edges, stacking.layer, x, width=s.bar_width)
+    assert gaps["bar_gap"] >= s.clearance
+
+
+def test_sampling_guarantee_holds_on_the_super_stable_collapse():
+    design = fabkit.load_template(TEMPLATES / "super_stable.toml")
+    s = laser_settings()
+    sweep = sample_motion(design.network, design.motion, s.scale, s.sample_step)
+    steps = np.linalg.norm(np.diff(sweep.positions, axis=0), axis=2).max(axis=1)
+    assert steps.max() <= s.sample_step and sweep.max_step == pytest.approx(steps.max())
+    # the samples lie on the motion: every edge keeps its length (mm)
+    lengths = design.network.lengths_at(sweep.positions / s.scale) * s.scale
+    assert np.abs(lengths - design.network.edge_lengths * s.scale).max() < 1e-9
+    assert sweep.drive[0] == pytest.approx(math.sqrt(3)) and sweep.drive[-1] == pytest.approx(design.motion.to)
+
+
+def test_fourbar_layers_are_optimal_and_screws_follow_the_stack():
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    s = laser_settings()
+    sweep = sample_motion(design.network, design.motion, s.scale, s.sample_step)
+    st = plan_layers(design.network.edges, sweep, s)
+    # bars 0-3 and 1-2 cross (antiparallelogram) and every other pair shares a joint: K4 minus
+    # the pair 0-2 / 1-3, so three layers, which is the clique bound
+    assert st.n_layers == 3 == st.lower_bound
+    assert {tuple(p) for p, k in zip(st.conflicts.pairs.tolist(), st.conflicts.kind)
+            if k == "sweep"} == {(1, 2)}
+    for js in st.joints:
+        span = max(js.layers) - min(js.layers) + 1
+        assert js.stack_height == pytest.approx(span * s.thickness)
+        assert js.screw_length >= js.stack_height + s.screw.allowance
+        assert len(js.spacers) == span - len(js.bars)
+
+
+def test_stacking_reorders_layers_to_keep_bars_off_screw_heads():
+    # Two bars share joint 1; a third bar passes over joint 1's screw during the motion. With
+    # one head layer above and below the stack it must sit outside layers [lo-1, hi+1].
+    x = np.array([[[0, 0], [100, 0], [200, 0], [100, -60], [100, 60]],
+                  [[0, 0], [100, 0], [200, 0], [90, -60], [90, 60]]], dtype=float)
+    edges = [[0, 1], [1, 2], [3, 4]]
+    sweep = Sweep(x, np.zeros(2), 0.5, 0.0, "given", "finished", "")
+    st = plan_layers(edges, sweep, laser_settings())
+    lo, hi = sorted(st.layer[:2])
+    assert st.layer[2] < lo - 1 or st.layer[2] > hi + 1
+    # bar 3-4 crosses both others (clique of 3), and the head needs one more layer
+    assert st.n_layers == 4 and st.strategy == "backtracking" and st.lower_bound == 3
+
+
+def test_coinciding_joints_are_refused_with_a_fix():
+    from fabkit.assemble import chain
+
+    module = fabkit.load_template(TEMPLATES / "super_stable.toml")
+    net = chain(module.network, 8)   # unmirrored: every third module lies on the first
+    s = laser_settings()
+    sweep = sample_motion(net, module.motion, s.scale, s.sample_step)
+    with pytest.raises(fabkit.FabricationError) as info:
+        plan_layers(net.edges, sweep, s)
+    assert "mm apart at the start" in str(info.value) and 'mirror = "alternate"' in str(info.value)
+
+
+def test_nesting_places_every_part_inside_sheets_without_overlap():
+    s = laser_settings({"sheet_width": 260, "sheet_height": 130})
+    lengths = np.tile([150.0, 120, 90, 200, 60, 45, 170, 110, 80, 220], 2)
+    edges = np.stack([np.arange(20), np.arange(1, 21)], 1)
+    bars = bar_set(lengths, edges, s)
+    x = np.zeros((1, 21, 2))
+    x[0, :, 0] = np.arange(21) * 1000.0   # far apart: no sweep conflicts
+    st = plan_layers(edges, Sweep(x, np.zeros(1), 0.5, 0.0, "given", "finished", ""), s)
+    parts = make_parts(bars, st, s)
+    sheets = nest_parts(parts, s)
+    assert len(sheets) >= 2
+    placed = [p for sh in sheets for p in sh.parts]
+    assert sorted(p.id for p in placed) == sorted(p.id for p in parts)
+    ref = [sh.index for sh in sheets for p in sh.parts if p.id == "REF"]
+    assert ref == [1]
+    for sh in sheets:
+        boxes = np.array([p.bbox for p in sh.parts])
+        assert (boxes[:, :2] >= s.margin - 1e-9).all()
+        assert (boxes[:, 2] <= s.sheet_width - s.margin + 1e-9).all()
+        assert (boxes[:, 3] <= s.sheet_height - s.margin + 1e-9).all()
+        for a in range(len(boxes)):
+            for b in range(a + 1, len(boxes)):
+                sep = max(boxes[b, 0] - boxes[a, 2], boxes[a, 0] - boxes[b, 2],
+                          boxes[b, 1] - boxes[a, 3], boxes[a, 1] - boxes[b, 3])
+                assert sep >= s.spacing - 1e-6
+    # moving parts keeps hole spacing exact (quarter turns and shifts only)
+    for p in placed:
+        if p.kind == "bar":
+            k = p.meta["bar"]
+            assert np.linalg.norm(p.holes[1] - p.holes[0]) == pytest.approx(lengths[k], abs=1e-9)
+            assert p.labels and p.labels[0].text.startswith(f"B{k} ")
+    square = next(p for p in placed if p.id == "REF")
+    side = np.ptp(square.outline[:, :2], axis=0)
+    assert side.tolist() == pytest.approx([REFERENCE_SIZE, REFERENCE_SIZE])
+
+
+def test_part_larger_than_the_sheet_is_refused():
+    s = laser_settings({"sheet_width": 200, "sheet_height": 150})
+    bars = bar_set([300.0], [[0, 1]], s)
+    x = np.array([[[0, 0], [300, 0]]], dtype=float)
+    st = plan_layers([[0, 1]], Sweep(x, np.zeros(1), 0.5, 0.0, "given", "finished", ""), s)
+    with pytest.raises(fabkit.FabricationError, match="part B0 .* does not fit on a 200 x 150 mm"):
+        nest_parts(make_parts(bars, st, s), s)
+
+
+@pytest.mark.parametrize("method", ["projected", "rk4-nullspace"])
+def test_sampling_bound_holds_for_the_other_methods(method):
+    import dataclasses
+
+    design = fabkit.load_template(TEMPLATES / "super_stable.toml")
+    s = laser_settings()
+    motion = dataclasses.replace(design.motion, method=method)
+    sweep = sample_motion(design.network, motion, s.scale, s.sample_step)
+    steps = np.linalg.norm(np.diff(sweep.positions, axis=0), axis=2).max(axis=1)
+    assert sweep.method == method and steps.max() <= s.sample_step
+    assert sweep.drive[-1] == pytest.approx(design.motion.to, abs=1e-9)

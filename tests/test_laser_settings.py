@@ -1,0 +1,108 @@
+"""Laser settings, screw catalogue and bar checks: bad input is one clear line and no file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.errors import FabricationError
+from fabkit.export import export
+from fabkit.fab.bars import bar_set
+from fabkit.fab.hardware import CATALOGUE, choose_length, screw_spec
+from fabkit.fab.laser import laser_settings
+from fabkit.templates import parse_template
+
+from conftest import TEMPLATES
+
+
+def test_defaults_follow_the_fabrication_facts():
+    s = laser_settings()
+    assert s.screw.name == "M3-chicago"
+    assert (s.screw.barrel_diameter, s.screw.hole_diameter, s.screw.head_diameter) == (4.0, 4.2, 8.5)
+    assert s.min_web == pytest.approx(1.5 * s.thickness)
+    assert s.kerf == 0.15 and s.sample_step == pytest.approx(0.5 * s.clearance)
+    # measured thickness drives the default web
+    assert laser_settings({"thickness": 3.4, "bar_width": 15}).min_web == pytest.approx(5.1)
+    with pytest.raises(FabricationError, match="use bar_width >= 14.4 mm"):
+        laser_settings({"thickness": 3.4})
+
+
+def test_overrides_win_and_size_sets_the_scale():
+    s = laser_settings({"kerf": 0.2, "scale": 60}, {"kerf": 0.1})
+    assert s.kerf == 0.1 and s.scale == 60
+    s = laser_settings({"size": 200}, network_size=2.0)
+    assert s.scale == 100.0
+
+
+def test_screw_catalogue_entries_and_overrides():
+    assert screw_spec("M4-chicago").hole_diameter == 5.2
+    custom = screw_spec({"hole_diameter": 4.3, "lengths": [10, 6, 8]})
+    assert custom.hole_diameter == 4.3 and custom.lengths == (6.0, 8.0, 10.0)
+    assert choose_length(CATALOGUE["M3-chicago"], 6.0) == 7.0    # 6.0 + 0.1 play
+    assert choose_length(CATALOGUE["M3-chicago"], 17.0) == 18.0
+    with pytest.raises(FabricationError, match="longer than the longest"):
+        choose_length(CATALOGUE["M3-chicago"], 30.0)
+    with pytest.raises(FabricationError, match="unknown screw 'M9'"):
+        screw_spec("M9")
+    with pytest.raises(FabricationError, match="smaller than the barrel"):
+        screw_spec({"hole_diameter": 3.9})
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"kerf": -0.1}, "kerf must be >= 0 mm, got -0.1"),
+    ({"bar_width": 12.0}, "hole-to-edge web 3.90 mm is below the minimum 4.50 mm"),
+    ({"bar_width": 4.0}, "the 4.2 mm screw hole is bigger than the 4 mm bar"),
+    ({"scale": 0}, "scale must be positive"),
+    ({"flavour": "spline"}, "flavour must be one of lwpolyline, line-arc"),
+    ({"kerff": 0.1}, "unknown laser setting 'kerff'"),
+    ({"sheet_width": 90}, "cannot hold the 100 mm reference square"),
+    ({"scale": 10, "size": 100}, "either laser scale"),
+])
+def test_bad_settings_are_one_line(table, message):
+    with pytest.raises(FabricationError) as info:
+        laser_settings(table, network_size=1.0)
+    text = str(info.value)
+    assert message in text and "\n" not in text
+
+
+def test_bar_too_short_and_overlapping_holes():
+    s = laser_settings()
+    with pytest.raises(FabricationError) as info:
+        bar_set([100.0, 7.0], [[0, 1], [1, 2]], s, scale=10.0)
+    text = str(info.value)
+    assert "bar 1 (joints 1-2) is too short" in text and ">= 8.70 mm" in text
+    assert "raise scale to >= 12.43 mm per design unit" in text and "\n" not in text
+    with pytest.raises(FabricationError, match="holes of bar 0 .* overlap"):
+        bar_set([3.0], [[0, 1]], s)
+    bars = bar_set([8.7, 50.0], [[0, 1], [1, 2]], s)   # exactly the minimum is allowed
+    assert np.array_equal(bars.lengths, [8.7, 50.0])
+
+
+def _fourbar_with(laser_lines: str):
+    base = (TEMPLATES / "fourbar.toml").read_text().split("[fabrication.laser]")[0]
+    text = base + "\n[fabrication.laser]\n" + laser_lines
+    return parse_template(text, TEMPLATES / "fourbar_laser_test.toml")
+
+
+@pytest.mark.parametrize("lines, overrides, message", [
+    ("bar_width = 10.0\n", {}, "hole-to-edge web"),
+    ("scale = 4.0\n", {}, "is too short"),
+    ("", {"laser": {"kerf": -0.2}}, "kerf must be >= 0 mm"),
+    ("", {"laser": {"screw": {"hole_diameter": 16.0, "head_diameter": 20.0}}},
+     "screw hole is bigger than the 14 mm bar"),
+])
+def test_bad_settings_write_nothing(tmp_path, lines, overrides, message):
+    design = _fourbar_with(lines)
+    out = tmp_path / "out"
+    with pytest.raises(FabricationError) as info:
+        export(design, "dxf", out, **overrides)
+    assert message in str(info.value) and "\n" not in str(info.value)
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_unknown_flat_setting_is_refused(tmp_path):
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    with pytest.raises(FabricationError, match="unknown laser setting 'kerf_mm'"):
+        export(design, "dxf", tmp_path, kerf_mm=0.1)
+    assert not any(tmp_path.iterdir())
