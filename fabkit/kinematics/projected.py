@@ -236,19 +236,11 @@ class Projected(Method):
         self.n_factor += 1
         if lu is None:
             return None
-        rhs = np.zeros(self.sys.n_rows)
-        rhs[-1] = 1.0
-        t = lu.solve(rhs)
-        if not np.isfinite(t).all():
+        # orient along orient_like, or (at the start) along the drive's gradient
+        res = self._tangent_from(lu, j, orient_like if orient_like is not None else direction_grad)
+        if res is None:
             return None
-        t /= np.linalg.norm(t)
-        if orient_like is not None:
-            sgn = 1.0 if t @ orient_like >= 0 else -1.0
-        else:
-            sgn = 1.0 if (direction_grad @ t) >= 0 else -1.0
-        t *= sgn
-        tau = self.sys.det_sign(lu) * int(np.sign(t[j])) if self.opts["detect_branch_points"] else 1
-        return t, lu, tau
+        return res[0], lu, res[1]
 
     def _walk_to_target(self, x, t, h):
         """Land on drive values approaching the target geometrically from x (each Newton solve
