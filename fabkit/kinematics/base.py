@@ -7,6 +7,7 @@ to the method named in ``METHODS``.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -230,7 +231,7 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) ->
                    target=target, gauge=gauge)
 
 
-class Method:
+class Method(ABC):
     """Base class of tracing methods.
 
     Subclasses set ``name``, ``options`` (a dict of option name → default) and implement
@@ -251,8 +252,9 @@ class Method:
         self.problem = problem
         self.opts = {**self.options, **options}
 
-    def run(self) -> Trajectory:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abstractmethod
+    def run(self) -> Trajectory:
+        """Trace the motion; return a Trajectory whatever happens (status and message say how)."""
 
     # Helpers shared by the methods -------------------------------------------------------------
     def direction(self) -> float:
