@@ -136,6 +136,9 @@ class Network:
         object.__setattr__(self, "ports", ports)
         object.__setattr__(self, "labels", labels)
         object.__setattr__(self, "_lengths", lengths)
+        # derived data that is costly to recompute (e.g. construction plans); the network is
+        # immutable, so entries never go stale
+        object.__setattr__(self, "_cache", {})
 
     # -- sizes ---------------------------------------------------------------------------------
     @property

@@ -16,7 +16,7 @@ from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from .base import Method, Problem, align_to_gauge, choose_gauge, make_problem
 from .branching import BranchSwitch, analyze_bifurcation, fold_through
-from .constructive import ConstructionPlan, Constructive, place, plan_construction
+from .constructive import ConstructionPlan, Constructive, cached_plan, place, plan_construction
 from .projected import Projected
 from .rk4_nullspace import RK4Nullspace
 from .trajectory import Event, Status, Trajectory
@@ -54,7 +54,7 @@ def select_method(net: Network, drive, *, start=None) -> str:
     the drive pair (and the start is not a flat state), else ``"projected"``."""
     problem = make_problem(net, drive, to=1.0, start=start)
     try:
-        plan_construction(problem.work, problem.drive, problem.start)
+        cached_plan(problem.work, problem.drive, problem.start)
     except ConstructionError:
         return Projected.name
     return Constructive.name
@@ -124,7 +124,7 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
         if unknown:
             raise TypeError(f"unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
         try:
-            plan = plan_construction(problem.work, problem.drive, problem.start)
+            plan = cached_plan(problem.work, problem.drive, problem.start)
         except ConstructionError:
             cls = Projected
         else:

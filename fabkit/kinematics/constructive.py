@@ -20,7 +20,7 @@ from ..network import Network
 from .base import Method, Problem, align_to_gauge, event
 from .trajectory import Status
 
-__all__ = ["ConstructionPlan", "plan_construction", "place", "Constructive"]
+__all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
 
 # A reference configuration whose node lies this close (relative sine) to the line/plane of its
 # parents has no well-defined side: the start is a flat state.
@@ -218,6 +218,28 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
     )
 
 
+def cached_plan(net: Network, drive: tuple[int, int], reference=None) -> ConstructionPlan:
+    """:func:`plan_construction`, remembered on the network for its reference configuration.
+
+    The plan depends only on the topology, the rest lengths, the drive pair and the sides of the
+    reference configuration, so tracing the same network again (other targets, repeats) skips
+    the search. Other reference configurations are planned afresh.
+    """
+    if reference is not None and reference is not net.nodes and not np.array_equal(reference, net.nodes):
+        return plan_construction(net, drive, reference)
+    key = ("construction_plan", tuple(int(v) for v in drive))
+    cache = net._cache
+    if key not in cache:
+        try:
+            cache[key] = plan_construction(net, drive)
+        except ConstructionError as exc:
+            cache[key] = exc
+    found = cache[key]
+    if isinstance(found, ConstructionError):
+        raise ConstructionError(str(found))
+    return found
+
+
 def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Place all nodes for many drive values at once.
 
@@ -255,6 +277,20 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
     r0s = (plan.radii[:, 0] ** 2).tolist()
     c0s = (plan.radii[:, 0] ** 2 - plan.radii[:, 1] ** 2).tolist()
     signs = plan.signs.tolist()
+    sqrt, maximum = np.sqrt, np.maximum
+    with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
+        _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d)
+    positions = np.ascontiguousarray(X.transpose(2, 1, 0))
+    if margins.size:
+        worst = np.argmin(margins, axis=0)
+        margin = margins[worst, np.arange(k)]
+    else:
+        worst = np.zeros(k, dtype=np.int64)
+        margin = np.full(k, np.inf)
+    return positions, margin, worst
+
+
+def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
     sqrt, maximum = np.sqrt, np.maximum
     if d == 2:
         xs, ys = X[0], X[1]
@@ -299,14 +335,6 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
             z2 = r0 - xx * xx - yy * yy
             X[:, v] = p1 + xx * ex + yy * ey + (signs[idx] * sqrt(maximum(z2, 0.0))) * ez
             margins[idx] = z2 / r0
-    positions = np.ascontiguousarray(X.transpose(2, 1, 0))
-    if margins.size:
-        worst = np.argmin(margins, axis=0)
-        margin = margins[worst, np.arange(k)]
-    else:
-        worst = np.zeros(k, dtype=np.int64)
-        margin = np.full(k, np.inf)
-    return positions, margin, worst
 
 
 class Constructive(Method):
@@ -328,7 +356,7 @@ class Constructive(Method):
         samples = int(self.opts["samples"])
         if samples < 2:
             raise KinematicsError(f"`samples` must be at least 2, got {samples}")
-        plan = self.opts["plan"] or plan_construction(p.work, p.drive, p.start)
+        plan = self.opts["plan"] or cached_plan(p.work, p.drive, p.start)
         d0 = p.start_drive
         values = np.linspace(d0, p.target, samples)
         X, margin, worst = place(plan, values)
