@@ -413,7 +413,7 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
                             n_fresh=int(fresh.sum()), cache={},
                             extra=[(n, p) for n, p in m.ports.items() if n not in (d_in, d_out)])
 
-    local_blocks, edge_blocks = [], []
+    local_blocks, edge_blocks, layout = [], [], []
     src = np.empty((k, 2, dim))   # each module's input pair, in its own (local) frame
     dst = np.empty((k, 2, dim))   # its output pair, local frame
     ports: dict[str, tuple[int, int]] = {}
@@ -446,6 +446,7 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
             n_new = kind["n_fresh"]
             local_blocks.append(fresh_block)
         edge_blocks.append(index[m.edges])
+        layout.append((m, index, bool(flags[c])))
         n_total += n_new
         gi = index.tolist()
         if c == 0:
@@ -462,7 +463,11 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     else:
         nodes = _place_chain_3d(src, dst, flags, local, owner)
     edges = np.concatenate(edge_blocks, axis=0)
-    return Network(nodes, edges, ports)
+    net = Network(nodes, edges, ports)
+    # how the chain was joined, so that a construction plan can be tiled from the modules' own
+    # plans instead of searched node by node (see fabkit.kinematics.constructive.cached_plan)
+    net._cache["chain_layout"] = {"copies": layout, "d_in": d_in}
+    return net
 
 
 def _place_chain_2d(src, dst, flags, local, owner) -> np.ndarray:

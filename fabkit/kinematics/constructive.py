@@ -231,13 +231,63 @@ def cached_plan(net: Network, drive: tuple[int, int], reference=None) -> Constru
     cache = net._cache
     if key not in cache:
         try:
-            cache[key] = plan_construction(net, drive)
+            cache[key] = _tiled_chain_plan(net, drive) or plan_construction(net, drive)
         except ConstructionError as exc:
             cache[key] = exc
     found = cache[key]
     if isinstance(found, ConstructionError):
         raise ConstructionError(str(found))
     return found
+
+
+def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
+    """A chain's plan assembled from its modules' plans (2D chains built by fabkit.chain).
+
+    Each module's plan starts from its input pair, which is the previous module's output pair,
+    so the chain's plan is the modules' plans one after the other, renumbered. Sides are read
+    off the chain's own reference configuration (vectorised), and the result is checked (every
+    node placed once, parents placed before, radii equal to the edge lengths); None whenever
+    anything does not fit, and the node-by-node search runs instead.
+    """
+    layout = net._cache.get("chain_layout")
+    if layout is None or net.dim != 2 or net.ports.get("d1") != tuple(drive):
+        return None
+    orders, parents, radii = [], [], []
+    for module, index, _flag in layout["copies"]:
+        try:
+            mp = cached_plan(module, module.port(layout["d_in"]))
+        except ConstructionError:
+            return None
+        if mp.seed != module.port(layout["d_in"]):
+            return None
+        orders.append(index[mp.order])
+        parents.append(index[mp.parents])
+        radii.append(mp.radii)
+    order = np.concatenate(orders)
+    par = np.concatenate(parents)
+    rad = np.concatenate(radii)
+    n = net.n_nodes
+    a, b = drive
+    step = np.full(n, -1, dtype=np.int64)
+    step[[a, b]] = 0
+    if order.size != n - 2 or np.any(step[order] == 0):
+        return None
+    step[order] = np.arange(1, order.size + 1)
+    if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
+        return None  # a parent placed after its child (or never)
+    x = net.nodes
+    if not np.allclose(np.linalg.norm(x[order][:, None, :] - x[par], axis=2), rad,
+                       rtol=1e-9, atol=0.0):
+        return None
+    dpq = x[par[:, 1]] - x[par[:, 0]]
+    dpv = x[order] - x[par[:, 0]]
+    cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
+    norm = np.linalg.norm(dpq, axis=1) * np.linalg.norm(dpv, axis=1)
+    if np.any(np.abs(cross) < _FLAT_RTOL * norm):
+        return None  # a flat reference: let the search raise its precise error
+    return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
+                            signs=np.where(cross > 0, 1.0, -1.0), reference=np.array(x),
+                            gauge_perp=np.zeros(2))
 
 
 def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -290,22 +340,47 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
     return positions, margin, worst
 
 
+def _groups(order, parents):
+    """Runs of consecutive placements with the same parents and no parent among themselves:
+    (start, stop, p, q) per run."""
+    runs = []
+    start = 0
+    n = len(order)
+    while start < n:
+        p, q = parents[start]
+        stop = start + 1
+        while stop < n and parents[stop][0] == p and parents[stop][1] == q:
+            stop += 1
+        runs.append((start, stop, p, q))
+        start = stop
+    return runs
+
+
 def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
     sqrt, maximum = np.sqrt, np.maximum
     if d == 2:
-        xs, ys = X[0], X[1]
-        for idx, v in enumerate(order):
-            p, q = parents[idx]
-            px, py = xs[p], ys[p]
-            dx = xs[q] - px
-            dy = ys[q] - py
-            dist2 = dx * dx + dy * dy
-            along = (c0s[idx] + dist2) / (2.0 * dist2)  # distance along p->q, over |pq|
-            h2 = r0s[idx] - along * along * dist2
-            hs = signs[idx] * sqrt(maximum(h2, 0.0) / dist2)  # side * height / |pq|
-            xs[v] = px + along * dx - hs * dy
-            ys[v] = py + along * dy + hs * dx
-            margins[idx] = h2 / r0s[idx]
+        # complex coordinates z = x + iy: a node is p + (along + i·height)·(q - p)/|pq|, a
+        # handful of ufunc calls; consecutive nodes with the same parents (a module's two
+        # variable nodes) are placed together, sharing the work on their parents
+        z = X[0] + 1j * X[1]
+        r0a = np.asarray(r0s)
+        c0a = np.asarray(c0s)
+        sa = np.asarray(signs)
+        for start, stop, p, q in _groups(order, parents):
+            zp = z[p]
+            D = z[q] - zp
+            dist2 = D.real * D.real + D.imag * D.imag
+            if stop - start == 1:
+                r0, c0, sg = r0s[start], c0s[start], signs[start]
+            else:
+                r0, c0, sg = r0a[start:stop, None], c0a[start:stop, None], sa[start:stop, None]
+            along = (c0 + dist2) / (2.0 * dist2)
+            h2 = r0 - along * along * dist2
+            hs = sg * sqrt(maximum(h2, 0.0) / dist2)
+            z[order[start:stop] if stop - start > 1 else order[start]] = zp + (along + 1j * hs) * D
+            margins[start:stop] = h2 / r0
+        X[0] = z.real
+        X[1] = z.imag
     else:
         r2s = (plan.radii[:, 2] ** 2).tolist()
         for idx, v in enumerate(order):
