@@ -276,9 +276,10 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
         return None  # a parent placed after its child (or never)
     x = net.nodes
-    if not np.allclose(np.linalg.norm(x[order][:, None, :] - x[par], axis=2), rad,
-                       rtol=1e-9, atol=0.0):
+    measured = np.linalg.norm(x[order][:, None, :] - x[par], axis=2)
+    if not np.allclose(measured, rad, rtol=1e-9, atol=0.0):
         return None
+    rad = measured  # the chain's own rest lengths (its joins carry their own round-off)
     dpq = x[par[:, 1]] - x[par[:, 0]]
     dpv = x[order] - x[par[:, 0]]
     cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
