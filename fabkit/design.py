@@ -82,6 +82,13 @@ def _q_from_coeffs(c: np.ndarray, d: int) -> np.ndarray:
     return Q
 
 
+def _homogeneous(x) -> tuple[np.ndarray, bool]:
+    """Points (d,) or (K, d) as homogeneous rows [x, 1], shape (K, d+1), and whether one was given."""
+    x = np.asarray(x, dtype=np.float64)
+    X = np.atleast_2d(x)
+    return np.concatenate([X, np.ones((X.shape[0], 1))], axis=1), x.ndim == 1
+
+
 @dataclass(frozen=True, eq=False)
 class SolutionSpace:
     """Admissible positions x of a variable node joined to all designed nodes.
@@ -197,19 +204,13 @@ class SolutionSpace:
 
     def evaluate(self, x) -> np.ndarray:
         """[x, 1] Q [x, 1]ᵀ (zero on the space; Q has unit norm). Shape () or (K,)."""
-        x = np.asarray(x, dtype=np.float64)
-        single = x.ndim == 1
-        X = np.atleast_2d(x)
-        H = np.concatenate([X, np.ones((X.shape[0], 1))], axis=1)
+        H, single = _homogeneous(x)
         v = np.einsum("ki,ij,kj->k", H, self.Q, H)
         return v[0] if single else v
 
     def gradient(self, x) -> np.ndarray:
         """Gradient of :meth:`evaluate`, shape (d,) or (K, d)."""
-        x = np.asarray(x, dtype=np.float64)
-        single = x.ndim == 1
-        X = np.atleast_2d(x)
-        H = np.concatenate([X, np.ones((X.shape[0], 1))], axis=1)
+        H, single = _homogeneous(x)
         g = 2.0 * H @ self.Q[:, : self.dim]
         return g[0] if single else g
 
