@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import FabkitError, KinematicsError
 from .network import Network
+from .numerics import rigid_fit
 
 __all__ = [
     "chain",
@@ -108,20 +109,6 @@ def join_transform(src, dst, mirror: bool = False) -> tuple[np.ndarray, np.ndarr
         rot = r @ refl
     shift = dst[0] - src[0] @ rot.T
     return rot, shift
-
-
-def _fit_transform(src: np.ndarray, dst: np.ndarray, mirror: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Least-squares rigid motion (proper, or improper when ``mirror``) of src (K, d) onto dst."""
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
-    h = (src - cs).T @ (dst - cd)
-    u, _, vt = np.linalg.svd(h)
-    d = np.ones(src.shape[1])
-    proper = np.linalg.det(vt.T @ u.T) > 0
-    # Flip the least significant axis when the fitted handedness is not the one asked for.
-    if proper == mirror:
-        d[-1] = -1.0
-    rot = vt.T @ np.diag(d) @ u.T
-    return rot, cd - cs @ rot.T
 
 
 @dataclass(frozen=True)
@@ -217,7 +204,8 @@ def join(first: Network, second: Network, at, *, mirror: bool = False,
     if len(pairs) == 2:
         rot, shift = join_transform(src, dst, mirror=mirror)
     else:
-        rot, shift = _fit_transform(src, dst, mirror)
+        fit = rigid_fit(src, dst, handedness="improper" if mirror else "proper")
+        rot, shift = fit.rotation, fit.shift
     scale = max(first.size, second.size, 1e-300)
     # The merged node sets must have the same shape: compare all their pairwise distances.
     dist_first = np.linalg.norm(dst[:, None] - dst[None], axis=-1)

@@ -260,7 +260,7 @@ def test_top_level_lazy_names(fourbar):
 
 
 def test_lyapunov_table_matches_the_exact_map(module):
-    from fabkit.maps import _hermite_table
+    from fabkit.maps.map1d import _hermite_table
 
     f = module_map(module("chaotic"))
     lo, hi = f.invariant_range()
@@ -281,7 +281,7 @@ def test_lyapunov_table_matches_the_exact_map(module):
 
 def test_general_evaluator_agrees_with_the_planar_one(module):
     # the any-dimension path (kinematics.place + implicit slopes) on a planar module
-    from fabkit.maps import _Constructive2D, _ConstructiveGeneral
+    from fabkit.maps.evaluate import _Constructive2D, _ConstructiveGeneral
 
     net = module("period_two")
     plan = plan_construction(net, (0, 1))

@@ -11,7 +11,8 @@ import pytest
 import fabkit
 from fabkit.check import check_file
 from fabkit.export import export
-from fabkit.fab.creases import fold_model, kabsch, origami_model, sheet_chain
+from fabkit.fab.creases import fold_model, origami_model, sheet_chain
+from fabkit.numerics import rigid_fit
 from fabkit.kinematics.branching import analyze_bifurcation, step_off
 from conftest import TEMPLATES
 
@@ -42,7 +43,8 @@ def _two_corner_chain(sheet, x, copies):
     n = 5
     for _ in range(copies - 1):
         allx = np.vstack(nodes)
-        rot, shift, _ = kabsch(x[[0, 2, 1]], allx[[last[1], last[3], last[0]]])
+        fit = rigid_fit(x[[0, 2, 1]], allx[[last[1], last[3], last[0]]])
+        rot, shift = fit.rotation, fit.shift
         y = x @ rot.T + shift
         local = [last[1], n, last[3], n + 1, n + 2]  # A', C' shared; B', D', P' new
         nodes.append(y[[1, 3, 4]])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.fab.creases import (CreasePattern, fold_angles, kabsch, network_from_pattern,
+from fabkit.fab.creases import (CreasePattern, fold_angles, network_from_pattern,
                                 planar_faces)
 from fabkit.kinematics.branching import analyze_bifurcation, fold_through
 
@@ -58,17 +58,6 @@ def test_facet_edges_join_faces_into_one_rigid_panel():
     # read as creases instead, the F edges would be hinges: three motions
     hinged, _ = network_from_pattern(CreasePattern(v, e, ["B"] * 6 + ["V", "U", "U"], cp.faces))
     assert fabkit.count_modes(hinged).conformational == 3
-
-
-def test_kabsch_recovers_a_rotation():
-    rng = np.random.default_rng(3)
-    p = rng.standard_normal((5, 3))
-    a = rng.standard_normal((3, 3))
-    q_, _ = np.linalg.qr(a)
-    rot = q_ * np.sign(np.linalg.det(q_))
-    r, t, rms = kabsch(p, p @ rot.T + [1.0, 2.0, 3.0])
-    assert rms < 1e-12 and np.allclose(r, rot) and np.allclose(t, [1, 2, 3])
-    assert np.linalg.det(r) == pytest.approx(1.0)
 
 
 def test_bad_patterns_are_named():

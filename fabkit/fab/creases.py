@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..network import Network
+from ..numerics import rigid_fit
 
 __all__ = [
     "ASSIGNMENTS",
@@ -39,7 +40,6 @@ __all__ = [
     "fold_angles",
     "assignment_score",
     "flat_foldability",
-    "kabsch",
     "Sheet",
     "OrigamiModel",
     "origami_model",
@@ -425,40 +425,6 @@ def flat_foldability(cp: CreasePattern, tol_deg: float = 1e-6) -> list[dict]:
             "kawasaki": len(inc) % 2 == 0 and abs(alt) <= tol_deg,
         })
     return out
-
-
-def kabsch(src, dst) -> tuple[np.ndarray, np.ndarray, float]:
-    """Proper rigid motion ``y = x @ rot.T + shift`` that best maps ``src`` onto ``dst``.
-
-    Parameters
-    ----------
-    src, dst : array_like, shape (K, 3)
-        Corresponding points (K >= 3, not collinear).
-
-    Returns
-    -------
-    rot : numpy.ndarray, shape (3, 3)
-        A rotation (det +1; no reflection).
-    shift : numpy.ndarray, shape (3,)
-    rms : float
-        Root-mean-square distance left between the fitted points.
-
-    Examples
-    --------
-    >>> r, t, rms = kabsch([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[1, 1, 1], [1, 2, 1], [0, 1, 1]])
-    >>> round(rms, 12)
-    0.0
-    """
-    p = np.asarray(src, dtype=np.float64)
-    q = np.asarray(dst, dtype=np.float64)
-    cp_, cq = p.mean(axis=0), q.mean(axis=0)
-    h = (p - cp_).T @ (q - cq)
-    u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T)) or 1.0
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    shift = cq - cp_ @ rot.T
-    rms = float(np.sqrt(np.mean(np.sum((p @ rot.T + shift - q) ** 2, axis=1))))
-    return rot, shift, rms
 
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
@@ -932,7 +898,8 @@ def sheet_chain(sheet: Network, copies: int, at: float, *, reference=None) -> tu
         last = maps[-1]
         allx = np.vstack(nodes)
         dst = allx[[last[i] for i in prv]]
-        rot, shift, rms = kabsch(x[list(nxt)], dst)
+        fit = rigid_fit(x[list(nxt)], dst)
+        rot, shift, rms = fit.rotation, fit.shift, float(fit.rms)
         if rms > 1e-9:
             raise FabricationError(f"sheet {k + 1} does not fit onto sheet {k} (rms {rms:.1e})")
         y = x @ rot.T + shift

@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import KinematicsError
 from ..network import Network
+from ..numerics import START_RTOL, apply_fit, rigid_fit
 from .trajectory import Event, Status, Trajectory
 
 __all__ = ["Problem", "Method", "make_problem", "choose_gauge", "align_to_gauge"]
@@ -169,16 +170,7 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     """
     x = np.asarray(positions, dtype=np.float64)
     ref = np.asarray(reference, dtype=np.float64)[list(gauge)]
-    g = x[:, list(gauge)]
-    cg = g.mean(axis=1, keepdims=True)
-    cr = ref.mean(axis=0)
-    h = np.matmul((g - cg).transpose(0, 2, 1), ref - cr)
-    u, _, vt = np.linalg.svd(h)
-    det = np.linalg.det(np.matmul(u, vt))
-    d = np.ones((x.shape[0], x.shape[2]))
-    d[:, -1] = np.where(det < 0, -1.0, 1.0)
-    rot = np.matmul(u * d[:, None, :], vt)  # maps (x - cg) @ rot ≈ ref - cr
-    return np.matmul(x - cg, rot) + cr
+    return apply_fit(rigid_fit(x[:, list(gauge)], ref), x)
 
 
 def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) -> Problem:
@@ -206,7 +198,7 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) ->
         raise KinematicsError("`start` has non-finite coordinates")
     if start is not None:
         err = float(net.edge_error(x0))
-        if err > 1e-8:
+        if err > START_RTOL:
             raise KinematicsError(
                 f"`start` does not keep the edge lengths (largest relative error {err:.2e})"
             )

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
+from ..numerics import START_RTOL, project_to_lengths
 from ..rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
 from .base import Method, make_problem
 from .trajectory import Event, Trajectory
@@ -214,7 +215,7 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
     """
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
     err = float(net.edge_error(x))
-    if err > 1e-8:
+    if err > START_RTOL:
         raise KinematicsError(f"the configuration breaks edges (largest relative error {err:.1e})")
     modes = count_modes(net, x)
     singular = modes.self_stress > 0 and modes.conformational > 1
@@ -264,23 +265,13 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
     return Bifurcation(x, modes, True, w, z, forms, tuple(branches), msg)
 
 
-def _project(net: Network, xf: np.ndarray, tol: float = 1e-15, iterations: int = 30):
-    """Gauss-Newton (minimum-norm steps) back onto the constraint set ``|x_i - x_j| = L``."""
-    n, d = net.nodes.shape
-    rest2 = net.edge_lengths ** 2
-    x = xf.copy()
-    for _ in range(iterations):
-        pos = x.reshape(n, d)
-        res = 0.5 * (net.lengths_at(pos) ** 2 - rest2)
-        if np.max(np.abs(res) / rest2) <= tol:
-            return x
-        jac = rigidity_matrix(net, pos).toarray()
-        x = x - np.linalg.lstsq(jac, res, rcond=None)[0]
-    pos = x.reshape(n, d)
-    if float(net.edge_error(pos)) > 1e-12:
+def _project(net: Network, xf: np.ndarray) -> np.ndarray:
+    """Minimum-norm Gauss-Newton back onto the constraint set ``|x_i - x_j| = L``."""
+    proj = project_to_lengths(net.edges, net.edge_lengths, xf.reshape(net.nodes.shape))
+    if not proj.converged:
         raise KinematicsError("could not project the stepped-off configuration back onto the "
                               "edge lengths: use a smaller step_off")
-    return x
+    return proj.positions.ravel()
 
 
 def step_off(net: Network, bifurcation: Bifurcation, branch: int, sign: float = 1.0,

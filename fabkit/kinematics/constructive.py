@@ -17,15 +17,11 @@ import numpy as np
 
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
+from ..numerics import FLAT_RTOL
 from .base import Method, Problem, align_to_gauge, event
 from .trajectory import Status
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
-
-# A reference configuration whose node lies this close (relative sine) to the line/plane of its
-# parents has no well-defined side: the start is a flat state.
-_FLAT_RTOL = 1e-12
-
 
 @dataclass(frozen=True)
 class ConstructionPlan:
@@ -139,7 +135,7 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
                     if sin > best_sin:
                         best, best_sin = (p, q), sin
             p, q = best
-            if best_sin < _FLAT_RTOL:
+            if best_sin < FLAT_RTOL:
                 raise ConstructionError(
                     f"node {v} is collinear with nodes {p} and {q} in the start configuration: a flat "
                     "state, where the side of the intersection (and so the branch) is undetermined"
@@ -179,7 +175,7 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
             ez = np.cross(x[p2] - x[p1], x[p3] - x[p1])
             nz = np.linalg.norm(ez)
             side = (x[v] - x[p1]) @ ez / (nz * np.linalg.norm(x[v] - x[p1])) if nz > 0 else 0.0
-            if abs(side) < _FLAT_RTOL:
+            if abs(side) < FLAT_RTOL:
                 raise ConstructionError(
                     f"node {v} lies in the plane of nodes {p1}, {p2} and {p3} in the start "
                     "configuration: a flat state, where the side of the intersection (and so the "
@@ -284,7 +280,7 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     dpv = x[order] - x[par[:, 0]]
     cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
     norm = np.linalg.norm(dpq, axis=1) * np.linalg.norm(dpv, axis=1)
-    if np.any(np.abs(cross) < _FLAT_RTOL * norm):
+    if np.any(np.abs(cross) < FLAT_RTOL * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
                             signs=np.where(cross > 0, 1.0, -1.0), reference=np.array(x),

@@ -1,0 +1,296 @@
+"""Shared numerics: named tolerances, rigid best fits, projection onto edge lengths.
+
+Every module that needs one of these uses the function here; none writes its own. The tolerances
+are named once, each with a sentence on where its value comes from, so that a threshold has one
+meaning wherever it is used.
+
+Examples
+--------
+>>> import numpy as np
+>>> from fabkit.numerics import rigid_fit
+>>> src = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 2.0]])
+>>> fit = rigid_fit(src, src[:, ::-1] + 1.0, handedness="any")
+>>> bool(fit.rms < 1e-12), bool(np.linalg.det(fit.rotation) < 0)
+(True, True)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "EPS",
+    "FLAT_RTOL",
+    "RANK_RTOL",
+    "EDGE_RTOL",
+    "SLOPE_TOL",
+    "START_RTOL",
+    "RigidFit",
+    "rigid_fit",
+    "apply_fit",
+    "Projection",
+    "project_to_lengths",
+]
+
+#: Machine epsilon of float64: the relative round-off of one arithmetic operation.
+EPS = float(np.finfo(np.float64).eps)
+
+#: A triangle counts as flat when its squared height h² is above ``-FLAT_RTOL · r²`` but not above
+#: zero: circle intersections of unit-size modules carry ~1e-16 relative round-off in h², and a
+#: 10 000-module chain accumulates a few hundred ulps; 1e-12 keeps four decades of margin above
+#: that while a real gap (no intersection) is orders of magnitude larger.
+FLAT_RTOL = 1e-12
+
+#: Singular values of the row-normalised rigidity matrix at or below ``RANK_RTOL · max(σ_max, 1)``
+#: count as zero. Round-off puts the zero singular values of the paper's networks near 1e-15 and
+#: the smallest genuine ones above 1e-6 (measured over the bundled templates), so 1e-9 sits in the
+#: middle of that gap on a log scale.
+RANK_RTOL = 1e-9
+
+#: Relative edge-length error a projected configuration must reach to count as on the constraint
+#: set: round-off leaves ~1e-15 on modules and up to ~1e-13 on 10 000-module chains, so 1e-12 is
+#: met by every converged Newton solve and missed by any that stalled.
+EDGE_RTOL = 1e-12
+
+#: Slopes of a 1-D map within ``SLOPE_TOL`` of 0 or ±1 are called super-stable / marginal: the
+#: exact derivatives are good to ~1e-12, and the paper's designed values (0, 1, 1.5) are meant
+#: exactly, so a design that misses by more than 1e-6 is a different design.
+SLOPE_TOL = 1e-6
+
+#: A start configuration is accepted when its edges match their rest lengths to this relative
+#: error: template coordinates are typed with ~10 significant digits, so 1e-8 admits them and
+#: refuses a start that is visibly off its constraint set.
+START_RTOL = 1e-8
+
+
+# -- rigid best fit (Kabsch) -------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RigidFit:
+    """A rigid motion ``y = x @ rotation.T + shift`` and the RMS distance it leaves.
+
+    Attributes
+    ----------
+    rotation : numpy.ndarray, shape (..., d, d)
+        Orthogonal; det +1 for a proper fit, -1 for an improper one.
+    shift : numpy.ndarray, shape (..., d)
+    rms : numpy.ndarray or float, shape (...)
+        Root-mean-square distance between the moved source points and the destination points.
+    """
+
+    rotation: np.ndarray
+    shift: np.ndarray
+    rms: np.ndarray | float
+
+
+_HANDEDNESS = ("proper", "improper", "any")
+
+
+def rigid_fit(src, dst, *, handedness: str = "proper") -> RigidFit:
+    """Least-squares rigid motion of ``src`` onto ``dst`` (Kabsch), batched over leading axes.
+
+    Parameters
+    ----------
+    src, dst : array_like, shape (..., K, d)
+        Corresponding points, d = 2 or 3; leading axes broadcast against each other.
+    handedness : {"proper", "improper", "any"}
+        "proper" keeps det(rotation) = +1 (no mirror), "improper" forces a mirror image
+        (det -1), "any" takes whichever fits best.
+
+    Returns
+    -------
+    RigidFit
+
+    Raises
+    ------
+    ValueError
+        Unknown handedness, or shapes that do not match.
+
+    Examples
+    --------
+    >>> fit = rigid_fit([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[1, 1, 1], [1, 2, 1], [0, 1, 1]])
+    >>> round(float(fit.rms), 12), round(float(np.linalg.det(fit.rotation)), 12)
+    (0.0, 1.0)
+    """
+    if handedness not in _HANDEDNESS:
+        raise ValueError(f"`handedness` must be one of {', '.join(_HANDEDNESS)}, got {handedness!r}")
+    p = np.asarray(src, dtype=np.float64)
+    q = np.asarray(dst, dtype=np.float64)
+    if p.ndim < 2 or p.shape[-1] != q.shape[-1] or p.shape[-2] != q.shape[-2]:
+        raise ValueError(f"`src` and `dst` must both have shape (..., K, d), got {p.shape} and "
+                         f"{q.shape}")
+    cp = p.mean(axis=-2, keepdims=True)
+    cq = q.mean(axis=-2, keepdims=True)
+    h = np.swapaxes(p - cp, -1, -2) @ (q - cq)
+    u, _, vt = np.linalg.svd(h)
+    v, ut = np.swapaxes(vt, -1, -2), np.swapaxes(u, -1, -2)
+    if handedness != "any":
+        det = np.linalg.det(v @ ut)
+        want = 1.0 if handedness == "proper" else -1.0
+        # Flip the least significant axis where the fitted handedness is not the one asked for.
+        flip = np.where(det * want < 0, -1.0, 1.0)
+        v = v.copy()
+        v[..., :, -1] *= flip[..., None]
+    rot = v @ ut
+    shift = cq[..., 0, :] - (cp @ np.swapaxes(rot, -1, -2))[..., 0, :]
+    moved = p @ np.swapaxes(rot, -1, -2) + shift[..., None, :]
+    rms = np.sqrt(np.mean(np.sum((moved - q) ** 2, axis=-1), axis=-1))
+    return RigidFit(rot, shift, rms)
+
+
+def apply_fit(fit: RigidFit, x) -> np.ndarray:
+    """Move points by a fitted rigid motion.
+
+    Parameters
+    ----------
+    fit : RigidFit
+        From :func:`rigid_fit`, batched over leading axes (...).
+    x : array_like, shape (..., N, d)
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., N, d)
+    """
+    x = np.asarray(x, dtype=np.float64)
+    return x @ np.swapaxes(fit.rotation, -1, -2) + fit.shift[..., None, :]
+
+
+# -- projection onto prescribed edge lengths -----------------------------------------------------
+
+@dataclass(frozen=True)
+class Projection:
+    """The outcome of :func:`project_to_lengths`.
+
+    Attributes
+    ----------
+    positions : numpy.ndarray, shape (..., N, d)
+        The last iterate (on the constraint set when ``converged``).
+    residual : float
+        Largest relative length error left, ``max |ℓ - L| / L`` over edges, pairs and batch.
+    converged : bool
+        Whether ``residual <= rtol``.
+    iterations : int
+    """
+
+    positions: np.ndarray
+    residual: float
+    converged: bool
+    iterations: int
+
+
+# Above this many unknowns per configuration, a dense pseudo-inverse costs more than sparse LSQR.
+_DENSE_MAX_UNKNOWNS = 600
+
+
+def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: float = EDGE_RTOL,
+                       max_iter: int = 40) -> Projection:
+    """Gauss-Newton with minimum-norm steps onto ``|x_i - x_j| = L`` for every edge.
+
+    Minimum-norm steps move the configuration as little as possible, so the result is the
+    nearest point of the constraint set to first order: the right choice for correcting a
+    predicted or perturbed configuration without adding a rigid motion. Newton runs down to the
+    round-off floor (it stops when the residual no longer contracts), then the result is judged
+    against ``rtol``.
+
+    Parameters
+    ----------
+    edges : array_like of int, shape (E, 2)
+    lengths : array_like, shape (E,) or (..., E)
+        Prescribed lengths, > 0; a leading batch axis gives each configuration its own lengths.
+    x0 : array_like, shape (N, d) or (B, N, d)
+        Start configuration(s).
+    pairs : sequence of (int, int), optional
+        Extra distances to prescribe (e.g. a drive distance).
+    targets : array_like, shape (P,) or (B, P), optional
+        Their values.
+    rtol : float
+        Relative length error accepted as converged.
+    max_iter : int
+
+    Returns
+    -------
+    Projection
+        Never raises on non-convergence: the caller decides on ``converged``.
+
+    Examples
+    --------
+    >>> sq = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    >>> e = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    >>> p = project_to_lengths(e, np.ones(4), sq + 0.01 * np.eye(4, 2))
+    >>> p.converged, bool(p.residual < 1e-14)
+    (True, True)
+    """
+    x = np.array(x0, dtype=np.float64)
+    single = x.ndim == 2
+    if single:
+        x = x[None]
+    if x.ndim != 3:
+        raise ValueError(f"`x0` must have shape (N, d) or (B, N, d), got {np.shape(x0)}")
+    nb, n, dim = x.shape
+    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    pr = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    ij = np.concatenate([e, pr])
+    lens = np.broadcast_to(np.asarray(lengths, dtype=np.float64), (nb, e.shape[0]))
+    if pr.shape[0]:
+        if targets is None:
+            raise ValueError("`targets` must be given with `pairs`")
+        tg = np.broadcast_to(np.asarray(targets, dtype=np.float64), (nb, pr.shape[0]))
+        lens = np.concatenate([lens, tg], axis=1)
+    if np.any(lens <= 0):
+        raise ValueError("prescribed lengths must be positive")
+
+    def residual(x):
+        d = x[:, ij[:, 0]] - x[:, ij[:, 1]]
+        ell = np.sqrt(np.einsum("bec,bec->be", d, d))
+        return d, ell, ell - lens
+
+    dense = n * dim <= _DENSE_MAX_UNKNOWNS
+    d, ell, res = residual(x)
+    worst = float(np.max(np.abs(res) / lens)) if res.size else 0.0
+    it = 0
+    while it < max_iter and worst > EPS:
+        u = d / np.maximum(ell, np.finfo(np.float64).tiny)[..., None]
+        step = _dense_steps(u, ij, res, n, dim) if dense else _sparse_steps(u, ij, res, n, dim)
+        x = x - step
+        it += 1
+        d, ell, res = residual(x)
+        new = float(np.max(np.abs(res) / lens))
+        # Quadratic convergence stalls at round-off: stop once an accepted residual stops halving.
+        stalled = new > 0.5 * worst
+        worst = new
+        if stalled and worst <= rtol:
+            break
+    positions = x[0] if single else x
+    return Projection(positions, worst, bool(worst <= rtol), it)
+
+
+def _dense_steps(u, ij, res, n, dim):
+    """Minimum-norm Gauss-Newton steps for a batch of small networks (batched pseudo-inverse)."""
+    nb, m = res.shape
+    rows = np.arange(m)
+    jac = np.zeros((nb, m, n, dim))
+    jac[:, rows, ij[:, 0]] = u
+    # Subtract rather than assign: a pair may share a node with an edge row, never with itself.
+    jac[:, rows, ij[:, 1]] -= u
+    jac = jac.reshape(nb, m, n * dim)
+    step = np.einsum("bij,bj->bi", np.linalg.pinv(jac, rcond=1e-13), res)
+    return step.reshape(nb, n, dim)
+
+
+def _sparse_steps(u, ij, res, n, dim):
+    """Minimum-norm steps by sparse LSQR, one configuration at a time (large networks)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.linalg import lsqr
+
+    nb, m = res.shape
+    rows = np.repeat(np.arange(m), 2 * dim)
+    cols = np.concatenate([ij[:, :1] * dim + np.arange(dim), ij[:, 1:] * dim + np.arange(dim)],
+                          axis=1).ravel()
+    out = np.empty((nb, n * dim))
+    for b in range(nb):
+        vals = np.concatenate([u[b], -u[b]], axis=1).ravel()
+        jac = csr_matrix((vals, (rows, cols)), shape=(m, n * dim))
+        out[b] = lsqr(jac, res[b], atol=1e-15, btol=1e-15, iter_lim=20 * n * dim)[0]
+    return out.reshape(nb, n, dim)

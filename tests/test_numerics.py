@@ -1,0 +1,107 @@
+"""The shared numerics core: rigid fits and projection onto edge lengths."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.numerics import EDGE_RTOL, apply_fit, project_to_lengths, rigid_fit
+
+
+def _orthogonal(rng, d, det):
+    q, _ = np.linalg.qr(rng.standard_normal((d, d)))
+    if np.sign(np.linalg.det(q)) != det:
+        q[:, 0] *= -1
+    return q
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("det", [1, -1])
+def test_rigid_fit_recovers_the_motion_with_the_asked_handedness(d, det):
+    rng = np.random.default_rng(3 + d)
+    p = rng.standard_normal((6, d))
+    rot = _orthogonal(rng, d, det)
+    shift = rng.standard_normal(d)
+    q = p @ rot.T + shift
+    exact = {1: "proper", -1: "improper"}[det]
+    for handedness in ("proper", "improper", "any"):
+        fit = rigid_fit(p, q, handedness=handedness)
+        want = det if handedness == "any" else (1 if handedness == "proper" else -1)
+        assert np.linalg.det(fit.rotation) == pytest.approx(want, abs=1e-12)
+        if handedness in (exact, "any"):
+            assert fit.rms < 1e-13
+            np.testing.assert_allclose(fit.rotation, rot, atol=1e-12)
+            np.testing.assert_allclose(fit.shift, shift, atol=1e-12)
+            np.testing.assert_allclose(apply_fit(fit, p), q, atol=1e-12)
+        else:
+            assert fit.rms > 1e-2  # a mirror image cannot be reached by the other handedness
+
+
+def test_rigid_fit_is_batched_and_broadcasts():
+    rng = np.random.default_rng(7)
+    p = rng.standard_normal((4, 5, 3))
+    rots = np.stack([_orthogonal(rng, 3, 1) for _ in range(4)])
+    q = np.einsum("bij,bkj->bki", rots, p) + 1.5
+    fit = rigid_fit(p, q)
+    assert fit.rotation.shape == (4, 3, 3) and fit.shift.shape == (4, 3)
+    assert np.max(fit.rms) < 1e-13
+    np.testing.assert_allclose(apply_fit(fit, p), q, atol=1e-12)
+    # one destination for every source configuration
+    fit = rigid_fit(q, q[0])
+    assert fit.rms.shape == (4,) and fit.rms[0] < 1e-13 and np.all(fit.rms[1:] > 1e-3)
+
+
+def test_rigid_fit_rejects_bad_input():
+    with pytest.raises(ValueError, match="handedness"):
+        rigid_fit(np.zeros((3, 2)), np.zeros((3, 2)), handedness="left")
+    with pytest.raises(ValueError, match=r"\(\.\.\., K, d\)"):
+        rigid_fit(np.zeros((3, 2)), np.zeros((4, 2)))
+
+
+def _fourbar():
+    nodes = np.array([[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]])
+    edges = np.array([[0, 2], [0, 3], [1, 2], [1, 3]])
+    return fabkit.Network(nodes, edges, ports={"d1": (0, 1), "d2": (2, 3)})
+
+
+def test_projection_lands_on_the_lengths_and_the_drive():
+    net = _fourbar()
+    rng = np.random.default_rng(1)
+    x0 = net.nodes + 1e-3 * rng.standard_normal((5, 4, 2))
+    targets = np.linspace(1.9, 2.1, 5)
+    proj = project_to_lengths(net.edges, net.edge_lengths, x0, pairs=[(0, 1)],
+                              targets=targets[:, None])
+    assert proj.converged and proj.residual < 1e-14
+    x = proj.positions
+    lengths = np.linalg.norm(x[:, net.edges[:, 0]] - x[:, net.edges[:, 1]], axis=-1)
+    np.testing.assert_allclose(lengths, np.broadcast_to(net.edge_lengths, lengths.shape), rtol=1e-14)
+    d1 = np.linalg.norm(x[:, 0] - x[:, 1], axis=-1)
+    d2 = np.linalg.norm(x[:, 2] - x[:, 3], axis=-1)
+    np.testing.assert_allclose(d1, targets, rtol=1e-14)
+    np.testing.assert_allclose(d1 * d2, 4.0, rtol=1e-12)  # the antiparallelogram's map d2 = 4/d1
+    # minimum-norm steps: the correction is small, of the size of the perturbation
+    assert np.max(np.abs(x - x0)) < 0.2
+
+
+def test_projection_of_a_large_chain_uses_sparse_steps_and_keeps_rigid_position():
+    chain = fabkit.chain(_fourbar(), copies=200)  # 402 nodes: above the dense limit
+    rng = np.random.default_rng(5)
+    x0 = chain.nodes + 1e-4 * rng.standard_normal(chain.nodes.shape)
+    proj = project_to_lengths(chain.edges, chain.edge_lengths, x0)
+    assert proj.converged and proj.residual <= EDGE_RTOL
+    assert float(chain.edge_error(proj.positions)) < 1e-12
+    # a minimum-norm correction adds no rigid motion: the centroid barely moves
+    assert np.linalg.norm(proj.positions.mean(axis=0) - x0.mean(axis=0)) < 1e-5
+
+
+def test_projection_reports_an_impossible_target_instead_of_raising():
+    net = _fourbar()
+    # d1 = 5 is beyond the fully stretched linkage (at most 2 * sqrt(2) * ... < 5)
+    proj = project_to_lengths(net.edges, net.edge_lengths, net.nodes, pairs=[(0, 1)],
+                              targets=[5.0], max_iter=25)
+    assert not proj.converged and proj.residual > 1e-3
+    with pytest.raises(ValueError, match="targets"):
+        project_to_lengths(net.edges, net.edge_lengths, net.nodes, pairs=[(0, 1)])
+    with pytest.raises(ValueError, match="positive"):
+        project_to_lengths(net.edges, np.zeros(4), net.nodes)
