@@ -48,6 +48,10 @@ def __getattr__(name):
     raise AttributeError(f"module 'fabkit' has no attribute {name!r}")
 
 
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
+
 __all__ = [
     "ConstructionError",
     "Design",
@@ -66,4 +70,5 @@ __all__ = [
     "rigid_body_basis",
     "rigidity_matrix",
     "trace",
+    *sorted(_LAZY),
 ]

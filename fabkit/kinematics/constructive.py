@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from ..numerics import FLAT_RTOL
-from .base import Method, Problem, align_to_gauge, event
+from .base import Method, align_to_gauge, event
 from .trajectory import Status
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
@@ -324,7 +324,6 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
     r0s = (plan.radii[:, 0] ** 2).tolist()
     c0s = (plan.radii[:, 0] ** 2 - plan.radii[:, 1] ** 2).tolist()
     signs = plan.signs.tolist()
-    sqrt, maximum = np.sqrt, np.maximum
     with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
         _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d)
     positions = np.ascontiguousarray(X.transpose(2, 1, 0))

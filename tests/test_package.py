@@ -1,0 +1,25 @@
+"""Package contracts: public names, typing marker, lint."""
+
+from __future__ import annotations
+
+import importlib.resources
+import fabkit
+
+
+def test_all_lists_every_public_name_and_each_resolves():
+    assert len(set(fabkit.__all__)) == len(fabkit.__all__)
+    for name in fabkit.__all__:
+        assert getattr(fabkit, name) is not None, name
+    # the lazily imported names are public too, and dir() shows them before first use
+    assert set(fabkit._LAZY) <= set(fabkit.__all__)
+    assert set(fabkit.__all__) <= set(dir(fabkit))
+
+
+def test_star_import_gives_the_public_names():
+    ns: dict = {}
+    exec("from fabkit import *", ns)
+    assert {"Network", "trace", "chain", "module_map", "design_word"} <= set(ns)
+
+
+def test_py_typed_ships():
+    assert importlib.resources.files("fabkit").joinpath("py.typed").is_file()
