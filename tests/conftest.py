@@ -1,11 +1,17 @@
-"""Shared fixtures: the paper's modules as networks, paths to bundled templates."""
+"""Shared fixtures: the paper's modules as networks, paths to bundled templates.
+
+Module networks come from the bundled templates (templates/<name>.toml), the one home of the
+paper's geometry in fabkit. tests/data/paper_modules.json is the paper's own input data: it is read
+only for the design specifications it alone holds and as the independent reference that the
+templates are checked against (tests/test_templates.py).
+"""
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import fabkit
@@ -23,22 +29,22 @@ def _find_modules_json() -> Path:
 
 @pytest.fixture(scope="session")
 def paper_modules() -> dict:
-    """The paper's module geometry (tests/data copy, so tests run from a clean clone)."""
+    """The paper's input data (design specifications, and the reference for the templates)."""
     return json.loads(_find_modules_json().read_text())["modules"]
 
 
-def module_network(modules: dict, name: str) -> fabkit.Network:
-    m = modules[name]
-    return fabkit.Network(np.array(m["nodes"], dtype=float), m["edges"],
-                          ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+@functools.lru_cache(maxsize=None)
+def module_network(name: str) -> fabkit.Network:
+    """A module of the paper as its bundled template builds it (ports d1, d2)."""
+    return fabkit.load_template(TEMPLATES / f"{name}.toml").network
 
 
 @pytest.fixture(scope="session")
-def fourbar(paper_modules) -> fabkit.Network:
-    return module_network(paper_modules, "fourbar")
+def fourbar() -> fabkit.Network:
+    return module_network("fourbar")
 
 
 @pytest.fixture(scope="session")
-def module(paper_modules):
+def module():
     """Factory: module("super_stable") -> Network with ports d1, d2."""
-    return lambda name: module_network(paper_modules, name)
+    return module_network

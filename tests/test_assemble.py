@@ -110,10 +110,8 @@ def test_other_ports_get_module_suffix(module):
     assert {"bottom_1", "bottom_2", "bottom_3"} <= set(net.ports)
 
 
-def test_chain_inverse_map_direction(paper_modules):
-    m = fabkit.Network(paper_modules["physical_fourbar"]["nodes"],
-                       paper_modules["physical_fourbar"]["edges"],
-                       ports={"d1": (0, 1), "d2": (2, 3)})
+def test_chain_inverse_map_direction(module):
+    m = module("physical_fourbar")
     net = chain(m, 4, d_in="d2", d_out="d1")  # joins d1 of module k to d2 of module k + 1
     assert net.port("d1") == (2, 3)
     np.testing.assert_allclose([net.port_distance(f"d{k}") for k in range(1, 6)], 1.0, atol=1e-12)
@@ -145,10 +143,8 @@ def test_chain_error_mixed_dimensions(fourbar):
         chain([fourbar, tri3])
 
 
-def test_chain_3d(paper_modules):
-    sheet = paper_modules["origami_sheet"]
-    m = fabkit.Network(sheet["nodes"], sheet["edges"], ports={"d1": tuple(sheet["d1"]),
-                                                              "d2": tuple(sheet["d2"])})
+def test_chain_3d(module):
+    m = module("origami_sheet")
     net = chain(m, 3)
     assert net.dim == 3 and net.n_nodes == 5 + 2 * 3
     np.testing.assert_allclose(net.edge_lengths, np.tile(m.edge_lengths, 3), rtol=1e-13)

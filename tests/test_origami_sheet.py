@@ -12,17 +12,15 @@ from fabkit.kinematics import Status, place, plan_construction
 from fabkit.kinematics.branching import (BranchSwitch, analyze_bifurcation, fold_through,
                                          step_off)
 from fabkit.kinematics.rk4_nullspace import conformational_velocity
-from conftest import TEMPLATES
+from conftest import TEMPLATES, module_network
 
 D2_STAR = 2.0 - np.sqrt(2.0)  # the folded fixed point d1 = d2 (computed, see docs/origami.md)
 PAPER_ASSIGNMENT = ["B", "B", "B", "B", "V", "V", "V", "M"]
 
 
 @pytest.fixture(scope="module")
-def sheet(paper_modules):
-    m = paper_modules["origami_sheet"]
-    return fabkit.Network(m["nodes"], m["edges"], ports={"d1": tuple(m["d1"]),
-                                                          "d2": tuple(m["d2"])})
+def sheet():
+    return module_network("origami_sheet")
 
 
 @pytest.fixture(scope="module")

@@ -16,17 +16,18 @@ from hypothesis import strategies as st
 import fabkit
 from fabkit.rigidity import count_modes
 
+from conftest import module_network
+
 DATA = json.loads((Path(__file__).resolve().parent / "data" / "paper_modules.json").read_text())
-MODULES = {k: v for k, v in DATA["modules"].items() if len(v["nodes"][0]) == 2
-           and k not in ("printed_planar",)}
+# the planar modules of the paper (their networks come from the bundled templates)
+MODULES = sorted(k for k, v in DATA["modules"].items() if len(v["nodes"][0]) == 2
+                 and k not in ("printed_planar",))
 PROPS = settings(max_examples=25, deadline=None,
                  suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
 def network(name: str) -> fabkit.Network:
-    m = MODULES[name]
-    return fabkit.Network(np.array(m["nodes"], dtype=float), m["edges"],
-                          ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+    return module_network(name)
 
 
 def rigid_2d(angle, shift, mirror):
@@ -116,9 +117,7 @@ def test_traced_motion_does_not_depend_on_placement(angle, shift, mirror, to):
 @PROPS
 @given(quat=quats, shift=shifts3, mirror=st.booleans())
 def test_rigid_motions_keep_3d_mode_counts(quat, shift, mirror):
-    m = DATA["modules"]["origami_sheet"]
-    net = fabkit.Network(np.array(m["nodes"], dtype=float), m["edges"],
-                         ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+    net = module_network("origami_sheet")
     # lift the flat sheet off its bifurcation so the count is generic
     x = net.nodes.copy()
     x[4, 2] = 0.3

@@ -106,3 +106,15 @@ def test_chain_referring_to_missing_module(tmp_path):
     path.write_text('[chain]\nmodule = "nope.toml"\ncopies = 3\n')
     with pytest.raises(TemplateError, match=r"chain.module: no template file 'nope.toml'"):
         load_template(path)
+
+
+def test_module_templates_hold_the_papers_geometry(paper_modules):
+    # The templates are fabkit's one home of the paper's modules; the paper's input data is the
+    # independent reference they were written from (same nodes, edges in the same order, ports).
+    for name, m in paper_modules.items():
+        net = load_template(TEMPLATES / f"{name}.toml").network
+        tol = 1e-9 if "design" in m else 0.0  # designed modules are solved, to 8-10 digits
+        np.testing.assert_allclose(net.nodes, np.array(m["nodes"], dtype=float), rtol=0, atol=tol,
+                                   err_msg=name)
+        assert np.array_equal(net.edges, np.array(m["edges"])), name
+        assert net.port("d1") == tuple(m["d1"]) and net.port("d2") == tuple(m["d2"]), name
