@@ -1,6 +1,5 @@
 """Template loading: good templates build; every bad one names file, key path and reason."""
 
-from pathlib import Path
 
 import numpy as np
 import pytest
