@@ -1,6 +1,5 @@
 """Template loading: good templates build; every bad one names file, key path and reason."""
 
-
 import numpy as np
 import pytest
 
