@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import FabkitError, KinematicsError
-from .network import Network
+from .network import Assembly, Network
 from .numerics import rigid_fit
 
 __all__ = [
@@ -451,11 +451,9 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     else:
         nodes = _place_chain_3d(src, dst, flags, local, owner)
     edges = np.concatenate(edge_blocks, axis=0)
-    net = Network(nodes, edges, ports)
     # how the chain was joined, so that a construction plan can be tiled from the modules' own
     # plans instead of searched node by node (see fabkit.kinematics.constructive.cached_plan)
-    net._cache["chain_layout"] = {"copies": layout, "d_in": d_in}
-    return net
+    return Network(nodes, edges, ports, assembly=Assembly(tuple(layout), d_in))
 
 
 def _place_chain_2d(src, dst, flags, local, owner) -> np.ndarray:

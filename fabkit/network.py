@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import NetworkError
 
-__all__ = ["Network"]
+__all__ = ["Network", "Assembly"]
 
 # Edges shorter than this fraction of the network's size are treated as zero-length.
 _ZERO_LENGTH_RTOL = 1e-12
@@ -37,6 +37,27 @@ def _as_port(name: str, pair, n_nodes: int) -> tuple[int, int]:
 
 
 @dataclass(frozen=True, eq=False)
+class Assembly:
+    """How a network was assembled from modules, as :func:`fabkit.chain` records it.
+
+    Structure-aware algorithms read it instead of rediscovering it (e.g. a chain's construction
+    plan is its modules' plans one after the other); each checks that it still fits the network's
+    geometry before using it.
+
+    Attributes
+    ----------
+    copies : tuple of (Network, numpy.ndarray of int, bool)
+        Per module, in chain order: the module, where each of its nodes went in the assembled
+        network, and whether it was placed as a mirror image.
+    d_in : str
+        The module port driven by the previous module's output (the chain's input port name).
+    """
+
+    copies: tuple
+    d_in: str
+
+
+@dataclass(frozen=True, eq=False)
 class Network:
     """A network of rigid edges (bars) joined at nodes (pin joints).
 
@@ -50,6 +71,8 @@ class Network:
         Named node pairs whose distances are read or driven, e.g. ``{"d1": (0, 1)}``.
     labels : sequence of str, optional
         One label per node (for plots and reports).
+    assembly : Assembly, optional
+        How the network was assembled from modules (set by :func:`fabkit.chain`).
 
     Raises
     ------
@@ -70,6 +93,7 @@ class Network:
     edges: np.ndarray
     ports: Mapping[str, tuple[int, int]] = field(default_factory=dict)
     labels: tuple[str, ...] | None = None
+    assembly: Assembly | None = None
 
     def __post_init__(self):
         nodes = np.array(self.nodes, dtype=np.float64, copy=True)
@@ -128,6 +152,9 @@ class Network:
             labels = tuple(str(s) for s in self.labels)
             if len(labels) != n:
                 raise NetworkError(f"`labels` must have one entry per node ({n}), got {len(labels)}")
+        if self.assembly is not None and not isinstance(self.assembly, Assembly):
+            raise NetworkError(f"`assembly` must be a fabkit.network.Assembly or None, got "
+                               f"{type(self.assembly).__name__}")
         nodes.setflags(write=False)
         edges.setflags(write=False)
         lengths.setflags(write=False)
@@ -242,8 +269,8 @@ class Network:
         return Network(nodes, self.edges, self.ports, self.labels)
 
     def with_ports(self, ports: Mapping[str, tuple[int, int]]) -> "Network":
-        """The same network with other named ports."""
-        return Network(self.nodes, self.edges, ports, self.labels)
+        """The same network with other named ports (and the same assembly record)."""
+        return Network(self.nodes, self.edges, ports, self.labels, self.assembly)
 
     def adjacency(self) -> list[list[int]]:
         """Neighbour lists, one per node."""

@@ -407,3 +407,30 @@ def test_and_gate_junction_moves_only_when_both_inputs_collapse():
         junction = SQRT3 - shift
         assert arm_drive_for(junction, 8) >= arm8
         assert arm_drive_for(junction, 16) >= arm16
+
+
+def test_chain_records_its_assembly_and_the_plan_is_tiled_from_it(module):
+    from fabkit.kinematics.constructive import _tiled_chain_plan
+
+    m = module("super_stable")
+    net = chain(m, copies=50)
+    assert net.assembly is not None and len(net.assembly.copies) == 50
+    assert net.assembly.d_in == "d1"
+    for mod, index, _mirrored in net.assembly.copies:
+        # every module's nodes went to nodes of the chain with the module's edge lengths
+        x = net.nodes[index]
+        lengths = np.linalg.norm(x[mod.edges[:, 0]] - x[mod.edges[:, 1]], axis=1)
+        np.testing.assert_allclose(lengths, mod.edge_lengths, rtol=1e-12)
+    tiled = _tiled_chain_plan(net, net.port("d1"))
+    searched = plan_construction(net, net.port("d1"))
+    assert tiled is not None and tiled.order.size == net.n_nodes - 2
+    values = np.linspace(float(net.port_distance("d1")), 1.2, 7)
+    xt, mt, _ = place(tiled, values)
+    xs, ms, _ = place(searched, values)
+    np.testing.assert_allclose(xt, xs, atol=1e-12)
+    # a network without the record (other geometry, same topology) is planned by the search
+    plain = net.with_nodes(net.nodes)
+    assert plain.assembly is None and _tiled_chain_plan(plain, plain.port("d1")) is None
+    assert net.with_ports(dict(net.ports)).assembly is net.assembly
+    with pytest.raises(fabkit.NetworkError, match="assembly"):
+        fabkit.Network(m.nodes, m.edges, assembly={"copies": []})

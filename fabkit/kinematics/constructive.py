@@ -245,16 +245,16 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     node placed once, parents placed before, radii equal to the edge lengths); None whenever
     anything does not fit, and the node-by-node search runs instead.
     """
-    layout = net._cache.get("chain_layout")
+    layout = net.assembly
     if layout is None or net.dim != 2 or net.ports.get("d1") != tuple(drive):
         return None
     orders, parents, radii = [], [], []
-    for module, index, _flag in layout["copies"]:
+    for module, index, _flag in layout.copies:
         try:
-            mp = cached_plan(module, module.port(layout["d_in"]))
+            mp = cached_plan(module, module.port(layout.d_in))
         except ConstructionError:
             return None
-        if mp.seed != module.port(layout["d_in"]):
+        if mp.seed != module.port(layout.d_in):
             return None
         orders.append(index[mp.order])
         parents.append(index[mp.parents])
