@@ -14,12 +14,12 @@ from __future__ import annotations
 
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
-from .base import Method, Problem, align_to_gauge, choose_gauge, make_problem
+from .base import Mark, Method, Outcome, Problem, align_to_gauge, choose_gauge, make_problem
 from .branching import BranchSwitch, analyze_bifurcation, fold_through
 from .constructive import ConstructionPlan, Constructive, cached_plan, place, plan_construction
 from .projected import Projected
 from .rk4_nullspace import RK4Nullspace
-from .trajectory import Event, Status, Trajectory
+from .trajectory import Event, EventKind, Status, Trajectory
 
 __all__ = [
     "METHODS",
@@ -28,7 +28,10 @@ __all__ = [
     "Trajectory",
     "Status",
     "Event",
+    "EventKind",
     "Method",
+    "Mark",
+    "Outcome",
     "Problem",
     "ConstructionPlan",
     "plan_construction",

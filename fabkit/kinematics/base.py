@@ -1,23 +1,79 @@
-"""What every tracing method shares: the problem statement, the gauge, option checking.
+"""What every tracing method shares: the problem statement, the gauge, option checking, and
+the packaging of results.
 
 A method is a subclass of :class:`Method` that declares its options (name → default) and
-implements :meth:`Method.run`. :func:`fabkit.trace` builds the :class:`Problem` once and hands it
-to the method named in ``METHODS``.
+implements :meth:`Method.solve`, which returns an :class:`Outcome`: configurations, a status, a
+message and :class:`Mark` s at configuration indices. :meth:`Method.run` (owned by the base class,
+as ``solve_ivp``'s ``OdeSolver.step`` owns its status) aligns the configurations to the gauge,
+measures arclength and edge errors, turns marks into :class:`~.trajectory.Event` s at the
+marked configurations, and builds the :class:`~.trajectory.Trajectory`. :func:`fabkit.trace`
+builds the :class:`Problem` once and hands it to the method named in ``METHODS``.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import KinematicsError
 from ..network import Network
 from ..numerics import START_RTOL, apply_fit, rigid_fit
-from .trajectory import Event, Status, Trajectory
+from .trajectory import Event, EventKind, Status, Trajectory
 
-__all__ = ["Problem", "Method", "make_problem", "choose_gauge", "align_to_gauge"]
+__all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
+           "align_to_gauge"]
+
+
+@dataclass(frozen=True)
+class Mark:
+    """An event as a method reports it: what, at which configuration, and a sentence.
+
+    Attributes
+    ----------
+    kind : EventKind or str
+    index : int
+        Index of the configuration in the method's output at (or nearest to) the event; an index
+        past the end means the last configuration.
+    detail : str
+    """
+
+    kind: EventKind
+    index: int
+    detail: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class Outcome:
+    """What :meth:`Method.solve` returns; :meth:`Method.run` makes the Trajectory of it.
+
+    Attributes
+    ----------
+    positions : numpy.ndarray, shape (S, N, d)
+        Configurations in the start's frame (or in the gauge frame when ``aligned``).
+    status : Status
+    message : str
+        One sentence: where and why the trace ended.
+    marks : tuple of Mark
+    stats : dict
+        Method-specific counters.
+    arclength : numpy.ndarray of shape (S,), optional
+        The method's own arclength (default: the polygon length through the configurations).
+    aligned : bool
+        True when the positions are already in the gauge frame.
+    method : str, optional
+        The name to report when a method delegates (e.g. ``"branch/constructive"``).
+    """
+
+    positions: np.ndarray
+    status: Status
+    message: str
+    marks: tuple = ()
+    stats: dict = field(default_factory=dict)
+    arclength: np.ndarray | None = None
+    aligned: bool = False
+    method: str | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,24 +120,33 @@ class Problem:
         return float(self.drive_of(self.start))
 
     def trajectory(self, positions, method: str, status: Status, message: str,
-                   events=(), stats=None, arclength=None) -> Trajectory:
-        """Package configurations as a :class:`Trajectory` (edge errors against ``network``)."""
+                   marks=(), stats=None, arclength=None) -> Trajectory:
+        """Package configurations as a :class:`Trajectory` (edge errors against ``network``).
+
+        ``marks`` (:class:`Mark` s) become events whose drive value and arclength are those of
+        the marked configuration.
+        """
         pos = np.ascontiguousarray(positions, dtype=np.float64)
         if arclength is None:
             steps = np.linalg.norm((pos[1:] - pos[:-1]).reshape(len(pos) - 1, pos[0].size), axis=1)
             arclength = np.concatenate([[0.0], np.cumsum(steps)])
+        arclength = np.asarray(arclength, dtype=np.float64)
+        drive = self.drive_of(pos)
+        last = len(pos) - 1
+        events = tuple(Event(m.kind, min(int(m.index), last), float(drive[min(int(m.index), last)]),
+                             float(arclength[min(int(m.index), last)]), m.detail) for m in marks)
         return Trajectory(
             network=self.network,
             positions=pos,
-            drive=self.drive_of(pos),
-            arclength=np.asarray(arclength, dtype=np.float64),
+            drive=drive,
+            arclength=arclength,
             edge_error=np.atleast_1d(self.network.edge_error(pos)),
             method=method,
             status=status,
             message=message,
             drive_port=self.drive,
             target=self.target,
-            events=tuple(events),
+            events=events,
             stats=dict(stats or {}),
         )
 
@@ -227,7 +292,7 @@ class Method(ABC):
     """Base class of tracing methods.
 
     Subclasses set ``name``, ``options`` (a dict of option name → default) and implement
-    :meth:`run`. Unknown options raise ``TypeError`` naming the valid ones, so that a typo in a
+    :meth:`solve`. Unknown options raise ``TypeError`` naming the valid ones, so that a typo in a
     template or a call never passes silently.
     """
 
@@ -245,8 +310,18 @@ class Method(ABC):
         self.opts = {**self.options, **options}
 
     @abstractmethod
+    def solve(self) -> Outcome:
+        """Trace the motion; return an Outcome whatever happens (status and message say how)."""
+
     def run(self) -> Trajectory:
-        """Trace the motion; return a Trajectory whatever happens (status and message say how)."""
+        """Trace the motion and package it: gauge frame, arclength, events, edge errors."""
+        out = self.solve()
+        p = self.problem
+        x = np.asarray(out.positions, dtype=np.float64)
+        if not out.aligned:
+            x = align_to_gauge(x, p.start, p.gauge)
+        return p.trajectory(x, out.method or self.name, out.status, out.message, out.marks,
+                            out.stats, out.arclength)
 
     # Helpers shared by the methods -------------------------------------------------------------
     def direction(self) -> float:
@@ -256,9 +331,3 @@ class Method(ABC):
     def finished_message(self) -> str:
         p = self.problem
         return f"reached {p.drive_name} = {p.target:.10g}"
-
-
-def event(kind: str, index: int, drive: float, arclength: float, detail: str) -> Event:
-    """Shorthand for :class:`Event`."""
-    return Event(kind=kind, index=int(index), drive=float(drive), arclength=float(arclength),
-                 detail=detail)

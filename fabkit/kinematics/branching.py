@@ -34,8 +34,8 @@ from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from ..numerics import START_RTOL, project_to_lengths
 from ..rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
-from .base import Method, make_problem
-from .trajectory import Event, Trajectory
+from .base import Mark, Method, Outcome, make_problem
+from .trajectory import EventKind, Trajectory
 
 __all__ = ["Branch", "Bifurcation", "analyze_bifurcation", "step_off", "fold_through",
            "BranchSwitch"]
@@ -447,26 +447,14 @@ def fold_through(net: Network, drive="d1", to=None, *, start=None, branch=None, 
     detail = (f"left the singular state ({bif.modes.self_stress} self-stress, "
               f"{bif.modes.conformational} first-order motions, {len(bif.branches)} branches) on "
               f"branch {cand.branch} in direction {'+' if cand.sign > 0 else '-'}")
-    events = [Event("bifurcation", 0, problem.start_drive, 0.0, detail)]
-    events += [replace(e, index=e.index + 1) for e in traj.events]
+    marks = [Mark(EventKind.BIFURCATION, 0, detail)]
+    marks += [Mark(e.kind, e.index + 1, e.detail) for e in traj.events]
     step = float(np.linalg.norm(traj.positions[0] - x0))
     arclength = np.concatenate([[0.0], step + traj.arclength])
     stats = {**traj.stats, "branch": cand.branch, "sign": int(cand.sign),
              "branches": [b.describe() for b in bif.branches], "step_off": step}
-    return Trajectory(
-        network=net,
-        positions=pos,
-        drive=problem.drive_of(pos),
-        arclength=arclength,
-        edge_error=np.atleast_1d(net.edge_error(pos)),
-        method=f"branch/{traj.method}",
-        status=traj.status,
-        message=f"{detail}; then {traj.message}",
-        drive_port=problem.drive,
-        target=problem.target,
-        events=tuple(events),
-        stats=stats,
-    )
+    return problem.trajectory(pos, f"branch/{traj.method}", traj.status,
+                              f"{detail}; then {traj.message}", marks, stats, arclength)
 
 
 class BranchSwitch(Method):
@@ -489,7 +477,7 @@ class BranchSwitch(Method):
     name = "branch"
     options = {"branch": None, "sign": None, "step_off": 1e-3, "then": "auto", "samples": 101}
 
-    def run(self) -> Trajectory:
+    def solve(self) -> Outcome:
         p = self.problem
         o = self.opts
         extra = {"samples": o["samples"]} if o["then"] in ("auto", "constructive") else {}
@@ -499,5 +487,6 @@ class BranchSwitch(Method):
         traj = fold_through(p.work, p.drive, p.target, start=p.start, branch=o["branch"],
                             sign=sign, step_off_size=o["step_off"], method=o["then"], **extra)
         method = traj.method if traj.method.startswith(self.name) else f"{self.name}/{traj.method}"
-        return replace(traj, network=p.network, method=method,
-                       edge_error=np.atleast_1d(p.network.edge_error(traj.positions)))
+        marks = tuple(Mark(e.kind, e.index, e.detail) for e in traj.events)
+        return Outcome(traj.positions, traj.status, traj.message, marks, traj.stats,
+                       traj.arclength, aligned=True, method=method)

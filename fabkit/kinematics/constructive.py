@@ -18,8 +18,8 @@ import numpy as np
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from ..numerics import FLAT_RTOL
-from .base import Method, align_to_gauge, event
-from .trajectory import Status
+from .base import Mark, Method, Outcome
+from .trajectory import EventKind, Status
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
 
@@ -422,7 +422,7 @@ class Constructive(Method):
     name = "constructive"
     options = {"samples": 101, "plan": None}
 
-    def run(self):
+    def solve(self) -> Outcome:
         p = self.problem
         samples = int(self.opts["samples"])
         if samples < 2:
@@ -433,7 +433,7 @@ class Constructive(Method):
         X, margin, worst = place(plan, values)
         valid = margin >= 0.0
         valid[0] = True  # the start exists by definition; round-off must not say otherwise
-        status, message, events = Status.FINISHED, self.finished_message(), []
+        status, message, marks = Status.FINISHED, self.finished_message(), []
         if not valid.all():
             k = int(np.argmin(valid))
             lo, hi = values[k - 1], values[k]
@@ -459,20 +459,17 @@ class Constructive(Method):
             X = np.concatenate([X[:k], Xe], axis=0)
             status = Status.TURNING_POINT
             message = f"stopped at a turning point of {p.drive_name} = {lo:.10g}: {detail}"
-            events.append(event("turning_point", len(X) - 1, lo, np.nan, detail))
-        X = align_to_gauge(X, p.start, p.gauge)
-        traj = p.trajectory(X, self.name, status, message, events,
-                            stats={"samples": int(X.shape[0]), "nodes_placed": int(plan.order.size)})
+            marks.append(Mark(EventKind.TURNING_POINT, len(X) - 1, detail))
+        stats = {"samples": int(X.shape[0]), "nodes_placed": int(plan.order.size)}
         # Over-constrained networks: edges not used by the construction must still hold.
-        bad = np.flatnonzero(traj.edge_error > 1e-9)
+        err = np.atleast_1d(p.network.edge_error(X))
+        bad = np.flatnonzero(err > 1e-9)
         if bad.size and bad[0] > 0:
             k = int(bad[0])
-            X = traj.positions[:k]
-            msg = (f"the construction breaks edges beyond {p.drive_name} = {traj.drive[k - 1]:.10g} "
-                   "(the network is over-constrained along this drive)")
-            traj = p.trajectory(X, self.name, Status.FAILED, msg, events, stats=traj.stats)
-        arclength_fix = [event(e.kind, min(e.index, traj.n_steps - 1), e.drive,
-                               traj.arclength[min(e.index, traj.n_steps - 1)], e.detail)
-                         for e in traj.events]
-        object.__setattr__(traj, "events", tuple(arclength_fix))
-        return traj
+            drive = p.drive_of(X[k - 1])
+            X = X[:k]
+            marks = [m for m in marks if m.index < k]
+            status = Status.FAILED
+            message = (f"the construction breaks edges beyond {p.drive_name} = {drive:.10g} "
+                       "(the network is over-constrained along this drive)")
+        return Outcome(X, status, message, tuple(marks), stats)

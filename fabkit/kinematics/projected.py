@@ -29,8 +29,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..errors import KinematicsError
-from .base import Method, event
-from .trajectory import Status
+from .base import Mark, Method, Outcome
+from .trajectory import EventKind, Status
 
 __all__ = ["Projected", "gauge_rows", "permutation_parity"]
 
@@ -371,7 +371,7 @@ class Projected(Method):
         return x if self.sys.rel_edge_residual(x) <= 100 * tol else None
 
     # -- main loop ------------------------------------------------------------------------------
-    def run(self):
+    def solve(self) -> Outcome:
         p = self.problem
         self.n_factor = 0
         self._setup()
@@ -416,7 +416,8 @@ class Projected(Method):
             stats["factorizations"] = self.n_factor
             stats.update(steps=len(positions) - 1)
             X = np.array(positions).reshape(len(positions), self.n, self.d)
-            return p.trajectory(X, self.name, status, message, events, stats, arclength)
+            return Outcome(X, status, message, tuple(events), stats, np.asarray(arclength),
+                           aligned=True)
 
         if first is None:
             return finish(Status.FAILED, self._singular_message("start"))
@@ -426,8 +427,7 @@ class Projected(Method):
             return finish(Status.FAILED, self._singular_message("start", sig))
         g_prev = float(self._drive_grad(x) @ t) * direction
         if abs(g_prev) < 1e-12:
-            events.append(event("turning_point", 0, self._drive(x), 0.0,
-                                "the drive is stationary at the start"))
+            events.append(Mark(EventKind.TURNING_POINT, 0, "the drive is stationary at the start"))
             return finish(Status.TURNING_POINT,
                           f"the start is a turning point of {p.drive_name}: it cannot move towards "
                           f"{target:.10g} to first order")
@@ -582,7 +582,7 @@ class Projected(Method):
         kind = "largest" if direction > 0 else "smallest"
         detail = (f"{p.drive_name} reaches its {kind} value {dval:.10g} on this branch; beyond it "
                   "the motion continues with the drive moving back")
-        events.append(event("turning_point", len(positions) - 1, dval, arclength[-1], detail))
+        events.append(Mark(EventKind.TURNING_POINT, len(positions) - 1, detail))
         return finish(Status.TURNING_POINT,
                       f"stopped at a turning point of {p.drive_name} = {dval:.10g} before the "
                       f"target {p.target:.10g}: {detail}")
@@ -624,7 +624,7 @@ class Projected(Method):
                   f"{extra}")
         if sig is not None:
             detail += f"; smallest singular value of the bordered matrix {sig:.1e}"
-        events.append(event("branch_point", len(positions) - 1, dval, arclength[-1], detail))
+        events.append(Mark(EventKind.BRANCH_POINT, len(positions) - 1, detail))
         return finish(Status.BRANCH_POINT,
                       f"stopped at a branch point at {p.drive_name} ≈ {dval:.10g} before the "
                       f"target {p.target:.10g}: {detail}")

@@ -16,8 +16,8 @@ import scipy.linalg
 
 from ..errors import KinematicsError
 from ..rigidity import rigid_body_basis, rigidity_matrix
-from .base import Method, align_to_gauge, event
-from .trajectory import Status
+from .base import Mark, Method, Outcome
+from .trajectory import EventKind, Status
 
 __all__ = ["RK4Nullspace", "conformational_velocity"]
 
@@ -64,7 +64,7 @@ class RK4Nullspace(Method):
     name = "rk4-nullspace"
     options = {"step": None, "max_steps": 100000}
 
-    def run(self):
+    def solve(self) -> Outcome:
         p = self.problem
         net = p.work
         n, d = p.start.shape
@@ -99,7 +99,7 @@ class RK4Nullspace(Method):
 
         x = p.start.ravel().copy()
         positions = [x.copy()]
-        events = []
+        marks = []
         try:
             v0, count = conformational_velocity(net, x)
             if v0 is None:
@@ -139,7 +139,7 @@ class RK4Nullspace(Method):
                 if g_new <= 0 < g_prev:
                     dval = drive(x_new)
                     detail = f"{p.drive_name} stops moving towards the target near {dval:.10g}"
-                    events.append(event("turning_point", len(positions), dval, math.nan, detail))
+                    marks.append(Mark(EventKind.TURNING_POINT, len(positions), detail))
                     positions.append(x_new)
                     status = Status.TURNING_POINT
                     message = f"stopped at a turning point of {p.drive_name} ≈ {dval:.10g}: {detail}"
@@ -151,10 +151,8 @@ class RK4Nullspace(Method):
             message = (f"the network has {stop.count} conformational motions at "
                        f"{p.drive_name} = {drive(x):.10g}; the null-space velocity is not unique")
         X = np.array(positions).reshape(len(positions), n, d)
-        X = align_to_gauge(X, p.start, p.gauge)
-        traj = p.trajectory(X, self.name, status, message, events,
-                            stats={"steps": len(positions) - 1, "evaluations": evals[0]})
-        return traj
+        return Outcome(X, status, message, tuple(marks),
+                       {"steps": len(positions) - 1, "evaluations": evals[0]})
 
 
 class _Stop(Exception):

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..network import Network
 
-__all__ = ["Status", "Event", "Trajectory"]
+__all__ = ["Status", "EventKind", "Event", "Trajectory"]
 
 
 class Status(str, Enum):
@@ -24,29 +24,48 @@ class Status(str, Enum):
         return self.value
 
 
+class EventKind(str, Enum):
+    """What a trace met on its way."""
+
+    TURNING_POINT = "turning_point"  #: the drive reaches an extremum (d(drive)/ds changes sign)
+    BRANCH_POINT = "branch_point"    #: the bordered Jacobian's determinant changes sign
+    BIFURCATION = "bifurcation"      #: the trace left a singular state on a chosen branch
+
+    def __str__(self) -> str:
+        return self.value
+
+
 @dataclass(frozen=True)
 class Event:
-    """Something a trace met on its way.
+    """Something a trace met on its way, at one of its configurations.
+
+    Made by :meth:`fabkit.kinematics.base.Problem.trajectory` from a method's :class:`Mark`, so
+    the drive value and arclength are always those of the configuration at ``index``.
 
     Attributes
     ----------
-    kind : str
-        ``"turning_point"``, ``"branch_point"``, ``"end_of_motion"``, ``"singular_start"``, ...
+    kind : EventKind
     index : int
-        Index of the configuration in the trajectory nearest to the event.
+        Index of the configuration in the trajectory at (or nearest to) the event.
     drive : float
-        Drive value at the event.
+        Drive value at that configuration.
     arclength : float
-        Arclength at the event.
+        Arclength at that configuration.
     detail : str
         A sentence that says what happened.
     """
 
-    kind: str
+    kind: EventKind
     index: int
     drive: float
     arclength: float
     detail: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "kind", EventKind(self.kind))  # unknown kinds raise ValueError
+        if not (np.isfinite(self.drive) and np.isfinite(self.arclength)):
+            raise ValueError(f"an event's drive and arclength must be finite, got {self.drive} "
+                             f"and {self.arclength}")
 
 
 @dataclass(frozen=True, eq=False)
