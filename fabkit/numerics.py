@@ -27,6 +27,8 @@ __all__ = [
     "EDGE_RTOL",
     "SLOPE_TOL",
     "START_RTOL",
+    "DOMAIN_RTOL",
+    "FIXED_POINT_RTOL",
     "RigidFit",
     "rigid_fit",
     "apply_fit",
@@ -64,6 +66,16 @@ SLOPE_TOL = 1e-6
 #: refuses a start that is visibly off its constraint set.
 START_RTOL = 1e-8
 
+
+#: A map argument this far (relative to the domain's size) outside a branch's domain still counts
+#: as inside and is clipped to it: branch ends come from root finding to round-off, and arithmetic
+#: on them (a chain's d_k) adds a few ulps that must not turn an end point into "no value".
+DOMAIN_RTOL = 1e-12
+
+#: A root of f(d) - d (or of f^m(d) - d) is a fixed point (cycle point) when the residual is at
+#: most this, relative to the domain's size: brentq lands within a few ulps, so genuine roots sit
+#: near 1e-15, while a near miss of a touching root (a local minimum of |f(d) - d|) stays far above.
+FIXED_POINT_RTOL = 1e-10
 
 # -- rigid best fit (Kabsch) -------------------------------------------------------------------
 

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from ..errors import DesignError
+from ..numerics import DOMAIN_RTOL, FIXED_POINT_RTOL
 from .results import Branch, Cycle, FixedPoint, LyapunovResult, classify_slope
 
 
@@ -75,7 +76,7 @@ class Map1D:
         """f (and f') with NaN outside the domain: for vectorised iteration."""
         d = np.asarray(d, dtype=np.float64)
         lo, hi = self.domain
-        slack = 1e-12 * max(abs(lo), abs(hi), 1.0)
+        slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)
         inside = (d >= lo - slack) & (d <= hi + slack)
         dc = np.clip(d, lo, hi)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -88,7 +89,7 @@ class Map1D:
     def _check(self, d):
         d = np.asarray(d, dtype=np.float64)
         lo, hi = self.domain
-        slack = 1e-12 * max(abs(lo), abs(hi), 1.0)
+        slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)
         outside = ~((d >= lo - slack) & (d <= hi + slack))
         if np.any(outside):
             bad = float(np.atleast_1d(d)[np.atleast_1d(outside)][0])
@@ -218,7 +219,7 @@ class Map1D:
 
         r = minimize_scalar(lambda x: abs(float(self._values(x)[0]) - x), bounds=(a, b),
                             method="bounded", options={"xatol": 1e-14})
-        return float(r.x) if r.fun < 1e-10 else None
+        return float(r.x) if r.fun < FIXED_POINT_RTOL else None
 
     def _fixed(self, x):
         f, df = self._values(x, derivative=True)
@@ -230,7 +231,7 @@ class Map1D:
 
     def _dedupe_fixed(self, roots, scale):
         """Keep true roots (residual <= 1e-10), one per cluster (the best resolved)."""
-        cands = [p for p in (self._fixed(x) for x in sorted(roots)) if p.residual <= 1e-10 * scale]
+        cands = [p for p in (self._fixed(x) for x in sorted(roots)) if p.residual <= FIXED_POINT_RTOL * scale]
         out: list[FixedPoint] = []
         for p in cands:
             if out and abs(p.value - out[-1].value) <= 1e-7 * scale:
@@ -344,7 +345,7 @@ class Map1D:
             When every orbit leaves the domain (no configuration: the chain cannot be built).
         """
         lo, hi = self.domain
-        slack = 1e-12 * max(abs(lo), abs(hi), 1.0)
+        slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)
         x = self.iterate(np.linspace(lo, hi, int(samples)), settle)
         tail = x[-min(100, settle):]
         tail = tail[:, np.all(np.isfinite(tail), axis=0)]
