@@ -10,6 +10,7 @@ self-stress. Generalised Maxwell counting: ``M = dN - E + S``.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import threadpoolctl
 
+from .errors import ResourceError
 from .network import Network
 
 __all__ = [
@@ -29,6 +31,8 @@ __all__ = [
     "self_stresses",
     "DENSE_LIMIT",
     "AMBIGUOUS_GAP",
+    "available_memory",
+    "require_dense_memory",
 ]
 
 #: Networks with at most this many coordinates are analysed with a dense SVD; larger ones with a
@@ -44,6 +48,53 @@ MAX_BLOCK = 64
 #: A rank decision whose gap (smallest singular value kept / largest dropped) is below this is
 #: reported as ambiguous.
 AMBIGUOUS_GAP = 1e3
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (``MemAvailable`` on Linux), or None when
+    the system does not say."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def require_dense_memory(n_rows: int, n_cols: int, *, vectors: bool = False,
+                         what: str = "a dense SVD") -> int:
+    """Raise :class:`~fabkit.errors.ResourceError`, before anything is allocated, when a dense
+    SVD of an ``n_rows × n_cols`` matrix cannot fit in the available memory.
+
+    The estimate counts the dense copy, LAPACK's copy and workspace, and with ``vectors`` the
+    full square factors ``U`` (rows²) and ``Vᵀ`` (cols²), in float64.
+
+    Returns
+    -------
+    int
+        The estimated number of bytes.
+
+    Examples
+    --------
+    >>> require_dense_memory(10, 12) < 10_000
+    True
+    """
+    m, n = int(n_rows), int(n_cols)
+    need = 8 * (2 * m * n + 4 * min(m, n) ** 2 + 8 * max(m, n))
+    if vectors:
+        need += 8 * (m * m + n * n)
+    have = available_memory()
+    if have is not None and need > have:
+        raise ResourceError(
+            f"{what} of the {m} × {n} rigidity matrix needs about {need / 1e9:.1f} GB of memory; "
+            f"{have / 1e9:.1f} GB are available (use the sparse path, or a smaller network)"
+        )
+    return need
 
 
 def _positions(net_or_positions, positions=None) -> tuple[np.ndarray, np.ndarray]:
@@ -197,6 +248,7 @@ class ModeCount:
 
 
 def _singular_values_dense(r: sp.csr_matrix) -> np.ndarray:
+    require_dense_memory(*r.shape)
     dense = r.toarray()
     return scipy.linalg.svdvals(dense) if dense.size else np.zeros(0)
 
@@ -394,7 +446,8 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     return n - modes, gap, smallest, ""
 
 
-def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> ModeCount:
+def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
+                method: str = "auto") -> ModeCount:
     """Count zero modes, rigid motions, conformational motions and states of self-stress.
 
     Parameters
@@ -404,10 +457,19 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
         Configuration to analyse; the reference configuration by default.
     rtol : float
         Relative threshold of the rank decision.
+    method : {"auto", "dense", "sparse"}
+        ``"auto"``: dense SVD up to ``DENSE_LIMIT`` coordinates, the sparse path beyond.
 
     Returns
     -------
     ModeCount
+
+    Raises
+    ------
+    ValueError
+        Unknown ``method``.
+    ResourceError
+        The dense SVD would need more memory than is available (raised before allocating).
 
     Notes
     -----
@@ -474,8 +536,11 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
     n, d = x.shape
     r = rigidity_matrix(net, x, normalized=True)
-    note, method = "", "dense"
-    if d * n <= DENSE_LIMIT:
+    if method not in ("auto", "dense", "sparse"):
+        raise ValueError(f"unknown method {method!r}; valid: auto, dense, sparse")
+    note = ""
+    if method == "dense" or method == "auto" and d * n <= DENSE_LIMIT:
+        method = "dense"
         rank, gap, smallest, note = _rank_dense(r, rtol)
     else:
         method = "sparse"
@@ -521,8 +586,9 @@ def zero_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> np.n
     numpy.ndarray, shape (d·N, m)
     """
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
-    r = rigidity_matrix(net, x, normalized=True).toarray()
-    _, s, vt = np.linalg.svd(r, full_matrices=True)
+    r = rigidity_matrix(net, x, normalized=True)
+    require_dense_memory(*r.shape, vectors=True)
+    _, s, vt = np.linalg.svd(r.toarray(), full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     null = vt[rank:].T
@@ -541,8 +607,9 @@ def self_stresses(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> n
         Column k gives edge tensions (per unit length) in equilibrium with no external load.
     """
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
-    r = rigidity_matrix(net, x, normalized=True).toarray()
-    u, s, _ = np.linalg.svd(r, full_matrices=True)
+    r = rigidity_matrix(net, x, normalized=True)
+    require_dense_memory(*r.shape, vectors=True)
+    u, s, _ = np.linalg.svd(r.toarray(), full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     return u[:, rank:]
