@@ -27,6 +27,9 @@ import math
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg.lapack import dgbtrf as _gbtrf
+from scipy.linalg.lapack import dgbtrs as _gbtrs
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
 from .base import Method, event
@@ -72,6 +75,58 @@ def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
     return np.array(cols, dtype=np.int64)
 
 
+#: Largest ``kl + ku`` for which the banded LAPACK factorisation is used (else SuperLU).
+BAND_LIMIT = 64
+
+
+class _BandLU:
+    """LU with partial pivoting (LAPACK ``gbtrf``) of ``A[rowperm][:, colperm]``, a permutation
+    of A into a band of ``kl`` sub- and ``ku`` superdiagonals.
+
+    Chains, strips and anything of bounded width are banded once their nodes are ordered along
+    the structure (reverse Cuthill-McKee); the band factorisation then costs O(N·kl·(kl+ku)) with
+    a small constant, several times cheaper than a general sparse LU of the same matrix.
+    Interface of SuperLU's factor object as used here: ``solve(b, trans)``, ``det_sign()``.
+    """
+
+    def __init__(self, lub, piv, kl, ku, rowperm, colperm, perm_sign):
+        self.lub, self.piv, self.kl, self.ku = lub, piv, kl, ku
+        self.rowperm, self.colperm, self.perm_sign = rowperm, colperm, perm_sign
+
+    def solve(self, b, trans="N"):
+        b = np.asarray(b, dtype=np.float64)
+        if trans == "N":  # A x = b  ⇔  A' x[colperm] = b[rowperm]
+            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.rowperm], self.piv)
+            out = np.empty_like(y)
+            out[self.colperm] = y
+        else:  # Aᵀ x = b  ⇔  A'ᵀ x[rowperm] = b[colperm]
+            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.colperm], self.piv, trans=1)
+            out = np.empty_like(y)
+            out[self.rowperm] = y
+        return out
+
+    def det_sign(self) -> int:
+        diag = self.lub[self.kl + self.ku]
+        swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size)))
+        s = int(np.prod(np.sign(diag)))
+        return s * self.perm_sign * (-1 if swaps % 2 else 1)
+
+
+class _SuperLU:
+    """SuperLU's factor object with the same interface as :class:`_BandLU`."""
+
+    def __init__(self, lu):
+        self.lu = lu
+
+    def solve(self, b, trans="N"):
+        return self.lu.solve(np.asarray(b, dtype=np.float64), trans=trans)
+
+    def det_sign(self) -> int:
+        diag = self.lu.U.diagonal()
+        s = int(np.prod(np.sign(diag)))
+        return s * permutation_parity(self.lu.perm_r) * permutation_parity(self.lu.perm_c)
+
+
 class _System:
     """The square sparse system A = [R; gauge rows; last row] and its factorisation."""
 
@@ -90,6 +145,23 @@ class _System:
             [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
         ).ravel()
         self._grow = np.arange(e, e + gcols.size)
+        # Band structure, fixed for the whole trace except the last row: coordinates ordered by
+        # node along the structure (reverse Cuthill-McKee), rows by the mean position of their
+        # entries; the last row is inserted where its own entries lie.
+        m = self.n_rows
+        graph = sp.coo_matrix((np.ones(e), (self.edges[:, 0], self.edges[:, 1])), shape=(n, n))
+        order = reverse_cuthill_mckee((graph + graph.T).tocsr(), symmetric_mode=True)
+        self._colperm = (d * order[:, None] + np.arange(d)).ravel()
+        self._colpos = np.empty(m, dtype=np.int64)
+        self._colpos[self._colperm] = np.arange(m)
+        fixed_rows = np.concatenate([self._rows, self._grow])
+        fixed_cpos = self._colpos[np.concatenate([self._cols, gcols])]
+        key = (np.bincount(fixed_rows, weights=fixed_cpos, minlength=m - 1)
+               / np.maximum(np.bincount(fixed_rows, minlength=m - 1), 1))
+        self._base_order = np.argsort(key, kind="stable")
+        self._base_keys = key[self._base_order]
+        self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
+        self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
 
     def residual(self, xf: np.ndarray) -> np.ndarray:
         """Edge and gauge residuals (without the last row), shape (n_rows - 1,)."""
@@ -118,19 +190,42 @@ class _System:
         m = self.n_rows
         return sp.csc_matrix((data, (rows, cols)), shape=(m, m))
 
-    @staticmethod
-    def factor(a: sp.csc_matrix):
-        """LU factors, or None when SuperLU finds the matrix exactly singular."""
+    def factorize(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray):
+        """LU factors of A(x) with the given last row (banded LAPACK where the band is narrow,
+        else SuperLU), or None when the matrix is exactly singular."""
+        x = xf.reshape(self.n, self.d)
+        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        vals = np.concatenate([np.concatenate([diff, -diff], axis=1).ravel(),
+                               np.ones(self.gcols.size), last_vals])
+        m = self.n_rows
+        last_cpos = self._colpos[last_cols]
+        ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
+        rowperm = np.insert(self._base_order, ins, m - 1)
+        rpos = np.empty(m, dtype=np.int64)
+        rpos[rowperm] = np.arange(m)
+        ri = rpos[np.concatenate([self._fixed_rows, np.full(last_cols.size, m - 1)])]
+        ci = np.concatenate([self._fixed_cpos, last_cpos])
+        kl, ku = int(max(0, (ri - ci).max())), int(max(0, (ci - ri).max()))
+        if kl + ku <= BAND_LIMIT:
+            ab = np.zeros((2 * kl + ku + 1, m), order="F")
+            ab[kl + ku + ri - ci, ci] = vals
+            lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
+            if info != 0:
+                return None
+            # moving the last row from the end to position ins is a cycle of m - ins entries
+            sign = self._perm_sign * (-1 if (m - 1 - ins) % 2 else 1)
+            return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, sign)
+        rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
+        cols = np.concatenate([self._cols, self.gcols, last_cols])
+        a = sp.csc_matrix((vals, (rows, cols)), shape=(m, m))
         try:
-            return spla.splu(a, permc_spec="COLAMD")
+            return _SuperLU(spla.splu(a, permc_spec="COLAMD"))
         except RuntimeError:
             return None
 
     @staticmethod
     def det_sign(lu) -> int:
-        diag = lu.U.diagonal()
-        s = int(np.prod(np.sign(diag)))
-        return s * permutation_parity(lu.perm_r) * permutation_parity(lu.perm_c)
+        return lu.det_sign()
 
     @staticmethod
     def sigma_min(lu, n: int, iterations: int = 4, seed: int = 0) -> float:
@@ -231,8 +326,7 @@ class Projected(Method):
 
     def _tangent(self, xf, j, orient_like=None, direction_grad=None):
         """Factor A(x, e_j) and solve for the unit tangent; returns (t, lu, tau) or None."""
-        a = self.sys.matrix(xf, np.array([j]), np.array([1.0]))
-        lu = self.sys.factor(a)
+        lu = self.sys.factorize(xf, np.array([j]), np.array([1.0]))
         self.n_factor += 1
         if lu is None:
             return None
@@ -355,8 +449,7 @@ class Projected(Method):
         for _ in range(iterations):
             g = row_grad_fn(x)
             nz = np.flatnonzero(g)
-            a = self.sys.matrix(x, nz, g[nz])
-            lu = self.sys.factor(a)
+            lu = self.sys.factorize(x, nz, g[nz])
             self.n_factor += 1
             if lu is None:
                 return None
@@ -391,7 +484,7 @@ class Projected(Method):
         # to the local parametrisation by the tangent's largest component.
         first = None
         nz = np.flatnonzero(grad)
-        lu0 = self.sys.factor(self.sys.matrix(x, nz, grad[nz]))
+        lu0 = self.sys.factorize(x, nz, grad[nz])
         self.n_factor += 1
         if lu0 is not None:
             rhs = np.zeros(self.sys.n_rows)
@@ -448,7 +541,7 @@ class Projected(Method):
                 xp += (0.5 * h * h) * curvature  # second-order predictor: smaller first residual
             # Newton on the Jacobian at the predicted point: contracts far better than reusing the
             # previous point's LU, and the same factors then give the new tangent and det sign.
-            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
             corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
             if corr is None:
@@ -536,7 +629,7 @@ class Projected(Method):
         xp = x + hh * t
         corr = self._correct(xp, lu, j, xp[j])
         if corr is None:
-            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
             corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
         if corr is None:
