@@ -145,6 +145,8 @@ class _System:
             [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
         ).ravel()
         self._grow = np.arange(e, e + gcols.size)
+        self._e0 = np.ascontiguousarray(self.edges[:, 0])
+        self._e1 = np.ascontiguousarray(self.edges[:, 1])
         # Band structure, fixed for the whole trace except the last row: coordinates ordered by
         # node along the structure (reverse Cuthill-McKee), rows by the mean position of their
         # entries; the last row is inserted where its own entries lie.
@@ -163,10 +165,17 @@ class _System:
         self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
         self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
 
+    def diff(self, x: np.ndarray) -> np.ndarray:
+        """Edge vectors ``x_i - x_j`` (``take`` on contiguous index arrays: several times faster
+        than fancy indexing with a column of the edge array)."""
+        out = x.take(self._e0, axis=0)
+        out -= x.take(self._e1, axis=0)
+        return out
+
     def residual(self, xf: np.ndarray) -> np.ndarray:
         """Edge and gauge residuals (without the last row), shape (n_rows - 1,)."""
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        diff = self.diff(x)
         fe = 0.5 * (np.einsum("ij,ij->i", diff, diff) - self.rest2)
         return np.concatenate([fe, xf[self.gcols] - self.gvals])
 
@@ -177,24 +186,14 @@ class _System:
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        diff = self.diff(x)
         return float(np.max(np.abs(np.einsum("ij,ij->i", diff, diff) / self.rest2 - 1.0)) / 2.0)
-
-    def matrix(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray) -> sp.csc_matrix:
-        x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
-        vals = np.concatenate([diff, -diff], axis=1).ravel()
-        rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, self.n_rows - 1)])
-        cols = np.concatenate([self._cols, self.gcols, last_cols])
-        data = np.concatenate([vals, np.ones(self.gcols.size), last_vals])
-        m = self.n_rows
-        return sp.csc_matrix((data, (rows, cols)), shape=(m, m))
 
     def factorize(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray):
         """LU factors of A(x) with the given last row (banded LAPACK where the band is narrow,
         else SuperLU), or None when the matrix is exactly singular."""
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        diff = self.diff(x)
         vals = np.concatenate([np.concatenate([diff, -diff], axis=1).ravel(),
                                np.ones(self.gcols.size), last_vals])
         m = self.n_rows
