@@ -285,6 +285,15 @@ def _orthonormal(a: np.ndarray) -> np.ndarray:
     return np.linalg.qr(a)[0] if a.shape[1] else a
 
 
+def _best_conditioned(q: np.ndarray) -> np.ndarray:
+    """Rows of an orthonormal basis q (k columns) on which it is best conditioned: the first k
+    pivots of a column-pivoted QR of qᵀ."""
+    k = q.shape[1]
+    if k == 0:
+        return np.zeros(0, dtype=np.int64)
+    return scipy.linalg.qr(q.T, pivoting=True, mode="r")[1][:k]
+
+
 def _sigma_max(r: sp.csr_matrix, iterations: int = 40, seed: int = 0) -> float:
     """Largest singular value of R by power iteration on RᵀR (a few per cent is plenty: it only
     scales the threshold)."""
@@ -370,8 +379,7 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
     #    coordinates and U releasing the edges where the null vectors are best conditioned
     #    (column-pivoted QR). Every matrix within σ_min(A) of R keeps rank ≥ dN - M, so
     #    σ_{dN-M}(R) ≥ σ_min(A); and ‖R Q_v‖ ≤ ρ bounds σ_{dN-M+1}(R) ≤ ρ.
-    pins = scipy.linalg.qr(qv.T, pivoting=True, mode="r")[1][:modes] if modes else np.zeros(0, int)
-    rel = scipy.linalg.qr(qu.T, pivoting=True, mode="r")[1][:stresses] if stresses else np.zeros(0, int)
+    pins, rel = _best_conditioned(qv), _best_conditioned(qu)
     a = sp.bmat([
         [r, sp.csr_matrix((np.ones(stresses), (rel, np.arange(stresses))), shape=(e, stresses))],
         [sp.csr_matrix((np.ones(modes), (np.arange(modes), pins)), shape=(modes, n)), None],
@@ -427,7 +435,7 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
         raise _Undecided(f"{modes} zero modes found, fewer than dN - E = {n - e}", n - modes)
     qv = x @ w[:, :modes]
     rho = float(s[modes - 1]) if modes else 0.0
-    pins = scipy.linalg.qr(qv.T, pivoting=True, mode="r")[1][:modes] if modes else np.zeros(0, int)
+    pins = _best_conditioned(qv)
     kc = (k + sp.csc_matrix((np.ones(modes), (pins, pins)), shape=(n, n))).tocsc()
     try:
         lu_c = spla.splu(kc, permc_spec="MMD_AT_PLUS_A")

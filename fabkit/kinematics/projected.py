@@ -5,12 +5,19 @@ The configuration x (d·N coordinates) satisfies ``F(x) = 0``: one equation
 triangle, is held still). With one conformational motion the Jacobian ``J = [R; G]`` has a
 one-dimensional null space, the tangent t. It is found from the square sparse system
 ``A = [J; e_j]`` with ``A t = e_last``, where j is the largest component of the previous tangent
-(a local parametrisation, as in PITCON), factorised with SuperLU: a chain costs O(N) per step.
+(a local parametrisation, as in PITCON). The factorisation is banded LAPACK (``gbtrf``) when
+the network, its coordinates ordered node by node along a reverse Cuthill-McKee ordering and its
+rows by where their entries lie, fits a band of at most ``BAND_LIMIT`` diagonals (chains, strips:
+O(N) with a small constant, several times cheaper than a general sparse LU), and SuperLU
+otherwise (2D lattices: about O(N^1.5)). The orderings are computed once per trace; only the last
+row moves. No Python-level loop runs over nodes or edges.
 
-Each step: Euler predictor ``x + h t``; chord-Newton corrector reusing the LU of A (the row e_j
-keeps x_j at its predicted value); the step is rejected and halved when the corrector contracts
-worse than a ratio of 0.4, fails to converge, or the tangent turns by more than 30°; after easy
-steps h grows. Along the way:
+Each step: Euler predictor ``x + h t`` (plus a curvature term from the last two tangents);
+one factorisation of A at the predicted point, reused by every chord-Newton iteration of the
+corrector (the row e_j keeps x_j at its predicted value), by the new tangent and by the branch
+test, so a step costs one factorisation and a few solves. The step is rejected and halved when
+the corrector contracts worse than a ratio of 0.4, fails to converge, or the tangent turns by
+more than 30°; after easy steps h grows. Along the way:
 
 - target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
   equation, so the trace ends exactly on the target value;
