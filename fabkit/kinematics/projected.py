@@ -447,8 +447,11 @@ class Projected(Method):
             prev = nrm
         return None
 
-    def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=12):
-        """Full Newton with the last row replaced by a scalar equation (value, gradient)."""
+    def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=20):
+        """Full Newton with the last row replaced by a scalar equation (value, gradient).
+
+        Landings next to a collapsed (nearly flat) state converge slowly: 20 iterations let
+        them reach the round-off floor instead of stopping at 100 × the tolerance."""
         x = xg.copy()
         dx_floor, res_floor = self._noise(xg)
         tol = max(self.opts["tol"], res_floor)
