@@ -30,14 +30,19 @@ __all__ = [
     "zero_modes",
     "self_stresses",
     "DENSE_LIMIT",
+    "SPARSE_FROM",
     "AMBIGUOUS_GAP",
     "available_memory",
     "require_dense_memory",
 ]
 
-#: Networks with at most this many coordinates are analysed with a dense SVD; larger ones with a
-#: sparse shift-invert eigensolver on RᵀR.
+#: Largest network (in coordinates) whose modes are counted by a dense SVD: always up to
+#: ``SPARSE_FROM`` coordinates, and as the fallback when the sparse path cannot certify a count.
 DENSE_LIMIT = 4000
+
+#: Networks with more coordinates than this try the certified sparse path first (the dense SVD
+#: costs O(N³): seconds at 2000 coordinates, where the sparse path takes milliseconds).
+SPARSE_FROM = 1000
 
 #: Default relative threshold of the rank decision (see :func:`count_modes`).
 RANK_RTOL = 1e-9
@@ -466,7 +471,8 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     rtol : float
         Relative threshold of the rank decision.
     method : {"auto", "dense", "sparse"}
-        ``"auto"``: dense SVD up to ``DENSE_LIMIT`` coordinates, the sparse path beyond.
+        ``"auto"``: dense SVD up to ``SPARSE_FROM`` coordinates; beyond, the sparse path, with
+        the dense SVD as fallback up to ``DENSE_LIMIT`` coordinates when it is ambiguous.
 
     Returns
     -------
@@ -493,8 +499,8 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     the count to mean much and the result says so (``ambiguous``, with a ``note``) instead of
     guessing silently.
 
-    Up to ``DENSE_LIMIT`` coordinates R̂ is decomposed by a dense SVD (O(N³)). Larger networks
-    take a sparse path whose cost is a few sparse LU factorisations and solves (near-linear for
+    Up to ``SPARSE_FROM`` (1000) coordinates R̂ is decomposed by a dense SVD (O(N³)). Larger
+    networks take a sparse path whose cost is a few sparse LU factorisations and solves (near-linear for
     chains and lattices, whose factors stay sparse), and which brackets the threshold from both
     sides instead of trusting an iterative eigensolver:
 
@@ -523,7 +529,9 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     singular); a poor choice of pins (σ_min(A) far below σ_{dN-M}(R̂), so the certificate fails
     although the rank is clear). The estimate of σ_min(A) approaches it from above; with a
     separated smallest singular value it converges in a few steps, with a cluster it may
-    overestimate by the spread of the cluster. Networks whose Maxwell count implies more than
+    overestimate by the spread of the cluster. With ``method="auto"`` a network of at most
+    ``DENSE_LIMIT`` coordinates whose sparse count is ambiguous is counted again by the dense
+    SVD. Networks whose Maxwell count implies more than
     ``MAX_BLOCK // 2`` self-stresses (over-braced lattices) find only their zero modes, through
     ``R̂ᵀR̂ + μI``, with S from ``M - S = dN - E`` and the certificate from
     ``λ_min(R̂ᵀR̂ + VVᵀ) = σ_min([R̂; Vᵀ])²``; squaring limits that path to smallest non-zero
@@ -546,8 +554,8 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     r = rigidity_matrix(net, x, normalized=True)
     if method not in ("auto", "dense", "sparse"):
         raise ValueError(f"unknown method {method!r}; valid: auto, dense, sparse")
-    note = ""
-    if method == "dense" or method == "auto" and d * n <= DENSE_LIMIT:
+    note, requested = "", method
+    if method == "dense" or method == "auto" and d * n <= min(SPARSE_FROM, DENSE_LIMIT):
         method = "dense"
         rank, gap, smallest, note = _rank_dense(r, rtol)
     else:
@@ -562,7 +570,11 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
                 else:
                     rank, gap, smallest, note = _rank_sparse(r, rtol)
         except _Undecided as exc:
-            rank, gap, smallest, note = exc.rank, exc.gap, exc.smallest, exc.reason
+            if requested == "auto" and d * n <= DENSE_LIMIT:  # small enough for the SVD
+                method = "dense"
+                rank, gap, smallest, note = _rank_dense(r, rtol)
+            else:
+                rank, gap, smallest, note = exc.rank, exc.gap, exc.smallest, exc.reason
     if not note and gap < AMBIGUOUS_GAP:
         note = f"rank gap {gap:.1e} below {AMBIGUOUS_GAP:.0e}"
     total = d * n - rank

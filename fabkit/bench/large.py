@@ -2,7 +2,7 @@
 
 - :func:`count_modes_scaling`: :func:`fabkit.count_modes` on chains of k super-stable modules
   (the geometry of ``templates/super_stable.toml``), as a user calls it (dense SVD up to
-  ``DENSE_LIMIT`` coordinates, the certified sparse path beyond) and with the dense SVD forced,
+  ``SPARSE_FROM`` coordinates, the certified sparse path beyond) and with the dense SVD forced,
   where it fits the budget;
 - :func:`fourbar_chain_points`: ``projected`` against ``constructive`` on chains of k 4-bars
   driven from d1 = 2 to 2.6, with the float64 floor of the edge error of each chain;
@@ -231,7 +231,7 @@ def large_figure(modes, chains, lattice_pts):
         ax.loglog(n, t, style, color=color, label=label)
 
     draw(ax1, [p for p in modes if p["path"] == "auto"], "time_s", "o-", "C2",
-         "count_modes (dense up to 4000 coordinates, sparse beyond)")
+         "count_modes (dense up to 1000 coordinates, sparse beyond)")
     draw(ax1, [p for p in modes if p["path"] == "dense"], "time_s", "s--", "C3",
          "dense SVD forced")
     for p in modes:

@@ -9,7 +9,7 @@ HELP = "describe a template: sizes, mode count, self-stress, applicable methods"
 def add_arguments(p):
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
     p.add_argument("--rank-method", choices=("auto", "dense", "sparse"), default="auto",
-                   help="how the modes are counted: dense SVD up to 4000 coordinates and the "
+                   help="how the modes are counted: dense SVD up to 1000 coordinates and the "
                         "certified sparse path beyond (auto), or either one; a dense SVD that "
                         "cannot fit in memory is refused before it starts")
 
