@@ -216,8 +216,9 @@ class ModeCount:
     smallest_nonzero : float
         The smallest singular value counted as non-zero (of the row-normalised R).
     ambiguous : bool
-        The rank is numerically ambiguous: the gap is below :data:`AMBIGUOUS_GAP`, or the sparse
-        path could not certify its count. The counts are then not to be trusted (on the sparse
+        The rank is numerically ambiguous: a singular value lies within a factor
+        ``√AMBIGUOUS_GAP`` of the threshold (so the gap is below :data:`AMBIGUOUS_GAP`), or the
+        sparse path could not certify its count. The counts are then not to be trusted (on the sparse
         path ``total`` is a lower bound: the zero modes found are there).
     method : str
         ``"dense"`` (SVD) or ``"sparse"`` (certified shift-invert, see :func:`count_modes`).
