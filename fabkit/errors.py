@@ -15,6 +15,7 @@ __all__ = [
     "ConstructionError",
     "DesignError",
     "FabricationError",
+    "ResourceError",
 ]
 
 
@@ -61,3 +62,7 @@ class DesignError(FabkitError):
 
 class FabricationError(FabkitError):
     """Fabrication settings or geometry that cannot be made; the message suggests a fix."""
+
+
+class ResourceError(FabkitError):
+    """A computation would need more memory than the machine has (raised before allocating)."""

@@ -9,13 +9,17 @@ self-stress. Generalised Maxwell counting: ``M = dN - E + S``.
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+import threadpoolctl
 
+from .errors import ResourceError
 from .network import Network
 
 __all__ = [
@@ -26,14 +30,76 @@ __all__ = [
     "zero_modes",
     "self_stresses",
     "DENSE_LIMIT",
+    "SPARSE_FROM",
+    "AMBIGUOUS_GAP",
+    "available_memory",
+    "require_dense_memory",
 ]
 
-#: Networks with at most this many coordinates are analysed with a dense SVD; larger ones with a
-#: sparse shift-invert eigensolver on RᵀR.
+#: Largest network (in coordinates) whose modes are counted by a dense SVD: always up to
+#: ``SPARSE_FROM`` coordinates, and as the fallback when the sparse path cannot certify a count.
 DENSE_LIMIT = 4000
+
+#: Networks with more coordinates than this try the certified sparse path first (the dense SVD
+#: costs O(N³): seconds at 2000 coordinates, where the sparse path takes milliseconds).
+SPARSE_FROM = 1000
 
 #: Default relative threshold of the rank decision (see :func:`count_modes`).
 RANK_RTOL = 1e-9
+
+#: Largest number of zeros the sparse path looks for (block size of its subspace iteration).
+MAX_BLOCK = 64
+
+#: A rank decision whose gap (smallest singular value kept / largest dropped) is below this is
+#: reported as ambiguous.
+AMBIGUOUS_GAP = 1e3
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (``MemAvailable`` on Linux), or None when
+    the system does not say."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def require_dense_memory(n_rows: int, n_cols: int, *, vectors: bool = False,
+                         what: str = "a dense SVD") -> int:
+    """Raise :class:`~fabkit.errors.ResourceError`, before anything is allocated, when a dense
+    SVD of an ``n_rows × n_cols`` matrix cannot fit in the available memory.
+
+    The estimate counts the dense copy, LAPACK's copy and workspace, and with ``vectors`` the
+    full square factors ``U`` (rows²) and ``Vᵀ`` (cols²), in float64.
+
+    Returns
+    -------
+    int
+        The estimated number of bytes.
+
+    Examples
+    --------
+    >>> require_dense_memory(10, 12) < 10_000
+    True
+    """
+    m, n = int(n_rows), int(n_cols)
+    need = 8 * (2 * m * n + 4 * min(m, n) ** 2 + 8 * max(m, n))
+    if vectors:
+        need += 8 * (m * m + n * n)
+    have = available_memory()
+    if have is not None and need > have:
+        raise ResourceError(
+            f"{what} of the {m} × {n} rigidity matrix needs about {need / 1e9:.1f} GB of memory; "
+            f"{have / 1e9:.1f} GB are available (use the sparse path, or a smaller network)"
+        )
+    return need
 
 
 def _positions(net_or_positions, positions=None) -> tuple[np.ndarray, np.ndarray]:
@@ -145,9 +211,19 @@ class ModeCount:
         d, N and E.
     gap : float
         Ratio between the smallest singular value counted as non-zero and the largest counted as
-        zero (``inf`` when none is zero); a large gap means a clear rank decision.
+        zero (``inf`` when none is zero); a large gap means a clear rank decision. On the sparse
+        path a lower bound of that ratio (see :func:`count_modes`).
     smallest_nonzero : float
         The smallest singular value counted as non-zero (of the row-normalised R).
+    ambiguous : bool
+        The rank is numerically ambiguous: a singular value lies within a factor
+        ``√AMBIGUOUS_GAP`` of the threshold (so the gap is below :data:`AMBIGUOUS_GAP`), or the
+        sparse path could not certify its count. The counts are then not to be trusted (on the sparse
+        path ``total`` is a lower bound: the zero modes found are there).
+    method : str
+        ``"dense"`` (SVD) or ``"sparse"`` (certified shift-invert, see :func:`count_modes`).
+    note : str
+        Why the count is ambiguous (empty otherwise).
     """
 
     total: int
@@ -159,6 +235,9 @@ class ModeCount:
     n_edges: int
     gap: float
     smallest_nonzero: float
+    ambiguous: bool = False
+    method: str = "dense"
+    note: str = ""
 
     @property
     def maxwell(self) -> int:
@@ -166,7 +245,8 @@ class ModeCount:
         return self.dim * self.n_nodes - self.n_edges
 
     def __str__(self) -> str:
-        return (
+        head = f"ambiguous rank ({self.note}); at face value: " if self.ambiguous else ""
+        return head + (
             f"{self.total} zero modes = {self.rigid} rigid + {self.conformational} conformational; "
             f"{self.self_stress} state(s) of self-stress (dN - E + S = "
             f"{self.dim}*{self.n_nodes} - {self.n_edges} + {self.self_stress})"
@@ -174,47 +254,214 @@ class ModeCount:
 
 
 def _singular_values_dense(r: sp.csr_matrix) -> np.ndarray:
+    require_dense_memory(*r.shape)
     dense = r.toarray()
     return scipy.linalg.svdvals(dense) if dense.size else np.zeros(0)
 
 
-def _rank_dense(r: sp.csr_matrix, rtol: float) -> tuple[int, float, float]:
+def _rank_dense(r: sp.csr_matrix, rtol: float) -> tuple[int, float, float, str]:
     s = _singular_values_dense(r)
     if s.size == 0:
-        return 0, np.inf, np.inf
+        return 0, np.inf, np.inf, ""
     tol = rtol * max(s[0], 1.0)
     rank = int((s > tol).sum())
     smallest = float(s[rank - 1]) if rank else 0.0
     largest_zero = float(s[rank]) if rank < s.size else 0.0
     gap = np.inf if largest_zero == 0.0 else smallest / largest_zero
-    return rank, gap, smallest
+    margin = math.sqrt(AMBIGUOUS_GAP)
+    if rank and smallest < margin * tol:
+        return rank, gap, smallest, (f"smallest kept singular value {smallest:.1e} within a "
+                                     f"factor {margin:.0f} of the threshold {tol:.1e}")
+    if largest_zero > tol / margin:
+        return rank, gap, smallest, (f"largest dropped singular value {largest_zero:.1e} within "
+                                     f"a factor {margin:.0f} of the threshold {tol:.1e}")
+    return rank, gap, smallest, ""
 
 
-def _rank_sparse(r: sp.csr_matrix, rtol: float, expected_zero: int) -> tuple[int, float, float]:
-    """Rank from the eigenvalues of B = [[0, R], [Rᵀ, 0]] nearest zero (shift-invert Lanczos).
+class _Undecided(Exception):
+    """The sparse rank decision could not be certified (see :func:`_rank_sparse`); carries the
+    counts found so far: ``rank`` is an upper bound (zero modes found are certainly there)."""
 
-    B's eigenvalues are ±σ_i and, for each state of self-stress and each zero mode, a zero, so
-    ``zeros = S + M`` while ``M - S = dN - E``. Working on B rather than RᵀR keeps singular values
-    resolved to round-off (RᵀR would square them and blur everything below ~1e-8).
+    def __init__(self, reason: str, rank: int, gap: float = 0.0, smallest: float = 0.0):
+        super().__init__(reason)
+        self.reason, self.rank, self.gap, self.smallest = reason, rank, gap, smallest
+
+
+def _orthonormal(a: np.ndarray) -> np.ndarray:
+    return np.linalg.qr(a)[0] if a.shape[1] else a
+
+
+def _best_conditioned(q: np.ndarray) -> np.ndarray:
+    """Rows of an orthonormal basis q (k columns) on which it is best conditioned: the first k
+    pivots of a column-pivoted QR of qᵀ."""
+    k = q.shape[1]
+    if k == 0:
+        return np.zeros(0, dtype=np.int64)
+    return scipy.linalg.qr(q.T, pivoting=True, mode="r")[1][:k]
+
+
+def _sigma_max(r: sp.csr_matrix, iterations: int = 40, seed: int = 0) -> float:
+    """Largest singular value of R by power iteration on RᵀR (a few per cent is plenty: it only
+    scales the threshold)."""
+    v = np.random.default_rng(seed).standard_normal(r.shape[1])
+    s = 0.0
+    for _ in range(iterations):
+        w = r.T @ (r @ v)
+        s = float(np.linalg.norm(w))
+        if s == 0.0:
+            return 0.0
+        v = w / s
+    return math.sqrt(s)
+
+
+def _smallest_singular(solve, solve_t, size: int, block: int = 3, iterations: int = 6,
+                       seed: int = 1) -> float:
+    """Estimate of the smallest singular value of a square matrix A from its LU factors:
+    subspace iteration on (AᵀA)⁻¹ with a small block, then the smallest ``1/σ`` of the Ritz
+    values. It approaches σ_min from above, quickly when σ_min is separated."""
+    x = _orthonormal(np.random.default_rng(seed).standard_normal((size, block)))
+    for _ in range(iterations):
+        y = solve(solve_t(x))
+        if not np.isfinite(y).all():
+            return 0.0
+        x = _orthonormal(y)
+    z = solve_t(x)  # ‖A⁻ᵀ x‖ = 1/σ along the converged directions
+    if not np.isfinite(z).all():
+        return 0.0
+    big = float(np.linalg.svd(z, compute_uv=False)[0])
+    return 1.0 / big if big > 0 else math.inf
+
+
+def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int = 3):
+    """Certified rank of a sparse R in near-linear time (see :func:`count_modes`, Notes).
+
+    Returns (rank, gap, smallest_nonzero); raises :class:`_Undecided` when the two bounds do not
+    bracket the threshold.
     """
     e, n = r.shape
-    b = sp.bmat([[None, r], [r.T, None]], format="csc")
-    smax = float(spla.svds(r, k=1, return_singular_vectors=False)[0])
-    k = min(e + n - 1, expected_zero + 6)
-    ev = np.sort(np.abs(spla.eigsh(b, k=k, sigma=1e-9 * smax, which="LM",
-                                   return_eigenvectors=False)))
+    smax = _sigma_max(r)
     tol = rtol * max(smax, 1.0)
-    zeros = int((ev <= tol).sum())
-    if zeros == k and k < e + n - 1:  # every eigenvalue found was zero: ask for more
-        return _rank_sparse(r, rtol, expected_zero + 16)
-    rank = (e + n - zeros) // 2
-    smallest = float(ev[zeros]) if zeros < ev.size else 0.0
-    largest_zero = float(ev[zeros - 1]) if zeros else 0.0
-    gap = np.inf if largest_zero == 0.0 else smallest / largest_zero
-    return rank, gap, smallest
+    maxwell = n - e
+    # 1. Shift-invert subspace iteration on B = [[0, R], [Rᵀ, 0]] (eigenvalues ±σ_i and one zero
+    #    per zero mode and per state of self-stress); a block, not Lanczos, so that the multiple
+    #    zero eigenvalue is found with its full multiplicity.
+    b = sp.bmat([[None, r], [r.T, None]], format="csc")
+    shift = 1e-3 * tol
+    try:
+        lu_b = spla.splu((b - shift * sp.eye(e + n, format="csc")).tocsc(),
+                         permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:
+        raise _Undecided("the shifted matrix [[0, R], [Rᵀ, 0]] is exactly singular",
+                         min(e, n)) from None
+    rng = np.random.default_rng(0)
+    while True:
+        x = _orthonormal(rng.standard_normal((e + n, block)))
+        for _ in range(iterations):
+            x = _orthonormal(lu_b.solve(x))
+        # k-th smallest singular value of B·X (X orthonormal) ≥ the k-th smallest |eigenvalue|
+        # of B: counting those ≤ tol gives a lower bound on the number of zeros.
+        _, s, wt = np.linalg.svd(np.asarray(b @ x), full_matrices=False)
+        s, w = s[::-1], wt[::-1].T
+        zeros = int((s <= tol).sum())
+        if zeros < block or block >= e + n:
+            break
+        if block >= MAX_BLOCK:
+            raise _Undecided(f"more than {MAX_BLOCK} zero modes and states of self-stress",
+                             n - zeros)
+        block *= 2  # every vector found was a zero: look for more
+    z = x @ w[:, :zeros]
+    # 2. Split the zero space into zero modes (v-parts) and self-stresses (u-parts): the blocks of
+    #    an orthonormal basis of null(B) = leftnull(R) ⊕ null(R) have singular values 1 or 0.
+    uu, su, _ = np.linalg.svd(z[:e], full_matrices=False)
+    uv, sv, _ = np.linalg.svd(z[e:], full_matrices=False)
+    qu, qv = uu[:, su > 0.5], uv[:, sv > 0.5]
+    modes, stresses = qv.shape[1], qu.shape[1]
+    if modes - stresses != maxwell:
+        raise _Undecided(f"{modes} zero modes and {stresses} self-stresses found, which "
+                         f"contradicts dN - E = {maxwell}", min(e, n, n - modes, e - stresses))
+    rho = max(np.linalg.norm(r @ qv, 2) if modes else 0.0,
+              np.linalg.norm(r.T @ qu, 2) if stresses else 0.0)
+    # 3. Certificate from above: the bordered matrix A = [[R, U], [Vᵀ, 0]], V pinning the
+    #    coordinates and U releasing the edges where the null vectors are best conditioned
+    #    (column-pivoted QR). Every matrix within σ_min(A) of R keeps rank ≥ dN - M, so
+    #    σ_{dN-M}(R) ≥ σ_min(A); and ‖R Q_v‖ ≤ ρ bounds σ_{dN-M+1}(R) ≤ ρ.
+    pins, rel = _best_conditioned(qv), _best_conditioned(qu)
+    a = sp.bmat([
+        [r, sp.csr_matrix((np.ones(stresses), (rel, np.arange(stresses))), shape=(e, stresses))],
+        [sp.csr_matrix((np.ones(modes), (np.arange(modes), pins)), shape=(modes, n)), None],
+    ], format="csc")
+    try:
+        lu_a = spla.splu(a, permc_spec="COLAMD")
+    except RuntimeError:
+        raise _Undecided("the bordered matrix [[R, U], [Vᵀ, 0]] is exactly singular (more "
+                         "zero modes than found?)", n - modes) from None
+    sigma_a = _smallest_singular(lu_a.solve, lambda v: lu_a.solve(v, trans="T"), a.shape[0])
+    smallest = float(s[zeros])
+    gap = math.inf if rho == 0.0 else sigma_a / rho
+    margin = math.sqrt(AMBIGUOUS_GAP)
+    if not (rho <= tol / margin and sigma_a >= margin * tol):
+        raise _Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_a:.1e} (smallest "
+                         f"non-zero) do not bracket the threshold {tol:.1e}", n - modes, gap,
+                         smallest)
+    return n - modes, gap, smallest, ""
 
 
-def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> ModeCount:
+def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int = 5):
+    """Certified rank through RᵀR, for networks with many states of self-stress (which would
+    all be zeros of B): finds the few zero modes only, S follows from ``M - S = dN - E``.
+
+    Same bounds as :func:`_rank_sparse`, with the certificate ``σ_min([R; Vᵀ])`` read from
+    ``λ_min(RᵀR + VVᵀ)``: squaring limits it to singular values above about 1e-7·σ_max, below
+    which the count is reported as ambiguous.
+    """
+    e, n = r.shape
+    smax = _sigma_max(r)
+    tol = rtol * max(smax, 1.0)
+    k = (r.T @ r).tocsc()
+    mu = 1e-10 * smax ** 2  # above the round-off of RᵀR, so K + μI is positive definite
+    try:
+        lu_k = spla.splu((k + mu * sp.eye(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:
+        raise _Undecided("RᵀR + μI is exactly singular", n) from None
+    rng = np.random.default_rng(0)
+    while True:
+        x = _orthonormal(rng.standard_normal((n, block)))
+        for _ in range(iterations):
+            x = _orthonormal(lu_k.solve(x))
+        _, s, wt = np.linalg.svd(np.asarray(r @ x), full_matrices=False)
+        s, w = s[::-1], wt[::-1].T
+        modes = int((s <= tol).sum())
+        if modes < block or block >= n:
+            break
+        if block >= MAX_BLOCK:
+            raise _Undecided(f"more than {MAX_BLOCK} zero modes", n - modes)
+        block *= 2
+    stresses = modes - (n - e)
+    if stresses < 0:
+        raise _Undecided(f"{modes} zero modes found, fewer than dN - E = {n - e}", n - modes)
+    qv = x @ w[:, :modes]
+    rho = float(s[modes - 1]) if modes else 0.0
+    pins = _best_conditioned(qv)
+    kc = (k + sp.csc_matrix((np.ones(modes), (pins, pins)), shape=(n, n))).tocsc()
+    try:
+        lu_c = spla.splu(kc, permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError:
+        raise _Undecided("RᵀR + VVᵀ is exactly singular (more zero modes than found?)",
+                         n - modes) from None
+    sigma_c = math.sqrt(_smallest_singular(lu_c.solve, lu_c.solve, n))
+    floor = math.sqrt(100 * np.finfo(float).eps) * smax
+    smallest = float(s[modes])
+    gap = math.inf if rho == 0.0 else sigma_c / rho
+    margin = math.sqrt(AMBIGUOUS_GAP)
+    if not (rho <= tol / margin and sigma_c >= margin * tol and sigma_c > floor):
+        raise _Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_c:.1e} (smallest "
+                         f"non-zero, resolved above {floor:.1e}) do not bracket the threshold "
+                         f"{tol:.1e} with a factor {margin:.0f} to spare", n - modes, gap, smallest)
+    return n - modes, gap, smallest, ""
+
+
+def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
+                method: str = "auto") -> ModeCount:
     """Count zero modes, rigid motions, conformational motions and states of self-stress.
 
     Parameters
@@ -224,10 +471,20 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
         Configuration to analyse; the reference configuration by default.
     rtol : float
         Relative threshold of the rank decision.
+    method : {"auto", "dense", "sparse"}
+        ``"auto"``: dense SVD up to ``SPARSE_FROM`` coordinates; beyond, the sparse path, with
+        the dense SVD as fallback up to ``DENSE_LIMIT`` coordinates when it is ambiguous.
 
     Returns
     -------
     ModeCount
+
+    Raises
+    ------
+    ValueError
+        Unknown ``method``.
+    ResourceError
+        The dense SVD would need more memory than is available (raised before allocating).
 
     Notes
     -----
@@ -236,13 +493,52 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
     value σ counts as zero when ``σ <= rtol · max(σ_max, 1)`` with ``rtol = 1e-9`` by default:
     round-off in R̂ is about 1e-16·σ_max, and geometry given to 16 digits puts true zeros below
     1e-13, while a genuinely rigid constraint of a sensible design stays far above 1e-9. The
-    result carries the ``gap`` between the smallest kept and the largest dropped singular value
-    so a caller can see how clear the decision was (a gap below ~1e3 means the configuration is
-    close to singular and the count should not be trusted blindly). Up to ``DENSE_LIMIT``
-    coordinates R̂ is decomposed by a dense SVD; beyond that the smallest eigenvalues of R̂ᵀR̂
-    are found by shift-invert Lanczos on the symmetric matrix ``[[0, R̂], [R̂ᵀ, 0]]`` (whose
-    eigenvalues are ±σ and zeros), which keeps the same threshold meaningful; it is slow for very
-    long chains, whose many small but non-zero singular values cluster near zero.
+    result carries the ``gap`` between the smallest kept and the largest dropped singular value.
+    Decision rule: the count is clear when every singular value lies at least a factor
+    ``√AMBIGUOUS_GAP`` (about 32) away from the threshold, on its side; otherwise (a gap below
+    1e3, or a singular value near the threshold) the configuration is too close to singular for
+    the count to mean much and the result says so (``ambiguous``, with a ``note``) instead of
+    guessing silently.
+
+    Up to ``SPARSE_FROM`` (1000) coordinates R̂ is decomposed by a dense SVD (O(N³)). Larger
+    networks take a sparse path whose cost is a few sparse LU factorisations and solves (near-linear for
+    chains and lattices, whose factors stay sparse), and which brackets the threshold from both
+    sides instead of trusting an iterative eigensolver:
+
+    1. *Find the zeros.* ``B = [[0, R̂], [R̂ᵀ, 0]]`` has eigenvalues ±σ_i and one zero per zero mode
+       and per state of self-stress (working on B, not R̂ᵀR̂, keeps σ resolved to round-off
+       instead of squaring it). ``B - σ₀I`` (σ₀ = 1e-3 × threshold) is factorised once;
+       subspace iteration with a block of 8 vectors (doubled while every vector found is a zero)
+       amplifies the zero eigenvectors by σ_i/σ₀ per solve. A block rather than Lanczos because
+       the zero eigenvalue is multiple, which Lanczos finds with the wrong multiplicity. By
+       interlacing, the number of singular values of ``B·X`` below the threshold is at most the
+       true number of zeros.
+    2. *Split them.* An orthonormal basis of the zeros splits into zero-mode parts (coordinates)
+       and self-stress parts (edges); the two blocks have singular values 1 or 0, so M and S are
+       read off exactly, and must satisfy ``M - S = dN - E``. ``ρ = ‖R̂ Q‖`` over the orthonormal
+       zero modes Q (and ``‖R̂ᵀ P‖`` over the self-stresses) bounds σ_{dN-M+1} ≤ ρ from above.
+    3. *Certify from the other side.* The bordered matrix ``A = [[R̂, U], [Vᵀ, 0]]`` pins M
+       coordinates (V) and releases S edges (U), picked where the bases found are best
+       conditioned (column-pivoted QR). Any matrix within σ_min(A) of R̂ still makes A
+       nonsingular and so has rank ≥ dN - M: σ_{dN-M}(R̂) ≥ σ_min(A). σ_min(A) is estimated by
+       a few steps of subspace iteration with A's LU factors.
+
+    The count is accepted when ``ρ ≤ threshold/32`` and ``σ_min(A) ≥ 32·threshold``; the gap is
+    ``σ_min(A) / ρ``, a lower bound of the true one. Failure modes, all reported as
+    ``ambiguous`` rather than guessed: a singular value near the threshold (the bounds cannot
+    bracket it); zeros missed by the subspace iteration (M - S contradicts dN - E, or A is
+    singular); a poor choice of pins (σ_min(A) far below σ_{dN-M}(R̂), so the certificate fails
+    although the rank is clear). The estimate of σ_min(A) approaches it from above; with a
+    separated smallest singular value it converges in a few steps, with a cluster it may
+    overestimate by the spread of the cluster. With ``method="auto"`` a network of at most
+    ``DENSE_LIMIT`` coordinates whose sparse count is ambiguous is counted again by the dense
+    SVD. Networks whose Maxwell count implies more than
+    ``MAX_BLOCK // 2`` self-stresses (over-braced lattices) find only their zero modes, through
+    ``R̂ᵀR̂ + μI``, with S from ``M - S = dN - E`` and the certificate from
+    ``λ_min(R̂ᵀR̂ + VVᵀ) = σ_min([R̂; Vᵀ])²``; squaring limits that path to smallest non-zero
+    singular values above about 1.5e-7·σ_max (below, ambiguous). More than ``MAX_BLOCK`` (64)
+    zeros: ambiguous. The cost grows with the fill of the sparse LU
+    factors: O(N) for chains, about O(N^1.5) for 2D lattices.
 
     The rigid motions are counted as the rank of the rigid-body basis of the node set (3 in 2D,
     6 in 3D, fewer for degenerate sets), S follows from ``M = dN - E + S``.
@@ -257,11 +553,31 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
     n, d = x.shape
     r = rigidity_matrix(net, x, normalized=True)
-    if d * n <= DENSE_LIMIT:
-        rank, gap, smallest = _rank_dense(r, rtol)
+    if method not in ("auto", "dense", "sparse"):
+        raise ValueError(f"unknown method {method!r}; valid: auto, dense, sparse")
+    note, requested = "", method
+    if method == "dense" or method == "auto" and d * n <= min(SPARSE_FROM, DENSE_LIMIT):
+        method = "dense"
+        rank, gap, smallest, note = _rank_dense(r, rtol)
     else:
-        rigid = 3 if d == 2 else 6
-        rank, gap, smallest = _rank_sparse(r, rtol, 2 * rigid + abs(d * n - net.n_edges))
+        method = "sparse"
+        try:
+            # Dense work here is on tall, thin blocks (8 columns), which threads do not speed
+            # up; on a shared machine they slow it down several times.
+            with threadpoolctl.threadpool_limits(1):
+                if net.n_edges - d * n + (3 if d == 2 else 6) > MAX_BLOCK // 2:
+                    # surely many self-stresses: count the few zero modes alone
+                    rank, gap, smallest, note = _rank_sparse_normal(r, rtol)
+                else:
+                    rank, gap, smallest, note = _rank_sparse(r, rtol)
+        except _Undecided as exc:
+            if requested == "auto" and d * n <= DENSE_LIMIT:  # small enough for the SVD
+                method = "dense"
+                rank, gap, smallest, note = _rank_dense(r, rtol)
+            else:
+                rank, gap, smallest, note = exc.rank, exc.gap, exc.smallest, exc.reason
+    if not note and gap < AMBIGUOUS_GAP:
+        note = f"rank gap {gap:.1e} below {AMBIGUOUS_GAP:.0e}"
     total = d * n - rank
     rigid = rigid_body_basis(x).shape[1]
     self_stress = net.n_edges - rank
@@ -275,6 +591,9 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Mod
         n_edges=net.n_edges,
         gap=float(gap),
         smallest_nonzero=float(smallest),
+        ambiguous=bool(note),
+        method=method,
+        note=note,
     )
 
 
@@ -288,8 +607,9 @@ def zero_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> np.n
     numpy.ndarray, shape (d·N, m)
     """
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
-    r = rigidity_matrix(net, x, normalized=True).toarray()
-    _, s, vt = np.linalg.svd(r, full_matrices=True)
+    r = rigidity_matrix(net, x, normalized=True)
+    require_dense_memory(*r.shape, vectors=True)
+    _, s, vt = np.linalg.svd(r.toarray(), full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     null = vt[rank:].T
@@ -308,8 +628,9 @@ def self_stresses(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> n
         Column k gives edge tensions (per unit length) in equilibrium with no external load.
     """
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
-    r = rigidity_matrix(net, x, normalized=True).toarray()
-    u, s, _ = np.linalg.svd(r, full_matrices=True)
+    r = rigidity_matrix(net, x, normalized=True)
+    require_dense_memory(*r.shape, vectors=True)
+    u, s, _ = np.linalg.svd(r.toarray(), full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     return u[:, rank:]

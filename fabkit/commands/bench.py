@@ -25,11 +25,15 @@ MODES = {
     "quick": {"sizes": (10, 100, 1000), "budget": 8.0, "repeats": 3, "compare_modules": 300,
               "lyapunov": (1000, 500, 2000),
               "stability": {"super_stable_modules": 8}, "rk4_step": 0.05,
-              "horizon_modules": 200, "profile_modules": 1000},
+              "horizon_modules": 200, "profile_modules": 1000,
+              "large": {"modes": (10, 100, 1000, 10000), "chains": (10, 100, 1000),
+                        "lattice": (3, 10, 20)}},
     "full": {"sizes": (10, 100, 1000, 10000), "budget": 30.0, "repeats": 3,
              "compare_modules": 300,
              "lyapunov": (1000, 500, 2000), "stability": {}, "rk4_step": 0.02,
-             "horizon_modules": 200, "profile_modules": 10000},
+             "horizon_modules": 200, "profile_modules": 10000,
+             "large": {"modes": (10, 100, 300, 1000, 3000, 10000),
+                       "chains": (10, 100, 1000, 10000), "lattice": (3, 10, 20, 30, 40)}},
 }
 
 
@@ -42,10 +46,11 @@ def add_arguments(p):
                    help="seconds allowed per method, setting and size (default 30; quick 8)")
     p.add_argument("--sizes", default=None,
                    help="comma-separated numbers of modules (default 10,100,1000,10000)")
-    p.add_argument("--parts", default="workprecision,targets,stability",
+    p.add_argument("--parts", default="workprecision,targets,stability,large",
                    help="comma-separated parts to run: workprecision (charts), targets (rk4 "
                         "comparison at 300 modules, Lyapunov protocol), stability (table, "
-                        "failure cases, horizon); default all")
+                        "failure cases, horizon), large (mode counting and projected on large "
+                        "chains and a 2D lattice); default all")
     p.add_argument("--profile", action="store_true",
                    help="also profile 'projected' on the largest chain (profile.txt)")
 
@@ -118,7 +123,7 @@ def comparison_at(k, points, settings, budget, repeats, rk4_step):
             "rk4_evaluation_exponent_largest": fit_last[0] if fit_last else None}
 
 
-PARTS = ("workprecision", "targets", "stability")
+PARTS = ("workprecision", "targets", "stability", "large")
 
 
 def _parts(text):
@@ -207,6 +212,24 @@ def run(args) -> int:
         files["failure_cases.png"] = figure_png(stab.failure_figure(study, horizon))
         files["stability.md"] = _stability_markdown(study, horizon).encode()
 
+    if "large" in parts:
+        from ..bench import large
+
+        lcfg = cfg["large"]
+        _say("large networks: count_modes on super-stable chains")
+        modes = large.count_modes_scaling(lcfg["modes"], budget=budget, repeats=cfg["repeats"],
+                                          progress=lambda p: _say(_large_line(p)))
+        _say("large networks: 4-bar chains, d1 2 -> 2.6")
+        chains = large.fourbar_chain_points(lcfg["chains"], budget=budget,
+                                            repeats=cfg["repeats"],
+                                            progress=lambda p: _say(_large_line(p)))
+        _say("large networks: projected on k x k 4-bar lattices")
+        lattice = large.lattice_points(lcfg["lattice"], budget=budget, repeats=cfg["repeats"],
+                                       progress=lambda p: _say(_large_line(p)))
+        doc["large"] = {"count_modes": modes, "fourbar_chains": chains, "lattice": lattice}
+        doc.setdefault("targets", {}).update(large.large_targets(modes, chains))
+        files["large_networks.png"] = figure_png(large.large_figure(modes, chains, lattice))
+
     if args.profile:
         k = max(sizes) if args.sizes else cfg["profile_modules"]
         _say(f"profiling projected on {k} modules")
@@ -249,6 +272,17 @@ def run(args) -> int:
             f"{' (extrapolated)' if h['extrapolated'] else ''}"
             for m, h in horizon["methods"].items()) + " modules")
     return 0
+
+
+def _large_line(p):
+    t = "-" if p.get("time_s") is None else f"{p['time_s']:.3g} s"
+    what = p.get("path") or p.get("method")
+    extra = p.get("status") or p.get("method") or ""
+    err = f"  edge {p['max_edge_error']:.1e} (floor {p['floor']:.1e})" \
+        if p.get("max_edge_error") is not None else ""
+    counts = f"  counts {p['counts']}" if p.get("counts") else ""
+    return (f"  {p['nodes']:>6} nodes  {what:<13} {p['outcome']:<30} {extra:<13} {t:>10}"
+            f"{counts}{err}")
 
 
 def _short(v):

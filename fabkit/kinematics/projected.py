@@ -5,12 +5,19 @@ The configuration x (d·N coordinates) satisfies ``F(x) = 0``: one equation
 triangle, is held still). With one conformational motion the Jacobian ``J = [R; G]`` has a
 one-dimensional null space, the tangent t. It is found from the square sparse system
 ``A = [J; e_j]`` with ``A t = e_last``, where j is the largest component of the previous tangent
-(a local parametrisation, as in PITCON), factorised with SuperLU: a chain costs O(N) per step.
+(a local parametrisation, as in PITCON). The factorisation is banded LAPACK (``gbtrf``) when
+the network, its coordinates ordered node by node along a reverse Cuthill-McKee ordering and its
+rows by where their entries lie, fits a band of at most ``BAND_LIMIT`` diagonals (chains, strips:
+O(N) with a small constant, several times cheaper than a general sparse LU), and SuperLU
+otherwise (2D lattices: about O(N^1.5)). The orderings are computed once per trace; only the last
+row moves. No Python-level loop runs over nodes or edges.
 
-Each step: Euler predictor ``x + h t``; chord-Newton corrector reusing the LU of A (the row e_j
-keeps x_j at its predicted value); the step is rejected and halved when the corrector contracts
-worse than a ratio of 0.4, fails to converge, or the tangent turns by more than 30°; after easy
-steps h grows. Along the way:
+Each step: Euler predictor ``x + h t`` (plus a curvature term from the last two tangents);
+one factorisation of A at the predicted point, reused by every chord-Newton iteration of the
+corrector (the row e_j keeps x_j at its predicted value), by the new tangent and by the branch
+test, so a step costs one factorisation and a few solves. The step is rejected and halved when
+the corrector contracts worse than a ratio of 0.4, fails to converge, or the tangent turns by
+more than 30°; after easy steps h grows. Along the way:
 
 - target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
   equation, so the trace ends exactly on the target value;
@@ -27,6 +34,9 @@ import math
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg.lapack import dgbtrf as _gbtrf
+from scipy.linalg.lapack import dgbtrs as _gbtrs
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
 from .base import Mark, Method, Outcome
@@ -72,6 +82,58 @@ def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
     return np.array(cols, dtype=np.int64)
 
 
+#: Largest ``kl + ku`` for which the banded LAPACK factorisation is used (else SuperLU).
+BAND_LIMIT = 64
+
+
+class _BandLU:
+    """LU with partial pivoting (LAPACK ``gbtrf``) of ``A[rowperm][:, colperm]``, a permutation
+    of A into a band of ``kl`` sub- and ``ku`` superdiagonals.
+
+    Chains, strips and anything of bounded width are banded once their nodes are ordered along
+    the structure (reverse Cuthill-McKee); the band factorisation then costs O(N·kl·(kl+ku)) with
+    a small constant, several times cheaper than a general sparse LU of the same matrix.
+    Interface of SuperLU's factor object as used here: ``solve(b, trans)``, ``det_sign()``.
+    """
+
+    def __init__(self, lub, piv, kl, ku, rowperm, colperm, perm_sign):
+        self.lub, self.piv, self.kl, self.ku = lub, piv, kl, ku
+        self.rowperm, self.colperm, self.perm_sign = rowperm, colperm, perm_sign
+
+    def solve(self, b, trans="N"):
+        b = np.asarray(b, dtype=np.float64)
+        if trans == "N":  # A x = b  ⇔  A' x[colperm] = b[rowperm]
+            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.rowperm], self.piv)
+            out = np.empty_like(y)
+            out[self.colperm] = y
+        else:  # Aᵀ x = b  ⇔  A'ᵀ x[rowperm] = b[colperm]
+            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.colperm], self.piv, trans=1)
+            out = np.empty_like(y)
+            out[self.rowperm] = y
+        return out
+
+    def det_sign(self) -> int:
+        diag = self.lub[self.kl + self.ku]
+        swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size)))
+        s = int(np.prod(np.sign(diag)))
+        return s * self.perm_sign * (-1 if swaps % 2 else 1)
+
+
+class _SuperLU:
+    """SuperLU's factor object with the same interface as :class:`_BandLU`."""
+
+    def __init__(self, lu):
+        self.lu = lu
+
+    def solve(self, b, trans="N"):
+        return self.lu.solve(np.asarray(b, dtype=np.float64), trans=trans)
+
+    def det_sign(self) -> int:
+        diag = self.lu.U.diagonal()
+        s = int(np.prod(np.sign(diag)))
+        return s * permutation_parity(self.lu.perm_r) * permutation_parity(self.lu.perm_c)
+
+
 class _System:
     """The square sparse system A = [R; gauge rows; last row] and its factorisation."""
 
@@ -90,11 +152,37 @@ class _System:
             [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
         ).ravel()
         self._grow = np.arange(e, e + gcols.size)
+        self._e0 = np.ascontiguousarray(self.edges[:, 0])
+        self._e1 = np.ascontiguousarray(self.edges[:, 1])
+        # Band structure, fixed for the whole trace except the last row: coordinates ordered by
+        # node along the structure (reverse Cuthill-McKee), rows by the mean position of their
+        # entries; the last row is inserted where its own entries lie.
+        m = self.n_rows
+        graph = sp.coo_matrix((np.ones(e), (self.edges[:, 0], self.edges[:, 1])), shape=(n, n))
+        order = reverse_cuthill_mckee((graph + graph.T).tocsr(), symmetric_mode=True)
+        self._colperm = (d * order[:, None] + np.arange(d)).ravel()
+        self._colpos = np.empty(m, dtype=np.int64)
+        self._colpos[self._colperm] = np.arange(m)
+        fixed_rows = np.concatenate([self._rows, self._grow])
+        fixed_cpos = self._colpos[np.concatenate([self._cols, gcols])]
+        key = (np.bincount(fixed_rows, weights=fixed_cpos, minlength=m - 1)
+               / np.maximum(np.bincount(fixed_rows, minlength=m - 1), 1))
+        self._base_order = np.argsort(key, kind="stable")
+        self._base_keys = key[self._base_order]
+        self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
+        self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
+
+    def diff(self, x: np.ndarray) -> np.ndarray:
+        """Edge vectors ``x_i - x_j`` (``take`` on contiguous index arrays: several times faster
+        than fancy indexing with a column of the edge array)."""
+        out = x.take(self._e0, axis=0)
+        out -= x.take(self._e1, axis=0)
+        return out
 
     def residual(self, xf: np.ndarray) -> np.ndarray:
         """Edge and gauge residuals (without the last row), shape (n_rows - 1,)."""
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        diff = self.diff(x)
         fe = 0.5 * (np.einsum("ij,ij->i", diff, diff) - self.rest2)
         return np.concatenate([fe, xf[self.gcols] - self.gvals])
 
@@ -105,32 +193,45 @@ class _System:
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        diff = self.diff(x)
         return float(np.max(np.abs(np.einsum("ij,ij->i", diff, diff) / self.rest2 - 1.0)) / 2.0)
 
-    def matrix(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray) -> sp.csc_matrix:
+    def factorize(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray):
+        """LU factors of A(x) with the given last row (banded LAPACK where the band is narrow,
+        else SuperLU), or None when the matrix is exactly singular."""
         x = xf.reshape(self.n, self.d)
-        diff = x[self.edges[:, 0]] - x[self.edges[:, 1]]
-        vals = np.concatenate([diff, -diff], axis=1).ravel()
-        rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, self.n_rows - 1)])
-        cols = np.concatenate([self._cols, self.gcols, last_cols])
-        data = np.concatenate([vals, np.ones(self.gcols.size), last_vals])
+        diff = self.diff(x)
+        vals = np.concatenate([np.concatenate([diff, -diff], axis=1).ravel(),
+                               np.ones(self.gcols.size), last_vals])
         m = self.n_rows
-        return sp.csc_matrix((data, (rows, cols)), shape=(m, m))
-
-    @staticmethod
-    def factor(a: sp.csc_matrix):
-        """LU factors, or None when SuperLU finds the matrix exactly singular."""
+        last_cpos = self._colpos[last_cols]
+        ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
+        rowperm = np.insert(self._base_order, ins, m - 1)
+        rpos = np.empty(m, dtype=np.int64)
+        rpos[rowperm] = np.arange(m)
+        ri = rpos[np.concatenate([self._fixed_rows, np.full(last_cols.size, m - 1)])]
+        ci = np.concatenate([self._fixed_cpos, last_cpos])
+        kl, ku = int(max(0, (ri - ci).max())), int(max(0, (ci - ri).max()))
+        if kl + ku <= BAND_LIMIT:
+            ab = np.zeros((2 * kl + ku + 1, m), order="F")
+            ab[kl + ku + ri - ci, ci] = vals
+            lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
+            if info != 0:
+                return None
+            # moving the last row from the end to position ins is a cycle of m - ins entries
+            sign = self._perm_sign * (-1 if (m - 1 - ins) % 2 else 1)
+            return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, sign)
+        rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
+        cols = np.concatenate([self._cols, self.gcols, last_cols])
+        a = sp.csc_matrix((vals, (rows, cols)), shape=(m, m))
         try:
-            return spla.splu(a, permc_spec="COLAMD")
+            return _SuperLU(spla.splu(a, permc_spec="COLAMD"))
         except RuntimeError:
             return None
 
     @staticmethod
     def det_sign(lu) -> int:
-        diag = lu.U.diagonal()
-        s = int(np.prod(np.sign(diag)))
-        return s * permutation_parity(lu.perm_r) * permutation_parity(lu.perm_c)
+        return lu.det_sign()
 
     @staticmethod
     def sigma_min(lu, n: int, iterations: int = 4, seed: int = 0) -> float:
@@ -231,8 +332,7 @@ class Projected(Method):
 
     def _tangent(self, xf, j, orient_like=None, direction_grad=None):
         """Factor A(x, e_j) and solve for the unit tangent; returns (t, lu, tau) or None."""
-        a = self.sys.matrix(xf, np.array([j]), np.array([1.0]))
-        lu = self.sys.factor(a)
+        lu = self.sys.factorize(xf, np.array([j]), np.array([1.0]))
         self.n_factor += 1
         if lu is None:
             return None
@@ -347,16 +447,18 @@ class Projected(Method):
             prev = nrm
         return None
 
-    def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=12):
-        """Full Newton with the last row replaced by a scalar equation (value, gradient)."""
+    def _newton_on(self, xg, row_grad_fn, row_res_fn, iterations=20):
+        """Full Newton with the last row replaced by a scalar equation (value, gradient).
+
+        Landings next to a collapsed (nearly flat) state converge slowly: 20 iterations let
+        them reach the round-off floor instead of stopping at 100 × the tolerance."""
         x = xg.copy()
         dx_floor, res_floor = self._noise(xg)
         tol = max(self.opts["tol"], res_floor)
         for _ in range(iterations):
             g = row_grad_fn(x)
             nz = np.flatnonzero(g)
-            a = self.sys.matrix(x, nz, g[nz])
-            lu = self.sys.factor(a)
+            lu = self.sys.factorize(x, nz, g[nz])
             self.n_factor += 1
             if lu is None:
                 return None
@@ -391,7 +493,7 @@ class Projected(Method):
         # to the local parametrisation by the tangent's largest component.
         first = None
         nz = np.flatnonzero(grad)
-        lu0 = self.sys.factor(self.sys.matrix(x, nz, grad[nz]))
+        lu0 = self.sys.factorize(x, nz, grad[nz])
         self.n_factor += 1
         if lu0 is not None:
             rhs = np.zeros(self.sys.n_rows)
@@ -448,7 +550,7 @@ class Projected(Method):
                 xp += (0.5 * h * h) * curvature  # second-order predictor: smaller first residual
             # Newton on the Jacobian at the predicted point: contracts far better than reusing the
             # previous point's LU, and the same factors then give the new tangent and det sign.
-            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
             corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
             if corr is None:
@@ -536,7 +638,7 @@ class Projected(Method):
         xp = x + hh * t
         corr = self._correct(xp, lu, j, xp[j])
         if corr is None:
-            lu_p = self.sys.factor(self.sys.matrix(xp, np.array([j]), np.array([1.0])))
+            lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
             corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
         if corr is None:

@@ -1,0 +1,89 @@
+"""The large-network part of the bench: mode counting and projected on chains and a lattice."""
+
+import json
+
+import pytest
+
+from fabkit.bench import large
+from fabkit.bench.workprecision import SKIPPED
+from fabkit.cli import main
+
+
+def test_count_modes_scaling_records_counts_and_paths():
+    pts = large.count_modes_scaling([10, 100], budget=30, repeats=1)
+    assert [(p["modules"], p["path"]) for p in pts] == [(10, "auto"), (10, "dense"),
+                                                        (100, "auto"), (100, "dense")]
+    for p in pts:
+        assert p["outcome"] == "ok" and p["time_s"] > 0
+        assert p["counts"] == [4, 3, 1, 0] and not p["ambiguous"] and p["method"] == "dense"
+        assert p["nodes"] == 3 * p["modules"] + 2
+
+
+def test_dense_count_is_skipped_by_its_estimate():
+    pts = large.count_modes_scaling([10, 1000], budget=1e-4, repeats=1)
+    dense = [p for p in pts if p["path"] == "dense"]
+    assert dense[1]["outcome"] == SKIPPED and dense[1]["estimate_s"] > 1e-4
+
+
+def test_chain_and_lattice_points_carry_errors_and_floors():
+    chains = large.fourbar_chain_points([20], budget=30, repeats=1)
+    assert {p["method"] for p in chains} == {"constructive", "projected"}
+    for p in chains:
+        assert p["status"] == "finished"
+        assert p["floor"] == pytest.approx(2.2e-16 * 40 / 2, rel=0.2)  # eps × extent / bar
+        assert p["max_edge_error"] <= 10 * p["floor"]
+    lat = large.lattice_points([3], budget=30, repeats=1)
+    assert lat[0]["status"] == "finished" and lat[0]["nodes"] == 16 and lat[0]["cells"] == 9
+    assert lat[0]["max_edge_error"] < 1e-13
+
+
+def test_lattice_has_one_motion_and_self_stress():
+    from fabkit import count_modes
+
+    m = count_modes(large.lattice(4))
+    assert (m.conformational, m.self_stress) == (1, 6)
+
+
+def _mode_pt(k, t, counts=(4, 3, 1, 0)):
+    return {"modules": k, "nodes": 3 * k + 2, "path": "auto", "outcome": "ok", "time_s": t,
+            "counts": list(counts), "ambiguous": False}
+
+
+def _chain_pt(method, k, t, edge, floor=1e-12):
+    return {"method": method, "modules": k, "nodes": 2 * k + 2, "outcome": "ok",
+            "status": "finished", "time_s": t, "max_edge_error": edge, "floor": floor}
+
+
+def test_large_targets_judge_the_figures():
+    modes = [_mode_pt(1000, 0.05), _mode_pt(10000, 0.5)]
+    chains = [_chain_pt("projected", 10000, 1.5, 5e-12), _chain_pt("projected", 1000, 0.2, 1e-12),
+              _chain_pt("constructive", 1000, 0.1, 1e-12)]
+    goals = large.large_targets(modes, chains)
+    assert goals["count_modes_10000"]["met"]
+    assert goals["count_modes_exponent"]["exponent"] == pytest.approx(1.0, abs=0.01)
+    assert goals["count_modes_exponent"]["met"]
+    assert goals["projected_10000"]["met"]
+    assert goals["projected_vs_constructive_1000"]["ratio"] == pytest.approx(2.0)
+    assert goals["projected_vs_constructive_1000"]["met"]
+    # slower, less accurate, or a wrong count: missed
+    goals = large.large_targets([_mode_pt(1000, 0.05), _mode_pt(10000, 1.2, (5, 3, 2, 1))],
+                                [_chain_pt("projected", 10000, 1.5, 5e-11),
+                                 _chain_pt("projected", 1000, 0.4, 1e-12),
+                                 _chain_pt("constructive", 1000, 0.1, 1e-12)])
+    assert not any(g["met"] for g in goals.values())
+
+
+def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch):
+    from fabkit.commands import bench
+
+    small = {"modes": (10, 100), "chains": (10,), "lattice": (3,)}
+    monkeypatch.setitem(bench.MODES, "quick", {**bench.MODES["quick"], "large": small})
+    rc = main(["bench", "--quick", "--parts", "large", "-o", str(tmp_path)])
+    assert rc == 0
+    out = tmp_path / "bench"
+    assert sorted(p.name for p in out.iterdir()) == ["bench.json", "large_networks.png"]
+    assert (out / "large_networks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    doc = json.loads((out / "bench.json").read_text())
+    assert {"count_modes", "fourbar_chains", "lattice"} <= set(doc["large"])
+    assert {"count_modes_10000", "projected_10000"} <= set(doc["targets"])
+    assert not doc["targets"]["count_modes_10000"]["met"]  # not measured at 10 000 here

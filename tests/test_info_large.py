@@ -1,0 +1,57 @@
+"""`fabkit info` on large networks: counts in seconds, a dense path that cannot fit is refused."""
+
+import time
+from pathlib import Path
+
+import pytest
+
+from fabkit import rigidity
+from fabkit.cli import main
+from fabkit.errors import ResourceError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def chain_template(tmp_path, copies):
+    path = tmp_path / f"chain{copies}.toml"
+    path.write_text(
+        f'name = "chain{copies}"\ndescription = "super-stable chain"\n'
+        f'[chain]\nmodule = "{(ROOT / "templates" / "super_stable.toml").as_posix()}"\n'
+        f'copies = {copies}\n[motion]\ndrive = "d1"\nto = 1.2\n'
+    )
+    return path
+
+
+def test_info_counts_a_ten_thousand_module_chain(tmp_path, capsys):
+    path = chain_template(tmp_path, 10_000)
+    t = time.perf_counter()
+    assert main(["info", str(path)]) == 0
+    elapsed = time.perf_counter() - t
+    out = capsys.readouterr().out
+    assert "nodes, edges  30002, 60000" in out
+    assert "4 zero modes = 3 rigid + 1 conformational; 0 state(s) of self-stress" in out
+    assert "sparse" in out and "ambiguous" not in out
+    assert elapsed < 30  # a few seconds on a shared two-core machine
+
+
+def test_info_refuses_a_dense_path_that_cannot_fit(tmp_path, capsys, monkeypatch):
+    path = chain_template(tmp_path, 10_000)
+    calls = []
+    monkeypatch.setattr(rigidity.sp.csr_matrix, "toarray",
+                        lambda self, *a, **k: calls.append(self.shape))
+    assert main(["info", "--rank-method", "dense", str(path)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert err.startswith("fabkit: error: a dense SVD of the 60000 × 60004 rigidity matrix needs")
+    assert calls == []  # refused before the dense matrix was made
+
+
+def test_dense_memory_check_uses_the_available_memory(monkeypatch):
+    monkeypatch.setattr(rigidity, "available_memory", lambda: 10**6)
+    assert rigidity.require_dense_memory(100, 100) < 10**6
+    with pytest.raises(ResourceError):
+        rigidity.require_dense_memory(1000, 1000)
+    net = rigidity.Network([[0, 0], [1, 0], [0, 1]] * 1, [[0, 1], [1, 2], [0, 2]])
+    assert rigidity.count_modes(net).total == 3
+    with pytest.raises(ValueError):
+        rigidity.count_modes(net, method="qr")
