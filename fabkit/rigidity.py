@@ -21,6 +21,7 @@ import threadpoolctl
 
 from .errors import ResourceError
 from .network import Network
+from .numerics import RANK_RTOL
 
 __all__ = [
     "rigidity_matrix",
@@ -43,9 +44,6 @@ DENSE_LIMIT = 4000
 #: Networks with more coordinates than this try the certified sparse path first (the dense SVD
 #: costs O(N³): seconds at 2000 coordinates, where the sparse path takes milliseconds).
 SPARSE_FROM = 1000
-
-#: Default relative threshold of the rank decision (see :func:`count_modes`).
-RANK_RTOL = 1e-9
 
 #: Largest number of zeros the sparse path looks for (block size of its subspace iteration).
 MAX_BLOCK = 64

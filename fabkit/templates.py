@@ -362,3 +362,23 @@ def load_template(path, *, _stack=()) -> Design:
     except UnicodeDecodeError:
         raise TemplateError(path, "", "not a text file (not UTF-8): a template is TOML text") from None
     return parse_template(text, path, _stack)
+
+
+#: The bundled templates (the paper's modules and designs) shipped beside the package.
+BUNDLED = Path(__file__).resolve().parents[1] / "templates"
+
+
+def bundled_template(name: str) -> Path:
+    """Path of a bundled template by name (``"super_stable"`` → ``templates/super_stable.toml``).
+
+    Raises
+    ------
+    KeyError
+        No such bundled template (the message lists the valid names).
+    """
+    path = BUNDLED / f"{name}.toml"
+    if not path.is_file():
+        names = sorted(p.stem for p in BUNDLED.glob("*.toml"))
+        raise KeyError(f"no bundled template {name!r}; valid: {', '.join(names) or 'none'} "
+                       f"(in {BUNDLED})")
+    return path

@@ -139,27 +139,24 @@ def test_hold_fixes_a_port(module):
         trace(net, drive="d1", to=1.8, hold=["d1"])
 
 
-def test_auto_picks_constructive_where_possible(fourbar, paper_modules):
+def test_auto_picks_constructive_where_possible(fourbar, module):
     assert fabkit.kinematics.select_method(fourbar, "d1") == "constructive"
     traj = trace(fourbar, to=2.2)
     assert traj.method == "constructive"
     # the flat origami sheet has no construction (a flat state): auto falls back to projected
-    m = paper_modules["origami_sheet"]
-    sheet = Network(m["nodes"], m["edges"], ports={"d1": (1, 3), "d2": (0, 2)})
+    sheet = module("origami_sheet")
     assert fabkit.kinematics.select_method(sheet, "d1") == "projected"
 
 
-def test_projected_refuses_singular_start(paper_modules):
-    m = paper_modules["origami_sheet"]
-    sheet = Network(m["nodes"], m["edges"], ports={"d1": (1, 3), "d2": (0, 2)})
+def test_projected_refuses_singular_start(module):
+    sheet = module("origami_sheet")
     traj = trace(sheet, drive="d1", to=1.3, method="projected")
     assert traj.status is Status.FAILED and "singular" in traj.message
     assert traj.n_steps == 1  # returns what it has, never NaN
 
 
-def test_constructive_refuses_flat_start_and_missing_order(paper_modules):
-    m = paper_modules["physical_fourbar"]
-    net = Network(m["nodes"], m["edges"], ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+def test_constructive_refuses_flat_start_and_missing_order(module):
+    net = module("physical_fourbar")
     with pytest.raises(ConstructionError, match="collinear"):
         trace(net, drive="d1", to=1.5, method="constructive")
     # a triangular prism missing one rung has one motion, but from the pair (2, 5) no node has
@@ -219,11 +216,10 @@ def test_auto_accepts_options_of_any_method(fourbar):
         trace(fourbar, to=2.5, method="auto", nonsense=1)
 
 
-def test_projected_reaches_a_target_next_to_a_flat_turning_point(paper_modules):
+def test_projected_reaches_a_target_next_to_a_flat_turning_point(module):
     # the physical 4-bar turns at its flat state d1 = 1 (slope ∞ there); a chain driven to
     # 1e-9 above it must finish on this side, where constructive placement finishes too
-    m = paper_modules["physical_fourbar"]
-    flat = Network(m["nodes"], m["edges"], ports={"d1": tuple(m["d1"]), "d2": tuple(m["d2"])})
+    flat = module("physical_fourbar")
     open_ = trace(flat, drive="d2", to=1.2, method="projected")  # d2 is regular at the flat start
     assert open_.success
     module = flat.with_nodes(open_.final)

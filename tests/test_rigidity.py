@@ -64,11 +64,10 @@ def test_degenerate_node_sets_have_fewer_rigid_motions():
     assert rigid_body_basis([[1.0, 2.0, 3.0]]).shape[1] == 3  # a single node only translates
 
 
-def test_origami_sheet_flat_and_folded(paper_modules):
+def test_origami_sheet_flat_and_folded(module):
     from scipy.optimize import least_squares
 
-    m = paper_modules["origami_sheet"]
-    flat = Network(m["nodes"], m["edges"])
+    flat = module("origami_sheet")
     mc = count_modes(flat)
     assert mc.self_stress >= 1
     assert counts(mc) == (8, 6, 2, 1)

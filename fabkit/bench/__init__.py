@@ -5,7 +5,7 @@
 - :mod:`fabkit.bench.stability`: what each method does where methods fail (flat states,
   bifurcations, turning points, super-stable and super-unstable fixed points, self-stress, chaos).
 
-This module holds what both share: the paper's module geometry used as benchmark inputs, the
+This module holds what both share: the paper's modules (loaded from the bundled templates), the
 iterated map that serves as the exact reference, machine information and single-threaded BLAS
 (the machines this runs on are small and shared; a fair comparison gives every method one core).
 """
@@ -20,59 +20,16 @@ import numpy as np
 
 from ..network import Network
 
-__all__ = ["PAPER_MODULES", "paper_module", "ModuleMap", "machine_info", "single_thread_blas",
+__all__ = ["paper_module", "ModuleMap", "machine_info", "single_thread_blas",
            "finite", "pyplot"]
 
-_S3 = 0.8660254037844386  # sqrt(3)/2
-
-#: Geometry of the paper's modules used by the studies (design units; nodes 0-based). Inputs only:
-#: every property (fixed points, slopes, ranges) is computed from them.
-PAPER_MODULES: dict[str, dict] = {
-    "fourbar": {
-        "nodes": [[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]],
-        "edges": [[0, 2], [0, 3], [1, 2], [1, 3]],
-        "d1": (0, 1), "d2": (2, 3),
-    },
-    "super_stable": {
-        "nodes": [[-_S3, -0.5], [0.0, 1.0], [_S3, -0.5], [-0.3, -0.5],
-                  [0.2830127018922193, 0.5098076211353315]],
-        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
-        "d1": (0, 1), "d2": (1, 2),
-    },
-    "chaotic": {
-        "nodes": [[-1.299038105676658, -0.75], [0.0, 0.0], [1.299038105676658, -0.75],
-                  [0.22499999999999998, -0.75], [-0.33, -1.35]],
-        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
-        "d1": (0, 1), "d2": (1, 2),
-    },
-    "curvature_contract": {
-        "nodes": [[-_S3, -0.5], [0.0, 1.0], [_S3, -0.5], [-0.7084841432387589, 2.209629214105522],
-                  [0.7084841055399557, 2.2096291504934826]],
-        "edges": [[0, 3], [1, 3], [2, 3], [0, 4], [1, 4], [2, 4]],
-        "d1": (0, 1), "d2": (1, 2),
-    },
-    "physical_fourbar": {
-        "nodes": [[1.0, 0.0], [2.0, 0.0], [0.0, 0.0], [0.5, _S3]],
-        "edges": [[0, 2], [1, 2], [0, 3], [1, 3]],
-        "d1": (0, 1), "d2": (2, 3),
-    },
-    "origami_sheet": {
-        "nodes": [[-0.7071067811865476, 0.0, 0.0], [0.0, 0.7071067811865476, 0.0],
-                  [0.7071067811865476, 0.0, 0.0], [0.0, -0.7071067811865476, 0.0],
-                  [0.0, 0.20710678118654757, 0.0]],
-        "edges": [[0, 1], [0, 3], [1, 2], [2, 3], [0, 4], [1, 4], [2, 4], [3, 4]],
-        "d1": (1, 3), "d2": (0, 2),
-    },
-}
-
-
 def paper_module(name: str, nodes=None) -> Network:
-    """One of the paper's modules as a :class:`~fabkit.Network` with ports ``d1`` and ``d2``.
+    """One of the paper's modules, as its bundled template builds it (ports ``d1`` and ``d2``).
 
     Parameters
     ----------
     name : str
-        A key of :data:`PAPER_MODULES`.
+        A bundled template, e.g. ``"super_stable"`` (templates/super_stable.toml).
     nodes : array_like, shape (N, d), optional
         Other coordinates with the same topology (the module in another configuration).
 
@@ -87,16 +44,19 @@ def paper_module(name: str, nodes=None) -> Network:
     >>> net.n_nodes, round(float(net.port_distance("d1")), 12)
     (4, 2.0)
     """
-    try:
-        m = PAPER_MODULES[name]
-    except KeyError:
-        raise KeyError(f"unknown module {name!r}; valid: {', '.join(PAPER_MODULES)}") from None
-    x = np.array(m["nodes"] if nodes is None else nodes, dtype=np.float64)
-    return Network(x, m["edges"], ports={"d1": m["d1"], "d2": m["d2"]})
+    from ..templates import bundled_template, load_template
+
+    net = load_template(bundled_template(name)).network
+    return net if nodes is None else net.with_nodes(np.asarray(nodes, dtype=np.float64))
 
 
 class ModuleMap:
     """The 1-D map ``d2 = f(d1)`` of a module, evaluated by constructive placement.
+
+    This is the bench's *reference*, and it stays independent of :mod:`fabkit.maps` on purpose:
+    the methods (and :class:`fabkit.maps.Map1D`) are measured against it, so it must not share
+    their branch walking. It only places the module on the reference configuration's side of
+    every intersection; everything else (fixed points, Lyapunov exponents) uses fabkit.maps.
 
     The branch is that of the module's reference configuration (the side of every intersection),
     which is also the branch :func:`fabkit.chain` builds every copy on, so iterating this map

@@ -221,41 +221,28 @@ def _physical_fourbar_at(d1: float):
 def and_gate(modules: int = 6):
     """Two super-stable chains, the far end of the first joined to the middle of the second.
 
+    Built by :func:`fabkit.assemble.branch` (the second chain is the trunk, the first the limb).
     Ports: ``d1`` (first branch's input), ``b1`` (second branch's input), ``out`` (the second
-    branch's far end), ``joint`` (the shared pair). The orientation of the second chain is the
-    one that keeps its nodes farthest from the first's.
+    branch's far end), ``joint`` (the shared pair). Of the four ways to join (mirror, swap), the
+    one that keeps the limb's nodes farthest from the trunk's is taken.
     """
-    from ..assemble import chain, join_transform
-    from ..network import Network
+    from ..assemble import branch, chain
 
     ss = paper_module("super_stable")
-    a = chain(ss, modules)
-    b = chain(ss, modules)
-    pa = list(a.port(f"d{modules + 1}"))
-    mid = modules // 2 + 1
+    trunk = chain(ss, modules)
+    limb = chain(ss, modules)
+    end, mid = f"d{modules + 1}", f"d{modules // 2 + 1}"
     best = None
     for swap in (False, True):
-        pb = list(b.port(f"d{mid}"))
-        if swap:
-            pb = pb[::-1]
         for mirror in (False, True):
-            rot, shift = join_transform(b.nodes[pb], a.nodes[pa], mirror=mirror)
-            yb = b.nodes @ rot.T + shift
-            fresh = np.ones(b.n_nodes, dtype=bool)
-            fresh[pb] = False
-            gap = np.min(np.linalg.norm(yb[fresh][:, None] - a.nodes[None], axis=-1))
+            net = branch(trunk, limb, at=mid, end=end, mirror=mirror, swap=swap)
+            own = net.nodes[trunk.n_nodes:]
+            gap = float(np.min(np.linalg.norm(own[:, None] - trunk.nodes[None], axis=-1)))
             if best is None or gap > best[0]:
-                best = (gap, pb, yb, fresh)
-    _, pb, yb, fresh = best
-    index = np.empty(b.n_nodes, dtype=np.int64)
-    index[pb] = pa
-    index[fresh] = a.n_nodes + np.arange(fresh.sum())
-    nodes = np.vstack([a.nodes, yb[fresh]])
-    edges = np.vstack([a.edges, index[b.edges]])
-    ports = {"d1": a.port("d1"), "b1": tuple(int(v) for v in index[list(b.port("d1"))]),
-             "out": tuple(int(v) for v in index[list(b.port(f"d{modules + 1}"))]),
-             "joint": tuple(int(v) for v in pa)}
-    return Network(nodes, edges, ports)
+                best = (gap, net)
+    net = best[1]
+    return net.with_ports({"d1": net.port("d1_b"), "b1": net.port("d1"), "out": net.port(end),
+                           "joint": net.port(mid)})
 
 
 def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20) -> list[Case]:

@@ -150,7 +150,7 @@ def chain_problem(k: int, module: str = "super_stable", target: float | None = N
     k : int
         Number of modules.
     module : str
-        A key of :data:`fabkit.bench.PAPER_MODULES` (default the super-stable module).
+        A bundled module template name (default the super-stable module).
     target : float, optional
         Final value of the drive d1. Default for the super-stable module: 1e-12 above its
         collapsed fixed point D2* (:func:`collapsed_fixed_point`), so the collapse front runs
@@ -538,57 +538,47 @@ def rk4_estimate(k: int, step: float, evaluations: int, *, module: str = "super_
 
 # -- the Lyapunov protocol ------------------------------------------------------------------------
 def lyapunov_protocol(starts: int = 1000, transient: int = 5000, iterations: int = 20000,
-                      module: str = "chaotic", h: float = 1e-7) -> dict:
-    """The paper's Lyapunov protocol with the bench's vectorised map, timed.
+                      module: str = "chaotic") -> dict:
+    """The paper's Lyapunov protocol on the module's exact map (:meth:`fabkit.maps.Map1D.lyapunov`
+    with ``method="exact"``), timed.
 
-    ``starts`` initial distances evenly spaced over the map's range, ``transient`` iterations to
-    settle on the attractor, then the mean of ``log |f'(d)|`` over ``iterations`` further ones
-    (f' by a central difference of step ``h``). All starts advance together (one vectorised
-    placement per iteration).
+    ``starts`` initial distances evenly spaced over the map's invariant range, ``transient``
+    iterations to settle on the attractor, then the mean of ``log |f'(d)|`` over ``iterations``
+    further ones, with exact derivatives. All starts advance together.
 
     Returns
     -------
     dict
         ``exponent`` (mean over starts), ``exponent_spread`` (standard deviation), ``time_s``,
-        ``starts``, ``transient``, ``iterations``, ``time_per_map_evaluation_s``.
+        ``starts``, ``transient``, ``iterations``, ``finite_starts``, ``range``,
+        ``time_per_map_evaluation_s``.
     """
-    fmap = ModuleMap(paper_module(module))
-    grid = np.linspace(0.3, 3.0, 4000)
-    vals = fmap(grid)
-    lo, hi = float(np.nanmin(vals)), float(np.nanmax(vals))
-    d = np.linspace(lo, hi, int(starts) + 2)[1:-1]
+    from ..maps import module_map
+
+    fmap = module_map(paper_module(module))
+    lo, hi = fmap.invariant_range()
     with single_thread_blas():
         t0 = time.perf_counter()
-        for _ in range(int(transient)):
-            d = fmap(d)
-        total = np.zeros_like(d)
-        for _ in range(int(iterations)):
-            fp = (fmap(d + h) - fmap(d - h)) / (2 * h)
-            total += np.log(np.abs(fp))
-            d = fmap(d)
+        res = fmap.lyapunov(initial=int(starts), discard=int(transient), average=int(iterations),
+                            method="exact")
         elapsed = time.perf_counter() - t0
-    lam = total / max(int(iterations), 1)
-    ok = np.isfinite(lam)
-    evals = int(starts) * (int(transient) + 3 * int(iterations))
-    return {"exponent": float(np.mean(lam[ok])) if ok.any() else None,
-            "exponent_spread": float(np.std(lam[ok])) if ok.any() else None,
-            "finite_starts": int(ok.sum()), "starts": int(starts), "transient": int(transient),
-            "iterations": int(iterations), "time_s": elapsed, "range": [lo, hi],
-            "time_per_map_evaluation_s": elapsed / max(evals, 1)}
+    evals = int(starts) * (int(transient) + int(iterations))
+    return {"exponent": float(res.mean), "exponent_spread": float(res.std),
+            "finite_starts": int(res.values.size) - int(res.escaped), "starts": int(starts),
+            "transient": int(transient), "iterations": int(iterations), "time_s": elapsed,
+            "range": [float(lo), float(hi)], "time_per_map_evaluation_s": elapsed / max(evals, 1)}
 
 
 def maps_lyapunov(starts: int = 1000, transient: int = 5000, iterations: int = 20000,
-                  module: str = "chaotic", budget: float = 60.0) -> dict | None:
+                  module: str = "chaotic", budget: float = 60.0) -> dict:
     """Time :meth:`fabkit.maps.Map1D.lyapunov` (the library's protocol) with a budget.
 
-    Returns None when :mod:`fabkit.maps` is not available; else ``exponent``, ``std``,
+    Returns ``exponent``, ``std``,
     ``method`` (exact or table), ``time_s`` (median of up to 3 repeats within the budget) and
     ``outcome`` (``"ok"``, ``"error"`` or :data:`STOPPED`).
     """
-    try:
-        from ..maps import module_map
-    except ImportError:
-        return None
+    from ..maps import module_map
+
     fmap = module_map(paper_module(module))
     outcome, times, info = run_budgeted(
         lambda: fmap.lyapunov(initial=int(starts), discard=int(transient),

@@ -35,7 +35,9 @@ def _module_folder(arg) -> Path:
     if arg is not None:
         folder = Path(arg)
     else:
-        folder = Path(__file__).resolve().parents[2] / "templates"
+        from ..templates import BUNDLED
+
+        folder = BUNDLED
     missing = [f for f in MODULE_FILES.values() if not (folder / f).is_file()]
     if missing:
         raise FabkitError(f"{folder}: no curvature module template {missing[0]}; "

@@ -39,6 +39,7 @@ from scipy.linalg.lapack import dgbtrs as _gbtrs
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
+from ..numerics import START_RTOL
 from .base import Mark, Method, Outcome
 from .trajectory import EventKind, Status
 
@@ -486,7 +487,7 @@ class Projected(Method):
         target = p.target
 
         x = p.start.ravel().copy()
-        if self.sys.rel_edge_residual(x) > 1e-10:
+        if self.sys.rel_edge_residual(x) > START_RTOL:
             raise KinematicsError("the start configuration does not keep the edge lengths")
         grad = self._drive_grad(x) * direction
         # First tangent from [J; ∇drive] t = e_last (needs no guess of a good row); then switch
