@@ -733,7 +733,6 @@ class Projected(Method):
                       f"target {p.target:.10g}: {detail}")
 
     def _singular_message(self, where, sig=None):
-        p = self.problem
         s = f" (smallest singular value {sig:.1e})" if sig is not None else ""
         return (f"the {where} configuration is singular{s}: the rigidity matrix has a state of "
                 f"self-stress there, so the motion may branch or there may be several motions; "
