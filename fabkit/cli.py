@@ -4,6 +4,10 @@ Subcommands live one per file in :mod:`fabkit.commands`; each module defines ``N
 ``add_arguments(parser)`` and ``run(args) -> int``. They are discovered at start-up, so a new
 command needs no edit here. :func:`main` returns an exit code; fabkit errors print as one line
 (``fabkit: error: ...``), tracebacks only with ``--debug``.
+
+Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
+2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
+that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM).
 """
 
 from __future__ import annotations
@@ -11,10 +15,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
 from enum import IntEnum
+from pathlib import Path
 
-from .errors import FabkitError
+from .errors import FabkitError, Interrupted
 
 __all__ = ["main", "entry", "ExitCode"]
 
@@ -23,6 +29,7 @@ class ExitCode(IntEnum):
     OK = 0
     FAILED = 1      #: a design failed (bad input, impossible design, failed check)
     USAGE = 2       #: bad command line
+    INTERNAL = 70   #: a bug in fabkit (EX_SOFTWARE of sysexits.h)
     INTERRUPTED = 130
 
 
@@ -46,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "export them for laser cutting, origami and 3D printing.",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--allow-large", action="store_true",
+                        help="lift the size bounds (modules, samples, periods) checked before work")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _commands():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
@@ -64,16 +73,73 @@ def main(argv=None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return ExitCode.USAGE
+    import os
+
+    saved_large = os.environ.get("FABKIT_ALLOW_LARGE")
+    if args.allow_large:  # an environment variable, so that worker processes see it too
+        os.environ["FABKIT_ALLOW_LARGE"] = "1"
+    previous = _install_signal_handlers()
     try:
         return int(args._run(args))
     except FabkitError as exc:
         if args.debug:
             raise
         print(f"fabkit: error: {exc}", file=sys.stderr)
-        return ExitCode.FAILED
+        return int(exc.exit_code)
+    except Interrupted as exc:
+        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("fabkit: interrupted", file=sys.stderr)
         return ExitCode.INTERRUPTED
+    except Exception as exc:  # a bug: one line that says where, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"fabkit: {internal_error_line(exc)}", file=sys.stderr)
+        return ExitCode.INTERNAL
+    finally:
+        _restore_signal_handlers(previous)
+        if saved_large is None:
+            os.environ.pop("FABKIT_ALLOW_LARGE", None)
+        else:
+            os.environ["FABKIT_ALLOW_LARGE"] = saved_large
+
+
+def internal_error_line(exc: BaseException) -> str:
+    """One line for an unexpected exception: its type, where it was raised, how to report it."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+    text = " ".join(str(exc).split())[:200]
+    return (f"internal error{where}: {type(exc).__name__}: {text} -- this is a bug in fabkit; "
+            "please report it with the output of the same command run with --debug")
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def _install_signal_handlers() -> dict:
+    """SIGINT and SIGTERM raise :class:`~fabkit.errors.Interrupted` in the main thread, so that
+    every command cleans up (temporary files, staging folders, worker processes) the same way
+    for both; returns the previous handlers."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, _raise_interrupted)
+        except (ValueError, OSError):  # not settable here (embedded interpreter)
+            pass
+    return previous
+
+
+def _restore_signal_handlers(previous: dict) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
 
 
 def entry() -> None:

@@ -17,8 +17,9 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.commands.export import Progress, export_many, parse_formats, parse_settings
-from fabkit.errors import FabkitError
+from fabkit.batch import Outcome, Progress, export_many
+from fabkit.commands.export import parse_formats, parse_settings
+from fabkit.errors import FabkitError, UsageError
 from fabkit.templates import load_template
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,14 +72,15 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
                "--set", "lengths.scale=10", "--tolerance-samples", "40"])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    assert captured.err == ""  # no progress bar when stderr is not a terminal
+    assert captured.err == ""  # errors only on stderr; progress goes to stdout, terminal or not
     assert "2 exported, 0 failed" in captured.out
+    assert "fourbar: ok in " in captured.out and "super_stable_chain8: ok in " in captured.out
     assert sorted(p.name for p in out.iterdir()) == ["fourbar", "super_stable_chain8"]
 
     files = snapshot(out / "fourbar")
-    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "motion.png",
-                          "map.png", "tolerance.png"}
-    for name in ("motion.png", "map.png", "tolerance.png"):
+    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "preview_motion.png",
+                          "preview_map.png", "preview_tolerance.png"}
+    for name in ("preview_motion.png", "preview_map.png", "preview_tolerance.png"):
         assert files[name][:8] == b"\x89PNG\r\n\x1a\n"
     # the --set value reached the exporter: lengths in mm at 10 mm per unit
     mm = np.array(files["fourbar_lengths.txt"].decode().split(), dtype=float)
@@ -86,7 +88,8 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     np.testing.assert_allclose(mm, 10 * net.edge_lengths, rtol=1e-11)
 
     report = json.loads(files["report.json"])
-    assert report["ok"] is True
+    assert report["ok"] is True and report["outcome"] == "ok"
+    assert report["files"] == sorted(files)  # the manifest: exactly what the export wrote
     assert report["formats"]["lengths"]["status"] == "exported"
     assert report["formats"]["lengths"]["report"] == {"edges": 4, "scale": 10.0}
     motion = report["motion"]
@@ -98,7 +101,8 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     assert report["design"]["modes"] == {"total": 4, "rigid": 3, "conformational": 1,
                                          "self_stress": 0}
     assert report["tolerance"]["samples"] == 40
-    assert report["previews"] == ["map.png", "motion.png", "tolerance.png"]
+    assert report["previews"] == ["preview_map.png", "preview_motion.png",
+                                  "preview_tolerance.png"]
     # every picture the Markdown report shows is in the folder
     md = files["report.md"].decode()
     for name in report["previews"]:
@@ -165,14 +169,46 @@ def test_two_designs_with_one_name_do_not_share_a_folder(tmp_path, lengths_forma
     assert (out / "fourbar" / "report.json").is_file()
 
 
-def test_a_folder_that_is_not_an_export_is_never_replaced(tmp_path, lengths_format, capsys):
+def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, capsys,
+                                                  monkeypatch):
+    """simulate, map and a user's own file in the design's folder are kept by export and by a
+    re-export; the export's own files of a format no longer exported are removed."""
     out = tmp_path / "out"
-    (out / "fourbar").mkdir(parents=True)
+    fourbar = str(TEMPLATES / "fourbar.toml")
+    assert main(["simulate", fourbar, "-o", str(out)]) == 0
+    assert main(["map", fourbar, "-o", str(out), "--steps", "4"]) == 0
     (out / "fourbar" / "notes.txt").write_text("mine")
+    others = snapshot(out / "fourbar")
+    assert {"trajectory.npz", "motion.png", "map.json", "map.png", "cobweb.png",
+            "notes.txt"} <= set(others)
+    assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
+    first = snapshot(out / "fourbar")
+    assert {k: first[k] for k in others} == others  # byte for byte
+    assert set(first) == set(others) | {"fourbar_lengths.txt", "report.json", "report.md"}
+    # export again with a format of another name: the old export file goes, the others stay
+    source = (lengths_format / f"{FAKE_MODULE}.py").read_text()
+    (lengths_format / "fabkit_test_widths_format.py").write_text(
+        source.replace('"_lengths.txt"', '"_widths.txt"'))
+    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"widths": "fabkit_test_widths_format"})
+    assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
+    second = snapshot(out / "fourbar")
+    assert {k: second[k] for k in others} == others
+    assert set(second) == set(others) | {"fourbar_widths.txt", "report.json", "report.md"}
+    report = json.loads(second["report.json"])
+    assert report["files"] == ["fourbar_widths.txt", "report.json", "report.md"]
+    capsys.readouterr()
+
+
+def test_a_file_in_place_of_the_design_folder_is_never_replaced(tmp_path, lengths_format,
+                                                                 capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "fourbar").write_text("mine")
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
     assert rc == 1
-    assert "is not a fabkit export folder" in capsys.readouterr().err
-    assert snapshot(out) == {"fourbar/notes.txt": b"mine"}
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "exists and is not a folder" in err[0]
+    assert snapshot(out) == {"fourbar": b"mine"}
 
 
 def test_singular_start_without_an_exporter_that_resolves_it_fails(tmp_path, lengths_format,
@@ -202,7 +238,7 @@ RUNNER = textwrap.dedent('''
     from pathlib import Path
 
     import fabkit.export
-    from fabkit.commands.export import export_many
+    from fabkit.batch import export_many
 
     fabkit.export.EXPORTERS.clear()
     fabkit.export.EXPORTERS["lengths"] = sys.argv[3]
@@ -233,7 +269,7 @@ RUNNER = textwrap.dedent('''
     os.fdopen = fdopen
     rows = export_many([sys.argv[5]], None, sys.argv[1], {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    print(rows[0]["status"], rows[0]["error"])
+    print(rows[0].outcome, rows[0].error)
 ''')
 
 
@@ -284,7 +320,7 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     template = TEMPLATES / "fourbar.toml"
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    assert rows[0]["ok"], rows[0]["error"]
+    assert rows[0].ok, rows[0].error
     reference = snapshot(out)
 
     real_fdopen = os.fdopen
@@ -315,9 +351,9 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
     monkeypatch.undo()
-    assert not rows[0]["ok"]
-    assert "cannot write the export" in rows[0]["error"]
-    assert "No space left on device" in rows[0]["error"]
+    assert rows[0].outcome is Outcome.FAILED and rows[0].error_code == "output"
+    assert "cannot write the export" in rows[0].error
+    assert "No space left on device" in rows[0].error
     assert snapshot(out) == reference  # nothing half-written, staging removed, old export intact
 
 
@@ -336,49 +372,49 @@ def test_settings_are_parsed_as_toml_values():
     ("laser..kerf=1", "must name a section and a key"),
 ])
 def test_bad_settings_are_one_line_errors(item, words):
-    with pytest.raises(FabkitError, match=words):
+    with pytest.raises(UsageError, match=words) as info:
         parse_settings([item])
+    assert info.value.option == "--set" and info.value.exit_code == 2
 
 
 def test_a_setting_given_twice_is_an_error():
-    with pytest.raises(FabkitError, match="given twice"):
+    with pytest.raises(UsageError, match="given twice"):
         parse_settings(["laser.kerf=0.1", "laser.kerf=0.2"])
 
 
 def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     assert parse_formats("dxf, STL,dxf") == ["dxf", "stl"]
     assert parse_formats(None) is None
-    with pytest.raises(FabkitError, match="unknown format 'png'; valid: dxf"):
+    with pytest.raises(UsageError, match="unknown format 'png'; valid: dxf"):
         parse_formats("dxf,png")
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "gcode", "-o", str(tmp_path)])
-    assert rc == 1
+    assert rc == 2
     assert capsys.readouterr().err.strip() == (
         "fabkit: error: --to: unknown format 'gcode'; valid: " + ", ".join(fabkit.export.EXPORTERS))
     assert list(tmp_path.iterdir()) == []
 
 
-def test_progress_bar_only_on_a_terminal():
-    class Stream:
-        def __init__(self, tty):
-            self.tty, self.text = tty, ""
+def test_progress_is_one_line_per_stage_also_off_a_terminal():
+    import io
 
-        def isatty(self):
-            return self.tty
+    from fabkit.batch import DesignResult, Stage
 
-        def write(self, s):
-            self.text += s
-
-        def flush(self):
-            pass
-
-    quiet, loud = Stream(False), Stream(True)
-    for stream in (quiet, loud):
-        bar = Progress(4, stream)
-        bar.step("a")
-        bar.step("b")
-        bar.close()
-    assert quiet.text == ""
-    assert "[###############...............] 2/4 b" in loud.text
+    stream = io.StringIO()  # not a terminal
+    bar = Progress(2, stream, after=0.0)
+    bar.stage("a", Stage.MOTION)
+    bar.stage("a", Stage.CHECK)
+    bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
+    bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 4
+    assert lines[0].startswith("[0/2 ") and "] a: motion (0.0 s in)" in lines[0]
+    assert "] a: check (" in lines[1]
+    assert lines[2].startswith("[1/2 ") and lines[2].endswith("] a: ok in 1.2 s")
+    assert lines[3].startswith("[2/2 ") and lines[3].endswith("] b: failed in 0.5 s")
+    silent = io.StringIO()
+    bar = Progress(1, silent, quiet=True, after=0.0)
+    bar.stage("a", Stage.LOAD)
+    assert silent.getvalue() == ""
 
 
 # --- fabkit check, fabkit templates -----------------------------------------------------------

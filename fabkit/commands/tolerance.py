@@ -63,7 +63,8 @@ def run(args) -> int:
     from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
     from ..viz import figure_png
     from . import expand_templates
-    from .export import parse_settings, traced_motion
+    from ..batch import traced_motion
+    from .export import parse_settings
 
     if args.samples is not None and args.samples < 1:
         raise FabkitError(f"--samples must be at least 1, got {args.samples}")
