@@ -432,7 +432,7 @@ def _tolerance_spec(design, settings, tolerance_samples, allow_large):
         where = (f"{design.path}: fabrication.tolerance.samples" if tolerance_samples is None
                  else "--tolerance-samples")
         raise BoundsError(where, "Monte Carlo samples", int(spec.samples), MAX_SAMPLES,
-                          "--allow-large", option=tolerance_samples is not None)
+                          "fabkit --allow-large", option=tolerance_samples is not None)
     return spec
 
 
@@ -1110,7 +1110,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     allow_large = allow_large or large_allowed()
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
         raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
-                          MAX_SAMPLES, "--allow-large", option=True)
+                          MAX_SAMPLES, "fabkit --allow-large", option=True)
     settings = settings or {}
     exporters = dict(EXPORTERS if exporters is None else exporters)
     paths = [Path(p) for p in paths]
@@ -1169,8 +1169,9 @@ def _run_pool(todo, args, kwargs, jobs, outdir, progress, finished) -> None:
             except queue.Empty:
                 dead = [p for p in pool.procs if not p.is_alive() and p.exitcode not in (0,)]
                 if dead and all(not p.is_alive() for p in pool.procs):
-                    raise RuntimeError(f"every export worker died (exit code "
-                                       f"{dead[0].exitcode})") from None
+                    raise FabkitError(f"every export worker ended before its designs were done "
+                                      f"(exit code {dead[0].exitcode}); rerun with --jobs 1 "
+                                      "to see the error") from None
                 continue
             if event[0] == "stage":
                 _, i, name, s = event

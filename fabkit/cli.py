@@ -46,8 +46,18 @@ def _commands():
     return found
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (``fabkit: error: ...``, exit status 2), like every
+    other error of the command line."""
+
+    def error(self, message):
+        command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
+        hint = f"fabkit {command} --help" if command else "fabkit --help"
+        self.exit(ExitCode.USAGE, f"fabkit: error: {' '.join(message.split())} (see {hint})\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fabkit",
         description="Design mechanical networks as iterated maps, simulate their motion, and "
                     "export them for laser cutting, origami and 3D printing.",
@@ -55,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--allow-large", action="store_true",
                         help="lift the size bounds (modules, samples, periods) checked before work")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for mod in _commands():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(p)
@@ -80,6 +90,7 @@ def main(argv=None) -> int:
         os.environ["FABKIT_ALLOW_LARGE"] = "1"
     previous = _install_signal_handlers()
     try:
+        _check_output_option(args)
         return int(args._run(args))
     except FabkitError as exc:
         if args.debug:
@@ -92,6 +103,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("fabkit: interrupted", file=sys.stderr)
         return ExitCode.INTERRUPTED
+    except OSError as exc:  # a file-system condition met while working (disk full, permissions)
+        if args.debug:
+            raise
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"fabkit: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return ExitCode.FAILED
     except Exception as exc:  # a bug: one line that says where, the traceback with --debug
         if args.debug:
             raise
@@ -103,6 +120,21 @@ def main(argv=None) -> int:
             os.environ.pop("FABKIT_ALLOW_LARGE", None)
         else:
             os.environ["FABKIT_ALLOW_LARGE"] = saved_large
+
+
+#: Argument names that hold a command's output folder (``-o``); checked before any work.
+OUTPUT_DESTS = ("out", "outdir")
+
+
+def _check_output_option(args) -> None:
+    from .commands import check_output_folder
+
+    if getattr(args, "no_files", False):
+        return
+    for dest in OUTPUT_DESTS:
+        value = getattr(args, dest, None)
+        if isinstance(value, str) and not (args.command == "map" and dest == "out"):
+            check_output_folder(value)
 
 
 def internal_error_line(exc: BaseException) -> str:

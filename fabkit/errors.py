@@ -148,7 +148,7 @@ class BoundsError(FabkitError):
         if option:
             self.exit_code = 2
         hint = f"; {override} lifts the limit" if override else ""
-        super().__init__(f"{where}: {value:,} {quantity} exceeds the limit of {limit:,}{hint}")
+        super().__init__(f"{where}: {value:,} is over the limit of {limit:,} {quantity}{hint}")
 
 
 class InputFileError(FabkitError):

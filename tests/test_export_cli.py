@@ -498,3 +498,140 @@ def test_report_json_is_plain_sorted_and_stable():
     assert text == report_json(dict(reversed(list(report.items()))))
     assert text.decode().splitlines()[1] == '  "a": ['
     assert text.endswith(b"}\n")
+
+
+# --- signals, orphans and the lock -------------------------------------------------------------
+
+SLOW_FORMAT = textwrap.dedent('''
+    import os, time
+    from pathlib import Path
+
+    FORMAT = "slow"
+
+    def export_design(design, settings):
+        from fabkit.export import ExportResult
+
+        marks = Path(os.environ["FABKIT_TEST_MARKS"])
+        (marks / f"started-{os.getpid()}").write_text(design.name)
+        time.sleep(float(os.environ.get("FABKIT_TEST_SLEEP", "60")))
+        return ExportResult(files={design.name + ".txt": b"slow\\n"}, report={})
+''')
+
+SLOW_RUNNER = textwrap.dedent('''
+    import sys
+
+    import fabkit.export
+    from fabkit.cli import main
+
+    if __name__ == "__main__":  # spawned workers import this file too
+        fabkit.export.EXPORTERS.clear()
+        fabkit.export.EXPORTERS["slow"] = "fabkit_test_slow_format"
+        sys.exit(main(sys.argv[1:]))
+''')
+
+
+@pytest.fixture
+def slow_export(tmp_path):
+    """Start ``fabkit export`` of two designs with --jobs 2 and a format that sleeps; returns a
+    function that starts it and waits until both workers are inside the exporter."""
+    mods = tmp_path / "slow_mods"
+    mods.mkdir()
+    (mods / "fabkit_test_slow_format.py").write_text(SLOW_FORMAT)
+    runner = tmp_path / "runner.py"
+    runner.write_text(SLOW_RUNNER)
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    procs = []
+
+    def start(out, sleep=60.0, wait_workers=2):
+        env = {**os.environ, "FABKIT_TEST_MARKS": str(marks), "FABKIT_TEST_SLEEP": str(sleep),
+               "PYTHONPATH": str(mods) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+        proc = subprocess.Popen([sys.executable, str(runner), "export",
+                                 str(TEMPLATES / "fourbar.toml"),
+                                 str(TEMPLATES / "super_stable_chain8.toml"), "-o", str(out),
+                                 "--jobs", "2", "--no-check", "--no-previews",
+                                 "--tolerance-samples", "0"],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        procs.append(proc)
+        deadline = time.monotonic() + 120
+        while len(list(marks.glob("started-*"))) < wait_workers:
+            assert proc.poll() is None, proc.stderr.read()
+            assert time.monotonic() < deadline, "the workers never started"
+            time.sleep(0.05)
+        pids = [int(p.name.split("-")[1]) for p in marks.glob("started-*")]
+        return proc, pids
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie is dead for our purpose: it runs no code and writes nothing
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (FileNotFoundError, IndexError):
+        return False
+
+
+def _wait_dead(pids, timeout):
+    deadline = time.monotonic() + timeout
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return [p for p in pids if _alive(p)]
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_export, signum):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out)
+    assert len(workers) == 2 and all(_alive(p) for p in workers)
+    t0 = time.monotonic()
+    proc.send_signal(signum)
+    rc = proc.wait(timeout=30)
+    elapsed = time.monotonic() - t0
+    assert rc == 128 + signum
+    assert elapsed < 10, elapsed  # the exporters would sleep for a minute
+    assert _wait_dead(workers, 5) == []
+    err = proc.stderr.read().strip().splitlines()
+    assert err == [f"fabkit: interrupted ({signal.Signals(signum).name})"]
+    assert snapshot(out) == {}  # no design folder, no staging folder, no lock file
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_workers_die_with_a_killed_parent_and_write_nothing_later(tmp_path, slow_export):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out, sleep=3.0)
+    proc.kill()  # SIGKILL: no handler runs in the parent
+    proc.wait(timeout=30)
+    assert _wait_dead(workers, 5) == []
+    time.sleep(4.0)  # past the moment the exporters would have returned and written
+    visible = [k for k in snapshot(out) if not k.startswith(".")]
+    assert visible == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_a_second_export_into_the_same_folder_is_refused(tmp_path, slow_export, lengths_format,
+                                                         capsys):
+    out = tmp_path / "out"
+    proc, _ = slow_export(out)
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1
+    assert f"process {proc.pid} is exporting into this folder" in err[0] and "--wait" in err[0]
+    assert not (out / "fourbar").exists()
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    # the lock went with its holder: now the same export runs
+    assert main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews",
+                 "--wait", "-q"]) == 0
+    assert (out / "fourbar" / "fourbar_lengths.txt").is_file()
+    assert not (out / ".fabkit.lock").exists()
