@@ -1123,9 +1123,12 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
         if progress:
             progress.finished(res)
 
+    cost = {}
     for i, p in enumerate(paths):
         try:
-            name = load_template(p).name
+            design = load_template(p)
+            name = design.name
+            cost[i] = design.network.n_edges
         except FabkitError as exc:
             # a template that does not even load needs no worker: report it here
             finished(i, DesignResult(str(p), p.stem, error=str(exc), error_code=exc.code))
@@ -1146,7 +1149,10 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     args = {i: (paths[i], formats, outdir, settings) for i in todo}
     with OutputLock(outdir, wait=wait):
         if (isolate or jobs > 1) and not debug:
-            _run_pool(todo, args, kwargs, jobs, outdir, progress, finished)
+            # largest designs first (edges as the measure of work): a long design started last
+            # would run alone at the end while the other workers idle
+            order = sorted(todo, key=lambda i: (-cost.get(i, 0), i))
+            _run_pool(order, args, kwargs, jobs, outdir, progress, finished)
         else:
             stage_cb = progress.stage if progress else None
             for i in todo:
