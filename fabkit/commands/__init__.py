@@ -31,7 +31,7 @@ def expand_templates(paths) -> list[Path]:
             if not found:
                 raise FabkitError(f"{p}: folder holds no *.toml templates")
             out.extend(found)
-        elif any(ch in str(raw) for ch in "*?["):
+        elif set("*?[") & set(str(raw)):  # a glob pattern
             found = sorted(Path(g) for g in glob.glob(str(raw)))
             if not found:
                 raise FabkitError(f"{raw}: no file matches")
