@@ -310,3 +310,22 @@ def test_check_against_another_design_is_a_failed_check_not_a_crash(tmp_path, ca
     captured = capsys.readouterr()
     assert rc == 1 and captured.err == ""
     assert "FAIL  design_map" in captured.out and "does not match this file" in captured.out
+
+
+@pytest.mark.parametrize("content, words", [
+    (b"", ["not an STL file (0 bytes)"]),
+    (b"\x00" * 80 + (1000).to_bytes(4, "little") + b"\x00" * 500,
+     ["not a complete STL file", "1000 triangles", "cut off or corrupt"]),
+    (bytes(range(256)) * 8, ["not a complete STL file"]),
+    (b"solid x\nfacet normal 0 0 1\n garbage\nendsolid\n", ["holds no triangles"]),
+    ("solid caf\xe9\n".encode("latin-1") + b"\x00" * 90, ["not a complete STL file"]),
+])
+def test_a_corrupt_stl_is_one_line_naming_the_file(content, words, tmp_path, capsys):
+    path = tmp_path / "part.stl"
+    path.write_bytes(content)
+    rc = main(["check", str(path)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and str(path) in line
+    assert "charset_normalizer" not in line
+    for w in words:
+        assert w in line, line
