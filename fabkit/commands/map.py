@@ -84,7 +84,13 @@ def design_map(design, d_in="d1", d_out="d2"):
         if design.motion.to is None:
             raise FabkitError(f"{design.path}: {exc}; and the template gives no motion.to to "
                               "trace instead") from None
+        from ..errors import MotionError
+        from ..kinematics import Status
+
         traj = design.trace(method="projected")
+        if traj.status is Status.FAILED:  # a failed trace is no map, not even of a stretch
+            raise MotionError(design.path, "motion", f"the trace failed: {traj.message}",
+                              status=str(traj.status)) from None
         return map_from_trajectory(traj, d_in, d_out, name=design.name)
 
 
