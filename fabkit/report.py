@@ -182,9 +182,14 @@ def report_markdown(report: dict) -> bytes:
             for chk in f.get("checks", []):
                 rows = [(c.get("name"), "ok" if c.get("ok") else "FAIL", c.get("value"),
                          c.get("limit"), c.get("detail", "")) for c in chk.get("checks", [])]
-                out += ["", f"As-built check of `{chk.get('file')}`: "
+                read = ", ".join(f"`{f}`" for f in chk.get("files") or []
+                                 if isinstance(f, str) and f != chk.get("file"))
+                out += ["", f"As-built check of `{chk.get('file')}`"
+                            + (f" (with {read})" if read else "") + ": "
                             f"{'ok' if chk.get('ok') else 'FAILED'}"
-                            + (f" ({chk['error']})" if chk.get("error") else ""), ""]
+                            + (f" ({chk['error']})" if chk.get("error") else "")
+                            + (" — computed by the exporter from the same bytes as those written"
+                               if chk.get("source") == "exporter" else ""), ""]
                 if rows:
                     out += _table(["check", "result", "value", "limit", "detail"], rows)
             if f.get("error"):

@@ -102,7 +102,7 @@ def parse_formats(text: str | None) -> list[str] | None:
 
 
 def run(args) -> int:
-    from ..batch import Progress, export_many, summary_table
+    from ..batch import Progress, exit_code, export_many, summary_table
     from ..errors import UsageError
     from . import expand_templates
 
@@ -122,7 +122,7 @@ def run(args) -> int:
                           debug=getattr(args, "debug", False), wait=args.wait,
                           allow_large=getattr(args, "allow_large", False))
     print(summary_table(results))
-    failed = [r for r in results if not r.ok]
-    for r in failed:
-        print(f"fabkit: error: {r.error}", file=sys.stderr)
-    return 1 if failed else 0
+    for r in results:
+        if not r.ok:
+            print(f"fabkit: error: {r.error}", file=sys.stderr)
+    return exit_code(results)
