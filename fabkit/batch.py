@@ -973,6 +973,7 @@ def _worker_main(parent_pid, tasks, events) -> None:
             if task is None:
                 return
             index, args, kwargs = task
+            events.put(("start", index, os.getpid()))
 
             def progress(name, s, index=index):
                 events.put(("stage", index, name, str(s)))
@@ -992,19 +993,27 @@ class _Pool:
         ctx = multiprocessing.get_context("spawn")  # fresh interpreters, no forked state
         self.tasks = ctx.Queue()
         self.events = ctx.Queue()
+        self.ctx = ctx
+        self.procs = []
+        for _ in range(jobs):
+            self.spawn()
+
+    def spawn(self):
+        """Start one more worker."""
         saved = os.environ.get("PYTHONHASHSEED")
         os.environ["PYTHONHASHSEED"] = "0"  # read by each worker when it starts
         try:
-            self.procs = [ctx.Process(target=_worker_main, daemon=True,
-                                      args=(os.getpid(), self.tasks, self.events),
-                                      name=f"fabkit-export-{i}") for i in range(jobs)]
-            for p in self.procs:
-                p.start()
+            proc = self.ctx.Process(target=_worker_main, daemon=True,
+                                    args=(os.getpid(), self.tasks, self.events),
+                                    name=f"fabkit-export-{len(self.procs)}")
+            proc.start()
         finally:
             if saved is None:
                 os.environ.pop("PYTHONHASHSEED", None)
             else:
                 os.environ["PYTHONHASHSEED"] = saved
+        self.procs.append(proc)
+        return proc
 
     def stop(self, grace: float = 5.0) -> None:
         """SIGTERM every live worker, wait up to ``grace`` seconds, then SIGKILL."""
@@ -1209,10 +1218,35 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
 
 def _run_pool(todo, args, kwargs, jobs, outdir, progress, finished) -> None:
     import queue
+    import signal
 
     pool = _Pool(max(1, min(jobs, len(todo))))
     pending = set(todo)
-    names = {}
+    names, inflight, seen_dead = {}, {}, set()
+
+    def reap():
+        """A worker that died (killed by the system, out of memory) fails its design; a new
+        worker takes its place while designs remain."""
+        for proc in list(pool.procs):
+            if proc.is_alive() or proc.pid in seen_dead:
+                continue
+            seen_dead.add(proc.pid)
+            i = inflight.pop(proc.pid, None)
+            if i is not None and i in pending:
+                code = proc.exitcode
+                how = (f"killed by {signal.Signals(-code).name}" if code is not None and code < 0
+                       else f"exit code {code}")
+                pending.discard(i)
+                name = names.get(i, Path(args[i][0]).stem)
+                if _SAFE_NAME.match(name):
+                    recover_folder(outdir, name)
+                finished(i, DesignResult(str(args[i][0]), name, error_code="worker",
+                                         error=f"{args[i][0]}: the worker process exporting it "
+                                               f"ended unexpectedly ({how}); nothing of it was "
+                                               "written"))
+            if pending and sum(p.is_alive() for p in pool.procs) < min(jobs, len(pending)):
+                pool.spawn()
+
     try:
         for i in todo:
             pool.tasks.put((i, args[i], kwargs))
@@ -1220,21 +1254,21 @@ def _run_pool(todo, args, kwargs, jobs, outdir, progress, finished) -> None:
             try:
                 event = pool.events.get(timeout=0.5)
             except queue.Empty:
-                dead = [p for p in pool.procs if not p.is_alive() and p.exitcode not in (0,)]
-                if dead and all(not p.is_alive() for p in pool.procs):
-                    raise FabkitError(f"every export worker ended before its designs were done "
-                                      f"(exit code {dead[0].exitcode}); rerun with --jobs 1 "
-                                      "to see the error") from None
+                reap()
                 continue
-            if event[0] == "stage":
+            if event[0] == "start":
+                _, i, pid = event
+                inflight[pid] = i
+            elif event[0] == "stage":
                 _, i, name, s = event
                 names[i] = name
                 if progress:
                     progress.stage(name, s)
             else:
                 _, i, res = event
-                pending.discard(i)
-                finished(i, res)
+                if i in pending:
+                    pending.discard(i)
+                    finished(i, res)
     except BaseException:
         pool.stop()
         # a worker killed between two writes leaves its staging folder: remove those of the

@@ -733,3 +733,21 @@ def test_a_reused_laser_check_equals_the_check_of_the_file_on_disk(tmp_path):
     again = json.loads(json.dumps(check_file(out / "fourbar" / entry["file"],
                                              design=load_template(template))))
     assert {k: v for k, v in entry.items() if k not in ("file", "source")} == again
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_export):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out, sleep=4.0)
+    marks = {int(p.name.split("-")[1]): p.read_text() for p in
+             (tmp_path / "marks").glob("started-*")}
+    victim = next(pid for pid, name in marks.items() if name == "fourbar")
+    os.kill(victim, signal.SIGKILL)  # as the out-of-memory killer would
+    rc = proc.wait(timeout=120)
+    err = proc.stderr.read().strip().splitlines()
+    assert rc == 1 and len(err) == 1, err
+    assert "fourbar.toml: the worker process exporting it ended unexpectedly (killed by " \
+           "SIGKILL)" in err[0]
+    files = snapshot(out)
+    assert sorted(files) == ["super_stable_chain8/report.json", "super_stable_chain8/report.md",
+                             "super_stable_chain8/super_stable_chain8.txt"]
