@@ -4,6 +4,10 @@ Subcommands live one per file in :mod:`fabkit.commands`; each module defines ``N
 ``add_arguments(parser)`` and ``run(args) -> int``. They are discovered at start-up, so a new
 command needs no edit here. :func:`main` returns an exit code; fabkit errors print as one line
 (``fabkit: error: ...``), tracebacks only with ``--debug``.
+
+Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
+2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
+that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM).
 """
 
 from __future__ import annotations
@@ -11,10 +15,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import signal
 import sys
 from enum import IntEnum
+from pathlib import Path
 
-from .errors import FabkitError
+from .errors import FabkitError, Interrupted
 
 __all__ = ["main", "entry", "ExitCode"]
 
@@ -23,6 +29,7 @@ class ExitCode(IntEnum):
     OK = 0
     FAILED = 1      #: a design failed (bad input, impossible design, failed check)
     USAGE = 2       #: bad command line
+    INTERNAL = 70   #: a bug in fabkit (EX_SOFTWARE of sysexits.h)
     INTERRUPTED = 130
 
 
@@ -39,14 +46,26 @@ def _commands():
     return found
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (``fabkit: error: ...``, exit status 2), like every
+    other error of the command line."""
+
+    def error(self, message):
+        command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
+        hint = f"fabkit {command} --help" if command else "fabkit --help"
+        self.exit(ExitCode.USAGE, f"fabkit: error: {' '.join(message.split())} (see {hint})\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="fabkit",
         description="Design mechanical networks as iterated maps, simulate their motion, and "
                     "export them for laser cutting, origami and 3D printing.",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser.add_argument("--allow-large", action="store_true",
+                        help="lift the size bounds (modules, samples, periods) checked before work")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for mod in _commands():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
         mod.add_arguments(p)
@@ -64,16 +83,95 @@ def main(argv=None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return ExitCode.USAGE
+    import os
+
+    saved_large = os.environ.get("FABKIT_ALLOW_LARGE")
+    if args.allow_large:  # an environment variable, so that worker processes see it too
+        os.environ["FABKIT_ALLOW_LARGE"] = "1"
+    previous = _install_signal_handlers()
     try:
+        _check_output_option(args)
         return int(args._run(args))
     except FabkitError as exc:
         if args.debug:
             raise
         print(f"fabkit: error: {exc}", file=sys.stderr)
-        return ExitCode.FAILED
+        return int(exc.exit_code)
+    except Interrupted as exc:
+        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
     except KeyboardInterrupt:
         print("fabkit: interrupted", file=sys.stderr)
         return ExitCode.INTERRUPTED
+    except OSError as exc:  # a file-system condition met while working (disk full, permissions)
+        if args.debug:
+            raise
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"fabkit: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return ExitCode.FAILED
+    except Exception as exc:  # a bug: one line that says where, the traceback with --debug
+        if args.debug:
+            raise
+        print(f"fabkit: {internal_error_line(exc)}", file=sys.stderr)
+        return ExitCode.INTERNAL
+    finally:
+        _restore_signal_handlers(previous)
+        if saved_large is None:
+            os.environ.pop("FABKIT_ALLOW_LARGE", None)
+        else:
+            os.environ["FABKIT_ALLOW_LARGE"] = saved_large
+
+
+#: Argument names that hold a command's output folder (``-o``); checked before any work.
+OUTPUT_DESTS = ("out", "outdir")
+
+
+def _check_output_option(args) -> None:
+    from .commands import check_output_folder
+
+    if getattr(args, "no_files", False):
+        return
+    for dest in OUTPUT_DESTS:
+        value = getattr(args, dest, None)
+        if isinstance(value, str) and not (args.command == "map" and dest == "out"):
+            check_output_folder(value)
+
+
+def internal_error_line(exc: BaseException) -> str:
+    """One line for an unexpected exception: its type, where it was raised, how to report it."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+    text = " ".join(str(exc).split())[:200]
+    return (f"internal error{where}: {type(exc).__name__}: {text} -- this is a bug in fabkit; "
+            "please report it with the output of the same command run with --debug")
+
+
+def _raise_interrupted(signum, frame):
+    raise Interrupted(signum)
+
+
+def _install_signal_handlers() -> dict:
+    """SIGINT and SIGTERM raise :class:`~fabkit.errors.Interrupted` in the main thread, so that
+    every command cleans up (temporary files, staging folders, worker processes) the same way
+    for both; returns the previous handlers."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            previous[sig] = signal.signal(sig, _raise_interrupted)
+        except (ValueError, OSError):  # not settable here (embedded interpreter)
+            pass
+    return previous
+
+
+def _restore_signal_handlers(previous: dict) -> None:
+    for sig, handler in previous.items():
+        signal.signal(sig, handler)
 
 
 def entry() -> None:

@@ -1,8 +1,10 @@
 """Exceptions raised by fabkit.
 
 Every error derives from :class:`FabkitError`; ``str(error)`` is one line a user can act on. The
-command line prints that line and exits with a non-zero code; tracebacks appear only with
-``--debug``.
+command line prints that line and exits with the error's :attr:`~FabkitError.exit_code`;
+tracebacks appear only with ``--debug``. Each class has a stable :attr:`~FabkitError.code` (a
+short identifier that reports and scripts may test) and keeps what failed in fields, so that no
+caller ever has to read the message text to decide what to do.
 """
 
 from __future__ import annotations
@@ -16,15 +18,38 @@ __all__ = [
     "DesignError",
     "FabricationError",
     "ResourceError",
+    "UsageError",
+    "BoundsError",
+    "InputFileError",
+    "OutputError",
+    "LockedError",
+    "MotionError",
+    "SingularStartError",
+    "UnavailableError",
+    "Interrupted",
 ]
 
 
 class FabkitError(Exception):
-    """Base class of all errors that fabkit raises on purpose."""
+    """Base class of all errors that fabkit raises on purpose.
+
+    Attributes
+    ----------
+    code : str
+        Stable identifier of the kind of error (``"template"``, ``"usage"``, ...).
+    exit_code : int
+        Exit status of the command line for this error: 1 (a design or an input failed) unless a
+        subclass says otherwise (2 for a usage error).
+    """
+
+    code = "error"
+    exit_code = 1
 
 
 class NetworkError(FabkitError, ValueError):
     """A network is malformed: bad coordinates, bad indices, duplicate or degenerate edges."""
+
+    code = "network"
 
 
 class TemplateError(FabkitError):
@@ -40,6 +65,8 @@ class TemplateError(FabkitError):
         What is wrong and, where possible, how to fix it.
     """
 
+    code = "template"
+
     def __init__(self, path, key: str, reason: str):
         self.path = str(path)
         self.key = key
@@ -51,18 +78,190 @@ class TemplateError(FabkitError):
 class KinematicsError(FabkitError):
     """A motion cannot be traced as asked (wrong drive, no motion, unknown option)."""
 
+    code = "kinematics"
+
 
 class ConstructionError(KinematicsError):
     """The network has no construction order by circle/sphere intersections for the drive."""
+
+    code = "construction"
 
 
 class DesignError(FabkitError):
     """A module design specification cannot be met."""
 
+    code = "design"
+
 
 class FabricationError(FabkitError):
     """Fabrication settings or geometry that cannot be made; the message suggests a fix."""
 
+    code = "fabrication"
+
 
 class ResourceError(FabkitError):
     """A computation would need more memory than the machine has (raised before allocating)."""
+
+    code = "resource"
+
+
+class UsageError(FabkitError):
+    """A command-line option has a value the command cannot use (exit status 2).
+
+    Parameters
+    ----------
+    option : str
+        The option as typed (``"--jobs"``).
+    reason : str
+        What is wrong with its value and what to give instead.
+    """
+
+    code = "usage"
+    exit_code = 2
+
+    def __init__(self, option: str, reason: str):
+        self.option = option
+        self.reason = reason
+        super().__init__(f"{option}: {reason}" if option else reason)
+
+
+class BoundsError(FabkitError):
+    """A size asks for more work or memory than this machine can give in reasonable time.
+
+    Checked before the work starts. Exit status 1 when the size comes from a template, 2 when it
+    comes from a command-line option (``option`` is then set).
+
+    Parameters
+    ----------
+    where : str
+        The template path and key, or the option, that sets the size.
+    quantity : str
+        What is counted (``"modules"``, ``"Monte Carlo samples"``).
+    value, limit : float
+        The size asked for and the largest one accepted.
+    override : str
+        How to lift the limit (a flag or an environment variable), or ``""``.
+    """
+
+    code = "bounds"
+
+    def __init__(self, where: str, quantity: str, value, limit, override: str = "",
+                 option: bool = False):
+        self.where = where
+        self.quantity = quantity
+        self.value = value
+        self.limit = limit
+        self.override = override
+        if option:
+            self.exit_code = 2
+        hint = f"; {override} lifts the limit" if override else ""
+        super().__init__(f"{where}: {value:,} is over the limit of {limit:,} {quantity}{hint}")
+
+
+class InputFileError(FabkitError):
+    """An input path is not a readable regular file (a folder, a FIFO, a device, a loop).
+
+    Parameters
+    ----------
+    path : str
+    reason : str
+    """
+
+    code = "input_file"
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class OutputError(FabkitError):
+    """An output folder or file cannot be created or written.
+
+    Parameters
+    ----------
+    path : str
+    reason : str
+    """
+
+    code = "output"
+
+    def __init__(self, path, reason: str):
+        self.path = str(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class LockedError(OutputError):
+    """Another fabkit process is exporting into the same output folder.
+
+    Parameters
+    ----------
+    path : str
+        The output folder.
+    pid : int or None
+        The process that holds the lock, when known.
+    """
+
+    code = "locked"
+
+    def __init__(self, path, pid=None):
+        self.pid = pid
+        who = f"process {pid}" if pid else "another process"
+        super().__init__(path, f"{who} is exporting into this folder (lock file "
+                               f".fabkit.lock); wait for it to finish, or use --wait")
+
+
+class MotionError(TemplateError):
+    """The template's motion does not reach its target (or cannot leave its start).
+
+    Parameters
+    ----------
+    path, key, reason
+        As for :class:`TemplateError`.
+    status : str
+        How the trace ended (a :class:`fabkit.kinematics.Status` value, or ``"refused"`` when the
+        tracer raised before it started).
+    """
+
+    code = "motion"
+
+    def __init__(self, path, key: str, reason: str, status: str = "failed"):
+        self.status = str(status)
+        super().__init__(path, key, reason)
+
+
+class SingularStartError(MotionError):
+    """The start configuration is a kinematic bifurcation (states of self-stress and more than one
+    first-order motion), so the trace cannot choose a branch by itself; an exporter that chooses
+    the branch (an origami crease assignment) may still resolve it."""
+
+    code = "singular_start"
+
+
+class UnavailableError(FabkitError):
+    """An optional part (an exporter, a checker) cannot be imported.
+
+    Parameters
+    ----------
+    what : str
+        ``"export format 'stl'"``, ``"the .stl check"``.
+    reason : str
+    """
+
+    code = "unavailable"
+
+    def __init__(self, what: str, reason: str):
+        self.what = what
+        self.reason = reason
+        super().__init__(f"{what} is not available: {reason}")
+
+
+class Interrupted(BaseException):
+    """Raised in the main process when SIGINT or SIGTERM arrives; carries the signal number so
+    that the command line exits with 128 + signal, like a shell. A BaseException (as
+    KeyboardInterrupt) so that no ``except Exception`` swallows it."""
+
+    def __init__(self, signum: int):
+        self.signum = int(signum)
+        super().__init__(f"interrupted by signal {self.signum}")

@@ -2,7 +2,11 @@
 
 Both are pure functions of their input: no clock, no host name, no absolute path, keys sorted and
 floats printed by ``repr``, so that the same design exported twice gives byte-identical reports.
-The export command assembles the report dict; this module only turns it into bytes.
+:mod:`fabkit.batch` assembles the report dict from its typed results (``outcome`` is a
+:class:`fabkit.batch.Outcome` value, each format's ``status`` a :class:`fabkit.batch.FormatStatus`
+value); this module only turns it into bytes. The keys of report.json are listed in
+docs/batch.md; readers should test ``outcome`` (and may fall back to ``ok`` for reports of
+``report_version`` 1).
 """
 
 from __future__ import annotations
@@ -120,7 +124,8 @@ def report_markdown(report: dict) -> bytes:
     out = [f"# {d.get('name', 'design')}", ""]
     if d.get("description"):
         out += [d["description"], ""]
-    status = "ok" if r.get("ok") else "FAILED"
+    outcome = r.get("outcome") or ("ok" if r.get("ok") else "failed")
+    status = "ok" if outcome == "ok" else outcome.upper()
     out += [f"- status: **{status}**",
             f"- template: `{d.get('template', '')}`"
             + (f" (sha256 {d['template_sha256'][:12]})" if d.get("template_sha256") else ""),
@@ -159,13 +164,15 @@ def report_markdown(report: dict) -> bytes:
 
     fmts = r.get("formats") or {}
     skipped = {k: v for k, v in fmts.items() if v.get("status") in ("not available",
-                                                                     "does not apply")}
+                                                                     "does not apply",
+                                                                     "skipped by the template")}
     made = {k: v for k, v in fmts.items() if k not in skipped}
     if fmts:
         out += ["## Files", ""]
         if skipped:
-            out += ["Not exported: " + ", ".join(f"{k} ({v['status']})"
-                                                 for k, v in sorted(skipped.items())) + ".", ""]
+            out += ["Not exported: " + ", ".join(
+                f"{k} ({v['status']}" + (f": {v['detail']}" if v.get("detail") else "") + ")"
+                for k, v in sorted(skipped.items())) + ".", ""]
         for name in sorted(made):
             f = made[name]
             out.append(f"### {name}: {f.get('status', '')}")
@@ -175,9 +182,14 @@ def report_markdown(report: dict) -> bytes:
             for chk in f.get("checks", []):
                 rows = [(c.get("name"), "ok" if c.get("ok") else "FAIL", c.get("value"),
                          c.get("limit"), c.get("detail", "")) for c in chk.get("checks", [])]
-                out += ["", f"As-built check of `{chk.get('file')}`: "
+                read = ", ".join(f"`{f}`" for f in chk.get("files") or []
+                                 if isinstance(f, str) and f != chk.get("file"))
+                out += ["", f"As-built check of `{chk.get('file')}`"
+                            + (f" (with {read})" if read else "") + ": "
                             f"{'ok' if chk.get('ok') else 'FAILED'}"
-                            + (f" ({chk['error']})" if chk.get("error") else ""), ""]
+                            + (f" ({chk['error']})" if chk.get("error") else "")
+                            + (" — computed by the exporter from the same bytes as those written"
+                               if chk.get("source") == "exporter" else ""), ""]
                 if rows:
                     out += _table(["check", "result", "value", "limit", "detail"], rows)
             if f.get("error"):

@@ -39,7 +39,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from .errors import FabkitError, TemplateError
+from .errors import BoundsError, FabkitError, InputFileError, TemplateError
 from .network import Network
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
@@ -53,6 +53,60 @@ BUILDERS: dict[str, str] = {
     "design": "fabkit.design:build_designed_module",
     "tessellation": "fabkit.assemble:build_tessellation",
 }
+
+#: Bounds checked before a network is built (lifted by ``fabkit --allow-large`` or the
+#: environment variable ``FABKIT_ALLOW_LARGE=1``): beyond them the work takes hours or the memory
+#: runs out before a single line of feedback.
+MAX_FILE_BYTES = 4 * 2**20      #: a template file (the largest bundled one is a few kB)
+MAX_MODULES = 20_000            #: modules of a chain or tessellation
+MAX_NODES = 200_000             #: nodes of an explicit [network]
+MAX_MOTION_SAMPLES = 100_000    #: motion.options.samples (configurations of a sampled trace)
+MAX_MOTION_STEPS = 1_000_000    #: motion.options.max_steps
+
+
+def allow_large() -> bool:
+    """True when the size bounds are lifted (``FABKIT_ALLOW_LARGE=1``, set by --allow-large)."""
+    import os
+
+    return os.environ.get("FABKIT_ALLOW_LARGE", "") == "1"
+
+
+def _bound(ctx, key: str, quantity: str, value, limit) -> None:
+    if value > limit and not allow_large():
+        raise BoundsError(f"{ctx.path}: {key}", quantity, value, limit, "fabkit --allow-large")
+
+
+def _check_sizes(ctx, builder_key: str, section: dict, raw: dict) -> None:
+    """Refuse sizes that cannot finish before building anything (one line, the key named)."""
+    def count(value):
+        return value if isinstance(value, int) and not isinstance(value, bool) else None
+
+    if builder_key == "chain":
+        copies = count(section.get("copies"))
+        mods = section.get("modules")
+        n = len(mods) if isinstance(mods, list) else 1
+        if copies is not None:
+            _bound(ctx, "chain.copies", "modules", copies * n, MAX_MODULES)
+        elif isinstance(mods, list):
+            _bound(ctx, "chain.modules", "modules", n, MAX_MODULES)
+    elif builder_key == "tessellation":
+        shape = section.get("shape")
+        if (isinstance(shape, list) and len(shape) == 2
+                and all(count(v) is not None for v in shape)):
+            _bound(ctx, "tessellation.shape", "modules", shape[0] * shape[1], MAX_MODULES)
+    elif builder_key == "network" and isinstance(section.get("nodes"), list):
+        _bound(ctx, "network.nodes", "nodes", len(section["nodes"]), MAX_NODES)
+    motion = raw.get("motion")
+    options = motion.get("options") if isinstance(motion, dict) else None
+    if isinstance(options, dict):
+        for key, limit, what in (("samples", MAX_MOTION_SAMPLES, "configurations"),
+                                 ("max_steps", MAX_MOTION_STEPS, "steps")):
+            v = options.get(key)
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v):
+                _bound(ctx, f"motion.options.{key}", what, int(v), limit)
+            elif isinstance(v, float):
+                raise ctx.error(f"motion.options.{key}", f"must be finite, got {v}")
+
 
 #: Keys allowed at the top level besides the builder sections.
 TOP_LEVEL_KEYS = {"name", "description", "figure", "notes", "motion", "fabrication", "analysis",
@@ -299,6 +353,9 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise TemplateError(path, "", f"not valid TOML: {exc}") from None
+    except RecursionError:  # the parser recurses once per level of [[[...]]] or {a={b=...}}
+        raise TemplateError(path, "", "not a template: arrays or tables nested too deeply "
+                                      "for TOML to parse") from None
     ctx = TemplateContext(path, raw, tuple(_stack))
     present = [k for k in BUILDERS if k in raw]
     if not present:
@@ -309,6 +366,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
     ctx.check_keys(raw, "", TOP_LEVEL_KEYS | set(BUILDERS))
     builder_key = present[0]
     section = ctx.get(raw, builder_key, "", dict)
+    _check_sizes(ctx, builder_key, section, raw)
     module_name, func_name = BUILDERS[builder_key].split(":")
     try:
         builder: Callable = getattr(importlib.import_module(module_name), func_name)
@@ -347,16 +405,46 @@ def load_template(path, *, _stack=()) -> Design:
     TemplateError
         Unreadable file, TOML syntax error, missing or unknown key, wrong type, bad index,
         invalid network; the message names the file, the key path and the reason.
+    InputFileError
+        Not a regular file (a FIFO, a device, a socket), or a symbolic-link loop: refused before
+        reading, since reading may never end.
+    BoundsError
+        A file larger than :data:`MAX_FILE_BYTES`, or sizes beyond the bounds (see
+        :func:`parse_template`).
     """
+    import errno
+    import os
+    import stat
+
     path = Path(path)
     try:
-        data = path.read_bytes()
+        st = os.stat(path)
     except FileNotFoundError:
         raise TemplateError(path, "", "no such file") from None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise InputFileError(path, "symbolic-link loop: the link never reaches a "
+                                       "file") from None
+        raise TemplateError(path, "", f"cannot read: {exc.strerror}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise TemplateError(path, "", "is a folder, not a template file")
+    if not stat.S_ISREG(st.st_mode):
+        kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
+                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
+                "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
+        raise InputFileError(path, f"is {kind}, not a template file: refused")
+    if st.st_size > MAX_FILE_BYTES and not allow_large():
+        raise BoundsError(str(path), "bytes", st.st_size, MAX_FILE_BYTES,
+                          "fabkit --allow-large")
+    try:
+        with open(path, "rb") as fh:  # read at most the bound: the file may grow meanwhile
+            data = fh.read(MAX_FILE_BYTES + 1 if not allow_large() else -1)
     except IsADirectoryError:
         raise TemplateError(path, "", "is a folder, not a template file") from None
     except OSError as exc:
         raise TemplateError(path, "", f"cannot read: {exc.strerror}") from None
+    if len(data) > MAX_FILE_BYTES and not allow_large():
+        raise BoundsError(str(path), "bytes", len(data), MAX_FILE_BYTES, "fabkit --allow-large")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

@@ -66,20 +66,34 @@ EXPECTED = {
     "two_motions": ("network", ["2 conformational motions"]),
     "unreachable_target": ("motion.to", ["not reached", "turning point"]),
     "singular_start": ("network.nodes", ["collinear", "flat state"]),
+    "negative_max_step": ("motion", ["not reached", "step size"]),
+    # sizes that would not finish: refused before any work, with the way to lift the bound
+    "chain_copies_huge": ("chain.copies", ["10,000,000", "limit of 20,000 modules",
+                                           "--allow-large"]),
+    "tessellation_huge": ("tessellation.shape", ["100,000,000", "modules"]),
+    "motion_samples_huge": ("motion.options.samples", ["1,000,000,000", "limit"]),
+    "motion_samples_infinite": ("motion.options.samples", ["must be finite"]),
+    "max_steps_huge": ("motion.options.max_steps", ["limit of 1,000,000 steps"]),
+    "tolerance_samples_huge": ("fabrication.tolerance.samples", ["Monte Carlo samples"]),
+    "deeply_nested_arrays": ("", ["nested too deeply"]),
+    "deeply_nested_tables": ("", ["nested too deeply"]),
 }
 
 
 def test_corpus_is_complete():
     files = {p.stem for p in BAD.glob("*.toml")}
     assert files == set(EXPECTED), files ^ set(EXPECTED)
-    assert len(files) >= 30
+    assert len(files) >= 50
 
 
 @pytest.mark.parametrize("stem", sorted(EXPECTED))
 def test_bad_template_gives_one_line_and_writes_nothing(stem, tmp_path, capsys):
     path = BAD / f"{stem}.toml"
     out = tmp_path / "out"
-    rc = main(["export", str(path), "-o", str(out), "--tolerance-samples", "20"])
+    # fewer Monte Carlo builds keep the corpus fast; not where the template's own count is the
+    # error (the command line would override it)
+    fast = [] if stem == "tolerance_samples_huge" else ["--tolerance-samples", "20"]
+    rc = main(["export", str(path), "-o", str(out), *fast])
     err = capsys.readouterr().err
     assert rc != 0
     lines = err.strip().splitlines()
@@ -146,3 +160,172 @@ def test_one_bad_design_does_not_stop_the_others(tmp_path, capsys, monkeypatch):
     assert not (out / "rigid_network").exists()
     assert "1 exported, 1 failed" in captured.out
     assert "rigid_network.toml: network: the network is rigid" in captured.err
+
+
+# --- file-system conditions, sizes and options, generated ----------------------------------
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("fabkit: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+GOOD = Path(__file__).resolve().parents[1] / "templates" / "fourbar.toml"
+
+
+def _special(kind: str, tmp_path: Path) -> tuple[str, list[str]]:
+    """A path that is not a template file, and the words of its one-line error."""
+    import os
+
+    p = tmp_path / f"{kind}.toml"
+    if kind == "fifo":
+        os.mkfifo(p)
+        return str(p), ["FIFO", "refused"]
+    if kind == "device":
+        return "/dev/zero", ["a device", "refused"]
+    if kind == "link_loop":
+        os.symlink(p, p)
+        return str(p), ["symbolic-link loop"]
+    if kind == "broken_link":
+        os.symlink(tmp_path / "nowhere.toml", p)
+        return str(p), ["no such file"]
+    if kind == "huge_file":
+        with open(p, "wb") as fh:
+            fh.write(b"# padding\n" * (5 * 2**20 // 10))
+        return str(p), ["bytes", "limit", "--allow-large"]
+    if kind == "latin1":
+        p.write_bytes("name = \"caf\xe9\"\n".encode("latin-1"))
+        return str(p), ["not UTF-8"]
+    raise AssertionError(kind)
+
+
+SPECIAL = ["fifo", "device", "link_loop", "broken_link", "huge_file", "latin1"]
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+@pytest.mark.parametrize("command", ["export", "info", "simulate"])
+def test_special_files_are_refused_in_one_line(kind, command, tmp_path, capsys):
+    path, words = _special(kind, tmp_path)
+    out = tmp_path / "out"
+    args = [command, path] + (["-o", str(out)] if command != "info" else [])
+    rc = main(args)
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1
+    for w in words:
+        assert w in line, line
+    assert not out.exists() or not any(p.is_file() for p in out.rglob("*"))
+
+
+def test_a_size_bound_is_lifted_by_allow_large(tmp_path, capsys):
+    big = tmp_path / "many_samples.toml"
+    network = GOOD.read_text().split("[motion]")[0]  # name, description and [network]
+    big.write_text(network + '[motion]\nto = 3.0\nmethod = "constructive"\n'
+                   "options = { samples = 100001 }\n")
+    assert main(["info", str(big)]) == 1
+    assert "limit of 100,000 configurations" in _one_line(capsys.readouterr().err)
+    assert main(["--allow-large", "info", str(big)]) == 0
+    assert "nodes, edges  4, 4" in capsys.readouterr().out
+    assert main(["info", str(big)]) == 1  # the flag lasts one command
+    capsys.readouterr()
+
+
+#: Every command with a bad option value (exit 2) and with an output folder that is a file
+#: (exit 1). Each: (arguments before -o, the bad option, words of its error).
+COMMANDS = {
+    "export": ([str(GOOD)], ["--jobs", "0"], ["--jobs", "at least 1"]),
+    "simulate": ([str(GOOD)], ["--method", "warp"], ["--method", "unknown method 'warp'"]),
+    "map": ([str(GOOD)], ["--orbits", "0", "--lyapunov"], ["--orbits", "at least 1"]),
+    "tolerance": ([str(GOOD)], ["--seed", "-1"], ["--seed", "got -1"]),
+    "letters": (["AB"], ["--beam", "0"], ["--beam", "at least 1"]),
+    "fold": ([str(GOOD.parent / "origami_sheet.toml")], ["--branch", "-3"],
+             ["--branch", "0 or more"]),
+    "bench": (["--quick"], ["--budget", "abc"], ["--budget", "invalid float value"]),
+}
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_every_command_refuses_an_output_folder_that_is_a_file(command, tmp_path, capsys):
+    before, _, _ = COMMANDS[command]
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    for out, words in ((blocker, ["exists and is not a folder"]),
+                       (blocker / "below", ["cannot be created", "is not a folder"])):
+        rc = main([command, *before, "-o", str(out)])
+        line = _one_line(capsys.readouterr().err)
+        assert rc == 1, line
+        for w in words:
+            assert w in line, line
+    assert blocker.read_text() == "not a folder"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_every_command_gives_a_bad_option_one_line_and_exit_2(command, tmp_path, capsys):
+    before, bad, words = COMMANDS[command]
+    out = tmp_path / "out"
+    rc = main([command, *before, *bad, "-o", str(out)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    for w in words:
+        assert w in line, line
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["map", str(GOOD), "--period", "1000"], ["--period", "limit of 24", "--allow-large"]),
+    (["map", str(GOOD), "--steps", "10000000"], ["--steps", "limit"]),
+    (["tolerance", str(GOOD), "--samples", "100000000"], ["--samples", "limit of 10,000"]),
+    (["export", str(GOOD), "--tolerance-samples", "100000000"], ["limit of 10,000"]),
+    (["export", str(GOOD), "--jobs", "100000"], ["--jobs", "at most"]),
+    (["simulate", str(GOOD), "--to", "nan"], ["--to", "finite"]),
+    (["simulate", str(GOOD), "--to", "-1"], ["--to", "positive"]),
+    (["letters", "AB", "--height", "inf"], ["--height", "finite"]),
+    (["letters", "A" * 41], ["WORD", "limit of 40"]),
+    (["export", str(GOOD), "--set", "laser"], ["--set", "SECTION.KEY=VALUE"]),
+    (["export", str(GOOD), "--to", "gcode"], ["--to", "unknown format"]),
+    (["fold", str(GOOD.parent / "origami_sheet.toml"), "--drive", "d9"], ["--drive", "'d9'"]),
+    (["fold", str(GOOD.parent / "origami_sheet.toml"), "--sign", "2"], ["--sign", "invalid choice"]),
+    (["export", str(GOOD), "--jobs", "two"], ["--jobs", "invalid int value"]),
+    (["export", str(GOOD), "--no-such-option"], ["unrecognized arguments"]),
+    (["simulate"], ["required", "TEMPLATE"]),
+])
+def test_bad_sizes_and_values_of_options_exit_2_before_work(args, words, tmp_path, capsys):
+    out = tmp_path / "out"
+    rc = main([*args, "-o", str(out)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    for w in words:
+        assert w in line, line
+    assert not out.exists()
+
+
+def test_check_against_another_design_is_a_failed_check_not_a_crash(tmp_path, capsys):
+    sheet = GOOD.parent / "origami_sheet.toml"
+    out = tmp_path / "out"
+    assert main(["export", str(sheet), "--to", "fold", "-o", str(out), "--no-check", "-q"]) == 0
+    capsys.readouterr()
+    fold = out / "origami_sheet" / "origami_sheet.fold"
+    rc = main(["check", str(fold), "--design", str(GOOD.parent / "origami_chain12.toml")])
+    captured = capsys.readouterr()
+    assert rc == 1 and captured.err == ""
+    assert "FAIL  design_map" in captured.out and "does not match this file" in captured.out
+
+
+@pytest.mark.parametrize("content, words", [
+    (b"", ["not an STL file (0 bytes)"]),
+    (b"\x00" * 80 + (1000).to_bytes(4, "little") + b"\x00" * 500,
+     ["not a complete STL file", "1000 triangles", "cut off or corrupt"]),
+    (bytes(range(256)) * 8, ["not a complete STL file"]),
+    (b"solid x\nfacet normal 0 0 1\n garbage\nendsolid\n", ["holds no triangles"]),
+    ("solid caf\xe9\n".encode("latin-1") + b"\x00" * 90, ["not a complete STL file"]),
+])
+def test_a_corrupt_stl_is_one_line_naming_the_file(content, words, tmp_path, capsys):
+    path = tmp_path / "part.stl"
+    path.write_bytes(content)
+    rc = main(["check", str(path)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1 and str(path) in line
+    assert "charset_normalizer" not in line
+    for w in words:
+        assert w in line, line

@@ -88,3 +88,75 @@ def test_usage_errors(capsys):
     assert main(["simulate"]) == 2
     assert main(["no-such-command"]) == 2
     assert main([]) == 2
+
+
+def test_an_internal_error_is_one_line_with_its_own_exit_code(monkeypatch, capsys):
+    import fabkit.commands.info as info
+
+    def broken(args):
+        return 1 // 0
+
+    monkeypatch.setattr(info, "run", broken)
+    code = main(["info", str(TEMPLATES / "fourbar.toml")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 70 and len(err) == 1
+    assert err[0].startswith("fabkit: internal error at test_cli_core.py:")
+    assert "ZeroDivisionError" in err[0] and "--debug" in err[0]
+    with pytest.raises(ZeroDivisionError):
+        main(["--debug", "info", str(TEMPLATES / "fourbar.toml")])
+
+
+def test_errors_carry_fields_and_a_stable_code():
+    from fabkit import errors
+
+    codes = {cls.code for cls in (errors.FabkitError, errors.NetworkError, errors.TemplateError,
+                                  errors.KinematicsError, errors.ConstructionError,
+                                  errors.DesignError, errors.FabricationError,
+                                  errors.UsageError, errors.BoundsError, errors.InputFileError,
+                                  errors.OutputError, errors.LockedError, errors.MotionError,
+                                  errors.SingularStartError, errors.UnavailableError)}
+    assert len(codes) == 15  # every class has its own
+    e = errors.MotionError("a.toml", "motion.to", "not reached", status="turning_point")
+    assert (e.path, e.key, e.reason, e.status, e.code, e.exit_code) == (
+        "a.toml", "motion.to", "not reached", "turning_point", "motion", 1)
+    u = errors.UsageError("--jobs", "must be at least 1, got 0")
+    assert (u.option, u.exit_code, str(u)) == ("--jobs", 2, "--jobs: must be at least 1, got 0")
+    b = errors.BoundsError("--period", "for a cycle period", 1000, 24, "fabkit --allow-large",
+                           option=True)
+    assert (b.value, b.limit, b.exit_code) == (1000, 24, 2)
+    assert errors.BoundsError("t.toml: chain.copies", "modules", 10**7, 20000).exit_code == 1
+    assert errors.LockedError("out", 42).pid == 42
+
+
+def test_no_decision_reads_message_text():
+    """The engine, the command line and the commands decide on exception classes and typed
+    results: none of them tests whether some words occur in an error's text."""
+    import re
+
+    root = Path(__file__).resolve().parents[1] / "fabkit"
+    files = [root / "batch.py", root / "cli.py", root / "report.py", root / "templates.py",
+             root / "errors.py", *sorted((root / "commands").glob("*.py"))]
+    pattern = re.compile(r"in str\(|in reason\b|in message\b|in msg\b|_is_singular_start"
+                         r"|startswith\(str\(")
+    hits = [f"{p.name}:{i}" for p in files
+            for i, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]
+    assert hits == []
+
+
+@pytest.mark.parametrize("stem, cls, key, status", [
+    ("negative_max_step", "MotionError", "motion", "failed"),
+    ("unreachable_target", "MotionError", "motion.to", "turning_point"),
+    ("singular_start", "SingularStartError", "network.nodes", "refused"),
+    ("two_motions", "MotionError", "network", "refused"),
+    ("rigid_network", "MotionError", "network", "refused"),
+])
+def test_motion_failures_are_typed(stem, cls, key, status):
+    from fabkit import errors
+    from fabkit.batch import traced_motion
+    from fabkit.templates import load_template
+
+    design = load_template(Path(__file__).resolve().parent / "bad_templates" / f"{stem}.toml")
+    with pytest.raises(errors.MotionError) as info:
+        traced_motion(design, allow_singular_start=True)
+    assert type(info.value).__name__ == cls
+    assert (info.value.key, info.value.status) == (key, status)

@@ -17,8 +17,9 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.commands.export import Progress, export_many, parse_formats, parse_settings
-from fabkit.errors import FabkitError
+from fabkit.batch import Outcome, Progress, export_many
+from fabkit.commands.export import parse_formats, parse_settings
+from fabkit.errors import FabkitError, UsageError
 from fabkit.templates import load_template
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,14 +72,15 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
                "--set", "lengths.scale=10", "--tolerance-samples", "40"])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    assert captured.err == ""  # no progress bar when stderr is not a terminal
+    assert captured.err == ""  # errors only on stderr; progress goes to stdout, terminal or not
     assert "2 exported, 0 failed" in captured.out
+    assert "fourbar: ok in " in captured.out and "super_stable_chain8: ok in " in captured.out
     assert sorted(p.name for p in out.iterdir()) == ["fourbar", "super_stable_chain8"]
 
     files = snapshot(out / "fourbar")
-    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "motion.png",
-                          "map.png", "tolerance.png"}
-    for name in ("motion.png", "map.png", "tolerance.png"):
+    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "preview_motion.png",
+                          "preview_map.png", "preview_tolerance.png"}
+    for name in ("preview_motion.png", "preview_map.png", "preview_tolerance.png"):
         assert files[name][:8] == b"\x89PNG\r\n\x1a\n"
     # the --set value reached the exporter: lengths in mm at 10 mm per unit
     mm = np.array(files["fourbar_lengths.txt"].decode().split(), dtype=float)
@@ -86,7 +88,8 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     np.testing.assert_allclose(mm, 10 * net.edge_lengths, rtol=1e-11)
 
     report = json.loads(files["report.json"])
-    assert report["ok"] is True
+    assert report["ok"] is True and report["outcome"] == "ok"
+    assert report["files"] == sorted(files)  # the manifest: exactly what the export wrote
     assert report["formats"]["lengths"]["status"] == "exported"
     assert report["formats"]["lengths"]["report"] == {"edges": 4, "scale": 10.0}
     motion = report["motion"]
@@ -98,7 +101,8 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     assert report["design"]["modes"] == {"total": 4, "rigid": 3, "conformational": 1,
                                          "self_stress": 0}
     assert report["tolerance"]["samples"] == 40
-    assert report["previews"] == ["map.png", "motion.png", "tolerance.png"]
+    assert report["previews"] == ["preview_map.png", "preview_motion.png",
+                                  "preview_tolerance.png"]
     # every picture the Markdown report shows is in the folder
     md = files["report.md"].decode()
     for name in report["previews"]:
@@ -165,14 +169,46 @@ def test_two_designs_with_one_name_do_not_share_a_folder(tmp_path, lengths_forma
     assert (out / "fourbar" / "report.json").is_file()
 
 
-def test_a_folder_that_is_not_an_export_is_never_replaced(tmp_path, lengths_format, capsys):
+def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, capsys,
+                                                  monkeypatch):
+    """simulate, map and a user's own file in the design's folder are kept by export and by a
+    re-export; the export's own files of a format no longer exported are removed."""
     out = tmp_path / "out"
-    (out / "fourbar").mkdir(parents=True)
+    fourbar = str(TEMPLATES / "fourbar.toml")
+    assert main(["simulate", fourbar, "-o", str(out)]) == 0
+    assert main(["map", fourbar, "-o", str(out), "--steps", "4"]) == 0
     (out / "fourbar" / "notes.txt").write_text("mine")
+    others = snapshot(out / "fourbar")
+    assert {"trajectory.npz", "motion.png", "map.json", "map.png", "cobweb.png",
+            "notes.txt"} <= set(others)
+    assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
+    first = snapshot(out / "fourbar")
+    assert {k: first[k] for k in others} == others  # byte for byte
+    assert set(first) == set(others) | {"fourbar_lengths.txt", "report.json", "report.md"}
+    # export again with a format of another name: the old export file goes, the others stay
+    source = (lengths_format / f"{FAKE_MODULE}.py").read_text()
+    (lengths_format / "fabkit_test_widths_format.py").write_text(
+        source.replace('"_lengths.txt"', '"_widths.txt"'))
+    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"widths": "fabkit_test_widths_format"})
+    assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
+    second = snapshot(out / "fourbar")
+    assert {k: second[k] for k in others} == others
+    assert set(second) == set(others) | {"fourbar_widths.txt", "report.json", "report.md"}
+    report = json.loads(second["report.json"])
+    assert report["files"] == ["fourbar_widths.txt", "report.json", "report.md"]
+    capsys.readouterr()
+
+
+def test_a_file_in_place_of_the_design_folder_is_never_replaced(tmp_path, lengths_format,
+                                                                 capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "fourbar").write_text("mine")
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
     assert rc == 1
-    assert "is not a fabkit export folder" in capsys.readouterr().err
-    assert snapshot(out) == {"fourbar/notes.txt": b"mine"}
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "exists and is not a folder" in err[0]
+    assert snapshot(out) == {"fourbar": b"mine"}
 
 
 def test_singular_start_without_an_exporter_that_resolves_it_fails(tmp_path, lengths_format,
@@ -202,7 +238,7 @@ RUNNER = textwrap.dedent('''
     from pathlib import Path
 
     import fabkit.export
-    from fabkit.commands.export import export_many
+    from fabkit.batch import export_many
 
     fabkit.export.EXPORTERS.clear()
     fabkit.export.EXPORTERS["lengths"] = sys.argv[3]
@@ -233,7 +269,7 @@ RUNNER = textwrap.dedent('''
     os.fdopen = fdopen
     rows = export_many([sys.argv[5]], None, sys.argv[1], {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    print(rows[0]["status"], rows[0]["error"])
+    print(rows[0].outcome, rows[0].error)
 ''')
 
 
@@ -284,7 +320,7 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     template = TEMPLATES / "fourbar.toml"
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    assert rows[0]["ok"], rows[0]["error"]
+    assert rows[0].ok, rows[0].error
     reference = snapshot(out)
 
     real_fdopen = os.fdopen
@@ -315,9 +351,9 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
     monkeypatch.undo()
-    assert not rows[0]["ok"]
-    assert "cannot write the export" in rows[0]["error"]
-    assert "No space left on device" in rows[0]["error"]
+    assert rows[0].outcome is Outcome.FAILED and rows[0].error_code == "output"
+    assert "cannot write the export" in rows[0].error
+    assert "No space left on device" in rows[0].error
     assert snapshot(out) == reference  # nothing half-written, staging removed, old export intact
 
 
@@ -336,49 +372,49 @@ def test_settings_are_parsed_as_toml_values():
     ("laser..kerf=1", "must name a section and a key"),
 ])
 def test_bad_settings_are_one_line_errors(item, words):
-    with pytest.raises(FabkitError, match=words):
+    with pytest.raises(UsageError, match=words) as info:
         parse_settings([item])
+    assert info.value.option == "--set" and info.value.exit_code == 2
 
 
 def test_a_setting_given_twice_is_an_error():
-    with pytest.raises(FabkitError, match="given twice"):
+    with pytest.raises(UsageError, match="given twice"):
         parse_settings(["laser.kerf=0.1", "laser.kerf=0.2"])
 
 
 def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     assert parse_formats("dxf, STL,dxf") == ["dxf", "stl"]
     assert parse_formats(None) is None
-    with pytest.raises(FabkitError, match="unknown format 'png'; valid: dxf"):
+    with pytest.raises(UsageError, match="unknown format 'png'; valid: dxf"):
         parse_formats("dxf,png")
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "gcode", "-o", str(tmp_path)])
-    assert rc == 1
+    assert rc == 2
     assert capsys.readouterr().err.strip() == (
         "fabkit: error: --to: unknown format 'gcode'; valid: " + ", ".join(fabkit.export.EXPORTERS))
     assert list(tmp_path.iterdir()) == []
 
 
-def test_progress_bar_only_on_a_terminal():
-    class Stream:
-        def __init__(self, tty):
-            self.tty, self.text = tty, ""
+def test_progress_is_one_line_per_stage_also_off_a_terminal():
+    import io
 
-        def isatty(self):
-            return self.tty
+    from fabkit.batch import DesignResult, Stage
 
-        def write(self, s):
-            self.text += s
-
-        def flush(self):
-            pass
-
-    quiet, loud = Stream(False), Stream(True)
-    for stream in (quiet, loud):
-        bar = Progress(4, stream)
-        bar.step("a")
-        bar.step("b")
-        bar.close()
-    assert quiet.text == ""
-    assert "[###############...............] 2/4 b" in loud.text
+    stream = io.StringIO()  # not a terminal
+    bar = Progress(2, stream, after=0.0)
+    bar.stage("a", Stage.MOTION)
+    bar.stage("a", Stage.CHECK)
+    bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
+    bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 4
+    assert lines[0].startswith("[0/2 ") and "] a: motion (0.0 s in)" in lines[0]
+    assert "] a: check (" in lines[1]
+    assert lines[2].startswith("[1/2 ") and lines[2].endswith("] a: ok in 1.2 s")
+    assert lines[3].startswith("[2/2 ") and lines[3].endswith("] b: failed in 0.5 s")
+    silent = io.StringIO()
+    bar = Progress(1, silent, quiet=True, after=0.0)
+    bar.stage("a", Stage.LOAD)
+    assert silent.getvalue() == ""
 
 
 # --- fabkit check, fabkit templates -----------------------------------------------------------
@@ -462,3 +498,256 @@ def test_report_json_is_plain_sorted_and_stable():
     assert text == report_json(dict(reversed(list(report.items()))))
     assert text.decode().splitlines()[1] == '  "a": ['
     assert text.endswith(b"}\n")
+
+
+# --- signals, orphans and the lock -------------------------------------------------------------
+
+SLOW_FORMAT = textwrap.dedent('''
+    import os, time
+    from pathlib import Path
+
+    FORMAT = "slow"
+
+    def export_design(design, settings):
+        from fabkit.export import ExportResult
+
+        marks = Path(os.environ["FABKIT_TEST_MARKS"])
+        (marks / f"started-{os.getpid()}").write_text(design.name)
+        time.sleep(float(os.environ.get("FABKIT_TEST_SLEEP", "60")))
+        return ExportResult(files={design.name + ".txt": b"slow\\n"}, report={})
+''')
+
+SLOW_RUNNER = textwrap.dedent('''
+    import sys
+
+    import fabkit.export
+    from fabkit.cli import main
+
+    if __name__ == "__main__":  # spawned workers import this file too
+        fabkit.export.EXPORTERS.clear()
+        fabkit.export.EXPORTERS["slow"] = "fabkit_test_slow_format"
+        sys.exit(main(sys.argv[1:]))
+''')
+
+
+@pytest.fixture
+def slow_export(tmp_path):
+    """Start ``fabkit export`` of two designs with --jobs 2 and a format that sleeps; returns a
+    function that starts it and waits until both workers are inside the exporter."""
+    mods = tmp_path / "slow_mods"
+    mods.mkdir()
+    (mods / "fabkit_test_slow_format.py").write_text(SLOW_FORMAT)
+    runner = tmp_path / "runner.py"
+    runner.write_text(SLOW_RUNNER)
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    procs = []
+
+    def start(out, sleep=60.0, wait_workers=2):
+        env = {**os.environ, "FABKIT_TEST_MARKS": str(marks), "FABKIT_TEST_SLEEP": str(sleep),
+               "PYTHONPATH": str(mods) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+        proc = subprocess.Popen([sys.executable, str(runner), "export",
+                                 str(TEMPLATES / "fourbar.toml"),
+                                 str(TEMPLATES / "super_stable_chain8.toml"), "-o", str(out),
+                                 "--jobs", "2", "--no-check", "--no-previews",
+                                 "--tolerance-samples", "0"],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                text=True)
+        procs.append(proc)
+        deadline = time.monotonic() + 120
+        while len(list(marks.glob("started-*"))) < wait_workers:
+            assert proc.poll() is None, proc.stderr.read()
+            assert time.monotonic() < deadline, "the workers never started"
+            time.sleep(0.05)
+        pids = [int(p.name.split("-")[1]) for p in marks.glob("started-*")]
+        return proc, pids
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie is dead for our purpose: it runs no code and writes nothing
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
+    except (FileNotFoundError, IndexError):
+        return False
+
+
+def _wait_dead(pids, timeout):
+    deadline = time.monotonic() + timeout
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return [p for p in pids if _alive(p)]
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_export, signum):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out)
+    assert len(workers) == 2 and all(_alive(p) for p in workers)
+    t0 = time.monotonic()
+    proc.send_signal(signum)
+    rc = proc.wait(timeout=30)
+    elapsed = time.monotonic() - t0
+    assert rc == 128 + signum
+    assert elapsed < 10, elapsed  # the exporters would sleep for a minute
+    assert _wait_dead(workers, 5) == []
+    err = proc.stderr.read().strip().splitlines()
+    assert err == [f"fabkit: interrupted ({signal.Signals(signum).name})"]
+    assert snapshot(out) == {}  # no design folder, no staging folder, no lock file
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_workers_die_with_a_killed_parent_and_write_nothing_later(tmp_path, slow_export):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out, sleep=3.0)
+    proc.kill()  # SIGKILL: no handler runs in the parent
+    proc.wait(timeout=30)
+    assert _wait_dead(workers, 5) == []
+    time.sleep(4.0)  # past the moment the exporters would have returned and written
+    visible = [k for k in snapshot(out) if not k.startswith(".")]
+    assert visible == []
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_a_second_export_into_the_same_folder_is_refused(tmp_path, slow_export, lengths_format,
+                                                         capsys):
+    out = tmp_path / "out"
+    proc, _ = slow_export(out)
+    rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1
+    assert f"process {proc.pid} is exporting into this folder" in err[0] and "--wait" in err[0]
+    assert not (out / "fourbar").exists()
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    # the lock went with its holder: now the same export runs
+    assert main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews",
+                 "--wait", "-q"]) == 0
+    assert (out / "fourbar" / "fourbar_lengths.txt").is_file()
+    assert not (out / ".fabkit.lock").exists()
+
+
+# --- reuse of the exporter's own as-built check -------------------------------------------------
+
+CHECKED_FORMAT = textwrap.dedent('''
+    FORMAT = "lengths"
+
+    def applies(design):
+        return True
+
+    def export_design(design, settings):
+        from fabkit.export import ExportResult
+
+        name = design.name + ".len"
+        data = "".join(f"{v:.12g}\\n" for v in design.network.edge_lengths).encode()
+        from fabkit_test_len_check import check_bytes
+        own = check_bytes({name: data})
+        return ExportResult(files={name: data}, report={"as_built_check": own})
+''')
+
+LEN_CHECK = textwrap.dedent('''
+    import os
+    from pathlib import Path
+
+    FORMAT = "len"
+    SUFFIXES = (".len",)
+
+    def check_bytes(texts):
+        n = sum(len(t.split()) for t in texts.values())
+        return {"ok": n == 4, "files": sorted(texts),
+                "checks": [{"name": "edges", "ok": n == 4, "value": n, "limit": 4,
+                            "detail": ""}]}
+
+    def check_file(path, design=None, settings=None):
+        calls = Path(os.environ["FABKIT_TEST_CALLS"])
+        calls.write_text(calls.read_text() + Path(path).name + "\\n")
+        return check_bytes({Path(path).name: Path(path).read_bytes()})
+''')
+
+
+def test_the_exporters_check_of_identical_bytes_is_reused(tmp_path, monkeypatch):
+    import fabkit.check
+
+    mods = tmp_path / "checked_mods"
+    mods.mkdir()
+    (mods / "fabkit_test_len_format.py").write_text(CHECKED_FORMAT)
+    (mods / "fabkit_test_len_check.py").write_text(LEN_CHECK)
+    monkeypatch.syspath_prepend(str(mods))
+    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"lengths": "fabkit_test_len_format"})
+    monkeypatch.setitem(fabkit.check.CHECKERS, "len", "fabkit_test_len_check")
+    calls = tmp_path / "calls"
+    calls.write_text("")
+    monkeypatch.setenv("FABKIT_TEST_CALLS", str(calls))
+    out = tmp_path / "out"
+    template = TEMPLATES / "fourbar.toml"
+
+    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=0,
+                       previews=False)
+    assert rows[0].ok
+    assert calls.read_text() == ""  # the bytes on disk are those the exporter checked
+    chk = rows[0].formats["lengths"].checks[0]
+    assert chk.ok and chk.extra["source"] == "exporter" and chk.checks[0]["value"] == 4
+    report = json.loads((out / "fourbar" / "report.json").read_text())
+    assert report["formats"]["lengths"]["checks"][0]["source"] == "exporter"
+
+    # bytes on disk that differ from what the exporter checked: the check runs on the file
+    real_write = fabkit.export.write_outputs
+
+    def write_outputs(files, outdir):
+        written = real_write(files, outdir)
+        for p in written:
+            if p.suffix == ".len":
+                p.write_bytes(p.read_bytes() + b"7\n")
+        return written
+
+    monkeypatch.setattr(fabkit.export, "write_outputs", write_outputs)
+    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=0,
+                       previews=False)
+    assert calls.read_text() == "fourbar.len\n"
+    assert rows[0].outcome is Outcome.CHECK_FAILED
+    chk = rows[0].formats["lengths"].checks[0]
+    assert not chk.ok and "source" not in chk.extra and chk.checks[0]["value"] == 5
+
+
+def test_a_reused_laser_check_equals_the_check_of_the_file_on_disk(tmp_path):
+    from fabkit.check import check_file
+
+    out = tmp_path / "out"
+    template = TEMPLATES / "fourbar.toml"
+    rows = export_many([template], ["dxf"], out, {}, isolate=False, tolerance_samples=0,
+                       previews=False)
+    assert rows[0].ok, rows[0].error
+    report = json.loads((out / "fourbar" / "report.json").read_text())
+    (entry,) = report["formats"]["dxf"]["checks"]
+    assert entry["source"] == "exporter" and entry["ok"] is True
+    again = json.loads(json.dumps(check_file(out / "fourbar" / entry["file"],
+                                             design=load_template(template))))
+    assert {k: v for k, v in entry.items() if k not in ("file", "source")} == again
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_export):
+    out = tmp_path / "out"
+    proc, workers = slow_export(out, sleep=4.0)
+    marks = {int(p.name.split("-")[1]): p.read_text() for p in
+             (tmp_path / "marks").glob("started-*")}
+    victim = next(pid for pid, name in marks.items() if name == "fourbar")
+    os.kill(victim, signal.SIGKILL)  # as the out-of-memory killer would
+    rc = proc.wait(timeout=120)
+    err = proc.stderr.read().strip().splitlines()
+    assert rc == 1 and len(err) == 1, err
+    assert "fourbar.toml: the worker process exporting it ended unexpectedly (killed by " \
+           "SIGKILL)" in err[0]
+    files = snapshot(out)
+    assert sorted(files) == ["super_stable_chain8/report.json", "super_stable_chain8/report.md",
+                             "super_stable_chain8/super_stable_chain8.txt"]

@@ -155,14 +155,14 @@ def test_letters_command_spells_network(tmp_path, capsys):
     assert (m.conformational, m.self_stress) == (1, 0)
 
 
-@pytest.mark.parametrize("args, message", [
-    (["letters", "Net"], "WORD must be capital letters A-Z"),
-    (["letters", "AB", "--height", "-2"], "--height must be positive"),
-    (["letters", "AB", "--modules", "/nonexistent"], "no curvature module template"),
+@pytest.mark.parametrize("args, message, code", [
+    (["letters", "Net"], "WORD must be capital letters A-Z", 2),
+    (["letters", "AB", "--height", "-2"], "--height must be positive", 2),
+    (["letters", "AB", "--modules", "/nonexistent"], "no curvature module template", 1),
 ])
-def test_letters_command_errors(tmp_path, capsys, args, message):
+def test_letters_command_errors(tmp_path, capsys, args, message, code):
     out = tmp_path / "o"
-    assert main(args + ["-o", str(out)]) == 1
+    assert main(args + ["-o", str(out)]) == code
     err = capsys.readouterr().err.strip()
     assert err.startswith("fabkit: error: ") and message in err and "\n" not in err
     assert not out.exists()

@@ -69,16 +69,16 @@ def test_identical_input_gives_identical_json(tmp_path):
     assert a == b
 
 
-@pytest.mark.parametrize("args,match", [
-    (["--d1", "abc"], "--d1: 'abc' is not a number"),
-    (["--d1", "9.5"], "--d1 9.5 is outside the map's domain"),
-    (["--steps", "0"], "--steps must be at least 1"),
-    (["--period", "1"], "--period must be at least 2"),
-    (["--out", "d7"], "no port 'd7'"),
+@pytest.mark.parametrize("args,match,code", [
+    (["--d1", "abc"], "--d1: 'abc' is not a number", 2),
+    (["--d1", "9.5"], "--d1 9.5 is outside the map's domain", 1),
+    (["--steps", "0"], "--steps: must be at least 1", 2),
+    (["--period", "1"], "--period: must be at least 2", 2),
+    (["--out", "d7"], "no port 'd7'", 1),
 ])
-def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, capsys, args, match):
+def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, capsys, args, match, code):
     rc = _run(tmp_path, TEMPLATES / "period_two.toml", *args)
-    assert rc == 1
+    assert rc == code
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and match in err and "Traceback" not in err
     assert not (tmp_path / "period_two").exists()

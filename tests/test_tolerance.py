@@ -260,8 +260,8 @@ def test_tolerance_command_writes_json_and_plot_and_flags(tmp_path, capsys):
 
 def test_tolerance_command_rejects_bad_values(tmp_path, capsys):
     assert main(["tolerance", str(TEMPLATES / "fourbar.toml"), "--samples", "0",
-                 "-o", str(tmp_path)]) == 1
-    assert "--samples must be at least 1" in capsys.readouterr().err
+                 "-o", str(tmp_path)]) == 2
+    assert "--samples: must be at least 1" in capsys.readouterr().err
     assert main(["tolerance", str(TEMPLATES / "fourbar.toml"), "--set",
                  "tolerance.scale=-1", "-o", str(tmp_path)]) == 1
     err = capsys.readouterr().err.strip().splitlines()

@@ -248,13 +248,22 @@ def check_file(path, design=None, settings=None) -> dict:
         dfold = fold_model(dm, design.motion.drive, design.motion.to)
         if len(dm.sheets) > 1:
             # the design's own frames, input by input: the same well-conditioned comparison
-            dmaps = {k: np.asarray(v) for k, v in dfold.ports.items()}
-            ddiff = max(float(np.max(np.abs(dmaps[k] - stored[k]))) for k in stored if k in dmaps)
+            dmap = {k: np.asarray(v) for k, v in dfold.ports.items()}
         else:
             dmap = _map_at(dm, dfold, drive, values)
-            ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in stored if k in dmap)
-        checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
-                             f"file map against the design {design.name}"))
+        common = [k for k in stored if k in dmap]
+        # another design (other sheets, other ports) cannot be compared value by value: that is
+        # a failed check, not an error
+        if not common or any(np.shape(dmap[k]) != np.shape(stored[k]) for k in common):
+            checks.append(_check("design_map", False, None, MAP_TOL,
+                                 f"the design {design.name} does not match this file (ports "
+                                 f"{', '.join(sorted(dmap))} against {', '.join(sorted(stored))}, "
+                                 f"{len(dm.sheets)} sheet(s) against {max(len(sheets), 1)})"))
+            ddiff = None
+        else:
+            ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in common)
+            checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
+                                 f"file map against the design {design.name}"))
         report["max_design_difference"] = ddiff
     if model.flat_start:
         ff = flat_foldability(model.pattern())

@@ -43,11 +43,41 @@ def _check(name, ok, value=None, limit=None, detail=""):
     return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
 
+def _stl_kind(data: bytes, path) -> str:
+    """``"binary"`` or ``"ascii"`` from the bytes themselves; FabricationError for anything else
+    (a cut-off or corrupt file), so that no reader guesses an encoding for random bytes."""
+    if len(data) >= 84:
+        count = int.from_bytes(data[80:84], "little")
+        if len(data) == 84 + 50 * count:
+            return "binary"
+    head = data[:5].lower()
+    if head == b"solid":
+        try:
+            data.decode("ascii")
+        except UnicodeDecodeError:
+            pass
+        else:
+            return "ascii"
+    if len(data) >= 84:
+        count = int.from_bytes(data[80:84], "little")
+        raise FabricationError(f"{path}: not a complete STL file: {len(data)} bytes, while its "
+                               f"header announces {count} triangles ({84 + 50 * count} bytes), "
+                               "and it is not ASCII STL (cut off or corrupt?)")
+    raise FabricationError(f"{path}: not an STL file ({len(data)} bytes)")
+
+
 def _load(path):
+    import io
+
     import trimesh
 
     try:
-        mesh = trimesh.load(str(path), file_type="stl", force="mesh", process=True)
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise FabricationError(f"{path}: cannot be read: {exc.strerror}") from None
+    _stl_kind(data, path)
+    try:
+        mesh = trimesh.load(io.BytesIO(data), file_type="stl", force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise FabricationError(f"{path}: cannot be read as STL: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:

@@ -67,6 +67,12 @@ def run(args) -> int:
     from ..templates import load_template
     from . import expand_templates
 
+    from ..errors import UsageError
+    from . import check_number
+
+    if args.branch is not None and args.branch < 0:
+        raise UsageError("--branch", f"must be 0 or more, got {args.branch}")
+    check_number("--to", args.to)
     failed = 0
     for path in expand_templates(args.templates):
         design = load_template(path)
@@ -76,7 +82,7 @@ def run(args) -> int:
         drive = args.drive or design.motion.drive
         if drive not in design.network.ports:
             known = ", ".join(sorted(design.network.ports))
-            raise FabkitError(f"{path}: --drive {drive!r} is not a port; ports: {known}")
+            raise UsageError("--drive", f"{drive!r} is not a port of {path}; ports: {known}")
         # the command-line motion replaces the template's, for the report and the files alike
         motion = replace(design.motion, drive=drive,
                          to=args.to if args.to is not None else design.motion.to)

@@ -117,19 +117,28 @@ def word_figure(word, fits, sims):
     return fig
 
 
+#: Bounds (``fabkit --allow-large`` lifts them): the search costs about beam x letters x modules.
+MAX_LETTERS = 40
+MAX_BEAM = 5_000
+
+
 def run(args) -> int:
     from ..export import write_atomic
     from ..letters import curvature_modules, design_word, letter_template
     from ..templates import load_template
     from ..viz import figure_png
 
+    from ..errors import UsageError
+    from . import check_count, check_number
+
     word = args.word
     if not word or not word.isascii() or not word.isalpha() or not word.isupper():
-        raise FabkitError(f"WORD must be capital letters A-Z, got {word!r}")
+        raise UsageError("WORD", f"WORD must be capital letters A-Z, got {word!r}")
+    check_count("WORD", len(word), 1, MAX_LETTERS, "letters")
     if not args.height > 0:
-        raise FabkitError(f"--height must be positive, got {args.height}")
-    if args.beam < 1:
-        raise FabkitError(f"--beam must be at least 1, got {args.beam}")
+        raise UsageError("--height", f"--height must be positive, got {args.height}")
+    check_number("--height", args.height)
+    check_count("--beam", args.beam, 1, MAX_BEAM, "for the beam width")
     folder = _module_folder(args.modules)
     designs = {name: load_template(folder / f) for name, f in MODULE_FILES.items()}
     nets = {name: d.network for name, d in designs.items()}

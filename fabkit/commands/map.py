@@ -7,7 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FabkitError
+from ..errors import FabkitError, UsageError
+
+#: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
+#: on f composed m times, whose roots grow with m; orbits and iterations cost one map evaluation
+#: each.
+MAX_PERIOD = 24
+MAX_STEPS = 100_000
+MAX_ORBITS = 100_000
+MAX_ITERATIONS = 10_000_000
 
 NAME = "map"
 HELP = "a module's iterated map: map.png, cobweb.png and map.json (fixed points, cycles, λ)"
@@ -45,13 +53,13 @@ def parse_values(text: str) -> list[float]:
         try:
             v = float(item)
         except ValueError:
-            raise FabkitError(f"--d1: {item!r} is not a number (give comma-separated values, "
-                              "e.g. --d1 1.8,2.0)") from None
+            raise UsageError("--d1", f"{item!r} is not a number (give comma-separated values, "
+                                     "e.g. --d1 1.8,2.0)") from None
         if not np.isfinite(v):
-            raise FabkitError(f"--d1: {item!r} is not a finite number")
+            raise UsageError("--d1", f"{item!r} is not a finite number")
         out.append(v)
     if not out:
-        raise FabkitError("--d1: no values given (e.g. --d1 1.8,2.0)")
+        raise UsageError("--d1", "no values given (e.g. --d1 1.8,2.0)")
     return out
 
 
@@ -76,7 +84,13 @@ def design_map(design, d_in="d1", d_out="d2"):
         if design.motion.to is None:
             raise FabkitError(f"{design.path}: {exc}; and the template gives no motion.to to "
                               "trace instead") from None
+        from ..errors import MotionError
+        from ..kinematics import Status
+
         traj = design.trace(method="projected")
+        if traj.status is Status.FAILED:  # a failed trace is no map, not even of a stretch
+            raise MotionError(design.path, "motion", f"the trace failed: {traj.message}",
+                              status=str(traj.status)) from None
         return map_from_trajectory(traj, d_in, d_out, name=design.name)
 
 
@@ -171,11 +185,19 @@ def run(args) -> int:
     from ..templates import load_template
     from . import expand_templates
 
+    from . import check_count
+
     if args.steps < 1:
-        raise FabkitError(f"--steps must be at least 1, got {args.steps}")
+        raise UsageError("--steps", f"must be at least 1, got {args.steps}")
+    check_count("--steps", args.steps, 1, MAX_STEPS, "iterations")
     periods = tuple(args.period or (2,))
     if any(m < 2 for m in periods):
-        raise FabkitError("--period must be at least 2 (fixed points are always reported)")
+        raise UsageError("--period", "must be at least 2 (fixed points are always reported)")
+    for m in periods:
+        check_count("--period", m, 2, MAX_PERIOD, "for a cycle period")
+    check_count("--orbits", args.orbits, 1, MAX_ORBITS, "orbits")
+    check_count("--discard", args.discard, 0, MAX_ITERATIONS, "iterations")
+    check_count("--average", args.average, 1, MAX_ITERATIONS, "iterations")
     d1 = parse_values(args.d1) if args.d1 is not None else None
     for path in expand_templates(args.templates):
         design = load_template(path)

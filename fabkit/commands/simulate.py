@@ -63,14 +63,20 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
 
 
 def run(args) -> int:
+    from ..errors import UsageError
+    from ..kinematics import METHODS, Status
     from ..templates import load_template
-    from . import expand_templates
+    from . import check_number, expand_templates
 
+    if args.method is not None and args.method != "auto" and args.method not in METHODS:
+        raise UsageError("--method", f"unknown method {args.method!r}; valid: auto, "
+                                     f"{', '.join(METHODS)}")
+    check_number("--to", args.to)
     failed = 0
     for path in expand_templates(args.templates):
         design = load_template(path)
         traj, folder = simulate_design(design, Path(args.out), args.method, args.to, args.gif)
         print(f"== {design.name} -> {folder}")
         print(traj.summary())
-        failed += str(traj.status) == "failed"
+        failed += traj.status is Status.FAILED
     return 1 if failed else 0

@@ -63,10 +63,18 @@ def run(args) -> int:
     from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
     from ..viz import figure_png
     from . import expand_templates
-    from .export import parse_settings, traced_motion
+    from ..batch import traced_motion
+    from .export import parse_settings
+
+    from ..batch import MAX_SAMPLES
+    from ..errors import UsageError
+    from . import check_count
 
     if args.samples is not None and args.samples < 1:
-        raise FabkitError(f"--samples must be at least 1, got {args.samples}")
+        raise UsageError("--samples", f"must be at least 1, got {args.samples}")
+    check_count("--samples", args.samples, 1, MAX_SAMPLES, "Monte Carlo samples")
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise UsageError("--seed", f"must be a whole number from 0 to 2**63 - 1, got {args.seed}")
     settings = parse_settings(args.settings)
     overrides = {k: v for k, v in (("samples", args.samples), ("seed", args.seed)) if v is not None}
     flagged = 0
