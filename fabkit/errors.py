@@ -15,8 +15,10 @@ __all__ = [
     "TemplateError",
     "KinematicsError",
     "ConstructionError",
+    "FlatStateError",
     "DesignError",
     "FabricationError",
+    "PatternError",
     "ResourceError",
     "UsageError",
     "BoundsError",
@@ -47,9 +49,20 @@ class FabkitError(Exception):
 
 
 class NetworkError(FabkitError, ValueError):
-    """A network is malformed: bad coordinates, bad indices, duplicate or degenerate edges."""
+    """A network is malformed: bad coordinates, bad indices, duplicate or degenerate edges.
+
+    Attributes
+    ----------
+    key : str
+        What is at fault, as a key path inside a network description (``"edges[3]"``,
+        ``"nodes[0]"``, ``"ports.d1"``), or ``""``.
+    """
 
     code = "network"
+
+    def __init__(self, message: str, key: str = ""):
+        self.key = key
+        super().__init__(message)
 
 
 class TemplateError(FabkitError):
@@ -87,6 +100,25 @@ class ConstructionError(KinematicsError):
     code = "construction"
 
 
+class FlatStateError(ConstructionError):
+    """The reference configuration is a flat state: a node lies on the line (2D) or plane (3D) of
+    the nodes it would be placed from, so the side of the intersection, and with it the branch,
+    is undetermined there.
+
+    Attributes
+    ----------
+    node : int
+    parents : tuple of int
+    """
+
+    code = "flat_state"
+
+    def __init__(self, message: str, node: int = -1, parents: tuple = ()):
+        self.node = int(node)
+        self.parents = tuple(int(v) for v in parents)
+        super().__init__(message)
+
+
 class DesignError(FabkitError):
     """A module design specification cannot be met."""
 
@@ -97,6 +129,17 @@ class FabricationError(FabkitError):
     """Fabrication settings or geometry that cannot be made; the message suggests a fix."""
 
     code = "fabrication"
+
+
+class PatternError(FabricationError):
+    """A crease pattern is malformed; ``part`` names what is wrong (``"vertices"``, ``"edges"``,
+    ``"assignment"`` or ``"faces"``), so that a template error can point at the right key."""
+
+    code = "pattern"
+
+    def __init__(self, message: str, part: str):
+        self.part = part
+        super().__init__(message)
 
 
 class ResourceError(FabkitError):

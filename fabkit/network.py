@@ -25,14 +25,16 @@ def _as_port(name: str, pair, n_nodes: int) -> tuple[int, int]:
         if any(float(v) != int(v) for v in pair):
             raise ValueError
     except (TypeError, ValueError):
-        raise NetworkError(f"port {name!r} must be a pair of node indices, got {pair!r}") from None
+        raise NetworkError(f"port {name!r} must be a pair of node indices, got {pair!r}",
+                           f"ports.{name}") from None
     for v in (i, j):
         if not 0 <= v < n_nodes:
             raise NetworkError(
-                f"port {name!r} names node {v}, but the network has nodes 0..{n_nodes - 1}"
+                f"port {name!r} names node {v}, but the network has nodes 0..{n_nodes - 1}",
+                f"ports.{name}"
             )
     if i == j:
-        raise NetworkError(f"port {name!r} joins node {i} to itself")
+        raise NetworkError(f"port {name!r} joins node {i} to itself", f"ports.{name}")
     return (i, j)
 
 
@@ -98,44 +100,50 @@ class Network:
     def __post_init__(self):
         nodes = np.array(self.nodes, dtype=np.float64, copy=True)
         if nodes.ndim != 2 or nodes.shape[1] not in (2, 3):
-            raise NetworkError(f"`nodes` must have shape (N, 2) or (N, 3), got {nodes.shape}")
+            raise NetworkError(f"`nodes` must have shape (N, 2) or (N, 3), got {nodes.shape}",
+                               "nodes")
         if nodes.shape[0] < 2:
-            raise NetworkError(f"a network needs at least 2 nodes, got {nodes.shape[0]}")
+            raise NetworkError(f"a network needs at least 2 nodes, got {nodes.shape[0]}", "nodes")
         bad = ~np.isfinite(nodes).all(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise NetworkError(f"node {i} has a non-finite coordinate {nodes[i].tolist()}")
+            raise NetworkError(f"node {i} has a non-finite coordinate {nodes[i].tolist()}",
+                               f"nodes[{i}]")
         raw_edges = np.asarray(self.edges)
         if raw_edges.size == 0:
             raw_edges = raw_edges.reshape(0, 2)
         if raw_edges.ndim != 2 or raw_edges.shape[1] != 2:
-            raise NetworkError(f"`edges` must have shape (E, 2), got {raw_edges.shape}")
+            raise NetworkError(f"`edges` must have shape (E, 2), got {raw_edges.shape}", "edges")
         if raw_edges.dtype.kind == "f":
             frac = raw_edges != np.round(raw_edges)
             if frac.any():
                 k = int(np.flatnonzero(frac.any(axis=1))[0])
-                raise NetworkError(f"edge {k} has a non-integer node index {raw_edges[k].tolist()}")
+                raise NetworkError(f"edge {k} has a non-integer node index {raw_edges[k].tolist()}",
+                                   f"edges[{k}]")
         elif raw_edges.dtype.kind not in "iu":
-            raise NetworkError(f"`edges` must hold integer node indices, got dtype {raw_edges.dtype}")
+            raise NetworkError("`edges` must hold integer node indices, got dtype "
+                               f"{raw_edges.dtype}",
+                               "edges")
         edges = raw_edges.astype(np.int64)
         n = nodes.shape[0]
         out = (edges < 0) | (edges >= n)
         if out.any():
             k = int(np.flatnonzero(out.any(axis=1))[0])
             raise NetworkError(
-                f"edge {k} {edges[k].tolist()} names a node outside 0..{n - 1}"
+                f"edge {k} {edges[k].tolist()} names a node outside 0..{n - 1}", f"edges[{k}]"
             )
         loops = edges[:, 0] == edges[:, 1]
         if loops.any():
             k = int(np.flatnonzero(loops)[0])
-            raise NetworkError(f"edge {k} joins node {edges[k, 0]} to itself")
+            raise NetworkError(f"edge {k} joins node {edges[k, 0]} to itself", f"edges[{k}]")
         key = np.sort(edges, axis=1)
         _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
         if (counts > 1).any():
             dup_key = key[first[counts > 1][0]]
             where = np.flatnonzero((key == dup_key).all(axis=1))
             raise NetworkError(
-                f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}"
+                f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}",
+                f"edges[{where[0]}]"
             )
         lengths = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
         scale = float(np.ptp(nodes, axis=0).max()) or 1.0
@@ -144,14 +152,16 @@ class Network:
             k = int(np.flatnonzero(short)[0])
             raise NetworkError(
                 f"edge {k} {edges[k].tolist()} has zero length: nodes {edges[k, 0]} and "
-                f"{edges[k, 1]} coincide"
+                f"{edges[k, 1]} coincide", f"edges[{k}]"
             )
         ports = {str(name): _as_port(name, pair, n) for name, pair in dict(self.ports).items()}
         labels = None
         if self.labels is not None:
             labels = tuple(str(s) for s in self.labels)
             if len(labels) != n:
-                raise NetworkError(f"`labels` must have one entry per node ({n}), got {len(labels)}")
+                raise NetworkError(f"`labels` must have one entry per node ({n}), got "
+                                   f"{len(labels)}",
+                                   "labels")
         if self.assembly is not None and not isinstance(self.assembly, Assembly):
             raise NetworkError(f"`assembly` must be a fabkit.network.Assembly or None, got "
                                f"{type(self.assembly).__name__}")

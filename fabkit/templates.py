@@ -39,7 +39,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from .errors import BoundsError, FabkitError, InputFileError, TemplateError
+from .errors import BoundsError, FabkitError, InputFileError, NetworkError, TemplateError
 from .network import Network
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
@@ -298,23 +298,8 @@ def build_network(section: dict, ctx: TemplateContext) -> Network:
     labels = ctx.get(section, "labels", "network", list, required=False)
     try:
         return Network(nodes, edges, clean_ports, labels)
-    except FabkitError as exc:
-        raise ctx.error(_network_key(str(exc)), str(exc)) from None
-
-
-def _network_key(message: str) -> str:
-    import re
-
-    m = re.match(r"edges? (\d+)", message)
-    if m:
-        return f"network.edges[{m.group(1)}]"
-    m = re.match(r"node (\d+)", message)
-    if m:
-        return f"network.nodes[{m.group(1)}]"
-    m = re.match(r"port '([^']+)'", message)
-    if m:
-        return f"network.ports.{m.group(1)}"
-    return "network"
+    except NetworkError as exc:
+        raise ctx.error(f"network.{exc.key}" if exc.key else "network", str(exc)) from None
 
 
 def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:

@@ -53,3 +53,17 @@ def test_validation_errors(nodes, edges, ports, match):
 def test_errors_are_fabkit_errors():
     with pytest.raises(fabkit.FabkitError):
         Network([[0, 0], [0, 0]], [[0, 1]])
+
+
+@pytest.mark.parametrize("nodes, edges, ports, key", [
+    ([[0, 0], [1, 0], [np.nan, 1]], [[0, 1]], {}, "nodes[2]"),
+    ([[0, 0], [1, 0], [0, 1]], [[0, 1], [1, 1]], {}, "edges[1]"),
+    ([[0, 0], [1, 0], [0, 1]], [[0, 1], [1, 2], [1, 0]], {}, "edges[0]"),
+    ([[0, 0], [1, 0], [0, 1]], [[0, 1]], {"d1": (0, 7)}, "ports.d1"),
+    ([[0, 0, 0, 0], [1, 0, 0, 0]], [[0, 1]], {}, "nodes"),
+])
+def test_network_errors_name_the_key_at_fault(nodes, edges, ports, key):
+    # callers (the template reader) point at the key from this field, never from the message
+    with pytest.raises(NetworkError) as info:
+        Network(nodes, edges, ports=ports)
+    assert info.value.key == key

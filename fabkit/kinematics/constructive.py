@@ -9,13 +9,14 @@ the branch of the reference. Exact to round-off; the motion ends where an inters
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConstructionError, KinematicsError
+from ..errors import ConstructionError, FlatStateError, KinematicsError
 from ..network import Network
 from ..numerics import FLAT_RTOL
 from .base import Mark, Method, Outcome
@@ -136,10 +137,10 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
                         best, best_sin = (p, q), sin
             p, q = best
             if best_sin < FLAT_RTOL:
-                raise ConstructionError(
+                raise FlatStateError(
                     f"node {v} is collinear with nodes {p} and {q} in the start configuration: a flat "
-                    "state, where the side of the intersection (and so the branch) is undetermined"
-                )
+                    "state, where the side of the intersection (and so the branch) is undetermined",
+                    v, (p, q))
             side = ((xl[q][0] - xl[p][0]) * (xl[v][1] - xl[p][1])
                     - (xl[q][1] - xl[p][1]) * (xl[v][0] - xl[p][0]))
             order.append(v)
@@ -176,11 +177,10 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
             nz = np.linalg.norm(ez)
             side = (x[v] - x[p1]) @ ez / (nz * np.linalg.norm(x[v] - x[p1])) if nz > 0 else 0.0
             if abs(side) < FLAT_RTOL:
-                raise ConstructionError(
+                raise FlatStateError(
                     f"node {v} lies in the plane of nodes {p1}, {p2} and {p3} in the start "
                     "configuration: a flat state, where the side of the intersection (and so the "
-                    "branch) is undetermined"
-                )
+                    "branch) is undetermined", v, (p1, p2, p3))
             order.append(v)
             parents.append((p1, p2, p3))
             radii.append(tuple(radius(v, p) for p in (p1, p2, p3)))
@@ -232,7 +232,7 @@ def cached_plan(net: Network, drive: tuple[int, int], reference=None) -> Constru
             cache[key] = exc
     found = cache[key]
     if isinstance(found, ConstructionError):
-        raise ConstructionError(str(found))
+        raise copy.copy(found)  # a fresh exception per call: the cached one keeps no traceback
     return found
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from ..errors import ConstructionError, DesignError
+from ..errors import ConstructionError, DesignError, FlatStateError
 from ..network import Network
 from ..numerics import FLAT_RTOL
 from .evaluate import _Constructive2D, _ConstructiveGeneral, _pair
@@ -142,9 +142,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     size = float(max(net.size, d0))
     try:
         plan = plan_construction(net, (a, b), x)
-    except ConstructionError as exc:
-        if "flat state" not in str(exc):
-            raise
+    except FlatStateError:
         # A flat reference (e.g. a linkage that starts collapsed) lies at a turning point, on
         # two branches. Sides are taken from a slightly nudged copy; walking the motion finds
         # both branches, and `toward` picks one.

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...errors import FabricationError
+from ...errors import FabricationError, PatternError
 from ...network import Network
 from .pattern import (
     ASSIGNMENTS,
@@ -180,8 +180,8 @@ def origami_model(design, overrides=None) -> OrigamiModel:
     try:
         cp = CreasePattern(flat, net.edges, tuple(assignment), faces, net.labels)
         full, info = network_from_pattern(cp, net.ports, net.labels)
-    except FabricationError as exc:
-        raise _err(where, "faces" if "face" in str(exc) else "assignment", str(exc)) from None
+    except PatternError as exc:
+        raise _err(where, "faces" if exc.part == "faces" else "assignment", str(exc)) from None
     return OrigamiModel(name, full if info["apex"] else net, net.n_nodes, cp.edges, cp.assignment,
                         cp.faces, (Sheet(cp, np.arange(net.n_nodes)),), True,
                         float(s["sheet_size"]), s)

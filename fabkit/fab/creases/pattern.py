@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import FabricationError
+from ...errors import PatternError
 from ...network import Network
 
 ASSIGNMENTS = ("B", "M", "V", "F", "U", "C", "J")
@@ -40,16 +40,17 @@ class CreasePattern:
         v = np.asarray(self.vertices, dtype=np.float64)
         e = np.asarray(self.edges, dtype=np.int64).reshape(-1, 2)
         if v.ndim != 2 or v.shape[1] != 2:
-            raise FabricationError(f"crease pattern vertices must have shape (V, 2), got {v.shape}")
+            raise PatternError(f"crease pattern vertices must have shape (V, 2), got {v.shape}",
+                               "vertices")
         if len(self.assignment) != e.shape[0]:
-            raise FabricationError(f"the crease pattern has {e.shape[0]} edges but "
-                                   f"{len(self.assignment)} assignments")
+            raise PatternError(f"the crease pattern has {e.shape[0]} edges but "
+                               f"{len(self.assignment)} assignments", "assignment")
         bad = [a for a in self.assignment if a not in ASSIGNMENTS]
         if bad:
-            raise FabricationError(f"unknown edge assignment {bad[0]!r}; valid: "
-                                   f"{', '.join(ASSIGNMENTS)}")
+            raise PatternError(f"unknown edge assignment {bad[0]!r}; valid: "
+                               f"{', '.join(ASSIGNMENTS)}", "assignment")
         if e.size and (e.min() < 0 or e.max() >= v.shape[0]):
-            raise FabricationError("a crease names a vertex that does not exist")
+            raise PatternError("a crease names a vertex that does not exist", "edges")
         faces = tuple(tuple(int(i) for i in f) for f in self.faces)
         object.__setattr__(self, "vertices", v)
         object.__setattr__(self, "edges", e)
@@ -79,8 +80,8 @@ def edge_faces(edges: np.ndarray, faces) -> np.ndarray:
             elif (b, a) in index:
                 out[index[(b, a)], 1] = f
             else:
-                raise FabricationError(f"face {f} {list(cyc)} uses the side {a}-{b}, "
-                                       "which is not an edge of the pattern")
+                raise PatternError(f"face {f} {list(cyc)} uses the side {a}-{b}, "
+                                   "which is not an edge of the pattern", "faces")
     return out
 
 
@@ -248,7 +249,8 @@ def _ear_diagonals(v: np.ndarray, cyc) -> list[tuple[int, int]]:
                 idx.pop(k)
                 break
         else:
-            raise FabricationError(f"face {list(cyc)} is not a simple counter-clockwise polygon")
+            raise PatternError(f"face {list(cyc)} is not a simple counter-clockwise polygon",
+                               "faces")
     return out
 
 
