@@ -44,7 +44,8 @@ from enum import Enum
 from pathlib import Path
 
 from .errors import (BoundsError, FabkitError, Interrupted, LockedError, MotionError,
-                     OutputError, SingularStartError, TemplateError, UnavailableError)
+                     OutputError, SingularStartError, TemplateError, UnavailableError,
+                     internal_error_line)
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
@@ -919,8 +920,6 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     except Exception as exc:  # a bug must not stop the other designs; say where it happened
         if debug:
             raise
-        from .cli import internal_error_line
-
         res.error, res.error_code = f"{path}: {internal_error_line(exc)}", "internal"
     finally:
         if stage_dir is not None and stage_dir.exists():

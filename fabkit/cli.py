@@ -18,9 +18,8 @@ import pkgutil
 import signal
 import sys
 from enum import IntEnum
-from pathlib import Path
 
-from .errors import FabkitError, Interrupted
+from .errors import FabkitError, Interrupted, internal_error_line
 
 __all__ = ["main", "entry", "ExitCode"]
 
@@ -135,17 +134,6 @@ def _check_output_option(args) -> None:
         value = getattr(args, dest, None)
         if isinstance(value, str) and not (args.command == "map" and dest == "out"):
             check_output_folder(value)
-
-
-def internal_error_line(exc: BaseException) -> str:
-    """One line for an unexpected exception: its type, where it was raised, how to report it."""
-    import traceback
-
-    frames = traceback.extract_tb(exc.__traceback__)
-    where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
-    text = " ".join(str(exc).split())[:200]
-    return (f"internal error{where}: {type(exc).__name__}: {text} -- this is a bug in fabkit; "
-            "please report it with the output of the same command run with --debug")
 
 
 def _raise_interrupted(signum, frame):

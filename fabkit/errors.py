@@ -29,6 +29,7 @@ __all__ = [
     "SingularStartError",
     "UnavailableError",
     "Interrupted",
+    "internal_error_line",
 ]
 
 
@@ -308,3 +309,15 @@ class Interrupted(BaseException):
     def __init__(self, signum: int):
         self.signum = int(signum)
         super().__init__(f"interrupted by signal {self.signum}")
+
+
+def internal_error_line(exc: BaseException) -> str:
+    """One line for an unexpected exception: its type, where it was raised, how to report it."""
+    import traceback
+    from pathlib import Path
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
+    text = " ".join(str(exc).split())[:200]
+    return (f"internal error{where}: {type(exc).__name__}: {text} -- this is a bug in fabkit; "
+            "please report it with the output of the same command run with --debug")

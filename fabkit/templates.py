@@ -155,6 +155,9 @@ class Design:
         The whole parsed file.
     meta : dict
         Anything a builder reports about how it built the network (e.g. design residuals).
+    references : dict of str to Design
+        The templates this one refers to, loaded with it, by key path (``"chain.module"``,
+        ``"fabrication.origami.sheet"``): later stages read them here, never from disk.
     """
 
     name: str
@@ -165,6 +168,7 @@ class Design:
     fabrication: dict
     raw: dict
     meta: dict = field(default_factory=dict)
+    references: dict = field(default_factory=dict)
 
     def trace(self, **overrides):
         """Trace the template's motion (keywords override ``method``, ``to``, options)."""
@@ -188,6 +192,7 @@ class TemplateContext:
         self.raw = raw
         self.stack = stack
         self.meta: dict = {}
+        self.references: dict = {}
 
     # errors and typed access ----------------------------------------------------------------
     def error(self, key: str, reason: str) -> TemplateError:
@@ -229,7 +234,9 @@ class TemplateContext:
             raise self.error(key, f"template {relative!r} refers back to itself")
         if not target.exists():
             raise self.error(key, f"no template file {relative!r} next to this one")
-        return load_template(target, _stack=self.stack + (str(self.path.resolve()),))
+        design = load_template(target, _stack=self.stack + (str(self.path.resolve()),))
+        self.references.setdefault(key, design)
+        return design
 
 
 def _describe(value: Any) -> str:
@@ -370,8 +377,12 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
     else:  # geometry only: drive d1 if there is such a port, nothing to trace otherwise
         motion = Motion(drive="d1" if "d1" in net.ports else "")
     fabrication = ctx.get(raw, "fabrication", "", dict, required=False, default={})
+    origami = fabrication.get("origami")
+    if isinstance(origami, dict) and isinstance(origami.get("sheet"), str):
+        # a chain of sheets names the template of one sheet: load it now, with the design
+        ctx.load(origami["sheet"], "fabrication.origami.sheet")
     return Design(name=name, description=description, path=path, network=net, motion=motion,
-                  fabrication=fabrication, raw=raw, meta=ctx.meta)
+                  fabrication=fabrication, raw=raw, meta=ctx.meta, references=ctx.references)
 
 
 def load_template(path, *, _stack=()) -> Design:

@@ -116,3 +116,16 @@ def test_module_templates_hold_the_papers_geometry(paper_modules):
                                    err_msg=name)
         assert np.array_equal(net.edges, np.array(m["edges"])), name
         assert net.port("d1") == tuple(m["d1"]) and net.port("d2") == tuple(m["d2"]), name
+
+
+def test_referenced_templates_are_loaded_with_the_design(tmp_path):
+    chain = load_template(TEMPLATES / "printed_planar_chain10.toml")
+    assert chain.references["chain.module"].name == "printed_planar"
+    sheets = load_template(TEMPLATES / "origami_chain12.toml")
+    assert sheets.references["fabrication.origami.sheet"].name == "origami_sheet"
+    # a reference to a missing file is a template error at load time, at its key
+    text = (TEMPLATES / "origami_chain12.toml").read_text()
+    bad = tmp_path / "chain.toml"
+    bad.write_text(text.replace('sheet = "origami_sheet.toml"', 'sheet = "no_such_sheet.toml"'))
+    with pytest.raises(TemplateError, match=r"fabrication\.origami\.sheet: no template file"):
+        load_template(bad)

@@ -530,10 +530,8 @@ def _module_of(design):
     """(module network, copies) of a design: a [chain] of one module template, or the design."""
     raw = design.raw or {}
     section = raw.get("chain")
-    if isinstance(section, dict) and "module" in section and design.path is not None:
-        from ..templates import load_template
-
-        mod = load_template(Path(design.path).parent / section["module"])
+    mod = getattr(design, "references", {}).get("chain.module")
+    if isinstance(section, dict) and mod is not None:
         return mod.network, int(section.get("copies", 1))
     return design.network, 1
 

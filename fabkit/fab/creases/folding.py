@@ -4,7 +4,6 @@ through the flat state (branch choice, relay of the drive along a chain of sheet
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -193,10 +192,10 @@ def _chain_model(design, s) -> OrigamiModel:
     net = design.network
     if "sheet" not in s or not isinstance(s["sheet"], str):
         raise _err(where, "sheet", "a design with `sheets` needs `sheet`: the template of one sheet")
-    from ...templates import load_template
-
-    base = Path(design.path).parent if design.path else Path(".")
-    sheet_design = load_template(base / s["sheet"])
+    sheet_design = design.references.get("fabrication.origami.sheet")
+    if sheet_design is None:
+        raise _err(where, "sheet", "the sheet template was not loaded with the design (load the "
+                                   "design with fabkit.load_template)")
     one = origami_model(sheet_design)
     if one.n_vertices != one.network.n_nodes:
         raise _err(where, "sheet", "chained sheets must have triangular panels")
