@@ -286,7 +286,9 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
                       f"the design's and the rebuilt network's motion; both {got.status}"))
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=net.size)
-    fine = sample_motion(built, m, scale, 0.25 * s.clearance)
+    # a chain past float64's drive resolution: steps up to the clearance are accepted there and
+    # the gap required grows by the excess (the planner widened its clearance the same way)
+    fine = sample_motion(built, m, scale, 0.25 * s.clearance, floor_limit=s.clearance)
     inc = {}
     for b, (i, j) in enumerate(edges.tolist()):
         inc.setdefault(i, []).append(b)
@@ -297,7 +299,7 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     col = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
     gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
                          head_slots=head, column_radius=col)
-    need = 0.5 * s.clearance
+    need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
     worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
     report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
                         **{k: (None if isinstance(v, float) and math.isinf(v) else v)

@@ -93,7 +93,7 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         raise FabricationError("[fabrication.laser] must be a table")
     s = laser_settings(table, laser_overrides(settings), network_size=net.size)
     bars = bar_set(net.edge_lengths * s.scale, net.edges, s, scale=s.scale)
-    sweep = sample_motion(net, design.motion, s.scale, s.sample_step)
+    sweep = sample_motion(net, design.motion, s.scale, s.sample_step, floor_limit=s.clearance)
     stacking = plan_layers(net.edges, sweep, s)
     parts = make_parts(bars, stacking, s)
     sheets = nest_parts(parts, s)

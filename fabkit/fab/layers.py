@@ -13,6 +13,9 @@ must not share a layer. Those two rules depend on the order of the layers, not o
 bars share one, so the layers are found in two steps: a graph colouring of the conflict graph
 (networkx greedy strategies; the fewest colours wins, the largest clique is a lower bound), then
 the order of the colour classes that breaks no column rule and needs the shortest screws.
+When that breaks a column rule or uses more layers than the clique bound, the whole problem
+is solved as a mixed-integer program (:func:`_milp_layers`), which either proves the layer
+count minimal or reports the best count found with a proven lower bound.
 
 Sampling guarantee. The motion is sampled (adaptively, see :func:`sample_motion`) so that no
 node moves more than ``h = clearance / 2`` between consecutive samples. Every point of a bar is
@@ -45,6 +48,9 @@ __all__ = ["Sweep", "sample_motion", "segment_distance", "point_segment_distance
 _BLOCK = 256
 # Refuse motions that need more samples than this to meet the step bound.
 _MAX_SAMPLES = 200_000
+# Time limit of the exact layer search (s); past it the best stacking found and the solver's
+# proven lower bound are reported.
+_MILP_SECONDS = 20.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,7 +91,8 @@ def _node_steps(x: np.ndarray) -> np.ndarray:
     return np.sqrt(((x[1:] - x[:-1]) ** 2).sum(axis=-1)).max(axis=-1)
 
 
-def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
+def sample_motion(net, motion, scale: float, step_limit: float, *,
+                  floor_limit: float | None = None) -> Sweep:
     """Sample a network's motion so that no node moves more than ``step_limit`` mm per sample.
 
     Parameters
@@ -98,6 +105,11 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
         mm per design unit.
     step_limit : float
         Bound on node displacement between consecutive samples (mm).
+    floor_limit : float, optional
+        Where two drive values are adjacent floats and nodes still move more than
+        ``step_limit`` (a chain amplifying its drive past float64's resolution), accept steps
+        up to this many mm instead of refusing; the sweep's ``max_step`` reports the step met,
+        and the stacking widens its clearance by the excess (see :func:`plan_layers`).
 
     Returns
     -------
@@ -125,18 +137,25 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
         problem = make_problem(net, motion.drive, motion.to, hold=motion.hold)
         plan = plan_construction(problem.work, problem.drive, problem.start)
         values = np.linspace(traj.drive[0], traj.drive[-1], 65)
-        for _ in range(60):
+        for _ in range(80):
             x = align_to_gauge(place(plan, values)[0], problem.start, problem.gauge)
             steps = _node_steps(x)
             bad = np.flatnonzero(steps > limit)
             if bad.size == 0:
                 break
-            width = values[bad + 1] - values[bad]
-            stuck = np.abs(width) <= 1e-12 * (abs(values[bad]) + 1.0)
+            # Bisect down to adjacent floats: near an unstable fixed point a chain amplifies
+            # its drive by the slope to the power of the module count, so the far modules of a
+            # collapse front move between drive values only a few ulps apart.
+            stuck = np.nextafter(values[bad], values[bad + 1]) == values[bad + 1]
+            if floor_limit is not None:
+                accept = stuck & (steps[bad] * scale <= floor_limit)
+                bad, stuck = bad[~accept], stuck[~accept]  # at float resolution, step accepted
+                if bad.size == 0:
+                    break
             if stuck.any():
                 # Nodes jump while the drive stands still: a flat state the drive cannot
                 # parametrise, so no sampling by drive value meets the bound there.
-                k = int(bad[np.argmax(stuck)])
+                k = int(bad[stuck][np.argmax(steps[bad[stuck]])])
                 raise FabricationError(
                     f"the motion passes a flat state at {motion.drive} = {values[k]:.10g} where "
                     f"nodes move {steps[k] * scale:.3g} mm while the drive stands still; the "
@@ -167,7 +186,7 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
         x, drive = traj.positions, traj.drive
     steps = _node_steps(x)
     max_step = float(steps.max() * scale) if steps.size else 0.0
-    if max_step > step_limit * (1 + 1e-9):
+    if max_step > max(step_limit, floor_limit or 0.0) * (1 + 1e-9):
         raise FabricationError(
             f"the {traj.method} trace moves a node {max_step:.3g} mm between samples, more than "
             f"the {step_limit:g} mm the collision check needs; use method = \"constructive\"")
@@ -441,7 +460,8 @@ class Stacking:
     joints : tuple of JointStack
     conflicts : Conflicts
     lower_bound : int
-        Size of the largest clique of the conflict graph: no stacking has fewer layers.
+        No stacking has fewer layers: the largest clique of the conflict graph, raised to the
+        exact solver's proven bound when colouring alone does not reach it.
     strategy : str
         The colouring strategy that won.
     head_slots : int
@@ -646,6 +666,102 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
     return None
 
 
+def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0):
+    """Fewest layers (at most ``max_layers``) meeting every rule, by mixed-integer programming
+    (HiGHS through SciPy).
+
+    Variables: the layer ``z_b`` of every bar, the lowest and highest layer ``lo_j``, ``hi_j``
+    of every screw, the top layer ``top``, and one binary per either-or rule (a conflicting
+    pair is ordered one way or the other; a bar passing a screw lies below or above its
+    column; two close screws stack one above the other). The objective is
+    ``top + eps * (total screw span)``: fewest layers first, then shortest screws.
+
+    Returns
+    -------
+    layer : numpy.ndarray of int or None
+        The best assignment found (None when none was found in the time limit).
+    bound : int
+        A proven lower bound on the number of layers (from the solver's dual bound).
+    optimal : bool
+        True when the solver proved its answer: the layer count minimal, or (no layer given)
+        that no stacking fits in ``max_layers`` layers, ``bound = max_layers + 1``.
+    """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import coo_matrix
+
+    E, J = n_bars, len(joint_bars)
+    K = int(max_layers)
+    pairs, keep, jp = conf.pairs, conf.keepout, conf.joint_pairs
+    P, Q, R = pairs.shape[0], keep.shape[0], jp.shape[0]
+    # variable layout: z (E) | lo (J) | hi (J) | top (1) | y_pairs (P) | y_keep (Q) | y_joint (R)
+    iz, ilo, ihi, itop = 0, E, E + J, E + 2 * J
+    iyp = itop + 1
+    iyq, iyr = iyp + P, iyp + P + Q
+    n = iyr + R
+    jidx = {int(j): k for k, j in enumerate(conf.screw_joints.tolist())}
+    rows, cols, vals, lb, ub = [], [], [], [], []
+    r = 0
+
+    def add(terms, lo_, hi_):
+        nonlocal r
+        for c, v in terms:
+            rows.append(r)
+            cols.append(c)
+            vals.append(v)
+        lb.append(lo_)
+        ub.append(hi_)
+        r += 1
+
+    inf = np.inf
+    for b in range(E):
+        add([(iz + b, 1.0), (itop, -1.0)], -inf, 0.0)
+    for k, jb in enumerate(joint_bars):
+        for b in jb.tolist():
+            add([(ilo + k, 1.0), (iz + b, -1.0)], -inf, 0.0)
+            add([(iz + b, 1.0), (ihi + k, -1.0)], -inf, 0.0)
+    M = float(K + 2 * head + 2)
+    for t, (a, b) in enumerate(pairs.tolist()):
+        y = iyp + t  # y = 1: a above b
+        add([(iz + a, 1.0), (iz + b, -1.0), (iyp + t, -M)], 1.0 - M, inf)
+        add([(iz + b, 1.0), (iz + a, -1.0), (y, M)], 1.0, inf)
+    for t, (b, j) in enumerate(keep.tolist()):
+        k = jidx[j]
+        y = iyq + t  # y = 1: bar above the column
+        add([(iz + b, 1.0), (ilo + k, -1.0), (y, -M)], -inf, -head - 1.0)
+        add([(iz + b, 1.0), (ihi + k, -1.0), (y, -M)], head + 1.0 - M, inf)
+    for t, (i, j) in enumerate(jp.tolist()):
+        ki, kj = jidx[i], jidx[j]
+        y = iyr + t  # y = 0: column i above column j, y = 1: j above i
+        add([(ihi + kj, 1.0), (ilo + ki, -1.0), (y, -M)], -inf, -2.0 * head - 1.0)
+        add([(ihi + ki, 1.0), (ilo + kj, -1.0), (y, M)], -inf, M - 2.0 * head - 1.0)
+    if P:
+        # turning a stacking upside down keeps every rule: fix the order of one pair
+        add([(iyp, 1.0)], 0.0, 0.0)
+    A = coo_matrix((vals, (rows, cols)), shape=(r, n)).tocsr()
+    eps = 1.0 / (J * K + 1.0)
+    c = np.zeros(n)
+    c[itop] = 1.0
+    c[ihi:ihi + J] = eps
+    c[ilo:ilo + J] = -eps
+    lower = np.zeros(n)
+    upper = np.ones(n)
+    upper[:itop + 1] = K - 1
+    integrality = np.ones(n)
+    integrality[ilo:itop] = 0  # spans follow from the integer layers
+    res = milp(c, constraints=LinearConstraint(A, lb, ub), integrality=integrality,
+               bounds=Bounds(lower, upper),
+               options={"time_limit": float(time_limit), "disp": False})
+    if res.status == 2:  # proven infeasible: every stacking needs more than max_layers
+        return None, K + 1, True
+    dual = getattr(res, "mip_dual_bound", None)
+    bound = int(math.floor(dual + 1e-6)) + 1 if dual is not None and np.isfinite(dual) else 0
+    if res.x is None:
+        return None, bound, False
+    layer = np.rint(res.x[:E]).astype(np.int64)
+    k_found = int(layer.max()) + 1 if E else 0
+    return layer, min(bound, k_found), res.status == 0
+
+
 def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     """Assign every bar a layer so that nothing collides over the sampled motion.
 
@@ -679,7 +795,11 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     edges = np.asarray(edges, dtype=np.int64)
     s = settings
     column_radius = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
-    conf = find_conflicts(edges, sweep.positions, width=s.bar_width, clearance=s.clearance,
+    # Where the samples are farther apart than the guarantee assumes (a chain at float
+    # resolution, see sample_motion's floor_limit), widen the clearance by the excess so that
+    # parts of one layer stay clearance / 2 apart between samples all the same.
+    clearance = s.clearance + max(0.0, sweep.max_step - sweep.step_limit)
+    conf = find_conflicts(edges, sweep.positions, width=s.bar_width, clearance=clearance,
                           column_radius=column_radius)
     head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
     n_bars = edges.shape[0]
@@ -707,21 +827,34 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         # The column rules tie layers to their order: search layer numbers directly.
         found = _search_layers(n_bars, conf, joint_bars, head,
                                range(max(int(clique), 1), s.max_layers + 1))
-        if found is None:
-            x0 = sweep.positions[0][conf.screw_joints]
-            d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
-            np.fill_diagonal(d0, np.inf)
-            i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
-            if d0.size and d0[i, j] < 2 * column_radius:
-                ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
-                raise FabricationError(
-                    f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
-                    f"two screw heads ({2 * column_radius:g} mm), and no stacking separates their "
-                    "screws; merge them in the design, or for chains of modules try mirror = "
-                    "\"alternate\"")
-            raise FabricationError(_violation_message(layer, joint_bars, conf, head, edges))
-        layer, strategy = found, "backtracking"
-        k = int(layer.max()) + 1
+        if found is not None:
+            layer, strategy, viol = found, "backtracking", 0
+            k = int(layer.max()) + 1
+    bound, proven = int(clique), (not viol and k == clique)
+    if not proven and n_bars:
+        # Colouring ignores the column rules and the search stops at its budget: ask the exact
+        # solver for a stacking with fewer layers; its dual bound is a proven lower bound.
+        fewer = s.max_layers if viol else k - 1
+        found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head, fewer,
+                                                  time_limit=_MILP_SECONDS)
+        if found is not None:
+            layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
+        bound = max(bound, milp_bound)
+        proven = not viol and k == bound
+    if viol:
+        x0 = sweep.positions[0][conf.screw_joints]
+        d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
+        np.fill_diagonal(d0, np.inf)
+        i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
+        if d0.size and d0[i, j] < 2 * column_radius:
+            ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
+            raise FabricationError(
+                f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
+                f"two screw heads ({2 * column_radius:g} mm), and no stacking within "
+                f"max_layers = {s.max_layers} separates their screws; merge them in the "
+                "design, or for chains of modules try mirror = \"alternate\"")
+        raise FabricationError(_violation_message(layer, joint_bars, conf, head, edges)
+                               + f" (none exists within max_layers = {s.max_layers})")
     if k > s.max_layers:
         raise FabricationError(
             f"the bars need {k} stacking layers (more than max_layers = {s.max_layers}); raise "
@@ -743,8 +876,9 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         stacks.append(JointStack(joint=j, bars=bars, layers=layers, spacers=spacers,
                                  stack_height=height, screw_length=length, play=length - height))
     return Stacking(layer=layer, n_layers=k, joints=tuple(stacks), conflicts=conf,
-                    lower_bound=int(clique), strategy=strategy, head_slots=head,
-                    stats={"candidates": [(c[3], c[1], c[0]) for c in candidates]})
+                    lower_bound=int(bound), strategy=strategy, head_slots=head,
+                    stats={"candidates": [(c[3], c[1], c[0]) for c in candidates],
+                           "clique": int(clique), "proven_minimal": bool(proven)})
 
 
 def _violation_message(layer, joint_bars, conf, head, edges) -> str:
