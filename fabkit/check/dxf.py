@@ -4,7 +4,7 @@ Steps (each a named entry of the report's ``checks``):
 
 * ``units``: every sheet says ``$INSUNITS = 4`` (mm);
 * ``audit``: ezdxf's structural audit finds no error;
-* ``layers``: entities only on CUT, CUT_INNER and ENGRAVE;
+* ``layers``: entities only on CUT, CUT_INNER, ENGRAVE and REFERENCE;
 * ``parts``: every bar outline found once, with exactly two holes, on the layers it belongs to;
 * ``holes_centred``: the round ends of each outline are centred on its holes (<= 1e-6 mm);
 * ``width_after_kerf`` / ``hole_after_kerf``: drawn sizes with the kerf undone equal the
@@ -43,7 +43,7 @@ LENGTH_TOL = 1e-6
 #: Largest difference allowed between the re-simulated and designed port distances, relative
 #: to the network size (design units): the map is compared away from exact flat states.
 MAP_RTOL = 1e-6
-_LAYERS = {"CUT", "CUT_INNER", "ENGRAVE"}
+_LAYERS = {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
 _APPID = "FABKIT"
 
 

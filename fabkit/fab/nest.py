@@ -139,11 +139,21 @@ def make_parts(bars, stacking, settings) -> list[Part]:
             labels=[label] if label else [], bbox=(-r_out, -r_out, L + r_out, r_out),
             meta={"bar": k, "joints": [i, j], "layer": layer, "length": L}))
     ring = 0.5 * (settings.spacer_diameter + bars.kerf)
+    web = ring - r_hole
     for js in stacking.joints:
         for z in js.spacers:
+            labels = []
+            if settings.labels != "none":
+                # "<joint>.<layer>" engraved in the web above the hole, as wide as fits there
+                text = f"{js.joint}.{z}"
+                y = r_hole + 0.5 * web
+                half = math.sqrt(max(ring ** 2 - (y + 0.25 * web) ** 2, 0.0))
+                h = min(0.5 * web, 2 * half / (_CHAR_WIDTH * len(text)), settings.label_height)
+                if h >= _MIN_TEXT:
+                    labels = [Label(text, (0.0, y), float(round(h, 3)), 0.0, f"S{js.joint}.{z}")]
             parts.append(Part(
                 id=f"S{js.joint}.{z}", kind="spacer", outline=None, ring=ring,
-                holes=np.zeros((1, 2)), hole_radius=r_hole, labels=[],
+                holes=np.zeros((1, 2)), hole_radius=r_hole, labels=labels,
                 bbox=(-ring, -ring, ring, ring), meta={"joint": js.joint, "layer": z}))
     if settings.reference_square != "none":
         s = REFERENCE_SIZE
