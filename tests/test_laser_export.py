@@ -46,7 +46,7 @@ def test_files_written(exported, key):
     names = sorted(p.name for p in paths)
     n = len(report["sheets"])
     assert names == sorted(["laser_assembly.png", "laser_bom.json", "laser_bom.md",
-                            "laser_layers_motion.png",
+                            "laser_layers_motion.png", "laser_guide.pdf", "laser_guide_page1.png",
                             *[f"laser_sheet{k}.dxf" for k in range(1, n + 1)],
                             *[f"laser_sheet{k}.svg" for k in range(1, n + 1)]])
     for p in paths:

@@ -16,7 +16,8 @@ The pipeline (all pure, nothing is written here):
    error, so no file leaves fabkit that does not rebuild the designed network.
 
 Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``laser_bom.md``,
-``laser_assembly.png``, ``laser_layers_motion.png``.
+``laser_assembly.png``, ``laser_layers_motion.png``, ``laser_guide.pdf`` (A4 assembly pages,
+:mod:`fabkit.fab.guide`) and ``laser_guide_page1.png``.
 """
 
 from __future__ import annotations
@@ -242,6 +243,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
 def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -> dict:
     """Parts, sheets, screws by length, spacer rings and the stack at every joint (JSON-able)."""
     from ..fab.hardware import WASHER_THICKNESS
+    from ..fab.nest import utilisation
 
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
@@ -254,7 +256,8 @@ def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -
         "scale_mm_per_unit": s.scale,
         "settings": s.as_dict(),
         "sheets": [{"index": sh.index, "file": f"laser_sheet{sh.index}.dxf",
-                    "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts]}
+                    "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts],
+                    "utilisation": round(utilisation(sh), 4)}
                    for sh in plan.sheets],
         "bars": [{"id": f"B{k}", "joints": [int(v) for v in bars.edges[k]],
                   "layer": int(st.layer[k]), "length_mm": round(float(bars.lengths[k]), 6),
@@ -296,9 +299,10 @@ def bom_markdown(bom: dict) -> str:
              f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
              f"acrylic; bars {s['bar_width']:g} mm wide; kerf {s['kerf']:g} mm; "
              f"{bom['layers']['count']} layers (lower bound {bom['layers']['lower_bound']}).", "",
-             "## Sheets", "", "| sheet | file | parts |", "|---|---|---|"]
+             "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
     for sh in bom["sheets"]:
-        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} |")
+        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} | "
+                     f"{100 * sh['utilisation']:.1f} % |")
     lines += ["", "## Screws", "", "| screw | post length (mm) | count |", "|---|---|---|"]
     for sc in bom["screws"]:
         lines.append(f"| {sc['name']} | {sc['post_length_mm']:g} | {sc['count']} |")
@@ -417,7 +421,8 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     -------
     ExportResult
         ``files``: ``laser_sheet<k>.dxf`` and ``.svg`` per sheet, ``laser_bom.json``,
-        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``. ``report``:
+        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``,
+        ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``:
         the bill of materials including the as-built check.
 
     Raises
@@ -449,6 +454,11 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         raise FabricationError(f"as-built check failed: {failed['name']}: {failed['detail']}")
     files["laser_assembly.png"] = assembly_png(plan)
     files["laser_layers_motion.png"] = motion_png(plan)
+    from ..fab.guide import guide_pages
+
+    guide, first_page, _ = guide_pages(plan)
+    files["laser_guide.pdf"] = guide
+    files["laser_guide_page1.png"] = first_page
     names = sorted([*files, "laser_bom.json", "laser_bom.md"])
     bom = bill_of_materials(plan, names, check)
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")

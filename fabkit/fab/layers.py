@@ -1190,8 +1190,15 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
                 f"two screw heads ({2 * column_radius:g} mm), and no stacking within "
                 f"max_layers = {s.max_layers} separates their screws; merge them in the "
                 "design, or for chains of modules try mirror = \"alternate\"")
-        raise FabricationError(_violation_message(layer, joint_bars, conf, head, edges)
-                               + f" (none exists within max_layers = {s.max_layers})")
+        if bound > s.max_layers:
+            raise FabricationError(
+                f"every stacking of these bars needs at least {bound} layers (proven by exact "
+                f"search), more than max_layers = {s.max_layers}: "
+                + _violation_message(layer, joint_bars, conf, head, edges))
+        raise FabricationError(
+            f"no stacking found within max_layers = {s.max_layers} in the {_MILP_SECONDS:g} s "
+            f"exact search (at least {bound} layers are needed): "
+            + _violation_message(layer, joint_bars, conf, head, edges))
     if k > s.max_layers:
         raise FabricationError(
             f"the bars need {k} stacking layers (more than max_layers = {s.max_layers}); raise "
@@ -1227,9 +1234,8 @@ def _violation_message(layer, joint_bars, conf, head, edges) -> str:
     for b, j in conf.keepout.tolist():
         if lo[j] - head <= layer[b] <= hi[j] + head:
             i0, i1 = edges[b]
-            return (f"no stacking order found keeps bar {b} (joints {i0}-{i1}) clear of the screw "
-                    f"at joint {j}, which it passes during the motion; use a larger scale or "
-                    "narrower bars")
+            return (f"bar {b} (joints {i0}-{i1}) passes the screw at joint {j} during the "
+                    "motion; use a larger scale or narrower bars, or raise max_layers")
     for i, j in conf.joint_pairs.tolist():
         return (f"the screws at joints {i} and {j} come too close during the motion and no "
                 "stacking separates them; the joints may coincide (for chains try mirror = "
