@@ -1084,8 +1084,8 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
         return None, K + 1, True
     dual = getattr(res, "mip_dual_bound", None)
     bound = int(math.floor(dual + 1e-6)) + 1 if dual is not None and np.isfinite(dual) else 0
-    if res.x is None:
-        return None, bound, False
+    if res.x is None:  # no stacking found in the time; a dual bound past K says no more
+        return None, min(bound, K + 1), False
     layer = np.rint(res.x[:E]).astype(np.int64)
     k_found = int(layer.max()) + 1 if E else 0
     return layer, min(bound, k_found), res.status == 0
