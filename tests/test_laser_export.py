@@ -127,7 +127,8 @@ def test_as_built_check_passes_on_the_written_files(exported, key):
     checks = {c["name"]: c for c in result["checks"]}
     assert set(checks) >= {"units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
                            "hole_after_kerf", "lengths", "topology", "modes", "module_map",
-                           "same_layer"}
+                           "same_layer", "screws_close"}
+    assert checks["screws_close"]["ok"] and checks["screws_close"]["value"] >= 0
     assert checks["lengths"]["value"] <= 1e-6
     assert checks["modes"]["value"] == 1
     assert checks["module_map"]["value"] <= 1e-6 * design.network.size

@@ -15,6 +15,8 @@ Steps (each a named entry of the report's ``checks``):
   the design) has exactly one conformational motion;
 * ``module_map``: re-simulating the rebuilt network gives the design's port distances along
   the drive;
+* ``screws_close``: the screw chosen for each joint's stack (layers read back) closes on the
+  thickest sheets the thickness tolerance allows, with its washers;
 * ``same_layer``: over the re-simulated motion, sampled more finely than the stacking was
   planned with (no node moves more than clearance / 4 between samples), no two bars of one
   layer come closer than clearance / 2 (the stacking's guarantee), and no bar or screw column
@@ -286,6 +288,7 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
                       f"the design's and the rebuilt network's motion; both {got.status}"))
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=net.size)
+    out.append(_screws_close(edges, layer, s))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
     # the gap required grows by the excess (the planner widened its clearance the same way)
     fine = sample_motion(built, m, scale, 0.25 * s.clearance, floor_limit=s.clearance)
@@ -310,6 +313,35 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
               f"(bar to bar {_mm(gaps['bar_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, "
               f"screw to screw {_mm(gaps['column_gap'])})"))
     return out
+
+
+def _screws_close(edges, layer, s) -> dict:
+    """Every joint's screw, chosen for the layers read back, closes on the thickest sheets the
+    thickness tolerance allows (and the catalogue has such a post)."""
+    from ..errors import FabricationError
+    from ..fab.hardware import fit_screw
+
+    spans: dict[int, list[int]] = {}
+    for b, (i, j) in enumerate(edges.tolist()):
+        for v in (i, j):
+            spans.setdefault(v, []).append(int(layer[b]))
+    worst, where, problem = math.inf, None, ""
+    for joint, zs in sorted(spans.items()):
+        if len(zs) < 2:
+            continue
+        n = max(zs) - min(zs) + 1
+        try:
+            fit = fit_screw(s.screw, n, s.thickness, s.thickness_tolerance)
+        except FabricationError as exc:
+            problem = f"joint {joint}: {exc}"
+            worst, where = -math.inf, joint
+            break
+        if fit.play_min < worst:
+            worst, where = fit.play_min, joint
+    ok = not problem and worst >= -1e-9
+    return _check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
+                  problem or f"least axial play (mm) with washers on sheets of "
+                  f"{s.thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
 
 
 def _sheet_set(path: Path) -> list[Path]:
