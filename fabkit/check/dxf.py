@@ -299,9 +299,9 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
               for j, bs in sorted(inc.items()) if len(bs) >= 2]
     head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
-    col = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
     gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
-                         head_slots=head, column_radius=col)
+                         head_slots=head, column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter)
     need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
     worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
     report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,

@@ -99,8 +99,8 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
     bars = bar_set(net.edge_lengths * s.scale, net.edges, s, scale=s.scale)
     sweep = sample_chain(net, design.motion, s.scale, s.sample_step, width=s.bar_width,
                          clearance=s.clearance,
-                         column_radius=0.5 * max(s.screw.head_diameter, s.spacer_diameter),
-                         floor_limit=s.clearance)
+                         column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
     if sweep is None:  # not a chain of modules: sample the whole motion
         sweep = sample_motion(net, design.motion, s.scale, s.sample_step,
                               floor_limit=s.clearance)

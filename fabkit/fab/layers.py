@@ -234,7 +234,8 @@ def _unique_rows(a: np.ndarray) -> np.ndarray:
 
 def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
                  clearance: float, column_radius: float, window: int = 3,
-                 floor_limit: float | None = None) -> Sweep | None:
+                 floor_limit: float | None = None,
+                 spacer_radius: float | None = None) -> Sweep | None:
     """Conflicts of a planar chain measured module window by module window (near-linear).
 
     A chain's module k moves exactly as the module alone with its input distance at d_k, and
@@ -257,7 +258,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         mm per design unit.
     step_limit : float
         Largest node step (mm) between samples of a window.
-    width, clearance, column_radius : float
+    width, clearance, column_radius, spacer_radius : float
         As for :func:`find_conflicts`.
     window : int
         Modules per window (>= 2: neighbours share a joint pair).
@@ -303,7 +304,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         k["starts"].append(c)
         k["lo"], k["hi"] = min(k["lo"], lo[c]), max(k["hi"], hi[c])
     limit = step_limit / scale
-    pairs, gaps, keep, jpairs = [], [], [], []
+    pairs, gaps, keep, keep_span, jpairs = [], [], [], [], []
     n_samples, max_step = 0, 0.0
     for key, k in kinds.items():
         c0 = k["starts"][0]
@@ -340,16 +341,20 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         screws = np.flatnonzero(degree[maps[0][0]] >= 2)
         excess = max(0.0, float(steps.max() * scale) - step_limit) if steps.size else 0.0
         conf = find_conflicts(sub.edges, xs, width=width, clearance=clearance + excess,
-                              column_radius=column_radius, screw_joints=screws)
+                              column_radius=column_radius, screw_joints=screws,
+                              spacer_radius=spacer_radius)
         for node_map, edge_map in maps:
             pairs.append(edge_map[conf.pairs])
             gaps.append(conf.gap)
             keep.append(np.stack([edge_map[conf.keepout[:, 0]], node_map[conf.keepout[:, 1]]], 1))
+            keep_span.append(np.stack([edge_map[conf.keepout_span[:, 0]],
+                                       node_map[conf.keepout_span[:, 1]]], 1))
             jpairs.append(node_map[conf.joint_pairs])
     # far field: modules `w` or more apart, at the samples of the chain's own trace
     xg = traj.positions * scale
     far = _far_field(edges, xg, np.repeat(np.arange(n), n_e), w, width=width,
-                     clearance=clearance + width, column_radius=column_radius,
+                     clearance=clearance + width,
+                     column_radius=max(column_radius, spacer_radius or 0.0),
                      screw_joints=np.flatnonzero(degree >= 2), copies=copies)
     pairs.append(far[0])
     gaps.append(np.full(far[0].shape[0], np.nan))
@@ -373,7 +378,9 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         keepout=_unique_rows(np.concatenate(keep)).astype(np.int64),
         joint_pairs=_unique_rows(np.sort(np.concatenate(jpairs).reshape(-1, 2), axis=1)
                                  ).astype(np.int64),
-        screw_joints=np.flatnonzero(degree >= 2))
+        screw_joints=np.flatnonzero(degree >= 2),
+        keepout_span=_unique_rows(np.concatenate(keep_span + [np.zeros((0, 2), np.int64)])
+                                  ).astype(np.int64))
     steps = _node_steps(traj.positions)
     return Sweep(positions=np.ascontiguousarray(xg), drive=np.asarray(traj.drive),
                  step_limit=float(step_limit), max_step=max_step, method="module windows",
@@ -574,6 +581,9 @@ class Conflicts:
         Joints whose screw columns come close (their layer spans must not meet).
     screw_joints : numpy.ndarray of int
         Joints that get a screw (two or more bars).
+    keepout_span : numpy.ndarray of int, shape (K2, 2)
+        (bar, joint) pairs: the bar passes the joint's spacer rings (wider than its heads) but
+        not its heads: it must avoid the layers of the stack itself, not the head layers.
     """
 
     pairs: np.ndarray
@@ -583,6 +593,7 @@ class Conflicts:
     keepout: np.ndarray
     joint_pairs: np.ndarray
     screw_joints: np.ndarray
+    keepout_span: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
 
 
 def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -593,7 +604,8 @@ def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 def find_conflicts(edges, positions, *, width: float, clearance: float,
-                   column_radius: float, screw_joints=None) -> Conflicts:
+                   column_radius: float, screw_joints=None,
+                   spacer_radius: float | None = None) -> Conflicts:
     """Measure which bars, screws and columns come close anywhere along a sampled motion.
 
     Parameters
@@ -607,6 +619,9 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         Least gap allowed between parts of one layer (mm).
     column_radius : float
         Radius of a screw column (largest of head and spacer radius, mm).
+    spacer_radius : float, optional
+        Radius of the spacer rings inside a stack, when larger than ``column_radius`` (the
+        heads): bars that pass them but not the heads go to ``keepout_span``.
     screw_joints : array_like of int, optional
         Joints that carry a screw (default: every joint of two or more of these bars; a piece
         cut out of a larger network passes the joints that have screws in the whole).
@@ -624,7 +639,8 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     ja, jb = a[share], b[share]
     # Only pairs whose swept boxes (over the whole motion) come within reach need the scan.
     lo_n, hi_n = x.min(axis=0), x.max(axis=0)                      # (N, 2) each
-    reach = 0.5 * width + clearance + column_radius
+    r_col = max(column_radius, spacer_radius or 0.0)
+    reach = 0.5 * width + clearance + r_col
     bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]]) - reach
     bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]]) + reach
     near_box = ((bar_lo[a] <= bar_hi[b]) & (bar_lo[b] <= bar_hi[a])).all(axis=1)
@@ -654,11 +670,13 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         d, _ = _pruned_min(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]),
-            x, 0.5 * width + column_radius + clearance, bb, jj)
+            x, 0.5 * width + r_col + clearance, bb, jj)
         near = d - 0.5 * width - column_radius < clearance
         keepout = np.stack([bb[near], jj[near]], 1)
+        span = ~near & (d - 0.5 * width - r_col < clearance)
+        keepout_span = np.stack([bb[span], jj[span]], 1)
     else:
-        keepout = np.zeros((0, 2), dtype=np.int64)
+        keepout = keepout_span = np.zeros((0, 2), dtype=np.int64)
     # screw column vs screw column
     if screw_joints.size >= 2:
         ia, ib = np.triu_indices(screw_joints.size, k=1)
@@ -668,14 +686,15 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         ia, ib = ia[inside], ib[inside]
         d, _ = _pruned_min(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
-            x, 2.0 * column_radius + clearance, ia, ib)
-        near = d - 2.0 * column_radius < clearance
+            x, 2.0 * r_col + clearance, ia, ib)
+        near = d - 2.0 * r_col < clearance
         joint_pairs = np.stack([ia[near], ib[near]], 1).reshape(-1, 2)
     else:
         joint_pairs = np.zeros((0, 2), dtype=np.int64)
     return Conflicts(pairs=pairs.astype(np.int64), kind=kind, gap=gaps, sample=samples,
                      keepout=keepout.astype(np.int64), joint_pairs=joint_pairs.astype(np.int64),
-                     screw_joints=screw_joints)
+                     screw_joints=screw_joints,
+                     keepout_span=keepout_span.reshape(-1, 2).astype(np.int64))
 
 
 # -- layer assignment -----------------------------------------------------------------------
@@ -796,14 +815,16 @@ def _spans(layer: np.ndarray, joint_bars: list[np.ndarray]):
     return lo, hi
 
 
-def _score(layer, joint_bars, jpos, keepout, joint_pairs, head):
+def _score(layer, joint_bars, jpos, keepout, joint_pairs, head, keepout_span=None):
     """(violations, total span) for candidate layer assignments ``layer`` (P, E)."""
     lo, hi = _spans(layer, joint_bars)
     viol = np.zeros(layer.shape[0], dtype=np.int64)
-    if keepout.size:
-        zb = layer[:, keepout[:, 0]]
-        j = jpos[keepout[:, 1]]
-        viol += ((zb >= lo[:, j] - head) & (zb <= hi[:, j] + head)).sum(axis=1)
+    for rows, slack in ((keepout, head), (keepout_span, 0)):
+        if rows is None or not rows.size:
+            continue
+        zb = layer[:, rows[:, 0]]
+        j = jpos[rows[:, 1]]
+        viol += ((zb >= lo[:, j] - slack) & (zb <= hi[:, j] + slack)).sum(axis=1)
     if joint_pairs.size:
         i, j = jpos[joint_pairs[:, 0]], jpos[joint_pairs[:, 1]]
         overlap = (lo[:, i] - head <= hi[:, j] + head) & (lo[:, j] - head <= hi[:, i] + head)
@@ -811,14 +832,15 @@ def _score(layer, joint_bars, jpos, keepout, joint_pairs, head):
     return viol, (hi - lo).sum(axis=1)
 
 
-def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
+def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head, keepout_span=None):
     """Order of the k colour classes (class -> layer) with no violation and shortest screws."""
     if k <= 7:
         perms = np.array(list(itertools.permutations(range(k))), dtype=np.int64)
         best_v, best_s, best_p = None, None, None
         for start in range(0, perms.shape[0], 1024):
             p = perms[start:start + 1024]
-            v, s = _score(p[:, colours], joint_bars, jpos, keepout, joint_pairs, head)
+            v, s = _score(p[:, colours], joint_bars, jpos, keepout, joint_pairs, head,
+                          keepout_span)
             key = v * 10**9 + s
             i = int(np.argmin(key))
             if best_v is None or key[i] < best_v * 10**9 + best_s:
@@ -826,7 +848,8 @@ def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
         return best_p, best_v
     # many layers: pairwise swaps from the identity until no swap improves (deterministic)
     perm = np.arange(k)
-    v, s = _score(perm[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+    v, s = _score(perm[colours][None], joint_bars, jpos, keepout, joint_pairs, head,
+                  keepout_span)
     best = (int(v[0]), int(s[0]))
     improved = True
     while improved:
@@ -834,7 +857,8 @@ def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
         for i, j in itertools.combinations(range(k), 2):
             cand = perm.copy()
             cand[[i, j]] = cand[[j, i]]
-            v, s = _score(cand[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+            v, s = _score(cand[colours][None], joint_bars, jpos, keepout, joint_pairs, head,
+                          keepout_span)
             if (int(v[0]), int(s[0])) < best:
                 perm, best, improved = cand, (int(v[0]), int(s[0])), True
     return perm, best[0]
@@ -861,9 +885,10 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
         nbrs[b].append(a)
     avoid_of_bar = [[] for _ in range(n_bars)]   # joints whose columns bar b must avoid
     avoiders = {j: [] for j in screw}            # bars that must avoid joint j's column
-    for b, j in conf.keepout.tolist():
-        avoid_of_bar[b].append(j)
-        avoiders[j].append(b)
+    for rows, slack in ((conf.keepout, head), (conf.keepout_span, 0)):
+        for b, j in rows.tolist():
+            avoid_of_bar[b].append((j, slack))
+            avoiders[j].append((b, slack))
     partners = {j: [] for j in screw}
     for i, j in conf.joint_pairs.tolist():
         partners[i].append(j)
@@ -898,14 +923,14 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
             for c in nbrs[b]:
                 if z[c] == v:
                     return False
-            for j in avoid_of_bar[b]:
-                if lo[j] is not None and lo[j] - head <= v <= hi[j] + head:
+            for j, sl in avoid_of_bar[b]:
+                if lo[j] is not None and lo[j] - sl <= v <= hi[j] + sl:
                     return False
             for j in joints_of[b]:
                 l2 = v if lo[j] is None else min(lo[j], v)
                 h2 = v if hi[j] is None else max(hi[j], v)
-                for c in avoiders[j]:
-                    if z[c] >= 0 and l2 - head <= z[c] <= h2 + head:
+                for c, sl in avoiders[j]:
+                    if z[c] >= 0 and l2 - sl <= z[c] <= h2 + sl:
                         return False
                 for i in partners[j]:
                     if lo[i] is not None and l2 - head <= hi[i] + head and lo[i] - head <= h2 + head:
@@ -959,7 +984,7 @@ def _neighbourhood(n_bars, conf, joint_bars, seed, size):
         nbr[a].append(b)
         nbr[b].append(a)
     jpos = {int(j): i for i, j in enumerate(conf.screw_joints.tolist())}
-    for b, j in conf.keepout.tolist():
+    for b, j in np.concatenate([conf.keepout, conf.keepout_span]).tolist():
         for c in joint_bars[jpos[j]].tolist():
             nbr[b].append(c)
             nbr[c].append(b)
@@ -983,15 +1008,19 @@ def _neighbourhood(n_bars, conf, joint_bars, seed, size):
             sub_joints.append(j)
             sub_bars.append(inside)
     has = set(sub_joints)
-    keep = conf.keepout[[new[b] >= 0 and j in has for b, j in conf.keepout.tolist()]] \
-        if conf.keepout.size else conf.keepout
-    keep = np.stack([new[keep[:, 0]], keep[:, 1]], 1) if keep.size else keep.reshape(0, 2)
+    def restrict(rows):
+        rows = rows[[new[b] >= 0 and j in has for b, j in rows.tolist()]] if rows.size else rows
+        return (np.stack([new[rows[:, 0]], rows[:, 1]], 1) if rows.size
+                else rows.reshape(0, 2)).astype(np.int64)
+
+    keep = restrict(conf.keepout)
     jp = conf.joint_pairs[[i in has and j in has for i, j in conf.joint_pairs.tolist()]] \
         if conf.joint_pairs.size else conf.joint_pairs
     sub = Conflicts(pairs=pairs, kind=np.zeros(pairs.shape[0], dtype=object),
                     gap=np.zeros(pairs.shape[0]), sample=np.zeros(pairs.shape[0], dtype=np.int64),
-                    keepout=keep.astype(np.int64), joint_pairs=jp.reshape(-1, 2).astype(np.int64),
-                    screw_joints=np.array(sub_joints, dtype=np.int64))
+                    keepout=keep, joint_pairs=jp.reshape(-1, 2).astype(np.int64),
+                    screw_joints=np.array(sub_joints, dtype=np.int64),
+                    keepout_span=restrict(conf.keepout_span))
     return int(bars.size), sub, sub_bars
 
 
@@ -1020,7 +1049,9 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
 
     E, J = n_bars, len(joint_bars)
     K = int(max_layers)
-    pairs, keep, jp = conf.pairs, conf.keepout, conf.joint_pairs
+    pairs, jp = conf.pairs, conf.joint_pairs
+    keep = np.concatenate([conf.keepout, conf.keepout_span]).reshape(-1, 2)
+    slack = np.r_[np.full(conf.keepout.shape[0], head), np.zeros(conf.keepout_span.shape[0])]
     P, Q, R = pairs.shape[0], keep.shape[0], jp.shape[0]
     # variable layout: z (E) | lo (J) | hi (J) | top (1) | y_pairs (P) | y_keep (Q) | y_joint (R)
     iz, ilo, ihi, itop = 0, E, E + J, E + 2 * J
@@ -1054,10 +1085,10 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
         add([(iz + a, 1.0), (iz + b, -1.0), (iyp + t, -M)], 1.0 - M, inf)
         add([(iz + b, 1.0), (iz + a, -1.0), (y, M)], 1.0, inf)
     for t, (b, j) in enumerate(keep.tolist()):
-        k = jidx[j]
+        k, sl = jidx[j], float(slack[t])
         y = iyq + t  # y = 1: bar above the column
-        add([(iz + b, 1.0), (ilo + k, -1.0), (y, -M)], -inf, -head - 1.0)
-        add([(iz + b, 1.0), (ihi + k, -1.0), (y, -M)], head + 1.0 - M, inf)
+        add([(iz + b, 1.0), (ilo + k, -1.0), (y, -M)], -inf, -sl - 1.0)
+        add([(iz + b, 1.0), (ihi + k, -1.0), (y, -M)], sl + 1.0 - M, inf)
     for t, (i, j) in enumerate(jp.tolist()):
         ki, kj = jidx[i], jidx[j]
         y = iyr + t  # y = 0: column i above column j, y = 1: j above i
@@ -1123,14 +1154,15 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     """
     edges = np.asarray(edges, dtype=np.int64)
     s = settings
-    column_radius = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
+    column_radius = 0.5 * s.screw.head_diameter
+    spacer_radius = 0.5 * s.spacer_diameter
     # Where the samples are farther apart than the guarantee assumes (a chain at float
     # resolution, see sample_motion's floor_limit), widen the clearance by the excess so that
     # parts of one layer stay clearance / 2 apart between samples all the same.
     clearance = s.clearance + max(0.0, sweep.max_step - sweep.step_limit)
     conf = sweep.conflicts if sweep.conflicts is not None else find_conflicts(
         edges, sweep.positions, width=s.bar_width, clearance=clearance,
-        column_radius=column_radius)
+        column_radius=column_radius, spacer_radius=spacer_radius)
     head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
     n_bars = edges.shape[0]
     inc = _incidence(edges, sweep.positions.shape[1])
@@ -1146,7 +1178,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         k = int(colours.max()) + 1 if n_bars else 0
         if joint_bars:
             perm, viol = _best_order(colours, k, joint_bars, jpos, conf.keepout,
-                                     conf.joint_pairs, head)
+                                     conf.joint_pairs, head, conf.keepout_span)
         else:
             perm, viol = np.arange(k), 0
         layer = perm[colours]
@@ -1231,8 +1263,9 @@ def _violation_message(layer, joint_bars, conf, head, edges) -> str:
     jpos = {int(j): i for i, j in enumerate(conf.screw_joints)}
     lo = {j: int(layer[joint_bars[i]].min()) for j, i in jpos.items()}
     hi = {j: int(layer[joint_bars[i]].max()) for j, i in jpos.items()}
-    for b, j in conf.keepout.tolist():
-        if lo[j] - head <= layer[b] <= hi[j] + head:
+    for b, j, sl in [(b, j, head) for b, j in conf.keepout.tolist()] + \
+            [(b, j, 0) for b, j in conf.keepout_span.tolist()]:
+        if lo[j] - sl <= layer[b] <= hi[j] + sl:
             i0, i1 = edges[b]
             return (f"bar {b} (joints {i0}-{i1}) passes the screw at joint {j} during the "
                     "motion; use a larger scale or narrower bars, or raise max_layers")
@@ -1244,7 +1277,7 @@ def _violation_message(layer, joint_bars, conf, head, edges) -> str:
 
 
 def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slots: int = 1,
-                  column_radius: float = 0.0) -> dict:
+                  column_radius: float = 0.0, spacer_radius: float | None = None) -> dict:
     """Smallest gaps between parts that share a layer, over sampled configurations.
 
     Parameters
@@ -1258,6 +1291,9 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
         Screws to check bars and other screws against (none: bars only).
     head_slots : int
     column_radius : float
+        Radius of the screw heads (they occupy ``head_slots`` layers above and below a stack).
+    spacer_radius : float, optional
+        Radius of the spacer rings, checked against bars on the stack's own layers.
 
     Returns
     -------
@@ -1295,7 +1331,14 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
             d, _ = _min_over_samples(
                 lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                           xs[:, edges[bi, 1]]), x, bb, jj)
-            out["screw_gap"] = float((d - 0.5 * width - column_radius).min())
+            radius = np.full(bb.size, column_radius)
+            if spacer_radius is not None:
+                # on the stack's own layers the spacer rings are the wider part of the column
+                z0 = np.array([span[j][0] + head_slots for j in jj.tolist()])
+                z1 = np.array([span[j][1] - head_slots for j in jj.tolist()])
+                inner = (layer[bb] >= z0) & (layer[bb] <= z1)
+                radius[inner] = max(column_radius, spacer_radius)
+            out["screw_gap"] = float((d - 0.5 * width - radius).min())
         pa, pb = [], []
         for s1, s2 in itertools.combinations(js, 2):
             (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]
