@@ -149,3 +149,23 @@ def test_dense_resampling_finds_the_stacking_clear(name):
         gap = np.minimum(gap, d.min(axis=0) - width)
     # within 0.2 mm steps the gap can shrink by 0.2 mm more than at the samples
     assert gap.min() >= 0.5 * clearance - 0.2, (name, gap.min())
+
+
+def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
+    import re
+
+    from fabkit.export.dxf import laser_plan
+    from fabkit.fab.guide import guide_pages
+
+    design, result = chain24
+    plan = laser_plan(design)
+    pdf, png, stats = guide_pages(plan)
+    assert stats["pages"] == 12 and stats["overlaps"] == 0
+    # every bar is labelled once, every screw once per page it appears on
+    assert stats["labels"] >= 144 + 25
+    boxes = re.findall(rb"/MediaBox \[\s*0 0 ([\d.]+) ([\d.]+)\s*\]", pdf)
+    assert len(boxes) == 12
+    for w, h in boxes:   # A4 portrait in points
+        assert abs(float(w) - 595.3) < 1.0 and abs(float(h) - 841.7) < 1.0
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"
+    assert result.files["laser_guide.pdf"][:5] == b"%PDF-"
