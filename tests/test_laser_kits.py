@@ -169,3 +169,32 @@ def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
         assert abs(float(w) - 595.3) < 1.0 and abs(float(h) - 841.7) < 1.0
     assert png[:8] == b"\x89PNG\r\n\x1a\n"
     assert result.files["laser_guide.pdf"][:5] == b"%PDF-"
+
+
+def test_chain_sampling_does_not_grow_with_the_chain(tmp_path):
+    import shutil
+
+    from fabkit.fab.laser import laser_settings
+    from fabkit.fab.layers import sample_chain
+
+    shutil.copy(TEMPLATES / "super_stable.toml", tmp_path / "super_stable.toml")
+    text = (TEMPLATES / "super_stable_chain.toml").read_text()
+    found = {}
+    for n in (12, 60):
+        (tmp_path / f"c{n}.toml").write_text(text.replace("copies = 24", f"copies = {n}"))
+        design = fabkit.load_template(tmp_path / f"c{n}.toml")
+        s = laser_settings()
+        sweep = sample_chain(design.network, design.motion, s.scale, s.sample_step,
+                             width=s.bar_width, clearance=s.clearance,
+                             column_radius=0.5 * s.screw.head_diameter,
+                             spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
+        found[n] = sweep
+    a, b = found[12], found[60]
+    # one window kind (mirror-alternate strip), sampled once over the range every module sweeps
+    assert a.stats["window_kinds"] == b.stats["window_kinds"] == 1
+    assert a.stats["window_samples"] == b.stats["window_samples"]
+    assert a.max_step <= 0.5 + 1e-9 and b.max_step <= 0.5 + 1e-9
+    # conflicts grow in proportion to the modules (same pattern repeated)
+    per_a = a.conflicts.pairs.shape[0] / 12
+    per_b = b.conflicts.pairs.shape[0] / 60
+    assert abs(per_a - per_b) / per_b < 0.1

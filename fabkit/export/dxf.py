@@ -281,7 +281,8 @@ def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -
                     "play_with_washers_mm": [round(v, 6) for v in js.play_range]}
                    for js in st.joints],
         "motion": {"method": plan.sweep.method, "status": plan.sweep.status,
-                   "samples": plan.sweep.n_samples,
+                   "samples": plan.sweep.stats.get("window_samples", plan.sweep.n_samples),
+                   **({"windows": plan.sweep.stats} if plan.sweep.stats else {}),
                    "step_limit_mm": plan.sweep.step_limit,
                    "max_node_step_mm": round(plan.sweep.max_step, 6),
                    "guarantee": "no node moves more than step_limit_mm (= clearance / 2) between "
