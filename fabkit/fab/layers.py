@@ -27,6 +27,11 @@ Bars of one layer are at least ``clearance`` apart at every sample, hence at lea
 only to second order in ``h``, far below that margin.
 A motion that ends in (or passes) a flat state where nodes move while the drive stands still
 cannot be sampled this way; it is refused with the drive value where it happens.
+
+Chains of modules are sampled window by window instead (:func:`sample_chain`): module k moves
+exactly as the module alone at its own input distance d_k, so a few consecutive modules are
+sampled as a short chain over the range d_k sweeps, where its own drive does not stand still
+even when the whole chain's does (a collapse front). The work does not grow with the length.
 """
 
 from __future__ import annotations
