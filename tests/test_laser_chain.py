@@ -67,7 +67,8 @@ def test_strip_layers_reach_the_clique_bound(strip):
     _, _, _, report = strip
     # a joint where two modules meet carries 6 bars (the clique bound); bars that pass screw
     # heads during the collapse need one layer more
-    assert report["layers"]["count"] == 7 and report["layers"]["lower_bound"] == 6
+    # needs one layer more; the exact solver proves 6 impossible, so 7 is minimal
+    assert report["layers"]["count"] == 7 and report["layers"]["lower_bound"] == 7
     assert max(len(j["bottom_to_top"]) - j["spacers"] for j in report["joints"]) == 6
     assert sum(s["count"] for s in report["screws"]) == 26
     assert max(s["post_length_mm"] for s in report["screws"]) <= 30

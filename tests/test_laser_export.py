@@ -46,15 +46,33 @@ def test_files_written(exported, key):
     names = sorted(p.name for p in paths)
     n = len(report["sheets"])
     assert names == sorted(["laser_assembly.png", "laser_bom.json", "laser_bom.md",
-                            "laser_layers_motion.png",
+                            "laser_layers_motion.png", "laser_guide.pdf", "laser_guide_page1.png",
                             *[f"laser_sheet{k}.dxf" for k in range(1, n + 1)],
                             *[f"laser_sheet{k}.svg" for k in range(1, n + 1)]])
     for p in paths:
         assert p.stat().st_size > 0
     assert (folder / "laser_assembly.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (folder / "laser_layers_motion.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    svg = (folder / "laser_sheet1.svg").read_text()
-    assert svg.startswith("<svg") and svg.count('stroke="blue"') >= 2 * len(report["bars"]) // n
+    import xml.etree.ElementTree as ET
+
+    ns = "{http://www.w3.org/2000/svg}"
+    holes = outer = 0
+    for k in range(1, n + 1):
+        root = ET.parse(folder / f"laser_sheet{k}.svg").getroot()
+        sheet = report["sheets"][k - 1]
+        w, h = sheet["size_mm"]
+        assert root.get("width") == f"{w:g}mm" and root.get("height") == f"{h:g}mm"
+        assert root.get("viewBox") == f"0 0 {w:g} {h:g}"          # one unit = one mm
+        assert not list(root.iter(f"{ns}text")) and not list(root.iter(f"{ns}rect"))
+        assert all(e.get("transform") is None for e in root.iter())
+        strokes = [e.get("stroke") for e in root.iter() if e.get("stroke") not in (None, "none")]
+        assert set(strokes) <= {"#FF0000", "#0000FF", "#000000"}
+        holes += sum(e.get("stroke") == "#0000FF" for e in root.iter(f"{ns}circle"))
+        outer += sum(e.get("stroke") == "#FF0000" and (e.get("id") or "").startswith("B")
+                     for e in root.iter(f"{ns}path"))
+        # labels are filled glyph outlines (black), no TEXT
+        assert any(e.get("fill") == "#000000" for e in root.iter(f"{ns}path"))
+    assert outer == len(report["bars"]) and holes >= 2 * len(report["bars"])
 
 
 @pytest.mark.parametrize("key", DESIGNS)
@@ -70,10 +88,20 @@ def test_dxf_structure_read_back_with_ezdxf(exported, key):
         assert doc.header["$INSUNITS"] == 4                     # mm, not ezdxf's default
         assert not doc.audit().has_errors
         msp = doc.modelspace()
-        assert {e.dxf.layer for e in msp} <= {"CUT", "CUT_INNER", "ENGRAVE"}
+        assert {e.dxf.layer for e in msp} <= {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
         holes += [e for e in msp.query("CIRCLE[layer=='CUT_INNER']")]
         outlines += [e for e in msp.query("LWPOLYLINE[layer=='CUT']")]
-        assert len(msp.query("TEXT[layer=='ENGRAVE']")) >= 1
+        # labels are glyph outlines by default (CAM importers drop TEXT)
+        assert len(msp.query("TEXT")) == 0
+        assert len(msp.query("LWPOLYLINE[layer=='ENGRAVE']")) >= 1
+        # drawing extents cover every entity
+        from ezdxf import bbox
+
+        box = bbox.extents(msp)
+        lo, hi = np.array(doc.header["$EXTMIN"])[:2], np.array(doc.header["$EXTMAX"])[:2]
+        assert np.all(lo <= np.array(box.extmin)[:2] + 1e-6)
+        assert np.all(hi >= np.array(box.extmax)[:2] - 1e-6)
+        assert np.all(hi - lo > 10.0)
     n_spacers = report["spacer_rings"]["count"]
     assert len(holes) == 2 * net.n_edges + n_spacers
     assert len(outlines) == net.n_edges
@@ -99,7 +127,8 @@ def test_as_built_check_passes_on_the_written_files(exported, key):
     checks = {c["name"]: c for c in result["checks"]}
     assert set(checks) >= {"units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
                            "hole_after_kerf", "lengths", "topology", "modes", "module_map",
-                           "same_layer"}
+                           "same_layer", "screws_close"}
+    assert checks["screws_close"]["ok"] and checks["screws_close"]["value"] >= 0
     assert checks["lengths"]["value"] <= 1e-6
     assert checks["modes"]["value"] == 1
     assert checks["module_map"]["value"] <= 1e-6 * design.network.size

@@ -127,8 +127,10 @@ def test_stacking_reorders_layers_to_keep_bars_off_screw_heads():
     st = plan_layers(edges, sweep, laser_settings())
     lo, hi = sorted(st.layer[:2])
     assert st.layer[2] < lo - 1 or st.layer[2] > hi + 1
-    # bar 3-4 crosses both others (clique of 3), and the head needs one more layer
-    assert st.n_layers == 4 and st.strategy == "backtracking" and st.lower_bound == 3
+    # bar 3-4 crosses both others (clique of 3), and the head needs one more layer: the exact
+    # solver proves that no 3-layer stacking exists, so the bound is 4
+    assert st.n_layers == 4 and st.strategy == "backtracking"
+    assert st.stats["clique"] == 3 and st.lower_bound == 4 and st.stats["proven_minimal"]
 
 
 def test_coinciding_joints_are_refused_with_a_fix():

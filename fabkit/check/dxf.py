@@ -4,7 +4,7 @@ Steps (each a named entry of the report's ``checks``):
 
 * ``units``: every sheet says ``$INSUNITS = 4`` (mm);
 * ``audit``: ezdxf's structural audit finds no error;
-* ``layers``: entities only on CUT, CUT_INNER and ENGRAVE;
+* ``layers``: entities only on CUT, CUT_INNER, ENGRAVE and REFERENCE;
 * ``parts``: every bar outline found once, with exactly two holes, on the layers it belongs to;
 * ``holes_centred``: the round ends of each outline are centred on its holes (<= 1e-6 mm);
 * ``width_after_kerf`` / ``hole_after_kerf``: drawn sizes with the kerf undone equal the
@@ -15,6 +15,8 @@ Steps (each a named entry of the report's ``checks``):
   the design) has exactly one conformational motion;
 * ``module_map``: re-simulating the rebuilt network gives the design's port distances along
   the drive;
+* ``screws_close``: the screw chosen for each joint's stack (layers read back) closes on the
+  thickest sheets the thickness tolerance allows, with its washers;
 * ``same_layer``: over the re-simulated motion, sampled more finely than the stacking was
   planned with (no node moves more than clearance / 4 between samples), no two bars of one
   layer come closer than clearance / 2 (the stacking's guarantee), and no bar or screw column
@@ -43,7 +45,7 @@ LENGTH_TOL = 1e-6
 #: Largest difference allowed between the re-simulated and designed port distances, relative
 #: to the network size (design units): the map is compared away from exact flat states.
 MAP_RTOL = 1e-6
-_LAYERS = {"CUT", "CUT_INNER", "ENGRAVE"}
+_LAYERS = {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
 _APPID = "FABKIT"
 
 
@@ -286,7 +288,10 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
                       f"the design's and the rebuilt network's motion; both {got.status}"))
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=net.size)
-    fine = sample_motion(built, m, scale, 0.25 * s.clearance)
+    out.append(_screws_close(edges, layer, s))
+    # a chain past float64's drive resolution: steps up to the clearance are accepted there and
+    # the gap required grows by the excess (the planner widened its clearance the same way)
+    fine = sample_motion(built, m, scale, 0.25 * s.clearance, floor_limit=s.clearance)
     inc = {}
     for b, (i, j) in enumerate(edges.tolist()):
         inc.setdefault(i, []).append(b)
@@ -294,10 +299,10 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
               for j, bs in sorted(inc.items()) if len(bs) >= 2]
     head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
-    col = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
     gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
-                         head_slots=head, column_radius=col)
-    need = 0.5 * s.clearance
+                         head_slots=head, column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter)
+    need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
     worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
     report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
                         **{k: (None if isinstance(v, float) and math.isinf(v) else v)
@@ -308,6 +313,35 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
               f"(bar to bar {_mm(gaps['bar_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, "
               f"screw to screw {_mm(gaps['column_gap'])})"))
     return out
+
+
+def _screws_close(edges, layer, s) -> dict:
+    """Every joint's screw, chosen for the layers read back, closes on the thickest sheets the
+    thickness tolerance allows (and the catalogue has such a post)."""
+    from ..errors import FabricationError
+    from ..fab.hardware import fit_screw
+
+    spans: dict[int, list[int]] = {}
+    for b, (i, j) in enumerate(edges.tolist()):
+        for v in (i, j):
+            spans.setdefault(v, []).append(int(layer[b]))
+    worst, where, problem = math.inf, None, ""
+    for joint, zs in sorted(spans.items()):
+        if len(zs) < 2:
+            continue
+        n = max(zs) - min(zs) + 1
+        try:
+            fit = fit_screw(s.screw, n, s.thickness, s.thickness_tolerance)
+        except FabricationError as exc:
+            problem = f"joint {joint}: {exc}"
+            worst, where = -math.inf, joint
+            break
+        if fit.play_min < worst:
+            worst, where = fit.play_min, joint
+    ok = not problem and worst >= -1e-9
+    return _check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
+                  problem or f"least axial play (mm) with washers on sheets of "
+                  f"{s.thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
 
 
 def _sheet_set(path: Path) -> list[Path]:

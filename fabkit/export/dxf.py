@@ -8,13 +8,16 @@ The pipeline (all pure, nothing is written here):
    (:mod:`fabkit.fab.bars`);
 3. stacking layers over the sampled motion (:mod:`fabkit.fab.layers`);
 4. parts nested on sheets (:mod:`fabkit.fab.nest`);
-5. one DXF per sheet (R2010, ``$INSUNITS = 4`` mm; layers CUT, CUT_INNER, ENGRAVE; closed
-   LWPOLYLINE with bulges or LINE + ARC; CIRCLE holes), identical bytes for identical input;
+5. one DXF per sheet (R2010, ``$INSUNITS = 4`` mm, ``$EXTMIN``/``$EXTMAX`` set; layers CUT,
+   CUT_INNER, ENGRAVE and REFERENCE; closed LWPOLYLINE with bulges or LINE + ARC; CIRCLE
+   holes; labels as glyph outlines by default), identical bytes for identical input, and a
+   laser-ready SVG of the same sheet (:mod:`fabkit.export.laser_svg`);
 6. the as-built check reads the DXF text back (:mod:`fabkit.check.dxf`); a failed check is an
    error, so no file leaves fabkit that does not rebuild the designed network.
 
 Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``laser_bom.md``,
-``laser_assembly.png``, ``laser_layers_motion.png``.
+``laser_assembly.png``, ``laser_layers_motion.png``, ``laser_guide.pdf`` (A4 assembly pages,
+:mod:`fabkit.fab.guide`) and ``laser_guide_page1.png``.
 """
 
 from __future__ import annotations
@@ -32,12 +35,13 @@ from ..errors import FabricationError
 from . import ExportResult
 
 __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
-           "sheet_svg", "bill_of_materials", "bom_markdown", "LAYERS", "APPID"]
+           "bill_of_materials", "bom_markdown", "LAYERS", "APPID"]
 
 FORMAT = "dxf"
 
-#: DXF layers and their ACI colours (red outer cut, blue inner cut, black/white engrave).
-LAYERS = {"CUT": 1, "CUT_INNER": 5, "ENGRAVE": 7}
+#: DXF layers and their ACI colours (red outer cut, blue inner cut, black/white engrave, and
+#: the 100 mm reference square on a layer of its own, green, to cut, engrave or leave off).
+LAYERS = {"CUT": 1, "CUT_INNER": 5, "ENGRAVE": 7, "REFERENCE": 3}
 #: Application id of the extended data that names each part (ignored by cutting programs).
 APPID = "FABKIT"
 
@@ -82,7 +86,7 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
     """
     from ..fab.bars import bar_set
     from ..fab.laser import laser_overrides, laser_settings
-    from ..fab.layers import plan_layers, sample_motion
+    from ..fab.layers import plan_layers, sample_chain, sample_motion
     from ..fab.nest import make_parts, nest_parts
 
     net = design.network
@@ -93,7 +97,13 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         raise FabricationError("[fabrication.laser] must be a table")
     s = laser_settings(table, laser_overrides(settings), network_size=net.size)
     bars = bar_set(net.edge_lengths * s.scale, net.edges, s, scale=s.scale)
-    sweep = sample_motion(net, design.motion, s.scale, s.sample_step)
+    sweep = sample_chain(net, design.motion, s.scale, s.sample_step, width=s.bar_width,
+                         clearance=s.clearance,
+                         column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
+    if sweep is None:  # not a chain of modules: sample the whole motion
+        sweep = sample_motion(net, design.motion, s.scale, s.sample_step,
+                              floor_limit=s.clearance)
     stacking = plan_layers(net.edges, sweep, s)
     parts = make_parts(bars, stacking, s)
     sheets = nest_parts(parts, s)
@@ -188,8 +198,8 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
                 tag(e, part)
 
         for part in sheet.parts:  # engraving first: the parts are still held by the sheet
-            if part.engrave_outline:
-                closed_outline(part.outline, "ENGRAVE", part)
+            if part.kind == "reference":
+                closed_outline(part.outline, "REFERENCE", part)
             for label in part.labels:
                 if s.labels == "outlines":
                     for poly in label_outlines(label):
@@ -209,8 +219,12 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
                 e = msp.add_circle(tuple(map(float, part.holes[0])), part.ring,
                                    dxfattribs={"layer": "CUT"})
                 tag(e, part)
-            elif not part.engrave_outline:
+            elif part.kind != "reference":
                 closed_outline(part.outline, "CUT", part)
+        boxes = np.array([p.bbox for p in sheet.parts]) if sheet.parts else np.zeros((1, 4))
+        # ezdxf writes $EXTMIN/$EXTMAX from the model space layout's extents
+        msp.dxf.extmin = (float(boxes[:, 0].min()), float(boxes[:, 1].min()), 0.0)
+        msp.dxf.extmax = (float(boxes[:, 2].max()), float(boxes[:, 3].max()), 0.0)
         auditor = doc.audit()
         if auditor.has_errors:  # pragma: no cover - would be a fabkit bug
             raise FabricationError(f"ezdxf audit found {len(auditor.errors)} errors in sheet "
@@ -224,58 +238,13 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
     return stream.getvalue().encode("ascii")
 
 
-# -- SVG preview ----------------------------------------------------------------------------
-
-def _svg_path(vertices) -> str:
-    v = np.asarray(vertices)
-    parts = [f"M {v[0, 0]:.4f} {v[0, 1]:.4f}"]
-    for k in range(v.shape[0]):
-        q = v[(k + 1) % v.shape[0]]
-        b = v[k, 2]
-        if b == 0:
-            parts.append(f"L {q[0]:.4f} {q[1]:.4f}")
-        else:
-            chord = math.hypot(q[0] - v[k, 0], q[1] - v[k, 1])
-            theta = 4 * math.atan(b)
-            r = chord / (2 * math.sin(abs(theta) / 2))
-            large = 1 if abs(theta) > math.pi else 0
-            sweep = 1 if b > 0 else 0
-            parts.append(f"A {r:.4f} {r:.4f} 0 {large} {sweep} {q[0]:.4f} {q[1]:.4f}")
-    return " ".join(parts) + " Z"
-
-
-def sheet_svg(sheet, plan: LaserPlan) -> bytes:
-    """A preview of one sheet (mm, y up as in the DXF): red cuts, blue holes, black engraving."""
-    W, H = sheet.width, sheet.height
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W:g}mm" height="{H:g}mm" '
-           f'viewBox="0 0 {W:g} {H:g}">',
-           f'<rect x="0" y="0" width="{W:g}" height="{H:g}" fill="#f7f7f2" stroke="#999" '
-           'stroke-width="0.3"/>',
-           f'<g transform="translate(0 {H:g}) scale(1 -1)" fill="none" stroke-width="0.25">']
-    for part in sheet.parts:
-        if part.ring is not None:
-            c = part.holes[0]
-            out.append(f'<circle cx="{c[0]:.4f}" cy="{c[1]:.4f}" r="{part.ring:.4f}" stroke="red"/>')
-        else:
-            colour = "black" if part.engrave_outline else "red"
-            out.append(f'<path d="{_svg_path(part.outline)}" stroke="{colour}"/>')
-        for c in part.holes:
-            out.append(f'<circle cx="{c[0]:.4f}" cy="{c[1]:.4f}" r="{part.hole_radius:.4f}" '
-                       'stroke="blue"/>')
-        for lb in part.labels:
-            out.append(
-                f'<text transform="translate({lb.insert[0]:.4f} {lb.insert[1]:.4f}) scale(1 -1) '
-                f'rotate({-lb.angle:g})" font-family="DejaVu Sans, sans-serif" '
-                f'font-size="{lb.height:g}" text-anchor="middle" dominant-baseline="central" '
-                f'fill="black" stroke="none">{lb.text}</text>')
-    out.append("</g></svg>")
-    return ("\n".join(out) + "\n").encode("utf-8")
-
-
 # -- bill of materials ----------------------------------------------------------------------
 
 def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -> dict:
     """Parts, sheets, screws by length, spacer rings and the stack at every joint (JSON-able)."""
+    from ..fab.hardware import WASHER_THICKNESS
+    from ..fab.nest import utilisation
+
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
     screws: dict[float, int] = {}
@@ -287,7 +256,8 @@ def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -
         "scale_mm_per_unit": s.scale,
         "settings": s.as_dict(),
         "sheets": [{"index": sh.index, "file": f"laser_sheet{sh.index}.dxf",
-                    "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts]}
+                    "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts],
+                    "utilisation": round(utilisation(sh), 4)}
                    for sh in plan.sheets],
         "bars": [{"id": f"B{k}", "joints": [int(v) for v in bars.edges[k]],
                   "layer": int(st.layer[k]), "length_mm": round(float(bars.lengths[k]), 6),
@@ -297,15 +267,22 @@ def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -
                    "head_slots": st.head_slots},
         "screws": [{"name": s.screw.name, "post_length_mm": length, "count": count}
                    for length, count in sorted(screws.items())],
+        "washers": {"count": sum(js.washers for js in st.joints),
+                    "thickness_mm": WASHER_THICKNESS, "inner_diameter_mm": s.screw.barrel_diameter,
+                    "note": f"screws close on sheets up to {s.thickness + s.thickness_tolerance:g} "
+                            "mm; measure the sheet and drop washers where the stack is thicker"},
         "spacer_rings": {"count": n_spacers, "outer_diameter_mm": s.spacer_diameter,
                          "hole_diameter_mm": s.screw.hole_diameter, "thickness_mm": s.thickness,
                          "note": "cut from the same sheet"},
         "joints": [{"joint": js.joint, "bottom_to_top": js.order(), "layers": list(js.layers),
                     "screw_length_mm": js.screw_length, "stack_mm": round(js.stack_height, 6),
-                    "play_mm": round(js.play, 6), "spacers": len(js.spacers)}
+                    "play_mm": round(js.play, 6), "spacers": len(js.spacers),
+                    "washers": js.washers,
+                    "play_with_washers_mm": [round(v, 6) for v in js.play_range]}
                    for js in st.joints],
         "motion": {"method": plan.sweep.method, "status": plan.sweep.status,
-                   "samples": plan.sweep.n_samples,
+                   "samples": plan.sweep.stats.get("window_samples", plan.sweep.n_samples),
+                   **({"windows": plan.sweep.stats} if plan.sweep.stats else {}),
                    "step_limit_mm": plan.sweep.step_limit,
                    "max_node_step_mm": round(plan.sweep.max_step, 6),
                    "guarantee": "no node moves more than step_limit_mm (= clearance / 2) between "
@@ -323,9 +300,10 @@ def bom_markdown(bom: dict) -> str:
              f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
              f"acrylic; bars {s['bar_width']:g} mm wide; kerf {s['kerf']:g} mm; "
              f"{bom['layers']['count']} layers (lower bound {bom['layers']['lower_bound']}).", "",
-             "## Sheets", "", "| sheet | file | parts |", "|---|---|---|"]
+             "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
     for sh in bom["sheets"]:
-        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} |")
+        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} | "
+                     f"{100 * sh['utilisation']:.1f} % |")
     lines += ["", "## Screws", "", "| screw | post length (mm) | count |", "|---|---|---|"]
     for sc in bom["screws"]:
         lines.append(f"| {sc['name']} | {sc['post_length_mm']:g} | {sc['count']} |")
@@ -338,10 +316,14 @@ def bom_markdown(bom: dict) -> str:
         lines.append(f"| {b['id']} | {b['joints'][0]}-{b['joints'][1]} | {b['layer']} | "
                      f"{b['length_mm']:.3f} | {b['sheet']} |")
     lines += ["", "## Stack at each joint (bottom to top)", "",
-              "| joint | stack | screw (mm) | play (mm) |", "|---|---|---|---|"]
+              "| joint | stack | screw (mm) | washers | play thick-thin sheets (mm) |",
+              "|---|---|---|---|---|"]
     for j in bom["joints"]:
+        p0, p1 = j["play_with_washers_mm"]
         lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | "
-                     f"{j['screw_length_mm']:g} | {j['play_mm']:.2f} |")
+                     f"{j['screw_length_mm']:g} | {j['washers']} | {p0:.2f}-{p1:.2f} |")
+    wa = bom["washers"]
+    lines += ["", f"Washers: {wa['count']} x {wa['thickness_mm']:g} mm (M3); {wa['note']}."]
     chk = bom.get("as_built_check")
     if chk:
         lines += ["", "## As-built check", "", f"Result: {'passed' if chk['ok'] else 'FAILED'}",
@@ -440,7 +422,8 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     -------
     ExportResult
         ``files``: ``laser_sheet<k>.dxf`` and ``.svg`` per sheet, ``laser_bom.json``,
-        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``. ``report``:
+        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``,
+        ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``:
         the bill of materials including the as-built check.
 
     Raises
@@ -457,13 +440,14 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     ['laser_assembly.png', 'laser_bom.json']
     """
     from ..check.dxf import check_documents
+    from .laser_svg import sheet_svg
 
     plan = laser_plan(design, settings)
     files: dict[str, bytes] = {}
     n = len(plan.sheets)
     for sheet in plan.sheets:
         files[f"laser_sheet{sheet.index}.dxf"] = sheet_dxf(sheet, plan, n)
-        files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan)
+        files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan.settings)
     texts = {name: data.decode("ascii") for name, data in files.items() if name.endswith(".dxf")}
     check = check_documents(texts, design=design, settings=settings)
     if not check["ok"]:
@@ -471,6 +455,11 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         raise FabricationError(f"as-built check failed: {failed['name']}: {failed['detail']}")
     files["laser_assembly.png"] = assembly_png(plan)
     files["laser_layers_motion.png"] = motion_png(plan)
+    from ..fab.guide import guide_pages
+
+    guide, first_page, _ = guide_pages(plan)
+    files["laser_guide.pdf"] = guide
+    files["laser_guide_page1.png"] = first_page
     names = sorted([*files, "laser_bom.json", "laser_bom.md"])
     bom = bill_of_materials(plan, names, check)
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")

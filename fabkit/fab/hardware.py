@@ -14,7 +14,11 @@ from dataclasses import dataclass, fields, replace
 
 from ..errors import FabricationError
 
-__all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length"]
+__all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length", "ScrewFit",
+           "fit_screw", "WASHER_THICKNESS"]
+
+#: Thickness of the thin washers (shims) listed to take up large axial play (mm).
+WASHER_THICKNESS = 0.5
 
 
 @dataclass(frozen=True)
@@ -160,3 +164,63 @@ def choose_length(spec: ScrewSpec, stack: float) -> float:
         f"a joint stack of {stack:.2f} mm (+{spec.allowance} mm play) needs a screw longer than "
         f"the longest {spec.name} post ({spec.lengths[-1]:g} mm); add longer lengths to the screw "
         "entry, use thinner sheet, or reduce the layers (smaller bar_width or larger scale)")
+
+
+@dataclass(frozen=True)
+class ScrewFit:
+    """A screw chosen for a stack of sheets whose thickness is only known within a tolerance.
+
+    Attributes
+    ----------
+    layers : int
+        Sheets clamped (bars and spacer rings).
+    length : float
+        Post length (mm): closes on the thickest sheets, ``layers x (t + tol)`` plus the
+        allowance.
+    stack_min, stack_max : float
+        Stack height on the thinnest and thickest sheets (mm).
+    washers : int
+        Thin washers (``WASHER_THICKNESS``) to add under a head; still closes on the thickest
+        sheets.
+    play_min, play_max : float
+        Axial play with the washers, on the thickest and thinnest sheets (mm).
+    """
+
+    layers: int
+    length: float
+    stack_min: float
+    stack_max: float
+    washers: int
+    play_min: float
+    play_max: float
+
+    @property
+    def closes(self) -> bool:
+        """True when the post is long enough for the thickest stack with its washers."""
+        return self.play_min >= -1e-9
+
+
+def fit_screw(spec: ScrewSpec, layers: int, thickness: float, tolerance: float) -> ScrewFit:
+    """Post length and washers for ``layers`` sheets of ``thickness +- tolerance`` mm.
+
+    Raises
+    ------
+    FabricationError
+        When even the longest post is too short for the thickest stack.
+
+    Examples
+    --------
+    >>> f = fit_screw(screw_spec(), 7, 3.0, 0.15)     # 7 sheets may be 22.05 mm
+    >>> f.length, f.stack_max, f.washers, round(f.play_max, 2)
+    (25.0, 22.05, 5, 2.55)
+    """
+    stack_min = layers * (thickness - tolerance)
+    stack_max = layers * (thickness + tolerance)
+    length = choose_length(spec, stack_max)
+    washers = int(math.floor((length - stack_max - spec.allowance) / WASHER_THICKNESS + 1e-9))
+    washers = max(washers, 0)
+    fill = washers * WASHER_THICKNESS
+    return ScrewFit(layers=int(layers), length=length, stack_min=round(stack_min, 9),
+                    stack_max=round(stack_max, 9), washers=washers,
+                    play_min=round(length - stack_max - fill, 9),
+                    play_max=round(length - stack_min - fill, 9))

@@ -41,6 +41,9 @@ class LaserSettings:
         Width of every bar (its round ends have radius ``bar_width / 2``).
     thickness : float
         Measured sheet thickness: the layer pitch and the basis of screw lengths.
+    thickness_tolerance : float
+        How far one sheet may differ from ``thickness`` (mm): screws are chosen to close on
+        the thickest stack, with thin washers listed where the play is large.
     kerf : float
         Width of the laser's cut; outlines grow and holes shrink by ``kerf / 2`` (0 when the
         cutting service compensates itself).
@@ -52,13 +55,14 @@ class LaserSettings:
         Sheet size, gap between parts, and border kept free.
     screw : ScrewSpec
     spacer_diameter : float
-        Outer diameter of the spacer rings cut for layers a screw passes without a bar.
+        Outer diameter of the spacer rings cut for layers a screw passes without a bar
+        (default: the hole plus twice the minimum web, at least the screw head).
     flavour : str
         ``"lwpolyline"`` (closed LWPOLYLINE with bulges) or ``"line-arc"`` (LINE + ARC, for
         programs that ignore bulges).
     labels : str
-        ``"text"`` (TEXT entities), ``"outlines"`` (glyph outlines, for lasers that ignore
-        text) or ``"none"``.
+        ``"outlines"`` (glyph outlines, the default: many CAM importers drop TEXT),
+        ``"text"`` (TEXT entities) or ``"none"``.
     label_height : float
         Largest text height; labels shrink to fit between a bar's holes.
     reference_square : str
@@ -70,6 +74,7 @@ class LaserSettings:
     scale: float = DEFAULT_SCALE
     bar_width: float = 14.0
     thickness: float = 3.0
+    thickness_tolerance: float = 0.15
     kerf: float = 0.15
     min_web: float = 4.5
     clearance: float = 1.0
@@ -78,9 +83,9 @@ class LaserSettings:
     spacing: float = 3.0
     margin: float = 5.0
     screw: ScrewSpec = field(default_factory=screw_spec)
-    spacer_diameter: float = 8.5
+    spacer_diameter: float = 13.2
     flavour: str = "lwpolyline"
-    labels: str = "text"
+    labels: str = "outlines"
     label_height: float = 3.5
     reference_square: str = "engrave"
     max_layers: int = 12
@@ -101,7 +106,7 @@ LASER_KEYS = {f.name for f in fields(LaserSettings)} | {"size"}
 
 _POSITIVE = ("bar_width", "thickness", "clearance", "sheet_width", "sheet_height",
              "label_height", "spacer_diameter")
-_NON_NEGATIVE = ("spacing", "margin")
+_NON_NEGATIVE = ("spacing", "margin", "thickness_tolerance")
 
 
 def laser_overrides(settings: dict | None) -> dict:
@@ -216,7 +221,9 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
     values["screw"] = screw_spec(merged.get("screw"))
     thickness = values.get("thickness", LaserSettings.thickness)
     values.setdefault("min_web", 1.5 * thickness)
-    values.setdefault("spacer_diameter", values["screw"].head_diameter)
+    # spacer rings keep the bars' minimum web around their hole, and cover a screw head
+    values.setdefault("spacer_diameter", max(values["screw"].head_diameter,
+                                             values["screw"].hole_diameter + 2 * values["min_web"]))
     s = LaserSettings(**values)
     _check_consistency(s)
     return s
@@ -237,9 +244,13 @@ def _check_consistency(s: LaserSettings) -> None:
     if s.kerf >= hole:
         raise FabricationError(f"kerf {s.kerf:g} mm would close the {hole:g} mm holes; "
                                "measure the kerf again (typically 0.1-0.25 mm)")
-    if s.spacer_diameter <= hole + s.kerf:
-        raise FabricationError(f"spacer_diameter {s.spacer_diameter:g} mm leaves no ring around "
-                               f"the {hole:g} mm hole; use at least {hole + 2:.1f} mm")
+    if s.spacer_diameter < hole + 2 * s.min_web - 1e-9:
+        raise FabricationError(f"spacer_diameter {s.spacer_diameter:g} mm leaves less than the "
+                               f"{s.min_web:g} mm minimum web around the {hole:g} mm hole; use "
+                               f"at least {hole + 2 * s.min_web:.1f} mm")
+    if s.thickness_tolerance >= s.thickness:
+        raise FabricationError(f"thickness_tolerance {s.thickness_tolerance:g} mm is not below "
+                               f"the {s.thickness:g} mm sheet thickness")
     free_w = s.sheet_width - 2 * s.margin
     free_h = s.sheet_height - 2 * s.margin
     if free_w <= 0 or free_h <= 0:

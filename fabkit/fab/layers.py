@@ -13,6 +13,9 @@ must not share a layer. Those two rules depend on the order of the layers, not o
 bars share one, so the layers are found in two steps: a graph colouring of the conflict graph
 (networkx greedy strategies; the fewest colours wins, the largest clique is a lower bound), then
 the order of the colour classes that breaks no column rule and needs the shortest screws.
+When that breaks a column rule or uses more layers than the clique bound, the whole problem
+is solved as a mixed-integer program (:func:`_milp_layers`), which either proves the layer
+count minimal or reports the best count found with a proven lower bound.
 
 Sampling guarantee. The motion is sampled (adaptively, see :func:`sample_motion`) so that no
 node moves more than ``h = clearance / 2`` between consecutive samples. Every point of a bar is
@@ -24,6 +27,11 @@ Bars of one layer are at least ``clearance`` apart at every sample, hence at lea
 only to second order in ``h``, far below that margin.
 A motion that ends in (or passes) a flat state where nodes move while the drive stands still
 cannot be sampled this way; it is refused with the drive value where it happens.
+
+Chains of modules are sampled window by window instead (:func:`sample_chain`): module k moves
+exactly as the module alone at its own input distance d_k, so a few consecutive modules are
+sampled as a short chain over the range d_k sweeps, where its own drive does not stand still
+even when the whole chain's does (a collapse front). The work does not grow with the length.
 """
 
 from __future__ import annotations
@@ -37,7 +45,7 @@ import numpy as np
 
 from ..errors import FabricationError
 
-__all__ = ["Sweep", "sample_motion", "segment_distance", "point_segment_distance",
+__all__ = ["Sweep", "sample_motion", "sample_chain", "segment_distance", "point_segment_distance",
            "Conflicts", "find_conflicts", "JointStack", "Stacking", "plan_layers",
            "stacking_gaps"]
 
@@ -45,6 +53,11 @@ __all__ = ["Sweep", "sample_motion", "segment_distance", "point_segment_distance
 _BLOCK = 256
 # Refuse motions that need more samples than this to meet the step bound.
 _MAX_SAMPLES = 200_000
+# Time limit of the exact layer search (s); past it the best stacking found and the solver's
+# proven lower bound are reported.
+_MILP_SECONDS = 20.0
+# Larger problems get their bound from a neighbourhood of the largest clique only.
+_MILP_BARS = 60
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +76,11 @@ class Sweep:
         Largest node displacement between consecutive samples actually met (mm).
     method, status, message : str
         From the trace the samples were taken along.
+    conflicts : Conflicts or None
+        Set by :func:`sample_chain`, which measures the conflicts module window by module
+        window; ``positions`` are then the chain's trace (for pictures), not the dense samples.
+    stats : dict
+        Sampling figures (windows, samples per window kind, ...).
     """
 
     positions: np.ndarray
@@ -72,6 +90,8 @@ class Sweep:
     method: str
     status: str
     message: str
+    conflicts: object = None
+    stats: dict = field(default_factory=dict)
 
     @property
     def n_samples(self) -> int:
@@ -85,7 +105,8 @@ def _node_steps(x: np.ndarray) -> np.ndarray:
     return np.sqrt(((x[1:] - x[:-1]) ** 2).sum(axis=-1)).max(axis=-1)
 
 
-def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
+def sample_motion(net, motion, scale: float, step_limit: float, *,
+                  floor_limit: float | None = None) -> Sweep:
     """Sample a network's motion so that no node moves more than ``step_limit`` mm per sample.
 
     Parameters
@@ -98,6 +119,11 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
         mm per design unit.
     step_limit : float
         Bound on node displacement between consecutive samples (mm).
+    floor_limit : float, optional
+        Where two drive values are adjacent floats and nodes still move more than
+        ``step_limit`` (a chain amplifying its drive past float64's resolution), accept steps
+        up to this many mm instead of refusing; the sweep's ``max_step`` reports the step met,
+        and the stacking widens its clearance by the excess (see :func:`plan_layers`).
 
     Returns
     -------
@@ -124,31 +150,10 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
     if traj.method == "constructive":
         problem = make_problem(net, motion.drive, motion.to, hold=motion.hold)
         plan = plan_construction(problem.work, problem.drive, problem.start)
-        values = np.linspace(traj.drive[0], traj.drive[-1], 65)
-        for _ in range(60):
-            x = align_to_gauge(place(plan, values)[0], problem.start, problem.gauge)
-            steps = _node_steps(x)
-            bad = np.flatnonzero(steps > limit)
-            if bad.size == 0:
-                break
-            width = values[bad + 1] - values[bad]
-            stuck = np.abs(width) <= 1e-12 * (abs(values[bad]) + 1.0)
-            if stuck.any():
-                # Nodes jump while the drive stands still: a flat state the drive cannot
-                # parametrise, so no sampling by drive value meets the bound there.
-                k = int(bad[np.argmax(stuck)])
-                raise FabricationError(
-                    f"the motion passes a flat state at {motion.drive} = {values[k]:.10g} where "
-                    f"nodes move {steps[k] * scale:.3g} mm while the drive stands still; the "
-                    "collision check cannot sample it: end the motion before it (motion.to)")
-            if values.size + bad.size > _MAX_SAMPLES:
-                raise FabricationError(
-                    f"sampling the motion to {step_limit:g} mm steps needs more than "
-                    f"{_MAX_SAMPLES} samples; raise the clearance or check the motion")
-            mids = 0.5 * (values[bad] + values[bad + 1])
-            values = np.insert(values, bad + 1, mids)
-        else:  # pragma: no cover - bisection halves steps; 60 rounds cannot all fail
-            raise FabricationError("could not sample the motion finely enough")
+        values, x = _refine(
+            lambda v: align_to_gauge(place(plan, v)[0], problem.start, problem.gauge),
+            np.linspace(traj.drive[0], traj.drive[-1], 65), limit, scale, floor_limit,
+            motion.drive)
         drive = values
     else:
         # Re-trace with a step bound in arclength (a node moves at most the arclength), then
@@ -167,13 +172,304 @@ def sample_motion(net, motion, scale: float, step_limit: float) -> Sweep:
         x, drive = traj.positions, traj.drive
     steps = _node_steps(x)
     max_step = float(steps.max() * scale) if steps.size else 0.0
-    if max_step > step_limit * (1 + 1e-9):
+    if max_step > max(step_limit, floor_limit or 0.0) * (1 + 1e-9):
         raise FabricationError(
             f"the {traj.method} trace moves a node {max_step:.3g} mm between samples, more than "
             f"the {step_limit:g} mm the collision check needs; use method = \"constructive\"")
     return Sweep(positions=np.ascontiguousarray(x * scale), drive=np.asarray(drive),
                  step_limit=float(step_limit), max_step=max_step, method=traj.method,
                  status=str(traj.status), message=traj.message)
+
+
+def _refine(placer, values, limit: float, scale: float, floor_limit, drive_name: str):
+    """Bisect drive values until no node moves more than ``limit`` (design units) per step.
+
+    ``placer(values) -> (S, N, d)`` places configurations. Intervals between adjacent floats
+    whose step is within ``floor_limit`` mm are accepted; others raise. Returns values, x.
+    """
+    for _ in range(80):
+        x = placer(values)
+        steps = _node_steps(x)
+        bad = np.flatnonzero(steps > limit)
+        if bad.size == 0:
+            return values, x
+        # Bisect down to adjacent floats: near an unstable fixed point a chain amplifies its
+        # drive by the slope to the power of the module count, so the far modules of a
+        # collapse front move between drive values only a few ulps apart.
+        stuck = np.nextafter(values[bad], values[bad + 1]) == values[bad + 1]
+        if floor_limit is not None:
+            accept = stuck & (steps[bad] * scale <= floor_limit)
+            bad, stuck = bad[~accept], stuck[~accept]
+            if bad.size == 0:
+                return values, x
+        if stuck.any():
+            # Nodes jump while the drive stands still: a flat state the drive cannot
+            # parametrise, so no sampling by drive value meets the bound there.
+            k = int(bad[stuck][np.argmax(steps[bad[stuck]])])
+            raise FabricationError(
+                f"the motion passes a flat state at {drive_name} = {values[k]:.10g} where "
+                f"nodes move {steps[k] * scale:.3g} mm while the drive stands still; the "
+                "collision check cannot sample it: end the motion before it (motion.to)")
+        if values.size + bad.size > _MAX_SAMPLES:
+            raise FabricationError(
+                f"sampling the motion to {limit * scale:g} mm steps needs more than "
+                f"{_MAX_SAMPLES} samples; raise the clearance or check the motion")
+        values = np.insert(values, bad + 1, 0.5 * (values[bad] + values[bad + 1]))
+    raise FabricationError("could not sample the motion finely enough")  # pragma: no cover
+
+
+def _module_ports(net, copies):
+    """The output port name of every distinct module of a chain (by its global node pair)."""
+    out = {}
+    for c, (m, index, _flag) in enumerate(copies):
+        if id(m) in out:
+            continue
+        pair = net.ports.get(f"d{c + 2}")
+        name = next((p for p, (a, b) in m.ports.items()
+                     if pair is not None and (int(index[a]), int(index[b])) == tuple(pair)), None)
+        if name is None:
+            return None
+        out[id(m)] = name
+    return out
+
+
+def _unique_rows(a: np.ndarray) -> np.ndarray:
+    return np.unique(a.reshape(-1, 2), axis=0) if a.size else a.reshape(0, 2)
+
+
+def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
+                 clearance: float, column_radius: float, window: int = 3,
+                 floor_limit: float | None = None,
+                 spacer_radius: float | None = None) -> Sweep | None:
+    """Conflicts of a planar chain measured module window by module window (near-linear).
+
+    A chain's module k moves exactly as the module alone with its input distance at d_k, and
+    ``window`` consecutive modules move as the same short chain with its d1 at d_k. So the
+    clearances inside every window follow from that short chain's motion over the range d_k
+    sweeps, sampled by its own d1 so that no node moves more than ``step_limit`` mm per step
+    (where the whole chain's drive stands still, the short chain's does not). Windows of the
+    same modules and mirror pattern are sampled once over the union of their ranges (a wider
+    range only adds conflicts), so the dense work does not grow with the chain's length.
+    Bars of modules ``window`` or more apart are checked at the samples of the chain's own
+    trace, with one bar width of extra margin.
+
+    Parameters
+    ----------
+    net : Network
+        A 2D chain built by :func:`fabkit.assemble.chain` (it remembers its layout).
+    motion : Motion
+        Drive ``d1``, no held ports.
+    scale : float
+        mm per design unit.
+    step_limit : float
+        Largest node step (mm) between samples of a window.
+    width, clearance, column_radius, spacer_radius : float
+        As for :func:`find_conflicts`.
+    window : int
+        Modules per window (>= 2: neighbours share a joint pair).
+    floor_limit : float, optional
+        See :func:`sample_motion`.
+
+    Returns
+    -------
+    Sweep or None
+        ``conflicts`` set and ``positions`` the chain's trace in mm; None when the network is
+        not such a chain (then use :func:`sample_motion`).
+    """
+    from ..assemble import chain
+    from ..kinematics import trace
+    from ..kinematics.constructive import place, plan_construction
+
+    layout = getattr(net, "_cache", {}).get("chain_layout")
+    if (layout is None or net.dim != 2 or motion.drive != "d1" or motion.hold
+            or motion.to is None):
+        return None
+    copies = layout["copies"]
+    n = len(copies)
+    outs = _module_ports(net, copies)
+    if outs is None:
+        return None
+    traj = trace(net, drive="d1", to=motion.to, method=motion.method, **motion.options)
+    edges = np.asarray(net.edges, dtype=np.int64)
+    n_e = np.array([m.n_edges for m, _, _ in copies])
+    offset = np.concatenate([[0], np.cumsum(n_e)])
+    if offset[-1] != edges.shape[0]:
+        return None
+    degree = np.bincount(edges.ravel(), minlength=net.n_nodes)
+    lo = np.array([traj.distance(f"d{c + 1}").min() for c in range(n)])
+    hi = np.array([traj.distance(f"d{c + 1}").max() for c in range(n)])
+    w = max(2, min(int(window), n))
+    starts = range(n - w + 1)
+    kinds: dict = {}
+    for c in starts:
+        mods = copies[c:c + w]
+        f0 = bool(mods[0][2])
+        key = (tuple(id(m) for m, _, _ in mods), tuple(bool(f) ^ f0 for _, _, f in mods))
+        k = kinds.setdefault(key, {"starts": [], "lo": np.inf, "hi": -np.inf})
+        k["starts"].append(c)
+        k["lo"], k["hi"] = min(k["lo"], lo[c]), max(k["hi"], hi[c])
+    limit = step_limit / scale
+    pairs, gaps, keep, keep_span, jpairs = [], [], [], [], []
+    n_samples, max_step = 0, 0.0
+    for key, k in kinds.items():
+        c0 = k["starts"][0]
+        mods = copies[c0:c0 + w]
+        sub = chain([m for m, _, _ in mods], mirror=list(key[1]), d_in=layout["d_in"],
+                    d_out=outs[id(mods[0][0])])
+        sub_layout = sub._cache["chain_layout"]["copies"]
+        plan = plan_construction(sub, sub.port("d1"))
+        a, b = float(k["lo"]), float(k["hi"])
+        values = np.linspace(a, b, 33) if b > a else np.array([a])
+
+        def placer(v, plan=plan):
+            x, margin, _ = place(plan, v)
+            if np.any(margin < 0):
+                raise FabricationError(
+                    f"a window of {w} modules has no configuration over d = {a:.10g}..{b:.10g}")
+            return x
+
+        values, x = _refine(placer, values, limit, scale, floor_limit, "d")
+        n_samples += values.size
+        steps = _node_steps(x)
+        max_step = max(max_step, float(steps.max() * scale) if steps.size else 0.0)
+        xs = x * scale
+        # window -> chain numbering, the same for every window of this kind
+        maps = []
+        for c in k["starts"]:
+            node_map = np.full(sub.n_nodes, -1, dtype=np.int64)
+            for (_, idx_sub, _), (_, idx_glob, _) in zip(sub_layout, copies[c:c + w]):
+                node_map[idx_sub] = idx_glob
+            edge_map = np.concatenate([np.arange(offset[j], offset[j + 1]) for j in range(c, c + w)])
+            if not np.array_equal(np.sort(node_map[sub.edges], 1), np.sort(edges[edge_map], 1)):
+                return None  # numbering differs from what chain() builds: use the whole motion
+            maps.append((node_map, edge_map))
+        screws = np.flatnonzero(degree[maps[0][0]] >= 2)
+        excess = max(0.0, float(steps.max() * scale) - step_limit) if steps.size else 0.0
+        conf = find_conflicts(sub.edges, xs, width=width, clearance=clearance + excess,
+                              column_radius=column_radius, screw_joints=screws,
+                              spacer_radius=spacer_radius)
+        for node_map, edge_map in maps:
+            pairs.append(edge_map[conf.pairs])
+            gaps.append(conf.gap)
+            keep.append(np.stack([edge_map[conf.keepout[:, 0]], node_map[conf.keepout[:, 1]]], 1))
+            keep_span.append(np.stack([edge_map[conf.keepout_span[:, 0]],
+                                       node_map[conf.keepout_span[:, 1]]], 1))
+            jpairs.append(node_map[conf.joint_pairs])
+    # far field: modules `w` or more apart, at the samples of the chain's own trace
+    xg = traj.positions * scale
+    far = _far_field(edges, xg, np.repeat(np.arange(n), n_e), w, width=width,
+                     clearance=clearance + width,
+                     column_radius=max(column_radius, spacer_radius or 0.0),
+                     screw_joints=np.flatnonzero(degree >= 2), copies=copies)
+    pairs.append(far[0])
+    gaps.append(np.full(far[0].shape[0], np.nan))
+    keep.append(far[1])
+    jpairs.append(far[2])
+    P = np.sort(np.concatenate(pairs).reshape(-1, 2), axis=1)
+    G = np.concatenate(gaps)
+    order = np.lexsort((np.nan_to_num(G, nan=np.inf), P[:, 1], P[:, 0]))
+    P, G = P[order], G[order]
+    first = np.ones(P.shape[0], dtype=bool)
+    first[1:] = np.any(P[1:] != P[:-1], axis=1)
+    P, G = P[first], G[first]
+    inc_share = np.zeros(P.shape[0], dtype=bool)
+    if P.size:
+        ea, eb = edges[P[:, 0]], edges[P[:, 1]]
+        inc_share = ((ea[:, :1] == eb) | (ea[:, 1:] == eb)).any(axis=1)
+    conflicts = Conflicts(
+        pairs=P.astype(np.int64),
+        kind=np.where(inc_share, "joint", "sweep").astype(object),
+        gap=np.where(inc_share, np.nan, G), sample=np.full(P.shape[0], -1, dtype=np.int64),
+        keepout=_unique_rows(np.concatenate(keep)).astype(np.int64),
+        joint_pairs=_unique_rows(np.sort(np.concatenate(jpairs).reshape(-1, 2), axis=1)
+                                 ).astype(np.int64),
+        screw_joints=np.flatnonzero(degree >= 2),
+        keepout_span=_unique_rows(np.concatenate(keep_span + [np.zeros((0, 2), np.int64)])
+                                  ).astype(np.int64))
+    steps = _node_steps(traj.positions)
+    return Sweep(positions=np.ascontiguousarray(xg), drive=np.asarray(traj.drive),
+                 step_limit=float(step_limit), max_step=max_step, method="module windows",
+                 status=str(traj.status), message=traj.message, conflicts=conflicts,
+                 stats={"modules": n, "window": w, "window_kinds": len(kinds),
+                        "window_samples": int(n_samples),
+                        "trace_samples": int(traj.positions.shape[0]),
+                        "trace_max_step_mm": float(steps.max() * scale) if steps.size else 0.0})
+
+
+def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, screw_joints,
+               copies):
+    """Bar pairs, bar-screw and screw-screw pairs of modules ``w`` or more apart that come
+    within reach at any of the samples ``x`` (S, N, 2): found module by module with a k-d tree
+    on module centres, so a straight strip costs O(modules) per sample."""
+    from scipy.spatial import cKDTree
+
+    n = len(copies)
+    empty = np.zeros((0, 2), dtype=np.int64)
+    if n <= w:
+        return empty, empty, empty
+    node_module = np.full(x.shape[1], -1, dtype=np.int64)
+    for c, (_, idx, _) in enumerate(copies):
+        node_module[idx[node_module[idx] < 0]] = c
+    reach = width + clearance + 2 * column_radius
+    cand = set()
+    for xs in x:
+        centre = np.zeros((n, 2))
+        radius = np.zeros(n)
+        for c, (_, idx, _) in enumerate(copies):
+            p = xs[idx]
+            centre[c] = p.mean(axis=0)
+            radius[c] = np.sqrt(((p - centre[c]) ** 2).sum(-1)).max()
+        tree = cKDTree(centre)
+        close = tree.query_pairs(2 * radius.max() + reach, output_type="ndarray")
+        if close.size:
+            a, b = close[:, 0], close[:, 1]
+            gap = np.sqrt(((centre[a] - centre[b]) ** 2).sum(-1)) - radius[a] - radius[b]
+            sel = (np.abs(a - b) >= w) & (gap < reach)
+            cand.update(map(tuple, np.sort(close[sel], 1).tolist()))
+    if not cand:
+        return empty, empty, empty
+    eb = [np.flatnonzero(module_of_edge == c) for c in range(n)]
+    pa, pb = [], []
+    for a, b in sorted(cand):
+        g1, g2 = np.meshgrid(eb[a], eb[b], indexing="ij")
+        pa.append(g1.ravel())
+        pb.append(g2.ravel())
+    pa, pb = np.concatenate(pa), np.concatenate(pb)
+    d, _ = _min_over_samples(_bar_bar(edges), x, pa, pb)
+    close = d - width < clearance
+    pairs = np.stack([pa[close], pb[close]], 1)
+    is_screw = np.zeros(x.shape[1], dtype=bool)
+    is_screw[screw_joints] = True
+    bj, jj = [], []
+    for a, b in sorted(cand):
+        for m1, m2 in ((a, b), (b, a)):
+            js = np.flatnonzero(is_screw & (node_module == m2))
+            g1, g2 = np.meshgrid(eb[m1], js, indexing="ij")
+            bj.append(g1.ravel())
+            jj.append(g2.ravel())
+    bj, jj = np.concatenate(bj), np.concatenate(jj)
+    keep = np.zeros((0, 2), dtype=np.int64)
+    if bj.size:
+        d, _ = _min_over_samples(
+            lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
+                                                      xs[:, edges[bi, 1]]), x, bj, jj)
+        near = d - 0.5 * width - column_radius < clearance
+        keep = np.stack([bj[near], jj[near]], 1)
+    ja, jb = [], []
+    for a, b in sorted(cand):
+        j1 = np.flatnonzero(is_screw & (node_module == a))
+        j2 = np.flatnonzero(is_screw & (node_module == b))
+        g1, g2 = np.meshgrid(j1, j2, indexing="ij")
+        ja.append(g1.ravel())
+        jb.append(g2.ravel())
+    ja, jb = np.concatenate(ja), np.concatenate(jb)
+    jp = np.zeros((0, 2), dtype=np.int64)
+    if ja.size:
+        d, _ = _min_over_samples(
+            lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)), x, ja, jb)
+        near = d - 2.0 * column_radius < clearance
+        jp = np.stack([ja[near], jb[near]], 1)
+    return pairs.astype(np.int64), keep.astype(np.int64), jp.astype(np.int64)
 
 
 # -- distances ------------------------------------------------------------------------------
@@ -290,6 +586,9 @@ class Conflicts:
         Joints whose screw columns come close (their layer spans must not meet).
     screw_joints : numpy.ndarray of int
         Joints that get a screw (two or more bars).
+    keepout_span : numpy.ndarray of int, shape (K2, 2)
+        (bar, joint) pairs: the bar passes the joint's spacer rings (wider than its heads) but
+        not its heads: it must avoid the layers of the stack itself, not the head layers.
     """
 
     pairs: np.ndarray
@@ -299,6 +598,7 @@ class Conflicts:
     keepout: np.ndarray
     joint_pairs: np.ndarray
     screw_joints: np.ndarray
+    keepout_span: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
 
 
 def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -309,7 +609,8 @@ def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 def find_conflicts(edges, positions, *, width: float, clearance: float,
-                   column_radius: float) -> Conflicts:
+                   column_radius: float, screw_joints=None,
+                   spacer_radius: float | None = None) -> Conflicts:
     """Measure which bars, screws and columns come close anywhere along a sampled motion.
 
     Parameters
@@ -323,6 +624,12 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         Least gap allowed between parts of one layer (mm).
     column_radius : float
         Radius of a screw column (largest of head and spacer radius, mm).
+    spacer_radius : float, optional
+        Radius of the spacer rings inside a stack, when larger than ``column_radius`` (the
+        heads): bars that pass them but not the heads go to ``keepout_span``.
+    screw_joints : array_like of int, optional
+        Joints that carry a screw (default: every joint of two or more of these bars; a piece
+        cut out of a larger network passes the joints that have screws in the whole).
 
     Returns
     -------
@@ -337,7 +644,8 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     ja, jb = a[share], b[share]
     # Only pairs whose swept boxes (over the whole motion) come within reach need the scan.
     lo_n, hi_n = x.min(axis=0), x.max(axis=0)                      # (N, 2) each
-    reach = 0.5 * width + clearance + column_radius
+    r_col = max(column_radius, spacer_radius or 0.0)
+    reach = 0.5 * width + clearance + r_col
     bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]]) - reach
     bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]]) + reach
     near_box = ((bar_lo[a] <= bar_hi[b]) & (bar_lo[b] <= bar_hi[a])).all(axis=1)
@@ -354,7 +662,8 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     samples = np.concatenate([np.full(ja.size, -1), where[close]]).astype(np.int64)
 
     degree = inc.sum(axis=1)
-    screw_joints = np.flatnonzero(degree >= 2)
+    screw_joints = (np.flatnonzero(degree >= 2) if screw_joints is None
+                    else np.asarray(screw_joints, dtype=np.int64))
     # bar vs screw column at a joint the bar does not belong to
     bb, jj = np.meshgrid(np.arange(n_bars), screw_joints, indexing="ij")
     bb, jj = bb.ravel(), jj.ravel()
@@ -366,11 +675,13 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         d, _ = _pruned_min(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]),
-            x, 0.5 * width + column_radius + clearance, bb, jj)
+            x, 0.5 * width + r_col + clearance, bb, jj)
         near = d - 0.5 * width - column_radius < clearance
         keepout = np.stack([bb[near], jj[near]], 1)
+        span = ~near & (d - 0.5 * width - r_col < clearance)
+        keepout_span = np.stack([bb[span], jj[span]], 1)
     else:
-        keepout = np.zeros((0, 2), dtype=np.int64)
+        keepout = keepout_span = np.zeros((0, 2), dtype=np.int64)
     # screw column vs screw column
     if screw_joints.size >= 2:
         ia, ib = np.triu_indices(screw_joints.size, k=1)
@@ -380,14 +691,15 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         ia, ib = ia[inside], ib[inside]
         d, _ = _pruned_min(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
-            x, 2.0 * column_radius + clearance, ia, ib)
-        near = d - 2.0 * column_radius < clearance
+            x, 2.0 * r_col + clearance, ia, ib)
+        near = d - 2.0 * r_col < clearance
         joint_pairs = np.stack([ia[near], ib[near]], 1).reshape(-1, 2)
     else:
         joint_pairs = np.zeros((0, 2), dtype=np.int64)
     return Conflicts(pairs=pairs.astype(np.int64), kind=kind, gap=gaps, sample=samples,
                      keepout=keepout.astype(np.int64), joint_pairs=joint_pairs.astype(np.int64),
-                     screw_joints=screw_joints)
+                     screw_joints=screw_joints,
+                     keepout_span=keepout_span.reshape(-1, 2).astype(np.int64))
 
 
 # -- layer assignment -----------------------------------------------------------------------
@@ -411,7 +723,11 @@ class JointStack:
     screw_length : float
         Post length chosen from the catalogue (mm).
     play : float
-        screw_length - stack_height (mm).
+        screw_length - stack_height (mm), at the nominal thickness without washers.
+    washers : int
+        Thin washers that take up play and still let the screw close on the thickest sheets.
+    play_range : (float, float)
+        Axial play with the washers on the thickest and on the thinnest sheets (mm).
     """
 
     joint: int
@@ -421,6 +737,8 @@ class JointStack:
     stack_height: float
     screw_length: float
     play: float
+    washers: int = 0
+    play_range: tuple[float, float] = (0.0, 0.0)
 
     def order(self) -> list[str]:
         """Bottom-to-top description, e.g. ``["bar 3", "spacer", "bar 0"]``."""
@@ -441,7 +759,8 @@ class Stacking:
     joints : tuple of JointStack
     conflicts : Conflicts
     lower_bound : int
-        Size of the largest clique of the conflict graph: no stacking has fewer layers.
+        No stacking has fewer layers: the largest clique of the conflict graph, raised to the
+        exact solver's proven bound when colouring alone does not reach it.
     strategy : str
         The colouring strategy that won.
     head_slots : int
@@ -466,6 +785,9 @@ class Stacking:
 
 _STRATEGIES = ("saturation_largest_first", "largest_first", "smallest_last", "independent_set",
                "connected_sequential_bfs", "connected_sequential_dfs")
+# Strategies (and colour interchange) whose networkx implementation is quadratic in the bars.
+_QUADRATIC = ("saturation_largest_first", "independent_set")
+_QUADRATIC_BARS = 400
 
 
 def _colourings(n_bars: int, pairs: np.ndarray):
@@ -475,17 +797,20 @@ def _colourings(n_bars: int, pairs: np.ndarray):
     g.add_nodes_from(range(n_bars))
     g.add_edges_from(map(tuple, pairs.tolist()))
     found = []
+    large = n_bars > _QUADRATIC_BARS
     for strategy in _STRATEGIES:
-        col = nx.greedy_color(g, strategy=strategy, interchange=strategy in ("largest_first",
-                                                                            "smallest_last"))
+        if large and strategy in _QUADRATIC:
+            continue  # networkx implements these in O(n^2): keep long chains near-linear
+        col = nx.greedy_color(g, strategy=strategy, interchange=not large and strategy in (
+            "largest_first", "smallest_last"))
         colours = np.array([col[k] for k in range(n_bars)], dtype=np.int64)
         # renumber classes by first appearance so equal colourings compare equal
         _, first = np.unique(colours, return_index=True)
         remap = np.empty(colours.max() + 1, dtype=np.int64)
         remap[colours[np.sort(first)]] = np.arange(first.size)
         found.append((strategy, remap[colours]))
-    clique = max((len(c) for c in nx.find_cliques(g)), default=1) if n_bars else 0
-    return found, clique
+    members = max(nx.find_cliques(g), key=len, default=[]) if n_bars else []
+    return found, len(members), sorted(members)
 
 
 def _spans(layer: np.ndarray, joint_bars: list[np.ndarray]):
@@ -495,14 +820,16 @@ def _spans(layer: np.ndarray, joint_bars: list[np.ndarray]):
     return lo, hi
 
 
-def _score(layer, joint_bars, jpos, keepout, joint_pairs, head):
+def _score(layer, joint_bars, jpos, keepout, joint_pairs, head, keepout_span=None):
     """(violations, total span) for candidate layer assignments ``layer`` (P, E)."""
     lo, hi = _spans(layer, joint_bars)
     viol = np.zeros(layer.shape[0], dtype=np.int64)
-    if keepout.size:
-        zb = layer[:, keepout[:, 0]]
-        j = jpos[keepout[:, 1]]
-        viol += ((zb >= lo[:, j] - head) & (zb <= hi[:, j] + head)).sum(axis=1)
+    for rows, slack in ((keepout, head), (keepout_span, 0)):
+        if rows is None or not rows.size:
+            continue
+        zb = layer[:, rows[:, 0]]
+        j = jpos[rows[:, 1]]
+        viol += ((zb >= lo[:, j] - slack) & (zb <= hi[:, j] + slack)).sum(axis=1)
     if joint_pairs.size:
         i, j = jpos[joint_pairs[:, 0]], jpos[joint_pairs[:, 1]]
         overlap = (lo[:, i] - head <= hi[:, j] + head) & (lo[:, j] - head <= hi[:, i] + head)
@@ -510,14 +837,15 @@ def _score(layer, joint_bars, jpos, keepout, joint_pairs, head):
     return viol, (hi - lo).sum(axis=1)
 
 
-def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
+def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head, keepout_span=None):
     """Order of the k colour classes (class -> layer) with no violation and shortest screws."""
     if k <= 7:
         perms = np.array(list(itertools.permutations(range(k))), dtype=np.int64)
         best_v, best_s, best_p = None, None, None
         for start in range(0, perms.shape[0], 1024):
             p = perms[start:start + 1024]
-            v, s = _score(p[:, colours], joint_bars, jpos, keepout, joint_pairs, head)
+            v, s = _score(p[:, colours], joint_bars, jpos, keepout, joint_pairs, head,
+                          keepout_span)
             key = v * 10**9 + s
             i = int(np.argmin(key))
             if best_v is None or key[i] < best_v * 10**9 + best_s:
@@ -525,7 +853,8 @@ def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
         return best_p, best_v
     # many layers: pairwise swaps from the identity until no swap improves (deterministic)
     perm = np.arange(k)
-    v, s = _score(perm[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+    v, s = _score(perm[colours][None], joint_bars, jpos, keepout, joint_pairs, head,
+                  keepout_span)
     best = (int(v[0]), int(s[0]))
     improved = True
     while improved:
@@ -533,7 +862,8 @@ def _best_order(colours, k, joint_bars, jpos, keepout, joint_pairs, head):
         for i, j in itertools.combinations(range(k), 2):
             cand = perm.copy()
             cand[[i, j]] = cand[[j, i]]
-            v, s = _score(cand[colours][None], joint_bars, jpos, keepout, joint_pairs, head)
+            v, s = _score(cand[colours][None], joint_bars, jpos, keepout, joint_pairs, head,
+                          keepout_span)
             if (int(v[0]), int(s[0])) < best:
                 perm, best, improved = cand, (int(v[0]), int(s[0])), True
     return perm, best[0]
@@ -560,9 +890,10 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
         nbrs[b].append(a)
     avoid_of_bar = [[] for _ in range(n_bars)]   # joints whose columns bar b must avoid
     avoiders = {j: [] for j in screw}            # bars that must avoid joint j's column
-    for b, j in conf.keepout.tolist():
-        avoid_of_bar[b].append(j)
-        avoiders[j].append(b)
+    for rows, slack in ((conf.keepout, head), (conf.keepout_span, 0)):
+        for b, j in rows.tolist():
+            avoid_of_bar[b].append((j, slack))
+            avoiders[j].append((b, slack))
     partners = {j: [] for j in screw}
     for i, j in conf.joint_pairs.tolist():
         partners[i].append(j)
@@ -597,14 +928,14 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
             for c in nbrs[b]:
                 if z[c] == v:
                     return False
-            for j in avoid_of_bar[b]:
-                if lo[j] is not None and lo[j] - head <= v <= hi[j] + head:
+            for j, sl in avoid_of_bar[b]:
+                if lo[j] is not None and lo[j] - sl <= v <= hi[j] + sl:
                     return False
             for j in joints_of[b]:
                 l2 = v if lo[j] is None else min(lo[j], v)
                 h2 = v if hi[j] is None else max(hi[j], v)
-                for c in avoiders[j]:
-                    if z[c] >= 0 and l2 - head <= z[c] <= h2 + head:
+                for c, sl in avoiders[j]:
+                    if z[c] >= 0 and l2 - sl <= z[c] <= h2 + sl:
                         return False
                 for i in partners[j]:
                     if lo[i] is not None and l2 - head <= hi[i] + head and lo[i] - head <= h2 + head:
@@ -646,6 +977,156 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
     return None
 
 
+def _neighbourhood(n_bars, conf, joint_bars, seed, size):
+    """The layer problem restricted to about ``size`` bars nearest ``seed`` (breadth first over
+    conflicts, shared screws and keep-outs); returns ``(n, conf, joint_bars)`` renumbered.
+
+    Every rule of the restriction is implied by a rule of the whole (a screw's span over fewer
+    bars is shorter), so no stacking of the whole has fewer layers than the restriction needs.
+    """
+    nbr = [[] for _ in range(n_bars)]
+    for a, b in conf.pairs.tolist():
+        nbr[a].append(b)
+        nbr[b].append(a)
+    jpos = {int(j): i for i, j in enumerate(conf.screw_joints.tolist())}
+    for b, j in np.concatenate([conf.keepout, conf.keepout_span]).tolist():
+        for c in joint_bars[jpos[j]].tolist():
+            nbr[b].append(c)
+            nbr[c].append(b)
+    keep_set, queue = set(seed), list(seed)
+    while queue and len(keep_set) < size:
+        b = queue.pop(0)
+        for c in sorted(set(nbr[b])):
+            if c not in keep_set and len(keep_set) < size:
+                keep_set.add(c)
+                queue.append(c)
+    bars = np.array(sorted(keep_set), dtype=np.int64)
+    new = np.full(n_bars, -1, dtype=np.int64)
+    new[bars] = np.arange(bars.size)
+    pairs = new[conf.pairs]
+    pairs = pairs[(pairs >= 0).all(axis=1)]
+    sub_joints, sub_bars = [], []
+    for j, jb in zip(conf.screw_joints.tolist(), joint_bars):
+        inside = new[jb]
+        inside = inside[inside >= 0]
+        if inside.size:
+            sub_joints.append(j)
+            sub_bars.append(inside)
+    has = set(sub_joints)
+    def restrict(rows):
+        rows = rows[[new[b] >= 0 and j in has for b, j in rows.tolist()]] if rows.size else rows
+        return (np.stack([new[rows[:, 0]], rows[:, 1]], 1) if rows.size
+                else rows.reshape(0, 2)).astype(np.int64)
+
+    keep = restrict(conf.keepout)
+    jp = conf.joint_pairs[[i in has and j in has for i, j in conf.joint_pairs.tolist()]] \
+        if conf.joint_pairs.size else conf.joint_pairs
+    sub = Conflicts(pairs=pairs, kind=np.zeros(pairs.shape[0], dtype=object),
+                    gap=np.zeros(pairs.shape[0]), sample=np.zeros(pairs.shape[0], dtype=np.int64),
+                    keepout=keep, joint_pairs=jp.reshape(-1, 2).astype(np.int64),
+                    screw_joints=np.array(sub_joints, dtype=np.int64),
+                    keepout_span=restrict(conf.keepout_span))
+    return int(bars.size), sub, sub_bars
+
+
+def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0):
+    """Fewest layers (at most ``max_layers``) meeting every rule, by mixed-integer programming
+    (HiGHS through SciPy).
+
+    Variables: the layer ``z_b`` of every bar, the lowest and highest layer ``lo_j``, ``hi_j``
+    of every screw, the top layer ``top``, and one binary per either-or rule (a conflicting
+    pair is ordered one way or the other; a bar passing a screw lies below or above its
+    column; two close screws stack one above the other). The objective is
+    ``top + eps * (total screw span)``: fewest layers first, then shortest screws.
+
+    Returns
+    -------
+    layer : numpy.ndarray of int or None
+        The best assignment found (None when none was found in the time limit).
+    bound : int
+        A proven lower bound on the number of layers (from the solver's dual bound).
+    optimal : bool
+        True when the solver proved its answer: the layer count minimal, or (no layer given)
+        that no stacking fits in ``max_layers`` layers, ``bound = max_layers + 1``.
+    """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import coo_matrix
+
+    E, J = n_bars, len(joint_bars)
+    K = int(max_layers)
+    pairs, jp = conf.pairs, conf.joint_pairs
+    keep = np.concatenate([conf.keepout, conf.keepout_span]).reshape(-1, 2)
+    slack = np.r_[np.full(conf.keepout.shape[0], head), np.zeros(conf.keepout_span.shape[0])]
+    P, Q, R = pairs.shape[0], keep.shape[0], jp.shape[0]
+    # variable layout: z (E) | lo (J) | hi (J) | top (1) | y_pairs (P) | y_keep (Q) | y_joint (R)
+    iz, ilo, ihi, itop = 0, E, E + J, E + 2 * J
+    iyp = itop + 1
+    iyq, iyr = iyp + P, iyp + P + Q
+    n = iyr + R
+    jidx = {int(j): k for k, j in enumerate(conf.screw_joints.tolist())}
+    rows, cols, vals, lb, ub = [], [], [], [], []
+    r = 0
+
+    def add(terms, lo_, hi_):
+        nonlocal r
+        for c, v in terms:
+            rows.append(r)
+            cols.append(c)
+            vals.append(v)
+        lb.append(lo_)
+        ub.append(hi_)
+        r += 1
+
+    inf = np.inf
+    for b in range(E):
+        add([(iz + b, 1.0), (itop, -1.0)], -inf, 0.0)
+    for k, jb in enumerate(joint_bars):
+        for b in jb.tolist():
+            add([(ilo + k, 1.0), (iz + b, -1.0)], -inf, 0.0)
+            add([(iz + b, 1.0), (ihi + k, -1.0)], -inf, 0.0)
+    M = float(K + 2 * head + 2)
+    for t, (a, b) in enumerate(pairs.tolist()):
+        y = iyp + t  # y = 1: a above b
+        add([(iz + a, 1.0), (iz + b, -1.0), (iyp + t, -M)], 1.0 - M, inf)
+        add([(iz + b, 1.0), (iz + a, -1.0), (y, M)], 1.0, inf)
+    for t, (b, j) in enumerate(keep.tolist()):
+        k, sl = jidx[j], float(slack[t])
+        y = iyq + t  # y = 1: bar above the column
+        add([(iz + b, 1.0), (ilo + k, -1.0), (y, -M)], -inf, -sl - 1.0)
+        add([(iz + b, 1.0), (ihi + k, -1.0), (y, -M)], sl + 1.0 - M, inf)
+    for t, (i, j) in enumerate(jp.tolist()):
+        ki, kj = jidx[i], jidx[j]
+        y = iyr + t  # y = 0: column i above column j, y = 1: j above i
+        add([(ihi + kj, 1.0), (ilo + ki, -1.0), (y, -M)], -inf, -2.0 * head - 1.0)
+        add([(ihi + ki, 1.0), (ilo + kj, -1.0), (y, M)], -inf, M - 2.0 * head - 1.0)
+    if P:
+        # turning a stacking upside down keeps every rule: fix the order of one pair
+        add([(iyp, 1.0)], 0.0, 0.0)
+    A = coo_matrix((vals, (rows, cols)), shape=(r, n)).tocsr()
+    eps = 1.0 / (J * K + 1.0)
+    c = np.zeros(n)
+    c[itop] = 1.0
+    c[ihi:ihi + J] = eps
+    c[ilo:ilo + J] = -eps
+    lower = np.zeros(n)
+    upper = np.ones(n)
+    upper[:itop + 1] = K - 1
+    integrality = np.ones(n)
+    integrality[ilo:itop] = 0  # spans follow from the integer layers
+    res = milp(c, constraints=LinearConstraint(A, lb, ub), integrality=integrality,
+               bounds=Bounds(lower, upper),
+               options={"time_limit": float(time_limit), "disp": False})
+    if res.status == 2:  # proven infeasible: every stacking needs more than max_layers
+        return None, K + 1, True
+    dual = getattr(res, "mip_dual_bound", None)
+    bound = int(math.floor(dual + 1e-6)) + 1 if dual is not None and np.isfinite(dual) else 0
+    if res.x is None:  # no stacking found in the time; a dual bound past K says no more
+        return None, min(bound, K + 1), False
+    layer = np.rint(res.x[:E]).astype(np.int64)
+    k_found = int(layer.max()) + 1 if E else 0
+    return layer, min(bound, k_found), res.status == 0
+
+
 def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     """Assign every bar a layer so that nothing collides over the sampled motion.
 
@@ -678,16 +1159,22 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     """
     edges = np.asarray(edges, dtype=np.int64)
     s = settings
-    column_radius = 0.5 * max(s.screw.head_diameter, s.spacer_diameter)
-    conf = find_conflicts(edges, sweep.positions, width=s.bar_width, clearance=s.clearance,
-                          column_radius=column_radius)
+    column_radius = 0.5 * s.screw.head_diameter
+    spacer_radius = 0.5 * s.spacer_diameter
+    # Where the samples are farther apart than the guarantee assumes (a chain at float
+    # resolution, see sample_motion's floor_limit), widen the clearance by the excess so that
+    # parts of one layer stay clearance / 2 apart between samples all the same.
+    clearance = s.clearance + max(0.0, sweep.max_step - sweep.step_limit)
+    conf = sweep.conflicts if sweep.conflicts is not None else find_conflicts(
+        edges, sweep.positions, width=s.bar_width, clearance=clearance,
+        column_radius=column_radius, spacer_radius=spacer_radius)
     head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
     n_bars = edges.shape[0]
     inc = _incidence(edges, sweep.positions.shape[1])
     joint_bars = [np.flatnonzero(inc[j]) for j in conf.screw_joints]
     jpos = np.full(sweep.positions.shape[1], -1, dtype=np.int64)
     jpos[conf.screw_joints] = np.arange(conf.screw_joints.size)
-    colourings, clique = _colourings(n_bars, conf.pairs)
+    colourings, clique, clique_bars = _colourings(n_bars, conf.pairs)
     candidates, seen = [], set()
     for strategy, colours in colourings:
         if colours.tobytes() in seen:  # strategies often agree; order each colouring once
@@ -696,7 +1183,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         k = int(colours.max()) + 1 if n_bars else 0
         if joint_bars:
             perm, viol = _best_order(colours, k, joint_bars, jpos, conf.keepout,
-                                     conf.joint_pairs, head)
+                                     conf.joint_pairs, head, conf.keepout_span)
         else:
             perm, viol = np.arange(k), 0
         layer = perm[colours]
@@ -707,27 +1194,54 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         # The column rules tie layers to their order: search layer numbers directly.
         found = _search_layers(n_bars, conf, joint_bars, head,
                                range(max(int(clique), 1), s.max_layers + 1))
-        if found is None:
-            x0 = sweep.positions[0][conf.screw_joints]
-            d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
-            np.fill_diagonal(d0, np.inf)
-            i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
-            if d0.size and d0[i, j] < 2 * column_radius:
-                ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
-                raise FabricationError(
-                    f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
-                    f"two screw heads ({2 * column_radius:g} mm), and no stacking separates their "
-                    "screws; merge them in the design, or for chains of modules try mirror = "
-                    "\"alternate\"")
-            raise FabricationError(_violation_message(layer, joint_bars, conf, head, edges))
-        layer, strategy = found, "backtracking"
-        k = int(layer.max()) + 1
+        if found is not None:
+            layer, strategy, viol = found, "backtracking", 0
+            k = int(layer.max()) + 1
+    bound, proven = int(clique), (not viol and k == clique)
+    if not proven and n_bars:
+        # Colouring ignores the column rules and the search stops at its budget: ask the exact
+        # solver for a stacking with fewer layers; its dual bound is a proven lower bound.
+        fewer = s.max_layers if viol else k - 1
+        if n_bars > _MILP_BARS:
+            # A few bars around the largest clique with only the rules among them: a
+            # relaxation of the whole problem, so its proven bound holds for the whole.
+            sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, _MILP_BARS)
+            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_SECONDS)
+            bound = max(bound, sub_bound)
+        else:
+            found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head, fewer,
+                                                      time_limit=_MILP_SECONDS)
+            if found is not None:
+                layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
+            bound = max(bound, milp_bound)
+        proven = not viol and k == bound
+    if viol:
+        x0 = sweep.positions[0][conf.screw_joints]
+        d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
+        np.fill_diagonal(d0, np.inf)
+        i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
+        if d0.size and d0[i, j] < 2 * column_radius:
+            ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
+            raise FabricationError(
+                f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
+                f"two screw heads ({2 * column_radius:g} mm), and no stacking within "
+                f"max_layers = {s.max_layers} separates their screws; merge them in the "
+                "design, or for chains of modules try mirror = \"alternate\"")
+        if bound > s.max_layers:
+            raise FabricationError(
+                f"every stacking of these bars needs at least {bound} layers (proven by exact "
+                f"search), more than max_layers = {s.max_layers}: "
+                + _violation_message(layer, joint_bars, conf, head, edges))
+        raise FabricationError(
+            f"no stacking found within max_layers = {s.max_layers} in the {_MILP_SECONDS:g} s "
+            f"exact search (at least {bound} layers are needed): "
+            + _violation_message(layer, joint_bars, conf, head, edges))
     if k > s.max_layers:
         raise FabricationError(
             f"the bars need {k} stacking layers (more than max_layers = {s.max_layers}); raise "
             "max_layers, or make room: larger scale or narrower bars")
     stacks = []
-    from .hardware import choose_length
+    from .hardware import fit_screw
 
     for j, jb in zip(conf.screw_joints.tolist(), joint_bars):
         order = np.argsort(layer[jb], kind="stable")
@@ -736,27 +1250,30 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         lo, hi = layers[0], layers[-1]
         spacers = tuple(z for z in range(lo, hi + 1) if z not in layers)
         height = (hi - lo + 1) * s.thickness
-        try:
-            length = choose_length(s.screw, height)
+        try:  # the screw must close on the thickest sheets the tolerance allows
+            fit = fit_screw(s.screw, hi - lo + 1, s.thickness, s.thickness_tolerance)
         except FabricationError as exc:
             raise FabricationError(f"joint {j}: {exc}") from None
         stacks.append(JointStack(joint=j, bars=bars, layers=layers, spacers=spacers,
-                                 stack_height=height, screw_length=length, play=length - height))
+                                 stack_height=height, screw_length=fit.length,
+                                 play=fit.length - height, washers=fit.washers,
+                                 play_range=(fit.play_min, fit.play_max)))
     return Stacking(layer=layer, n_layers=k, joints=tuple(stacks), conflicts=conf,
-                    lower_bound=int(clique), strategy=strategy, head_slots=head,
-                    stats={"candidates": [(c[3], c[1], c[0]) for c in candidates]})
+                    lower_bound=int(bound), strategy=strategy, head_slots=head,
+                    stats={"candidates": [(c[3], c[1], c[0]) for c in candidates],
+                           "clique": int(clique), "proven_minimal": bool(proven)})
 
 
 def _violation_message(layer, joint_bars, conf, head, edges) -> str:
     jpos = {int(j): i for i, j in enumerate(conf.screw_joints)}
     lo = {j: int(layer[joint_bars[i]].min()) for j, i in jpos.items()}
     hi = {j: int(layer[joint_bars[i]].max()) for j, i in jpos.items()}
-    for b, j in conf.keepout.tolist():
-        if lo[j] - head <= layer[b] <= hi[j] + head:
+    for b, j, sl in [(b, j, head) for b, j in conf.keepout.tolist()] + \
+            [(b, j, 0) for b, j in conf.keepout_span.tolist()]:
+        if lo[j] - sl <= layer[b] <= hi[j] + sl:
             i0, i1 = edges[b]
-            return (f"no stacking order found keeps bar {b} (joints {i0}-{i1}) clear of the screw "
-                    f"at joint {j}, which it passes during the motion; use a larger scale or "
-                    "narrower bars")
+            return (f"bar {b} (joints {i0}-{i1}) passes the screw at joint {j} during the "
+                    "motion; use a larger scale or narrower bars, or raise max_layers")
     for i, j in conf.joint_pairs.tolist():
         return (f"the screws at joints {i} and {j} come too close during the motion and no "
                 "stacking separates them; the joints may coincide (for chains try mirror = "
@@ -765,7 +1282,7 @@ def _violation_message(layer, joint_bars, conf, head, edges) -> str:
 
 
 def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slots: int = 1,
-                  column_radius: float = 0.0) -> dict:
+                  column_radius: float = 0.0, spacer_radius: float | None = None) -> dict:
     """Smallest gaps between parts that share a layer, over sampled configurations.
 
     Parameters
@@ -779,6 +1296,9 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
         Screws to check bars and other screws against (none: bars only).
     head_slots : int
     column_radius : float
+        Radius of the screw heads (they occupy ``head_slots`` layers above and below a stack).
+    spacer_radius : float, optional
+        Radius of the spacer rings, checked against bars on the stack's own layers.
 
     Returns
     -------
@@ -816,7 +1336,14 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
             d, _ = _min_over_samples(
                 lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                           xs[:, edges[bi, 1]]), x, bb, jj)
-            out["screw_gap"] = float((d - 0.5 * width - column_radius).min())
+            radius = np.full(bb.size, column_radius)
+            if spacer_radius is not None:
+                # on the stack's own layers the spacer rings are the wider part of the column
+                z0 = np.array([span[j][0] + head_slots for j in jj.tolist()])
+                z1 = np.array([span[j][1] - head_slots for j in jj.tolist()])
+                inner = (layer[bb] >= z0) & (layer[bb] <= z1)
+                radius[inner] = max(column_radius, spacer_radius)
+            out["screw_gap"] = float((d - 0.5 * width - radius).min())
         pa, pb = [], []
         for s1, s2 in itertools.combinations(js, 2):
             (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]

@@ -1,8 +1,11 @@
 """Nesting: parts (bars, spacer rings, a 100 mm reference square) packed onto sheets.
 
-Each part is packed by its bounding box plus the spacing (rectpack, MaxRects best-short-side
-fit, largest area first, quarter turns allowed) on as many sheets as needed, in integer units
-of 0.01 mm so that the result does not depend on float round-off. A quarter turn maps (x, y)
+Each part is packed by its bounding box plus the spacing (rectpack, quarter turns allowed,
+best-fit-first over the sheets) on as many sheets as needed, in integer units of 0.01 mm so that
+the result does not depend on float round-off. Five packing algorithms (MaxRects with three
+fit rules, guillotine, skyline) and three orders (area, long side, perimeter) are tried and the
+packing with the fewest sheets, then the least left on the last sheet, is kept; every sheet
+reports its utilisation (cut part area over sheet area, :func:`utilisation`). A quarter turn maps (x, y)
 to (-y, x) exactly, so hole centres keep their distances to round-off.
 
 Bars are engraved with a label ``B<bar> L<layer> J<i>-<j>`` along their axis between the holes,
@@ -21,7 +24,7 @@ from ..errors import FabricationError
 from .bars import bar_outline, hole_radius, outline_radius
 
 __all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "label_outlines",
-           "REFERENCE_SIZE"]
+           "REFERENCE_SIZE", "part_area", "utilisation"]
 
 #: Side of the reference square (mm).
 REFERENCE_SIZE = 100.0
@@ -139,11 +142,21 @@ def make_parts(bars, stacking, settings) -> list[Part]:
             labels=[label] if label else [], bbox=(-r_out, -r_out, L + r_out, r_out),
             meta={"bar": k, "joints": [i, j], "layer": layer, "length": L}))
     ring = 0.5 * (settings.spacer_diameter + bars.kerf)
+    web = ring - r_hole
     for js in stacking.joints:
         for z in js.spacers:
+            labels = []
+            if settings.labels != "none":
+                # "<joint>.<layer>" engraved in the web above the hole, as wide as fits there
+                text = f"{js.joint}.{z}"
+                y = r_hole + 0.5 * web
+                half = math.sqrt(max(ring ** 2 - (y + 0.25 * web) ** 2, 0.0))
+                h = min(0.5 * web, 2 * half / (_CHAR_WIDTH * len(text)), settings.label_height)
+                if h >= _MIN_TEXT:
+                    labels = [Label(text, (0.0, y), float(round(h, 3)), 0.0, f"S{js.joint}.{z}")]
             parts.append(Part(
                 id=f"S{js.joint}.{z}", kind="spacer", outline=None, ring=ring,
-                holes=np.zeros((1, 2)), hole_radius=r_hole, labels=[],
+                holes=np.zeros((1, 2)), hole_radius=r_hole, labels=labels,
                 bbox=(-ring, -ring, ring, ring), meta={"joint": js.joint, "layer": z}))
     if settings.reference_square != "none":
         s = REFERENCE_SIZE
@@ -206,16 +219,13 @@ def nest_parts(parts, settings) -> list[Sheet]:
     FabricationError
         A part larger than the usable sheet (the message names it and its size).
     """
-    from rectpack import SORT_AREA, MaxRectsBssf, PackingBin, PackingMode, newPacker
+    import rectpack
 
     s = settings
     free_w = s.sheet_width - 2 * s.margin
     free_h = s.sheet_height - 2 * s.margin
     bin_w = int(math.floor((free_w + s.spacing) * _UNIT + 1e-6))
     bin_h = int(math.floor((free_h + s.spacing) * _UNIT + 1e-6))
-    packer = newPacker(mode=PackingMode.Offline, bin_algo=PackingBin.BFF, pack_algo=MaxRectsBssf,
-                       sort_algo=SORT_AREA, rotation=True)
-    packer.add_bin(bin_w, bin_h, count=float("inf"))
     sizes = {}
     for n, p in enumerate(parts):
         x0, y0, x1, y1 = p.bbox
@@ -227,11 +237,30 @@ def nest_parts(parts, settings) -> list[Sheet]:
                 f"{s.sheet_width:g} x {s.sheet_height:g} mm sheet with {s.margin:g} mm margins; "
                 "use a larger sheet or a smaller scale")
         sizes[n] = (w, h)
-        packer.add_rect(w, h, rid=n)
-    packer.pack()
-    placed = packer.rect_list()
-    if len(placed) != len(parts):  # pragma: no cover - infinite bins take every part that fits
+    # Several packers and orders (quarter turns allowed); keep the one with the fewest sheets,
+    # then the emptiest last sheet (its parts moved onto fuller ones), deterministically.
+    best = None
+    for algo in (rectpack.MaxRectsBssf, rectpack.MaxRectsBaf, rectpack.MaxRectsBl,
+                 rectpack.GuillotineBssfSas, rectpack.SkylineMwf):
+        for order in (rectpack.SORT_AREA, rectpack.SORT_LSIDE, rectpack.SORT_PERI):
+            packer = rectpack.newPacker(mode=rectpack.PackingMode.Offline,
+                                        bin_algo=rectpack.PackingBin.BFF, pack_algo=algo,
+                                        sort_algo=order, rotation=True)
+            packer.add_bin(bin_w, bin_h, count=float("inf"))
+            for n, (w, h) in sizes.items():
+                packer.add_rect(w, h, rid=n)
+            packer.pack()
+            placed = packer.rect_list()
+            if len(placed) != len(parts):  # pragma: no cover - infinite bins take every part
+                continue
+            n_bins = 1 + max((r[0] for r in placed), default=0)
+            last = sum(r[3] * r[4] for r in placed if r[0] == n_bins - 1)
+            key = (n_bins, last)
+            if best is None or key < best[0]:
+                best = (key, placed)
+    if best is None:  # pragma: no cover
         raise FabricationError("nesting failed to place every part")
+    placed = best[1]
     sheets: dict[int, Sheet] = {}
     for b, x, y, w, h, rid in sorted(placed, key=lambda r: (r[0], r[5])):
         part = parts[rid]
@@ -290,3 +319,28 @@ def label_outlines(label: Label) -> list[np.ndarray]:
             if pts.shape[0] >= 3:
                 out.append(pts @ rot.T + np.asarray(label.insert))
     return out
+
+
+def part_area(part: Part) -> float:
+    """Area of material a part takes off the sheet (mm^2): its outer contour minus its holes
+    (the reference square counts when it is cut out, not when engraved)."""
+    holes = part.holes.shape[0] * math.pi * part.hole_radius ** 2 if part.holes.size else 0.0
+    if part.ring is not None:
+        return math.pi * part.ring ** 2 - holes
+    if part.engrave_outline or part.outline is None:
+        return 0.0
+    v = np.asarray(part.outline, dtype=np.float64)
+    x, y, b = v[:, 0], v[:, 1], v[:, 2]
+    xn, yn = np.roll(x, -1), np.roll(y, -1)
+    area = 0.5 * float(np.sum(x * yn - xn * y))          # polygon of the vertices (CCW > 0)
+    theta = 4.0 * np.arctan(b)                           # plus the circular segments of arcs
+    chord = np.hypot(xn - x, yn - y)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(b != 0, chord / (2 * np.sin(np.abs(theta) / 2)), 0.0)
+    area += float(np.sum(np.sign(theta) * 0.5 * r ** 2 * (np.abs(theta) - np.sin(np.abs(theta)))))
+    return abs(area) - holes
+
+
+def utilisation(sheet: Sheet) -> float:
+    """Fraction of a sheet's area taken by its parts."""
+    return sum(part_area(p) for p in sheet.parts) / (sheet.width * sheet.height)
