@@ -12,8 +12,9 @@ The pipeline (all pure, nothing is written here):
    CUT_INNER, ENGRAVE and REFERENCE; closed LWPOLYLINE with bulges or LINE + ARC; CIRCLE
    holes; labels as glyph outlines by default), identical bytes for identical input, and a
    laser-ready SVG of the same sheet (:mod:`fabkit.export.laser_svg`);
-6. the as-built check reads the DXF text back (:mod:`fabkit.check.dxf`); a failed check is an
-   error, so no file leaves fabkit that does not rebuild the designed network.
+6. the as-built check is not run here (an exporter never imports the checks): the batch engine
+   behind ``fabkit export`` reads the written sheets back with :mod:`fabkit.check.dxf` and marks
+   the design failed when they do not rebuild the designed network.
 
 Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``laser_bom.md``,
 ``laser_assembly.png``, ``laser_layers_motion.png``, ``laser_guide.pdf`` (A4 assembly pages,
@@ -25,7 +26,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import math
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -240,7 +240,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
 
 # -- bill of materials ----------------------------------------------------------------------
 
-def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -> dict:
+def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
     """Parts, sheets, screws by length, spacer rings and the stack at every joint (JSON-able)."""
     from ..fab.hardware import WASHER_THICKNESS
     from ..fab.nest import utilisation
@@ -289,7 +289,6 @@ def bill_of_materials(plan: LaserPlan, files: dict, check: dict | None = None) -
                                 "samples; bars of one layer are >= clearance apart at every "
                                 "sample and >= clearance / 2 between samples"},
         "files": sorted(files),
-        "as_built_check": check,
     }
 
 
@@ -324,31 +323,16 @@ def bom_markdown(bom: dict) -> str:
                      f"{j['screw_length_mm']:g} | {j['washers']} | {p0:.2f}-{p1:.2f} |")
     wa = bom["washers"]
     lines += ["", f"Washers: {wa['count']} x {wa['thickness_mm']:g} mm (M3); {wa['note']}."]
-    chk = bom.get("as_built_check")
-    if chk:
-        lines += ["", "## As-built check", "", f"Result: {'passed' if chk['ok'] else 'FAILED'}",
-                  "", "| check | ok | value | limit |", "|---|---|---|---|"]
-        for c in chk["checks"]:
-            lines.append(f"| {c['name']} | {'yes' if c['ok'] else 'no'} | {c['value']} | "
-                         f"{c['limit']} |")
     lines += ["", "Motion: " + bom["motion"]["guarantee"] + ".", ""]
     return "\n".join(lines)
 
 
 # -- pictures -------------------------------------------------------------------------------
 
-def _stadium(p, q, r, n=12):
-    d = q - p
-    a = math.atan2(d[1], d[0])
-    t1 = np.linspace(a - math.pi / 2, a + math.pi / 2, n)
-    t0 = np.linspace(a + math.pi / 2, a + 3 * math.pi / 2, n)
-    return np.concatenate([q + r * np.stack([np.cos(t1), np.sin(t1)], 1),
-                           p + r * np.stack([np.cos(t0), np.sin(t0)], 1)])
-
-
 def _draw_layers(ax, plan, x, *, joint_labels):
     from matplotlib.collections import PolyCollection
 
+    from ..fab.bars import stadium_polygon
     from ..viz import _mpl
 
     plt = _mpl()
@@ -356,7 +340,7 @@ def _draw_layers(ax, plan, x, *, joint_labels):
     e = plan.bars.edges
     r = 0.5 * plan.settings.bar_width
     order = np.argsort(plan.stacking.layer, kind="stable")  # lower layers drawn first
-    polys = [_stadium(x[e[k, 0]], x[e[k, 1]], r) for k in order]
+    polys = [stadium_polygon(x[e[k, 0]], x[e[k, 1]], r) for k in order]
     colours = [cmap(int(plan.stacking.layer[k]) % 10) for k in order]
     ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="k", linewidths=0.4,
                                      alpha=0.55))
@@ -423,13 +407,14 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     ExportResult
         ``files``: ``laser_sheet<k>.dxf`` and ``.svg`` per sheet, ``laser_bom.json``,
         ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``,
-        ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``:
-        the bill of materials including the as-built check.
+        ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``: the bill of materials.
+        The as-built check reads the files back (:func:`fabkit.check.dxf.check_documents`,
+        run on every export by the batch engine); an exporter never checks its own output.
 
     Raises
     ------
     FabricationError
-        Bad settings or geometry (see :func:`laser_plan`), or an as-built check that fails.
+        Bad settings or geometry (see :func:`laser_plan`).
 
     Examples
     --------
@@ -439,7 +424,6 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
     ['laser_assembly.png', 'laser_bom.json']
     """
-    from ..check.dxf import check_documents
     from .laser_svg import sheet_svg
 
     plan = laser_plan(design, settings)
@@ -448,11 +432,6 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     for sheet in plan.sheets:
         files[f"laser_sheet{sheet.index}.dxf"] = sheet_dxf(sheet, plan, n)
         files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan.settings)
-    texts = {name: data.decode("ascii") for name, data in files.items() if name.endswith(".dxf")}
-    check = check_documents(texts, design=design, settings=settings)
-    if not check["ok"]:
-        failed = next(c for c in check["checks"] if not c["ok"])
-        raise FabricationError(f"as-built check failed: {failed['name']}: {failed['detail']}")
     files["laser_assembly.png"] = assembly_png(plan)
     files["laser_layers_motion.png"] = motion_png(plan)
     from ..fab.guide import guide_pages
@@ -461,7 +440,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     files["laser_guide.pdf"] = guide
     files["laser_guide_page1.png"] = first_page
     names = sorted([*files, "laser_bom.json", "laser_bom.md"])
-    bom = bill_of_materials(plan, names, check)
+    bom = bill_of_materials(plan, names)
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
     files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
     return ExportResult(files=files, report={"format": FORMAT, **bom})

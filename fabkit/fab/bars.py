@@ -12,6 +12,7 @@ lengths that define the network, are unaffected by kerf.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,7 @@ import numpy as np
 from ..errors import FabricationError
 
 __all__ = ["BarSet", "bar_set", "check_bar_lengths", "bar_outline", "bulge_primitives",
-           "outline_radius", "hole_radius", "undo_kerf"]
+           "outline_radius", "hole_radius", "undo_kerf", "stadium_polygon"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,3 +222,36 @@ def bulge_primitives(vertices) -> list[tuple]:
         out.append(("arc", (float(centre[0]), float(centre[1])), float(r),
                     _angle(a0), _angle(a1)))
     return out
+
+
+def stadium_polygon(p, q, r: float, n: int = 12) -> np.ndarray:
+    """A bar's round-ended outline as a polygon, for drawings (the cut files use exact arcs).
+
+    Parameters
+    ----------
+    p, q : array_like, shape (2,)
+        The bar's joint centres.
+    r : float
+        Half the bar width.
+    n : int
+        Points per half circle.
+
+    Returns
+    -------
+    numpy.ndarray, shape (2 n, 2)
+        Counter-clockwise.
+
+    Examples
+    --------
+    >>> poly = stadium_polygon([0.0, 0.0], [10.0, 0.0], 2.0)
+    >>> poly.shape, float(poly[:, 1].max()), bool(11.9 < poly[:, 0].max() <= 12.0)
+    ((24, 2), 2.0, True)
+    """
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    d = q - p
+    a = math.atan2(d[1], d[0])
+    t1 = np.linspace(a - math.pi / 2, a + math.pi / 2, n)
+    t0 = np.linspace(a + math.pi / 2, a + 3 * math.pi / 2, n)
+    return np.concatenate([q + r * np.stack([np.cos(t1), np.sin(t1)], 1),
+                           p + r * np.stack([np.cos(t0), np.sin(t0)], 1)])

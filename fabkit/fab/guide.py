@@ -25,11 +25,11 @@ _MODULES_PER_PAGE = 2
 def _groups(plan):
     """Bar index groups, one per page (modules of a chain two at a time, else everything)."""
     net = plan.design.network
-    layout = getattr(net, "_cache", {}).get("chain_layout")
+    layout = net.assembly
     n_e = net.n_edges
     if layout is None:
         return [np.arange(n_e)]
-    counts = [m.n_edges for m, _, _ in layout["copies"]]
+    counts = [m.n_edges for m, _, _ in layout.copies]
     if sum(counts) != n_e:
         return [np.arange(n_e)]
     offsets = np.concatenate([[0], np.cumsum(counts)])
@@ -64,7 +64,7 @@ def guide_pages(plan, *, dpi: int = 100):
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.collections import PolyCollection
 
-    from ..export.dxf import _stadium
+    from .bars import stadium_polygon
     from ..viz import _mpl
 
     plt = _mpl()
@@ -84,7 +84,7 @@ def guide_pages(plan, *, dpi: int = 100):
             fig = plt.figure(figsize=A4)
             ax = fig.add_axes([0.06, 0.40, 0.88, 0.53])
             order = bars[np.argsort(st.layer[bars], kind="stable")]
-            polys = [_stadium(x[edges[k, 0]], x[edges[k, 1]], r) for k in order]
+            polys = [stadium_polygon(x[edges[k, 0]], x[edges[k, 1]], r) for k in order]
             ax.add_collection(PolyCollection(
                 polys, facecolors=[cmap(int(st.layer[k]) % 10) for k in order],
                 edgecolors="k", linewidths=0.5, alpha=0.45))
@@ -139,10 +139,10 @@ def guide_pages(plan, *, dpi: int = 100):
                 for j in range(i + 1, len(placed)):
                     stats["overlaps"] += placed[i].overlaps(placed[j])
             mods = ""
-            layout = plan.design.network._cache.get("chain_layout")
+            layout = plan.design.network.assembly
             if layout is not None and len(groups) > 1:
                 c0 = (page - 1) * _MODULES_PER_PAGE + 1
-                c1 = min(c0 + _MODULES_PER_PAGE - 1, len(layout["copies"]))
+                c1 = min(c0 + _MODULES_PER_PAGE - 1, len(layout.copies))
                 mods = f", modules {c0}-{c1}" if c1 > c0 else f", module {c0}"
             fig.suptitle(f"{plan.design.name}: assembly page {page} of {len(groups)}{mods}",
                          fontsize=12, y=0.975)

@@ -280,11 +280,11 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
     from ..kinematics import trace
     from ..kinematics.constructive import place, plan_construction
 
-    layout = getattr(net, "_cache", {}).get("chain_layout")
+    layout = net.assembly
     if (layout is None or net.dim != 2 or motion.drive != "d1" or motion.hold
             or motion.to is None):
         return None
-    copies = layout["copies"]
+    copies = layout.copies
     n = len(copies)
     outs = _module_ports(net, copies)
     if outs is None:
@@ -314,9 +314,9 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
     for key, k in kinds.items():
         c0 = k["starts"][0]
         mods = copies[c0:c0 + w]
-        sub = chain([m for m, _, _ in mods], mirror=list(key[1]), d_in=layout["d_in"],
+        sub = chain([m for m, _, _ in mods], mirror=list(key[1]), d_in=layout.d_in,
                     d_out=outs[id(mods[0][0])])
-        sub_layout = sub._cache["chain_layout"]["copies"]
+        sub_layout = sub.assembly.copies
         plan = plan_construction(sub, sub.port("d1"))
         a, b = float(k["lo"]), float(k["hi"])
         values = np.linspace(a, b, 33) if b > a else np.array([a])
