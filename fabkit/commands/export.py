@@ -559,6 +559,9 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         report["ok"] = ok
         write_atomic(stage / "report.md", report_markdown(report))
         write_atomic(stage / "report.json", report_json(report))
+        from ..report_html import write_design_report
+
+        write_design_report(stage, design)  # report.html: from report.json and the files
         swap_in(stage, folder)
         stage = None
         row.update(ok=ok, status="ok" if ok else "check failed", folder=str(folder),
@@ -755,6 +758,10 @@ def run(args) -> int:
                            debug=getattr(args, "debug", False))
     finally:
         progress.close()
+    if any(r["folder"] for r in rows):
+        from ..report_html import write_index
+
+        write_index(args.out)  # index.html of every design folder in the output
     print(summary_table(rows))
     failed = [r for r in rows if not r["ok"]]
     for r in failed:
