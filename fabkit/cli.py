@@ -46,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "export them for laser cutting, origami and 3D printing.",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--version", action="version",
+                        version=f"fabkit {__import__('fabkit').__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for mod in _commands():
         p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
