@@ -55,7 +55,7 @@ SLOPE_FLOOR = 1e-12
 MIN_MAP_STEPS = 3
 
 #: Bisection steps that find where a build locks (a turning point short of the target).
-LOCK_BISECTIONS = 40
+LOCK_BISECTIONS = 26
 
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
 #: typical figures quoted by filament makers for parts that the slicer does not compensate.
@@ -785,8 +785,8 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     grid : int
         Drive values checked between the start and the target for every build.
     attribute : bool
-        Also simulate each error source alone (``extra["sources"]``) and name, in a flagged
-        verdict, the one that stops the design.
+        When the design is flagged, also simulate each error source alone (``extra
+        ["sources"]``) and name in the verdict the one that stops the design.
 
     Returns
     -------
@@ -899,7 +899,8 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     frac, p95 = score(dist, reached)
     budget = {}
-    if attribute:
+    worst = int(np.argmax(p95 / limits))
+    if attribute and (frac < spec.min_reached or p95[worst] > limits[worst]):
         for name in names:
             rs = run(draw([name]))
             f_s, p_s = score(rs.dist, rs.reached)
@@ -945,12 +946,14 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     if stops is not None:
         short = np.abs(stops - m.to) * spec.scale
         extra["lock_short_p95_mm"] = float(np.percentile(short, 95))
-    worst = int(np.argmax(p95 / limits))
     unit = f"{spec.process} builds"
     if frac < spec.min_reached:
         flagged = True
         why = []
-        if locked:
+        if locked and method == "projected":
+            why.append(f"{locked} stop before it (turning point or no assembly; traced one by "
+                       "one)")
+        elif locked:
             why.append(f"{locked} lock at a turning point more than {limit_mm:.3g} mm short of "
                        "it")
         if unclosed:
