@@ -65,13 +65,15 @@ _JS = """
     data.edges.forEach(function(e, k){
       var l = document.createElementNS(ns, 'line');
       l.setAttribute('stroke', data.colours[k]); l.setAttribute('stroke-width', w);
-      l.setAttribute('stroke-linecap', 'round'); l.setAttribute('vector-effect', 'non-scaling-stroke');
+      l.setAttribute('stroke-linecap', 'round');
+      l.setAttribute('vector-effect', 'non-scaling-stroke');
       svg.appendChild(l); lines.push(l);
     });
     data.ports.forEach(function(p){
       var l = document.createElementNS(ns, 'line');
       l.setAttribute('stroke', '#888'); l.setAttribute('stroke-width', 1);
-      l.setAttribute('stroke-dasharray', '4 3'); l.setAttribute('vector-effect', 'non-scaling-stroke');
+      l.setAttribute('stroke-dasharray', '4 3');
+      l.setAttribute('vector-effect', 'non-scaling-stroke');
       svg.insertBefore(l, svg.firstChild); ports.push(l);
     });
     function draw(f){
@@ -87,7 +89,8 @@ _JS = """
         l.setAttribute('x2', x[p[2]][0]); l.setAttribute('y2', x[p[2]][1]);
       });
       svg.setAttribute('data-frame', f);
-      var out = document.querySelector('[data-value-for="' + svg.getAttribute('data-motion') + '"]');
+      var out = document.querySelector(
+        '[data-value-for="' + svg.getAttribute('data-motion') + '"]');
       if (out) out.textContent = data.drive + ' = ' + data.values[f].toPrecision(6);
     }
     var id = svg.getAttribute('data-motion');
@@ -324,8 +327,8 @@ def _tolerance_section(report: dict, files: dict) -> str:
         parts.append(f"<p>Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
                      f"({_esc(hz.get('source'))}): {_esc(hz.get('detail'))}.</p>")
     if "tolerance.png" in files:
-        parts.append(f'<div class="pics">{_img("tolerance.png", files["tolerance.png"], "tolerance")}'
-                     "</div>")
+        pic = _img("tolerance.png", files["tolerance.png"], "tolerance")
+        parts.append(f'<div class="pics">{pic}</div>')
     return "<section id=tolerance><h2>Tolerance</h2>" + "".join(parts) + "</section>"
 
 
