@@ -61,7 +61,12 @@ _JS = """
   function bind(svg){
     var data = JSON.parse(document.getElementById(svg.getAttribute('data-motion')).textContent);
     var ns = 'http://www.w3.org/2000/svg', lines = [], ports = [];
-    var w = svg.getAttribute('data-width') || 1.5;
+    var w = svg.getAttribute('data-width') || 1.5, polys = [];
+    (data.faces || []).forEach(function(){
+      var g = document.createElementNS(ns, 'polygon');
+      g.setAttribute('fill', data.fill); g.setAttribute('fill-opacity', 0.7);
+      g.setAttribute('stroke', 'none'); svg.appendChild(g); polys.push(g);
+    });
     data.edges.forEach(function(e, k){
       var l = document.createElementNS(ns, 'line');
       l.setAttribute('stroke', data.colours[k]); l.setAttribute('stroke-width', w);
@@ -78,6 +83,10 @@ _JS = """
     });
     function draw(f){
       var x = data.frames[f];
+      (data.faces || []).forEach(function(face, k){
+        polys[k].setAttribute('points', face.map(function(v){
+          return x[v][0] + ',' + x[v][1]; }).join(' '));
+      });
       data.edges.forEach(function(e, k){
         var l = lines[k];
         l.setAttribute('x1', x[e[0]][0]); l.setAttribute('y1', x[e[0]][1]);
@@ -164,6 +173,28 @@ def _edge_colours(design, report: dict) -> tuple[list, list]:
     return colours, legend
 
 
+def _faces(design) -> tuple[list, str]:
+    """Filled polygons of the drawing: the rigid plates of a print, the panels of a sheet."""
+    from .errors import FabkitError
+
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    try:
+        if "origami" in fab:
+            from .fab.creases import origami_model
+
+            model = origami_model(design)
+            n = design.network.n_nodes
+            return [list(map(int, f)) for f in model.faces if max(f) < n], "#fff3c4"
+        if "print" in fab:
+            from .fab.hinges import rigid_triangles
+
+            given = (fab.get("print") or {}).get("rigid_triangles")
+            return rigid_triangles(design.network, given).tolist(), "#cfd8dc"
+    except FabkitError:  # no faces to draw: the bars alone still show the motion
+        pass
+    return [], ""
+
+
 def motion_frames(design, trajectory=None, report: dict | None = None) -> dict | None:
     """The motion as drawing data: frames of projected node positions, edges, ports, colours.
 
@@ -179,7 +210,8 @@ def motion_frames(design, trajectory=None, report: dict | None = None) -> dict |
     -------
     dict or None
         ``frames`` (F, N, 2), ``values`` (F,), ``edges``, ``ports`` ([name, i, j]),
-        ``colours``, ``legend``, ``viewbox``, ``drive``.
+        ``colours``, ``legend``, ``faces`` (node cycles drawn filled: a print's plates, an
+        origami sheet's panels), ``fill``, ``viewbox``, ``drive``.
     """
     from .errors import FabkitError
 
@@ -209,10 +241,12 @@ def motion_frames(design, trajectory=None, report: dict | None = None) -> dict |
     except Exception:  # a drive given as a node pair that is not a port: show the frame number
         values = np.arange(len(keep), dtype=float)
     colours, legend = _edge_colours(design, report or {})
+    faces, fill = _faces(design)
     ports = [[p, int(i), int(j)] for p, (i, j) in sorted(net.ports.items())]
     w, h = (hi - lo) * scale
     return {"frames": np.round(xy, 2).tolist(), "values": values.tolist(),
             "edges": net.edges.tolist(), "ports": ports, "colours": colours, "legend": legend,
+            "faces": faces, "fill": fill,
             "viewbox": [-pad, -pad, float(w) + 2 * pad, float(h) + 2 * pad], "drive": drive}
 
 

@@ -55,7 +55,10 @@ def test_every_design_has_a_self_contained_page_with_its_motion(out):
     assert "id=bom" in (out / "fourbar" / "report.html").read_text()
     sheet = (out / "origami_sheet" / "report.html").read_text()
     assert "id=origami" in sheet and "mountain" in sheet
-    assert "id=print" in (out / "printed_planar" / "report.html").read_text()
+    printed = (out / "printed_planar" / "report.html").read_text()
+    assert "id=print" in printed
+    assert len(_motion(printed)["faces"]) == 4  # the module's four rigid plates, filled
+    assert len(_motion(sheet)["faces"]) == 4  # the sheet's four panels
 
 
 def test_the_index_lists_every_design_with_a_moving_picture(out):
