@@ -910,7 +910,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     # predictability horizon of chains: error e^{λk} reaches the module size
     horizon = None
-    lyap = lyapunov_estimate(design, plan) if plan is not None and net.dim == 2 else None
+    lyap = lyapunov_estimate(design, plan) if plan is not None else None
     if lyap is not None:
         lam = lyap["lyapunov"]
         eps = max(length_rms, 1e-12)
