@@ -139,7 +139,7 @@ def _print(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
     xy = spec.xy_sigma * rng.standard_normal((m,) + x.shape)
     shrink = spec.shrinkage + spec.shrinkage_sigma * rng.standard_normal(m)
     width = spec.line_width_sigma * rng.standard_normal(m)
-    pos = x[None] + (xy if "xy accuracy" in on else 0.0)
+    pos = x[None] + (xy if "xy accuracy" in on else np.zeros_like(xy))
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "shrinkage" in on:
         L = L * (1.0 - shrink[:, None])
