@@ -60,6 +60,9 @@ def test_shrinkage_alone_scales_every_bar_by_one_factor_per_build():
                            sources=["shrinkage"])
     ratio = built / L
     np.testing.assert_allclose(ratio, ratio[:, :1] * np.ones((1, 3)), rtol=1e-12)
+    none = sample_lengths(ProcessGeometry(nodes, edges, L), spec, np.random.default_rng(0),
+                          sources=())
+    np.testing.assert_array_equal(none, np.broadcast_to(L, (20000, 3)))  # one row per build
     assert 1 - ratio[:, 0].mean() == pytest.approx(0.004, abs=3e-5)
     assert ratio[:, 0].std() == pytest.approx(0.001, rel=0.03)
 
