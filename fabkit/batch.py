@@ -52,7 +52,7 @@ __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "D
            "OutputLock", "Progress", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES"]
 
 #: Files the batch writes itself into every design folder (besides the exporters' files).
-RESERVED = ("report.json", "report.md", "preview_motion.png", "preview_map.png",
+RESERVED = ("report.json", "report.md", "report.html", "preview_motion.png", "preview_map.png",
             "preview_tolerance.png")
 
 #: Largest number of Monte Carlo builds of the tolerance analysis without ``--allow-large``: each
@@ -846,6 +846,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     """
     from .export import write_atomic, write_outputs
     from .report import report_json, report_markdown
+    from .report_html import write_design_report
     from .templates import load_template
 
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -893,10 +894,11 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                 if not chk.ok:
                     fmts[fmt].status = FormatStatus.CHECK_FAILED
                     outcome = Outcome.CHECK_FAILED
-        names = [p.name for p in written] + ["report.json", "report.md"]
+        names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
         report = _report_dict(facts, fmts, outcome, names)
         write_atomic(stage_dir / "report.md", report_markdown(report))
         write_atomic(stage_dir / "report.json", report_json(report))
+        write_design_report(stage_dir, design)  # report.html: from report.json and the files
         carry_over(folder, stage_dir)
         swap_in(stage_dir, folder)
         stage_dir = None
@@ -1166,6 +1168,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     Designs with the same name would share a folder: the later ones fail instead.
     """
     from .export import EXPORTERS
+    from .report_html import write_index
     from .templates import allow_large as large_allowed
     from .templates import load_template
 
@@ -1219,6 +1222,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             stage_cb = progress.stage if progress else None
             for i in todo:
                 finished(i, export_one(*args[i], progress=stage_cb, **kwargs))
+        if any(r is not None and r.folder for r in results):
+            write_index(outdir)  # index.html of every design folder in the output
     return results  # type: ignore[return-value]
 
 

@@ -62,6 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "export them for laser cutting, origami and 3D printing.",
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--version", action="version",
+                        version=f"fabkit {__import__('fabkit').__version__}")
     parser.add_argument("--allow-large", action="store_true",
                         help="lift the size bounds (modules, samples, periods) checked before work")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)

@@ -75,11 +75,12 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     assert captured.err == ""  # errors only on stderr; progress goes to stdout, terminal or not
     assert "2 exported, 0 failed" in captured.out
     assert "fourbar: ok in " in captured.out and "super_stable_chain8: ok in " in captured.out
-    assert sorted(p.name for p in out.iterdir()) == ["fourbar", "super_stable_chain8"]
+    assert sorted(p.name for p in out.iterdir()) == ["fourbar", "index.html",
+                                                     "super_stable_chain8"]
 
     files = snapshot(out / "fourbar")
-    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "preview_motion.png",
-                          "preview_map.png", "preview_tolerance.png"}
+    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "report.html",
+                          "preview_motion.png", "preview_map.png", "preview_tolerance.png"}
     for name in ("preview_motion.png", "preview_map.png", "preview_tolerance.png"):
         assert files[name][:8] == b"\x89PNG\r\n\x1a\n"
     # the --set value reached the exporter: lengths in mm at 10 mm per unit
@@ -129,7 +130,7 @@ def test_no_previews_leaves_the_pictures_out(tmp_path, lengths_format):
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
     assert rc == 0
     assert set(snapshot(out)) == {"fourbar/fourbar_lengths.txt", "fourbar/report.json",
-                                  "fourbar/report.md"}
+                                  "fourbar/report.md", "fourbar/report.html", "index.html"}
     report = json.loads((out / "fourbar" / "report.json").read_text())
     assert report["previews"] == [] and report["tolerance"]["samples"] == 200
 
@@ -145,11 +146,11 @@ def test_folders_and_globs_expand_to_templates(tmp_path, lengths_format, capsys)
     rc = main(["export", str(folder / "bar_*.toml"), "-o", str(out), "--tolerance-samples", "0",
                "--no-previews", "--no-check"])
     assert rc == 0
-    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b"]
+    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b", "index.html"]
     assert "tolerance" not in json.loads((out / "bar_a" / "report.json").read_text())
     rc = main(["export", str(folder), "-o", str(out), "--tolerance-samples", "0", "--no-previews"])
     assert rc == 0
-    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b", "other"]
+    assert sorted(p.name for p in out.iterdir()) == ["bar_a", "bar_b", "index.html", "other"]
     assert (out / "other" / "other_lengths.txt").is_file()
     assert "3 exported, 0 failed" in capsys.readouterr().out
     assert main(["export", str(folder / "nothing_*.toml"), "-o", str(out)]) == 1

@@ -85,3 +85,31 @@ def test_output_is_parsed_because_the_exit_code_says_nothing(files, tmp_path):
     assert code == 0  # a mesh with holes is "fine" by the exit code ...
     assert re.search(r"^manifold = no$", out, flags=re.M)  # ... but not by the output
     assert int(re.search(r"^open_edges = (\d+)$", out, flags=re.M).group(1)) > 0
+
+
+def test_the_chain_slices_on_the_default_profile_from_its_bed_ready_3mf(files, tmp_path):
+    # no printer options: PrusaSlicer's own default profile and its 200 x 200 mm bed
+    folder, report = files["printed_planar_chain10"]
+    assert report["printer"]["printer"]["bed_mm"] == [200.0, 200.0]
+    assert not report["printer"]["fits_as_designed"]
+    code, out = _run(["--export-gcode", str(folder / "printed_planar_chain10.stl")], tmp_path)
+    assert "could not fit" in out  # the part as designed, 207 mm long, does not fit ...
+    gcode = tmp_path / "chain.gcode"
+    code, out = _run(["--export-gcode", "--output", str(gcode),
+                      str(folder / "printed_planar_chain10.3mf")], tmp_path)
+    assert code == 0 and "Slicing result exported" in out, out  # ... turned, it does
+    assert not re.search(r"error|could not|terminate", out, flags=re.I), out
+    assert "; bed_shape = 0x0,200x0,200x200,0x200" in gcode.read_text()
+
+
+def test_split_pieces_slice_on_a_small_bed(tmp_path):
+    design = fabkit.load_template(TEMPLATES / "printed_planar_chain10.toml")
+    _, report = export(design, "stl", tmp_path,
+                       print={"preview": False, "printer": "mini", "scale": 8.0})
+    beds = report["printer"]["files"]
+    assert len(report["printer"]["pieces"]) >= 2 and report["printer"]["join"]
+    for name in beds:
+        code, out = _run(["--export-gcode", "--bed-shape", "0x0,180x0,180x180,0x180",
+                          "--output", str(tmp_path / f"{name}.gcode"), str(tmp_path / name)],
+                         tmp_path)
+        assert code == 0 and "Slicing result exported" in out, out

@@ -1,7 +1,9 @@
 """``fabkit tolerance TEMPLATE... [-o DIR] [--samples N] [--seed S] [--set tolerance.key=value]``.
 
-Monte Carlo over manufacturing errors (bar lengths, joint play, sheet thickness; see
-:mod:`fabkit.tolerance`): prints the spread of the final port distances and of the far-end
+Monte Carlo over the manufacturing errors of the design's process (laser: bar length, kerf,
+hole play, sheet thickness; print: xy accuracy, shrinkage, line width, hinge flexure; origami:
+crease position, cut, paper thickness, crease compliance; see :mod:`fabkit.tolerance`), in mm at
+the process's own scale,: prints the spread of the final port distances and of the far-end
 positions, the verdict, and for chains the Lyapunov exponent and predictability horizon; writes
 ``tolerance.png`` and ``tolerance.json`` into ``DIR/<name>/``. Exits 1 when a design is flagged
 (its intended final state is not reached within tolerance), so scripts can gate on it.
@@ -23,8 +25,8 @@ def add_arguments(p):
     p.add_argument("--seed", type=int, default=None, help="random seed (default: 0)")
     p.add_argument("--set", dest="settings", action="append", default=[],
                    metavar="SECTION.KEY=VALUE",
-                   help="override a setting, e.g. --set tolerance.length_sigma=0.1 or "
-                        "--set laser.scale=40")
+                   help="override a setting, e.g. --set tolerance.length_sigma=0.1, "
+                        "--set tolerance.process=print or --set laser.scale=40")
     p.add_argument("--no-files", action="store_true", help="print only; write no files")
 
 
@@ -32,12 +34,13 @@ def describe(result) -> str:
     """Terminal lines for a :class:`~fabkit.tolerance.ToleranceResult`."""
     d = result.as_dict()
     s = result.spec
-    lines = [f"  builds        {d['samples']} ({result.method}); "
-             f"bar error σ {s.length_sigma:g} mm, "
-             f"hole clearance {s.hole_clearance:g} ± {s.kerf_sigma:g} mm, sheet "
-             f"{s.thickness:g} ± {s.thickness_sigma:g} mm, scale {s.scale:g} mm/unit",
+    lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
              f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS",
              f"  reached       {100 * d['reached_fraction']:.1f}% of builds reach the target"]
+    for name, v in (d.get("sources") or {}).items():
+        err = v["p95_error_mm"]
+        lines.append(f"  alone         {name}: {100 * v['reached_fraction']:.0f}% reach, 95% "
+                     "port error " + ("n/a" if err is None else f"{err:.3g} mm"))
     for p in d["ports"]:
         if p["mean"] is None:
             continue

@@ -4,8 +4,14 @@ The network's rigid triangles become plates and its shared vertices hinges
 (:mod:`fabkit.fab.hinges`), with the settings of the template's ``[fabrication.print]`` table and
 the ``print`` overrides (:mod:`fabkit.fab.printing`). Files (``NAME`` is the design's name):
 
-* ``NAME.stl`` — binary STL, millimetres, outward normals;
-* ``NAME.3mf`` — the same mesh as a 3MF package (unit millimetre), unless ``threemf = false``;
+* ``NAME.stl`` — binary STL of the whole part as designed (centred on its bounding box),
+  millimetres, outward normals: the file the as-built check reads;
+* ``NAME.3mf`` — the bed-ready layout as a 3MF package (unit millimetre), unless ``threemf =
+  false``: the part turned and placed to fit the chosen printer's bed
+  (:mod:`fabkit.fab.printers`, default the 200 x 200 mm bed PrusaSlicer assumes); a chain too
+  long for any orientation is split between modules into pieces arranged on as few beds as
+  needed (``NAME_bed1.3mf``, ``NAME_bed2.3mf`` ... when more than one); a piece that fits no
+  orientation is refused with the bed size it needs;
 * ``NAME_print.png`` — a top view of plates and hinges, unless ``preview = false``.
 
 Pure: returns bytes, never opens a file. The report gives the analytic volume the STL is checked
@@ -99,14 +105,20 @@ def binary_stl(vertices, faces, header: str = "fabkit printed network, units mm"
     return head + np.uint32(len(f)).tobytes() + rec.tobytes()
 
 
-def threemf_package(vertices, faces, name: str = "network") -> bytes:
-    """A minimal 3MF package (one mesh object, unit millimetre), byte-for-byte reproducible.
+def threemf_package(vertices, faces, name: str = "network", transform=None, *,
+                    objects=None) -> bytes:
+    """A minimal 3MF package (unit millimetre), byte-for-byte reproducible.
 
     Parameters
     ----------
     vertices : array_like, shape (V, 3)
     faces : array_like of int, shape (F, 3)
     name : str
+    transform : array_like, shape (3, 4), optional
+        Placement of the object on the build plate (``x' = R x + t``, mm).
+    objects : list of (vertices, faces, name, transform), optional
+        Several objects (pieces) instead of the one above; ``vertices`` and ``faces`` are then
+        ignored.
 
     Returns
     -------
@@ -115,18 +127,32 @@ def threemf_package(vertices, faces, name: str = "network") -> bytes:
     """
     from xml.sax.saxutils import quoteattr
 
-    v = np.asarray(vertices, dtype=np.float32)
-    f = np.asarray(faces, dtype=np.int64)
-    vtxt = "".join(f'<vertex x="{a!r}" y="{b!r}" z="{c!r}"/>'
-                   for a, b, c in v.astype(float).tolist())
-    ftxt = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in f.tolist())
+    if objects is None:
+        objects = [(vertices, faces, name, transform)]
+    resources, items = [], []
+    for oid, (vv, ff, nm, tr) in enumerate(objects, start=1):
+        v = np.asarray(vv, dtype=np.float32)
+        f = np.asarray(ff, dtype=np.int64)
+        vtxt = "".join(f'<vertex x="{a!r}" y="{b!r}" z="{c!r}"/>'
+                       for a, b, c in v.astype(float).tolist())
+        ftxt = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in f.tolist())
+        resources.append(f'<object id="{oid}" type="model" name={quoteattr(nm)}>'
+                         f'<mesh><vertices>{vtxt}</vertices><triangles>{ftxt}</triangles></mesh>'
+                         '</object>')
+        if tr is None:
+            items.append(f'<item objectid="{oid}"/>')
+        else:
+            m = np.asarray(tr, dtype=np.float64)
+            # 3MF matrices act on row vectors: m00 m01 m02 m10 m11 m12 m20 m21 m22 m30 m31 m32
+            vals = list(m[:, :3].T.ravel()) + list(m[:, 3])
+            items.append(f'<item objectid="{oid}" transform="'
+                         + " ".join(f"{x:.9g}" for x in vals) + '"/>')
     model = (
         '<?xml version="1.0" encoding="UTF-8"?>\n'
         '<model unit="millimeter" xml:lang="en-US" '
         'xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
-        '<resources><object id="1" type="model" name=' + quoteattr(name) + '>'
-        f'<mesh><vertices>{vtxt}</vertices><triangles>{ftxt}</triangles></mesh>'
-        '</object></resources><build><item objectid="1"/></build></model>')
+        '<resources>' + "".join(resources) + '</resources><build>' + "".join(items)
+        + '</build></model>')
     types = ('<?xml version="1.0" encoding="UTF-8"?>\n'
              '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
              '<Default Extension="rels" '
@@ -146,6 +172,92 @@ def threemf_package(vertices, faces, name: str = "network") -> bytes:
             info.compress_type = zipfile.ZIP_DEFLATED
             z.writestr(info, text.encode("utf-8"))
     return buf.getvalue()
+
+
+JOIN = ("each cut port's two hinge hubs are printed on both pieces: lay the later piece's hubs "
+        "on the earlier piece's (the port named in the layout), push a 1.75 mm filament pin "
+        "through each stacked pair or bond them with a drop of cyanoacrylate, and keep the "
+        "plates of both pieces free to turn about the pin")
+
+
+def _piece_mesh(net, nodes, s):
+    """Plates and hinges of the sub-network on ``nodes`` (mm, its own print frame)."""
+    from ..fab.hinges import print_geometry, print_solid, solid_mesh
+    from ..network import Network
+
+    keep = np.zeros(net.n_nodes, dtype=bool)
+    keep[nodes] = True
+    index = np.cumsum(keep) - 1
+    e = net.edges[keep[net.edges].all(axis=1)]
+    sub = Network(net.nodes[keep], index[e])
+    verts, faces = solid_mesh(print_solid(print_geometry(sub, s)))
+    if not stored_mesh_is_closed(verts, faces):
+        raise FabricationError("a split piece's solid is not watertight in float32 coordinates; "
+                               "change hinge_width or scale slightly")
+    return verts, faces
+
+
+def bed_files(design, s, verts, faces, name: str) -> tuple[dict, dict]:
+    """The bed-ready 3MF file(s) and the layout report (see the module docstring).
+
+    Returns
+    -------
+    files : dict of str to bytes
+    report : dict
+        ``printer``, ``fits_as_designed``, ``beds``, ``pieces`` (piece, bed, angle_deg,
+        offset_mm, size_mm, nodes, joined_at), ``join`` (None when not split).
+
+    Raises
+    ------
+    FabricationError
+        A piece (or the whole part, if it is not a chain) fits the bed in no orientation.
+    """
+    from ..fab.printers import bed_layout, chain_pieces
+
+    printer = s.printer_profile()
+    xy = np.asarray(verts)[:, :2]
+    w, h = np.ptp(xy, axis=0)
+    margin = 5.0
+    fits = bool(w <= printer.width - 2 * margin and h <= printer.depth - 2 * margin)
+    pieces = [(np.arange(design.network.n_nodes), "")]
+    meshes = [(verts, faces)]
+    try:
+        layout = bed_layout([xy], printer, margin=margin)
+    except FabricationError as whole:
+        chain = [p for p in design.network.ports if re.fullmatch(r"d\d+", p)]
+        layout = None
+        refusal = whole
+        for n in range(2, len(chain)):
+            try:
+                pieces = chain_pieces(design.network, n)
+            except FabricationError:
+                break
+            meshes = [_piece_mesh(design.network, nodes, s) for nodes, _ in pieces]
+            try:
+                layout = bed_layout([m[0][:, :2] for m in meshes], printer, margin=margin)
+                break
+            except FabricationError as exc:
+                refusal = exc
+        if layout is None:
+            raise FabricationError(f"the print does not fit the {printer.name} bed "
+                                   f"({printer.width:g} x {printer.depth:g} mm): {refusal}") \
+                from None
+    beds = 1 + max(p.bed for p in layout)
+    files = {}
+    if s.threemf:
+        for b in range(beds):
+            objs = [(meshes[p.piece][0], meshes[p.piece][1],
+                     name if len(pieces) == 1 else f"{name}_piece{p.piece + 1}", p.matrix())
+                    for p in layout if p.bed == b]
+            fname = f"{name}.3mf" if beds == 1 else f"{name}_bed{b + 1}.3mf"
+            files[fname] = threemf_package(None, None, objects=objs)
+    report = {"printer": printer.as_dict(), "fits_as_designed": fits, "beds": beds,
+              "pieces": [{"piece": p.piece + 1, "bed": p.bed + 1, "angle_deg": p.angle,
+                          "offset_mm": list(p.offset), "size_mm": list(p.size),
+                          "nodes": int(len(pieces[p.piece][0])),
+                          "joined_at": pieces[p.piece][1] or None} for p in layout],
+              "join": JOIN if len(pieces) > 1 else None, "files": sorted(files)}
+    return files, report
 
 
 def stored_mesh_is_closed(vertices, faces) -> bool:
@@ -253,8 +365,8 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
             "(the file would not be watertight); change hinge_width or scale slightly")
     name = _safe(design.name)
     files = {f"{name}.stl": binary_stl(verts, faces)}
-    if s.threemf:
-        files[f"{name}.3mf"] = threemf_package(verts, faces, name)
+    bed, layout = bed_files(design, s, verts, faces, name)
+    files.update(bed)
     if s.preview:
         files[f"{name}_print.png"] = _preview_png(geo, design.name)
     hinges = _hinge_report(design, geo)
@@ -265,9 +377,15 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
             f"{hinges['bending_strain']:.3f} exceeds {s.strain_limit:g} for {s.material}; use "
             f"hinge_length >= {hinges['hinge_length_needed']:.1f} mm, a narrower hinge or TPU")
     size = geo.size
-    if max(size[:2]) > 250.0 or min(size[:2]) > 210.0:
-        warnings.append(f"the print is {size[0]:.0f} x {size[1]:.0f} mm: larger than a "
-                        "250 x 210 mm bed; lower scale")
+    if not layout["fits_as_designed"]:
+        how = (f"split into {len(layout['pieces'])} pieces (see printer.join)"
+               if layout["join"] else "turned to fit")
+        note = (f"the part is {size[0]:.0f} x {size[1]:.0f} mm: as designed it does not fit the "
+                f"{layout['printer']['name']} bed")
+        if layout["files"]:
+            layout["note"] = f"{note}; {', '.join(layout['files'])} holds it {how}"
+        else:  # nothing bed-ready is written: the maker must do it
+            warnings.append(f"{note}; it must be {how}: set threemf = true for a bed-ready file")
     report = {
         "settings": s.as_dict(),
         "plates": len(geo.plates),
@@ -280,6 +398,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
                  "genus": int(body.genus()), "volume_mm3": float(body.volume())},
         "min_feature_mm": geo.min_feature,
         "hinge_motion": hinges,
+        "printer": layout,
         "warnings": warnings,
         "files": sorted(files),
     }

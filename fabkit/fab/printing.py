@@ -41,7 +41,7 @@ _DEFAULT_SCALE = 10.0
 
 _KEYS = {"material", "scale", "plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",
          "hinge_width", "hinge_length", "gap", "layer_height", "nozzle_width", "strain_limit",
-         "rigid_triangles", "preview", "threemf"}
+         "rigid_triangles", "preview", "threemf", "printer", "bed"}
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,11 @@ class PrintSettings:
     preview : bool
         Also make a PNG preview.
     threemf : bool
-        Also write a 3MF file.
+        Also write a 3MF file (the bed-ready layout: oriented, arranged or split to fit).
+    printer : str
+        A printer of :data:`fabkit.fab.printers.PRINTERS` (default ``"generic"``, 200 x 200 mm).
+    bed : tuple of float or None
+        A custom bed (width, depth) in mm, instead of the printer's.
     """
 
     material: str
@@ -92,6 +96,14 @@ class PrintSettings:
     rigid_triangles: tuple | None = None
     preview: bool = True
     threemf: bool = True
+    printer: str = "generic"
+    bed: tuple | None = None
+
+    def printer_profile(self):
+        """The :class:`~fabkit.fab.printers.Printer` these settings print on."""
+        from .printers import printer_profile
+
+        return printer_profile(self.printer, self.bed)
 
     @property
     def hinge_thickness(self) -> float:
@@ -110,6 +122,7 @@ class PrintSettings:
     def as_dict(self) -> dict:
         d = asdict(self)
         d["hinge_thickness"] = self.hinge_thickness
+        d["bed"] = list(self.printer_profile().as_dict()["bed_mm"])
         if d["rigid_triangles"] is not None:
             d["rigid_triangles"] = [list(t) for t in d["rigid_triangles"]]
         return d
@@ -226,7 +239,12 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
             raise FabricationError(f"{where}.rigid_triangles: must be a non-empty array of "
                                    "[i, j, k] node-index triples")
         triangles = tuple(tuple(t) for t in triangles)
-    flags = {}
+    from .printers import DEFAULT_PRINTER, printer_profile
+
+    bed = merged.get("bed")
+    printer = printer_profile(merged.get("printer", DEFAULT_PRINTER), bed, where)
+    flags = {"printer": printer.name if bed is None else "custom",
+             "bed": None if bed is None else (printer.width, printer.depth)}
     for key in ("preview", "threemf"):
         v = merged.get(key, True)
         if not isinstance(v, bool):

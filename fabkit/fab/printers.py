@@ -1,0 +1,307 @@
+"""Printer profiles and bed layout: orient, arrange or split a printed network to fit a bed.
+
+A small catalogue of common printers' beds (:data:`PRINTERS`). The default is ``"generic"``, the
+200 × 200 mm bed PrusaSlicer assumes when no printer profile is chosen: a layout that fits it fits
+most printers in use. ``[fabrication.print] printer = "mk4"`` (or ``--set print.printer=mk4``)
+chooses another; ``bed = [W, H]`` gives any other bed in mm.
+
+:func:`bed_layout` turns the outlines of the pieces to print into a placement on beds:
+
+1. **orient**: each piece is turned about the vertical axis to the angle (every degree, and
+   every edge direction of its convex hull) whose bounding box fits the bed with the least
+   area, keeping ``margin`` mm from the bed's edges;
+2. **arrange**: the oriented pieces go in rows (shelves) on as few beds as needed, ``spacing``
+   mm apart;
+3. a piece that fits no bed in any orientation is refused with the size it needs
+   (:class:`~fabkit.errors.FabricationError`).
+
+Splitting a chain is the caller's choice of pieces (:func:`chain_pieces`): a chain of modules is
+cut at a port between two modules, both pieces keep the two nodes of that port (each as a hinge
+hub), and the maker joins them by laying the second piece's hubs on the first piece's and
+pinning each pair (see docs/printing.md, "Joining split prints").
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FabricationError
+
+__all__ = ["Printer", "PRINTERS", "DEFAULT_PRINTER", "printer_profile", "Placement",
+           "bed_layout", "best_orientation", "chain_pieces"]
+
+
+@dataclass(frozen=True)
+class Printer:
+    """A printer's build volume (mm)."""
+
+    name: str
+    width: float
+    depth: float
+    height: float | None
+    description: str
+
+    def as_dict(self) -> dict:
+        return {"name": self.name, "bed_mm": [self.width, self.depth], "height_mm": self.height,
+                "description": self.description}
+
+
+#: Beds of common printers (makers' data sheets), smallest first.
+PRINTERS: dict[str, Printer] = {p.name: p for p in (
+    Printer("mini", 180.0, 180.0, 180.0, "Original Prusa MINI+ (180 x 180 mm)"),
+    Printer("generic", 200.0, 200.0, 200.0,
+            "PrusaSlicer's default bed when no printer profile is chosen (200 x 200 mm)"),
+    Printer("ender3", 220.0, 220.0, 250.0, "Creality Ender-3 (220 x 220 mm)"),
+    Printer("mk4", 250.0, 210.0, 220.0, "Original Prusa MK4 / i3 MK3S+ (250 x 210 mm)"),
+    Printer("x1", 256.0, 256.0, 256.0, "Bambu Lab X1 / P1 series (256 x 256 mm)"),
+)}
+
+#: The printer used when a template names none.
+DEFAULT_PRINTER = "generic"
+
+
+def printer_profile(name=None, bed=None, where: str = "fabrication.print") -> Printer:
+    """A printer from the catalogue, or a custom bed.
+
+    Parameters
+    ----------
+    name : str, optional
+        A key of :data:`PRINTERS` (default :data:`DEFAULT_PRINTER`).
+    bed : sequence of two numbers, optional
+        A custom bed, width and depth in mm (overrides ``name``).
+    where : str
+        Key path for messages.
+
+    Returns
+    -------
+    Printer
+
+    Raises
+    ------
+    FabricationError
+        An unknown printer or a bed that is not two positive numbers.
+
+    Examples
+    --------
+    >>> printer_profile().width, printer_profile("mk4").depth, printer_profile(bed=[300, 300]).name
+    (200.0, 210.0, 'custom')
+    """
+    if bed is not None:
+        ok = isinstance(bed, (list, tuple)) and len(bed) == 2 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            and v > 0 for v in bed)
+        if not ok:
+            raise FabricationError(f"{where}.bed: must be [width, depth] in mm, got {bed!r}")
+        return Printer("custom", float(bed[0]), float(bed[1]), None,
+                       f"custom bed ({bed[0]:g} x {bed[1]:g} mm)")
+    key = DEFAULT_PRINTER if name is None else name
+    if not isinstance(key, str) or key.lower() not in PRINTERS:
+        raise FabricationError(f"{where}.printer: unknown printer {name!r}; valid: "
+                               f"{', '.join(PRINTERS)} (or give bed = [width, depth] in mm)")
+    return PRINTERS[key.lower()]
+
+
+def _hull(points) -> np.ndarray:
+    from scipy.spatial import ConvexHull
+
+    p = np.asarray(points, dtype=np.float64)[:, :2]
+    try:
+        return p[ConvexHull(p).vertices]
+    except Exception:  # degenerate (collinear) outlines: the points themselves bound it
+        return p
+
+
+def best_orientation(points, width: float, depth: float) -> tuple[float, float, float] | None:
+    """The turn about z (degrees) that fits the points' outline in a ``width`` × ``depth``
+    rectangle with the smallest bounding box, or None.
+
+    Returns
+    -------
+    (angle, w, h) or None
+        Angle in degrees (counter-clockwise) and the turned outline's extents (mm).
+
+    Examples
+    --------
+    >>> strip = [[0, 0], [207, 0], [207, 16], [0, 16]]
+    >>> round(best_orientation(strip, 190, 190)[0]) % 90 != 0
+    True
+    >>> best_orientation(strip, 100, 100) is None
+    True
+    """
+    hull = _hull(points)
+    edges = np.diff(np.vstack([hull, hull[:1]]), axis=0)
+    candidates = np.concatenate([np.arange(0.0, 180.0, 1.0),
+                                 np.degrees(np.arctan2(edges[:, 1], edges[:, 0])) % 180.0,
+                                 (np.degrees(np.arctan2(edges[:, 1], edges[:, 0])) + 90) % 180])
+    best = None
+    for ang in np.unique(np.round(candidates, 9)):
+        c, s = math.cos(math.radians(ang)), math.sin(math.radians(ang))
+        x = hull[:, 0] * c - hull[:, 1] * s
+        y = hull[:, 0] * s + hull[:, 1] * c
+        w, h = float(np.ptp(x)), float(np.ptp(y))
+        if w <= width + 1e-9 and h <= depth + 1e-9 and (best is None or w * h < best[1] * best[2]
+                                                         - 1e-9):
+            best = (float(ang), w, h)
+    return best
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where one piece goes: bed number, turn about z (degrees, about the piece's own origin),
+    then translation (mm) that puts it on the bed (bed corner at the origin)."""
+
+    piece: int
+    bed: int
+    angle: float
+    offset: tuple[float, float]
+    size: tuple[float, float]
+
+    def matrix(self) -> np.ndarray:
+        """3 × 4 affine map ``x' = R x + t`` (rows), mm."""
+        c, s = math.cos(math.radians(self.angle)), math.sin(math.radians(self.angle))
+        return np.array([[c, -s, 0.0, self.offset[0]], [s, c, 0.0, self.offset[1]],
+                         [0.0, 0.0, 1.0, 0.0]])
+
+
+def _min_size(points) -> tuple[float, float]:
+    """Smallest (long, short) extents of the outline over all turns."""
+    hull = _hull(points)
+    best = None
+    for ang in np.arange(0.0, 180.0, 0.5):
+        c, s = math.cos(math.radians(ang)), math.sin(math.radians(ang))
+        w = float(np.ptp(hull[:, 0] * c - hull[:, 1] * s))
+        h = float(np.ptp(hull[:, 0] * s + hull[:, 1] * c))
+        long, short = max(w, h), min(w, h)
+        if best is None or short < best[1] - 1e-9 or (abs(short - best[1]) < 1e-9
+                                                       and long < best[0]):
+            best = (long, short)
+    return best
+
+
+def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
+               spacing: float = 5.0) -> list[Placement]:
+    """Orient each piece and arrange the pieces in rows on as few beds as needed.
+
+    Parameters
+    ----------
+    outlines : list of array_like, shape (n_i, 2)
+        Each piece's outline points (mm), in its own frame.
+    printer : Printer
+    margin : float
+        Distance kept from the bed's edges (mm).
+    spacing : float
+        Gap between pieces (mm).
+
+    Returns
+    -------
+    list of Placement
+        One per piece, in the order given.
+
+    Raises
+    ------
+    FabricationError
+        A piece that fits the bed in no orientation; the message gives the bed it needs.
+    """
+    W, H = printer.width - 2 * margin, printer.depth - 2 * margin
+    oriented = []
+    for k, pts in enumerate(outlines):
+        fit = best_orientation(pts, W, H)
+        if fit is None:
+            long, short = _min_size(pts)
+            raise FabricationError(
+                f"piece {k + 1} needs a bed of at least {math.ceil(long + 2 * margin):d} x "
+                f"{math.ceil(short + 2 * margin):d} mm (turned to fit, {margin:g} mm margins); "
+                f"the {printer.name} bed is {printer.width:g} x {printer.depth:g} mm: choose a "
+                f"larger printer (print.printer = {', '.join(PRINTERS)}) or lower print.scale")
+        oriented.append(fit)
+    placements: list[Placement | None] = [None] * len(outlines)
+    bed, x, y, row = 0, 0.0, 0.0, 0.0
+    for k in sorted(range(len(outlines)), key=lambda i: -oriented[i][2]):  # tallest rows first
+        ang, w, h = oriented[k]
+        if x > 0 and x + w > W + 1e-9:  # next row
+            x, y, row = 0.0, y + row + spacing, 0.0
+        if y > 0 and y + h > H + 1e-9:  # next bed
+            bed, x, y, row = bed + 1, 0.0, 0.0, 0.0
+        hull = _hull(outlines[k])
+        c, s = math.cos(math.radians(ang)), math.sin(math.radians(ang))
+        lo = np.array([(hull[:, 0] * c - hull[:, 1] * s).min(),
+                       (hull[:, 0] * s + hull[:, 1] * c).min()])
+        placements[k] = Placement(k, bed, ang, (float(margin + x - lo[0]),
+                                                float(margin + y - lo[1])), (w, h))
+        x += w + spacing
+        row = max(row, h)
+    # centre each bed's content: slicers that keep positions then print it mid-bed
+    out = []
+    for b in range(bed + 1):
+        mine = [p for p in placements if p.bed == b]
+        pts = []
+        for p in mine:
+            hull = _hull(outlines[p.piece])
+            m = p.matrix()
+            pts.append(hull @ m[:2, :2].T + m[:2, 3])
+        allp = np.vstack(pts)
+        shift = 0.5 * (np.array([printer.width, printer.depth]) - allp.min(0) - allp.max(0))
+        out.extend(Placement(p.piece, b, p.angle, (p.offset[0] + float(shift[0]),
+                                                   p.offset[1] + float(shift[1])), p.size)
+                   for p in mine)
+    return sorted(out, key=lambda p: p.piece)
+
+
+def chain_pieces(net, n_pieces: int) -> list[tuple[np.ndarray, str]]:
+    """Cut a chain of modules into ``n_pieces`` runs of whole modules.
+
+    The chain's ports d1, d2, ... mark the joins between modules; a cut at port d_k keeps its two
+    nodes in both pieces.
+
+    Parameters
+    ----------
+    net : Network
+        A chain (ports d1 .. d_{n+1}, each interior port separating the network).
+    n_pieces : int
+
+    Returns
+    -------
+    list of (nodes, cut)
+        Each piece's node indices (sorted) and the port it ends at (``""`` for the last).
+
+    Raises
+    ------
+    FabricationError
+        Not a chain, or more pieces than modules.
+    """
+    chain = sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
+    modules = len(chain) - 1
+    if modules < 2 or n_pieces > modules:
+        raise FabricationError(f"cannot split into {n_pieces} pieces: the network is not a chain "
+                               f"of at least {n_pieces} modules (ports d1, d2, ...)")
+    # module k: the ports d_k and d_{k+1} and the network's pieces between them once every
+    # port node is taken out
+    ports = [set(net.port(p)) for p in chain]
+    port_nodes = set().union(*ports)
+    adj = net.adjacency()
+    members = [set(ports[k]) | ports[k + 1] for k in range(modules)]
+    seen: set = set()
+    for v0 in range(net.n_nodes):
+        if v0 in port_nodes or v0 in seen:
+            continue
+        comp, stack, touched = set(), [v0], set()
+        while stack:
+            v = stack.pop()
+            if v in comp:
+                continue
+            comp.add(v)
+            for u in adj[v]:
+                if u in port_nodes:
+                    touched.update(k for k, pn in enumerate(ports) if u in pn)
+                elif u not in comp:
+                    stack.append(u)
+        seen |= comp
+        k = min(touched) if touched else 0
+        members[min(k, modules - 1)] |= comp
+    bounds = np.linspace(0, modules, n_pieces + 1).round().astype(int)
+    return [(np.array(sorted(set().union(*members[a:b]))), chain[b] if b < modules else "")
+            for a, b in zip(bounds[:-1], bounds[1:])]

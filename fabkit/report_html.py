@@ -1,0 +1,583 @@
+"""Self-contained HTML reports: ``report.html`` per design and ``index.html`` for a batch.
+
+A design's page is rendered from its folder (``report.json`` and the files next to it) and, when
+given, the design itself, whose traced motion becomes a scrubbable drawing: drag the slider (or
+press play) and watch the network move, its bars coloured by laser layer, by crease assignment
+(mountain red, valley blue, boundary black) or grey for a print, with the ports drawn dashed. The
+page also shows the map and cobweb, the laser layers over the motion, the crease pattern, the
+printed part and its bed layout, the bill of materials, the tolerance analysis and every check's
+verdict. Pictures are inlined (data URIs, inline SVG): the page needs no network and no other file.
+
+``index.html`` lists every design of a batch with its own moving picture (the frames embedded in
+each ``report.html``), its verdicts and a link to its page.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["design_html", "index_html", "write_design_report", "write_index", "motion_frames"]
+
+#: Most frames of a motion kept in a page (evenly spaced along the trace).
+MAX_FRAMES = 61
+
+_MOTION_TAG = "fabkit-motion"
+_LAYER_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+                  "#17becf", "#bcbd22", "#7f7f7f"]
+_ASSIGNMENT_COLOURS = {"M": "#e00000", "V": "#0040ff", "B": "#000000", "F": "#c0a000",
+                       "C": "#00a000", "U": "#808080", "J": "#808080"}
+
+_CSS = """
+body{font:15px/1.45 system-ui,-apple-system,"Segoe UI",sans-serif;margin:0;color:#222;
+background:#fafafa}
+header{background:#263238;color:#fff;padding:14px 24px}header h1{margin:0;font-size:22px}
+header p{margin:4px 0 0;color:#cfd8dc}main{padding:12px 24px;max-width:1200px}
+section{background:#fff;border:1px solid #ddd;border-radius:6px;padding:12px 16px;margin:12px 0}
+h2{font-size:18px;margin:4px 0 10px}table{border-collapse:collapse;margin:6px 0;font-size:13px}
+td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
+th{background:#f0f0f0}.ok{color:#1b5e20;font-weight:600}.bad{color:#b71c1c;font-weight:600}
+.warn{color:#e65100}.pics img{max-width:100%;border:1px solid #eee;margin:4px 0}
+.motion svg{width:100%;max-height:520px;background:#fff;border:1px solid #eee}
+.controls{display:flex;gap:12px;align-items:center;margin:6px 0}
+.controls input[type=range]{flex:1}.legend span{display:inline-block;margin-right:12px}
+.legend i{display:inline-block;width:18px;height:4px;vertical-align:middle;margin-right:4px}
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(330px,1fr));gap:12px}
+.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:10px}
+.card svg{width:100%;height:220px;background:#fff}.card h3{margin:0 0 4px;font-size:16px}
+.inline-svg svg{max-width:100%;height:auto}
+"""
+
+# One player for a page: every <svg data-motion="ID"> is bound to the frames in the JSON block
+# with that id; a range input with data-for="ID" scrubs it, a button with data-play="ID" plays.
+# Thumbnails (data-autoplay) loop on their own.
+_JS = """
+(function(){
+  function bind(svg){
+    var data = JSON.parse(document.getElementById(svg.getAttribute('data-motion')).textContent);
+    var ns = 'http://www.w3.org/2000/svg', lines = [], ports = [];
+    var w = svg.getAttribute('data-width') || 1.5, polys = [];
+    (data.faces || []).forEach(function(){
+      var g = document.createElementNS(ns, 'polygon');
+      g.setAttribute('fill', data.fill); g.setAttribute('fill-opacity', 0.7);
+      g.setAttribute('stroke', 'none'); svg.appendChild(g); polys.push(g);
+    });
+    data.edges.forEach(function(e, k){
+      var l = document.createElementNS(ns, 'line');
+      l.setAttribute('stroke', data.colours[k]); l.setAttribute('stroke-width', w);
+      l.setAttribute('stroke-linecap', 'round');
+      l.setAttribute('vector-effect', 'non-scaling-stroke');
+      svg.appendChild(l); lines.push(l);
+    });
+    data.ports.forEach(function(p){
+      var l = document.createElementNS(ns, 'line');
+      l.setAttribute('stroke', '#888'); l.setAttribute('stroke-width', 1);
+      l.setAttribute('stroke-dasharray', '4 3');
+      l.setAttribute('vector-effect', 'non-scaling-stroke');
+      svg.insertBefore(l, svg.firstChild); ports.push(l);
+    });
+    function draw(f){
+      var x = data.frames[f];
+      (data.faces || []).forEach(function(face, k){
+        polys[k].setAttribute('points', face.map(function(v){
+          return x[v][0] + ',' + x[v][1]; }).join(' '));
+      });
+      data.edges.forEach(function(e, k){
+        var l = lines[k];
+        l.setAttribute('x1', x[e[0]][0]); l.setAttribute('y1', x[e[0]][1]);
+        l.setAttribute('x2', x[e[1]][0]); l.setAttribute('y2', x[e[1]][1]);
+      });
+      data.ports.forEach(function(p, k){
+        var l = ports[k];
+        l.setAttribute('x1', x[p[1]][0]); l.setAttribute('y1', x[p[1]][1]);
+        l.setAttribute('x2', x[p[2]][0]); l.setAttribute('y2', x[p[2]][1]);
+      });
+      svg.setAttribute('data-frame', f);
+      var out = document.querySelector(
+        '[data-value-for="' + svg.getAttribute('data-motion') + '"]');
+      if (out) out.textContent = data.drive + ' = ' + data.values[f].toPrecision(6);
+    }
+    var id = svg.getAttribute('data-motion');
+    var slider = document.querySelector('input[data-for="' + id + '"]');
+    var button = document.querySelector('button[data-play="' + id + '"]');
+    var timer = null, f = 0;
+    function step(){ f = (f + 1) % data.frames.length; if (slider) slider.value = f; draw(f); }
+    if (slider){ slider.max = data.frames.length - 1;
+      slider.addEventListener('input', function(){ f = +slider.value; draw(f); }); }
+    if (button) button.addEventListener('click', function(){
+      if (timer){ clearInterval(timer); timer = null; button.textContent = 'play'; }
+      else { timer = setInterval(step, 80); button.textContent = 'pause'; } });
+    if (svg.hasAttribute('data-autoplay')) timer = setInterval(step, 90);
+    draw(0);
+  }
+  document.querySelectorAll('svg[data-motion]').forEach(bind);
+})();
+"""
+
+
+def _esc(x) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_fmt(x) for x in v)
+    return str(v)
+
+
+def _project(x: np.ndarray) -> np.ndarray:
+    """(..., N, d) → (..., N, 2) drawing coordinates, y down; 3D seen from above and the side."""
+    if x.shape[-1] == 2:
+        return np.stack([x[..., 0], -x[..., 1]], axis=-1)
+    az, el = np.radians(-35.0), np.radians(35.0)
+    rx = x[..., 0] * np.cos(az) - x[..., 1] * np.sin(az)
+    ry = x[..., 0] * np.sin(az) + x[..., 1] * np.cos(az)
+    return np.stack([rx, -(ry * np.sin(el) + x[..., 2] * np.cos(el))], axis=-1)
+
+
+def _edge_colours(design, report: dict) -> tuple[list, list]:
+    """Colour of every edge and the legend (label, colour)."""
+    net = design.network
+    colours = ["#607d8b"] * net.n_edges
+    legend = []
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    bars = (((report.get("formats") or {}).get("dxf") or {}).get("report") or {}).get("bars")
+    assignment = (fab.get("origami") or {}).get("assignment") \
+        if isinstance(fab.get("origami"), dict) else None
+    if isinstance(assignment, list) and len(assignment) == net.n_edges:
+        colours = [_ASSIGNMENT_COLOURS.get(a, "#808080") for a in assignment]
+        names = {"M": "mountain", "V": "valley", "B": "boundary", "F": "flat", "C": "cut"}
+        legend = [(names.get(a, a), _ASSIGNMENT_COLOURS.get(a, "#808080"))
+                  for a in sorted(set(assignment))]
+    elif isinstance(bars, list) and bars:
+        lookup = {tuple(sorted(map(int, e))): k for k, e in enumerate(net.edges.tolist())}
+        layers = set()
+        for bar in bars:
+            k = lookup.get(tuple(sorted(int(j) for j in bar.get("joints", [])[:2])))
+            if k is not None and bar.get("layer") is not None:
+                colours[k] = _LAYER_COLOURS[int(bar["layer"]) % len(_LAYER_COLOURS)]
+                layers.add(int(bar["layer"]))
+        legend = [(f"laser layer {k}", _LAYER_COLOURS[k % len(_LAYER_COLOURS)])
+                  for k in sorted(layers)]
+    return colours, legend
+
+
+def _faces(design) -> tuple[list, str]:
+    """Filled polygons of the drawing: the rigid plates of a print, the panels of a sheet."""
+    from .errors import FabkitError
+
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    try:
+        if "origami" in fab:
+            from .fab.creases import origami_model
+
+            model = origami_model(design)
+            n = design.network.n_nodes
+            return [list(map(int, f)) for f in model.faces if max(f) < n], "#fff3c4"
+        if "print" in fab:
+            from .fab.hinges import rigid_triangles
+
+            given = (fab.get("print") or {}).get("rigid_triangles")
+            return rigid_triangles(design.network, given).tolist(), "#cfd8dc"
+    except FabkitError:  # no faces to draw: the bars alone still show the motion
+        pass
+    return [], ""
+
+
+def motion_frames(design, trajectory=None, report: dict | None = None) -> dict | None:
+    """The motion as drawing data: frames of projected node positions, edges, ports, colours.
+
+    Parameters
+    ----------
+    design : Design
+    trajectory : Trajectory, optional
+        Traced when not given (None when the design has no motion or it cannot be traced).
+    report : dict, optional
+        The design's report (laser layers colour the bars).
+
+    Returns
+    -------
+    dict or None
+        ``frames`` (F, N, 2), ``values`` (F,), ``edges``, ``ports`` ([name, i, j]),
+        ``colours``, ``legend``, ``faces`` (node cycles drawn filled: a print's plates, an
+        origami sheet's panels), ``fill``, ``viewbox``, ``drive``.
+    """
+    from .errors import FabkitError
+
+    if trajectory is None:
+        if design.motion.to is None:
+            return None
+        try:
+            trajectory = design.trace()
+        except FabkitError:
+            return None
+    pos = np.asarray(trajectory.positions, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[0] < 2:
+        return None
+    keep = np.unique(np.linspace(0, pos.shape[0] - 1, min(MAX_FRAMES, pos.shape[0]))
+                     .round().astype(int))
+    xy = _project(pos[keep])
+    lo, hi = xy.reshape(-1, 2).min(0), xy.reshape(-1, 2).max(0)
+    span = float(max(hi - lo))
+    scale = 1000.0 / span if span > 0 else 1.0
+    xy = (xy - lo) * scale
+    pad = 30.0
+    net = design.network
+    drive = design.motion.drive or "d1"
+    try:
+        a, b = net.port(drive)
+        values = np.linalg.norm(pos[keep, a] - pos[keep, b], axis=-1)
+    except Exception:  # a drive given as a node pair that is not a port: show the frame number
+        values = np.arange(len(keep), dtype=float)
+    colours, legend = _edge_colours(design, report or {})
+    faces, fill = _faces(design)
+    ports = [[p, int(i), int(j)] for p, (i, j) in sorted(net.ports.items())]
+    w, h = (hi - lo) * scale
+    return {"frames": np.round(xy, 2).tolist(), "values": values.tolist(),
+            "edges": net.edges.tolist(), "ports": ports, "colours": colours, "legend": legend,
+            "faces": faces, "fill": fill,
+            "viewbox": [-pad, -pad, float(w) + 2 * pad, float(h) + 2 * pad], "drive": drive}
+
+
+def _motion_svg(data: dict, ident: str, *, autoplay=False, width=1.5) -> str:
+    vb = " ".join(f"{v:.2f}" for v in data["viewbox"])
+    extra = " data-autoplay" if autoplay else ""
+    return (f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{vb}" data-motion="{ident}" '
+            f'data-width="{width}" preserveAspectRatio="xMidYMid meet"{extra}></svg>'
+            f'<script type="application/json" id="{ident}">'
+            + json.dumps(data, separators=(",", ":")).replace("</", "<\\/") + "</script>")
+
+
+def _data_uri(name: str, data: bytes) -> str:
+    mime = {"png": "image/png", "svg": "image/svg+xml"}[name.rsplit(".", 1)[-1].lower()]
+    return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
+
+
+def _img(name: str, data: bytes, alt: str) -> str:
+    return f'<figure><img src="{_data_uri(name, data)}" alt="{_esc(alt)}"><figcaption>' \
+           f'{_esc(name)}</figcaption></figure>'
+
+
+def _markdown(text: str) -> str:
+    """The small Markdown of fabkit's own files (headings, tables, paragraphs) as HTML."""
+    out, table = [], []
+
+    def flush():
+        if table:
+            rows = [r for r in table if not re.fullmatch(r"\|?[\s:|-]+\|?", r)]
+            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
+            body = "".join("<tr>" + "".join(f"<{'th' if k == 0 else 'td'}>{_esc(c)}"
+                                             f"</{'th' if k == 0 else 'td'}>" for c in row)
+                           + "</tr>" for k, row in enumerate(cells))
+            out.append(f"<table>{body}</table>")
+            table.clear()
+
+    for line in text.splitlines():
+        if line.startswith("|"):
+            table.append(line)
+            continue
+        flush()
+        m = re.match(r"(#+)\s+(.*)", line)
+        if m:
+            level = min(len(m.group(1)) + 2, 6)
+            out.append(f"<h{level}>{_esc(m.group(2))}</h{level}>")
+        elif line.strip():
+            out.append(f"<p>{_esc(line)}</p>")
+    flush()
+    return "\n".join(out)
+
+
+def _verdict(ok) -> str:
+    return '<span class="ok">pass</span>' if ok else '<span class="bad">FAIL</span>'
+
+
+def _checks_section(report: dict) -> str:
+    rows = []
+    for fmt, f in sorted((report.get("formats") or {}).items()):
+        status = f.get("status", "")
+        rows.append(f"<tr><th colspan=5>{_esc(fmt)}: {_esc(status)}"
+                    + (f" – {_esc(f['detail'])}" if f.get("detail") else "") + "</th></tr>")
+        for res in f.get("checks") or []:
+            if res.get("error"):
+                rows.append(f"<tr><td>{_esc(res.get('file', ''))}</td><td>{_verdict(False)}</td>"
+                            f"<td colspan=3>{_esc(res['error'])}</td></tr>")
+            for c in res.get("checks") or []:
+                rows.append(f"<tr><td>{_esc(res.get('file', ''))}: {_esc(c.get('name'))}</td>"
+                            f"<td>{_verdict(c.get('ok'))}</td><td>{_esc(_fmt(c.get('value')))}"
+                            f"</td><td>{_esc(_fmt(c.get('limit')))}</td>"
+                            f"<td>{_esc(c.get('detail', ''))}</td></tr>")
+        for w in ((f.get("report") or {}).get("warnings") or []):
+            rows.append(f'<tr><td colspan=5 class="warn">warning: {_esc(w)}</td></tr>')
+    tol = report.get("tolerance")
+    if tol and tol.get("verdict"):
+        rows.append(f"<tr><th colspan=5>tolerance</th></tr><tr><td>as built</td>"
+                    f"<td>{_verdict(not tol.get('flagged'))}</td>"
+                    f"<td colspan=3>{_esc(tol['verdict'])}</td></tr>")
+    for e in report.get("errors") or []:
+        rows.append(f'<tr><td colspan=5 class="bad">{_esc(e)}</td></tr>')
+    if not rows:
+        return ""
+    return ("<section id=checks><h2>Verdicts</h2><table><tr><th>check</th><th>result</th>"
+            "<th>value</th><th>limit</th><th>detail</th></tr>" + "".join(rows)
+            + "</table></section>")
+
+
+def _tolerance_section(report: dict, files: dict) -> str:
+    tol = report.get("tolerance")
+    if not tol:
+        return ""
+    if tol.get("error"):
+        return f"<section id=tolerance><h2>Tolerance</h2><p>Not analysed: {_esc(tol['error'])}" \
+               "</p></section>"
+    parts = [f"<p>{_esc(tol.get('model', ''))}; {tol.get('samples')} simulated builds.</p>",
+             f"<p class=\"{'bad' if tol.get('flagged') else 'ok'}\">{_esc(tol.get('verdict'))}"
+             "</p>"]
+    src = tol.get("sources") or {}
+    if src:
+        parts.append("<table><tr><th>error source alone</th><th>builds reaching the target"
+                     "</th><th>95% port error (mm)</th></tr>" + "".join(
+                         f"<tr><td>{_esc(n)}</td><td>{100 * v['reached_fraction']:.0f}%</td>"
+                         f"<td>{_fmt(v.get('p95_error_mm'))}</td></tr>" for n, v in src.items())
+                     + "</table>")
+    rows = "".join(f"<tr><td>{_esc(p['port'])}</td><td>{_fmt(p['nominal'])}</td>"
+                   f"<td>{_fmt(p['mean'])}</td><td>{_fmt(p['p95_abs_error_mm'])}</td>"
+                   f"<td>{_fmt(p['limit_mm'])}</td></tr>" for p in tol.get("ports", []))
+    if rows:
+        parts.append("<table><tr><th>port</th><th>designed</th><th>built (mean)</th>"
+                     "<th>95% error (mm)</th><th>limit (mm)</th></tr>" + rows + "</table>")
+    hz = tol.get("horizon")
+    if hz:
+        parts.append(f"<p>Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
+                     f"({_esc(hz.get('source'))}): {_esc(hz.get('detail'))}.</p>")
+    name = "preview_tolerance.png"
+    if name in files:
+        pic = _img(name, files[name], "tolerance")
+        parts.append(f'<div class="pics">{pic}</div>')
+    return "<section id=tolerance><h2>Tolerance</h2>" + "".join(parts) + "</section>"
+
+
+def _fabrication_sections(report: dict, files: dict) -> str:
+    out = []
+    formats = report.get("formats") or {}
+    laser = [n for n in sorted(files) if n.startswith("laser_") and n.endswith((".png", ".svg"))]
+    if laser:
+        out.append("<section id=laser><h2>Laser-cut layers</h2><div class=\"pics\">"
+                   + "".join(_img(n, files[n], n) for n in laser) + "</div></section>")
+    origami = formats.get("svg") or formats.get("fold")
+    if origami and origami.get("status") == "exported":
+        svgs = [n for n in (formats.get("svg") or {}).get("files", []) if n.endswith(".svg")]
+        body = "".join(f'<div class="inline-svg">{_img(n, files[n], "crease pattern")}</div>'
+                       for n in svgs if n in files)
+        angles = (formats.get("fold") or {}).get("report", {}).get("final_fold_angles")
+        if angles:
+            body += f"<p>Final fold angles (degrees): {_esc(_fmt(angles))}</p>"
+        out.append("<section id=origami><h2>Crease pattern</h2><p>Mountain folds red, valley "
+                   "folds blue; the motion above shows the sheet folding.</p>" + body
+                   + "</section>")
+    stl = formats.get("stl")
+    if stl and stl.get("status") == "exported":
+        r = stl.get("report") or {}
+        pr = r.get("printer") or {}
+        body = []
+        if r:
+            s = r.get("settings") or {}
+            body.append(f"<p>{r.get('plates')} plates, {r.get('hinges')} hinges "
+                        f"({_esc(s.get('hinge_style'))}, {_esc(s.get('material'))}), "
+                        f"{_esc(_fmt(r.get('size_mm')))} mm, {_fmt(r.get('volume_mm3'))} mm³.</p>")
+        if pr:
+            bed = pr.get("printer") or {}
+            layout = "; ".join(f"piece {p['piece']} on bed {p['bed']} turned "
+                               f"{p['angle_deg']:.0f}°" + (f", joined at {p['joined_at']}"
+                                                          if p.get("joined_at") else "")
+                               for p in pr.get("pieces", []))
+            body.append(f"<p>Printer: {_esc(bed.get('description'))}. {_esc(layout)}. "
+                        f"Files: {_esc(', '.join(pr.get('files', [])))}.</p>")
+            if pr.get("note"):
+                body.append(f"<p>{_esc(pr['note'])}</p>")
+            if pr.get("join"):
+                body.append(f"<p>Join: {_esc(pr['join'])}</p>")
+        pics = [n for n in sorted(files) if n.endswith("_print.png")]
+        body.append('<div class="pics">' + "".join(_img(n, files[n], "printed part")
+                                                   for n in pics) + "</div>")
+        out.append("<section id=print><h2>Printed part</h2>" + "".join(body) + "</section>")
+    return "".join(out)
+
+
+def _bom_section(report: dict, files: dict) -> str:
+    rows = []
+    if "laser_bom.md" in files:
+        rows.append(_markdown(files["laser_bom.md"].decode("utf-8")))
+    stl = ((report.get("formats") or {}).get("stl") or {}).get("report")
+    if stl:
+        s = stl.get("settings") or {}
+        rows.append("<table><tr><th>printed part</th><th>quantity</th></tr>"
+                    f"<tr><td>{_esc(s.get('material'))} filament</td>"
+                    f"<td>{_fmt((stl.get('volume_mm3') or 0) / 1000.0)} cm³</td></tr>"
+                    f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
+                    f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr></table>")
+    svg = ((report.get("formats") or {}).get("svg") or {}).get("report")
+    if svg:
+        rows.append("<table><tr><th>origami</th><th>quantity</th></tr>"
+                    f"<tr><td>paper sheets ({_fmt(svg.get('sheet_size_mm'))} mm)</td>"
+                    f"<td>{_fmt(svg.get('sheets', 1))}</td></tr></table>")
+    if not rows:
+        return ""
+    return "<section id=bom><h2>Bill of materials</h2>" + "".join(rows) + "</section>"
+
+
+def design_html(report: dict, files: dict, design=None, trajectory=None) -> bytes:
+    """A design's ``report.html``.
+
+    Parameters
+    ----------
+    report : dict
+        The design's report.json content.
+    files : dict of str to bytes
+        The files of its folder (pictures are inlined from here).
+    design : Design, optional
+        For the scrubbable motion (none without it).
+    trajectory : Trajectory, optional
+        Its traced motion (traced from ``design`` when not given).
+
+    Returns
+    -------
+    bytes
+        UTF-8 HTML that loads nothing from outside itself.
+    """
+    d = report.get("design") or {}
+    name = d.get("name") or (design.name if design is not None else "design")
+    ok = report.get("ok")
+    head = (f"<header><h1>{_esc(name)} "
+            + ("" if ok is None else _verdict(ok).replace('class="ok"', 'style="color:#a5d6a7"')
+               .replace('class="bad"', 'style="color:#ef9a9a"'))
+            + f"</h1><p>{_esc(d.get('description', ''))}"
+            + (f" · {_esc(d['figure'])}" if d.get("figure") else "")
+            + f" · fabkit {_esc(report.get('fabkit_version', ''))}</p></header>")
+    body = []
+    data = motion_frames(design, trajectory, report) if design is not None else None
+    m = report.get("motion") or {}
+    if data is not None:
+        legend = "".join(f'<span><i style="background:{c}"></i>{_esc(t)}</span>'
+                         for t, c in data["legend"])
+        body.append(
+            "<section id=motion class=motion><h2>Motion</h2>"
+            f"<p>{_esc(m.get('message', ''))}</p>"
+            f'<div class="controls"><button data-play="{_MOTION_TAG}">play</button>'
+            f'<input type="range" min="0" max="{len(data["frames"]) - 1}" value="0" step="1" '
+            f'id="frame" data-for="{_MOTION_TAG}" aria-label="motion frame">'
+            f'<output data-value-for="{_MOTION_TAG}"></output></div>'
+            + _motion_svg(data, _MOTION_TAG, width=2.5)
+            + f'<p class="legend">{legend}<span><i style="background:#888"></i>ports (dashed)'
+              "</span></p></section>")
+    elif m:
+        body.append(f"<section id=motion><h2>Motion</h2><p>{_esc(m.get('message', ''))}</p>"
+                    "</section>")
+    pics = [n for n in ("preview_motion.png", "preview_map.png") if n in files]
+    if pics:
+        body.append("<section id=map><h2>Map and cobweb</h2><div class=\"pics\">"
+                    + "".join(_img(n, files[n], n) for n in pics) + "</div></section>")
+    body.append(_fabrication_sections(report, files))
+    body.append(_bom_section(report, files))
+    body.append(_tolerance_section(report, files))
+    body.append(_checks_section(report))
+    page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>{_esc(name)} – fabkit report</title><style>{_CSS}</style></head><body>"
+            + head + "<main>" + "".join(body) + f"</main><script>{_JS}</script></body></html>")
+    return page.encode("utf-8")
+
+
+def _folder_files(folder: Path) -> dict:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())
+            if p.is_file() and p.suffix.lower() in (".png", ".svg", ".md", ".json")}
+
+
+def write_design_report(folder, design=None, trajectory=None) -> Path:
+    """Render ``folder/report.html`` from ``folder/report.json`` and the files beside it.
+
+    Returns
+    -------
+    pathlib.Path
+        The page written (through a temporary file and a rename).
+    """
+    from .export import write_atomic
+
+    folder = Path(folder)
+    report = json.loads((folder / "report.json").read_text(encoding="utf-8"))
+    page = design_html(report, _folder_files(folder), design, trajectory)
+    write_atomic(folder / "report.html", page)
+    return folder / "report.html"
+
+
+def _embedded_motion(page: str) -> dict | None:
+    m = re.search(r'<script type="application/json" id="' + _MOTION_TAG + r'">(.*?)</script>',
+                  page, flags=re.S)
+    return json.loads(m.group(1).replace("<\\/", "</")) if m else None
+
+
+def index_html(entries) -> bytes:
+    """``index.html`` of a batch.
+
+    Parameters
+    ----------
+    entries : iterable of (str, dict, str or None)
+        Per design: its folder name, its report.json content (or a dict with ``error``), and
+        its report.html text (its motion is animated here).
+
+    Returns
+    -------
+    bytes
+    """
+    cards = []
+    for k, (folder, report, page) in enumerate(entries):
+        d = report.get("design") or {}
+        name = d.get("name") or folder
+        motion = _embedded_motion(page) if page else None
+        pic = _motion_svg(motion, f"m{k}", autoplay=True) if motion else "<p>(no motion)</p>"
+        ok = report.get("ok")
+        tol = report.get("tolerance") or {}
+        formats = ", ".join(f for f, v in sorted((report.get("formats") or {}).items())
+                            if v.get("status") == "exported")
+        lines = [f"<p>{_esc(d.get('description', report.get('error', '')))}</p>",
+                 f"<p>checks: {_verdict(bool(ok)) if ok is not None else '–'}"
+                 + (f" · formats: {_esc(formats)}" if formats else "") + "</p>"]
+        if tol.get("verdict"):
+            lines.append(f"<p class=\"{'warn' if tol.get('flagged') else 'ok'}\">tolerance: "
+                         f"{_esc(tol['verdict'])}</p>")
+        link = f'<a href="{_esc(folder)}/report.html">{_esc(name)}</a>' if page else _esc(name)
+        cards.append(f'<div class="card"><h3>{link}</h3>{pic}{"".join(lines)}</div>')
+    page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>fabkit batch</title><style>{_CSS}</style></head><body><header><h1>fabkit "
+            f"batch: {len(cards)} designs</h1><p>Each picture moves through the design's "
+            "motion; open a design for its slider, files, checks and tolerance.</p></header>"
+            f'<main><div class="grid">{"".join(cards)}</div></main><script>{_JS}</script>'
+            "</body></html>")
+    return page.encode("utf-8")
+
+
+def write_index(outdir) -> Path:
+    """Render ``outdir/index.html`` from every ``outdir/*/report.json`` (and report.html)."""
+    from .export import write_atomic
+
+    outdir = Path(outdir)
+    entries = []
+    for folder in sorted(p for p in outdir.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        rj = folder / "report.json"
+        if not rj.is_file():
+            continue
+        report = json.loads(rj.read_text(encoding="utf-8"))
+        page = (folder / "report.html").read_text(encoding="utf-8") \
+            if (folder / "report.html").is_file() else None
+        entries.append((folder.name, report, page))
+    write_atomic(outdir / "index.html", index_html(entries))
+    return outdir / "index.html"

@@ -1,0 +1,134 @@
+"""Tolerance per process: each process's error model, its units and scale, the batch placement
+of many builds, and verdicts that name the error source that stops a design."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fabkit.errors import TemplateError
+from fabkit.kinematics import make_problem, place
+from fabkit.templates import load_template
+from fabkit.tolerance import (ToleranceSpec, _find_plan, _place_batch, _plan_edge_index,
+                              analyse_tolerance, design_process, tolerance_spec)
+from fabkit.tolerance.processes import ProcessGeometry, sample_lengths
+
+TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
+
+
+@pytest.fixture(scope="module")
+def chain10():
+    return load_template(TEMPLATES / "printed_planar_chain10.toml")
+
+
+@pytest.fixture(scope="module")
+def sheet():
+    return load_template(TEMPLATES / "origami_sheet.toml")
+
+
+def test_each_design_speaks_in_its_own_process_and_scale(chain10, sheet):
+    fourbar = load_template(TEMPLATES / "fourbar.toml")
+    assert design_process(fourbar) == "laser"
+    p = tolerance_spec(chain10)
+    assert (p.process, p.scale, p.hinge_length) == ("print", 4.0, 4.0)
+    assert (p.shrinkage, p.shrinkage_sigma) == (0.006, 0.002)  # TPU
+    o = tolerance_spec(sheet)
+    assert o.process == "origami"
+    assert o.scale == pytest.approx(150.0 / math.sqrt(2.0))  # sheet_size over the diagonal BD
+
+
+def test_a_key_of_another_process_is_refused_with_its_name(chain10):
+    with pytest.raises(TemplateError) as err:
+        tolerance_spec(chain10, {"tolerance": {"kerf_sigma": 0.1}})
+    assert "--set tolerance.kerf_sigma: is a laser error; this design is analysed as print" \
+        in str(err.value)
+    assert tolerance_spec(chain10, {"tolerance": {"process": "laser",
+                                                  "kerf_sigma": 0.1}}).kerf_sigma == 0.1
+
+
+def test_shrinkage_alone_scales_every_bar_by_one_factor_per_build():
+    nodes = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 1.0]])
+    edges = np.array([[0, 1], [1, 2], [0, 2]])
+    L = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+    spec = ToleranceSpec(process="print", scale=10.0, samples=20000, shrinkage=0.004,
+                         shrinkage_sigma=0.001)
+    built = sample_lengths(ProcessGeometry(nodes, edges, L), spec, np.random.default_rng(0),
+                           sources=["shrinkage"])
+    ratio = built / L
+    np.testing.assert_allclose(ratio, ratio[:, :1] * np.ones((1, 3)), rtol=1e-12)
+    none = sample_lengths(ProcessGeometry(nodes, edges, L), spec, np.random.default_rng(0),
+                          sources=())
+    np.testing.assert_array_equal(none, np.broadcast_to(L, (20000, 3)))  # one row per build
+    assert 1 - ratio[:, 0].mean() == pytest.approx(0.004, abs=3e-5)
+    assert ratio[:, 0].std() == pytest.approx(0.001, rel=0.03)
+
+
+def test_hinge_flexure_shortens_bars_by_the_arc_chord_at_each_joint():
+    nodes = np.array([[0.0, 0.0], [3.0, 0.0]])
+    edges = np.array([[0, 1]])
+    turn = np.array([np.pi / 2, 0.0])  # only joint 0 turns, by 90 degrees
+    spec = ToleranceSpec(process="print", scale=10.0, samples=3, hinge_length=4.0)
+    built = sample_lengths(ProcessGeometry(nodes, edges, np.array([3.0]), turn), spec,
+                           np.random.default_rng(0), sources=["hinge flexure"])
+    half = np.pi / 4
+    loss_mm = 0.5 * 4.0 * (1 - math.sin(half) / half)
+    np.testing.assert_allclose(built[:, 0], 3.0 - loss_mm / 10.0, rtol=1e-12)
+
+
+def test_crease_position_error_grows_linearly_in_the_origami_sheet(sheet):
+    quiet = dict(cut_sigma=0.0, paper_thickness=0.0, compliance_sigma=0.0)
+    errs = []
+    for sigma in (0.05, 0.1):
+        res = analyse_tolerance(sheet, tolerance_spec(sheet, samples=100, crease_sigma=sigma,
+                                                      **quiet), attribute=False)
+        assert res.method == "constructive" and res.reached.all()
+        errs.append(res.port_errors_mm()[:, res.ports.index("d2")].std())
+    assert errs[1] / errs[0] == pytest.approx(2.0, rel=0.05)
+    exact = analyse_tolerance(sheet, tolerance_spec(sheet, samples=10, crease_sigma=0.0,
+                                                    **quiet))
+    assert np.abs(exact.port_errors_mm()).max() < 1e-9
+
+
+@pytest.mark.parametrize("name", ["fourbar_chain", "origami_chain12"])
+def test_batch_placement_matches_one_placement_per_build(name):
+    d = load_template(TEMPLATES / f"{name}.toml")
+    m = d.motion
+    problem = make_problem(d.network, m.drive, m.to, hold=m.hold)
+    plan = _find_plan(problem, d.trace())
+    eidx = _plan_edge_index(plan, problem.work)
+    rng = np.random.default_rng(5)
+    noise = rng.standard_normal((4, problem.work.n_edges))
+    lengths = problem.work.edge_lengths * (1 + 1e-3 * noise)
+    radii = np.where(eidx >= 0, lengths[:, np.maximum(eidx, 0)], 0.0)
+    values = np.linspace(problem.start_drive, m.to, 7)
+    X, margin = _place_batch(plan, np.broadcast_to(values, (4, 7)), radii)
+    for s in range(4):
+        Xs, ms, _ = place(replace(plan, radii=radii[s]), values)
+        np.testing.assert_allclose(X[s], Xs, atol=1e-12)
+        np.testing.assert_allclose(margin[s], ms, atol=1e-12)
+
+
+def test_verdicts_name_the_source_that_stops_the_design(chain10, sheet):
+    printed = analyse_tolerance(chain10, tolerance_spec(chain10, samples=100))
+    d = printed.as_dict()
+    assert d["process"] == "print" and d["scale_mm"] == 4.0
+    assert d["model"].startswith("print: xy accuracy σ 0.1 mm")
+    # 2 % of the chain's mean designed port distance at 4 mm per unit, in mm
+    assert d["ports"][0]["limit_mm"] == pytest.approx(0.02 * np.mean(printed.nominal) * 4.0)
+    assert printed.flagged and "stopped by" in printed.verdict
+    alone = d["sources"]
+    stoppers = [n for n, v in alone.items() if v["reached_fraction"] < 0.95]
+    assert stoppers and all(n in printed.verdict for n in stoppers)
+    assert alone["shrinkage"]["reached_fraction"] == 1.0
+    folded = analyse_tolerance(sheet, tolerance_spec(sheet, samples=100))
+    worst = max(folded.extra["sources"], key=lambda k: folded.extra["sources"][k]["p95_error_mm"])
+    assert worst == "crease position" and "crease position (alone" in folded.verdict
+    # with ten times finer folding the sheet reaches its target
+    fine = analyse_tolerance(sheet, tolerance_spec(sheet, samples=100, crease_sigma=0.02,
+                                                   cut_sigma=0.01, paper_thickness=0.01,
+                                                   compliance_sigma=0.01))
+    assert not fine.flagged and fine.verdict.startswith("ok:")
