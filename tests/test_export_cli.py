@@ -19,7 +19,7 @@ import fabkit.export
 from fabkit.cli import main
 from fabkit.batch import Outcome, Progress, export_many
 from fabkit.commands.export import parse_formats, parse_settings
-from fabkit.errors import FabkitError, UsageError
+from fabkit.errors import UsageError
 from fabkit.templates import load_template
 
 ROOT = Path(__file__).resolve().parents[1]

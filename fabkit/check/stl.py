@@ -559,7 +559,7 @@ def check_file(path, design=None, settings=None) -> dict:
     FabricationError
         The file cannot be read as an STL mesh.
     """
-    from ..export.stl import settings_for
+    from ..fab.printing import design_print_settings
     from ..fab.hinges import print_geometry
     from ..rigidity import count_modes
 
@@ -569,7 +569,7 @@ def check_file(path, design=None, settings=None) -> dict:
         checks = check_mesh(mesh)
         report.update(ok=all(c["ok"] for c in checks), checks=checks)
         return report
-    s = settings_for(design, settings)
+    s = design_print_settings(design, settings)
     geo = print_geometry(design.network, s)
     sections = slab_sections(mesh, s)
     checks = check_mesh(mesh, s, geo.volume, sections)

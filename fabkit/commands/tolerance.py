@@ -33,7 +33,6 @@ def add_arguments(p):
 def describe(result) -> str:
     """Terminal lines for a :class:`~fabkit.tolerance.ToleranceResult`."""
     d = result.as_dict()
-    s = result.spec
     lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
              f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS",
              f"  reached       {100 * d['reached_fraction']:.1f}% of builds reach the target"]

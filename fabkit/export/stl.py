@@ -31,7 +31,7 @@ from ..errors import FabkitError, FabricationError
 from . import ExportResult
 
 __all__ = ["FORMAT", "applies", "export_design", "binary_stl", "threemf_package",
-           "settings_for", "stored_mesh_is_closed"]
+           "stored_mesh_is_closed"]
 
 FORMAT = "stl"
 
@@ -52,21 +52,6 @@ def applies(design) -> bool:
     except FabkitError:
         return False
     return True
-
-
-def settings_for(design, settings: dict | None = None):
-    """The design's :class:`~fabkit.fab.printing.PrintSettings` with ``settings["print"]``
-    overrides (a template's table, then the command line)."""
-    from ..fab.printing import print_settings
-
-    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    table = fab.get("print", {})
-    if not isinstance(table, dict):
-        raise FabricationError("fabrication.print: must be a table")
-    over = (settings or {}).get("print", {})
-    if not isinstance(over, dict):
-        raise FabricationError("print: overrides must be given as print.KEY=VALUE")
-    return print_settings(table, over)
 
 
 def binary_stl(vertices, faces, header: str = "fabkit printed network, units mm") -> bytes:
@@ -354,8 +339,9 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         triangles, plates that would touch, hinges that do not fit; nothing is produced.
     """
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
+    from ..fab.printing import design_print_settings
 
-    s = settings_for(design, settings)
+    s = design_print_settings(design, settings)
     geo = print_geometry(design.network, s)
     body = print_solid(geo)
     verts, faces = solid_mesh(body)

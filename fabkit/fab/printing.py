@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 
 from ..errors import FabricationError
 
-__all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "print_settings"]
+__all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "print_settings", "design_print_settings"]
 
 #: Hinge styles. ``"neck"``: a narrow neck as tall as the plates less one layer, bending in the
 #: plane of the print (stiff out of the plane, compliant in it). ``"bridge"``: a thin bridge of
@@ -257,3 +257,16 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
                          gap=values["gap"], layer_height=layer,
                          nozzle_width=values["nozzle_width"],
                          strain_limit=values["strain_limit"], rigid_triangles=triangles, **flags)
+
+
+def design_print_settings(design, settings: dict | None = None):
+    """The design's :class:`~fabkit.fab.printing.PrintSettings` with ``settings["print"]``
+    overrides (a template's table, then the command line)."""
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    table = fab.get("print", {})
+    if not isinstance(table, dict):
+        raise FabricationError("fabrication.print: must be a table")
+    over = (settings or {}).get("print", {})
+    if not isinstance(over, dict):
+        raise FabricationError("print: overrides must be given as print.KEY=VALUE")
+    return print_settings(table, over)

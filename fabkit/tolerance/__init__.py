@@ -174,10 +174,10 @@ def _laser_defaults(design, settings) -> dict:
 def _print_defaults(design, settings) -> dict:
     """Scale, hinge length and the material's shrinkage from the print settings."""
     from ..errors import FabricationError
-    from ..export.stl import settings_for
+    from ..fab.printing import design_print_settings
 
     try:
-        s = settings_for(design, settings)
+        s = design_print_settings(design, settings)
     except FabricationError as exc:
         raise TemplateError(design.path or design.name, "fabrication.print", str(exc)) from None
     mean, sd = SHRINKAGE.get(s.material, SHRINKAGE["PLA"])

@@ -159,7 +159,7 @@ def _print(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
 def _origami(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
     x = geo.nodes * spec.scale
     m, (n, d) = spec.samples, x.shape
-    i, j = geo.edges[:, 0], geo.edges[:, 1]
+    i = geo.edges[:, 0]
     boundary = geo.boundary if geo.boundary is not None else np.zeros(n, dtype=bool)
     g = rng.standard_normal((m, n, d))
     direction = rng.standard_normal((m, n, d))
