@@ -33,6 +33,8 @@ def add_arguments(p):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (default: "
                         "$DASK_SCHEDULER_ADDRESS, else this machine)")
+    p.add_argument("--connect-timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="how long to wait for the scheduler (default 10)")
     p.add_argument("--jobs", type=int, default=None,
                    help="local processes without a scheduler (default: one per core)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
@@ -106,6 +108,8 @@ def run(args) -> int:
 
             protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
                                lyapunov_average=avg)
+        if not args.connect_timeout > 0:
+            return _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
         if args.jobs is not None and args.jobs < 1:
             return _usage(f"--jobs must be at least 1, got {args.jobs}")
         if args.chunk_size is not None and args.chunk_size < 1:
@@ -117,7 +121,8 @@ def run(args) -> int:
         try:
             result = sweep(design, axes, measures, outdir=outdir, scheduler=scheduler,
                            jobs=args.jobs, chunk_size=args.chunk_size, protocol=protocol,
-                           plots=not args.no_plots, progress=bar)
+                           plots=not args.no_plots, progress=bar,
+                           connect_timeout=args.connect_timeout)
         except KeyboardInterrupt:
             if bar.tty:
                 sys.stderr.write("\n")

@@ -697,6 +697,8 @@ def _axes_from(vary) -> tuple:
                 if vals.size == 0 or not np.all(np.isfinite(vals)):
                     raise SweepError(f"{key}: give (start, stop, n) or a non-empty list of "
                                      "finite values")
+                if np.unique(vals).size != vals.size:
+                    raise SweepError(f"{key}: a value is given twice")
                 items.append(Axis(str(key), tuple(float(x) for x in vals)))
         vary = items
     axes = tuple(vary)

@@ -75,10 +75,10 @@ def bifurcation_figure(result, title: str | None = None):
     recs = result.records
     has_ly = "lyapunov" in result.spec.measures
     if has_ly:
-        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 7.5), sharex=True,
+        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11.5, 7.5), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 1.3]})
     else:
-        fig, ax = plt.subplots(figsize=(9, 5.5))
+        fig, ax = plt.subplots(figsize=(11.5, 5.5))
         ax2 = None
     # attractor: every value the settled orbits visit
     xs, ys = [], []
@@ -116,7 +116,7 @@ def bifurcation_figure(result, title: str | None = None):
         _status_strip(ax2, x, recs, legend=False)
     else:
         ax.set_xlabel(key)
-    ax.legend(loc="best", fontsize=7, framealpha=0.85)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
     ax.set_title(title or f"{_template_name(result)}: bifurcation diagram over {key}")
     fig.tight_layout()
     return fig
@@ -138,14 +138,26 @@ def _status_strip(ax, x, recs, legend=True):
 
 
 def _mark_template(result, key, axes):
+    """A line where the template's own module sits, and what the sweep found there."""
     x0 = _template_value(result, key)
-    values = result.spec.axes[0].values
-    if not min(values) <= x0 <= max(values):
+    values = np.array(result.spec.axes[0].values)
+    if not values.min() <= x0 <= values.max():
         return
     name = _template_name(result)
     for k, ax in enumerate(axes):
-        ax.axvline(x0, color="C1", lw=1.0, ls="--", zorder=1,
+        ax.axvline(x0, color="C6", lw=1.2, ls="--", zorder=1,
                    label=f"{name} (the template: {key} = {x0:g})" if k == 0 else None)
+    rec = result.records[int(np.argmin(np.abs(values - x0)))]
+    found = [f"{name}: {rec['status']}"]
+    period = rec.get("attractor_period")
+    if period is not None and period > 0:
+        found.append(f"period-{period} attractor")
+    elif period == 0:
+        found.append("no period (chaotic)")
+    if rec.get("lyapunov") is not None:
+        found.append(f"λ = {rec['lyapunov']:.3f}")
+    axes[0].annotate(", ".join(found), xy=(x0, 1.0), xycoords=("data", "axes fraction"),
+                     xytext=(4, -12), textcoords="offset points", fontsize=8, color="C6")
 
 
 _LABELS = {
@@ -191,7 +203,7 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
-    (ay, ax_) = result.spec.axes  # the first key varies slowest: rows
+    ax_, ay = result.spec.axes  # the first key along x
     xv, yv = np.array(ax_.values), np.array(ay.values)
     shape = result.spec.shape
     fig, ax = plt.subplots(figsize=(7.5, 6))
@@ -202,18 +214,20 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
         mid = 0.5 * (v[1:] + v[:-1])
         return np.concatenate([[2 * v[0] - mid[0]], mid, [2 * v[-1] - mid[-1]]])
 
+    # cells in ascending order of both keys, whatever order the values were given in
+    ox, oy = np.argsort(xv, kind="stable"), np.argsort(yv, kind="stable")
+    xv, yv = xv[ox], yv[oy]
     X, Y = edges(xv), edges(yv)
-    status = np.array([r["status"] for r in result.records]).reshape(shape)
+    # records run with the first key slowest: (n_x, n_y); a mesh wants rows along y
+    status = np.array([r["status"] for r in result.records]).reshape(shape).T[np.ix_(oy, ox)]
     if column is not None:
-        z = result.column(column).reshape(shape)
+        z = result.column(column).reshape(shape).T[np.ix_(oy, ox)]
         z = np.where(status == "ok", z, np.nan)
-        cmap = plt.get_cmap("viridis").copy()
-        cmap.set_bad((1, 1, 1, 0))
+        cmap = plt.get_cmap("viridis").with_extremes(bad=(1, 1, 1, 0))
         finite = z[np.isfinite(z)]
         kw = {}
         if column == "lyapunov" and finite.size:  # diverging around λ = 0 (chaos above)
-            cmap = plt.get_cmap("RdBu_r").copy()
-            cmap.set_bad((1, 1, 1, 0))
+            cmap = plt.get_cmap("RdBu_r").with_extremes(bad=(1, 1, 1, 0))
             m = float(np.max(np.abs(finite)))
             kw = dict(vmin=-m, vmax=m)
         mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap, shading="flat", **kw)
@@ -223,8 +237,8 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
         mask = status == s
         if not mask.any():
             continue
-        ax.pcolormesh(X, Y, np.ma.masked_where(~mask, np.ones(shape)),
-                      cmap=ListedColormap([colour]), shading="flat", alpha=0.85)
+        ax.pcolormesh(X, Y, np.ma.masked_where(~mask, np.ones(mask.shape)),
+                      cmap=ListedColormap([colour]), shading="flat")
         handles.append(Patch(color=colour, label=f"{text} ({int(mask.sum())})"))
     try:
         x0, y0 = _template_value(result, ax_.key), _template_value(result, ay.key)
