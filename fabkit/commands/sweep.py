@@ -136,7 +136,8 @@ def run(args) -> int:
     print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
     resumed = result.spec.size - result.computed
     print(f"  computed {result.computed} points in {result.seconds:.1f} s on {result.workers} "
-          f"worker(s) ({result.where}): {rate:.2f} points/s"
+          f"worker(s) ({result.where}): {rate:.2f} points/s, "
+          f"{result.computed / max(result.cpu_seconds, 1e-9):.2f} points per CPU second"
           + (f"; {resumed} read back from an earlier run" if resumed else ""))
     for f in result.files:
         print(f"  wrote {f}")

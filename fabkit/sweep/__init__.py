@@ -17,6 +17,7 @@ The whole module is callable, so ``import fabkit.sweep; fabkit.sweep(template, v
 from __future__ import annotations
 
 import copy
+import dataclasses
 import csv
 import enum
 import hashlib
@@ -535,10 +536,20 @@ def _attractor(fmap, p: Protocol) -> tuple[list, int]:
 # --------------------------------------------------------------------------------------------
 # Chunks of points (the unit of work on processes and on a cluster)
 # --------------------------------------------------------------------------------------------
-def run_chunk(spec_dict: dict, indices: Sequence[int]) -> list:
-    """Evaluate a chunk of points; takes and returns plain data so it ships to any worker."""
+def run_chunk(spec_dict: dict, indices: Sequence[int]) -> dict:
+    """Evaluate a chunk of points; takes and returns plain data so it ships to any worker.
+
+    Returns
+    -------
+    dict
+        ``records`` (one per index) and ``cpu``: CPU seconds of the thread that ran them (the
+        cost of the points whatever else shares the machine; kept out of the records, whose
+        numbers must not depend on where they ran).
+    """
+    t0 = time.thread_time()
     spec = _spec_from_dict(spec_dict)
-    return [evaluate_point(spec, int(i)) for i in indices]
+    records = [evaluate_point(spec, int(i)) for i in indices]
+    return {"records": records, "cpu": time.thread_time() - t0}
 
 
 def _spec_from_dict(d: dict) -> SweepSpec:
@@ -592,6 +603,9 @@ class SweepResult:
         Processes or cluster workers (cores) used.
     where : str
         ``"in-process"``, ``"processes"`` or the scheduler address.
+    cpu_seconds : float
+        CPU time the computed points took (summed over workers): ``computed / cpu_seconds`` is
+        the throughput of one core however loaded the machine is.
     """
 
     spec: SweepSpec
@@ -602,6 +616,7 @@ class SweepResult:
     seconds: float = 0.0
     workers: int = 1
     where: str = "in-process"
+    cpu_seconds: float = 0.0
 
     @property
     def columns(self) -> tuple:
@@ -667,7 +682,10 @@ class SweepResult:
             "run": {"computed": self.computed, "resumed": len(self.records) - self.computed,
                     "seconds": self.seconds, "workers": self.workers, "where": self.where,
                     "points_per_second": rate,
-                    "points_per_second_per_core": rate / self.workers if rate else None},
+                    "points_per_second_per_core": rate / self.workers if rate else None,
+                    "cpu_seconds": self.cpu_seconds,
+                    "points_per_cpu_second": (self.computed / self.cpu_seconds
+                                              if self.cpu_seconds > 0 else None)},
             "points": self.records,
         }
 
@@ -969,11 +987,15 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress) -> SweepResult:
     if progress:
         progress(len(done), total)
 
-    def arrived(records):
+    cpu = [0.0]
+
+    def arrived(chunk):
+        records = chunk["records"]
         if folder is not None:
             _write_chunk(folder, records)
         for r in records:
             done[r["index"]] = r
+        cpu[0] += chunk["cpu"]
         if progress:
             progress(len(done), total)
 
@@ -989,7 +1011,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress) -> SweepResult:
     seconds = time.perf_counter() - t0
     records = [done[i] for i in range(spec.size)]
     result = SweepResult(spec=spec, records=records, outdir=out, computed=len(todo),
-                         seconds=seconds, workers=workers, where=where)
+                         seconds=seconds, workers=workers, where=where, cpu_seconds=cpu[0])
     if out is None:
         return result
     return _write_outputs(result, plots)
@@ -1040,9 +1062,7 @@ def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
     files["sweep.json"] = (json.dumps(summary, indent=1, default=_jsonable, allow_nan=False)
                            + "\n").encode()
     written = tuple(write_atomic(out / name, data) for name, data in files.items())
-    return SweepResult(spec=result.spec, records=result.records, outdir=out, files=written,
-                       computed=result.computed, seconds=result.seconds, workers=result.workers,
-                       where=result.where)
+    return dataclasses.replace(result, files=written)
 
 
 class _CallableModule(types.ModuleType):
