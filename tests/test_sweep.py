@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import csv
-import io
 import json
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -20,7 +18,7 @@ import fabkit
 import fabkit.sweep as fsweep
 from fabkit.cli import main
 from fabkit.maps import module_map
-from fabkit.sweep import Axis, Protocol, Status, SweepError, parse_vary
+from fabkit.sweep import Protocol, Status, SweepError, parse_vary
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
@@ -152,9 +150,15 @@ def test_bundled_period_doubling_example_in_full(tmp_path):
     x = np.array([float(r["nodes[4].x"]) for r in rows])
     per = np.array([int(r["attractor_period"]) for r in rows])
     k = int(np.argmin(np.abs(x + 0.33)))
+    assert x[k] == -0.33  # the template's own geometry is a grid point
     assert per[k] == 0 and float(rows[k]["lyapunov"]) == pytest.approx(0.312, abs=0.005)
-    assert set(per[x > 0.01]) == {1} and set(per[(x < -0.01) & (x > -0.25)]) == {2}
-    assert 4 in set(per[(x < -0.27) & (x > -0.30)]) and rows[0]["status"] == "escapes"
+    # the cascade: 2-cycle, 4-cycle, 8-cycle, chaos, crisis (orbits leave the domain)
+    assert set(per[x > -0.275]) == {2}
+    assert set(per[(x < -0.278) & (x > -0.3005)]) == {4}
+    assert set(per[(x < -0.3025) & (x > -0.3055)]) == {8}
+    assert {r["status"] for r, xi in zip(rows, x) if xi < -0.333} == {"escapes"}
+    assert {r["status"] for r, xi in zip(rows, x) if xi > -0.332} == {"ok"}
+    assert (out / "bifurcation.png").read_bytes().startswith(PNG)
 
 
 # --------------------------------------------------------------------------------------------

@@ -375,7 +375,8 @@ def evaluate_point(spec: SweepSpec, index: int) -> dict:
     except FabkitError as exc:  # the geometry at this point cannot be evaluated as asked
         rec["status"] = Status.FAILED.value
         rec["reason"] = str(exc)
-    except (FloatingPointError, ZeroDivisionError, np.linalg.LinAlgError) as exc:
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        # numerics that broke down at this geometry: one failed point, not a failed sweep
         rec["status"] = Status.FAILED.value
         rec["reason"] = f"{type(exc).__name__}: {exc}"
     return _finite(rec)
