@@ -203,6 +203,20 @@ def test_a_rigid_geometry_is_rigid_at_every_point(tmp_path):
     assert (tmp_path / "o" / "bifurcation.png").read_bytes().startswith(PNG)
 
 
+@pytest.mark.parametrize("motion", ["", '[motion]\ndrive = "d1"\nto = 2.5\n'])
+def test_a_motion_that_d1_does_not_drive_is_no_motion(tmp_path, motion):
+    # d1 is a bar of the 4-bar: the linkage moves, but d1 never changes
+    tpl = tmp_path / "bar.toml"
+    tpl.write_text('[network]\nnodes = [[-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0], [1.0, 1.0]]\n'
+                   'edges = [[0, 2], [0, 3], [1, 2], [1, 3]]\n'
+                   'ports = { d1 = [0, 2], d2 = [1, 3] }\n' + motion)
+    r = fsweep.sweep(tpl, {"nodes[3].y": (0.9, 1.1, 2)}, ["modes", "fixed_points"],
+                     protocol=LIGHT)
+    assert set(r.column("status")) == {"no_motion"}
+    assert list(r.column("modes_conformational")) == [1, 1]
+    assert all(r.column("reason"))
+
+
 # --------------------------------------------------------------------------------------------
 # streaming, resume, processes, dask
 # --------------------------------------------------------------------------------------------
