@@ -179,6 +179,16 @@ _LABELS = {
 }
 
 
+# whole-number columns, drawn with one colour per value (and names for special values)
+_DISCRETE = {
+    "attractor_period": {0: "none found", -1: "escapes"},
+    "fixed_count": {},
+    "cycle2_count": {},
+    "modes_conformational": {},
+    "modes_self_stress": {},
+}
+
+
 def _heat_columns(result):
     from . import COLUMNS, MEASURES
 
@@ -200,7 +210,7 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
     matplotlib.figure.Figure
     """
     plt = _plt()
-    from matplotlib.colors import ListedColormap
+    from matplotlib.colors import ListedColormap, TwoSlopeNorm
     from matplotlib.patches import Patch
 
     ax_, ay = result.spec.axes  # the first key along x
@@ -223,15 +233,30 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
     if column is not None:
         z = result.column(column).reshape(shape).T[np.ix_(oy, ox)]
         z = np.where(status == "ok", z, np.nan)
-        cmap = plt.get_cmap("viridis").with_extremes(bad=(1, 1, 1, 0))
         finite = z[np.isfinite(z)]
-        kw = {}
-        if column == "lyapunov" and finite.size:  # diverging around λ = 0 (chaos above)
-            cmap = plt.get_cmap("RdBu_r").with_extremes(bad=(1, 1, 1, 0))
-            m = float(np.max(np.abs(finite)))
-            kw = dict(vmin=-m, vmax=m)
-        mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap, shading="flat", **kw)
-        fig.colorbar(mesh, ax=ax, label=_LABELS.get(column, column))
+        bad = (1, 1, 1, 0)
+        if column in _DISCRETE and finite.size:
+            # whole numbers (periods, counts): one colour per value found
+            levels = np.unique(finite)
+            cmap = ListedColormap(plt.get_cmap("viridis")(np.linspace(0, 1, levels.size)))
+            idx = np.where(np.isfinite(z), np.searchsorted(levels, np.nan_to_num(z)), np.nan)
+            mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(idx),
+                                 cmap=cmap.with_extremes(bad=bad), shading="flat",
+                                 vmin=-0.5, vmax=levels.size - 0.5)
+            bar = fig.colorbar(mesh, ax=ax, label=_LABELS.get(column, column),
+                               ticks=np.arange(levels.size))
+            names = _DISCRETE[column]
+            bar.ax.set_yticklabels([names.get(int(v), f"{int(v)}") for v in levels])
+        else:
+            kw = {}
+            cmap = plt.get_cmap("viridis")
+            if column == "lyapunov" and finite.size and finite.min() < 0 < finite.max():
+                # λ = 0 is white: chaos red, cycles blue, each side on its own scale
+                cmap = plt.get_cmap("RdBu_r")
+                kw = dict(norm=TwoSlopeNorm(0.0, float(finite.min()), float(finite.max())))
+            mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap.with_extremes(bad=bad),
+                                 shading="flat", **kw)
+            fig.colorbar(mesh, ax=ax, label=_LABELS.get(column, column))
     handles = []
     for s, (_, colour, text) in STATUS_STYLE.items():
         mask = status == s
