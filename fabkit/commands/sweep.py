@@ -132,13 +132,17 @@ def run(args) -> int:
     except SweepError as exc:
         return _usage(str(exc))
     counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts().items()))
-    rate = result.computed / result.seconds if result.seconds > 0 else float("nan")
     print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
     resumed = result.spec.size - result.computed
-    print(f"  computed {result.computed} points in {result.seconds:.1f} s on {result.workers} "
-          f"worker(s) ({result.where}): {rate:.2f} points/s, "
-          f"{result.computed / max(result.cpu_seconds, 1e-9):.2f} points per CPU second"
-          + (f"; {resumed} read back from an earlier run" if resumed else ""))
+    if result.computed:
+        rate = result.computed / max(result.seconds, 1e-9)
+        per_cpu = result.computed / max(result.cpu_seconds, 1e-9)
+        print(f"  computed {result.computed} points in {result.seconds:.1f} s on "
+              f"{result.workers} worker(s) ({result.where}): {rate:.2f} points/s, "
+              f"{per_cpu:.2f} points per CPU second"
+              + (f"; {resumed} read back from an earlier run" if resumed else ""))
+    else:
+        print(f"  all {resumed} points read back from an earlier run")
     for f in result.files:
         print(f"  wrote {f}")
     return ExitCode.OK
