@@ -149,13 +149,13 @@ def _mark_template(result, key, axes):
                    label=f"{name} (the template: {key} = {x0:g})" if k == 0 else None)
     rec = result.records[int(np.argmin(np.abs(values - x0)))]
     found = [f"{name}: {rec['status']}"]
-    period = rec.get("attractor_period")
+    period, lam = rec.get("attractor_period"), rec.get("lyapunov")
     if period is not None and period > 0:
         found.append(f"period-{period} attractor")
-    elif period == 0:
-        found.append("no period (chaotic)")
-    if rec.get("lyapunov") is not None:
-        found.append(f"λ = {rec['lyapunov']:.3f}")
+    elif period == 0:  # chaos only when the exponent says so too
+        found.append("no period, chaotic" if lam is not None and lam > 0 else "no period found")
+    if lam is not None:
+        found.append(f"λ = {lam:.3f}")
     axes[0].annotate(", ".join(found), xy=(x0, 1.0), xycoords=("data", "axes fraction"),
                      xytext=(4, -12), textcoords="offset points", fontsize=8, color="C6")
 
