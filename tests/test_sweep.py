@@ -370,6 +370,20 @@ def test_unreachable_scheduler(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_a_scheduler_without_workers(tmp_path, capsys):
+    from distributed import LocalCluster
+
+    out = tmp_path / "o"
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
+        rc = main(["sweep", str(TEMPLATES / "chaotic.toml"), "--vary", "nodes[4].x=-0.3:-0.2:2",
+                   "-o", str(out), "--scheduler", cluster.scheduler_address,
+                   "--connect-timeout", "1"])
+    assert rc == 1
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "has no workers" in line
+    assert not out.exists()
+
+
 def test_scheduler_address_from_the_environment(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:1")
     rc = main(["sweep", str(TEMPLATES / "chaotic.toml"), "--vary", "nodes[4].x=-0.3:-0.2:2",

@@ -55,9 +55,9 @@ def _usage(message: str) -> int:
 class _Bar:
     """A progress bar on a terminal (nothing when stderr is not one)."""
 
-    def __init__(self, stream=sys.stderr):
-        self.stream = stream
-        self.tty = stream.isatty()
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr  # looked up now: stderr may have been replaced
+        self.tty = self.stream.isatty()
         self.t0 = time.perf_counter()
         self.start = None
 

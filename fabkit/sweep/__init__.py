@@ -152,7 +152,8 @@ def parse_vary(text: str) -> Axis:
     key = key.strip()
     parts = rng.split(":")
     if not sep or not key or len(parts) != 3:
-        raise SweepError(f"--vary {text!r}: expected KEY=START:STOP:N, e.g. nodes[4].x=-0.45:-0.2:101")
+        raise SweepError(f"--vary {text!r}: expected KEY=START:STOP:N, "
+                         "e.g. nodes[4].x=-0.45:-0.2:101")
     try:
         start, stop = float(parts[0]), float(parts[1])
     except ValueError:
@@ -829,10 +830,12 @@ def read_sweep_file(path) -> SweepFile | None:
     where = f"{path}: sweep"
     unknown = sorted(set(sec) - _SPEC_KEYS)
     if unknown:
-        raise SweepError(f"{where}.{unknown[0]}: unknown key; allowed: {', '.join(sorted(_SPEC_KEYS))}")
+        raise SweepError(f"{where}.{unknown[0]}: unknown key; allowed: "
+                         f"{', '.join(sorted(_SPEC_KEYS))}")
     tpl = sec.get("template")
     if not isinstance(tpl, str):
-        raise SweepError(f"{where}.template: must name the module template, e.g. \"../chaotic.toml\"")
+        raise SweepError(f"{where}.template: must name the module template, "
+                         "e.g. \"../chaotic.toml\"")
     vary = sec.get("vary", [])
     if not isinstance(vary, list) or not all(isinstance(v, str) for v in vary):
         raise SweepError(f"{where}.vary: must be an array of \"KEY=START:STOP:N\" strings")
@@ -846,8 +849,10 @@ def read_sweep_file(path) -> SweepFile | None:
     fields = set(Protocol.__dataclass_fields__)
     bad = sorted(set(prot) - fields)
     if bad:
-        raise SweepError(f"{where}.protocol.{bad[0]}: unknown key; allowed: {', '.join(sorted(fields))}")
-    return SweepFile(path=path, template=(path.parent / tpl), axes=tuple(parse_vary(v) for v in vary),
+        raise SweepError(f"{where}.protocol.{bad[0]}: unknown key; allowed: "
+                         f"{', '.join(sorted(fields))}")
+    return SweepFile(path=path, template=(path.parent / tpl),
+                     axes=tuple(parse_vary(v) for v in vary),
                      measures=_measures_from(measure) if measure is not None else None,
                      protocol=Protocol(**prot))
 
@@ -882,10 +887,18 @@ def _connect(scheduler, timeout: float):
     if isinstance(scheduler, Client):
         return scheduler, False
     try:
-        return Client(str(scheduler), timeout=timeout), True
+        client = Client(str(scheduler), timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
         raise FabkitError(f"cannot reach the dask scheduler at {scheduler}: "
                           f"{type(exc).__name__}") from None
+    try:
+        client.wait_for_workers(1, timeout=timeout)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise FabkitError(f"the dask scheduler at {scheduler} has no workers (waited "
+                          f"{timeout:g} s: {type(exc).__name__}); start some with "
+                          f"`dask worker {scheduler}`") from None
+    return client, True
 
 
 def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: int | None = 1,
@@ -1036,9 +1049,14 @@ def _run_processes(workers, payload, chunks, arrived) -> None:
 def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
     from distributed import as_completed
 
-    data = client.scatter(payload, broadcast=True)
-    futures = [client.submit(run_chunk, data, c, key=f"fabkit-sweep-{fingerprint[:12]}-{c[0]}",
-                             pure=False) for c in chunks]
+    import uuid
+
+    (data,) = client.scatter([payload], broadcast=True)  # a list: a dict would scatter per key
+    # a fresh token per run: a resumed sweep must not meet the cancelled tasks of the last one
+    token = uuid.uuid4().hex[:8]
+    futures = [client.submit(run_chunk, data, c, pure=False,
+                             key=f"fabkit-sweep-{fingerprint[:12]}-{token}-{c[0]}")
+               for c in chunks]
     try:
         for fut in as_completed(futures):
             arrived(fut.result())
