@@ -299,7 +299,7 @@ def test_cli_interrupt_then_restart_resumes(tmp_path, reference_run):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130
-    assert b"resume" in err and not (out / "sweep.csv").exists()
+    assert b"run the same command again to resume" in err and not (out / "sweep.csv").exists()
     done = len(list((out / "chunks").glob("chunk-*.json")))
     assert 2 <= done < 6
     # the same command again finishes the rest, and gives the table of an uninterrupted run
@@ -350,7 +350,7 @@ def test_output_folder_that_is_a_file(tmp_path, capsys):
                "-o", str(target)])
     assert rc == 1 and target.read_text() == "keep me"
     (line,) = capsys.readouterr().err.strip().splitlines()
-    assert "is a file" in line
+    assert line.startswith("fabkit: error:") and str(target) in line
     assert _files(tmp_path) == [target]
 
 

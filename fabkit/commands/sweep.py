@@ -61,6 +61,11 @@ class _Bar:
         self.t0 = time.perf_counter()
         self.start = None
 
+    @property
+    def started(self) -> bool:
+        """True once the sweep has begun computing (its chunk folder exists)."""
+        return self.start is not None
+
     def __call__(self, done, total):
         if self.start is None:
             self.start = done
@@ -78,6 +83,7 @@ class _Bar:
 
 def run(args) -> int:
     from ..cli import ExitCode
+    from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..templates import load_template
 
@@ -123,12 +129,17 @@ def run(args) -> int:
                            jobs=args.jobs, chunk_size=args.chunk_size, protocol=protocol,
                            plots=not args.no_plots, progress=bar,
                            connect_timeout=args.connect_timeout)
-        except KeyboardInterrupt:
-            if bar.tty:
-                sys.stderr.write("\n")
-            print(f"fabkit: interrupted; finished chunks are in {outdir / 'chunks'}: run the same "
-                  "command again to resume", file=sys.stderr)
-            return ExitCode.INTERRUPTED
+        except FabkitError:
+            raise
+        except BaseException:
+            # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
+            # command line report the interruption itself
+            if bar.started:
+                if bar.tty:
+                    sys.stderr.write("\n")
+                print(f"fabkit: finished chunks are in {outdir / 'chunks'}: run the same command "
+                      "again to resume", file=sys.stderr)
+            raise
     except SweepError as exc:
         return _usage(str(exc))
     counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts().items()))
