@@ -1,0 +1,159 @@
+"""``fabkit sweep TEMPLATE --vary KEY=START:STOP:N``: a module family on a grid of parameters."""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+NAME = "sweep"
+HELP = "sweep template keys on a grid: fixed points, cycles, λ per point; bifurcation diagram"
+DESCRIPTION = (
+    "Evaluate a module template on a grid of values of numeric keys (node coordinates or any "
+    "number in the template) through its map d2 = f(d1): fixed points, slopes, 2-cycles, "
+    "attractor, Lyapunov exponent, mode count. Writes DIR/sweep.csv, DIR/sweep.json and a "
+    "bifurcation diagram (one key) or heat maps (two keys). Runs on local processes, or on a "
+    "dask.distributed cluster with --scheduler (or DASK_SCHEDULER_ADDRESS). Finished chunks "
+    "are kept in DIR/chunks: running the same command again after an interruption resumes. "
+    "TEMPLATE may also be a sweep spec (a TOML file with a [sweep] table, e.g. "
+    "templates/sweeps/period_doubling.toml).")
+
+
+def add_arguments(p):
+    p.add_argument("template", metavar="TEMPLATE", help="module template, or a sweep spec file")
+    p.add_argument("--vary", action="append", default=None, metavar="KEY=START:STOP:N",
+                   help="vary a key over N evenly spaced values (repeatable: a grid); keys like "
+                        "nodes[4].x, network.nodes[4][1], motion.to")
+    p.add_argument("--measure", default=None, metavar="LIST",
+                   help="comma-separated: fixed_points,slopes,cycles,lyapunov,modes,attractor "
+                        "(default: all)")
+    p.add_argument("-o", "--outdir", default=None, metavar="DIR",
+                   help="output folder (default: out/sweep-<template name>)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (default: "
+                        "$DASK_SCHEDULER_ADDRESS, else this machine)")
+    p.add_argument("--connect-timeout", type=float, default=10.0, metavar="SECONDS",
+                   help="how long to wait for the scheduler (default 10)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="local processes without a scheduler (default: one per core)")
+    p.add_argument("--chunk-size", type=int, default=None, metavar="N",
+                   help="points per task (default: about four tasks per worker, at most 32)")
+    p.add_argument("--lyapunov-protocol", default=None, metavar="ORBITS:DISCARD:AVERAGE",
+                   help="Lyapunov protocol per point (default 32:1000:4000; the paper's "
+                        "1000:5000:20000)")
+    p.add_argument("--no-plots", action="store_true", help="write the table and sweep.json only")
+
+
+def _usage(message: str) -> int:
+    from ..cli import ExitCode
+
+    print(f"fabkit: error: {message}", file=sys.stderr)
+    return ExitCode.USAGE
+
+
+class _Bar:
+    """A progress bar on a terminal (nothing when stderr is not one)."""
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr  # looked up now: stderr may have been replaced
+        self.tty = self.stream.isatty()
+        self.t0 = time.perf_counter()
+        self.start = None
+
+    @property
+    def started(self) -> bool:
+        """True once the sweep has begun computing (its chunk folder exists)."""
+        return self.start is not None
+
+    def __call__(self, done, total):
+        if self.start is None:
+            self.start = done
+        if not self.tty:
+            return
+        width = 30
+        fill = int(width * done / max(total, 1))
+        rate = (done - self.start) / max(time.perf_counter() - self.t0, 1e-9)
+        self.stream.write(f"\rsweep [{'#' * fill}{'.' * (width - fill)}] {done}/{total} points"
+                          f"  {rate:.1f} points/s ")
+        self.stream.flush()
+        if done == total:
+            self.stream.write("\n")
+
+
+def run(args) -> int:
+    from ..cli import ExitCode
+    from ..errors import FabkitError
+    from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
+    from ..templates import load_template
+
+    try:
+        spec_file = read_sweep_file(args.template)
+        if spec_file is not None:
+            template = spec_file.template
+            axes = spec_file.axes
+            measures = spec_file.measures
+            protocol = spec_file.protocol
+        else:
+            template, axes, measures, protocol = Path(args.template), (), None, Protocol()
+        if args.vary:  # the command line wins over the spec file
+            axes = tuple(parse_vary(v) for v in args.vary)
+        if not axes:
+            return _usage("nothing to vary: give --vary KEY=START:STOP:N (or a sweep spec file "
+                          "with vary = [...])")
+        if args.measure is not None:
+            measures = args.measure
+        if args.lyapunov_protocol is not None:
+            parts = args.lyapunov_protocol.split(":")
+            try:
+                k, dis, avg = (int(v) for v in parts)
+            except ValueError:
+                return _usage(f"--lyapunov-protocol {args.lyapunov_protocol!r}: expected three "
+                              "integers ORBITS:DISCARD:AVERAGE, e.g. 32:1000:4000")
+            from dataclasses import replace
+
+            protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
+                               lyapunov_average=avg)
+        if not args.connect_timeout > 0:
+            return _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
+        if args.jobs is not None and args.jobs < 1:
+            return _usage(f"--jobs must be at least 1, got {args.jobs}")
+        if args.chunk_size is not None and args.chunk_size < 1:
+            return _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
+        design = load_template(template)
+        outdir = Path(args.outdir) if args.outdir else Path("out") / f"sweep-{design.name}"
+        scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+        bar = _Bar()
+        try:
+            result = sweep(design, axes, measures, outdir=outdir, scheduler=scheduler,
+                           jobs=args.jobs, chunk_size=args.chunk_size, protocol=protocol,
+                           plots=not args.no_plots, progress=bar,
+                           connect_timeout=args.connect_timeout)
+        except FabkitError:
+            raise
+        except BaseException:
+            # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
+            # command line report the interruption itself
+            if bar.started:
+                if bar.tty:
+                    sys.stderr.write("\n")
+                print(f"fabkit: finished chunks are in {outdir / 'chunks'}: run the same command "
+                      "again to resume", file=sys.stderr)
+            raise
+    except SweepError as exc:
+        return _usage(str(exc))
+    counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts().items()))
+    print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
+    resumed = result.spec.size - result.computed
+    if result.computed:
+        rate = result.computed / max(result.seconds, 1e-9)
+        per_cpu = result.computed / max(result.cpu_seconds, 1e-9)
+        print(f"  computed {result.computed} points in {result.seconds:.1f} s on "
+              f"{result.workers} worker(s) ({result.where}): {rate:.2f} points/s, "
+              f"{per_cpu:.2f} points per CPU second"
+              + (f"; {resumed} read back from an earlier run" if resumed else ""))
+    else:
+        print(f"  all {resumed} points read back from an earlier run")
+    for f in result.files:
+        print(f"  wrote {f}")
+    return ExitCode.OK
