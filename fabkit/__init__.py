@@ -37,6 +37,7 @@ _LAZY = {
     "SolutionSpace": "fabkit.design",
     "fold_through": "fabkit.kinematics.branching",
     "analyze_bifurcation": "fabkit.kinematics.branching",
+    "sweep": "fabkit.sweep",
 }
 
 

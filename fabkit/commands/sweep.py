@@ -45,11 +45,11 @@ def add_arguments(p):
     p.add_argument("--no-plots", action="store_true", help="write the table and sweep.json only")
 
 
-def _usage(message: str) -> int:
-    from ..cli import ExitCode
+def _usage(message: str):
+    """A bad request of the command line: one line, exit status 2."""
+    from ..errors import UsageError
 
-    print(f"fabkit: error: {message}", file=sys.stderr)
-    return ExitCode.USAGE
+    raise UsageError("", message)
 
 
 class _Bar:
@@ -82,7 +82,6 @@ class _Bar:
 
 
 def run(args) -> int:
-    from ..cli import ExitCode
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..templates import load_template
@@ -99,7 +98,7 @@ def run(args) -> int:
         if args.vary:  # the command line wins over the spec file
             axes = tuple(parse_vary(v) for v in args.vary)
         if not axes:
-            return _usage("nothing to vary: give --vary KEY=START:STOP:N (or a sweep spec file "
+            _usage("nothing to vary: give --vary KEY=START:STOP:N (or a sweep spec file "
                           "with vary = [...])")
         if args.measure is not None:
             measures = args.measure
@@ -108,18 +107,18 @@ def run(args) -> int:
             try:
                 k, dis, avg = (int(v) for v in parts)
             except ValueError:
-                return _usage(f"--lyapunov-protocol {args.lyapunov_protocol!r}: expected three "
+                _usage(f"--lyapunov-protocol {args.lyapunov_protocol!r}: expected three "
                               "integers ORBITS:DISCARD:AVERAGE, e.g. 32:1000:4000")
             from dataclasses import replace
 
             protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
                                lyapunov_average=avg)
         if not args.connect_timeout > 0:
-            return _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
+            _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
         if args.jobs is not None and args.jobs < 1:
-            return _usage(f"--jobs must be at least 1, got {args.jobs}")
+            _usage(f"--jobs must be at least 1, got {args.jobs}")
         if args.chunk_size is not None and args.chunk_size < 1:
-            return _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
+            _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
         design = load_template(template)
         outdir = Path(args.outdir) if args.outdir else Path("out") / f"sweep-{design.name}"
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
@@ -141,7 +140,7 @@ def run(args) -> int:
                       "again to resume", file=sys.stderr)
             raise
     except SweepError as exc:
-        return _usage(str(exc))
+        _usage(str(exc))
     counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts().items()))
     print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
     resumed = result.spec.size - result.computed
@@ -156,4 +155,4 @@ def run(args) -> int:
         print(f"  all {resumed} points read back from an earlier run")
     for f in result.files:
         print(f"  wrote {f}")
-    return ExitCode.OK
+    return 0
