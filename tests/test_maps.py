@@ -325,3 +325,10 @@ def test_flat_start_physical_fourbar_is_super_unstable(module):
     assert g(1.7) == pytest.approx(f(1.7), abs=1e-12)
     with pytest.raises(DesignError, match="branch must be in 0..3"):
         module_map(net, branch=7)
+
+
+def test_slope_is_nan_for_configurations_beyond_the_motion(fourbar):
+    # an orbit that left the map's domain carries NaN positions: no slope, and no LinAlgError
+    x = np.stack([fourbar.nodes, np.full_like(fourbar.nodes, np.nan)])
+    s = slope_at(fourbar, x)
+    assert s[0] == pytest.approx(-1.0, abs=1e-12) and np.isnan(s[1])

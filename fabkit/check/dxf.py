@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError
+from ..numerics import project_to_lengths
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
 
@@ -99,27 +100,6 @@ def read_sheet(doc) -> dict:
                                          float(v.dxf.radius)))
     return {"header": header, "insunits": doc.header.get("$INSUNITS", 0),
             "layers": used_layers, "parts": parts, "untagged": untagged}
-
-
-def _fit_positions(edges, lengths, start, iterations=20):
-    """Joint positions whose distances equal ``lengths``: Gauss-Newton from ``start``."""
-    from scipy.sparse.linalg import lsqr
-
-    from ..network import Network
-    from ..rigidity import rigidity_matrix
-
-    x = np.array(start, dtype=np.float64)
-    net = Network(x, edges)
-    for _ in range(iterations):
-        d = x[edges[:, 0]] - x[edges[:, 1]]
-        cur = np.sqrt((d * d).sum(1))
-        res = cur - lengths
-        if np.abs(res).max() <= 1e-13 * max(lengths.max(), 1.0):
-            break
-        r = rigidity_matrix(net, x, normalized=True)  # d(length)/dx
-        dx = lsqr(r, -res, atol=1e-15, btol=1e-15, iter_lim=10 * r.shape[1])[0]
-        x = x + dx.reshape(x.shape)
-    return x
 
 
 def check_documents(texts: dict, design=None, settings=None) -> dict:
@@ -259,7 +239,8 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
 
     net = design.network
     out = []
-    x_mm = _fit_positions(edges, lengths_mm, net.nodes * scale)
+    # joint positions with the read-back lengths; the fit residual is judged below
+    x_mm = project_to_lengths(edges, lengths_mm, net.nodes * scale).positions
     built = Network(x_mm / scale, edges, net.ports, net.labels)
     err = float(np.abs(built.edge_lengths * scale - lengths_mm).max())
     modes = count_modes(built)

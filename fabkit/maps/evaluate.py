@@ -162,6 +162,13 @@ def slope_at(net: Network, positions, d_in="d1", d_out="d2", *, strict: bool = T
     single = X.ndim == 2
     X = X[None] if single else X
     k, n, dim = X.shape
+    finite = np.isfinite(X).reshape(k, -1).all(axis=1)
+    if not finite.all():
+        # configurations beyond the motion (an orbit that left the map's domain) have no slope
+        s = np.full(k, np.nan)
+        if finite.any():
+            s[finite] = slope_at(net, X[finite], d_in, d_out, strict=strict)
+        return s[0] if single else s
     a, b = _pair(net, d_in)
     i, j = _pair(net, d_out)
     e = net.edges

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..errors import FabkitError, KinematicsError, TemplateError
+from ..numerics import project_to_lengths
 from .processes import NOT_KINEMATIC, PROCESSES, SOURCES, ProcessGeometry, sample_lengths
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
@@ -482,26 +483,6 @@ def _to_drive_frame(x, a, b, ref_dir) -> np.ndarray:
     return np.stack([c * x[..., 0] - s * x[..., 1], s * x[..., 0] + c * x[..., 1]], axis=-1)
 
 
-def _realise(net, lengths, x0, iters=30) -> np.ndarray | None:
-    """Node positions near ``x0`` with the given edge lengths (minimum-norm Gauss-Newton)."""
-    from scipy.sparse.linalg import lsqr
-
-    from ..rigidity import rigidity_matrix
-
-    x = np.array(x0, dtype=np.float64)
-    i, j = net.edges[:, 0], net.edges[:, 1]
-    for _ in range(iters):
-        d = np.linalg.norm(x[i] - x[j], axis=1)
-        res = d - lengths
-        if np.max(np.abs(res) / lengths) < 1e-12:
-            return x
-        r = rigidity_matrix(net, x, normalized=True)
-        step = lsqr(r, -res, atol=1e-14, btol=1e-14)[0]
-        x = x + step.reshape(x.shape)
-    d = np.linalg.norm(x[i] - x[j], axis=1)
-    return x if np.max(np.abs(d - lengths) / lengths) < 1e-9 else None
-
-
 def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int = 64,
                       transient: int = 50) -> dict | None:
     """Lyapunov exponent λ of the module map of a design, per module.
@@ -523,7 +504,7 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
         ``lyapunov`` (per module), ``source`` ("chain gains" / "iterated module map"),
         ``steps``; None when the design has no construction order or no d1/d2 ports.
     """
-    from ..errors import ConstructionError
+    from ..errors import ConstructionError, DesignError
     from ..kinematics import make_problem, place, plan_construction
 
     net = design.network
@@ -549,32 +530,25 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
         logs = np.log(np.maximum(slopes, SLOPE_FLOOR))
         return {"lyapunov": float(np.mean(logs)), "source": "chain gains",
                 "steps": int(logs.size), "local": logs.tolist()}
-    # a single module: iterate d2 = f(d1) for a bundle of orbits started next to the target,
-    # all at once; derivatives by central differences; the first steps are a transient
-    d = to * (1.0 + 1e-3 * np.linspace(-1.0, 1.0, orbits))
-    alive = np.ones(orbits, dtype=bool)
-    logs = np.full((iterations, orbits), np.nan)
-    steps = 0
-    for it in range(iterations):
-        h = 1e-7 * d
-        X, margin, _ = place(plan, np.concatenate([d - h, d, d + h]))
-        out = np.linalg.norm(X[:, pairs[1, 0]] - X[:, pairs[1, 1]], axis=-1).reshape(3, orbits)
-        alive &= (margin.reshape(3, orbits) >= 0).all(axis=0)
-        if not alive.any():
-            break
-        slope = np.abs(out[2] - out[0]) / (2 * h)
-        # slopes below the finite-difference resolution count as that resolution (a
-        # super-stable point would otherwise give log 0 = -inf)
-        logs[it] = np.where(alive, np.log(np.maximum(slope, SLOPE_FLOOR)), np.nan)
-        d = np.where(alive, out[1], d)
-        steps = it + 1
-    if steps == 0:
+    # a single module: the module's exact map (fabkit.maps), a bundle of orbits started next to
+    # the target; orbits that leave the map's domain are dropped
+    from ..maps import module_map
+
+    try:
+        fmap = module_map(net, chain[0], chain[1])
+        d0 = np.clip(to * (1.0 + 1e-3 * np.linspace(-1.0, 1.0, orbits)), *fmap.domain)
+        res = fmap.lyapunov(initial=d0, discard=transient, average=max(iterations - transient, 1),
+                            method="exact")
+    except (ConstructionError, KinematicsError, DesignError):
         return None
-    skip = min(transient, steps // 2)
-    kept = logs[skip:steps][:, alive] if alive.any() else logs[:steps]
-    kept = kept[np.isfinite(kept)]
-    return {"lyapunov": float(kept.mean()), "source": "iterated module map",
-            "steps": int(steps), "orbits": int(alive.sum()), "transient": int(skip)}
+    vals = res.values[~np.isnan(res.values)]
+    if not vals.size:
+        return None
+    # a super-stable orbit has log|f'| -> -inf; slopes below the floor count as the floor
+    vals = np.maximum(vals, np.log(SLOPE_FLOOR))
+    return {"lyapunov": float(vals.mean()), "source": "iterated module map",
+            "steps": int(res.discard + res.average), "orbits": int(vals.size),
+            "transient": int(res.discard)}
 
 
 def _place_batch(plan, values, radii) -> tuple[np.ndarray, np.ndarray]:
@@ -870,9 +844,11 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
             dist = np.full((built.shape[0], len(ports)), np.nan)
             reached = np.zeros(built.shape[0], dtype=bool)
             for s in range(built.shape[0]):
-                x = _realise(net, built[s], net.nodes)
-                if x is None:
+                proj = project_to_lengths(net.edges, built[s], net.nodes, rtol=1e-9,
+                                          max_iter=30)
+                if not proj.converged:
                     continue
+                x = proj.positions
                 try:
                     tr = trace(net.with_nodes(x), drive=m.drive, to=m.to, method="projected",
                                hold=m.hold)
