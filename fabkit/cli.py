@@ -134,7 +134,7 @@ def _check_output_option(args) -> None:
         return
     for dest in OUTPUT_DESTS:
         value = getattr(args, dest, None)
-        if isinstance(value, str) and not (args.command == "map" and dest == "out"):
+        if isinstance(value, str):
             check_output_folder(value)
 
 

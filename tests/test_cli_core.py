@@ -160,3 +160,20 @@ def test_motion_failures_are_typed(stem, cls, key, status):
         traced_motion(design, allow_singular_start=True)
     assert type(info.value).__name__ == cls
     assert (info.value.key, info.value.status) == (key, status)
+
+
+def test_minus_o_means_the_output_folder_in_every_command():
+    # one meaning of -o/--out across commands: the output folder, nothing else
+    from fabkit.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+    seen = 0
+    for name, p in sub.choices.items():
+        for action in p._actions:
+            flags = set(action.option_strings)
+            if flags & {"-o", "--out"}:
+                assert flags == {"-o", "--out"}, (name, flags)
+                assert "folder" in (action.help or ""), (name, action.help)
+                seen += 1
+    assert seen >= 7

@@ -185,7 +185,8 @@ def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, caps
     assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
     first = snapshot(out / "fourbar")
     assert {k: first[k] for k in others} == others  # byte for byte
-    assert set(first) == set(others) | {"fourbar_lengths.txt", "report.json", "report.md"}
+    assert set(first) == set(others) | {"fourbar_lengths.txt", "report.json", "report.md",
+                                        "report.html"}
     # export again with a format of another name: the old export file goes, the others stay
     source = (lengths_format / f"{FAKE_MODULE}.py").read_text()
     (lengths_format / "fabkit_test_widths_format.py").write_text(
@@ -194,9 +195,10 @@ def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, caps
     assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
     second = snapshot(out / "fourbar")
     assert {k: second[k] for k in others} == others
-    assert set(second) == set(others) | {"fourbar_widths.txt", "report.json", "report.md"}
+    assert set(second) == set(others) | {"fourbar_widths.txt", "report.json", "report.md",
+                                         "report.html"}
     report = json.loads(second["report.json"])
-    assert report["files"] == ["fourbar_widths.txt", "report.json", "report.md"]
+    assert report["files"] == ["fourbar_widths.txt", "report.html", "report.json", "report.md"]
     capsys.readouterr()
 
 

@@ -74,7 +74,7 @@ def test_identical_input_gives_identical_json(tmp_path):
     (["--d1", "9.5"], "--d1 9.5 is outside the map's domain", 1),
     (["--steps", "0"], "--steps: must be at least 1", 2),
     (["--period", "1"], "--period: must be at least 2", 2),
-    (["--out", "d7"], "no port 'd7'", 1),
+    (["--d-out", "d7"], "no port 'd7'", 1),
 ])
 def test_bad_arguments_fail_with_one_line_and_write_nothing(tmp_path, capsys, args, match, code):
     rc = _run(tmp_path, TEMPLATES / "period_two.toml", *args)

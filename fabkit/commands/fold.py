@@ -24,7 +24,8 @@ def add_arguments(p):
     p.add_argument("--drive", default=None, help="port to drive (default: the template's)")
     p.add_argument("--to", type=float, default=None, help="target value of the drive")
     p.add_argument("-o", "--out", default=None,
-                   help="also write svg/fold/cp files into OUT/<name>/ and check the FOLD file")
+                   help="output folder: also write svg/fold/cp files into OUT/<name>/ and check "
+                        "the FOLD file")
 
 
 def describe(design, model, fold) -> str:

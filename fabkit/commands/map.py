@@ -33,14 +33,17 @@ def add_arguments(p):
     p.add_argument("--steps", type=int, default=16, help="iterations in the cobweb (default 16)")
     p.add_argument("--period", type=int, action="append", default=None, metavar="M",
                    help="look for cycles of this period (repeatable; default 2)")
-    p.add_argument("--in", dest="d_in", default="d1", help="input port (default d1)")
-    p.add_argument("--out", dest="d_out", default="d2", help="output port (default d2)")
+    p.add_argument("--d-in", dest="d_in", default="d1", metavar="PORT",
+                   help="input port (default d1)")
+    p.add_argument("--d-out", dest="d_out", default="d2", metavar="PORT",
+                   help="output port (default d2)")
     p.add_argument("--lyapunov", action="store_true",
                    help="compute Lyapunov exponents (1000 orbits, 5000 discarded, 20000 averaged)")
     p.add_argument("--orbits", type=int, default=1000, help="orbits for --lyapunov (default 1000)")
     p.add_argument("--discard", type=int, default=5000, help="discarded iterations (default 5000)")
     p.add_argument("--average", type=int, default=20000, help="averaged iterations (default 20000)")
-    p.add_argument("-o", "--outdir", default="out", help="output folder (default: out)")
+    p.add_argument("-o", "--out", dest="outdir", default="out",
+                   help="output folder (default: out); results go to OUT/<name>/")
 
 
 def parse_values(text: str) -> list[float]:

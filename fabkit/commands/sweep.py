@@ -28,7 +28,7 @@ def add_arguments(p):
     p.add_argument("--measure", default=None, metavar="LIST",
                    help="comma-separated: fixed_points,slopes,cycles,lyapunov,modes,attractor "
                         "(default: all)")
-    p.add_argument("-o", "--outdir", default=None, metavar="DIR",
+    p.add_argument("-o", "--out", dest="outdir", default=None, metavar="DIR",
                    help="output folder (default: out/sweep-<template name>)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (default: "
