@@ -135,9 +135,6 @@ class FormatResult:
     report: dict = field(default_factory=dict)
     detail: str = ""
     checks: list = field(default_factory=list)
-    #: The exporter's own as-built check of the bytes it returned (``as_built_check`` in its
-    #: report), or None; see :func:`run_checks`.
-    own_check: dict | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict:
         out = {"status": self.status.value, "files": list(self.files)}
@@ -522,9 +519,6 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
         files.update({k: bytes(v) for k, v in result.files.items()})
         results[fmt] = FormatResult(fmt, FormatStatus.EXPORTED, sorted(result.files),
                                     result.report)
-        own = result.report.get("as_built_check") if isinstance(result.report, dict) else None
-        if _is_check_result(own) and all(f in result.files for f in own["files"]):
-            results[fmt].own_check = own
 
     if singular is not None:
         resolved = sorted(f for f, v in results.items() if v.status.produced)
@@ -555,11 +549,6 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
     return files, results, facts
 
 
-def _is_check_result(res) -> bool:
-    return (isinstance(res, dict) and isinstance(res.get("files"), list) and bool(res["files"])
-            and isinstance(res.get("ok"), bool) and isinstance(res.get("checks"), list))
-
-
 def _load_checker(suffix: str):
     import importlib
 
@@ -571,20 +560,12 @@ def _load_checker(suffix: str):
         raise UnavailableError(f"the .{suffix} check", str(exc)) from None
 
 
-def run_checks(paths, design, settings, *, prechecked=None, expected=None) -> list[CheckResult]:
+def run_checks(paths, design, settings) -> list[CheckResult]:
     """As-built check of every written file that has a checker.
 
     The network is re-derived from the files (each checker reads them back); nothing of the
-    export's in-memory plan is shared with the check. Two things are exact to reuse and are
-    reused:
-
-    - a checker whose result lists ``files`` has read those too (the sheets of one laser
-      export): they are not checked a second time;
-    - an exporter that already ran the as-built check on the bytes it returned (the laser
-      exporter refuses a design whose sheets fail it) puts that result in its report as
-      ``as_built_check``. When every file it lists is read back from the folder byte for byte
-      equal to those bytes, its result is the one the checker would compute again (the same
-      bytes, design and settings), and it is taken instead (``"source": "exporter"``).
+    export's in-memory plan is shared with the check. A checker whose result lists ``files``
+    has read those too (the sheets of one laser export): they are not checked a second time.
 
     Parameters
     ----------
@@ -592,10 +573,6 @@ def run_checks(paths, design, settings, *, prechecked=None, expected=None) -> li
         The written files.
     design : Design
     settings : dict
-    prechecked : dict of str to dict, optional
-        File name → an exporter's check result that covers it.
-    expected : dict of str to bytes, optional
-        File name → the bytes the exporters returned (to compare with what is on disk).
 
     Returns
     -------
@@ -603,21 +580,10 @@ def run_checks(paths, design, settings, *, prechecked=None, expected=None) -> li
     """
     from .check import CHECKERS
 
-    prechecked, expected = prechecked or {}, expected or {}
     results, covered = [], set()
     for p in paths:
         suffix = p.suffix.lower().lstrip(".")
         if suffix not in CHECKERS or p.name in covered:
-            continue
-        own = prechecked.get(p.name)
-        if own is not None and all(
-                f in expected and (p.parent / f).read_bytes() == expected[f]
-                for f in own["files"]):
-            covered.update(own["files"])
-            extra = {k: v for k, v in own.items() if k not in ("ok", "checks", "error", "file")}
-            results.append(CheckResult(p.name, own["ok"], list(own["checks"]),
-                                       str(own.get("error", "") or ""),
-                                       {**extra, "source": "exporter"}))
             continue
         try:
             module = _load_checker(suffix)
@@ -874,8 +840,6 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         files, fmts, facts = build_outputs(design, formats, settings, tolerance_samples,
                                            exporters, previews, stage=stage,
                                            allow_large=allow_large)
-        prechecked = {f: r.own_check for r in fmts.values() if r.own_check
-                      for f in r.own_check["files"]}
         stage(Stage.WRITE)
         folder = outdir / design.name
         recover_folder(outdir, design.name)
@@ -885,8 +849,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         outcome = Outcome.OK
         if check:
             stage(Stage.CHECK)
-            for chk in run_checks(written, design, settings, prechecked=prechecked,
-                                  expected=files):
+            for chk in run_checks(written, design, settings):
                 fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
                 if fmt is None:
                     continue

@@ -640,104 +640,6 @@ def test_a_second_export_into_the_same_folder_is_refused(tmp_path, slow_export, 
     assert not (out / ".fabkit.lock").exists()
 
 
-# --- reuse of the exporter's own as-built check -------------------------------------------------
-
-CHECKED_FORMAT = textwrap.dedent('''
-    FORMAT = "lengths"
-
-    def applies(design):
-        return True
-
-    def export_design(design, settings):
-        from fabkit.export import ExportResult
-
-        name = design.name + ".len"
-        data = "".join(f"{v:.12g}\\n" for v in design.network.edge_lengths).encode()
-        from fabkit_test_len_check import check_bytes
-        own = check_bytes({name: data})
-        return ExportResult(files={name: data}, report={"as_built_check": own})
-''')
-
-LEN_CHECK = textwrap.dedent('''
-    import os
-    from pathlib import Path
-
-    FORMAT = "len"
-    SUFFIXES = (".len",)
-
-    def check_bytes(texts):
-        n = sum(len(t.split()) for t in texts.values())
-        return {"ok": n == 4, "files": sorted(texts),
-                "checks": [{"name": "edges", "ok": n == 4, "value": n, "limit": 4,
-                            "detail": ""}]}
-
-    def check_file(path, design=None, settings=None):
-        calls = Path(os.environ["FABKIT_TEST_CALLS"])
-        calls.write_text(calls.read_text() + Path(path).name + "\\n")
-        return check_bytes({Path(path).name: Path(path).read_bytes()})
-''')
-
-
-def test_the_exporters_check_of_identical_bytes_is_reused(tmp_path, monkeypatch):
-    import fabkit.check
-
-    mods = tmp_path / "checked_mods"
-    mods.mkdir()
-    (mods / "fabkit_test_len_format.py").write_text(CHECKED_FORMAT)
-    (mods / "fabkit_test_len_check.py").write_text(LEN_CHECK)
-    monkeypatch.syspath_prepend(str(mods))
-    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"lengths": "fabkit_test_len_format"})
-    monkeypatch.setitem(fabkit.check.CHECKERS, "len", "fabkit_test_len_check")
-    calls = tmp_path / "calls"
-    calls.write_text("")
-    monkeypatch.setenv("FABKIT_TEST_CALLS", str(calls))
-    out = tmp_path / "out"
-    template = TEMPLATES / "fourbar.toml"
-
-    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=0,
-                       previews=False)
-    assert rows[0].ok
-    assert calls.read_text() == ""  # the bytes on disk are those the exporter checked
-    chk = rows[0].formats["lengths"].checks[0]
-    assert chk.ok and chk.extra["source"] == "exporter" and chk.checks[0]["value"] == 4
-    report = json.loads((out / "fourbar" / "report.json").read_text())
-    assert report["formats"]["lengths"]["checks"][0]["source"] == "exporter"
-
-    # bytes on disk that differ from what the exporter checked: the check runs on the file
-    real_write = fabkit.export.write_outputs
-
-    def write_outputs(files, outdir):
-        written = real_write(files, outdir)
-        for p in written:
-            if p.suffix == ".len":
-                p.write_bytes(p.read_bytes() + b"7\n")
-        return written
-
-    monkeypatch.setattr(fabkit.export, "write_outputs", write_outputs)
-    rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=0,
-                       previews=False)
-    assert calls.read_text() == "fourbar.len\n"
-    assert rows[0].outcome is Outcome.CHECK_FAILED
-    chk = rows[0].formats["lengths"].checks[0]
-    assert not chk.ok and "source" not in chk.extra and chk.checks[0]["value"] == 5
-
-
-def test_a_reused_laser_check_equals_the_check_of_the_file_on_disk(tmp_path):
-    from fabkit.check import check_file
-
-    out = tmp_path / "out"
-    template = TEMPLATES / "fourbar.toml"
-    rows = export_many([template], ["dxf"], out, {}, isolate=False, tolerance_samples=0,
-                       previews=False)
-    assert rows[0].ok, rows[0].error
-    report = json.loads((out / "fourbar" / "report.json").read_text())
-    (entry,) = report["formats"]["dxf"]["checks"]
-    assert entry["source"] == "exporter" and entry["ok"] is True
-    again = json.loads(json.dumps(check_file(out / "fourbar" / entry["file"],
-                                             design=load_template(template))))
-    assert {k: v for k, v in entry.items() if k not in ("file", "source")} == again
-
-
 @pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
 def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_export):
     out = tmp_path / "out"
@@ -752,5 +654,6 @@ def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_expo
     assert "fourbar.toml: the worker process exporting it ended unexpectedly (killed by " \
            "SIGKILL)" in err[0]
     files = snapshot(out)
-    assert sorted(files) == ["super_stable_chain8/report.json", "super_stable_chain8/report.md",
+    assert sorted(files) == ["index.html", "super_stable_chain8/report.html",
+                             "super_stable_chain8/report.json", "super_stable_chain8/report.md",
                              "super_stable_chain8/super_stable_chain8.txt"]
