@@ -192,8 +192,9 @@ class Projection:
     iterations: int
 
 
-# Above this many unknowns per configuration, a dense pseudo-inverse costs more than sparse LSQR.
-_DENSE_MAX_UNKNOWNS = 600
+# Above this many unknowns per configuration, a dense pseudo-inverse (an SVD per step) costs more
+# than sparse LSQR: modules (<= ~30 unknowns) go dense and batched, chains and lattices sparse.
+_DENSE_MAX_UNKNOWNS = 96
 
 
 def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: float = EDGE_RTOL,
@@ -261,7 +262,7 @@ def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: floa
     dense = n * dim <= _DENSE_MAX_UNKNOWNS
     d, ell, res = residual(x)
     worst = float(np.max(np.abs(res) / lens)) if res.size else 0.0
-    it = 0
+    it, slow = 0, 0
     while it < max_iter and worst > EPS:
         u = d / np.maximum(ell, np.finfo(np.float64).tiny)[..., None]
         step = _dense_steps(u, ij, res, n, dim) if dense else _sparse_steps(u, ij, res, n, dim)
@@ -271,8 +272,11 @@ def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: floa
         new = float(np.max(np.abs(res) / lens))
         # Quadratic convergence stalls at round-off: stop once an accepted residual stops halving.
         stalled = new > 0.5 * worst
+        # Lengths that no configuration has (a network with a state of self-stress given
+        # incompatible lengths) stall above rtol: stop after two steps that gain under 10 %.
+        slow = slow + 1 if new > 0.9 * worst else 0
         worst = new
-        if stalled and worst <= rtol:
+        if (stalled and worst <= rtol) or slow >= 2:
             break
     positions = x[0] if single else x
     return Projection(positions, worst, bool(worst <= rtol), it)

@@ -105,3 +105,13 @@ def test_projection_reports_an_impossible_target_instead_of_raising():
         project_to_lengths(net.edges, net.edge_lengths, net.nodes, pairs=[(0, 1)])
     with pytest.raises(ValueError, match="positive"):
         project_to_lengths(net.edges, np.zeros(4), net.nodes)
+
+
+def test_projection_stops_early_on_lengths_no_configuration_has():
+    # K4 in the plane has a state of self-stress: lengths off its Cayley-Menger surface cannot
+    # be realised, and Gauss-Newton stalls above the tolerance; it must say so, not spin
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.9, 1.1]])
+    e = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+    lengths = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) * (1 + 1e-3 * np.arange(6))
+    proj = project_to_lengths(e, lengths, x, max_iter=40)
+    assert not proj.converged and proj.residual > 1e-5 and proj.iterations < 10
