@@ -114,4 +114,4 @@ def test_projection_stops_early_on_lengths_no_configuration_has():
     e = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
     lengths = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) * (1 + 1e-3 * np.arange(6))
     proj = project_to_lengths(e, lengths, x, max_iter=40)
-    assert not proj.converged and proj.residual > 1e-5 and proj.iterations < 10
+    assert not proj.converged and proj.residual > 1e-7 and proj.iterations < 10
