@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Optional: Chromium (Debian package) and Playwright's Python client, driven against the system
-# browser. tests/test_report_html.py opens report.html / index.html in headless Chromium, checks
+# Optional: Chromium (Debian package), driven by Playwright's Python client (a test extra in
+# pyproject.toml, installed with the venv) against the system browser. tests/test_report_html.py opens report.html / index.html in headless Chromium, checks
 # the console, drags the motion slider and saves a screenshot. Without them the test skips and
 # says why.
 set -euo pipefail
@@ -15,7 +15,4 @@ if ! command -v chromium >/dev/null; then
   $SUDO apt-get install -y --no-install-recommends chromium >/dev/null \
     || { $SUDO apt-get update -qq && $SUDO apt-get install -y --no-install-recommends chromium >/dev/null; }
 fi
-# the Python client only; it drives /usr/bin/chromium (no browser download)
-PY="${PYTHON:-.venv/bin/python}"
-"$PY" -m pip install --quiet playwright
 command -v chromium >/dev/null
