@@ -484,9 +484,19 @@ def point_segment_distance(x, p, q) -> np.ndarray:
     """
     x, p, q = (np.asarray(a, dtype=np.float64) for a in (x, p, q))
     d = q - p
-    dd = (d * d).sum(-1)
-    t = np.clip(((x - p) * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    return np.sqrt(((p + t[..., None] * d - x) ** 2).sum(-1))
+    dd = _dot(d, d)
+    t = np.clip(_dot(x - p, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    e = p + t[..., None] * d - x
+    return np.sqrt(_dot(e, e))
+
+
+def _dot(a, b):
+    # a sum over a last axis of length 2 or 3 written out: numpy's reduction over such a short
+    # axis costs several times the arithmetic (this is the hot loop of the clearance checks)
+    out = a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
+    if a.shape[-1] == 3:
+        out += a[..., 2] * b[..., 2]
+    return out
 
 
 def _cross(a, b):
