@@ -647,7 +647,7 @@ MIN_BLOCK = 32
 #: A row whose distance from the span of the rows kept so far is below this fraction of its norm
 #: (but above the rank threshold) waits for later rows: kept at once, such nearly dependent rows
 #: made the kept set of random over-braced networks 100-1000 times worse conditioned than a
-#: global column-pivoted QR's; waiting brings it within a factor of about 2 (measured).
+#: global column-pivoted QR's; waiting brings it within a factor of about 3 (measured).
 DEFER_RTOL = 0.3
 
 #: How far, in bands of columns, the window may move past a waiting row before it is decided.
@@ -676,7 +676,7 @@ def _windowed_rows(u: np.ndarray, p0: np.ndarray, p1: np.ndarray, rtol: float,
     taken in order of their first column ``lo``. ``c`` is an orthonormal basis of the complement,
     within the window of columns ``[wlo, whi)``, of W = span(kept rows) ∩ {supported on columns ≥
     wlo}; a row supported on columns ≥ wlo lies in the span of the kept rows iff it lies in W, iff
-    ``cᵀ r = 0``, and ``|cᵀ r|`` is its distance from that span. Rows farther than ``defer·|r|``
+    ``cᵀ r = 0``; ``|cᵀ r|`` is its distance from W. Rows farther than ``defer·|r|``
     are kept at once (best first, by a column-pivoted QR); rows between ``rtol·|r|`` and that wait
     for later blocks, whose rows may span their direction better, until the window has moved
     ``reach`` bands past them; rows within ``rtol·|r|`` are dropped. Moving the window to the
