@@ -4,7 +4,9 @@ For a configuration x (N nodes in d dimensions) the rigidity matrix R has one ro
 (i, j) holding ``(x_i - x_j)`` in node i's columns and ``(x_j - x_i)`` in node j's columns, so that
 ``R @ v = 0`` for every velocity v that keeps all edge lengths to first order. Its null space holds
 the rigid-body motions and the conformational motions; its left null space holds the states of
-self-stress. Generalised Maxwell counting: ``M = dN - E + S``.
+self-stress. Generalised Maxwell counting: ``M = dN - E + S``. With states of self-stress some
+edges are redundant; :func:`independent_edges` picks a set of rank(R) edges whose rows are
+independent, without a dense factorisation.
 """
 
 from __future__ import annotations
