@@ -27,13 +27,14 @@ MODES = {
               "stability": {"super_stable_modules": 8}, "rk4_step": 0.05,
               "horizon_modules": 200, "profile_modules": 1000,
               "large": {"modes": (10, 100, 1000, 10000), "chains": (10, 100, 1000),
-                        "lattice": (3, 10, 20)}},
+                        "lattice": (3, 10, 20, 30)}},
     "full": {"sizes": (10, 100, 1000, 10000), "budget": 30.0, "repeats": 3,
              "compare_modules": 300,
              "lyapunov": (1000, 500, 2000), "stability": {}, "rk4_step": 0.02,
              "horizon_modules": 200, "profile_modules": 10000,
              "large": {"modes": (10, 100, 300, 1000, 3000, 10000),
-                       "chains": (10, 100, 1000, 10000), "lattice": (3, 10, 20, 30, 40)}},
+                       "chains": (10, 100, 1000, 10000),
+                       "lattice": (3, 10, 20, 30, 50, 70, 100)}},
 }
 
 

@@ -310,26 +310,19 @@ class Projected(Method):
         self.all_edges_rest2 = rest2
 
     def _independent_rows(self, work, x0, gcols):
-        from ..rigidity import count_modes, rigidity_matrix, DENSE_LIMIT
+        """Edges whose rows of the rigidity matrix are independent at the start, dN - g - 1 of
+        them (a windowed selection along the band, see :func:`fabkit.rigidity.independent_edges`),
+        for a network with states of self-stress and one conformational motion."""
+        from ..rigidity import count_modes, independent_edges
 
-        n, d = x0.shape
-        if d * n > DENSE_LIMIT:
-            raise KinematicsError(
-                f"the network has {work.n_edges} edges for {d * n} coordinates; 'projected' needs "
-                f"exactly dN - {gcols.size + 1} = {d * n - gcols.size - 1} independent edges when it is this large"
-            )
         m = count_modes(work, x0)
         if m.conformational != 1:
             raise KinematicsError(
                 f"the network has {m.conformational} conformational motions at the start ({m}); "
                 "trace follows one motion: add edges, or hold ports with hold=[...]"
             )
-        import scipy.linalg
-
-        r = rigidity_matrix(work, x0, normalized=True).toarray()
-        _, _, piv = scipy.linalg.qr(r.T, pivoting=True, mode="economic")
-        keep = np.sort(piv[: d * n - gcols.size - 1])
-        return keep
+        n, d = x0.shape
+        return independent_edges(work, x0, rank=d * n - gcols.size - 1)
 
     def _tangent(self, xf, j, orient_like=None, direction_grad=None):
         """Factor A(x, e_j) and solve for the unit tangent; returns (t, lu, tau) or None."""
