@@ -7,6 +7,7 @@ import pytest
 from fabkit.bench import large
 from fabkit.bench.workprecision import SKIPPED
 from fabkit.cli import main
+from fabkit.rigidity import SPARSE_FROM
 
 
 def test_count_modes_scaling_records_counts_and_paths():
@@ -15,8 +16,11 @@ def test_count_modes_scaling_records_counts_and_paths():
                                                         (100, "auto"), (100, "dense")]
     for p in pts:
         assert p["outcome"] == "ok" and p["time_s"] > 0
-        assert p["counts"] == [4, 3, 1, 0] and not p["ambiguous"] and p["method"] == "dense"
+        assert p["counts"] == [4, 3, 1, 0] and not p["ambiguous"]
         assert p["nodes"] == 3 * p["modules"] + 2
+        # "auto" takes the sparse path above SPARSE_FROM coordinates (100 modules: 604)
+        sparse = p["path"] == "auto" and 2 * p["nodes"] > SPARSE_FROM
+        assert p["method"] == ("sparse" if sparse else "dense")
 
 
 def test_dense_count_is_skipped_by_its_estimate():

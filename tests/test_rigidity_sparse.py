@@ -55,7 +55,7 @@ NETWORKS = {
 @pytest.mark.parametrize("name", sorted(NETWORKS))
 def test_sparse_count_matches_dense(monkeypatch, name):
     net = NETWORKS[name]()
-    dense = count_modes(net)
+    dense = count_modes(net, method="dense")
     sparse = sparse_count(monkeypatch, net)
     assert dense.method == "dense" and sparse.method == "sparse"
     assert not dense.ambiguous and not sparse.ambiguous, sparse.note

@@ -210,6 +210,7 @@ def large_figure(modes, chains, lattice_pts):
     """Two panels: count_modes time against nodes (as called, and dense SVD forced); time per
     configuration of ``projected`` on 4-bar chains and on the 2D lattice (``constructive`` on the
     chains for reference), with fitted exponents."""
+    from ..rigidity import SPARSE_FROM
     from . import pyplot
 
     plt = pyplot()
@@ -231,7 +232,7 @@ def large_figure(modes, chains, lattice_pts):
         ax.loglog(n, t, style, color=color, label=label)
 
     draw(ax1, [p for p in modes if p["path"] == "auto"], "time_s", "o-", "C2",
-         "count_modes (dense up to 1000 coordinates, sparse beyond)")
+         f"count_modes (dense up to {SPARSE_FROM} coordinates, sparse beyond)")
     draw(ax1, [p for p in modes if p["path"] == "dense"], "time_s", "s--", "C3",
          "dense SVD forced")
     for p in modes:
