@@ -202,3 +202,86 @@ def test_sampling_bound_holds_for_the_other_methods(method):
     steps = np.linalg.norm(np.diff(sweep.positions, axis=0), axis=2).max(axis=1)
     assert sweep.method == method and steps.max() <= s.sample_step
     assert sweep.drive[-1] == pytest.approx(design.motion.to, abs=1e-9)
+
+
+def _rules_broken(st, edges):
+    """Every stacking rule checked from the stacking's own conflicts, independently of the
+    planner's scoring: (pair on one layer, bar in a column, columns that meet)."""
+    layer, head = st.layer, st.head_slots
+    conf = st.conflicts
+    span = {}
+    for j in conf.screw_joints.tolist():
+        zs = layer[[k for k, e in enumerate(edges.tolist()) if j in e]]
+        span[j] = (int(zs.min()), int(zs.max()))
+    broken = [("pair", a, b) for a, b in conf.pairs.tolist() if layer[a] == layer[b]]
+    for rows, slack in ((conf.keepout, head), (conf.keepout_span, 0)):
+        broken += [("column", b, j) for b, j in rows.tolist()
+                   if span[j][0] - slack <= layer[b] <= span[j][1] + slack]
+    broken += [("columns", i, j) for i, j in conf.joint_pairs.tolist()
+               if span[i][0] - head <= span[j][1] + head and span[j][0] - head <= span[i][1] + head]
+    return broken
+
+
+def _chain_stacking(name):
+    from fabkit.fab.laser import laser_overrides
+    from fabkit.fab.layers import sample_chain
+
+    design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+    net = design.network
+    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides({}),
+                       network_size=net.size)
+    sweep = sample_chain(net, design.motion, s.scale, s.sample_step, width=s.bar_width,
+                         clearance=s.clearance, column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
+    return net, s, sweep, plan_layers(net.edges, sweep, s)
+
+
+def test_search_reaches_the_clique_bound_where_colourings_stop_one_layer_above():
+    net, s, sweep, st = _chain_stacking("slope_one_and_a_half_chain")
+    # every colouring that keeps bars off the screws needs 7 layers; six bars meet pairwise
+    # (a clique of 6), and the layer search finds a 6-layer stacking: minimal, by the clique
+    good = [c for c in st.stats["candidates"] if c[2] == 0]
+    assert good and min(c[1] for c in good) == 7
+    assert st.n_layers == 6 == st.lower_bound == st.stats["clique"]
+    assert st.strategy == "backtracking" and st.proven_minimal and st.stats["proven_minimal"]
+    assert st.proof_text() == "6 layers (proven minimal)"
+    assert _rules_broken(st, np.asarray(net.edges)) == []
+    assert set(st.layer.tolist()) == set(range(6))
+    # the screws' total span after the descent (the search alone gives 90 layer steps)
+    assert sum(max(js.layers) - min(js.layers) for js in st.joints) == 87
+    gaps = stacking_gaps(net.edges, st.layer, sweep.positions, width=s.bar_width,
+                         joints=st.joints, head_slots=st.head_slots,
+                         column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter)
+    assert min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"]) >= s.clearance
+
+
+def test_shorter_screws_keep_every_rule_and_the_layer_count():
+    from fabkit.fab.layers import _search_layers, _shorten_screws
+
+    net, s, sweep, st = _chain_stacking("slope_one_and_a_half_chain")
+    edges = np.asarray(net.edges)
+    conf = st.conflicts
+    inc = [np.flatnonzero((edges == j).any(axis=1)) for j in conf.screw_joints.tolist()]
+    jpos = np.full(net.n_nodes, -1, dtype=np.int64)
+    jpos[conf.screw_joints] = np.arange(conf.screw_joints.size)
+    found = _search_layers(edges.shape[0], conf, inc, st.head_slots, range(6, 7))
+    short = _shorten_screws(found, conf, inc, jpos, st.head_slots)
+
+    def total(layer):
+        return sum(int(layer[jb].max() - layer[jb].min()) for jb in inc)
+
+    assert (total(found), total(short)) == (90, 87)
+    assert short.max() + 1 <= 6
+    fake = type("S", (), {"layer": short, "head_slots": st.head_slots, "conflicts": conf})
+    assert _rules_broken(fake, edges) == []
+
+
+def test_unproven_count_says_what_is_proven():
+    from fabkit.fab.layers import Stacking
+
+    _, _, _, st = _chain_stacking("slope_one_and_a_half_chain")
+    unproven = Stacking(layer=st.layer, n_layers=7, joints=st.joints, conflicts=st.conflicts,
+                        lower_bound=6, strategy="milp", head_slots=1)
+    assert not unproven.proven_minimal
+    assert unproven.proof_text() == "7 layers (at least 6 needed; fewer not ruled out)"

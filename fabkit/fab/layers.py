@@ -786,6 +786,23 @@ class Stacking:
     head_slots: int
     stats: dict = field(default_factory=dict)
 
+    @property
+    def proven_minimal(self) -> bool:
+        """True when no stacking has fewer layers: the count meets the proven lower bound.
+
+        False means fewer layers were neither found nor ruled out (the exact solver ran out of
+        time): the stacking has ``n_layers``, and at least ``lower_bound`` are needed.
+        """
+        return self.n_layers <= self.lower_bound
+
+    def proof_text(self) -> str:
+        """The layer count with what is proven about it, e.g. ``"6 layers (proven minimal)"``
+        or ``"7 layers (at least 6 needed; fewer not ruled out)"``."""
+        if self.proven_minimal:
+            return f"{self.n_layers} layers (proven minimal)"
+        return (f"{self.n_layers} layers (at least {self.lower_bound} needed; fewer not ruled "
+                "out)")
+
     def joint_stack(self, joint: int) -> JointStack:
         for js in self.joints:
             if js.joint == joint:
@@ -985,6 +1002,51 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
         finally:
             sys.setrecursionlimit(limit)
     return None
+
+
+def _shorten_screws(layer, conf, joint_bars, jpos, head, max_rounds=100):
+    """Shorter screws for a valid stacking without adding layers (deterministic descent).
+
+    First the best order of its layers (as for colour classes), then the single move (a bar to
+    another layer) or, up to :data:`_MILP_BARS` bars, the swap of two bars' layers that shortens
+    the screws most, until none does. Every candidate is checked against every rule, so the
+    result is as valid as ``layer`` and has no more layers.
+    """
+    k = int(layer.max()) + 1
+    perm, viol = _best_order(layer, k, joint_bars, jpos, conf.keepout, conf.joint_pairs, head,
+                             conf.keepout_span)
+    if viol == 0:
+        layer = perm[layer]
+    n_bars = layer.size
+    adj = np.zeros((n_bars, n_bars), dtype=np.int64)
+    adj[conf.pairs[:, 0], conf.pairs[:, 1]] = 1
+    adj |= adj.T
+    _, span0 = _score(layer[None], joint_bars, jpos, conf.keepout, conf.joint_pairs, head,
+                      conf.keepout_span)
+    best = int(span0[0])
+    bar_v, val_v = np.repeat(np.arange(n_bars), k), np.tile(np.arange(k), n_bars)
+    sa, sb = np.triu_indices(n_bars, k=1) if n_bars <= _MILP_BARS else (np.zeros(0, int),) * 2
+    for _ in range(max_rounds):
+        # conflict partners of every bar on every layer: a bar may go where it has none
+        within = adj @ (layer[:, None] == np.arange(k)[None]).astype(np.int64)  # (E, k)
+        move = (val_v != layer[bar_v]) & (within[bar_v, val_v] == 0)
+        swap = ((layer[sa] != layer[sb]) & (within[sa, layer[sb]] == adj[sa, sb])
+                & (within[sb, layer[sa]] == adj[sa, sb]))
+        cand = np.repeat(layer[None], int(move.sum() + swap.sum()), axis=0)
+        m = int(move.sum())
+        cand[np.arange(m), bar_v[move]] = val_v[move]
+        rows = np.arange(m, cand.shape[0])
+        cand[rows, sa[swap]], cand[rows, sb[swap]] = layer[sb[swap]], layer[sa[swap]]
+        if not cand.shape[0]:
+            break
+        v, span = _score(cand, joint_bars, jpos, conf.keepout, conf.joint_pairs, head,
+                         conf.keepout_span)
+        span = np.where(v == 0, span, np.iinfo(np.int64).max)
+        i = int(np.argmin(span))  # the first of the shortest: deterministic
+        if span[i] >= best:
+            break
+        layer, best = cand[i], int(span[i])
+    return layer
 
 
 def _neighbourhood(n_bars, conf, joint_bars, seed, size):
@@ -1207,6 +1269,14 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         if found is not None:
             layer, strategy, viol = found, "backtracking", 0
             k = int(layer.max()) + 1
+    elif k > clique:
+        # The colourings stop above the clique bound; the search often reaches it in a fraction
+        # of a second, where the exact solver needs its whole time limit to find the same count
+        # (it proves nothing the clique does not already prove once the count meets it).
+        found = _search_layers(n_bars, conf, joint_bars, head, range(max(int(clique), 1), k))
+        if found is not None:
+            layer = _shorten_screws(found, conf, joint_bars, jpos, head)
+            strategy, k = "backtracking", int(layer.max()) + 1
     bound, proven = int(clique), (not viol and k == clique)
     if not proven and n_bars:
         # Colouring ignores the column rules and the search stops at its budget: ask the exact
