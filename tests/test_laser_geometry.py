@@ -285,3 +285,67 @@ def test_unproven_count_says_what_is_proven():
                         lower_bound=6, strategy="milp", head_slots=1)
     assert not unproven.proven_minimal
     assert unproven.proof_text() == "7 layers (at least 6 needed; fewer not ruled out)"
+
+
+def _brute_gaps(edges, layer, x, width, joints, head, column_radius, spacer_radius):
+    """stacking_gaps' three numbers by a plain loop over samples and pairs."""
+    edges = np.asarray(edges)
+    bar, screw, column = math.inf, math.inf, math.inf
+    span = {st.joint: (min(st.layers) - head, max(st.layers) + head) for st in joints}
+    for xs in x:
+        for a in range(len(edges)):
+            for b in range(a + 1, len(edges)):
+                if layer[a] == layer[b] and not set(edges[a]) & set(edges[b]):
+                    d = float(segment_distance(xs[edges[a, 0]], xs[edges[a, 1]],
+                                               xs[edges[b, 0]], xs[edges[b, 1]]))
+                    bar = min(bar, d - width)
+            for st in joints:
+                z0, z1 = span[st.joint]
+                if z0 <= layer[a] <= z1 and st.joint not in edges[a]:
+                    inner = z0 + head <= layer[a] <= z1 - head
+                    r = max(column_radius, spacer_radius) if inner else column_radius
+                    d = float(point_segment_distance(xs[st.joint], xs[edges[a, 0]],
+                                                     xs[edges[a, 1]]))
+                    screw = min(screw, d - 0.5 * width - r)
+        for i, s1 in enumerate(joints):
+            for s2 in joints[i + 1:]:
+                (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]
+                if a0 <= b1 and b0 <= a1:
+                    d = float(np.linalg.norm(xs[s1.joint] - xs[s2.joint]))
+                    column = min(column, d - 2 * column_radius)
+    return bar, screw, column
+
+
+def test_stacking_gaps_measure_the_true_minimum_between_coarse_samples():
+    from fabkit.fab.layers import JointStack
+
+    # bar 3-4 passes above bar 0-1 (one layer) and closest at sample 45 of 300, between the
+    # coarse samples 32 and 64 of the pruning; bars 5-6 and 6-7 are far away and left out of
+    # the full scan
+    t = np.linspace(0, 1, 300)
+    y = 20 + 60 * (t - 45 / 299) ** 2
+    x = np.zeros((t.size, 8, 2))
+    x[:, :3] = [[0, 0], [100, 0], [150, 40]]
+    x[:, 3] = np.stack([20 + 10 * t, y], 1)
+    x[:, 4] = np.stack([80 + 10 * t, y], 1)
+    x[:, 5:] = [[1000, 0], [1100, 0], [1150, 40]]
+    edges = np.array([[0, 1], [1, 2], [3, 4], [5, 6], [6, 7]])
+    layer = np.array([0, 1, 0, 0, 1])
+    joints = [JointStack(1, (0, 1), (0, 1), (), 0.0, 0.0, 0.0),
+              JointStack(6, (3, 4), (0, 1), (), 0.0, 0.0, 0.0)]
+    got = stacking_gaps(edges, layer, x, width=6.0, joints=joints, head_slots=1,
+                        column_radius=4.0, spacer_radius=5.0)
+    want = _brute_gaps(edges, layer, x, 6.0, joints, 1, 4.0, 5.0)
+    assert (got["bar_gap"], got["screw_gap"], got["column_gap"]) == pytest.approx(want, abs=1e-12)
+    assert got["bar_pair"] == [0, 2] and got["sample"] == 45
+    assert got["bar_gap"] == pytest.approx(20 - 6.0, abs=1e-12)
+    a, b = got["bar_pair"]
+    k = got["sample"]
+    xs = x[k]
+    assert float(segment_distance(xs[edges[a, 0]], xs[edges[a, 1]], xs[edges[b, 0]],
+                                  xs[edges[b, 1]])) - 6.0 == pytest.approx(got["bar_gap"])
+    # the same without the pruning (no more samples than two strides): the same numbers
+    few = stacking_gaps(edges, layer, x[::5], width=6.0, joints=joints, head_slots=1,
+                        column_radius=4.0, spacer_radius=5.0)
+    assert (few["bar_gap"], few["screw_gap"], few["column_gap"]) == pytest.approx(
+        _brute_gaps(edges, layer, x[::5], 6.0, joints, 1, 4.0, 5.0), abs=1e-12)
