@@ -349,3 +349,22 @@ def test_stacking_gaps_measure_the_true_minimum_between_coarse_samples():
                         column_radius=4.0, spacer_radius=5.0)
     assert (few["bar_gap"], few["screw_gap"], few["column_gap"]) == pytest.approx(
         _brute_gaps(edges, layer, x[::5], 6.0, joints, 1, 4.0, 5.0), abs=1e-12)
+
+
+def test_a_small_neighbourhood_proves_the_count_of_the_super_stable_chain():
+    from fabkit.fab.layers import _colourings, _milp_layers, _neighbourhood
+
+    net, s, sweep, st = _chain_stacking("super_stable_chain8")
+    # the clique says 6, the column rules force a 7th: proven on 16 bars around the clique
+    assert (st.n_layers, st.lower_bound, st.stats["clique"]) == (7, 7, 6)
+    assert st.proven_minimal and st.proof_text() == "7 layers (proven minimal)"
+    assert _rules_broken(st, np.asarray(net.edges)) == []
+    edges = np.asarray(net.edges)
+    conf = st.conflicts
+    joint_bars = [np.flatnonzero((edges == j).any(axis=1)) for j in conf.screw_joints.tolist()]
+    _, clique, members = _colourings(edges.shape[0], conf.pairs)
+    sub = _neighbourhood(edges.shape[0], conf, joint_bars, members, 16)
+    assert sub[0] == 16
+    layer, bound, optimal = _milp_layers(*sub, st.head_slots, 6, time_limit=20.0)
+    assert layer is None and bound == 7 and optimal  # no 6-layer stacking of the 16 bars
+

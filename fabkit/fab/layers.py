@@ -58,6 +58,11 @@ _MAX_SAMPLES = 200_000
 _MILP_SECONDS = 20.0
 # Larger problems get their bound from a neighbourhood of the largest clique only.
 _MILP_BARS = 60
+# Smaller neighbourhoods tried first when a valid stacking is at hand (each proves a bound for
+# the whole; the bundled chains' counts are proven on 16 bars in a fifth of the time of 60),
+# and the time limit of each (s).
+_MILP_STEPS = (16, 32)
+_MILP_STEP_SECONDS = 5.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -1316,18 +1321,25 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         # Colouring ignores the column rules and the search stops at its budget: ask the exact
         # solver for a stacking with fewer layers; its dual bound is a proven lower bound.
         fewer = s.max_layers if viol else k - 1
-        if n_bars > _MILP_BARS:
-            # A few bars around the largest clique with only the rules among them: a
-            # relaxation of the whole problem, so its proven bound holds for the whole.
-            sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, _MILP_BARS)
-            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_SECONDS)
+        for size in () if viol else _MILP_STEPS:
+            if size >= min(n_bars, _MILP_BARS) or k <= bound:
+                break
+            sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, size)
+            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_STEP_SECONDS)
             bound = max(bound, sub_bound)
-        else:
-            found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head, fewer,
-                                                      time_limit=_MILP_SECONDS)
-            if found is not None:
-                layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
-            bound = max(bound, milp_bound)
+        if viol or k > bound:  # not proven by a small neighbourhood
+            if n_bars > _MILP_BARS:
+                # A few bars around the largest clique with only the rules among them: a
+                # relaxation of the whole problem, so its proven bound holds for the whole.
+                sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, _MILP_BARS)
+                _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_SECONDS)
+                bound = max(bound, sub_bound)
+            else:
+                found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head,
+                                                          fewer, time_limit=_MILP_SECONDS)
+                if found is not None:
+                    layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
+                bound = max(bound, milp_bound)
         proven = not viol and k == bound
     if viol:
         x0 = sweep.positions[0][conf.screw_joints]
