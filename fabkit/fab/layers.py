@@ -107,7 +107,8 @@ def _node_steps(x: np.ndarray) -> np.ndarray:
     """Largest node displacement between consecutive configurations, shape (S-1,)."""
     if x.shape[0] < 2:
         return np.zeros(0)
-    return np.sqrt(((x[1:] - x[:-1]) ** 2).sum(axis=-1)).max(axis=-1)
+    d = x[1:] - x[:-1]
+    return np.sqrt(_dot(d, d)).max(axis=-1)  # _dot: the same sums, without numpy's reduction
 
 
 def sample_motion(net, motion, scale: float, step_limit: float, *,
@@ -562,7 +563,7 @@ def _pruned_min(func, positions, threshold: float, *index_arrays, stride: int = 
     s = positions.shape[0]
     if n == 0 or s <= 2 * stride:
         return _min_over_samples(func, positions, *index_arrays)
-    step = float(np.sqrt(((positions[1:] - positions[:-1]) ** 2).sum(-1)).max())
+    step = float(_node_steps(positions).max())
     coarse_idx = np.unique(np.r_[np.arange(0, s, stride), s - 1])
     best, where = _min_over_samples(func, positions[coarse_idx], *index_arrays)
     where = coarse_idx[where]
@@ -596,7 +597,7 @@ def _least(func, positions, offset, *index_arrays, stride: int = 32):
     if s <= 2 * stride:
         maybe = np.arange(n)
     else:
-        step = float(np.sqrt(((positions[1:] - positions[:-1]) ** 2).sum(-1)).max())
+        step = float(_node_steps(positions).max())
         coarse_idx = np.unique(np.r_[np.arange(0, s, stride), s - 1])
         coarse, _ = _min_over_samples(func, positions[coarse_idx], *index_arrays)
         coarse = coarse - offset
