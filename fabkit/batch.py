@@ -1350,7 +1350,10 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished) -> No
         if i is not None and i in pending:
             pending.discard(i)
             if _SAFE_NAME.match(names[i]):
-                recover_folder(outdir, names[i])  # its staging folder, whatever it holds
+                try:  # its staging folder, whatever it holds
+                    recover_folder(outdir, names[i])
+                except OSError:  # pragma: no cover - the next run removes it
+                    pass
             finished(i, DesignResult(str(args[i][0]), names[i], error_code="worker",
                                      error=_died_message(args[i][0], names[i],
                                                          w.proc.exitcode),
