@@ -23,6 +23,10 @@ What it guarantees:
   (``PR_SET_PDEATHSIG`` on Linux, and a watchdog thread that polls the parent's pid); SIGINT and
   SIGTERM in the parent stop every worker at once, and the staging folders of the designs in
   flight are removed, so no partial file is left under any name.
+- **Workers that die.** Each worker gets one design at a time over its own pipe and leaves its
+  folder staged; the parent swaps it in once the worker has reported. A worker that dies at any
+  moment fails the design it was handed (``error_code = "worker"``, its exit status in
+  :attr:`DesignResult.worker_exit`), leaves no file, and is replaced while designs remain.
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
   is loaded (:mod:`fabkit.templates`).
