@@ -23,6 +23,10 @@ What it guarantees:
   (``PR_SET_PDEATHSIG`` on Linux, and a watchdog thread that polls the parent's pid); SIGINT and
   SIGTERM in the parent stop every worker at once, and the staging folders of the designs in
   flight are removed, so no partial file is left under any name.
+- **Workers that die.** Each worker gets one design at a time over its own pipe and leaves its
+  folder staged; the parent swaps it in once the worker has reported. A worker that dies at any
+  moment fails the design it was handed (``error_code = "worker"``, its exit status in
+  :attr:`DesignResult.worker_exit`), leaves no file, and is replaced while designs remain.
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
   is loaded (:mod:`fabkit.templates`).
@@ -175,6 +179,13 @@ class DesignResult:
         wall time grows, this does not).
     stages : dict of str to float
         Wall time of each stage that ran.
+    worker_exit : int or None
+        When the worker process exporting the design died before it reported back: its exit
+        status (negative: killed by that signal, as :attr:`multiprocessing.Process.exitcode`);
+        ``error_code`` is then ``"worker"``. None otherwise.
+    staged : str
+        The complete staging folder not yet swapped in (``export_one(..., swap=False)``);
+        ``""`` once swapped in, or when nothing was written.
     """
 
     path: str
@@ -188,6 +199,8 @@ class DesignResult:
     seconds: float = 0.0
     cpu_seconds: float = 0.0
     stages: dict = field(default_factory=dict)
+    worker_exit: int | None = None
+    staged: str = ""
 
     @property
     def ok(self) -> bool:
@@ -202,7 +215,7 @@ class DesignResult:
                 "ok": self.ok, "formats": self.exported_formats, "files": self.files,
                 "folder": self.folder, "error": self.error, "error_code": self.error_code,
                 "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
-                "stages": dict(self.stages)}
+                "stages": dict(self.stages), "worker_exit": self.worker_exit}
 
 
 def exit_code(results) -> int:
@@ -789,7 +802,7 @@ def _report_dict(facts, formats, outcome, files) -> dict:
 
 def export_one(path, formats, outdir, settings, check=True, tolerance_samples=None,
                exporters=None, previews=True, debug=False, progress=None,
-               allow_large=False) -> DesignResult:
+               allow_large=False, swap=True) -> DesignResult:
     """Export one template into ``outdir/<name>/``; never raises for a bad design.
 
     Parameters
@@ -805,6 +818,11 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         Let internal errors raise with their traceback.
     progress : callable, optional
         ``progress(name, stage)`` as each stage starts.
+    swap : bool
+        Swap the finished staging folder in place of ``outdir/<name>``. False leaves it complete
+        under the name in :attr:`DesignResult.staged` for the caller to swap in (a worker
+        process does so: the parent swaps only what it has heard of, so a worker that dies
+        at any moment leaves no new file).
 
     Returns
     -------
@@ -863,7 +881,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         write_atomic(stage_dir / "report.json", report_json(report))
         write_design_report(stage_dir, design)  # report.html: from report.json and the files
         carry_over(folder, stage_dir)
-        swap_in(stage_dir, folder)
+        if swap:
+            swap_in(stage_dir, folder)
+        else:
+            res.staged = str(stage_dir)
         stage_dir = None
         res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
         if outcome is Outcome.CHECK_FAILED:
@@ -924,8 +945,45 @@ def _die_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, daemon=True, name="fabkit-parent-watch").start()
 
 
-def _worker_main(parent_pid, tasks, events) -> None:
-    """A worker process: export the designs it is sent until it gets None."""
+#: A fault to inject in the worker processes, for the tests of worker deaths only:
+#: ``"NAME@MOMENT[:ACTION]"`` makes the worker exporting design NAME, at MOMENT (``taken``: as
+#: it receives the design, before anything else; a :class:`Stage` value: as that stage starts;
+#: ``done``: after the export, before it reports back), end by ACTION (``kill``: SIGKILL, the
+#: default; ``term``: SIGTERM; ``exit``: exit code 3 without cleaning up).
+FAULT_ENV = "FABKIT_TEST_WORKER_FAULT"
+
+
+def _fault_point(name: str):
+    """The worker's fault injector for design ``name``: ``hit(moment)`` (a no-op without
+    :data:`FAULT_ENV`)."""
+    import signal
+
+    spec = os.environ.get(FAULT_ENV, "")
+    target, _, rest = spec.partition("@")
+    moment, _, action = rest.partition(":")
+    if not spec or target != name:
+        return lambda moment: None
+
+    def hit(now):
+        if str(now) != moment:
+            return
+        if action in ("", "kill"):
+            os.kill(os.getpid(), signal.SIGKILL)
+        elif action == "term":
+            os.kill(os.getpid(), signal.SIGTERM)
+        else:
+            os._exit(3)
+
+    return hit
+
+
+def _worker_main(parent_pid, conn) -> None:
+    """A worker process: export the designs it is sent on ``conn`` until it gets None.
+
+    Everything goes back on the same pipe with blocking sends (no feeder thread), so what the
+    parent reads was sent, and a design it has sent and not heard back about is known to be in
+    the hands of this worker whatever the moment it dies.
+    """
     import signal
 
     _die_with_parent(parent_pid)
@@ -939,51 +997,77 @@ def _worker_main(parent_pid, tasks, events) -> None:
     signal.signal(signal.SIGTERM, on_term)
     try:
         while True:
-            task = tasks.get()
+            try:
+                task = conn.recv()
+            except EOFError:  # the parent closed its end
+                return
             if task is None:
                 return
-            index, args, kwargs = task
-            events.put(("start", index, os.getpid()))
+            index, name, args, kwargs = task
+            hit = _fault_point(name)
+            hit("taken")
 
-            def progress(name, s, index=index):
-                events.put(("stage", index, name, str(s)))
+            def progress(name, s, index=index, hit=hit):
+                hit(s)
+                conn.send(("stage", index, name, str(s)))
 
-            res = export_one(*args, progress=progress, **kwargs)
-            events.put(("done", index, res))
-    except Interrupted:
-        return
+            res = export_one(*args, progress=progress, swap=False, **kwargs)
+            hit("done")
+            conn.send(("done", index, res))
+    except Interrupted as exc:
+        # the design in hand has been unwound; end by the signal itself, so that the parent
+        # (when it did not send it) reports how this worker ended
+        signal.signal(exc.signum, signal.SIG_DFL)
+        os.kill(os.getpid(), exc.signum)
+
+
+class _Worker:
+    """One worker process, the parent's end of its pipe, and the design it was handed."""
+
+    def __init__(self, proc, conn):
+        self.proc = proc
+        self.conn = conn
+        self.task = None  # index of the design sent and not reported back
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
 
 
 class _Pool:
-    """Worker processes fed from one task queue; results and progress come back on another."""
+    """Worker processes, each fed one design at a time over its own pipe."""
 
     def __init__(self, jobs: int):
         import multiprocessing
 
-        ctx = multiprocessing.get_context("spawn")  # fresh interpreters, no forked state
-        self.tasks = ctx.Queue()
-        self.events = ctx.Queue()
-        self.ctx = ctx
-        self.procs = []
+        self.ctx = multiprocessing.get_context("spawn")  # fresh interpreters, no forked state
+        self.workers: list[_Worker] = []
         for _ in range(jobs):
             self.spawn()
 
-    def spawn(self):
+    @property
+    def procs(self):
+        return [w.proc for w in self.workers]
+
+    def spawn(self) -> _Worker:
         """Start one more worker."""
         saved = os.environ.get("PYTHONHASHSEED")
         os.environ["PYTHONHASHSEED"] = "0"  # read by each worker when it starts
+        mine, theirs = self.ctx.Pipe(duplex=True)
         try:
             proc = self.ctx.Process(target=_worker_main, daemon=True,
-                                    args=(os.getpid(), self.tasks, self.events),
-                                    name=f"fabkit-export-{len(self.procs)}")
+                                    args=(os.getpid(), theirs),
+                                    name=f"fabkit-export-{len(self.workers)}")
             proc.start()
         finally:
+            theirs.close()  # the worker's end lives in the worker: its death closes the pipe
             if saved is None:
                 os.environ.pop("PYTHONHASHSEED", None)
             else:
                 os.environ["PYTHONHASHSEED"] = saved
-        self.procs.append(proc)
-        return proc
+        worker = _Worker(proc, mine)
+        self.workers.append(worker)
+        return worker
 
     def stop(self, grace: float = 5.0) -> None:
         """SIGTERM every live worker, wait up to ``grace`` seconds, then SIGKILL."""
@@ -999,14 +1083,16 @@ class _Pool:
                 p.join(1.0)
 
     def close(self) -> None:
-        for _ in self.procs:
-            self.tasks.put(None)
+        for w in self.workers:
+            try:
+                w.conn.send(None)
+            except OSError:  # it is gone already
+                pass
         for p in self.procs:
             p.join(5.0)
         self.stop(grace=1.0)
-        for q in (self.tasks, self.events):
-            q.cancel_join_thread()
-            q.close()
+        for w in self.workers:
+            w.conn.close()
 
 
 # --- many designs ----------------------------------------------------------------------------
@@ -1144,6 +1230,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     paths = [Path(p) for p in paths]
     results: list[DesignResult | None] = [None] * len(paths)
     owners: dict[str, Path] = {}
+    names: dict[int, str] = {}
     todo = []
 
     def finished(i, res):
@@ -1168,6 +1255,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
                                            "(its output folder)"))
             continue
         owners[name] = p
+        names[i] = name
         todo.append(i)
     if not todo:
         return results  # type: ignore[return-value]
@@ -1180,7 +1268,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             # largest designs first (edges as the measure of work): a long design started last
             # would run alone at the end while the other workers idle
             order = sorted(todo, key=lambda i: (-cost.get(i, 0), i))
-            _run_pool(order, args, kwargs, jobs, outdir, progress, finished)
+            _run_pool(order, args, names, kwargs, jobs, outdir, progress, finished)
         else:
             stage_cb = progress.stage if progress else None
             for i in todo:
@@ -1190,68 +1278,117 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     return results  # type: ignore[return-value]
 
 
-def _run_pool(todo, args, kwargs, jobs, outdir, progress, finished) -> None:
-    import queue
+def _died_message(path, name: str, code) -> str:
     import signal
 
-    pool = _Pool(max(1, min(jobs, len(todo))))
-    pending = set(todo)
-    names, inflight, seen_dead = {}, {}, set()
+    if code is not None and code < 0:
+        try:
+            how = f"signal {-code}, {signal.Signals(-code).name}"
+        except ValueError:
+            how = f"signal {-code}"
+    else:
+        how = f"exit code {code}"
+    return f"{path}: worker died ({how}) while exporting {name}; nothing of it was written"
 
-    def reap():
-        """A worker that died (killed by the system, out of memory) fails its design; a new
-        worker takes its place while designs remain."""
-        for proc in list(pool.procs):
-            if proc.is_alive() or proc.pid in seen_dead:
-                continue
-            seen_dead.add(proc.pid)
-            i = inflight.pop(proc.pid, None)
-            if i is not None and i in pending:
-                code = proc.exitcode
-                how = (f"killed by {signal.Signals(-code).name}" if code is not None and code < 0
-                       else f"exit code {code}")
+
+def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished) -> None:
+    """Export the designs ``todo`` (in this order) in ``jobs`` worker processes.
+
+    The parent hands a design to an idle worker and remembers it until the worker reports it
+    done; the worker leaves its folder staged and the parent swaps it in. A worker that dies
+    (killed by the system, out of memory, a crash), at whatever moment, fails the design it
+    was handed with ``error_code = "worker"`` and its exit status, its staging folder is
+    removed, and a new worker takes its place while designs remain.
+    """
+    from multiprocessing.connection import wait
+
+    queue = list(todo)
+    pending = set(todo)
+    pool = _Pool(max(1, min(jobs, len(todo))))
+
+    def dispatch(w):
+        if not queue:
+            return
+        i = queue.pop(0)
+        w.task = i  # handed over from here on, whatever happens to the send
+        try:
+            w.conn.send((i, names[i], args[i], kwargs))
+        except OSError:
+            pass  # the worker is gone: its death fails the design
+
+    def receive(w) -> bool:
+        """Handle every message waiting from ``w``; False when its pipe is closed."""
+        try:
+            while w.conn.poll():
+                event = w.conn.recv()
+                if event[0] == "stage":
+                    if progress:
+                        progress.stage(event[2], event[3])
+                    continue
+                _, i, res = event
+                if i not in pending:  # pragma: no cover - every design is sent once
+                    continue
+                if res.staged:
+                    try:
+                        swap_in(Path(res.staged), Path(res.folder))
+                    except OSError as exc:
+                        recover_folder(outdir, names[i])
+                        res.outcome, res.folder, res.files = Outcome.FAILED, "", 0
+                        res.error = (f"{args[i][0]}: cannot write the export to {outdir}: "
+                                     f"{exc.strerror or exc}")
+                        res.error_code = "output"
+                    res.staged = ""
+                w.task = None
                 pending.discard(i)
-                name = names.get(i, Path(args[i][0]).stem)
-                if _SAFE_NAME.match(name):
-                    recover_folder(outdir, name)
-                finished(i, DesignResult(str(args[i][0]), name, error_code="worker",
-                                         error=f"{args[i][0]}: the worker process exporting it "
-                                               f"ended unexpectedly ({how}); nothing of it was "
-                                               "written"))
-            if pending and sum(p.is_alive() for p in pool.procs) < min(jobs, len(pending)):
-                pool.spawn()
+                finished(i, res)
+        except (EOFError, OSError):  # closed, or cut off mid-message by the worker's death
+            return False
+        return True
+
+    def bury(w):
+        """The worker ``w`` has ended: fail the design it held, start another in its place."""
+        w.proc.join()
+        pool.workers.remove(w)
+        w.conn.close()
+        i = w.task
+        if i is not None and i in pending:
+            pending.discard(i)
+            if _SAFE_NAME.match(names[i]):
+                try:  # its staging folder, whatever it holds
+                    recover_folder(outdir, names[i])
+                except OSError:  # pragma: no cover - the next run removes it
+                    pass
+            finished(i, DesignResult(str(args[i][0]), names[i], error_code="worker",
+                                     error=_died_message(args[i][0], names[i],
+                                                         w.proc.exitcode),
+                                     worker_exit=w.proc.exitcode))
+        if queue and len(pool.workers) < min(jobs, len(pending)):
+            pool.spawn()
 
     try:
-        for i in todo:
-            pool.tasks.put((i, args[i], kwargs))
         while pending:
-            try:
-                event = pool.events.get(timeout=0.5)
-            except queue.Empty:
-                reap()
-                continue
-            if event[0] == "start":
-                _, i, pid = event
-                inflight[pid] = i
-            elif event[0] == "stage":
-                _, i, name, s = event
-                names[i] = name
-                if progress:
-                    progress.stage(name, s)
-            else:
-                _, i, res = event
-                if i in pending:
-                    pending.discard(i)
-                    finished(i, res)
+            for w in pool.workers:
+                # only a worker seen alive gets a design (one that ended after finishing its
+                # last design is buried below without one)
+                if w.task is None and queue and w.proc.is_alive():
+                    dispatch(w)
+            ready = set(wait([w.conn for w in pool.workers] +
+                             [w.proc.sentinel for w in pool.workers], timeout=1.0))
+            for w in list(pool.workers):
+                open_ = receive(w) if w.conn in ready else True
+                if w.proc.sentinel in ready or not open_ or not w.proc.is_alive():
+                    receive(w)  # what it sent before it ended counts
+                    if not open_ and w.proc.is_alive():
+                        w.proc.kill()  # a broken pipe: this worker can no longer report
+                    bury(w)
     except BaseException:
         pool.stop()
         # a worker killed between two writes leaves its staging folder: remove those of the
         # designs in flight, and put back an old folder caught between the two renames
         for i in pending:
-            name = names.get(i)
-            if name and _SAFE_NAME.match(name):
+            if _SAFE_NAME.match(names[i]):
                 try:
-                    recover_folder(outdir, name)
+                    recover_folder(outdir, names[i])
                 except OSError:
                     pass
         raise

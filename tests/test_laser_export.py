@@ -152,6 +152,9 @@ def test_expected_layers_and_screws(exported):
             assert j["spacers"] == j["bottom_to_top"].count("spacer")
     md = (exported["super_stable"][1] / "laser_bom.md").read_text()
     assert "## Screws" in md and "M3-chicago" in md
+    # the wording follows the typed proof: three layers meet the clique bound
+    assert layers["super_stable"]["proven_minimal"] is True
+    assert "3 layers (proven minimal)." in md
 
 
 def test_identical_input_gives_identical_bytes():

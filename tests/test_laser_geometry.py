@@ -202,3 +202,169 @@ def test_sampling_bound_holds_for_the_other_methods(method):
     steps = np.linalg.norm(np.diff(sweep.positions, axis=0), axis=2).max(axis=1)
     assert sweep.method == method and steps.max() <= s.sample_step
     assert sweep.drive[-1] == pytest.approx(design.motion.to, abs=1e-9)
+
+
+def _rules_broken(st, edges):
+    """Every stacking rule checked from the stacking's own conflicts, independently of the
+    planner's scoring: (pair on one layer, bar in a column, columns that meet)."""
+    layer, head = st.layer, st.head_slots
+    conf = st.conflicts
+    span = {}
+    for j in conf.screw_joints.tolist():
+        zs = layer[[k for k, e in enumerate(edges.tolist()) if j in e]]
+        span[j] = (int(zs.min()), int(zs.max()))
+    broken = [("pair", a, b) for a, b in conf.pairs.tolist() if layer[a] == layer[b]]
+    for rows, slack in ((conf.keepout, head), (conf.keepout_span, 0)):
+        broken += [("column", b, j) for b, j in rows.tolist()
+                   if span[j][0] - slack <= layer[b] <= span[j][1] + slack]
+    broken += [("columns", i, j) for i, j in conf.joint_pairs.tolist()
+               if span[i][0] - head <= span[j][1] + head and span[j][0] - head <= span[i][1] + head]
+    return broken
+
+
+def _chain_stacking(name):
+    from fabkit.fab.laser import laser_overrides
+    from fabkit.fab.layers import sample_chain
+
+    design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+    net = design.network
+    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides({}),
+                       network_size=net.size)
+    sweep = sample_chain(net, design.motion, s.scale, s.sample_step, width=s.bar_width,
+                         clearance=s.clearance, column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
+    return net, s, sweep, plan_layers(net.edges, sweep, s)
+
+
+def test_search_reaches_the_clique_bound_where_colourings_stop_one_layer_above():
+    net, s, sweep, st = _chain_stacking("slope_one_and_a_half_chain")
+    # every colouring that keeps bars off the screws needs 7 layers; six bars meet pairwise
+    # (a clique of 6), and the layer search finds a 6-layer stacking: minimal, by the clique
+    good = [c for c in st.stats["candidates"] if c[2] == 0]
+    assert good and min(c[1] for c in good) == 7
+    assert st.n_layers == 6 == st.lower_bound == st.stats["clique"]
+    assert st.strategy == "backtracking" and st.proven_minimal and st.stats["proven_minimal"]
+    assert st.proof_text() == "6 layers (proven minimal)"
+    assert _rules_broken(st, np.asarray(net.edges)) == []
+    assert set(st.layer.tolist()) == set(range(6))
+    # the screws' total span after the descent (the search alone gives 90 layer steps)
+    assert sum(max(js.layers) - min(js.layers) for js in st.joints) == 87
+    gaps = stacking_gaps(net.edges, st.layer, sweep.positions, width=s.bar_width,
+                         joints=st.joints, head_slots=st.head_slots,
+                         column_radius=0.5 * s.screw.head_diameter,
+                         spacer_radius=0.5 * s.spacer_diameter)
+    assert min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"]) >= s.clearance
+
+
+def test_shorter_screws_keep_every_rule_and_the_layer_count():
+    from fabkit.fab.layers import _search_layers, _shorten_screws
+
+    net, s, sweep, st = _chain_stacking("slope_one_and_a_half_chain")
+    edges = np.asarray(net.edges)
+    conf = st.conflicts
+    inc = [np.flatnonzero((edges == j).any(axis=1)) for j in conf.screw_joints.tolist()]
+    jpos = np.full(net.n_nodes, -1, dtype=np.int64)
+    jpos[conf.screw_joints] = np.arange(conf.screw_joints.size)
+    found = _search_layers(edges.shape[0], conf, inc, st.head_slots, range(6, 7))
+    short = _shorten_screws(found, conf, inc, jpos, st.head_slots)
+
+    def total(layer):
+        return sum(int(layer[jb].max() - layer[jb].min()) for jb in inc)
+
+    assert (total(found), total(short)) == (90, 87)
+    assert short.max() + 1 <= 6
+    fake = type("S", (), {"layer": short, "head_slots": st.head_slots, "conflicts": conf})
+    assert _rules_broken(fake, edges) == []
+
+
+def test_unproven_count_says_what_is_proven():
+    from fabkit.fab.layers import Stacking
+
+    _, _, _, st = _chain_stacking("slope_one_and_a_half_chain")
+    unproven = Stacking(layer=st.layer, n_layers=7, joints=st.joints, conflicts=st.conflicts,
+                        lower_bound=6, strategy="milp", head_slots=1)
+    assert not unproven.proven_minimal
+    assert unproven.proof_text() == "7 layers (at least 6 needed; fewer not ruled out)"
+
+
+def _brute_gaps(edges, layer, x, width, joints, head, column_radius, spacer_radius):
+    """stacking_gaps' three numbers by a plain loop over samples and pairs."""
+    edges = np.asarray(edges)
+    bar, screw, column = math.inf, math.inf, math.inf
+    span = {st.joint: (min(st.layers) - head, max(st.layers) + head) for st in joints}
+    for xs in x:
+        for a in range(len(edges)):
+            for b in range(a + 1, len(edges)):
+                if layer[a] == layer[b] and not set(edges[a]) & set(edges[b]):
+                    d = float(segment_distance(xs[edges[a, 0]], xs[edges[a, 1]],
+                                               xs[edges[b, 0]], xs[edges[b, 1]]))
+                    bar = min(bar, d - width)
+            for st in joints:
+                z0, z1 = span[st.joint]
+                if z0 <= layer[a] <= z1 and st.joint not in edges[a]:
+                    inner = z0 + head <= layer[a] <= z1 - head
+                    r = max(column_radius, spacer_radius) if inner else column_radius
+                    d = float(point_segment_distance(xs[st.joint], xs[edges[a, 0]],
+                                                     xs[edges[a, 1]]))
+                    screw = min(screw, d - 0.5 * width - r)
+        for i, s1 in enumerate(joints):
+            for s2 in joints[i + 1:]:
+                (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]
+                if a0 <= b1 and b0 <= a1:
+                    d = float(np.linalg.norm(xs[s1.joint] - xs[s2.joint]))
+                    column = min(column, d - 2 * column_radius)
+    return bar, screw, column
+
+
+def test_stacking_gaps_measure_the_true_minimum_between_coarse_samples():
+    from fabkit.fab.layers import JointStack
+
+    # bar 3-4 passes above bar 0-1 (one layer) and closest at sample 45 of 300, between the
+    # coarse samples 32 and 64 of the pruning; bars 5-6 and 6-7 are far away and left out of
+    # the full scan
+    t = np.linspace(0, 1, 300)
+    y = 20 + 60 * (t - 45 / 299) ** 2
+    x = np.zeros((t.size, 8, 2))
+    x[:, :3] = [[0, 0], [100, 0], [150, 40]]
+    x[:, 3] = np.stack([20 + 10 * t, y], 1)
+    x[:, 4] = np.stack([80 + 10 * t, y], 1)
+    x[:, 5:] = [[1000, 0], [1100, 0], [1150, 40]]
+    edges = np.array([[0, 1], [1, 2], [3, 4], [5, 6], [6, 7]])
+    layer = np.array([0, 1, 0, 0, 1])
+    joints = [JointStack(1, (0, 1), (0, 1), (), 0.0, 0.0, 0.0),
+              JointStack(6, (3, 4), (0, 1), (), 0.0, 0.0, 0.0)]
+    got = stacking_gaps(edges, layer, x, width=6.0, joints=joints, head_slots=1,
+                        column_radius=4.0, spacer_radius=5.0)
+    want = _brute_gaps(edges, layer, x, 6.0, joints, 1, 4.0, 5.0)
+    assert (got["bar_gap"], got["screw_gap"], got["column_gap"]) == pytest.approx(want, abs=1e-12)
+    assert got["bar_pair"] == [0, 2] and got["sample"] == 45
+    assert got["bar_gap"] == pytest.approx(20 - 6.0, abs=1e-12)
+    a, b = got["bar_pair"]
+    k = got["sample"]
+    xs = x[k]
+    assert float(segment_distance(xs[edges[a, 0]], xs[edges[a, 1]], xs[edges[b, 0]],
+                                  xs[edges[b, 1]])) - 6.0 == pytest.approx(got["bar_gap"])
+    # the same without the pruning (no more samples than two strides): the same numbers
+    few = stacking_gaps(edges, layer, x[::5], width=6.0, joints=joints, head_slots=1,
+                        column_radius=4.0, spacer_radius=5.0)
+    assert (few["bar_gap"], few["screw_gap"], few["column_gap"]) == pytest.approx(
+        _brute_gaps(edges, layer, x[::5], 6.0, joints, 1, 4.0, 5.0), abs=1e-12)
+
+
+def test_a_small_neighbourhood_proves_the_count_of_the_super_stable_chain():
+    from fabkit.fab.layers import _colourings, _milp_layers, _neighbourhood
+
+    net, s, sweep, st = _chain_stacking("super_stable_chain8")
+    # the clique says 6, the column rules force a 7th: proven on 16 bars around the clique
+    assert (st.n_layers, st.lower_bound, st.stats["clique"]) == (7, 7, 6)
+    assert st.proven_minimal and st.proof_text() == "7 layers (proven minimal)"
+    assert _rules_broken(st, np.asarray(net.edges)) == []
+    edges = np.asarray(net.edges)
+    conf = st.conflicts
+    joint_bars = [np.flatnonzero((edges == j).any(axis=1)) for j in conf.screw_joints.tolist()]
+    _, clique, members = _colourings(edges.shape[0], conf.pairs)
+    sub = _neighbourhood(edges.shape[0], conf, joint_bars, members, 16)
+    assert sub[0] == 16
+    layer, bound, optimal = _milp_layers(*sub, st.head_slots, 6, time_limit=20.0)
+    assert layer is None and bound == 7 and optimal  # no 6-layer stacking of the 16 bars
+

@@ -263,8 +263,9 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
                   "layer": int(st.layer[k]), "length_mm": round(float(bars.lengths[k]), 6),
                   "overall_length_mm": round(float(bars.lengths[k]) + s.bar_width, 6),
                   "sheet": sheet_of[f"B{k}"]} for k in range(bars.n_bars)],
-        "layers": {"count": st.n_layers, "lower_bound": st.lower_bound, "method": st.strategy,
-                   "head_slots": st.head_slots},
+        "layers": {"count": st.n_layers, "lower_bound": st.lower_bound,
+                   "proven_minimal": st.proven_minimal, "proof": st.proof_text(),
+                   "method": st.strategy, "head_slots": st.head_slots},
         "screws": [{"name": s.screw.name, "post_length_mm": length, "count": count}
                    for length, count in sorted(screws.items())],
         "washers": {"count": sum(js.washers for js in st.joints),
@@ -298,7 +299,7 @@ def bom_markdown(bom: dict) -> str:
     lines = [f"# Laser-cut kit: {bom['design']}", "",
              f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
              f"acrylic; bars {s['bar_width']:g} mm wide; kerf {s['kerf']:g} mm; "
-             f"{bom['layers']['count']} layers (lower bound {bom['layers']['lower_bound']}).", "",
+             f"{bom['layers']['proof']}.", "",
              "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
     for sh in bom["sheets"]:
         lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} | "
