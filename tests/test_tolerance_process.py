@@ -13,7 +13,7 @@ import pytest
 from fabkit.errors import TemplateError
 from fabkit.kinematics import make_problem, place
 from fabkit.templates import load_template
-from fabkit.tolerance import (ToleranceSpec, _find_plan, _place_batch, _plan_edge_index,
+from fabkit.tolerance import (ToleranceSpec, _find_plan, _place_builds, _plan_edge_index,
                               analyse_tolerance, design_process, tolerance_spec)
 from fabkit.tolerance.processes import ProcessGeometry, sample_lengths
 
@@ -94,22 +94,36 @@ def test_crease_position_error_grows_linearly_in_the_origami_sheet(sheet):
 
 
 @pytest.mark.parametrize("name", ["fourbar_chain", "origami_chain12"])
-def test_batch_placement_matches_one_placement_per_build(name):
+def test_builds_are_placed_by_the_one_placement_with_radii_per_column(name):
     d = load_template(TEMPLATES / f"{name}.toml")
     m = d.motion
     problem = make_problem(d.network, m.drive, m.to, hold=m.hold)
     plan = _find_plan(problem, d.trace())
     eidx = _plan_edge_index(plan, problem.work)
+    values = np.linspace(problem.start_drive, m.to, 7)
+    # the plan's own radii given per column: the same bits as the plain placement
+    X0, m0, w0 = place(plan, values)
+    X1, m1, w1 = place(plan, values, radii=np.broadcast_to(plan.radii, (7,) + plan.radii.shape))
+    assert np.array_equal(X0, X1) and np.array_equal(m0, m1) and np.array_equal(w0, w1)
+    # four builds with their own bar lengths, placed together = one plan per build
     rng = np.random.default_rng(5)
     noise = rng.standard_normal((4, problem.work.n_edges))
     lengths = problem.work.edge_lengths * (1 + 1e-3 * noise)
     radii = np.where(eidx >= 0, lengths[:, np.maximum(eidx, 0)], 0.0)
-    values = np.linspace(problem.start_drive, m.to, 7)
-    X, margin = _place_batch(plan, np.broadcast_to(values, (4, 7)), radii)
+    X, margin = _place_builds(plan, np.broadcast_to(values, (4, 7)), radii)
     for s in range(4):
         Xs, ms, _ = place(replace(plan, radii=radii[s]), values)
         np.testing.assert_allclose(X[s], Xs, atol=1e-12)
         np.testing.assert_allclose(margin[s], ms, atol=1e-12)
+        # where the build assembles, its bars have its own lengths, to round-off
+        ok = margin[s] >= 0
+        assert ok[0]
+        used = np.unique(eidx[eidx >= 0])
+        e = problem.work.edges[used]
+        got = np.linalg.norm(X[s][ok][:, e[:, 0]] - X[s][ok][:, e[:, 1]], axis=-1)
+        assert np.abs(got - lengths[s, used]).max() < 1e-12 * lengths.max()
+    with pytest.raises(ValueError, match=r"radii must have shape"):
+        place(plan, values, radii=radii[0])
 
 
 def test_verdicts_name_the_source_that_stops_the_design(chain10, sheet):

@@ -287,13 +287,19 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
                             gauge_perp=np.zeros(2))
 
 
-def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def place(plan: ConstructionPlan, drive_values, *,
+          radii=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Place all nodes for many drive values at once.
 
     Parameters
     ----------
     plan : ConstructionPlan
     drive_values : array_like, shape (K,)
+    radii : array_like, shape (K, M, dim), optional
+        Distances of each placed node to its parents for each drive value, instead of the
+        plan's ``radii`` (shape (M, dim)) for all of them: built networks whose bars differ from
+        build to build (:mod:`fabkit.tolerance`) are placed in one pass, a column per (build,
+        drive value).
 
     Returns
     -------
@@ -301,9 +307,15 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
         In the seed frame (node a at its reference position, b along the reference direction).
     margin : numpy.ndarray, shape (K,)
         Smallest ``h² / r²`` over the intersections (h: distance of the node from its parents'
-        line/plane); negative where some intersection does not exist.
+        line/plane); negative where some intersection does not exist (``-inf`` where it is not
+        even defined: a parent already missing, or coincident parents).
     worst : numpy.ndarray of int, shape (K,)
         Index into ``plan.order`` of the intersection with the smallest margin.
+
+    Raises
+    ------
+    ValueError
+        ``radii`` of another shape.
     """
     dv = np.atleast_1d(np.asarray(drive_values, dtype=np.float64))
     k = dv.size
@@ -321,15 +333,26 @@ def place(plan: ConstructionPlan, drive_values) -> tuple[np.ndarray, np.ndarray,
     margins = np.empty((plan.order.size, k))
     order = plan.order.tolist()
     parents = plan.parents.tolist()
-    r0s = (plan.radii[:, 0] ** 2).tolist()
-    c0s = (plan.radii[:, 0] ** 2 - plan.radii[:, 1] ** 2).tolist()
+    if radii is None:
+        # Python floats: the common case stays scalar arithmetic on each row
+        sq = (plan.radii ** 2).T.tolist()
+    else:
+        rad = np.asarray(radii, dtype=np.float64)
+        if rad.shape != (k,) + plan.radii.shape:
+            raise ValueError(f"radii must have shape {(k,) + plan.radii.shape} (drive values, "
+                             f"placements, parents), got {rad.shape}")
+        sq = list(np.ascontiguousarray((rad ** 2).transpose(2, 1, 0)))  # per parent: (M, K)
+    r0s = sq[0]
+    c0s = [r0 - r1 for r0, r1 in zip(sq[0], sq[1])]
+    r2s = sq[2] if d == 3 else None
     signs = plan.signs.tolist()
     with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
-        _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d)
+        _place_loop(X, margins, order, parents, r0s, c0s, r2s, signs, plan, d)
     positions = np.ascontiguousarray(X.transpose(2, 1, 0))
     if margins.size:
-        worst = np.argmin(margins, axis=0)
+        worst = np.argmin(margins, axis=0)  # a NaN margin is the minimum
         margin = margins[worst, np.arange(k)]
+        margin[np.isnan(margin)] = -np.inf
     else:
         worst = np.zeros(k, dtype=np.int64)
         margin = np.full(k, np.inf)
@@ -352,7 +375,9 @@ def _groups(order, parents):
     return runs
 
 
-def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
+def _place_loop(X, margins, order, parents, r0s, c0s, r2s, signs, plan, d):
+    """The intersections of :func:`place`, in construction order. ``r0s``, ``c0s`` and ``r2s``
+    hold one float per placement, or one row of K values per placement (radii per column)."""
     sqrt, maximum = np.sqrt, np.maximum
     if d == 2:
         # complex coordinates z = x + iy: a node is p + (along + i·height)·(q - p)/|pq|, a
@@ -361,7 +386,9 @@ def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
         z = X[0] + 1j * X[1]
         r0a = np.asarray(r0s)
         c0a = np.asarray(c0s)
-        sa = np.asarray(signs)
+        sa = np.asarray(signs)[:, None]
+        if r0a.ndim == 1:  # one radius per placement: a column against the row of K values
+            r0a, c0a = r0a[:, None], c0a[:, None]
         for start, stop, p, q in _groups(order, parents):
             zp = z[p]
             D = z[q] - zp
@@ -369,7 +396,7 @@ def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
             if stop - start == 1:
                 r0, c0, sg = r0s[start], c0s[start], signs[start]
             else:
-                r0, c0, sg = r0a[start:stop, None], c0a[start:stop, None], sa[start:stop, None]
+                r0, c0, sg = r0a[start:stop], c0a[start:stop], sa[start:stop]
             along = (c0 + dist2) / (2.0 * dist2)
             h2 = r0 - along * along * dist2
             hs = sg * sqrt(maximum(h2, 0.0) / dist2)
@@ -378,7 +405,6 @@ def _place_loop(X, margins, order, parents, r0s, c0s, signs, plan, d):
         X[0] = z.real
         X[1] = z.imag
     else:
-        r2s = (plan.radii[:, 2] ** 2).tolist()
         for idx, v in enumerate(order):
             par = parents[idx]
             r0 = r0s[idx]

@@ -551,11 +551,9 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
             "transient": int(res.discard)}
 
 
-def _place_batch(plan, values, radii) -> tuple[np.ndarray, np.ndarray]:
-    """Place every build at its own drive values, all at once.
-
-    The same intersections as :func:`fabkit.kinematics.place`, with radii that differ from
-    build to build: one column per (build, drive value), one pass over the construction order.
+def _place_builds(plan, values, radii) -> tuple[np.ndarray, np.ndarray]:
+    """Place every build at its own drive values in one pass of :func:`fabkit.kinematics.place`,
+    one column per (build, drive value) carrying its build's radii.
 
     Parameters
     ----------
@@ -572,66 +570,10 @@ def _place_batch(plan, values, radii) -> tuple[np.ndarray, np.ndarray]:
         Smallest ``h² / r²`` over the intersections; negative where one does not exist.
     """
     m, g = values.shape
-    ref = plan.reference
-    n, d = ref.shape
-    a, b = plan.seed
-    u = (ref[b] - ref[a]) / np.linalg.norm(ref[b] - ref[a])
-    cols = m * g
-    dv = values.reshape(cols)
-    X = np.full((d, n, cols), np.nan)
-    for c in range(d):
-        X[c, a] = ref[a, c]
-        X[c, b] = ref[a, c] + dv * u[c]
-    # (K, dim, columns): every column carries its build's radii
-    R = np.repeat(np.transpose(radii, (1, 2, 0)), g, axis=2)
-    r0 = R[:, 0] ** 2
-    c0 = r0 - R[:, 1] ** 2
-    margin = np.full(cols, np.inf)
-    order, parents, signs = plan.order.tolist(), plan.parents.tolist(), plan.signs.tolist()
-    sqrt, maximum = np.sqrt, np.maximum
-    with np.errstate(invalid="ignore", divide="ignore"):  # past a flat state: margin < 0, NaN
-        if d == 2:
-            for k, v in enumerate(order):
-                p, q = parents[k][0], parents[k][1]
-                px, py = X[0, p], X[1, p]
-                dx, dy = X[0, q] - px, X[1, q] - py
-                dist2 = dx * dx + dy * dy
-                along = (c0[k] + dist2) / (2.0 * dist2)
-                h2 = r0[k] - along * along * dist2
-                hs = signs[k] * sqrt(maximum(h2, 0.0) / dist2)
-                X[0, v] = px + along * dx - hs * dy
-                X[1, v] = py + along * dy + hs * dx
-                margin = np.minimum(margin, h2 / r0[k])
-        else:
-            r2 = R[:, 2] ** 2
-            for k, v in enumerate(order):
-                par = parents[k]
-                p1 = X[:, par[0]]
-                e12 = X[:, par[1]] - p1
-                dist2 = (e12 * e12).sum(axis=0)
-                dd = sqrt(dist2)
-                ex = e12 / dd
-                xx = (c0[k] + dist2) / (2.0 * dd)
-                if par[2] < 0:  # 3D gauge node: in the reference half-plane about the seed axis
-                    gp = plan.gauge_perp[:, None] - (ex * plan.gauge_perp[:, None]).sum(axis=0) * ex
-                    gp = gp / sqrt((gp * gp).sum(axis=0))
-                    h2 = r0[k] - xx * xx
-                    X[:, v] = p1 + xx * ex + sqrt(maximum(h2, 0.0)) * gp
-                    margin = np.minimum(margin, h2 / r0[k])
-                    continue
-                w = X[:, par[2]] - p1
-                i = (ex * w).sum(axis=0)
-                ey = w - i * ex
-                j = sqrt((ey * ey).sum(axis=0))
-                ey = ey / j
-                ez = np.stack([ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
-                               ex[0] * ey[1] - ex[1] * ey[0]])
-                yy = (r0[k] - r2[k] + i * i + j * j) / (2.0 * j) - (i / j) * xx
-                z2 = r0[k] - xx * xx - yy * yy
-                X[:, v] = p1 + xx * ex + yy * ey + (signs[k] * sqrt(maximum(z2, 0.0))) * ez
-                margin = np.minimum(margin, z2 / r0[k])
-    margin = np.where(np.isnan(margin), -np.inf, margin)
-    return X.transpose(2, 1, 0).reshape(m, g, n, d), margin.reshape(m, g)
+    from ..kinematics import place
+
+    x, margin, _ = place(plan, values.reshape(m * g), radii=np.repeat(radii, g, axis=0))
+    return x.reshape((m, g) + x.shape[1:]), margin.reshape(m, g)
 
 
 def _joint_turn(net, start, final) -> np.ndarray:
@@ -689,7 +631,7 @@ def _simulate(plan, eidx, problem, net, built, values, pairs, limit_units, clear
     mask = eidx >= 0
     radii = np.where(mask[None], work[:, np.maximum(eidx, 0)], 0.0)  # (M, K, dim)
     grid = np.broadcast_to(values, (m, values.size))
-    X, margin = _place_batch(plan, grid, radii)
+    X, margin = _place_builds(plan, grid, radii)
     bad = margin[:, 1:] < 0
     fails = bad.any(axis=1)
     final = X[:, -1].copy()
@@ -700,10 +642,10 @@ def _simulate(plan, eidx, problem, net, built, values, pairs, limit_units, clear
         lo, hi = values[first - 1], values[first]
         for _ in range(LOCK_BISECTIONS):  # where each failing build locks
             mid = 0.5 * (lo + hi)
-            _, mm = _place_batch(plan, mid[:, None], radii[f])
+            _, mm = _place_builds(plan, mid[:, None], radii[f])
             ok = mm[:, 0] >= 0
             lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
-        Xl, _ = _place_batch(plan, lo[:, None], radii[f])
+        Xl, _ = _place_builds(plan, lo[:, None], radii[f])
         final[f] = Xl[:, 0]
         stop[f] = lo
     # a build that locks within the limit of the target has reached it (it stops there)
