@@ -332,3 +332,39 @@ def test_slope_is_nan_for_configurations_beyond_the_motion(fourbar):
     x = np.stack([fourbar.nodes, np.full_like(fourbar.nodes, np.nan)])
     s = slope_at(fourbar, x)
     assert s[0] == pytest.approx(-1.0, abs=1e-12) and np.isnan(s[1])
+
+
+# -- configurations and the walk between branches ----------------------------------------------
+def test_configuration_on_each_branch_has_the_maps_values(fourbar):
+    f = module_map(fourbar)
+    for br in f.branches:
+        g = f.on_branch(br.index)
+        d = np.linspace(br.lo, br.hi, 9)[1:-1]
+        x = g.configuration(d)
+        assert x.shape == (7, 4, 2)
+        assert np.allclose(fourbar.port_distance("d1", x), d, atol=1e-12)
+        assert np.allclose(fourbar.port_distance("d2", x), g(d), atol=1e-12)
+        assert np.abs(fourbar.lengths_at(x) / fourbar.edge_lengths - 1).max() < 1e-12
+    assert f.configuration(2.5).shape == (4, 2)
+    with pytest.raises(DesignError, match="outside the domain"):
+        f.configuration(f.domain[1] + 1.0)
+    closed = Map1D.from_function(lambda x: 4 / x, lambda x: -4 / x ** 2, (1, 3))
+    with pytest.raises(DesignError, match="has no configurations"):
+        closed.configuration(2.0)
+
+
+def test_branches_record_where_the_walk_entered_them():
+    net = fabkit.load_template("templates/printed_planar.toml").network
+    f = module_map(net)
+    first = f.branches[0]
+    assert first.previous is None and first.entered_at is None
+    assert len(f.branches) >= 3
+    for br in f.branches[1:]:
+        came = f.branches[br.previous]
+        # entered at a turning point: an end of both the branch and the one walked from
+        assert br.entered_at in (came.lo, came.hi)
+        assert min(abs(br.lo - br.entered_at), abs(br.hi - br.entered_at)) < 1e-9
+        # at that turning point the two branches meet in one configuration
+        a = f.on_branch(came.index).configuration(br.entered_at)
+        b = f.on_branch(br.index).configuration(min(max(br.entered_at, br.lo), br.hi))
+        assert np.abs(a - b).max() < 1e-6

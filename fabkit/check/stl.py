@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import FabkitError, FabricationError
 from ..network import Network
+from ..numerics import START_RTOL
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_mesh", "slab_sections", "rebuild_linkage",
            "module_fixed_points", "sequential_transition", "as_built_tolerance", "VOLUME_RTOL"]
@@ -37,6 +38,9 @@ VOLUME_RTOL = 1e-6
 TRANSITION_RTOL = 1e-4
 #: Largest distance (mm) between a node rebuilt from the solid and the design's node.
 NODE_TOL_MM = 1e-2
+#: A fixed point within this distance of D1* (relative to the module's size) on its own branch
+#: is D1* itself: the map's fixed points are resolved to round-off and deduplicated at 1e-7.
+REFERENCE_SEPARATION = 1e-6
 
 
 def _check(name, ok, value=None, limit=None, detail=""):
@@ -281,97 +285,64 @@ def rebuild_linkage(mesh, settings, sections=None) -> AsBuilt:
 
 # --- the module's fixed points and the sequential transition -------------------------------------
 
-def module_fixed_points(module: Network, d_in="d1", d_out="d2", max_branches=6,
-                        samples=4001) -> dict:
+def module_fixed_points(module: Network, d_in="d1", d_out="d2", max_branches=6) -> dict:
     """The printed state's fixed point D1* and the next fixed point D2* along the motion.
 
-    The module's motion is walked from its reference configuration (which must be a fixed point,
-    d_out = d_in) by constructive placement, in both directions of d_in; at each end of a branch
-    (a flat triangle, where d_in turns back) the flat node's side is flipped and the walk goes
-    on. The first fixed point met in each direction is refined by ``brentq``; D2* is the one
-    reached with less travel of d_in. Slopes are central differences on the branch.
+    The module's map (:func:`fabkit.maps.module_map`) walks its whole motion from the
+    reference configuration, which must be a fixed point (d_out = d_in), branch by branch. From
+    D1* the motion is followed in both directions of d_in, onto the next branch at each turning
+    point (at most ``max_branches`` branches each way); the first fixed point met each way is
+    a candidate, and D2* is the one reached with less travel of d_in. Slopes are the map's
+    exact derivatives.
 
     Returns
     -------
     dict
-        ``D1``, ``slope1`` (f'(D1*)), ``D2``, ``slope2``, ``d_in_turning`` (d_in at the branch
-        end passed on the way, if any) and ``positions`` (module configuration at D2*, (N, d)).
+        ``D1``, ``slope1`` (f'(D1*)), ``D2``, ``slope2``, ``d_in_turning`` (d_in at the last
+        turning point passed on the way, if any) and ``positions`` (module configuration at
+        D2*, (N, d)).
 
     Raises
     ------
     FabkitError
         The reference is not a fixed point, or no second fixed point is found.
     """
-    from scipy.optimize import brentq
+    from ..maps import module_map
 
-    from ..kinematics import place, plan_construction
-
-    plan = plan_construction(module, module.port(d_in))
-    i, j = module.port(d_out)
     d1 = float(module.port_distance(d_in))
     d2 = float(module.port_distance(d_out))
-    if abs(d2 - d1) > 1e-9 * d1:
+    if abs(d2 - d1) > START_RTOL * d1:  # typed coordinates: ~10 significant digits
         raise FabkitError(f"the printed state is not a fixed point: {d_in} = {d1:.9g}, "
                           f"{d_out} = {d2:.9g}")
-
-    def out(p, v):
-        x, m, _ = place(p, np.atleast_1d(v))
-        return np.linalg.norm(x[:, i] - x[:, j], axis=1), m, x
-
-    def slope(p, v, h):
-        return float((out(p, v + h)[0][0] - out(p, v - h)[0][0]) / (2 * h))
-
-    def branch_end(p, start, direction):
-        step = 1e-3 * d1
-        while True:
-            v = start + direction * step
-            if v <= 0 or out(p, v)[1][0] < 0:
-                break
-            step *= 2.0
-            if step > 1e3 * d1:
-                return None
-        lo, hi = start, start + direction * step
-        for _ in range(200):
-            mid = 0.5 * (lo + hi)
-            if mid > 0 and out(p, mid)[1][0] >= 0:
-                lo = mid
-            else:
-                hi = mid
-            if abs(hi - lo) <= 1e-15 * d1:
-                break
-        return lo
-
+    fmap = module_map(module, d_in, d_out)
+    scale = max(fmap.domain[1], 1.0)
     found = []  # (d_in travelled, root, slope, turning value passed, configuration)
     for direction in (-1.0, 1.0):
-        p, cur, walked, turn = plan, d1, 0.0, None
+        index, start, walked, turn = 0, d1, 0.0, None
         for _ in range(max_branches):
-            end = branch_end(p, cur, direction)
-            if end is None:
+            br = fmap.branches[index]
+            end = br.lo if direction < 0 else br.hi
+            branch_map = fmap.on_branch(index)
+            ahead = [p for p in branch_map.fixed_points()
+                     if direction * (p.value - start) > (REFERENCE_SEPARATION * scale
+                                                         if index == 0 else 0.0)]
+            if ahead:
+                p = min(ahead, key=lambda q: abs(q.value - start))
+                found.append((walked + abs(p.value - start), p.value, p.slope, turn,
+                              branch_map.configuration(p.value)))
                 break
-            grid = np.linspace(cur, end, samples)
-            g = out(p, grid)[0] - grid
-            sgn = np.sign(g)
-            cross = np.flatnonzero(sgn[:-1] * sgn[1:] < 0)
-            if p is plan:  # the printed state itself is a root: step past it
-                cross = cross[np.abs(grid[cross] - d1) > 1e-6 * d1]
-            if cross.size:
-                k = cross[0]
-                root = brentq(lambda v: out(p, v)[0][0] - v, grid[k], grid[k + 1], xtol=1e-15)
-                h = 1e-4 * min(abs(root - end), abs(root - cur), d1) + 1e-12
-                found.append((walked + abs(root - cur), root, slope(p, root, h), turn,
-                              out(p, root)[2][0]))
+            walked += abs(end - start)
+            nxt = [b for b in fmap.branches if b.previous == index and b.entered_at == end]
+            if not nxt:
                 break
-            walked += abs(end - cur)
-            _, _, w = place(p, [end])  # the intersection that goes flat at the branch end
-            signs = p.signs.copy()
-            signs[w[0]] = -signs[w[0]]
-            p = dataclasses.replace(p, signs=signs)
-            cur, turn, direction = end, end, -direction
+            index, start, turn = nxt[0].index, end, end
+            # on the next branch the walk goes on towards its other end
+            other = nxt[0].hi if abs(nxt[0].lo - end) <= abs(nxt[0].hi - end) else nxt[0].lo
+            direction = 1.0 if other > end else -1.0
     if not found:
         raise FabkitError("no second fixed point along the module's motion")
     walked, root, sl, turn, x = min(found, key=lambda f: f[0])
-    h1 = 1e-5 * d1
-    return {"D1": d1, "slope1": slope(plan, d1, h1), "D2": float(root), "slope2": sl,
+    return {"D1": d1, "slope1": float(fmap.derivative(d1)), "D2": float(root), "slope2": sl,
             "d_in_turning": turn, "positions": x}
 
 

@@ -42,6 +42,7 @@ class Map1D:
     name: str = "f"
     curve_fun: Callable | None = field(default=None, repr=False)
     reference: float | None = None
+    configuration_fun: Callable | None = field(default=None, repr=False)
 
     # -- construction -------------------------------------------------------------------------
     @classmethod
@@ -457,6 +458,32 @@ class Map1D:
             g = self._grid(samples_per_branch)
             return [(self.branch, g, self._values(g)[0])]
         return [(br, *self.curve_fun(br, samples_per_branch)) for br in self.branches]
+
+    def configuration(self, d) -> np.ndarray:
+        """The network's configuration(s) on this branch at d_in = d.
+
+        Parameters
+        ----------
+        d : float or array_like, shape (K,)
+            Inside the domain.
+
+        Returns
+        -------
+        numpy.ndarray, shape (N, dim) for a scalar d, (K, N, dim) for an array
+            In the construction's seed frame (see :func:`fabkit.kinematics.place`).
+
+        Raises
+        ------
+        DesignError
+            d outside the domain, or a map without configurations (read off a trajectory or
+            given in closed form).
+        """
+        if self.configuration_fun is None:
+            raise DesignError(f"the map {self.name} ({self.source}) has no configurations: "
+                              "build it with module_map")
+        d = self._check(d)
+        x = self.configuration_fun(self.branch, d)
+        return x[0] if np.ndim(d) == 0 else x
 
     def on_branch(self, index: int) -> "Map1D":
         """The map on another branch of the same motion (``branches[index]``)."""

@@ -141,6 +141,11 @@ class Branch:
         Side of every constructed node (see :func:`fabkit.kinematics.plan_construction`).
     ends : tuple of str
         What ends the branch at lo and at hi (a turning point: which node becomes flat).
+    previous : int or None
+        Index of the branch the walk came from (None for the branch through the reference).
+    entered_at : float or None
+        The d_in of the turning point where the walk passed onto this branch from
+        ``previous``; it walks on towards the other end.
     """
 
     index: int
@@ -148,6 +153,8 @@ class Branch:
     hi: float
     signs: tuple
     ends: tuple = ("", "")
+    previous: int | None = None
+    entered_at: float | None = None
 
     def as_dict(self) -> dict:
         return {"index": self.index, "domain": [self.lo, self.hi], "ends": list(self.ends)}

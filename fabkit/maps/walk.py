@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.optimize import brentq
 
@@ -133,7 +135,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     >>> round(f(2.5), 12), round(f.derivative(2.5), 12)
     (1.6, -0.64)
     """
-    from ..kinematics import plan_construction
+    from ..kinematics import place, plan_construction
 
     a, b = _pair(net, d_in)
     out = _pair(net, d_out)
@@ -165,7 +167,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     # walk the rest of the motion: at each end flip the side of the node that became flat
     seen = {signs0}
     for d_end, wk in ((lo, wlo), (hi, whi)):
-        signs = signs0
+        signs, previous = signs0, 0
         while wk >= 0 and len(branches) < max_branches and plan.signs[wk] != 0:
             # (a 3D gauge node has no side to flip: its half-plane is a convention)
             flipped = list(signs)
@@ -177,7 +179,9 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
             if not nhi > nlo:
                 break
             seen.add(signs)
-            branches.append(Branch(len(branches), nlo, nhi, signs, (describe(nwlo), describe(nwhi))))
+            branches.append(Branch(len(branches), nlo, nhi, signs, (describe(nwlo), describe(nwhi)),
+                                   previous=previous, entered_at=float(d_end)))
+            previous = len(branches) - 1
             # continue from the far end of the new branch
             if abs(nhi - d_end) >= abs(nlo - d_end):
                 d_end, wk = nhi, nwhi
@@ -215,9 +219,14 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
         g = np.linspace(br.lo, br.hi, int(samples_per_branch))
         return g, ev(g, br.signs, derivative=False)[0]
 
+    def configuration(br, d):
+        signed = dataclasses.replace(plan, signs=np.asarray(br.signs, dtype=np.float64))
+        return place(signed, np.atleast_1d(np.asarray(d, dtype=np.float64)))[0]
+
     label = name or f"{_label(net, d_in)} -> {_label(net, d_out)}"
     return Map1D(fun=fun_for(chosen), domain=(chosen.lo, chosen.hi), branches=branches,
                  branch=chosen, source="constructive", name=label, curve_fun=curve_fun,
+                 configuration_fun=configuration,
                  reference=d0 if chosen.lo <= d0 <= chosen.hi else None)
 
 
