@@ -41,6 +41,7 @@ LAYERS = {
     "bench": 13,
     "commands": 14,
     "cli": 15,
+    "__main__": 16,
 }
 
 #: Only these may read template files (call the template loader): the reader itself, and the
