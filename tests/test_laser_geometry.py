@@ -182,6 +182,50 @@ def test_nesting_places_every_part_inside_sheets_without_overlap():
     assert side.tolist() == pytest.approx([REFERENCE_SIZE, REFERENCE_SIZE])
 
 
+def _overlap_free(sheets, s):
+    for sh in sheets:
+        boxes = np.array([p.bbox for p in sh.parts])
+        assert (boxes[:, :2] >= s.margin - 1e-9).all()
+        assert (boxes[:, 2] <= s.sheet_width - s.margin + 1e-9).all()
+        assert (boxes[:, 3] <= s.sheet_height - s.margin + 1e-9).all()
+        sep = np.maximum.reduce([boxes[None, :, 0] - boxes[:, None, 2],
+                                 boxes[:, None, 0] - boxes[None, :, 2],
+                                 boxes[None, :, 1] - boxes[:, None, 3],
+                                 boxes[:, None, 1] - boxes[None, :, 3]])
+        np.fill_diagonal(sep, np.inf)
+        assert sep.min() >= s.spacing - 1e-6
+
+
+def test_large_kits_are_nested_in_groups_as_tightly_as_at_once(monkeypatch):
+    import fabkit.fab.nest as nest
+
+    s = laser_settings({"sheet_width": 260, "sheet_height": 130})
+    rng = np.random.default_rng(3)
+    lengths = rng.uniform(40.0, 220.0, 400)
+    edges = np.stack([np.arange(400), np.arange(1, 401)], 1)
+    bars = bar_set(lengths, edges, s)
+    x = np.zeros((1, 401, 2))
+    x[0, :, 0] = np.arange(401) * 1000.0
+    st = plan_layers(edges, Sweep(x, np.zeros(1), 0.5, 0.0, "given", "finished", ""), s)
+    parts = make_parts(bars, st, s)
+    grouped = nest_parts(parts, s)
+    free = (s.sheet_width - 2 * s.margin + s.spacing) * (s.sheet_height - 2 * s.margin + s.spacing)
+    area = sum((p.bbox[2] - p.bbox[0] + s.spacing) * (p.bbox[3] - p.bbox[1] + s.spacing)
+               for p in parts)
+    assert area > nest.GROUP_SHEETS * free  # so the kit is packed in groups
+    monkeypatch.setattr(nest, "GROUP_SHEETS", 10 ** 6)
+    at_once = nest_parts(parts, s)
+    assert len(grouped) <= len(at_once) + 1
+    assert sorted(p.id for sh in grouped for p in sh.parts) == sorted(p.id for p in parts)
+    assert [sh.index for sh in grouped] == list(range(1, len(grouped) + 1))
+    _overlap_free(grouped, s)
+    # the groups' emptier last sheets are re-packed with the next group: no tail of half-empty
+    # sheets in the middle of the kit
+    fill = [sum((p.bbox[2] - p.bbox[0]) * (p.bbox[3] - p.bbox[1]) for p in sh.parts) / free
+            for sh in grouped]
+    assert min(fill[:len(grouped) // 2]) > 0.6
+
+
 def test_part_larger_than_the_sheet_is_refused():
     s = laser_settings({"sheet_width": 200, "sheet_height": 150})
     bars = bar_set([300.0], [[0, 1]], s)
