@@ -412,3 +412,40 @@ def test_a_small_neighbourhood_proves_the_count_of_the_super_stable_chain():
     layer, bound, optimal = _milp_layers(*sub, st.head_slots, 6, time_limit=20.0)
     assert layer is None and bound == 7 and optimal  # no 6-layer stacking of the 16 bars
 
+
+
+def test_layer_search_budget_bounds_backtracking_not_length():
+    """A long chain of conflicts: one pass places every bar, whatever the backtracking budget."""
+    from types import SimpleNamespace
+
+    from fabkit.fab.layers import _search_layers
+
+    n = 5000
+    none = np.zeros((0, 2), dtype=np.int64)
+    conf = SimpleNamespace(screw_joints=np.zeros(0, dtype=np.int64),
+                           pairs=np.stack([np.arange(n - 1), np.arange(1, n)], axis=1),
+                           keepout=none, keepout_span=none, joint_pairs=none)
+    layer = _search_layers(n, conf, [], 1, range(1, 4), node_limit=100)
+    assert layer is not None and int(layer.max()) + 1 == 2  # one layer is refused, two suffice
+    assert (layer[:-1] != layer[1:]).all()
+
+
+def test_class_score_counts_as_the_full_score():
+    """Scoring permutations of colour classes over distinct colour sets = scoring every bar."""
+    from fabkit.fab.layers import _ClassScore, _score
+
+    rng = np.random.default_rng(11)
+    n_bars, k = 300, 5
+    colours = rng.integers(0, k, n_bars)
+    joints = np.arange(40)
+    joint_bars = [np.unique(rng.choice(n_bars, size=rng.integers(1, 5), replace=False))
+                  for _ in joints]
+    jpos = np.arange(40)
+    keepout = np.stack([rng.integers(0, n_bars, 60), rng.choice(joints, 60)], axis=1)
+    span = np.stack([rng.integers(0, n_bars, 30), rng.choice(joints, 30)], axis=1)
+    pairs = np.stack([rng.choice(joints, 25), rng.choice(joints, 25)], axis=1)
+    perms = np.array([rng.permutation(k) for _ in range(50)])
+    got = _ClassScore(colours, joint_bars, jpos, keepout, pairs, 1, span)(perms)
+    want = _score(perms[:, colours], joint_bars, jpos, keepout, pairs, 1, span)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert want[0].max() > 0  # the rules are exercised
