@@ -16,6 +16,13 @@ __all__ = ["motion_gif", "collapse_profile", "collapse_order", "sequence_figure"
            "junction_figure"]
 
 
+#: Smallest padding of the drawing's limits, so that a network that does not move in one
+#: direction still gets a non-degenerate axis.
+AXIS_PAD = 1e-9
+#: Floor of the displacement drawn on a log scale (an exact zero has no logarithm).
+LOG_FLOOR = 1e-17
+
+
 def _frame_indices(traj, frames: int) -> np.ndarray:
     """Configurations evenly spaced in arclength (so slow and fast parts get fair time)."""
     s = traj.arclength
@@ -76,7 +83,7 @@ def motion_gif(traj, *, frames: int = 40, fps: float = 12.0, size=(6.0, 4.0), dp
         idx = np.append(idx, traj.n_steps - 1)
     pos = traj.positions[:, :, :2]
     lo, hi = pos.reshape(-1, 2).min(axis=0), pos.reshape(-1, 2).max(axis=0)
-    pad = 0.05 * float(max(hi - lo)) + 1e-9
+    pad = 0.05 * float(max(hi - lo)) + AXIS_PAD
     edges = traj.network.edges
     fig, ax = plt.subplots(figsize=size)
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
@@ -236,7 +243,7 @@ def junction_figure(fraction, displacement, *, threshold: float = 1e-12,
     import matplotlib.pyplot as plt
 
     f = np.asarray(fraction, dtype=np.float64)
-    disp = np.maximum(np.abs(np.asarray(displacement, dtype=np.float64)), 1e-17)
+    disp = np.maximum(np.abs(np.asarray(displacement, dtype=np.float64)), LOG_FLOOR)
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     ax.semilogy(f, disp, ".-", color="C0", ms=3)
     ax.axhline(threshold, color="C3", lw=0.8, ls="--", label=f"{threshold:g}")

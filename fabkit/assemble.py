@@ -27,7 +27,7 @@ import numpy as np
 
 from .errors import FabkitError, KinematicsError
 from .network import Assembly, Network
-from .numerics import rigid_fit
+from .numerics import DOMAIN_RTOL, TINY, rigid_fit
 
 __all__ = [
     "chain",
@@ -42,6 +42,14 @@ __all__ = [
 
 # Relative mismatch allowed between the two node pairs (or node sets) that a join merges.
 _JOIN_RTOL = 1e-9
+
+
+#: Unit vectors whose cross product is shorter than this are parallel (or opposite) to
+#: round-off: the rotation between them is the identity or a half turn.
+PARALLEL_TOL = 1e-15
+#: A helper axis closer than this to the rotation axis (|u × e_x| below it) is replaced by e_y,
+#: which then lies at least ~0.7 away from it.
+AXIS_CHOICE_TOL = 1e-8
 
 
 def join_transform(src, dst, mirror: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -94,12 +102,12 @@ def join_transform(src, dst, mirror: bool = False) -> tuple[np.ndarray, np.ndarr
             refl = np.eye(3) - 2.0 * np.outer(normal, normal)
         w = np.cross(un, vn)
         c = float(un @ vn)
-        if np.linalg.norm(w) < 1e-15:
+        if np.linalg.norm(w) < PARALLEL_TOL:
             if c > 0:
                 r = np.eye(3)
             else:  # half turn about any axis perpendicular to u
                 perp = np.cross(un, [1.0, 0.0, 0.0])
-                if np.linalg.norm(perp) < 1e-8:
+                if np.linalg.norm(perp) < AXIS_CHOICE_TOL:
                     perp = np.cross(un, [0.0, 1.0, 0.0])
                 perp /= np.linalg.norm(perp)
                 r = 2.0 * np.outer(perp, perp) - np.eye(3)
@@ -206,7 +214,7 @@ def join(first: Network, second: Network, at, *, mirror: bool = False,
     else:
         fit = rigid_fit(src, dst, handedness="improper" if mirror else "proper")
         rot, shift = fit.rotation, fit.shift
-    scale = max(first.size, second.size, 1e-300)
+    scale = max(first.size, second.size, TINY)
     # The merged node sets must have the same shape: compare all their pairwise distances.
     dist_first = np.linalg.norm(dst[:, None] - dst[None], axis=-1)
     dist_second = np.linalg.norm(src[:, None] - src[None], axis=-1)
@@ -295,7 +303,7 @@ def _module_at(module: Network, d_in: str, value: float, plan_cache: dict) -> np
     ref = plan_cache.get("ref")
     if ref is None:
         ref = plan_cache["ref"] = float(module.port_distance(d_in))
-    if abs(value - ref) <= 1e-12 * max(ref, 1.0):
+    if abs(value - ref) <= DOMAIN_RTOL * max(ref, 1.0):
         return module.nodes
     if "plan" not in plan_cache:
         plan_cache["plan"] = plan_construction(module, module.port(d_in))
@@ -412,7 +420,7 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
         kind = kinds[id(m)]
         i0, i1 = kind["inp"]
         o0, o1 = kind["out"]
-        if abs(d_value - kind["d_ref"]) <= 1e-12 * max(kind["d_ref"], 1.0):
+        if abs(d_value - kind["d_ref"]) <= DOMAIN_RTOL * max(kind["d_ref"], 1.0):
             x, fresh_block = m.nodes, kind["fresh_ref"]  # at its reference: nothing to place
             src[c], dst[c] = kind["src_ref"], kind["dst_ref"]
             d_value = kind["d_out_ref"]
@@ -608,7 +616,7 @@ def tessellate(module: Network, shape: tuple[int, int], *, x_join: tuple[str, st
     first = np.full(label.max() + 1, total, dtype=np.int64)
     np.minimum.at(first, label, np.arange(total))
     roots = first[label]
-    scale = max(float(np.ptp(pos, axis=0).max()), 1e-300)
+    scale = max(float(np.ptp(pos, axis=0).max()), TINY)
     gap = np.linalg.norm(pos - pos[roots], axis=1)
     if gap.max() > tol * scale:
         bad = int(np.argmax(gap))

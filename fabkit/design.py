@@ -30,6 +30,7 @@ import numpy as np
 
 from .errors import DesignError
 from .network import Network
+from .numerics import TINY
 
 __all__ = ["SolutionSpace", "DesignReport", "velocity_space", "displacement_space",
            "design_module", "build_designed_module"]
@@ -37,6 +38,24 @@ __all__ = ["SolutionSpace", "DesignReport", "velocity_space", "displacement_spac
 # Points of a space closer than this (relative to the design's size) to a designed node are the
 # trivial solutions (a zero-length edge), never a variable node.
 _TRIVIAL_RTOL = 1e-7
+
+
+#: A quadratic whose leading coefficient is this small against the others is linear along the
+#: line (the line is parallel to an asymptote).
+LINEAR_RTOL = 1e-14
+#: Newton on the two conditions stops when both residuals are below this: below the round-off
+#: of evaluating them at unit scale, so only an exact hit stops it early.
+POLISHED = 1e-17
+#: A root of the resultant counts as real when its imaginary part is below this, relative: a
+#: double root (a tangency) comes out of the companion matrix split by ~√ε ≈ 1e-8.
+REAL_ROOT_RTOL = 1e-6
+#: Below this the two conics share their y-quadratic at x, and y comes from the first alone.
+SHARED_QUADRATIC = 1e-12
+#: Intersection points closer than this (relative to the network) are one (a double root).
+DUPLICATE_RTOL = 1e-9
+#: A specification whose conditions all vanish to this (relative to their typical size) puts
+#: no condition on the node: round-off of the fit leaves ~1e-15.
+NO_CONDITION_RTOL = 1e-12
 
 
 def _as_points(value, name, dim=None, count=None) -> np.ndarray:
@@ -119,7 +138,7 @@ class SolutionSpace:
     @property
     def scale(self) -> float:
         c = self.designed.mean(axis=0)
-        return float(max(np.max(np.linalg.norm(self.designed - c, axis=1)), 1e-300))
+        return float(max(np.max(np.linalg.norm(self.designed - c, axis=1)), TINY))
 
     # -- exact conditions -------------------------------------------------------------------
     def condition(self, x) -> np.ndarray:
@@ -220,7 +239,7 @@ class SolutionSpace:
         o = np.append(np.asarray(origin, float), 1.0)
         u = np.append(np.asarray(direction, float), 0.0)
         a, b, c = u @ self.Q @ u, 2.0 * (u @ self.Q @ o), o @ self.Q @ o
-        if abs(a) <= 1e-14 * (abs(b) + abs(c)):
+        if abs(a) <= LINEAR_RTOL * (abs(b) + abs(c)):
             return np.array([-c / b]) if b != 0 else np.array([])
         disc = b * b - 4 * a * c
         if disc < 0:
@@ -329,7 +348,7 @@ def _polish(p, s1, s2, iters=8):
     for _ in range(iters):
         F = np.array([s1.evaluate(x), s2.evaluate(x)])
         J = np.stack([s1.gradient(x), s2.gradient(x)])
-        if np.max(np.abs(F)) < 1e-17:
+        if np.max(np.abs(F)) < POLISHED:
             break
         step = np.linalg.lstsq(J, F, rcond=None)[0]
         x = x - step
@@ -365,11 +384,11 @@ def _conic_intersections(Q1: np.ndarray, Q2: np.ndarray) -> np.ndarray:
     scale = max(1.0, float(np.max(np.abs(roots)))) if roots.size else 1.0
     pts = []
     for r in roots:
-        if abs(r.imag) > 1e-6 * max(1.0, abs(r)):
+        if abs(r.imag) > REAL_ROOT_RTOL * max(1.0, abs(r)):
             continue
         x = r.real
         den = P.polyval(x, ab)
-        if abs(den) > 1e-12:
+        if abs(den) > SHARED_QUADRATIC:
             ys = [-P.polyval(x, ac) / den]
         else:  # both conics share the same y-quadratic here: take the roots of the first
             qa, qb, qc = P.polyval(x, a1), P.polyval(x, b1), P.polyval(x, c1)
@@ -383,7 +402,7 @@ def _conic_intersections(Q1: np.ndarray, Q2: np.ndarray) -> np.ndarray:
     # drop duplicates (double roots)
     out = []
     for p in pts:
-        if all(np.linalg.norm(p - q) > 1e-9 * scale for q in out):
+        if all(np.linalg.norm(p - q) > DUPLICATE_RTOL * scale for q in out):
             out.append(p)
     return np.array(out)
 
@@ -413,7 +432,7 @@ def _fit_space(kind, designed, target) -> SolutionSpace:
     # of d + 1 rows, one of them ~ s |v|); final positions ~ s (displacement: squared lengths)
     vmax = float(np.max(np.abs(target))) or 1.0
     typical = s ** d * s * vmax if kind == "velocity" else s * s
-    if not np.isfinite(norm) or np.max(np.abs(vals)) <= 1e-12 * typical:
+    if not np.isfinite(norm) or np.max(np.abs(vals)) <= NO_CONDITION_RTOL * typical:
         raise DesignError(f"the {kind} specification puts no condition on the variable node "
                           "(every position is a solution): the designed motion is rigid")
     return SolutionSpace(kind, designed, target, Q / norm)

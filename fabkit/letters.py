@@ -24,10 +24,18 @@ import numpy as np
 
 from .errors import DesignError, FabkitError
 from .network import Network
+from .numerics import TINY
 
 __all__ = ["CurvatureModule", "CurveFit", "curvature_modules", "design_curve", "strip_model",
            "glyph", "GLYPHS", "design_word", "chain_centerline", "polyline_distance",
            "letter_template"]
+
+
+#: Consecutive target points closer than this (design units) are one point.
+DISTINCT_POINT = 1e-12
+#: A curvature module's final leg d2 must equal its final d1 (and the modules' legs each other)
+#: to this relative error: they are placed exactly, so only a different design misses it.
+LEG_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -98,7 +106,7 @@ def curvature_modules(networks: dict, final: float, templates: dict | None = Non
         if margin[0] < 0:
             raise DesignError(f"curvature module {name!r} cannot reach d1 = {final:.10g}")
         leg2 = float(np.linalg.norm(x[0, c] - x[0, e]))
-        if abs(leg2 - final) > 1e-9 * final:
+        if abs(leg2 - final) > LEG_RTOL * final:
             raise DesignError(f"curvature module {name!r}: d2 = {leg2:.10g} at d1 = {final:.10g}; "
                               "the final state must be a fixed point d1 = d2")
         bottom = float(np.linalg.norm(x[0, a] - x[0, e]))
@@ -138,7 +146,7 @@ def polyline_distance(points, polyline) -> np.ndarray:
     a = np.asarray(polyline, dtype=np.float64)[:-1][None]
     b = np.asarray(polyline, dtype=np.float64)[1:][None]
     ab = b - a
-    t = np.clip(np.einsum("pmi,pmi->pm", p - a, ab) / np.maximum(np.einsum("pmi,pmi->pm", ab, ab), 1e-300), 0, 1)
+    t = np.clip(np.einsum("pmi,pmi->pm", p - a, ab) / np.maximum(np.einsum("pmi,pmi->pm", ab, ab), TINY), 0, 1)
     nearest = a + t[..., None] * ab
     return np.linalg.norm(p - nearest, axis=-1).min(axis=1)
 
@@ -240,14 +248,14 @@ def design_curve(target, modules: list[CurvatureModule], *, beam: int = 48,
     pts = np.asarray(target, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 2:
         raise DesignError(f"`target` must have shape (M, 2), got {pts.shape}")
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12])
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > DISTINCT_POINT])
     pts = pts[keep]
     if pts.shape[0] < 2:
         raise DesignError("`target` needs at least 2 distinct points")
     if not modules:
         raise DesignError("no curvature modules given")
     legs = np.array([m.leg for m in modules])
-    if np.ptp(legs) > 1e-9 * legs[0]:
+    if np.ptp(legs) > LEG_RTOL * legs[0]:
         raise DesignError("the curvature modules must share the final leg length D2*")
     leg = float(legs[0])
     s_nodes = _resample(pts)

@@ -29,6 +29,8 @@ __all__ = [
     "START_RTOL",
     "DOMAIN_RTOL",
     "FIXED_POINT_RTOL",
+    "TINY",
+    "MM_SLACK",
     "RigidFit",
     "rigid_fit",
     "apply_fit",
@@ -76,6 +78,17 @@ DOMAIN_RTOL = 1e-12
 #: most this, relative to the domain's size: brentq lands within a few ulps, so genuine roots sit
 #: near 1e-15, while a near miss of a touching root (a local minimum of |f(d) - d|) stays far above.
 FIXED_POINT_RTOL = 1e-10
+
+#: A positive floor for a divisor or a scale that may be zero (a degenerate network, an empty
+#: sum): far below any length, area or time fabkit meets, so it replaces only an exact zero and
+#: changes no other value.
+TINY = 1e-300
+
+#: Slack of comparisons between lengths in mm (a part against a sheet or a bed, a screw against
+#: its stack, a rounding to whole units): sums of mm values of up to metres carry ~1e-13 mm of
+#: round-off, and 1e-9 mm is far below anything a laser or a printer makes, so a part that fits
+#: exactly is not refused for an ulp.
+MM_SLACK = 1e-9
 
 # -- rigid best fit (Kabsch) -------------------------------------------------------------------
 

@@ -57,6 +57,14 @@ MAX_BLOCK = 64
 AMBIGUOUS_GAP = 1e3
 
 
+#: Shift of RᵀR in the normal-equations path, relative to σ_max²: above its round-off (~1e-16
+#: σ_max²), so K + μI is positive definite, and far below the squared threshold it resolves.
+NORMAL_SHIFT = 1e-10
+#: A zero mode with less than this of its norm outside the rigid motions is rigid, not a
+#: conformational motion.
+CONFORMATIONAL_PART = 1e-8
+
+
 def available_memory() -> int | None:
     """Bytes of memory available to a new allocation (``MemAvailable`` on Linux), or None when
     the system does not say."""
@@ -420,7 +428,7 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     smax = _sigma_max(r)
     tol = rtol * max(smax, 1.0)
     k = (r.T @ r).tocsc()
-    mu = 1e-10 * smax ** 2  # above the round-off of RᵀR, so K + μI is positive definite
+    mu = NORMAL_SHIFT * smax ** 2  # above the round-off of RᵀR, so K + μI is positive definite
     try:
         lu_k = spla.splu((k + mu * sp.eye(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
@@ -618,7 +626,7 @@ def zero_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> np.n
     rigid = rigid_body_basis(x)
     proj = null - rigid @ (rigid.T @ null)
     u, sv, _ = np.linalg.svd(proj, full_matrices=False)
-    return u[:, sv > 1e-8]
+    return u[:, sv > CONFORMATIONAL_PART]
 
 
 def self_stresses(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> np.ndarray:

@@ -7,6 +7,10 @@ import numpy as np
 __all__ = ["draw_network", "motion_figure", "figure_png"]
 
 
+#: Floor of edge errors drawn on a log scale (an exact zero has no logarithm).
+LOG_FLOOR = 1e-17
+
+
 def _mpl():
     import matplotlib
 
@@ -59,7 +63,7 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     ax2.set_ylabel("drive distance")
     ax2.set_title(f"{traj.method}: {traj.status}")
     ax2b = ax2.twinx()
-    err = np.maximum(traj.edge_error, 1e-17)
+    err = np.maximum(traj.edge_error, LOG_FLOOR)
     ax2b.semilogy(traj.arclength, err, ".", color="C3", ms=3)
     ax2b.set_ylabel("max relative edge error", color="C3")
     fig.tight_layout()

@@ -61,6 +61,23 @@ METHOD_OPTIONS = {
 }
 
 
+#: The super-stable chain is driven this far past D2* (the front then crosses ~10 modules).
+SUPER_STABLE_PAST = 1e-6
+#: The super-unstable 4-bars are driven this far past D1* = 1 (their flat state).
+SUPER_UNSTABLE_PAST = 1e-9
+#: The AND gate's branch is driven this far past D2*: the collapse would cross every module.
+AND_GATE_PAST = 1e-12
+#: The chaotic chain's d1 moves by this much: enough to cross ~30 modules' amplification.
+CHAOTIC_MOVE = 1e-5
+#: Step of the reference's central differences for the orbit's Lyapunov exponent (ModuleMap is
+#: the independent reference, so it does not use the exact derivatives it checks).
+REFERENCE_DIFF_STEP = 1e-7
+#: Floors of log-scale plots (an exact zero has no logarithm): edge errors, and errors against
+#: the 60-digit reference.
+LOG_FLOOR = 1e-17
+LOG_FLOOR_ERROR = 1e-18
+
+
 def study_methods() -> dict:
     """Every registered tracing method with the options the study uses."""
     from ..kinematics import METHODS
@@ -295,7 +312,7 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
     d2star = collapsed_fixed_point()
     cases.append(Case(
         "super_stable", f"super-stable fixed point ({k}-module chain collapsing)",
-        chain(ss, k), d2star + 1e-6, "finish", None, ModuleMap(ss), k, tol_ref=1e-8,
+        chain(ss, k), d2star + SUPER_STABLE_PAST, "finish", None, ModuleMap(ss), k, tol_ref=1e-8,
         plot_port="d2",
         note=f"slope 0 at D1* = √3: motion localises super-exponentially; far modules stay "
              f"frozen to round-off while the collapse front (driven to D2* + 1e-6, "
@@ -307,7 +324,7 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
     pf = _physical_fourbar_at(1.5)
     cases.append(Case(
         "super_unstable", "super-unstable fixed point (8 4-bars driven to 1e-9 above D1*)",
-        chain(pf, 8), 1.0 + 1e-9, "finish", None, ModuleMap(pf), 8, tol_ref=1e-6,
+        chain(pf, 8), 1.0 + SUPER_UNSTABLE_PAST, "finish", None, ModuleMap(pf), 8, tol_ref=1e-6,
         plot_port="d3",
         note="the 4-bar of Fig. 5c has slope ∞ at D1* = 1 (flat): d2 - 1 ~ √(d1 - 1). Round-off "
              "in d1 is amplified by the slopes, so up to ~1e-8 deviation is correct; the chain "
@@ -316,13 +333,13 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
     gate = and_gate(6)
     cases.append(Case(
         "self_stress", "state of self-stress: the AND gate (6 + 6 super-stable modules)", gate,
-        d2star + 1e-12, "stop", float(gate.port_distance("d1")), None, 1, plot_port="joint",
+        d2star + AND_GATE_PAST, "stop", float(gate.port_distance("d1")), None, 1, plot_port="joint",
         note="joining the far end of one super-stable chain to the middle of another makes a "
              "state of self-stress and two conformational motions at the start; driving one "
              "branch alone does not determine the motion.",
         facts={"modes": str(_modes(gate))}))
     cases.append(Case(
-        "self_stress_held", "AND gate with the other branch held", gate, d2star + 1e-12, "stop",
+        "self_stress_held", "AND gate with the other branch held", gate, d2star + AND_GATE_PAST, "stop",
         None, None, 1, hold=("b1",), plot_port="joint",
         note="with the second branch's input held, the shared pair cannot move, so the first "
              "branch cannot collapse fully: f^6(d1) = √3 only at d1 = √3 (f has an extremum "
@@ -334,7 +351,7 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
     cmap2 = ModuleMap(ch)
     cases.append(Case(
         "chaotic", f"chaotic chain ({kc} modules, d1 moved by 1e-5)", chain(ch, kc),
-        0.9 + 1e-5, "finish", None, cmap2, kc, tol_ref=1e-9, plot_port=f"d{kc + 1}",
+        0.9 + CHAOTIC_MOVE, "finish", None, cmap2, kc, tol_ref=1e-9, plot_port=f"d{kc + 1}",
         note="λ ≈ 0.31: round-off (in building the chain as well as in tracing it) grows "
              "as e^{0.31 k}; at 30 modules deviations up to ~1e-10 are round-off, so 1e-9 is "
              "accepted."))
@@ -578,7 +595,7 @@ def predictability_horizon(k: int = 200, *, d1: float = 0.9, delta: float = 1e-8
     target = d1 + delta
     truth = decimal_map(fmap, target, k)
     orbit = truth[:-1]
-    hstep = 1e-7
+    hstep = REFERENCE_DIFF_STEP
     slope = (fmap(orbit + hstep) - fmap(orbit - hstep)) / (2 * hstep)
     lam = float(np.mean(np.log(np.abs(slope))))
     eps = np.finfo(float).eps
@@ -663,7 +680,7 @@ def failure_figure(study: dict, horizon: dict | None = None):
     rows = int(math.ceil(n / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.6 * rows), squeeze=False)
     flat_axes = axes.ravel()
-    floor = 1e-17
+    floor = LOG_FLOOR
     for ax, c in zip(flat_axes, cases):
         for r in (r for r in study["rows"] if r["case"] == c["name"]):
             col = _COLORS.get(r["method"], "k")
@@ -694,7 +711,7 @@ def failure_figure(study: dict, horizon: dict | None = None):
         ax = flat_axes[len(cases)]
         kk = np.arange(horizon["modules"] + 1)
         for name, h in horizon["methods"].items():
-            err = np.maximum(np.asarray(h["error"], dtype=float), 1e-18)
+            err = np.maximum(np.asarray(h["error"], dtype=float), LOG_FLOOR_ERROR)
             hz = h["horizon"]
             tag = ("–" if hz is None else f"{hz:.0f}") + (" extrap." if h["extrapolated"] else "")
             ax.semilogy(kk[:err.size], err, ".", ms=3, color=_COLORS.get(name, "k"),
@@ -703,7 +720,7 @@ def failure_figure(study: dict, horizon: dict | None = None):
         eps = np.finfo(float).eps
         ax.semilogy(kk, eps * np.exp(lam * kk), "k--", lw=1, label=f"ε·e^(λk), λ = {lam:.3f}")
         ax.axhline(horizon["threshold"], color="0.5", lw=0.8)
-        ax.set_ylim(1e-18, 10)
+        ax.set_ylim(LOG_FLOOR_ERROR, 10)
         ax.set_xlabel("module k")
         ax.set_ylabel("|d_k - exact| (60-digit placement)")
         ax.set_title("chaotic chain: predictability horizon in float64", fontsize=9)

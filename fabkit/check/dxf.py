@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError
-from ..numerics import project_to_lengths
+from ..numerics import MM_SLACK, project_to_lengths
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
 
@@ -53,6 +53,10 @@ FILE_RESOLUTION_MM = 1e-9
 MAP_RTOL = 1e-6
 _LAYERS = {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
 _APPID = "FABKIT"
+
+
+#: Screw heads spanning a whole number of sheets to round-off take that many layers, not one more.
+HEAD_LAYERS_SLACK = 1e-12
 
 
 def _mm(v: float) -> str:
@@ -290,7 +294,7 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
         inc.setdefault(j, []).append(b)
     joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
               for j, bs in sorted(inc.items()) if len(bs) >= 2]
-    head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
+    head = int(math.ceil(s.screw.head_height / s.thickness - HEAD_LAYERS_SLACK))
     gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
                          head_slots=head, column_radius=0.5 * s.screw.head_diameter,
                          spacer_radius=0.5 * s.spacer_diameter)
@@ -330,7 +334,7 @@ def _screws_close(edges, layer, s) -> dict:
             break
         if fit.play_min < worst:
             worst, where = fit.play_min, joint
-    ok = not problem and worst >= -1e-9
+    ok = not problem and worst >= -MM_SLACK
     return _check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
                   problem or f"least axial play (mm) with washers on sheets of "
                   f"{s.thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")

@@ -24,12 +24,19 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError, FabricationError
+from ..numerics import FLAT_RTOL
 
 FORMAT = "fold"
 SUFFIXES = (".fold",)
 
 #: Largest difference of a port distance between the file and the re-folded network.
 MAP_TOL = 1e-8
+
+
+#: Edge lengths stored in a FOLD file's frames must match the creases to this relative error:
+#: the frames are written with 12 significant digits (see export/fold.py), so 1e-8 leaves margin
+#: for rounding and refuses a frame that is visibly off.
+FRAME_RTOL = 1e-8
 
 
 def _check(name, ok, value, limit, detail):
@@ -171,7 +178,7 @@ def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
         sub = Network(net.nodes[verts], np.array(sub_edges), ports)
         plan = plan_construction(sub, sub.port("in"))
         pos, margin, _ = place(plan, stored[din])
-        if (margin < -1e-12).any():
+        if (margin < -FLAT_RTOL).any():
             raise FabricationError(f"sheet {k + 1} cannot reach the stored {din} values")
         worst = max(worst, float(np.max(np.abs(sub.port_distance("out", pos) - stored[dout]))))
         n += 1
@@ -214,7 +221,7 @@ def check_file(path, design=None, settings=None) -> dict:
         worst = float(np.max(np.abs(lens / rest - 1.0)))
     else:
         worst = 0.0
-    checks.append(_check("frames_keep_lengths", worst <= 1e-8, worst, 1e-8,
+    checks.append(_check("frames_keep_lengths", worst <= FRAME_RTOL, worst, FRAME_RTOL,
                          f"{len(frames)} frames; largest relative edge-length change {worst:.1e}"))
     try:
         fold = fold_model(model, drive, to)

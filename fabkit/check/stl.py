@@ -43,6 +43,11 @@ NODE_TOL_MM = 1e-2
 REFERENCE_SEPARATION = 1e-6
 
 
+#: Points of a section closer than this (mm) are merged: STL stores float32 coordinates, which
+#: split a straight side at ~1e-5 mm (more far from the origin, see the spacing term).
+SECTION_MERGE_MM = 1e-4
+
+
 def _check(name, ok, value=None, limit=None, detail=""):
     return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
@@ -133,7 +138,7 @@ def slab_sections(mesh, settings) -> dict:
     low = np.asarray(_section(mesh, 0.5 * s.hinge_thickness))
     # float32 coordinates far from the origin split straight sides at ~1e-4 mm: merge them
     reach = float(np.abs(mesh.bounds).max()) if len(mesh.vertices) else 1.0
-    tol = max(1e-4, 16.0 * float(np.spacing(np.float32(reach))))
+    tol = max(SECTION_MERGE_MM, 16.0 * float(np.spacing(np.float32(reach))))
     plates = shapely.orient_polygons(shapely.simplify(top, tol))
     if len(low) and len(plates):
         region = shapely.difference(shapely.union_all(low), shapely.buffer(

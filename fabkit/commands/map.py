@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError, UsageError
+from ..numerics import DOMAIN_RTOL
 
 #: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
 #: on f composed m times, whose roots grow with m; orbits and iterations cost one map evaluation
@@ -123,7 +124,8 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     values = default_d1(fmap, fixed) if d1 is None else list(d1)
     lo, hi = fmap.domain
     for v in values:
-        if not lo - 1e-12 <= v <= hi + 1e-12:
+        slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)
+        if not lo - slack <= v <= hi + slack:
             raise FabkitError(f"--d1 {v:g} is outside the map's domain [{lo:.6g}, {hi:.6g}] "
                               f"for {design.name}: no configuration there")
     lyap = None

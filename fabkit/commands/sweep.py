@@ -20,6 +20,10 @@ DESCRIPTION = (
     "templates/sweeps/period_doubling.toml).")
 
 
+#: Rates are points per second over at least this long (a run that finished at once).
+MIN_SECONDS = 1e-9
+
+
 def add_arguments(p):
     p.add_argument("template", metavar="TEMPLATE", help="module template, or a sweep spec file")
     p.add_argument("--vary", action="append", default=None, metavar="KEY=START:STOP:N",
@@ -73,7 +77,7 @@ class _Bar:
             return
         width = 30
         fill = int(width * done / max(total, 1))
-        rate = (done - self.start) / max(time.perf_counter() - self.t0, 1e-9)
+        rate = (done - self.start) / max(time.perf_counter() - self.t0, MIN_SECONDS)
         self.stream.write(f"\rsweep [{'#' * fill}{'.' * (width - fill)}] {done}/{total} points"
                           f"  {rate:.1f} points/s ")
         self.stream.flush()
@@ -145,8 +149,8 @@ def run(args) -> int:
     print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
     resumed = result.spec.size - result.computed
     if result.computed:
-        rate = result.computed / max(result.seconds, 1e-9)
-        per_cpu = result.computed / max(result.cpu_seconds, 1e-9)
+        rate = result.computed / max(result.seconds, MIN_SECONDS)
+        per_cpu = result.computed / max(result.cpu_seconds, MIN_SECONDS)
         print(f"  computed {result.computed} points in {result.seconds:.1f} s on "
               f"{result.workers} worker(s) ({result.where}): {rate:.2f} points/s, "
               f"{per_cpu:.2f} points per CPU second"

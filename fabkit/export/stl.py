@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import FabkitError, FabricationError
 from . import ExportResult
+from ..numerics import MM_SLACK
 
 __all__ = ["FORMAT", "applies", "export_design", "binary_stl", "threemf_package",
            "stored_mesh_is_closed"]
@@ -273,7 +274,7 @@ def _preview_png(geo, title: str) -> bytes:
 
     w, h, _ = geo.size
     width = min(12.0, max(6.0, 2.0 + w / 12.0))
-    height = min(8.0, max(3.0, 1.0 + width * h / max(w, 1e-9)))
+    height = min(8.0, max(3.0, 1.0 + width * h / max(w, MM_SLACK)))
     fig, ax = plt.subplots(figsize=(width, height))
     ax.add_collection(PolyCollection(geo.plates, facecolor="0.75", edgecolor="0.25", lw=0.5))
     pieces = list(geo.arms) + list(geo.hubs)

@@ -18,9 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 
 __all__ = ["BarSet", "bar_set", "check_bar_lengths", "bar_outline", "bulge_primitives",
            "outline_radius", "hole_radius", "undo_kerf", "stadium_polygon"]
+
+
+#: Angles within this (degrees) below 360 are 0: round-off of a full turn.
+ANGLE_SLACK_DEG = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +100,7 @@ def check_bar_lengths(lengths, edges, settings, *, scale: float | None = None) -
     lengths = np.asarray(lengths, dtype=np.float64)
     hole = settings.screw.hole_diameter
     need = hole + settings.min_web
-    short = lengths < need - 1e-9
+    short = lengths < need - MM_SLACK
     if not short.any():
         return
     k = int(np.argmin(np.where(short, lengths, np.inf)))
@@ -182,7 +187,7 @@ def bar_outline(length: float, width: float, kerf: float = 0.0) -> np.ndarray:
 def _angle(deg: float) -> float:
     """Degrees in [0, 360), with -0 and round-off just below 360 mapped to 0."""
     a = float(deg) % 360.0
-    return 0.0 if a >= 360.0 - 1e-9 else a + 0.0
+    return 0.0 if a >= 360.0 - ANGLE_SLACK_DEG else a + 0.0
 
 
 def bulge_primitives(vertices) -> list[tuple]:

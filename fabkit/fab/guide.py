@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 
 import numpy as np
+from ..numerics import MM_SLACK
 
 __all__ = ["guide_pages", "A4"]
 
@@ -130,7 +131,7 @@ def guide_pages(plan, *, dpi: int = 100):
                 put(f"J{j}", cands, 8, "black")
             for k in bars:
                 a, b = x[edges[k, 0]], x[edges[k, 1]]
-                normal = np.array([a[1] - b[1], b[0] - a[0]]) / max(np.linalg.norm(b - a), 1e-9)
+                normal = np.array([a[1] - b[1], b[0] - a[0]]) / max(np.linalg.norm(b - a), MM_SLACK)
                 cands = [a + t * (b - a) + o * normal * r
                          for o in (0.0, 1.6, -1.6) for t in (0.5, 0.38, 0.62, 0.28, 0.72)]
                 put(f"B{k}·L{int(st.layer[k])}", cands, 7, "#222222")

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, fields, replace
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 
 __all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length", "ScrewFit",
            "fit_screw", "WASHER_THICKNESS"]
@@ -158,7 +159,7 @@ def choose_length(spec: ScrewSpec, stack: float) -> float:
     """
     need = stack + spec.allowance
     for length in spec.lengths:
-        if length >= need - 1e-9:
+        if length >= need - MM_SLACK:
             return float(length)
     raise FabricationError(
         f"a joint stack of {stack:.2f} mm (+{spec.allowance} mm play) needs a screw longer than "
@@ -197,7 +198,7 @@ class ScrewFit:
     @property
     def closes(self) -> bool:
         """True when the post is long enough for the thickest stack with its washers."""
-        return self.play_min >= -1e-9
+        return self.play_min >= -MM_SLACK
 
 
 def fit_screw(spec: ScrewSpec, layers: int, thickness: float, tolerance: float) -> ScrewFit:
@@ -217,7 +218,7 @@ def fit_screw(spec: ScrewSpec, layers: int, thickness: float, tolerance: float) 
     stack_min = layers * (thickness - tolerance)
     stack_max = layers * (thickness + tolerance)
     length = choose_length(spec, stack_max)
-    washers = int(math.floor((length - stack_max - spec.allowance) / WASHER_THICKNESS + 1e-9))
+    washers = int(math.floor((length - stack_max - spec.allowance) / WASHER_THICKNESS + MM_SLACK))
     washers = max(washers, 0)
     fill = washers * WASHER_THICKNESS
     return ScrewFit(layers=int(layers), length=length, stack_min=round(stack_min, 9),

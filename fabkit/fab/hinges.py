@@ -40,6 +40,14 @@ _HUB_SIDES = 24
 _HUB_RATIO = 0.6
 
 
+#: A triangle whose signed area is below this, relative to the plate's extent squared, is flat
+#: (collinear corners to round-off).
+FLAT_TRIANGLE_RTOL = 1e-12
+#: Parts exactly one gap apart are not neighbours: the gap's query distance is shrunk by this
+#: relative amount so that round-off does not make them touch.
+GAP_SLACK = 1e-9
+
+
 def rigid_triangles(net: Network, given=None) -> np.ndarray:
     """The rigid triangles of a planar network: the given ones (checked) or every 3-clique.
 
@@ -247,7 +255,7 @@ def print_geometry(net: Network, settings: PrintSettings, positions=None) -> Pri
     p = p - 0.5 * (p.min(0) + p.max(0))
     # counter-clockwise triangles
     signed = _shoelace(p[tri])
-    flat = np.flatnonzero(np.abs(signed) <= 1e-12 * max(float(np.ptp(p)), 1.0) ** 2)
+    flat = np.flatnonzero(np.abs(signed) <= FLAT_TRIANGLE_RTOL * max(float(np.ptp(p)), 1.0) ** 2)
     if flat.size:
         raise FabricationError(f"triangle {_fmt_tri(tri[flat[0]])} is flat (its nodes are "
                                "collinear) in the configuration to print")
@@ -392,7 +400,7 @@ def _check_clearances(tri, plates, arms, arm_plate, arm_joint, hubs, joints, s):
                                                                          counts))
     plate_geoms = shapely.polygons(rings)
     tree = shapely.STRtree(plate_geoms)
-    pairs = tree.query(plate_geoms, predicate="dwithin", distance=s.gap * (1.0 - 1e-9))
+    pairs = tree.query(plate_geoms, predicate="dwithin", distance=s.gap * (1.0 - GAP_SLACK))
     pairs = pairs[:, pairs[0] < pairs[1]]
     if pairs.shape[1]:
         i, j = pairs[:, 0]
@@ -431,7 +439,7 @@ def _check_clearances(tri, plates, arms, arm_plate, arm_joint, hubs, joints, s):
             f"of triangle {_fmt_tri(tri[t])}, which meets the same joint; the angle between the "
             "triangles there is too small for this hinge: narrow it or raise the gap")
     htree = shapely.STRtree(piece_geoms)
-    hh = htree.query(piece_geoms, predicate="dwithin", distance=s.gap * (1.0 - 1e-9))
+    hh = htree.query(piece_geoms, predicate="dwithin", distance=s.gap * (1.0 - GAP_SLACK))
     clash = hh[:, piece_joint[hh[0]] != piece_joint[hh[1]]]
     if clash.shape[1]:
         a, b = piece_joint[clash[:, 0]]

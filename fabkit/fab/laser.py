@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 from ..errors import FabricationError
 from .hardware import ScrewSpec, screw_spec
+from ..numerics import MM_SLACK
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "DEFAULT_SCALE", "LASER_KEYS"]
 
@@ -236,7 +237,7 @@ def _check_consistency(s: LaserSettings) -> None:
             f"the {hole:g} mm screw hole is bigger than the {s.bar_width:g} mm bar: use "
             f"bar_width >= {hole + 2 * s.min_web:.1f} mm or a smaller screw")
     web = 0.5 * (s.bar_width - hole)
-    if web < s.min_web - 1e-12:
+    if web < s.min_web - MM_SLACK:
         raise FabricationError(
             f"hole-to-edge web {web:.2f} mm is below the minimum {s.min_web:.2f} mm "
             f"(1.5 x sheet thickness by default): use bar_width >= {hole + 2 * s.min_web:.1f} mm "
@@ -244,7 +245,7 @@ def _check_consistency(s: LaserSettings) -> None:
     if s.kerf >= hole:
         raise FabricationError(f"kerf {s.kerf:g} mm would close the {hole:g} mm holes; "
                                "measure the kerf again (typically 0.1-0.25 mm)")
-    if s.spacer_diameter < hole + 2 * s.min_web - 1e-9:
+    if s.spacer_diameter < hole + 2 * s.min_web - MM_SLACK:
         raise FabricationError(f"spacer_diameter {s.spacer_diameter:g} mm leaves less than the "
                                f"{s.min_web:g} mm minimum web around the {hole:g} mm hole; use "
                                f"at least {hole + 2 * s.min_web:.1f} mm")

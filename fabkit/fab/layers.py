@@ -65,6 +65,14 @@ _MILP_STEPS = (16, 32)
 _MILP_STEP_SECONDS = 5.0
 
 
+#: A sampled step may exceed its limit by this relative amount (round-off of the bisection).
+STEP_RTOL = 1e-9
+#: The solver's dual bound counts as an integer within this (HiGHS reports bounds to ~1e-9).
+DUAL_BOUND_SLACK = 1e-6
+#: Screw heads spanning a whole number of sheets to round-off take that many layers, not one more.
+HEAD_LAYERS_SLACK = 1e-12
+
+
 @dataclass(frozen=True, eq=False)
 class Sweep:
     """The motion sampled finely enough for collision checks.
@@ -178,7 +186,7 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
         x, drive = traj.positions, traj.drive
     steps = _node_steps(x)
     max_step = float(steps.max() * scale) if steps.size else 0.0
-    if max_step > max(step_limit, floor_limit or 0.0) * (1 + 1e-9):
+    if max_step > max(step_limit, floor_limit or 0.0) * (1 + STEP_RTOL):
         raise FabricationError(
             f"the {traj.method} trace moves a node {max_step:.3g} mm between samples, more than "
             f"the {step_limit:g} mm the collision check needs; use method = \"constructive\"")
@@ -1267,7 +1275,7 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
     if res.status == 2:  # proven infeasible: every stacking needs more than max_layers
         return None, K + 1, True
     dual = getattr(res, "mip_dual_bound", None)
-    bound = int(math.floor(dual + 1e-6)) + 1 if dual is not None and np.isfinite(dual) else 0
+    bound = int(math.floor(dual + DUAL_BOUND_SLACK)) + 1 if dual is not None and np.isfinite(dual) else 0
     if res.x is None:  # no stacking found in the time; a dual bound past K says no more
         return None, min(bound, K + 1), False
     layer = np.rint(res.x[:E]).astype(np.int64)
@@ -1316,7 +1324,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     conf = sweep.conflicts if sweep.conflicts is not None else find_conflicts(
         edges, sweep.positions, width=s.bar_width, clearance=clearance,
         column_radius=column_radius, spacer_radius=spacer_radius)
-    head = int(math.ceil(s.screw.head_height / s.thickness - 1e-12))
+    head = int(math.ceil(s.screw.head_height / s.thickness - HEAD_LAYERS_SLACK))
     n_bars = edges.shape[0]
     inc = _incidence(edges, sweep.positions.shape[1])
     joint_bars = [np.flatnonzero(inc[j]) for j in conf.screw_joints]

@@ -29,6 +29,9 @@ __all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "label_outlines
 #: Side of the reference square (mm).
 REFERENCE_SIZE = 100.0
 _UNIT = 100  # rectpack works in 0.01 mm
+#: Sizes within this (in rectpack's 0.01 mm units) of a whole unit round to it, not past it:
+#: mm values such as 0.29 carry round-off that would otherwise cost a whole unit.
+UNIT_SLACK = 1e-6
 # Average advance of a character relative to the text height (sans-serif capitals, digits).
 _CHAR_WIDTH = 0.7
 _MIN_TEXT = 1.0  # mm; smaller labels are left off (and counted in the report)
@@ -222,13 +225,13 @@ def nest_parts(parts, settings) -> list[Sheet]:
     s = settings
     free_w = s.sheet_width - 2 * s.margin
     free_h = s.sheet_height - 2 * s.margin
-    bin_w = int(math.floor((free_w + s.spacing) * _UNIT + 1e-6))
-    bin_h = int(math.floor((free_h + s.spacing) * _UNIT + 1e-6))
+    bin_w = int(math.floor((free_w + s.spacing) * _UNIT + UNIT_SLACK))
+    bin_h = int(math.floor((free_h + s.spacing) * _UNIT + UNIT_SLACK))
     sizes = {}
     for n, p in enumerate(parts):
         x0, y0, x1, y1 = p.bbox
-        w = int(math.ceil((x1 - x0 + s.spacing) * _UNIT - 1e-6))
-        h = int(math.ceil((y1 - y0 + s.spacing) * _UNIT - 1e-6))
+        w = int(math.ceil((x1 - x0 + s.spacing) * _UNIT - UNIT_SLACK))
+        h = int(math.ceil((y1 - y0 + s.spacing) * _UNIT - UNIT_SLACK))
         if min(w, h) > min(bin_w, bin_h) or max(w, h) > max(bin_w, bin_h):
             raise FabricationError(
                 f"part {p.id} ({x1 - x0:.1f} x {y1 - y0:.1f} mm) does not fit on a "

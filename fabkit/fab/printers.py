@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 
 __all__ = ["Printer", "PRINTERS", "DEFAULT_PRINTER", "printer_profile", "Placement",
            "bed_layout", "best_orientation", "chain_pieces"]
@@ -143,8 +144,8 @@ def best_orientation(points, width: float, depth: float) -> tuple[float, float, 
         x = hull[:, 0] * c - hull[:, 1] * s
         y = hull[:, 0] * s + hull[:, 1] * c
         w, h = float(np.ptp(x)), float(np.ptp(y))
-        if w <= width + 1e-9 and h <= depth + 1e-9 and (best is None or w * h < best[1] * best[2]
-                                                         - 1e-9):
+        if w <= width + MM_SLACK and h <= depth + MM_SLACK and (best is None or w * h < best[1] * best[2]
+                                                         - MM_SLACK):
             best = (float(ang), w, h)
     return best
 
@@ -176,7 +177,7 @@ def _min_size(points) -> tuple[float, float]:
         w = float(np.ptp(hull[:, 0] * c - hull[:, 1] * s))
         h = float(np.ptp(hull[:, 0] * s + hull[:, 1] * c))
         long, short = max(w, h), min(w, h)
-        if best is None or short < best[1] - 1e-9 or (abs(short - best[1]) < 1e-9
+        if best is None or short < best[1] - MM_SLACK or (abs(short - best[1]) < MM_SLACK
                                                        and long < best[0]):
             best = (long, short)
     return best
@@ -222,9 +223,9 @@ def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
     bed, x, y, row = 0, 0.0, 0.0, 0.0
     for k in sorted(range(len(outlines)), key=lambda i: -oriented[i][2]):  # tallest rows first
         ang, w, h = oriented[k]
-        if x > 0 and x + w > W + 1e-9:  # next row
+        if x > 0 and x + w > W + MM_SLACK:  # next row
             x, y, row = 0.0, y + row + spacing, 0.0
-        if y > 0 and y + h > H + 1e-9:  # next bed
+        if y > 0 and y + h > H + MM_SLACK:  # next bed
             bed, x, y, row = bed + 1, 0.0, 0.0, 0.0
         hull = _hull(outlines[k])
         c, s = math.cos(math.radians(ang)), math.sin(math.radians(ang))

@@ -14,6 +14,7 @@ import math
 from dataclasses import asdict, dataclass
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 
 __all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "print_settings", "design_print_settings"]
 
@@ -42,6 +43,11 @@ _DEFAULT_SCALE = 10.0
 _KEYS = {"material", "scale", "plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",
          "hinge_width", "hinge_length", "gap", "layer_height", "nozzle_width", "strain_limit",
          "rigid_triangles", "preview", "threemf", "printer", "bed"}
+
+
+#: A thickness is a whole number of print layers when it is within this fraction of a layer of
+#: one (typed values such as 0.6 mm / 0.2 mm carry round-off only).
+WHOLE_LAYERS_RTOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -202,7 +208,7 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
     if "hinge_thickness" in merged:
         t = _number(merged, "hinge_thickness", where)
         n = round(t / layer)
-        if n < 1 or abs(n * layer - t) > 1e-6 * layer:
+        if n < 1 or abs(n * layer - t) > WHOLE_LAYERS_RTOL * layer:
             lo, hi = max(1, math.floor(t / layer)), max(1, math.ceil(t / layer))
             raise FabricationError(
                 f"{where}.hinge_thickness: {t:g} mm is not a whole number of {layer:g} mm "
@@ -217,11 +223,11 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
         raise FabricationError(
             f"{where}.hinge_width: {values['hinge_width']:g} mm is thinner than the "
             f"{values['nozzle_width']:g} mm nozzle; a printer cannot lay down that feature")
-    if values["plate_thickness"] < 2 * layer - 1e-9:
+    if values["plate_thickness"] < 2 * layer - MM_SLACK:
         raise FabricationError(f"{where}.plate_thickness: {values['plate_thickness']:g} mm is "
                                f"less than two {layer:g} mm layers")
     plate_layers = values["plate_thickness"] / layer
-    if abs(plate_layers - round(plate_layers)) > 1e-6:
+    if abs(plate_layers - round(plate_layers)) > WHOLE_LAYERS_RTOL:
         raise FabricationError(
             f"{where}.plate_thickness: {values['plate_thickness']:g} mm is not a whole number "
             f"of {layer:g} mm layers")

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
-from ..numerics import START_RTOL, project_to_lengths
+from ..numerics import START_RTOL, TINY, project_to_lengths
 from ..rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
 from .base import Mark, Method, Outcome, make_problem
 from .trajectory import EventKind, Trajectory
@@ -42,6 +42,23 @@ __all__ = ["Branch", "Bifurcation", "analyze_bifurcation", "step_off", "fold_thr
 
 #: Largest number of first-order motions for which branches are enumerated.
 MAX_MODES = 8
+
+
+#: A port's first- or second-order rate below this (per unit of arclength on a unit network)
+#: counts as zero: the rates come from least squares on the rigidity matrix, good to ~1e-12.
+RATE_ZERO = 1e-9
+#: An eigenvalue of the normalised quadratic form (largest entry 1) below this is zero: the
+#: form then has one null line instead of two.
+FORM_ZERO = 1e-12
+#: Gauss-Newton for a null line stops when its step is below this (unit vectors: round-off).
+LINE_STEP_ZERO = 1e-15
+#: A converged line is a null line of the normalised forms when cᵀ H_k c is below this.
+LINE_RESIDUAL = 1e-11
+#: Two unit lines with |c·g| within this of 1 are the same line.
+SAME_LINE = 1e-8
+#: A candidate stepped off the branch point must move the drive by more than this (relative)
+#: in the asked direction: round-off moves it by ~1e-16.
+STEP_OFF_RTOL = 1e-14
 
 
 @dataclass(frozen=True)
@@ -73,7 +90,7 @@ class Branch:
 
     def describe(self) -> str:
         """One line: which port distances change on this branch and which stay put."""
-        moving = {k: v[1] for k, v in self.port_rates.items() if abs(v[1]) > 1e-9 or abs(v[0]) > 1e-9}
+        moving = {k: v[1] for k, v in self.port_rates.items() if abs(v[1]) > RATE_ZERO or abs(v[0]) > RATE_ZERO}
         still = sorted(k for k in self.port_rates if k not in moving)
         parts = [f"branch {self.index}:"]
         if moving:
@@ -133,13 +150,13 @@ def _stress_forms(net: Network, x: np.ndarray, stresses: np.ndarray, modes: np.n
 def _null_lines(forms: np.ndarray, seed: int = 0) -> list[np.ndarray]:
     """Unit vectors c (up to sign) with cᵀ H_k c = 0 for all k."""
     s, m, _ = forms.shape
-    scale = max(float(np.abs(forms).max()), 1e-300)
+    scale = max(float(np.abs(forms).max()), TINY)
     h = forms / scale
     if s == 1 and m == 2:
         lam, u = np.linalg.eigh(h[0])
         if lam[0] * lam[1] > 0:
             return []
-        if abs(lam[0]) < 1e-12 or abs(lam[1]) < 1e-12:
+        if abs(lam[0]) < FORM_ZERO or abs(lam[1]) < FORM_ZERO:
             zero = u[:, 0] if abs(lam[0]) < abs(lam[1]) else u[:, 1]
             return [zero]
         out = []
@@ -158,12 +175,12 @@ def _null_lines(forms: np.ndarray, seed: int = 0) -> list[np.ndarray]:
             jac = np.vstack([2.0 * np.einsum("kab,b->ka", h, c), 2.0 * c])
             step = np.linalg.lstsq(jac, -f, rcond=None)[0]
             c = c + step
-            if np.linalg.norm(step) < 1e-15:
+            if np.linalg.norm(step) < LINE_STEP_ZERO:
                 break
         c /= np.linalg.norm(c)
-        if np.abs(np.einsum("a,kab,b->k", c, h, c)).max() > 1e-11:
+        if np.abs(np.einsum("a,kab,b->k", c, h, c)).max() > LINE_RESIDUAL:
             continue
-        if all(abs(float(c @ g)) < 1 - 1e-8 for g in found):
+        if all(abs(float(c @ g)) < 1 - SAME_LINE for g in found):
             found.append(c)
     return found
 
@@ -236,7 +253,7 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
     n, d = x.shape
     i, j = net.edges[:, 0], net.edges[:, 1]
     branches = []
-    scale = max(float(np.abs(forms).max()), 1e-300)
+    scale = max(float(np.abs(forms).max()), TINY)
     raw = []
     for c in lines:
         v = z @ c
@@ -251,7 +268,7 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
         # a numbering that does not depend on round-off in the bases: branches that move fewer
         # ports first, then by the second-order rates of the ports (by name)
         rates = item[3]
-        moving = sum(abs(rates[k][1]) > 1e-9 for k in rates)
+        moving = sum(abs(rates[k][1]) > RATE_ZERO for k in rates)
         return (moving, tuple(round(abs(rates[k][1]), 9) for k in sorted(rates)))
 
     for k, (c, v, a, rates, res) in enumerate(sorted(raw, key=order), start=1):
@@ -338,7 +355,7 @@ def _choose(net, bif, drive, direction, branch, sign, score, size):
     for bi, sg in cands:
         x = step_off(net, bif, bi, sg, size)
         dd = float(np.linalg.norm(x[i] - x[j])) - d0
-        if dd * direction > 1e-14 * max(d0, 1.0):
+        if dd * direction > STEP_OFF_RTOL * max(d0, 1.0):
             usable.append(_Candidate(bi, sg, x))
     if not usable:
         what = "; ".join(b.describe() for b in bif.branches)

@@ -18,11 +18,18 @@ import numpy as np
 
 from ..errors import ConstructionError, FlatStateError, KinematicsError
 from ..network import Network
-from ..numerics import FLAT_RTOL
+from ..numerics import FLAT_RTOL, TINY
 from .base import Mark, Method, Outcome
 from .trajectory import EventKind, Status
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
+
+#: A node this close to the seed axis (relative to the network) lies on it and fixes no rotation.
+ON_AXIS_RTOL = 1e-9
+#: Edges the construction does not use (a state of self-stress) must keep their length to this
+#: relative error along the trace; beyond it the self-stress does not persist and they break.
+UNUSED_EDGE_RTOL = 1e-9
+
 
 @dataclass(frozen=True)
 class ConstructionPlan:
@@ -150,7 +157,7 @@ def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> C
         elif not gauge_done:
             off = x[v] - x[a]
             perp = off - (off @ u_seed) * u_seed
-            if np.linalg.norm(perp) <= 1e-9 * max(net.size, 1e-300):
+            if np.linalg.norm(perp) <= ON_AXIS_RTOL * max(net.size, TINY):
                 continue  # on the seed axis: fixes no rotation; placed later from 3 parents
             p, q = cand[0], cand[1]
             gauge_perp = perp / np.linalg.norm(perp)
@@ -489,7 +496,7 @@ class Constructive(Method):
         stats = {"samples": int(X.shape[0]), "nodes_placed": int(plan.order.size)}
         # Over-constrained networks: edges not used by the construction must still hold.
         err = np.atleast_1d(p.network.edge_error(X))
-        bad = np.flatnonzero(err > 1e-9)
+        bad = np.flatnonzero(err > UNUSED_EDGE_RTOL)
         if bad.size and bad[0] > 0:
             k = int(bad[0])
             drive = p.drive_of(X[k - 1])

@@ -11,6 +11,11 @@ from ..network import Network
 from ..numerics import FLAT_RTOL
 
 
+#: The velocity solve of implicit differentiation must satisfy its equations to this, relative
+#: to the velocity: a solvable system leaves ~1e-14; a singular one (a turning point) far more.
+SLOPE_SOLVE_RTOL = 1e-8
+
+
 class _Constructive2D:
     """Values and exact derivatives of d_out(d_in) by the circle-intersection formulas.
 
@@ -192,7 +197,7 @@ def slope_at(net: Network, positions, d_in="d1", d_out="d2", *, strict: bool = T
     inv = np.where(S > tol, 1.0 / np.where(S > tol, S, 1.0), 0.0)
     V = np.einsum("kji,kj,klj,kl->ki", Vt, inv, U, rhs).reshape(k, n, dim)
     resid = np.einsum("krc,kc->kr", J, V.reshape(k, -1)) - rhs
-    bad = np.any(np.abs(resid) > 1e-8 * np.maximum(1.0, np.abs(V).reshape(k, -1).max(axis=1))[:, None],
+    bad = np.any(np.abs(resid) > SLOPE_SOLVE_RTOL * np.maximum(1.0, np.abs(V).reshape(k, -1).max(axis=1))[:, None],
                  axis=1)
     if strict and bad.any():
         raise KinematicsError("d_in does not change along the motion at some configuration "

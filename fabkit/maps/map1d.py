@@ -14,6 +14,25 @@ from ..numerics import DOMAIN_RTOL, FIXED_POINT_RTOL
 from .results import Branch, Cycle, FixedPoint, LyapunovResult, classify_slope
 
 
+#: The reference configuration counts as a fixed point when |f(d) - d| is below this (relative
+#: to the domain): modules are designed at one, and an exact evaluation leaves round-off.
+REFERENCE_RESIDUAL = 1e-12
+#: A grid point where |f(d) - d| (or |f^m(d) - d|) is below this is a root itself.
+ON_GRID_ROOT = 1e-13
+#: Brent's method refines roots to this absolute tolerance (relative to the domain): round-off.
+ROOT_XTOL = 1e-15
+#: A root within this of the reference fixed point (relative) is the reference itself.
+REFERENCE_SEPARATION = 1e-6
+#: Roots closer than this (relative) are one root, the best resolved kept.
+SAME_ROOT = 1e-7
+#: A cycle point that returns within this (relative) after a shorter period has that period.
+SHORTER_PERIOD = 1e-9
+#: The cubic Hermite table of the map is used only when it reproduces f to this (relative to
+#: the domain) and f' to TABLE_SLOPE_RTOL at the interval midpoints; else the exact map is.
+TABLE_VALUE_RTOL = 1e-11
+TABLE_SLOPE_RTOL = 1e-8
+
+
 @dataclass(frozen=True, eq=False)
 class Map1D:
     """A 1-D map d_out = f(d_in) on one monotone branch of a motion.
@@ -177,15 +196,15 @@ class Map1D:
         ref = None
         if self.reference is not None:  # modules are usually designed at a fixed point
             ref = self._fixed(float(self.reference))
-            if ref.residual > 1e-12 * scale:
+            if ref.residual > REFERENCE_RESIDUAL * scale:
                 ref = None
-        for k in np.flatnonzero(np.abs(g) <= 1e-13 * scale):
+        for k in np.flatnonzero(np.abs(g) <= ON_GRID_ROOT * scale):
             roots.append(float(grid[k]))
         sgn = np.sign(g)
         for k in np.flatnonzero(sgn[:-1] * sgn[1:] < 0):
             try:
                 roots.append(brentq(lambda x: self._values(x)[0] - x, grid[k], grid[k + 1],
-                                    xtol=1e-15 * scale, rtol=4 * np.finfo(float).eps,
+                                    xtol=ROOT_XTOL * scale, rtol=4 * np.finfo(float).eps,
                                     maxiter=200))
             except ValueError:  # no value somewhere inside the bracket
                 continue
@@ -198,7 +217,7 @@ class Map1D:
                 if x is not None:
                     roots.append(x)
         if ref is not None:  # exact; a touching root found next to it is the same point
-            roots = [r for r in roots if abs(r - ref.value) > 1e-6 * scale] + [ref.value]
+            roots = [r for r in roots if abs(r - ref.value) > REFERENCE_SEPARATION * scale] + [ref.value]
         found = self._dedupe_fixed(roots, scale)
         # f(d) = d on a whole stretch (a degenerate, partly identical branch): keep the ends of
         # each run of roots spaced like the grid
@@ -235,7 +254,7 @@ class Map1D:
         cands = [p for p in (self._fixed(x) for x in sorted(roots)) if p.residual <= FIXED_POINT_RTOL * scale]
         out: list[FixedPoint] = []
         for p in cands:
-            if out and abs(p.value - out[-1].value) <= 1e-7 * scale:
+            if out and abs(p.value - out[-1].value) <= SAME_ROOT * scale:
                 if p.residual < out[-1].residual:
                     out[-1] = p
                 continue
@@ -274,12 +293,12 @@ class Map1D:
         scale = max(abs(lo), abs(hi), 1.0)
         grid = self._grid(samples)
         g = self._power(grid, m) - grid
-        roots = list(grid[np.abs(g) <= 1e-13 * scale])
+        roots = list(grid[np.abs(g) <= ON_GRID_ROOT * scale])
         ok = np.isfinite(g[:-1]) & np.isfinite(g[1:])
         for k in np.flatnonzero(ok & (np.sign(g[:-1]) * np.sign(g[1:]) < 0)):
             fun = lambda x: float(self._power(x, m)) - x  # noqa: E731
             try:
-                roots.append(brentq(fun, grid[k], grid[k + 1], xtol=1e-15 * scale,
+                roots.append(brentq(fun, grid[k], grid[k + 1], xtol=ROOT_XTOL * scale,
                                     rtol=4 * np.finfo(float).eps, maxiter=200))
             except ValueError:  # the orbit leaves the domain inside the bracket
                 continue
@@ -290,7 +309,7 @@ class Map1D:
                 orbit.append(float(self._values(orbit[-1])[0]))
             if not np.all(np.isfinite(orbit)):
                 continue
-            tol = 1e-9 * scale
+            tol = SHORTER_PERIOD * scale
             # exclude points of a shorter period dividing m
             if any(m % p == 0 and abs(orbit[p] - orbit[0]) <= tol for p in range(1, m)):
                 continue
@@ -327,7 +346,7 @@ class Map1D:
         sd = np.sign(df)
         for k in np.flatnonzero(sd[:-1] * sd[1:] < 0):
             try:
-                c = brentq(lambda t: float(self._values(t, True)[1]), x[k], x[k + 1], xtol=1e-15)
+                c = brentq(lambda t: float(self._values(t, True)[1]), x[k], x[k + 1], xtol=ROOT_XTOL)
             except ValueError:
                 continue
             vals.append(float(self._values(c)[0]))
@@ -537,7 +556,7 @@ def _hermite_table(fmap: "Map1D", lo: float, hi: float, intervals: int = 1 << 15
     dpm = (C[:, 1] + C[:, 2] + 0.75 * C[:, 3]) / h
     err = {"f": float(np.max(np.abs(pm - fm))), "derivative": float(np.max(np.abs(dpm - dfm)))}
     scale = max(abs(lo), abs(hi), 1.0)
-    if err["f"] > 1e-11 * scale or err["derivative"] > 1e-8 * max(1.0, float(np.max(np.abs(df)))):
+    if err["f"] > TABLE_VALUE_RTOL * scale or err["derivative"] > TABLE_SLOPE_RTOL * max(1.0, float(np.max(np.abs(df)))):
         return None, err
     inv_h = 1.0 / h
     C0, C1, C2, C3 = (np.ascontiguousarray(C[:, i]) for i in range(4))

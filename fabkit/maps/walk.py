@@ -9,10 +9,20 @@ from scipy.optimize import brentq
 
 from ..errors import ConstructionError, DesignError, FlatStateError
 from ..network import Network
-from ..numerics import FLAT_RTOL
+from ..numerics import FLAT_RTOL, TINY
 from .evaluate import _Constructive2D, _ConstructiveGeneral, _pair
 from .map1d import Map1D
 from .results import Branch
+
+
+#: Brent's method finds a branch end to this tolerance (relative to d_in): round-off.
+ROOT_XTOL = 1e-15
+#: A flat reference is nudged this far (relative to the network) to read which side each node
+#: lies on: far above round-off, far below any feature of the motion.
+FLAT_NUDGE = 1e-7
+#: A value within this (relative to the network) of a branch's domain lies on the branch; the
+#: next branch is probed this far past a turning point.
+ON_BRANCH_RTOL = 1e-9
 
 
 def _evaluator(net, plan, in_pair, out_pair):
@@ -30,7 +40,7 @@ def _turning_point(ev, signs, inside, outside):
         return outside
     if not margin(inside) > 0.0:  # already flat (to round-off) where the search starts
         return inside
-    t = brentq(margin, inside, outside, xtol=1e-15 * max(abs(inside), 1.0),
+    t = brentq(margin, inside, outside, xtol=ROOT_XTOL * max(abs(inside), 1.0),
                rtol=4 * np.finfo(float).eps, maxiter=300)
     # land on the valid side, so the branch end evaluates
     step = np.spacing(t) * (1 if inside > t else -1)
@@ -84,7 +94,7 @@ def _flat_nudge(x: np.ndarray, a: int, b: int) -> np.ndarray:
     rel = x - x[a]
     perp = rel - np.outer(rel @ u, u)
     k = int(np.argmax(np.linalg.norm(perp, axis=1)))
-    v = perp[k] / max(np.linalg.norm(perp[k]), 1e-300)
+    v = perp[k] / max(np.linalg.norm(perp[k]), TINY)
     w = np.cross(u, v)
     side = rel @ w
     j = int(np.argmax(np.abs(side)))
@@ -148,7 +158,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
         # A flat reference (e.g. a linkage that starts collapsed) lies at a turning point, on
         # two branches. Sides are taken from a slightly nudged copy; walking the motion finds
         # both branches, and `toward` picks one.
-        plan = plan_construction(net, (a, b), x + 1e-7 * size * _flat_nudge(x, a, b))
+        plan = plan_construction(net, (a, b), x + FLAT_NUDGE * size * _flat_nudge(x, a, b))
     ev = _evaluator(net, plan, (a, b), out)
     samples = 2049
     signs0 = tuple(float(s) for s in plan.signs)
@@ -190,7 +200,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     # the branch through the reference (or, at a turning reference, the one toward `toward`)
     chosen = first
     if toward is not None and not first.lo <= toward <= first.hi:
-        tol = 1e-9 * size
+        tol = ON_BRANCH_RTOL * size
         candidates = [br for br in branches
                       if br.lo - tol <= d0 <= br.hi + tol and br.lo <= toward <= br.hi]
         if not candidates:
@@ -233,7 +243,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
 def _walk_from_end(ev, signs, d_end, size, samples):
     """Branch with these signs that starts at the turning value d_end."""
     # The new branch exists on one side of d_end; probe both sides just off the end.
-    eps = 1e-9 * size
+    eps = ON_BRANCH_RTOL * size
     for side in (-1.0, 1.0):
         probe = np.array([d_end + side * eps])
         _, _, m, _ = ev(probe, signs, derivative=False)

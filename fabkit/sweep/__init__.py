@@ -75,6 +75,13 @@ _SPEC = "spec.json"
 _FLAT_RTOL = 1e-9
 
 
+#: A start that is flat gets this nudge (relative to the network, every node) to tell flatness
+#: from a missing construction order.
+FLAT_NUDGE = 1e-7
+#: Settled orbit values within this (relative to the domain) are one point of the attractor.
+ATTRACTOR_RTOL = 1e-7
+
+
 class SweepError(FabkitError, ValueError):
     """A sweep request that cannot be run as given (bad --vary, unknown key or measure)."""
 
@@ -503,7 +510,7 @@ def _flat_start(net, pair) -> bool:
 
     x = net.nodes
     rng = np.random.default_rng(0)
-    nudged = x + 1e-7 * max(float(net.size), 1.0) * rng.standard_normal(x.shape)
+    nudged = x + FLAT_NUDGE * max(float(net.size), 1.0) * rng.standard_normal(x.shape)
     try:
         plan_construction(net, pair, nudged)
     except ConstructionError:
@@ -522,7 +529,7 @@ def _attractor(fmap, p: Protocol) -> tuple[list, int]:
         return [], -1
     tail = orbits[:, alive]
     scale = max(abs(lo), abs(hi), 1.0)
-    tol = 1e-7 * scale
+    tol = ATTRACTOR_RTOL * scale
     first = tail[:, 0]
     period = 0
     for m in range(1, p.keep // 2 + 1):

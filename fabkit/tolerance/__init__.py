@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..errors import FabkitError, KinematicsError, TemplateError
-from ..numerics import project_to_lengths
+from ..numerics import EDGE_RTOL, TINY, project_to_lengths
 from .processes import NOT_KINEMATIC, PROCESSES, SOURCES, ProcessGeometry, sample_lengths
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
@@ -61,6 +61,16 @@ LOCK_BISECTIONS = 26
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
 #: typical figures quoted by filament makers for parts that the slicer does not compensate.
 SHRINKAGE = {"PLA": (0.003, 0.001), "PETG": (0.004, 0.0015), "TPU": (0.006, 0.002)}
+
+
+#: Step of the central differences that read a chain's slopes off the traced plan (relative to
+#: the target): the map is smooth there, and 1e-6 balances truncation and round-off.
+SLOPE_STEP = 1e-6
+#: A simulated build is projected onto its own bar lengths to this relative error (its bars
+#: carry process errors of ~1e-3, so a tighter fit adds nothing).
+BUILD_RTOL = 1e-9
+#: Floor of the log-scale error plot (an exact zero has no logarithm).
+LOG_FLOOR = 1e-12
 
 
 @dataclass(frozen=True)
@@ -193,7 +203,7 @@ def _origami_defaults(design, settings) -> dict:
 
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
-        return {"scale": 150.0 / max(float(design.network.size), 1e-12)}
+        return {"scale": 150.0 / max(float(design.network.size), TINY)}
     try:
         return {"scale": float(origami_model(design, (settings or {}).get("origami")).scale)}
     except FabricationError as exc:
@@ -520,7 +530,7 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
     pairs = np.array([net.port(p) for p in chain])
     to = float(design.motion.to)
     if len(chain) >= 3:
-        h = 1e-6 * to
+        h = SLOPE_STEP * to
         X, margin, _ = place(plan, [to - h, to + h])
         if (margin < 0).any():
             return None
@@ -660,7 +670,7 @@ def _simulate(plan, eidx, problem, net, built, values, pairs, limit_units, clear
     if unused.size:
         i, j = net.edges[unused, 0], net.edges[unused, 1]
         got = np.linalg.norm(final[:, i] - final[:, j], axis=-1)
-        reached &= np.abs(got - built[:, unused]).max(axis=1) <= clearance_units + 1e-12
+        reached &= np.abs(got - built[:, unused]).max(axis=1) <= clearance_units + EDGE_RTOL
     dist = np.linalg.norm(final[:, pairs[:, 0]] - final[:, pairs[:, 1]], axis=-1)
     dist[~reached] = np.nan
     return _Runs(dist, reached, final, stop, locked, int((moving & ~reached).sum()))
@@ -786,7 +796,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
             dist = np.full((built.shape[0], len(ports)), np.nan)
             reached = np.zeros(built.shape[0], dtype=bool)
             for s in range(built.shape[0]):
-                proj = project_to_lengths(net.edges, built[s], net.nodes, rtol=1e-9,
+                proj = project_to_lengths(net.edges, built[s], net.nodes, rtol=BUILD_RTOL,
                                           max_iter=30)
                 if not proj.converged:
                     continue
@@ -831,7 +841,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     lyap = lyapunov_estimate(design, plan) if plan is not None else None
     if lyap is not None:
         lam = lyap["lyapunov"]
-        eps = max(length_rms, 1e-12)
+        eps = max(length_rms, EDGE_RTOL)
         modules = None
         if lyap["steps"] < MIN_MAP_STEPS:
             detail = (f"the module map leaves the module's range after {lyap['steps']} step(s) "
@@ -951,9 +961,9 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
     along = [c for c in chain if result.ports[c] != result.extra.get("drive")] or chain
     if err.shape[0]:
         k = np.arange(1, len(along) + 1)
-        p95 = np.maximum(np.percentile(err[:, along], 95, axis=0), 1e-12)
+        p95 = np.maximum(np.percentile(err[:, along], 95, axis=0), LOG_FLOOR)
         ax.semilogy(k, p95, "o-", label="95% |error|")
-        ax.semilogy(k, np.maximum(err[:, along].mean(axis=0), 1e-12), "s:", label="mean |error|")
+        ax.semilogy(k, np.maximum(err[:, along].mean(axis=0), LOG_FLOOR), "s:", label="mean |error|")
         hz = result.horizon
         if hz and hz.get("lyapunov") is not None and len(along) >= 2:
             lam = hz["lyapunov"]

@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from ..numerics import TINY
 
 __all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "sample_lengths"]
 
@@ -64,6 +65,10 @@ NOT_KINEMATIC = {
                               "checked by the print export, not the joint positions",
               "hinge thickness": "stiffness and bending strain only (print export's check)"},
 }
+
+
+#: Below this half-angle (radians) sin(x)/x is 1 to round-off (its error is x²/6).
+SINC_SMALL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -147,7 +152,7 @@ def _print(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
         # the plates grow by half the extra width on each side: a shorter free hinge length
         ell = np.maximum(spec.hinge_length - (width if "line width" in on else 0.0 * width), 0.0)
         half = 0.5 * geo.joint_turn  # (N,)
-        sinc = np.where(half > 1e-9, np.sin(half) / np.where(half > 1e-9, half, 1.0), 1.0)
+        sinc = np.where(half > SINC_SMALL, np.sin(half) / np.where(half > SINC_SMALL, half, 1.0), 1.0)
         loss = 0.5 * ell[:, None] * (1.0 - sinc)[None, :]  # (M, N) mm at each joint
         if "hinge flexure" not in on:
             nominal = 0.5 * spec.hinge_length * (1.0 - sinc)[None, :]
@@ -170,7 +175,7 @@ def _origami(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
     pos = x[None] + sigma[None, :, None] * g
     if "paper thickness" in on:
         # the hinge line of a crease vertex sits up to t from the drawn (mid-surface) line
-        u = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), 1e-300)
+        u = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), TINY)
         pos = pos + np.where(boundary, 0.0, spec.paper_thickness * reach)[..., None] * u
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "crease compliance" in on:

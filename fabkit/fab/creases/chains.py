@@ -14,6 +14,14 @@ from ...numerics import rigid_fit
 CHAIN_JOIN = {"next": (0, 2, 1), "prev": (1, 3, 2)}
 
 
+#: The sheet's d2 must equal d1 = ``at`` to this relative error for ``at`` to be a fixed point
+#: of its map (both exact placements; a near miss is a different design).
+SHEET_FIXED_RTOL = 1e-9
+#: Sheets of the chain are fitted onto each other's shared creases to this RMS (sheet units):
+#: the rigid fit of exactly placed sheets leaves round-off, ~1e-15.
+JOIN_RMS = 1e-9
+
+
 def sheet_chain(sheet: Network, copies: int, at: float, *, reference=None) -> tuple[Network, list]:
     """Sheets of the paper's origami module joined corner to corner, three corners per join.
 
@@ -62,7 +70,7 @@ def sheet_chain(sheet: Network, copies: int, at: float, *, reference=None) -> tu
     if margin[0] < 0:
         raise FabricationError(f"the sheet has no configuration with d1 = {at}")
     d2 = float(np.linalg.norm(x[0] - x[2]))
-    if abs(d2 - at) > 1e-9 * at:
+    if abs(d2 - at) > SHEET_FIXED_RTOL * at:
         raise FabricationError(f"d1 = {at} is not a fixed point of the sheet's map (d2 = {d2:.12g})")
     nodes = [x]
     maps = [list(range(5))]
@@ -75,7 +83,7 @@ def sheet_chain(sheet: Network, copies: int, at: float, *, reference=None) -> tu
         dst = allx[[last[i] for i in prv]]
         fit = rigid_fit(x[list(nxt)], dst)
         rot, shift, rms = fit.rotation, fit.shift, float(fit.rms)
-        if rms > 1e-9:
+        if rms > JOIN_RMS:
             raise FabricationError(f"sheet {k + 1} does not fit onto sheet {k} (rms {rms:.1e})")
         y = x @ rot.T + shift
         local = [-1] * 5

@@ -17,11 +17,19 @@ from .pattern import (
     network_from_pattern,
     planar_faces,
 )
+from ...numerics import TINY
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
 
 _ORIGAMI_KEYS = {"assignment", "faces", "sheet_size", "samples", "branch", "sign", "sheet",
                  "sheets", "spacing", "step_off", "relay"}
+
+
+#: Geometric spacing runs from the start to this fraction of the way left to the target (the
+#: last frames resolve the approach to a flat or folded state).
+GEOMETRIC_END = 1e-12
+#: The relay's share of its way is spaced in logit up to this fraction short of the target.
+RELAY_END = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,7 +142,7 @@ def _flat_coords(x: np.ndarray, tol: float = 1e-12):
     """2D coordinates of a planar node set (in its own plane), or None when it is not planar."""
     c = x - x.mean(axis=0)
     u, s, vt = np.linalg.svd(c, full_matrices=False)
-    scale = max(float(s[0]), 1e-300)
+    scale = max(float(s[0]), TINY)
     if s[2] > tol * scale:
         return None
     if np.ptp(x[:, 2]) <= tol * scale:
@@ -356,7 +364,7 @@ def fold_model(model: OrigamiModel, drive: str, to: float, samples=None) -> Fold
             plan = plan_construction(net, pair)
             d0 = float(net.port_distance(drive))
             if s["spacing"] == "geometric":
-                frac = 1.0 - np.geomspace(1.0, 1e-12, samples)
+                frac = 1.0 - np.geomspace(1.0, GEOMETRIC_END, samples)
                 frac[0] = 0.0
             else:
                 frac = np.linspace(0.0, 1.0, samples)
@@ -405,7 +413,7 @@ def _relay(model, pos, relay: str, to: float, samples: int):
     if relay not in net.ports:
         raise _err(model.name, "relay", f"unknown port {relay!r}")
     r = net.port_distance(relay, pos)
-    moved = np.abs(r - r[0]) / max(abs(to - r[0]), 1e-300)
+    moved = np.abs(r - r[0]) / max(abs(to - r[0]), TINY)
     hits = np.flatnonzero(moved >= RELAY_SWITCH)
     if hits.size == 0 or hits[0] >= samples - 1:
         return pos, f"reached {relay} = {r[-1]:.10g} without handing over"
@@ -414,7 +422,7 @@ def _relay(model, pos, relay: str, to: float, samples: int):
     # the relay's share of its way, spaced evenly in logit from the handover to 1 - 1e-6 (small
     # first steps resolve the front leaving the middle), then the target itself
     start = min(float(moved[k]), 0.5)
-    t = np.linspace(np.log(start / (1.0 - start)), np.log((1.0 - 1e-6) / 1e-6), samples - k - 1)
+    t = np.linspace(np.log(start / (1.0 - start)), np.log((1.0 - RELAY_END) / RELAY_END), samples - k - 1)
     values = np.append(r[0] + (to - r[0]) / (1.0 + np.exp(-t[1:])), to)
     more, margin, _ = place(plan, values)
     if (margin < 0).any():

@@ -9,8 +9,14 @@ import numpy as np
 
 from ...errors import PatternError
 from ...network import Network
+from ...numerics import TINY
 
 ASSIGNMENTS = ("B", "M", "V", "F", "U", "C", "J")
+
+
+#: A face cycle encloses a face when its signed area is above this, relative to the pattern's
+#: extent squared (the outer cycle is negative; a degenerate one is zero to round-off).
+FACE_AREA_RTOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,7 +136,7 @@ def planar_faces(vertices, edges) -> tuple:
         pts = v[cyc]
         area = 0.5 * float(np.sum(pts[:, 0] * np.roll(pts[:, 1], -1)
                                   - np.roll(pts[:, 0], -1) * pts[:, 1]))
-        if area > 1e-12 * max(float(np.ptp(v, axis=0).max()) ** 2, 1e-300):
+        if area > FACE_AREA_RTOL * max(float(np.ptp(v, axis=0).max()) ** 2, TINY):
             k = cyc.index(min(cyc))
             faces.append(tuple(cyc[k:] + cyc[:k]))
     return tuple(sorted(faces))
