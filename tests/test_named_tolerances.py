@@ -12,9 +12,6 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "fabkit"
 
-#: Files whose literals are still to be named (emptied as they are).
-PENDING = {"kinematics/base.py", "kinematics/projected.py", "kinematics/rk4_nullspace.py"}
-
 #: Magnitudes below this are tolerances, floors or nudges; larger literals are ordinary numbers.
 SMALL = 1e-3
 
@@ -60,8 +57,6 @@ FILES = sorted(p for p in ROOT.rglob("*.py") if p.name != "numerics.py")
 @pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_no_bare_tolerance(path):
     rel = str(path.relative_to(ROOT))
-    if rel in PENDING:
-        pytest.skip("tolerances still to be named in this file")
     found = bare_literals(path.read_text())
     assert not found, f"fabkit/{rel}: bare tolerance literal(s) at " + ", ".join(
         f"line {n} ({v:g})" for n, v in found) + ": name them (numerics.py or an UPPER_CASE " \
@@ -81,7 +76,3 @@ def f(x, rtol=1e-7):
     return 0.5 * x
 '''
     assert bare_literals(code) == [(8, 2e-10), (9, 5e-12)]
-
-
-def test_pending_files_exist():
-    assert all((ROOT / rel).is_file() for rel in PENDING)

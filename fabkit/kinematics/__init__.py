@@ -15,6 +15,7 @@ from __future__ import annotations
 from ..errors import ConstructionError, KinematicsError
 from ..network import Network
 from .base import Mark, Method, Outcome, Problem, align_to_gauge, choose_gauge, make_problem
+from .stepping import Step, StepMethod, Stop
 from .branching import BranchSwitch, analyze_bifurcation, fold_through
 from .constructive import ConstructionPlan, Constructive, cached_plan, place, plan_construction
 from .projected import Projected
@@ -32,6 +33,9 @@ __all__ = [
     "Method",
     "Mark",
     "Outcome",
+    "Step",
+    "StepMethod",
+    "Stop",
     "Problem",
     "ConstructionPlan",
     "plan_construction",

@@ -3,7 +3,10 @@ the packaging of results.
 
 A method is a subclass of :class:`Method` that declares its options (name → default) and
 implements :meth:`Method.solve`, which returns an :class:`Outcome`: configurations, a status, a
-message and :class:`Mark` s at configuration indices. :meth:`Method.run` (owned by the base class,
+message and :class:`Mark` s at configuration indices. Methods that trace step by step
+(``projected``, ``rk4-nullspace``) subclass :class:`~.stepping.StepMethod` instead, which owns
+the loop (configurations, ``max_steps``, stops and their events) and asks the method only for
+its start and one step at a time. :meth:`Method.run` (owned by the base class,
 as ``solve_ivp``'s ``OdeSolver.step`` owns its status) aligns the configurations to the gauge,
 measures arclength and edge errors, turns marks into :class:`~.trajectory.Event` s at the
 marked configurations, and builds the :class:`~.trajectory.Trajectory`. :func:`fabkit.trace`
@@ -19,11 +22,16 @@ import numpy as np
 
 from ..errors import KinematicsError
 from ..network import Network
-from ..numerics import START_RTOL, apply_fit, rigid_fit
+from ..numerics import START_RTOL, TINY, apply_fit, rigid_fit
 from .trajectory import Event, EventKind, Status, Trajectory
 
 __all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
            "align_to_gauge"]
+
+#: A gauge triangle (3D) must span at least this area, and a third gauge node lie this far off
+#: the gauge edge, relative to the network's size (squared for the area): else the nodes are
+#: collinear to round-off and fix no rotation.
+GAUGE_SPREAD_RTOL = 1e-9
 
 
 @dataclass(frozen=True)
@@ -205,8 +213,8 @@ def choose_gauge(net: Network, positions, drive: tuple[int, int]) -> tuple[int, 
     tri, area = best_triangle([a])
     if tri is None:
         tri, area = best_triangle(range(net.n_nodes))
-    scale = max(net.size, 1e-300) ** 2
-    if tri is not None and area > 1e-9 * scale:
+    scale = max(net.size, TINY) ** 2
+    if tri is not None and area > GAUGE_SPREAD_RTOL * scale:
         return tuple(int(v) for v in tri)
     k = incident[np.argmax(lengths[incident])] if incident.size else int(np.argmax(lengths))
     i, j = int(edges[k, 0]), int(edges[k, 1])
@@ -214,7 +222,7 @@ def choose_gauge(net: Network, positions, drive: tuple[int, int]) -> tuple[int, 
     off = x - x[i]
     dist = np.linalg.norm(off - np.outer(off @ u, u), axis=1)
     third = int(np.argmax(dist))
-    if dist[third] <= 1e-9 * net.size:
+    if dist[third] <= GAUGE_SPREAD_RTOL * net.size:
         return (i, j)  # all nodes collinear: rotation about the line is not a motion anyway
     return (i, j, third)
 

@@ -40,10 +40,25 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
 from ..numerics import START_RTOL
-from .base import Mark, Method, Outcome
+from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 
 __all__ = ["Projected", "gauge_rows", "permutation_parity"]
+
+#: Smallest step by default, relative to the median edge: a step this small that still fails
+#: means a singular configuration ahead, not a step too large.
+MIN_STEP_RTOL = 1e-10
+#: A start whose bordered matrix [J; e_j] has a smallest singular value below this (row-scaled
+#: system) is singular: a state of self-stress there.
+SINGULAR_START = 1e-9
+#: |∇drive · t| below this at the start: the drive is stationary (a turning point).
+STATIONARY_DRIVE = 1e-12
+#: The secant search for a turning point stops when its bracket is this small (relative to the
+#: step or the network) or the drive's rate this close to zero.
+TURN_BRACKET_RTOL = 1e-13
+TURN_RATE_ZERO = 1e-13
+#: The bisection for a branch point stops when its bracket is this small (relative to the network).
+BRANCH_BRACKET_RTOL = 1e-12
 
 
 def permutation_parity(perm: np.ndarray) -> int:
@@ -249,7 +264,7 @@ class _System:
         return float(1.0 / math.sqrt(growth))
 
 
-class Projected(Method):
+class Projected(StepMethod):
     """Pseudo-arclength predictor-corrector (see the module docstring).
 
     Options
@@ -273,6 +288,7 @@ class Projected(Method):
     """
 
     name = "projected"
+    aligned = True  # the gauge rows hold the gauge coordinates at their start values
     options = {
         "step": None,
         "max_step": None,
@@ -466,20 +482,19 @@ class Projected(Method):
                 return x
         return x if self.sys.rel_edge_residual(x) <= 100 * tol else None
 
-    # -- main loop ------------------------------------------------------------------------------
-    def solve(self) -> Outcome:
+    # -- the stepping contract ------------------------------------------------------------------
+    def _start(self, x0: np.ndarray) -> Stop | None:
         p = self.problem
         self.n_factor = 0
+        self.counts = {"rejected": 0, "newton_iterations": 0}
         self._setup()
         scale = self.scale
-        h = self.opts["step"] or 0.1 * scale
-        h_max = self.opts["max_step"] or math.inf
-        h_min = self.opts["min_step"] or 1e-10 * scale
-        max_cos = math.cos(math.radians(self.opts["max_angle"]))
+        self.h = self.opts["step"] or 0.1 * scale
+        self.h_max = self.opts["max_step"] or math.inf
+        self.h_min = self.opts["min_step"] or MIN_STEP_RTOL * scale
+        self.max_cos = math.cos(math.radians(self.opts["max_angle"]))
         direction = self.direction()
-        target = p.target
-
-        x = p.start.ravel().copy()
+        x = x0
         if self.sys.rel_edge_residual(x) > START_RTOL:
             raise KinematicsError("the start configuration does not keep the edge lengths")
         grad = self._drive_grad(x) * direction
@@ -503,104 +518,96 @@ class Projected(Method):
                 first = self._tangent(x, int(j), direction_grad=grad)
                 if first is not None:
                     break
-        positions = [x.copy()]
-        arclength = [0.0]
-        events = []
-        stats = {"steps": 0, "rejected": 0, "newton_iterations": 0}
-
-        def finish(status, message):
-            stats["factorizations"] = self.n_factor
-            stats.update(steps=len(positions) - 1)
-            X = np.array(positions).reshape(len(positions), self.n, self.d)
-            return Outcome(X, status, message, tuple(events), stats, np.asarray(arclength),
-                           aligned=True)
-
         if first is None:
-            return finish(Status.FAILED, self._singular_message("start"))
+            return Stop(Status.FAILED, self._singular_message("start"))
         t, lu, tau = first
         sig = self.sys.sigma_min(lu, self.sys.n_rows)
-        if sig < 1e-9:
-            return finish(Status.FAILED, self._singular_message("start", sig))
+        if sig < SINGULAR_START:
+            return Stop(Status.FAILED, self._singular_message("start", sig))
         g_prev = float(self._drive_grad(x) @ t) * direction
-        if abs(g_prev) < 1e-12:
-            events.append(Mark(EventKind.TURNING_POINT, 0, "the drive is stationary at the start"))
-            return finish(Status.TURNING_POINT,
-                          f"the start is a turning point of {p.drive_name}: it cannot move towards "
-                          f"{target:.10g} to first order")
-        f_prev = (self._drive(x) - target) * direction  # < 0 until the target is passed
+        if abs(g_prev) < STATIONARY_DRIVE:
+            return Stop(Status.TURNING_POINT,
+                        f"the start is a turning point of {p.drive_name}: it cannot move towards "
+                        f"{p.target:.10g} to first order",
+                        event=EventKind.TURNING_POINT, detail="the drive is stationary at the start")
+        f_prev = (self._drive(x) - p.target) * direction  # < 0 until the target is passed
         if f_prev >= 0:
-            return finish(Status.FINISHED, self.finished_message())
+            return Stop(Status.FINISHED, self.finished_message())
+        j = int(np.argmax(np.abs(t)))
+        # the state one step carries to the next
+        self.state = (t, lu, j, tau, f_prev, g_prev)
+        self.curvature = None
+        return None
 
-        curvature = None
-        while len(positions) <= self.opts["max_steps"]:
-            h = min(h, h_max)
-            if h < h_min:
-                return finish(Status.FAILED,
-                              f"the step size fell below {h_min:.1e} at {p.drive_name} = "
-                              f"{self._drive(x):.10g}: the corrector does not converge (a "
-                              "singular configuration ahead?)")
+    def _step(self) -> Step | Stop:
+        p = self.problem
+        direction = self.direction()
+        target = p.target
+        x = self.positions[-1]
+        t, lu, j, tau, f_prev, g_prev = self.state
+        while True:
+            h = self.h = min(self.h, self.h_max)
+            if h < self.h_min:
+                return Stop(Status.FAILED,
+                            f"the step size fell below {self.h_min:.1e} at {p.drive_name} = "
+                            f"{self._drive(x):.10g}: the corrector does not converge (a "
+                            "singular configuration ahead?)")
             xp = x + h * t
-            if curvature is not None:
-                xp += (0.5 * h * h) * curvature  # second-order predictor: smaller first residual
-            # Newton on the Jacobian at the predicted point: contracts far better than reusing the
-            # previous point's LU, and the same factors then give the new tangent and det sign.
+            if self.curvature is not None:
+                xp += (0.5 * h * h) * self.curvature  # second-order predictor
+            # Newton on the Jacobian at the predicted point: contracts far better than reusing
+            # the previous point's LU, and the same factors then give the new tangent and det sign.
             lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
             corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
             if corr is None:
-                stats["rejected"] += 1
-                h *= 0.5
+                self._reject()
                 continue
             x_new, its, theta = corr
-            stats["newton_iterations"] += its
+            self.counts["newton_iterations"] += its
             nxt = self._tangent_from(lu_p, j, t)
-            if nxt is None or float(nxt[0] @ t) < max_cos:
-                stats["rejected"] += 1
-                h *= 0.5
+            if nxt is None or float(nxt[0] @ t) < self.max_cos:
+                self._reject()
                 continue
             t_new, tau_new = nxt
-            lu_new = lu_p
             j_new = int(np.argmax(np.abs(t_new)))
             f_new = (self._drive(x_new) - target) * direction
             g_new = float(self._drive_grad(x_new) @ t_new) * direction
             if f_new >= 0:  # the target lies in this step: land on it exactly
                 frac = -f_prev / (f_new - f_prev) if f_new != f_prev else 1.0
-                guess = x + frac * (x_new - x)
-                landed = self._land(guess)
+                landed = self._land(x + frac * (x_new - x))
                 if landed is not None and self._broken_dropped(landed) is not None:
-                    return finish(Status.FAILED, self._locked_message(landed, x))
+                    return Stop(Status.FAILED, self._locked_message(landed, x))
                 if landed is not None and (g_new > 0 or g_prev > 0):
-                    arclength.append(arclength[-1] + float(np.linalg.norm(landed - x)))
-                    positions.append(landed)
-                    return finish(Status.FINISHED, self.finished_message())
+                    return Stop(Status.FINISHED, self.finished_message(), append=(landed,))
                 if landed is None:
-                    h *= 0.5
-                    stats["rejected"] += 1
+                    self._reject()
                     continue
             if tau_new != tau and self.opts["detect_branch_points"]:
-                return self._stop_at_branch(x, t, lu, j, h, tau, positions, arclength, events,
-                                            finish, g_prev * g_new < 0)
+                return self._stop_at_branch(x, t, lu, j, h, tau, g_prev * g_new < 0)
             if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
                 # the target may lie between x and the turning point, too close to the turn for
                 # the step to have crossed it on this side: walk the drive towards it by landing
                 landed = self._walk_to_target(x, t, h)
                 if landed is not None:
-                    arclength.append(arclength[-1] + float(np.linalg.norm(landed - x)))
-                    positions.append(landed)
-                    return finish(Status.FINISHED, self.finished_message())
-                return self._stop_at_turning(x, t, lu, j, h, g_prev, positions, arclength,
-                                             events, finish)
+                    return Stop(Status.FINISHED, self.finished_message(), append=(landed,))
+                return self._stop_at_turning(x, t, lu, j, h, g_prev)
             if self._broken_dropped(x_new) is not None:
-                return finish(Status.FAILED, self._locked_message(x_new, x))
+                return Stop(Status.FAILED, self._locked_message(x_new, x))
             step = float(np.linalg.norm(x_new - x))
-            arclength.append(arclength[-1] + step)
-            positions.append(x_new)
-            curvature = (t_new - t) / step if step > 0 else None
-            x, t, lu, j, tau, f_prev, g_prev = x_new, t_new, lu_new, j_new, tau_new, f_new, g_new
+            self.curvature = (t_new - t) / step if step > 0 else None
+            self.state = (t_new, lu_p, j_new, tau_new, f_new, g_new)
             # with the Jacobian at the predicted point the contraction grows like h²: aim at 0.1
-            h *= min(2.0, max(0.7, math.sqrt(0.1 / max(theta, 0.025))))
-        return finish(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
-                                     f"({p.drive_name} = {self._drive(x):.10g})")
+            self.h *= min(2.0, max(0.7, math.sqrt(0.1 / max(theta, 0.025))))
+            return Step(x_new)
+
+    def _reject(self):
+        """A refused step: halve it and count it."""
+        self.counts["rejected"] += 1
+        self.h *= 0.5
+
+    def _stats(self) -> dict:
+        return {**self.counts, "factorizations": self.n_factor}
 
     def _locked_message(self, x_bad, x_last) -> str:
         k, err = self._broken_dropped(x_bad)
@@ -643,7 +650,7 @@ class Projected(Method):
             return xn, None, None
         return xn, nxt[0], nxt[2]
 
-    def _stop_at_turning(self, x, t, lu, j, h, g0, positions, arclength, events, finish):
+    def _stop_at_turning(self, x, t, lu, j, h, g0) -> Stop:
         """Secant search for ∇drive·t = 0 within the step, then stop there."""
         p = self.problem
         direction = self.direction()
@@ -669,22 +676,19 @@ class Projected(Method):
                 lo, glo = mid, gm
             else:
                 hi, ghi = mid, gm
-            if hi - lo <= 1e-13 * max(h, self.scale) or abs(gm) < 1e-13:
+            if hi - lo <= TURN_BRACKET_RTOL * max(h, self.scale) or abs(gm) < TURN_RATE_ZERO:
                 break
-        if best is not None:
-            arclength.append(arclength[-1] + float(np.linalg.norm(best - x)))
-            positions.append(best)
-        dval = self._drive(positions[-1].ravel())
+        dval = self._drive(x if best is None else best)
         kind = "largest" if direction > 0 else "smallest"
         detail = (f"{p.drive_name} reaches its {kind} value {dval:.10g} on this branch; beyond it "
                   "the motion continues with the drive moving back")
-        events.append(Mark(EventKind.TURNING_POINT, len(positions) - 1, detail))
-        return finish(Status.TURNING_POINT,
-                      f"stopped at a turning point of {p.drive_name} = {dval:.10g} before the "
-                      f"target {p.target:.10g}: {detail}")
+        return Stop(Status.TURNING_POINT,
+                    f"stopped at a turning point of {p.drive_name} = {dval:.10g} before the "
+                    f"target {p.target:.10g}: {detail}",
+                    append=() if best is None else (best,), event=EventKind.TURNING_POINT,
+                    detail=detail)
 
-    def _stop_at_branch(self, x, t, lu, j, h, tau0, positions, arclength, events, finish,
-                        also_turning):
+    def _stop_at_branch(self, x, t, lu, j, h, tau0, also_turning) -> Stop:
         """Bisection on the sign of det [J; tᵀ] within the step; stop just before the branch."""
         p = self.problem
         exact = self._tangent(x, int(np.argmax(np.abs(t))), orient_like=t)
@@ -703,14 +707,11 @@ class Projected(Method):
                 lo, best = mid, xm
             else:
                 hi = mid
-            if hi - lo <= 1e-12 * self.scale:
+            if hi - lo <= BRANCH_BRACKET_RTOL * self.scale:
                 break
-        if best is not None:
-            arclength.append(arclength[-1] + float(np.linalg.norm(best - x)))
-            positions.append(best)
-        dval = self._drive(positions[-1].ravel())
+        xb = x if best is None else best
+        dval = self._drive(xb)
         sig = None
-        xb = positions[-1]
         nxt = self._tangent(xb, int(np.argmax(np.abs(t))), orient_like=t)
         if nxt is not None:
             sig = self.sys.sigma_min(nxt[1], self.sys.n_rows)
@@ -720,10 +721,11 @@ class Projected(Method):
                   f"{extra}")
         if sig is not None:
             detail += f"; smallest singular value of the bordered matrix {sig:.1e}"
-        events.append(Mark(EventKind.BRANCH_POINT, len(positions) - 1, detail))
-        return finish(Status.BRANCH_POINT,
-                      f"stopped at a branch point at {p.drive_name} ≈ {dval:.10g} before the "
-                      f"target {p.target:.10g}: {detail}")
+        return Stop(Status.BRANCH_POINT,
+                    f"stopped at a branch point at {p.drive_name} ≈ {dval:.10g} before the "
+                    f"target {p.target:.10g}: {detail}",
+                    append=() if best is None else (best,), event=EventKind.BRANCH_POINT,
+                    detail=detail)
 
     def _singular_message(self, where, sig=None):
         s = f" (smallest singular value {sig:.1e})" if sig is not None else ""
