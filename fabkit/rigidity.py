@@ -358,8 +358,11 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
     b = sp.bmat([[None, r], [r.T, None]], format="csc")
     shift = 1e-3 * tol
     try:
+        # COLAMD: a minimum-degree ordering of B + Bᵀ fills the factors of some chains
+        # densely (the template's mirrored super-stable chain of 1000 modules: 1.8e7 entries and
+        # 10 s, 3000 modules 250 s), where COLAMD keeps them linear (1.4e5 entries, 0.03 s)
         lu_b = spla.splu((b - shift * sp.eye(e + n, format="csc")).tocsc(),
-                         permc_spec="MMD_AT_PLUS_A")
+                         permc_spec="COLAMD")
     except RuntimeError:
         raise _Undecided("the shifted matrix [[0, R], [Rᵀ, 0]] is exactly singular",
                          min(e, n)) from None
