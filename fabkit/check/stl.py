@@ -38,9 +38,6 @@ VOLUME_RTOL = 1e-6
 TRANSITION_RTOL = 1e-4
 #: Largest distance (mm) between a node rebuilt from the solid and the design's node.
 NODE_TOL_MM = 1e-2
-#: A fixed point within this distance of D1* (relative to the module's size) on its own branch
-#: is D1* itself: the map's fixed points are resolved to round-off and deduplicated at 1e-7.
-REFERENCE_SEPARATION = 1e-6
 
 
 #: Points of a section closer than this (mm) are merged: STL stores float32 coordinates, which
@@ -313,6 +310,7 @@ def module_fixed_points(module: Network, d_in="d1", d_out="d2", max_branches=6) 
         The reference is not a fixed point, or no second fixed point is found.
     """
     from ..maps import module_map
+    from ..maps.map1d import REFERENCE_SEPARATION
 
     d1 = float(module.port_distance(d_in))
     d2 = float(module.port_distance(d_out))
