@@ -29,7 +29,7 @@ def sheet_design():
 @pytest.fixture(scope="module")
 def reference(sheet_design):
     net = sheet_design.network
-    return step_off(net, analyze_bifurcation(net), 2, -1.0, 1e-2)
+    return step_off(net, analyze_bifurcation(net), 2, 1.0, 1e-2)  # the side of the assignment
 
 
 @pytest.fixture(scope="module")

@@ -194,7 +194,7 @@ def test_fold_command_reports_bifurcation_and_writes_checked_files(tmp_path, cap
     out = capsys.readouterr().out
     assert code == 0
     assert "1 state(s) of self-stress" in out and "2 branch(es)" in out
-    assert "taken        branch 2, direction -" in out
+    assert "taken        branch 2, direction +" in out
     assert "crease D-P      M  fold angle -131.0604 deg" in out
     assert "check        refold_map: ok" in out
     names = sorted(p.name for p in (tmp_path / "origami_sheet").iterdir())

@@ -56,6 +56,9 @@ LINE_STEP_ZERO = 1e-15
 LINE_RESIDUAL = 1e-11
 #: Two unit lines with |c·g| within this of 1 are the same line.
 SAME_LINE = 1e-8
+#: A branch's direction is oriented by its largest component; components within this fraction of
+#: the largest count as tied (mirror-symmetric networks have several), and the first one wins.
+ORIENT_TIE = 1e-6
 #: A candidate stepped off the branch point must move the drive by more than this (relative)
 #: in the asked direction: round-off moves it by ~1e-16.
 STEP_OFF_RTOL = 1e-14
@@ -258,6 +261,13 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
     for c in lines:
         v = z @ c
         v /= np.linalg.norm(v)
+        # a null line is found up to sign, and which sign depends on the LAPACK build (the
+        # eigenvectors' signs): orient it by the geometry, so that branch signs ("+", "-") and
+        # every configuration derived from them are the same on every machine
+        big = np.abs(v)
+        first = int(np.flatnonzero(big >= (1.0 - ORIENT_TIE) * big.max())[0])
+        if v[first] < 0:
+            v, c = -v, -c
         vv = v.reshape(n, d)
         q = np.einsum("ed,ed->e", vv[i] - vv[j], vv[i] - vv[j])
         a = np.linalg.lstsq(r, -q, rcond=None)[0]
