@@ -667,8 +667,17 @@ def _load_modules(section: dict, ctx, where: str) -> tuple[list[Network], int | 
     return mods, copies, False
 
 
+def modules_in(net: Network) -> int:
+    """How many modules a network was assembled from (1 for a network that is not a chain)."""
+    return len(net.assembly.copies) if net.assembly is not None else 1
+
+
 def _chain_from_section(section: dict, ctx, where: str) -> Network:
     mods, copies, single = _load_modules(section, ctx, where)
+    repeat = copies if copies is not None else 1
+    ctx.bound_modules(f"{where}.copies" if copies is not None else f"{where}.modules",
+                      repeat * sum(modules_in(m) for m in mods),
+                      repeat * sum(m.n_nodes for m in mods))
     mirror = section.get("mirror")
     if mirror is not None and not (mirror in ("alternate", "none") or (
             isinstance(mirror, list) and all(isinstance(v, bool) for v in mirror))):
@@ -722,6 +731,8 @@ def build_tessellation(section: dict, ctx) -> Network:
     shape = ctx.get(section, "shape", "tessellation", list)
     if len(shape) != 2 or any(isinstance(v, bool) or not isinstance(v, int) or v < 1 for v in shape):
         raise ctx.error("tessellation.shape", "must be two positive integers [rows, cols]")
+    ctx.bound_modules("tessellation.shape", shape[0] * shape[1] * modules_in(module),
+                      shape[0] * shape[1] * module.n_nodes)
     joins = []
     for key in ("x_join", "y_join"):
         val = ctx.get(section, key, "tessellation", list, required=key == "y_join",

@@ -49,7 +49,7 @@ from pathlib import Path
 
 from .errors import (BoundsError, FabkitError, Interrupted, LockedError, MotionError,
                      OutputError, SingularStartError, TemplateError, UnavailableError,
-                     internal_error_line)
+                     WriteError, internal_error_line)
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
@@ -63,7 +63,19 @@ RESERVED = ("report.json", "report.md", "report.html", "preview_motion.png", "pr
 #: build is one placement of the whole network, so 10 000 already take minutes for a chain.
 MAX_SAMPLES = 10_000
 
-_SAFE_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+def _safe(name: str) -> bool:
+    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.outputs`)."""
+    from .errors import UnsafeNameError
+    from .outputs import check_name
+
+    try:
+        check_name(name)
+    except UnsafeNameError:
+        return False
+    return True
+
 LOCK_NAME = ".fabkit.lock"
 
 
@@ -829,6 +841,8 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     from .export import write_atomic, write_outputs
+    from .errors import UnsafeNameError
+    from .outputs import inside
     from .report import report_json, report_markdown
     from .report_html import write_design_report
     from .templates import load_template
@@ -850,16 +864,16 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         stage(Stage.LOAD)
         design = load_template(path)
         res.name = design.name
-        if not _SAFE_NAME.match(design.name):
-            raise TemplateError(path, "name", f"{design.name!r} cannot be a folder name; use "
-                                              "letters, digits, '_', '-', '.' and '+'")
         outdir = Path(outdir)
-        check_replaceable(outdir / design.name)  # before the work, not after it
+        try:
+            folder = inside(outdir, design.name)  # before the work, not after it
+        except UnsafeNameError as exc:  # a Design made in code, not read from a template
+            raise TemplateError(path, "name", f"{design.name!r} {exc.reason}") from None
+        check_replaceable(folder)
         files, fmts, facts = build_outputs(design, formats, settings, tolerance_samples,
                                            exporters, previews, stage=stage,
                                            allow_large=allow_large)
         stage(Stage.WRITE)
-        folder = outdir / design.name
         recover_folder(outdir, design.name)
         stage_dir = _staging_names(outdir, design.name)[0]
         stage_dir.mkdir(parents=True)
@@ -892,6 +906,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
                          f"(see {folder / 'report.md'})")
             res.error_code = "check"
+    except WriteError as exc:
+        res.error = (f"{path}: cannot write the export to {outdir}: {exc.reason} "
+                     f"({Path(exc.path).name}); nothing of it was written")
+        res.error_code = "output"
     except FabkitError as exc:
         res.error, res.error_code = str(exc), exc.code
     except OSError as exc:
@@ -1362,7 +1380,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished) -> No
         i = w.task
         if i is not None and i in pending:
             pending.discard(i)
-            if _SAFE_NAME.match(names[i]):
+            if _safe(names[i]):
                 try:  # its staging folder, whatever it holds
                     recover_folder(outdir, names[i])
                 except OSError:  # pragma: no cover - the next run removes it
@@ -1395,7 +1413,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished) -> No
         # a worker killed between two writes leaves its staging folder: remove those of the
         # designs in flight, and put back an old folder caught between the two renames
         for i in pending:
-            if _SAFE_NAME.match(names[i]):
+            if _safe(names[i]):
                 try:
                     recover_folder(outdir, names[i])
                 except OSError:

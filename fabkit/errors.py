@@ -24,6 +24,8 @@ __all__ = [
     "BoundsError",
     "InputFileError",
     "OutputError",
+    "WriteError",
+    "UnsafeNameError",
     "LockedError",
     "MotionError",
     "SingularStartError",
@@ -185,21 +187,29 @@ class BoundsError(FabkitError):
         The size asked for and the largest one accepted.
     override : str
         How to lift the limit (a flag or an environment variable), or ``""``.
+    estimate : fabkit.workload.Estimate, optional
+        The estimate of time and memory that was refused (``value`` and ``limit`` are then its
+        description and the bound, as text).
     """
 
     code = "bounds"
 
     def __init__(self, where: str, quantity: str, value, limit, override: str = "",
-                 option: bool = False):
+                 option: bool = False, estimate=None):
         self.where = where
         self.quantity = quantity
         self.value = value
         self.limit = limit
         self.override = override
+        self.estimate = estimate
         if option:
             self.exit_code = 2
         hint = f"; {override} lifts the limit" if override else ""
-        super().__init__(f"{where}: {value:,} is over the limit of {limit:,} {quantity}{hint}")
+        if isinstance(value, str):
+            text = f"{where}: {value} is over the limit of {limit}{hint}"
+        else:
+            text = f"{where}: {value:,} is over the limit of {limit:,} {quantity}{hint}"
+        super().__init__(text)
 
 
 class InputFileError(FabkitError):
@@ -234,6 +244,50 @@ class OutputError(FabkitError):
         self.path = str(path)
         self.reason = reason
         super().__init__(f"{self.path}: {reason}")
+
+
+class WriteError(OutputError):
+    """A file could not be written (a full disk, a quota, a file-size limit, permissions); no
+    part of it, nor of the set of files it belonged to, was left behind.
+
+    Parameters
+    ----------
+    path : str
+        The file that could not be written.
+    reason : str
+        The system's reason (``"No space left on device"``).
+    """
+
+    code = "write"
+
+    def __init__(self, path, reason: str):
+        super().__init__(path, f"cannot write: {reason}; nothing of this output was written")
+        self.reason = reason
+
+
+class UnsafeNameError(OutputError, ValueError):
+    """A name that fabkit would write under an output folder is not safe there: it would leave
+    the folder (``..``, a separator, an absolute path), is empty, holds a control character or
+    a character outside letters, digits and ``_ . + -``, or is reserved.
+
+    Parameters
+    ----------
+    what : str
+        What the name is (``"name"``, ``"file name"``, ``"template name"``).
+    name : object
+        The name as given.
+    reason : str
+        Why it is refused.
+    """
+
+    code = "unsafe_name"
+
+    def __init__(self, what: str, name, reason: str):
+        self.what = what
+        self.name = name
+        FabkitError.__init__(self, f"{what} {name!r} {reason}")
+        self.path = str(name)
+        self.reason = reason
 
 
 class LockedError(OutputError):

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -221,6 +222,15 @@ class TemplateContext:
             raise self.error(full, f"must be {want}, got {_describe(value)}")
         return value
 
+    def bound_modules(self, key: str, modules: int, nodes: int) -> None:
+        """Refuse, before building it, a network of ``modules`` modules and ``nodes`` nodes
+        in all (counted through every level of nesting: a chain of chains multiplies) that is
+        over :data:`MAX_MODULES` or over the bounds of :func:`fabkit.workload.require`."""
+        from .workload import require
+
+        _bound(self, key, "modules (after every level of nesting)", modules, MAX_MODULES)
+        require(f"{self.path}: {key}", ("node", nodes))
+
     def check_keys(self, table: dict, where: str, allowed) -> None:
         unknown = sorted(set(table) - set(allowed))
         if unknown:
@@ -337,6 +347,28 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
     return Motion(drive=drive, to=to, method=method, hold=tuple(hold), options=dict(options))
 
 
+def _design_name(ctx, raw, path: Path) -> str:
+    """The design's name, safe as a folder name (:func:`fabkit.outputs.check_name`).
+
+    A ``name`` set in the template is checked as written; without one, the file's stem is used
+    with every character that cannot be in a folder name replaced by ``_``.
+    """
+    from .errors import UnsafeNameError
+    from .outputs import check_name
+
+    if "name" in raw:
+        name = ctx.get(raw, "name", "", str)
+        key = "name"
+    else:
+        name = re.sub(r"[^A-Za-z0-9_.+-]", "_", path.stem).lstrip("._+-") or "design"
+        key = ""
+    try:
+        return check_name(name, "the name")
+    except UnsafeNameError as exc:
+        fix = "" if key else " (it comes from the file name; rename the file or set name = ...)"
+        raise ctx.error(key, f"{name!r} {exc.reason}{fix}") from None
+
+
 def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Design:
     """Parse template text (see the module docstring). ``path`` is used in messages and to
     resolve relative references."""
@@ -356,6 +388,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
     if len(present) > 1:
         raise ctx.error(present[1], f"give only one of {', '.join(present)}")
     ctx.check_keys(raw, "", TOP_LEVEL_KEYS | set(BUILDERS))
+    name = _design_name(ctx, raw, path)  # before any work: the name becomes a folder name
     builder_key = present[0]
     section = ctx.get(raw, builder_key, "", dict)
     _check_sizes(ctx, builder_key, section, raw)
@@ -366,11 +399,10 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
         raise ctx.error(builder_key, f"this fabkit cannot build [{builder_key}] sections") from None
     try:
         net = builder(section, ctx)
-    except TemplateError:
+    except (TemplateError, BoundsError):
         raise
     except FabkitError as exc:
         raise ctx.error(builder_key, str(exc)) from None
-    name = ctx.get(raw, "name", "", str, required=False, default=path.stem)
     description = ctx.get(raw, "description", "", str, required=False, default="")
     if "motion" in raw:
         motion = _parse_motion(ctx, ctx.get(raw, "motion", "", dict), net)

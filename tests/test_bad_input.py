@@ -48,7 +48,7 @@ EXPECTED = {
     "mixed_dimensions": ("network.nodes", ["mix 2 and 3"]),
     "nan_coordinate": ("network.nodes[1][1]", ["must be finite"]),
     "chain_copies_not_integer": ("chain.copies", ["must be an integer"]),
-    "name_not_a_folder": ("name", ["cannot be a folder name"]),
+    "name_not_a_folder": ("name", ["would leave the output folder"]),
     # bad indices and degenerate networks
     "edge_index_out_of_range": ("network.edges[3][1]", ["out of range 0..3"]),
     "self_loop_edge": ("network.edges[2]", ["to itself"]),

@@ -43,10 +43,12 @@ def test_simulate_writes_npz_and_png(tmp_path, capsys):
 
 
 def test_simulate_to_override_reports_turning_point(tmp_path, capsys):
-    code, out, _ = run_cli(["simulate", TEMPLATES / "fourbar.toml", "--to", "0.5",
-                            "--method", "constructive", "-o", tmp_path], capsys)
-    assert code == 0
+    code, out, err = run_cli(["simulate", TEMPLATES / "fourbar.toml", "--to", "0.5",
+                              "--method", "constructive", "-o", tmp_path], capsys)
+    assert code == 1  # the target is not reached: a failure, as in export
     assert "turning_point" in out and "0.8284271247" in out
+    assert err.count("\n") == 1 and "motion.to: target d1 = 0.5 is not reached" in err
+    assert (tmp_path / "fourbar" / "trajectory.npz").exists()  # the motion up to the stop
 
 
 BAD = {

@@ -18,6 +18,8 @@ ROOT = Path(__file__).resolve().parents[1] / "fabkit"
 #: Rank of each top-level part of the package; an import must not go to a higher rank.
 LAYERS = {
     "errors": 0,
+    "outputs": 0,
+    "workload": 0,
     "numerics": 1,
     "network": 1,
     "rigidity": 2,

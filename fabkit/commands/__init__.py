@@ -6,7 +6,8 @@ from pathlib import Path
 
 from ..errors import FabkitError
 
-__all__ = ["expand_templates", "check_output_folder", "check_count", "check_number"]
+__all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
+           "check_number"]
 
 
 def expand_templates(paths) -> list[Path]:
@@ -31,7 +32,7 @@ def expand_templates(paths) -> list[Path]:
             if not found:
                 raise FabkitError(f"{p}: folder holds no *.toml templates")
             out.extend(found)
-        elif set("*?[") & set(str(raw)):  # a glob pattern
+        elif set("*?[") & set(str(raw)) and not p.is_file():  # a glob pattern, not a file
             found = sorted(Path(g) for g in glob.glob(str(raw)))
             if not found:
                 raise FabkitError(f"{raw}: no file matches")
@@ -50,34 +51,47 @@ def expand_templates(paths) -> list[Path]:
     return unique
 
 
-def check_output_folder(path, option: str = "-o") -> Path:
-    """Refuse an output folder that cannot be used, before any work (one line).
+def each_template(paths, work, *, debug: bool = False) -> int:
+    """Run ``work(path)`` for every template named by ``paths`` (see :func:`expand_templates`).
 
-    The folder need not exist (it is created when the first file is written), but it must not be
-    a file, and the nearest existing folder above it must be writable.
+    A fabkit error of one template is printed as one line that names the template, and the
+    others still run (as ``fabkit export`` does). ``work`` returns True when its template
+    failed in a way it has already reported (a target not reached, a flagged design).
+
+    Returns
+    -------
+    int
+        The exit code: 0 when every template succeeded, else the highest exit code of the
+        failures (1, or 2 for a usage error).
+    """
+    import sys
+
+    code = 0
+    for path in expand_templates(paths):
+        try:
+            if work(path):
+                code = max(code, 1)
+        except FabkitError as exc:
+            if debug:
+                raise
+            text = str(exc)
+            named = str(path) in text or getattr(exc, "path", None) is not None
+            print(f"fabkit: error: {text if named else f'{path}: {text}'}", file=sys.stderr)
+            code = max(code, int(exc.exit_code))
+    return code
+
+
+def check_output_folder(path, option: str = "-o") -> Path:
+    """Refuse an output folder that cannot be used, before any work (one line): the one guard
+    of :func:`fabkit.outputs.output_folder`.
 
     Raises
     ------
     OutputError
     """
-    import os
+    from ..outputs import output_folder
 
-    from ..errors import OutputError
-
-    p = Path(path)
-    probe = p
-    while not probe.exists() and not probe.is_symlink() and probe != probe.parent:
-        probe = probe.parent
-    if probe.is_symlink() and not probe.exists():
-        raise OutputError(p, f"{option}: {probe} is a broken symbolic link")
-    if not probe.is_dir():
-        what = "exists and is not a folder" if probe == p else f"cannot be created: {probe} is " \
-                                                              "not a folder"
-        raise OutputError(p, f"{option}: {what}; choose another output folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        what = "is not writable" if probe == p else f"cannot be created: {probe} is not writable"
-        raise OutputError(p, f"{option}: {what}; choose another output folder")
-    return p
+    return output_folder(path, option)
 
 
 def check_count(option: str, value, minimum: int = 1, maximum: int | None = None,

@@ -144,7 +144,7 @@ def run(args) -> int:
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
     from ..errors import FabkitError
-    from ..export import write_atomic
+    from ..outputs import write_files
     from ..viz import figure_png
 
     import signal
@@ -242,8 +242,7 @@ def run(args) -> int:
     # everything measured and rendered: only now write
     files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
                                      allow_nan=False).encode()
-    for name, data in files.items():
-        write_atomic(outdir / name, data)
+    write_files(outdir, files)
 
     print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_s']:.0f} s)")
     for s in scal.values():

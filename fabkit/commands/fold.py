@@ -63,10 +63,10 @@ def run(args) -> int:
     from dataclasses import replace
 
     from ..errors import FabkitError
-    from ..export import export
     from ..fab.creases import fold_model, origami_model
+    from ..outputs import inside
     from ..templates import load_template
-    from . import expand_templates
+    from . import each_template
 
     from ..errors import UsageError
     from . import check_number
@@ -74,9 +74,10 @@ def run(args) -> int:
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")
     check_number("--to", args.to)
-    failed = 0
-    for path in expand_templates(args.templates):
+
+    def one(path) -> bool:
         design = load_template(path)
+        folder = inside(Path(args.out), design.name) if args.out else None  # before the work
         overrides = {k: v for k, v in (("branch", args.branch), ("sign", args.sign))
                      if v is not None}
         model = origami_model(design, overrides)
@@ -93,21 +94,25 @@ def run(args) -> int:
         if args.out:
             from ..check import check_file
             from ..export import get_exporter
+            from ..outputs import write_files
 
-            folder = Path(args.out) / design.name
             settings = {"origami": overrides} if overrides else {}
+            files: dict[str, bytes] = {}
             for fmt in ("svg", "fold", "cp"):
-                if get_exporter(fmt).applies(design):
-                    paths, _ = export(design, fmt, folder, **settings)
-                    print("wrote        " + ", ".join(str(p) for p in paths))
+                module = get_exporter(fmt)
+                if module.applies(design):
+                    files.update(module.export_design(design, settings).files)
+            paths = write_files(folder, files)  # every format computed first: all or nothing
+            print("wrote        " + ", ".join(str(p) for p in paths))
             try:
                 report = check_file(folder / f"{design.name}.fold", design=design,
                                     settings=settings)
             except FabkitError as exc:
                 print(f"check        failed: {exc}")
-                failed += 1
-                continue
+                return True
             for c in report["checks"]:
                 print(f"check        {c['name']}: {'ok' if c['ok'] else 'FAILED'} ({c['detail']})")
-            failed += not report["ok"]
-    return 1 if failed else 0
+            return not report["ok"]
+        return False
+
+    return each_template(args.templates, one, debug=args.debug)

@@ -123,12 +123,12 @@ MAX_BEAM = 5_000
 
 
 def run(args) -> int:
-    from ..export import write_atomic
     from ..letters import curvature_modules, design_word, letter_template
     from ..templates import load_template
     from ..viz import figure_png
 
     from ..errors import UsageError
+    from ..outputs import write_files
     from . import check_count, check_number
 
     word = args.word
@@ -165,8 +165,7 @@ def run(args) -> int:
     files[f"{word.lower()}.png"] = figure_png(word_figure(word, fits, sims), dpi=100)
     files[f"{word.lower()}_fit.json"] = (json.dumps(report, indent=1) + "\n").encode()
     out = Path(args.out)
-    for name in sorted(files):
-        write_atomic(out / name, files[name])
+    write_files(out, files)
     print(f"{word}: {len(word)} chains -> {out}")
     print("letter  modules  rms/height  max/height  end/height")
     for row in report["letters"]:

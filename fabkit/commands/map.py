@@ -17,6 +17,10 @@ MAX_PERIOD = 24
 MAX_STEPS = 100_000
 MAX_ORBITS = 100_000
 MAX_ITERATIONS = 10_000_000
+MAX_D1 = 1_000  #: cobweb orbits drawn in one picture
+
+#: Defaults of the Lyapunov protocol (the paper's supplement): orbits, discarded, averaged.
+LYAPUNOV_DEFAULTS = {"orbits": 1000, "discard": 5000, "average": 20000}
 
 NAME = "map"
 HELP = "a module's iterated map: map.png, cobweb.png and map.json (fixed points, cycles, λ)"
@@ -40,9 +44,12 @@ def add_arguments(p):
                    help="output port (default d2)")
     p.add_argument("--lyapunov", action="store_true",
                    help="compute Lyapunov exponents (1000 orbits, 5000 discarded, 20000 averaged)")
-    p.add_argument("--orbits", type=int, default=1000, help="orbits for --lyapunov (default 1000)")
-    p.add_argument("--discard", type=int, default=5000, help="discarded iterations (default 5000)")
-    p.add_argument("--average", type=int, default=20000, help="averaged iterations (default 20000)")
+    p.add_argument("--orbits", type=int, default=None,
+                   help="orbits for --lyapunov (default 1000)")
+    p.add_argument("--discard", type=int, default=None,
+                   help="discarded iterations for --lyapunov (default 5000)")
+    p.add_argument("--average", type=int, default=None,
+                   help="averaged iterations for --lyapunov (default 20000)")
     p.add_argument("-o", "--out", dest="outdir", default="out",
                    help="output folder (default: out); results go to OUT/<name>/")
 
@@ -114,10 +121,12 @@ def default_d1(fmap, fixed) -> list[float]:
 def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapunov=False,
                orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2") -> dict:
     """Compute everything for one template and write its files; returns the summary."""
-    from ..export import write_atomic
     from ..mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
     from ..viz import figure_png
 
+    from ..outputs import inside, write_files
+
+    folder = inside(outdir, design.name)  # before the work
     fmap = design_map(design, d_in, d_out)
     fixed = fmap.fixed_points()
     cycles = [c for m in periods for c in fmap.cycles(m)]
@@ -151,7 +160,6 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     summary["claims"] = claims
     if "design" in design.meta:
         summary["design"] = design.meta["design"]
-    folder = outdir / design.name
     files = {
         "map.png": figure_png(map_figure(fmap, fixed=fixed, cycles=cycles, title=design.name)),
         "cobweb.png": figure_png(cobweb_figure(fmap, values, steps, title=f"{design.name}: cobweb")),
@@ -173,8 +181,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                                                                    title=design.name))
     text = json.dumps(summary, indent=2, default=_json_default) + "\n"
     files["map.json"] = text.encode()
-    for name, data in files.items():  # everything computed first: no half-written folder
-        write_atomic(folder / name, data)
+    write_files(folder, files)  # everything computed first: all or nothing
     return summary
 
 
@@ -188,7 +195,7 @@ def _json_default(o):
 
 def run(args) -> int:
     from ..templates import load_template
-    from . import expand_templates
+    from . import each_template
 
     from . import check_count
 
@@ -200,11 +207,27 @@ def run(args) -> int:
         raise UsageError("--period", "must be at least 2 (fixed points are always reported)")
     for m in periods:
         check_count("--period", m, 2, MAX_PERIOD, "for a cycle period")
+    given = [f"--{k}" for k in LYAPUNOV_DEFAULTS if getattr(args, k) is not None]
+    if given and not args.lyapunov:  # an option that would do nothing is a mistake to say
+        raise UsageError(given[0], "applies only with --lyapunov")
+    for key, default in LYAPUNOV_DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, default)
     check_count("--orbits", args.orbits, 1, MAX_ORBITS, "orbits")
     check_count("--discard", args.discard, 0, MAX_ITERATIONS, "iterations")
     check_count("--average", args.average, 1, MAX_ITERATIONS, "iterations")
     d1 = parse_values(args.d1) if args.d1 is not None else None
-    for path in expand_templates(args.templates):
+    if d1 is not None:
+        check_count("--d1", len(d1), 1, MAX_D1, "values")
+    # the options multiply: one estimate of the whole work, before any of it
+    from ..workload import require
+
+    lyap = ("map evaluation", args.orbits * (args.discard + args.average) if args.lyapunov
+            else 0)
+    require("map --lyapunov" if args.lyapunov else "map", lyap,
+            ("orbit step", args.steps * (len(d1) if d1 else 3)), option=True)
+
+    def one(path) -> bool:
         design = load_template(path)
         summary = map_design(design, Path(args.outdir), d1=d1, steps=args.steps, periods=periods,
                              lyapunov=args.lyapunov, orbits=args.orbits, discard=args.discard,
@@ -215,4 +238,6 @@ def run(args) -> int:
               f"{len(summary['branches'])} branch(es) in the whole motion")
         for line in summary["claims"]:
             print("  " + line)
-    return 0
+        return False
+
+    return each_template(args.templates, one, debug=args.debug)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -38,7 +39,7 @@ def trajectory_npz(traj) -> bytes:
 
 
 def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
-    from ..export import write_atomic
+    from ..outputs import inside, write_files
     from ..viz import figure_png, motion_figure
 
     overrides = {}
@@ -46,19 +47,15 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
         overrides["method"] = method
     if to is not None:
         overrides["to"] = to
+    folder = inside(outdir, design.name)  # before the work
     traj = design.trace(**overrides)
-    npz = trajectory_npz(traj)
-    png = figure_png(motion_figure(traj, title=design.name))
-    extra = {}
+    files = {"trajectory.npz": trajectory_npz(traj),
+             "motion.png": figure_png(motion_figure(traj, title=design.name))}
     if gif:
         from ..animate import motion_gif
 
-        extra["motion.gif"] = motion_gif(traj)
-    folder = outdir / design.name
-    write_atomic(folder / "trajectory.npz", npz)
-    write_atomic(folder / "motion.png", png)
-    for name, data in extra.items():
-        write_atomic(folder / name, data)
+        files["motion.gif"] = motion_gif(traj)
+    write_files(folder, files)
     return traj, folder
 
 
@@ -66,17 +63,26 @@ def run(args) -> int:
     from ..errors import UsageError
     from ..kinematics import METHODS, Status
     from ..templates import load_template
-    from . import check_number, expand_templates
+    from . import check_number, each_template
 
     if args.method is not None and args.method != "auto" and args.method not in METHODS:
         raise UsageError("--method", f"unknown method {args.method!r}; valid: auto, "
                                      f"{', '.join(METHODS)}")
     check_number("--to", args.to)
-    failed = 0
-    for path in expand_templates(args.templates):
+
+    def one(path) -> bool:
         design = load_template(path)
         traj, folder = simulate_design(design, Path(args.out), args.method, args.to, args.gif)
         print(f"== {design.name} -> {folder}")
         print(traj.summary())
-        failed += traj.status is Status.FAILED
-    return 1 if failed else 0
+        if traj.success:
+            return False
+        # the files show the motion up to where it stopped; the target was not reached
+        target = traj.target
+        key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) \
+            else "motion"
+        print(f"fabkit: error: {path}: {key}: target {design.motion.drive} = {target:.10g} is "
+              f"not reached: {traj.message}", file=sys.stderr)
+        return True
+
+    return each_template(args.templates, one, debug=args.debug)

@@ -88,6 +88,7 @@ class _Bar:
 def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
+    from ..outputs import inside
     from ..templates import load_template
 
     try:
@@ -124,7 +125,8 @@ def run(args) -> int:
         if args.chunk_size is not None and args.chunk_size < 1:
             _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
         design = load_template(template)
-        outdir = Path(args.outdir) if args.outdir else Path("out") / f"sweep-{design.name}"
+        outdir = (Path(args.outdir) if args.outdir
+                  else inside(Path("out"), f"sweep-{design.name}"))
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
         bar = _Bar()
         try:

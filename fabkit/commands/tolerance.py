@@ -59,12 +59,12 @@ def describe(result) -> str:
 
 def run(args) -> int:
     from ..errors import FabkitError
-    from ..export import write_atomic
     from ..report import report_json
     from ..templates import load_template
     from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
     from ..viz import figure_png
-    from . import expand_templates
+    from ..outputs import inside, write_files
+    from . import each_template
     from ..batch import traced_motion
     from .export import parse_settings
 
@@ -79,9 +79,10 @@ def run(args) -> int:
         raise UsageError("--seed", f"must be a whole number from 0 to 2**63 - 1, got {args.seed}")
     settings = parse_settings(args.settings)
     overrides = {k: v for k, v in (("samples", args.samples), ("seed", args.seed)) if v is not None}
-    flagged = 0
-    for path in expand_templates(args.templates):
+
+    def one(path) -> bool:
         design = load_template(path)
+        folder = inside(Path(args.out), design.name)  # before the work
         traj = traced_motion(design)
         if traj is None:
             raise FabkitError(f"{path}: motion.to: the tolerance analysis needs a target value "
@@ -93,10 +94,10 @@ def run(args) -> int:
             "tolerance.json": report_json(result.as_dict()),
             "tolerance.png": figure_png(tolerance_figure(result, title=design.name)),
         }
-        folder = Path(args.out) / design.name
-        for name, data in sorted(files.items()):
-            write_atomic(folder / name, data)
+        if files:
+            write_files(folder, files)
         print(f"== {design.name}" + (f" -> {folder}" if files else ""))
         print(describe(result))
-        flagged += result.flagged
-    return 1 if flagged else 0
+        return bool(result.flagged)
+
+    return each_template(args.templates, one, debug=args.debug)

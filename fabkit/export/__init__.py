@@ -3,18 +3,17 @@
 Each format module defines ``FORMAT`` (its name) and ``export_design(design, settings) ->
 ExportResult``: pure, it returns the bytes of every file to write and a report dict, and never
 opens a file. Only :func:`write_outputs` writes, through a temporary file in the target folder
-and ``os.replace``, so that no half-written file is ever left behind.
+and ``os.replace`` (:mod:`fabkit.outputs`), so that no half-written file is ever left behind.
 """
 
 from __future__ import annotations
 
 import importlib
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import FabkitError
+from ..outputs import write_atomic, write_files
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export"]
@@ -73,38 +72,10 @@ def applies(design, fmt: str, module=None) -> bool:
     return (check is None or bool(check(design))) and skip_reason(design, fmt) is None
 
 
-def write_atomic(path, data: bytes) -> Path:
-    """Write bytes to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600 files; use the usual permissions
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        # remove the temporary file whatever happened (also on Ctrl-C), then re-raise
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_outputs(files: dict[str, bytes], outdir) -> list[Path]:
-    """Write every file of an :class:`ExportResult` atomically; returns the paths written."""
-    outdir = Path(outdir)
-    return [write_atomic(outdir / name, data) for name, data in sorted(files.items())]
+    """Write every file of an :class:`ExportResult`, all or nothing
+    (:func:`fabkit.outputs.write_files`); returns the paths written."""
+    return write_files(outdir, files)
 
 
 def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:

@@ -572,7 +572,7 @@ def _chunks(indices: list, size: int) -> list:
 
 
 def _write_chunk(folder: Path, records: list) -> Path:
-    from ..export import write_atomic
+    from ..outputs import write_atomic
 
     first, last = records[0]["index"], records[-1]["index"]
     text = json.dumps(records, default=_jsonable, allow_nan=False)
@@ -865,13 +865,9 @@ def read_sweep_file(path) -> SweepFile | None:
 
 
 def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    if outdir.exists() and not outdir.is_dir():
-        raise FabkitError(f"{outdir}: output folder is a file; choose another -o")
-    for parent in outdir.parents:
-        if parent.exists():
-            if not parent.is_dir():
-                raise FabkitError(f"{outdir}: {parent} is a file, not a folder; choose another -o")
-            break
+    from ..outputs import output_folder
+
+    output_folder(outdir)
     marker = outdir / _CHUNKS / _SPEC
     if marker.exists():
         try:
@@ -988,7 +984,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress) -> SweepResult:
     folder = None
     if out is not None:
         folder = out / _CHUNKS
-        from ..export import write_atomic
+        from ..outputs import write_atomic
 
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
         write_atomic(folder / _SPEC, json.dumps(marker, indent=1, default=_jsonable).encode())
@@ -1073,7 +1069,7 @@ def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
 
 
 def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
-    from ..export import write_atomic
+    from ..outputs import write_files
 
     out = result.outdir
     files = {"sweep.csv": result.table_csv()}
@@ -1087,7 +1083,7 @@ def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
     summary["files"] = sorted(files) + ["sweep.json"]
     files["sweep.json"] = (json.dumps(summary, indent=1, default=_jsonable, allow_nan=False)
                            + "\n").encode()
-    written = tuple(write_atomic(out / name, data) for name, data in files.items())
+    written = tuple(write_files(out, files))
     return dataclasses.replace(result, files=written)
 
 
