@@ -5,12 +5,14 @@ fabrication, export or command-line layers.
 """
 
 from .errors import (
+    BoundsError,
     ConstructionError,
     DesignError,
     FabkitError,
     FabricationError,
     KinematicsError,
     NetworkError,
+    SettingsError,
     TemplateError,
 )
 from .network import Network
@@ -54,6 +56,7 @@ def __dir__():
 
 
 __all__ = [
+    "BoundsError",
     "ConstructionError",
     "Design",
     "DesignError",
@@ -64,6 +67,7 @@ __all__ = [
     "ModeCount",
     "Network",
     "NetworkError",
+    "SettingsError",
     "TemplateError",
     "Trajectory",
     "count_modes",

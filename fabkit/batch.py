@@ -845,7 +845,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     from .outputs import inside
     from .report import report_json, report_markdown
     from .report_html import write_design_report
-    from .templates import load_template
+    from .templates import load_template, with_settings
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     res = DesignResult(path=str(path), name=Path(path).stem)
@@ -862,7 +862,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
 
     try:
         stage(Stage.LOAD)
-        design = load_template(path)
+        design = with_settings(load_template(path), settings)  # --set motion.to=...
         res.name = design.name
         outdir = Path(outdir)
         try:
@@ -1252,8 +1252,11 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
         raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
                           MAX_SAMPLES, "fabkit --allow-large", option=True)
-    settings = settings or {}
+    from .export import check_export_settings
+
     exporters = dict(EXPORTERS if exporters is None else exporters)
+    # before any design: one bad key fails them all alike
+    settings = check_export_settings(settings or {}, exporters)
     paths = [Path(p) for p in paths]
     results: list[DesignResult | None] = [None] * len(paths)
     owners: dict[str, Path] = {}

@@ -22,6 +22,7 @@ __all__ = [
     "ResourceError",
     "UsageError",
     "BoundsError",
+    "SettingsError",
     "InputFileError",
     "OutputError",
     "WriteError",
@@ -210,6 +211,26 @@ class BoundsError(FabkitError):
         else:
             text = f"{where}: {value:,} is over the limit of {limit:,} {quantity}{hint}"
         super().__init__(text)
+
+
+class SettingsError(FabkitError, ValueError):
+    """A setting that the declared schema (:mod:`fabkit.schema`) refuses: an unknown section or
+    key, a value of the wrong type, a value out of range.
+
+    Parameters
+    ----------
+    key : str
+        The key path (``"fabrication.laser.min_web"``, ``"laser.kerf"``).
+    reason : str
+        Why, with the value given (``"must be >= 0, got -5"``).
+    """
+
+    code = "settings"
+
+    def __init__(self, key: str, reason: str):
+        self.key = key
+        self.reason = reason
+        super().__init__(f"{key}: {reason}" if key else reason)
 
 
 class InputFileError(FabkitError):

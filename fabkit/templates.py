@@ -44,7 +44,7 @@ from .errors import BoundsError, FabkitError, InputFileError, NetworkError, Temp
 from .network import Network
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
-           "TOP_LEVEL_KEYS"]
+           "TOP_LEVEL_KEYS", "with_settings"]
 
 #: Sections that build the network: name → "module:function". The function takes the section
 #: (a dict) and a :class:`TemplateContext` and returns a Network. Exactly one must be present.
@@ -340,11 +340,56 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
             raise ctx.error(f"motion.hold[{i}]", f"must name a port of the network, got {h!r}")
     options = ctx.get(section, "options", "motion", dict, required=False, default={})
     if options:
-        cls = METHODS.get(method)
-        allowed = set(cls.options) if cls else set().union(*(c.options for c in METHODS.values()))
-        allowed.discard("plan")
-        ctx.check_keys(options, "motion.options", allowed)
+        from .errors import SettingsError
+        from .schema import check_method_options
+
+        try:  # strict types and ranges, declared in fabkit.schema
+            check_method_options(method, options)
+        except SettingsError as exc:
+            raise ctx.error(exc.key, exc.reason) from None
     return Motion(drive=drive, to=to, method=method, hold=tuple(hold), options=dict(options))
+
+
+def _check_fabrication(ctx, fabrication: dict) -> None:
+    """Every ``[fabrication]`` table against the declared schema (:mod:`fabkit.schema`), when
+    the template is read: a misspelt section or key, a wrong type or a value out of range is
+    refused before any work, by every command."""
+    from .errors import SettingsError
+    from .schema import check_fabrication
+
+    try:
+        check_fabrication(fabrication)
+    except SettingsError as exc:
+        raise ctx.error(exc.key, exc.reason) from None
+
+
+def with_settings(design: "Design", settings: dict | None) -> "Design":
+    """The design with the ``motion`` section of ``settings`` (``--set motion.to=2.9``) in
+    place of the template's ``[motion]`` values; the fabrication sections are left to the
+    stages that read them. Every section is checked against the schema.
+
+    Raises
+    ------
+    SettingsError
+        A bad section, key or value.
+    TemplateError
+        A drive that is not a port of the network.
+    """
+    from dataclasses import replace
+
+    from .schema import section_of
+
+    motion = section_of(settings, "motion")
+    if not motion:
+        return design
+    if "drive" in motion and motion["drive"] not in design.network.ports:
+        known = ", ".join(sorted(design.network.ports)) or "none"
+        raise TemplateError(design.path or design.name, "motion.drive",
+                            f"--set motion.drive: unknown port {motion['drive']!r}; the network "
+                            f"has ports: {known}")
+    if "to" in motion:
+        motion["to"] = float(motion["to"])
+    return replace(design, motion=replace(design.motion, **motion))
 
 
 def _design_name(ctx, raw, path: Path) -> str:
@@ -409,6 +454,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
     else:  # geometry only: drive d1 if there is such a port, nothing to trace otherwise
         motion = Motion(drive="d1" if "d1" in net.ports else "")
     fabrication = ctx.get(raw, "fabrication", "", dict, required=False, default={})
+    _check_fabrication(ctx, fabrication)
     origami = fabrication.get("origami")
     if isinstance(origami, dict) and isinstance(origami.get("sheet"), str):
         # a chain of sheets names the template of one sheet: load it now, with the design

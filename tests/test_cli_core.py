@@ -146,7 +146,7 @@ def test_no_decision_reads_message_text():
 
 
 @pytest.mark.parametrize("stem, cls, key, status", [
-    ("negative_max_step", "MotionError", "motion", "failed"),
+    ("too_few_steps", "MotionError", "motion", "failed"),
     ("unreachable_target", "MotionError", "motion.to", "turning_point"),
     ("singular_start", "SingularStartError", "network.nodes", "refused"),
     ("two_motions", "MotionError", "network", "refused"),

@@ -29,7 +29,19 @@ FAKE_MODULE = "fabkit_test_lengths_format"
 # A small format of our own, so these tests do not depend on the state of the real exporters:
 # one text file with every edge length in mm (scale from --set lengths.scale or the template).
 FAKE_SOURCE = textwrap.dedent('''
+    from typing import Optional
+
+    from pydantic import Field
+
+    from fabkit.schema import Section
+
     FORMAT = "lengths"
+
+
+    class SETTINGS(Section):
+        """--set lengths.KEY=VALUE: the format declares its own section."""
+
+        scale: Optional[float] = Field(None, gt=0)
 
     def applies(design):
         return design.network.dim == 2
@@ -363,10 +375,32 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
 # --- command-line values ----------------------------------------------------------------------
 
 def test_settings_are_parsed_as_toml_values():
-    got = parse_settings(["laser.kerf=0.2", "laser.screw.name=\"M4-chicago\"", "origami.flat=true",
-                          "print.layers=[1, 2]", "laser.label=plain text"])
-    assert got == {"laser": {"kerf": 0.2, "screw": {"name": "M4-chicago"}, "label": "plain text"},
-                   "origami": {"flat": True}, "print": {"layers": [1, 2]}}
+    got = parse_settings(["laser.kerf=0.2", "laser.screw.name=\"M4-chicago\"",
+                          "print.preview=false", "print.bed=[300, 250]", "laser.labels=none",
+                          "origami.branch=assignment"])
+    assert got == {"laser": {"kerf": 0.2, "screw": {"name": "M4-chicago"}, "labels": "none"},
+                   "print": {"preview": False, "bed": [300, 250]},
+                   "origami": {"branch": "assignment"}}
+
+
+@pytest.mark.parametrize("item, words", [
+    ("lasre.kerf=0.2", "lasre: unknown section; known: laser, motion, origami, print, tolerance"),
+    ("laser.kerff=0.2", "laser.kerff: unknown key; known: bar_width,"),
+    ("laser.kerf=-1", "laser.kerf: must be >= 0, got -1"),
+    ("laser.kerf=wide", "laser.kerf: must be a number, got 'wide'"),
+    ("print.preview=no", "print.preview: must be true or false, got 'no'"),
+    ("print.hinge_layers=2.5", "print.hinge_layers: must be a whole number, got 2.5"),
+    ("laser.min_web=-5", "laser.min_web: must be >= 0, got -5"),
+    ("origami.samples=5000000", "origami.samples: must be <= 1000000"),
+    ("motion.to=-2", "motion.to: must be > 0, got -2"),
+    ("tolerance.seed=-1", "tolerance.seed: must be >= 0, got -1"),
+])
+def test_settings_the_schema_refuses_are_usage_errors(item, words):
+    with pytest.raises(UsageError) as info:
+        parse_settings([item])
+    assert info.value.exit_code == 2
+    assert str(info.value).startswith("--set: ") and words in str(info.value)
+    assert "\n" not in str(info.value)
 
 
 @pytest.mark.parametrize("item, words", [

@@ -227,6 +227,6 @@ def test_cli_export_to_dxf(tmp_path, capsys):
     code = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "dxf", "-o",
                  str(tmp_path / "bad"), "--tolerance-samples", "0", "--set", "laser.kerf=-1"])
     err = capsys.readouterr().err
-    assert code == 1 and "kerf must be >= 0 mm" in err
+    assert code == 2 and "--set: laser.kerf: must be >= 0, got -1" in err  # a usage error
     assert not list((tmp_path / "bad").rglob("*.dxf"))
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.errors import FabricationError
+from fabkit.errors import FabkitError, FabricationError, SettingsError
 from fabkit.export import export
 from fabkit.fab.bars import bar_set
 from fabkit.fab.hardware import CATALOGUE, choose_length, screw_spec
@@ -50,17 +50,21 @@ def test_screw_catalogue_entries_and_overrides():
 
 
 @pytest.mark.parametrize("table, message", [
-    ({"kerf": -0.1}, "kerf must be >= 0 mm, got -0.1"),
+    ({"kerf": -0.1}, "fabrication.laser.kerf: must be >= 0, got -0.1 (width the laser burns"),
     ({"bar_width": 12.0}, "hole-to-edge web 3.90 mm is below the minimum 4.50 mm"),
     ({"bar_width": 4.0}, "the 4.2 mm screw hole is bigger than the 4 mm bar"),
-    ({"scale": 0}, "scale must be positive"),
-    ({"flavour": "spline"}, "flavour must be one of lwpolyline, line-arc"),
-    ({"kerff": 0.1}, "unknown laser setting 'kerff'"),
+    ({"scale": 0}, "scale: must be > 0, got 0"),
+    ({"flavour": "spline"}, "flavour: must be one of 'lwpolyline' or 'line-arc', got 'spline'"),
+    ({"kerff": 0.1}, "fabrication.laser.kerff: unknown key; known: bar_width, clearance"),
+    ({"min_web": -5}, "min_web: must be >= 0, got -5"),
+    ({"screw": {"name": "M5-chicgo"}}, "unknown screw 'M5-chicgo'; catalogue entries: "
+                                       "M3-chicago, M4-chicago, M5-chicago; a screw of your own "
+                                       "needs every size"),
     ({"sheet_width": 90}, "cannot hold the 100 mm reference square"),
     ({"scale": 10, "size": 100}, "either laser scale"),
 ])
 def test_bad_settings_are_one_line(table, message):
-    with pytest.raises(FabricationError) as info:
+    with pytest.raises(FabkitError) as info:
         laser_settings(table, network_size=1.0)
     text = str(info.value)
     assert message in text and "\n" not in text
@@ -88,21 +92,23 @@ def _fourbar_with(laser_lines: str):
 @pytest.mark.parametrize("lines, overrides, message", [
     ("bar_width = 10.0\n", {}, "hole-to-edge web"),
     ("scale = 4.0\n", {}, "is too short"),
-    ("", {"laser": {"kerf": -0.2}}, "kerf must be >= 0 mm"),
+    ("", {"laser": {"kerf": -0.2}}, "kerf: must be >= 0, got -0.2"),
     ("", {"laser": {"screw": {"hole_diameter": 16.0, "head_diameter": 20.0}}},
      "screw hole is bigger than the 14 mm bar"),
 ])
 def test_bad_settings_write_nothing(tmp_path, lines, overrides, message):
     design = _fourbar_with(lines)
     out = tmp_path / "out"
-    with pytest.raises(FabricationError) as info:
+    with pytest.raises(FabkitError) as info:
         export(design, "dxf", out, **overrides)
     assert message in str(info.value) and "\n" not in str(info.value)
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_unknown_flat_setting_is_refused(tmp_path):
+def test_unknown_or_misspelt_section_is_refused(tmp_path):
     design = fabkit.load_template(TEMPLATES / "fourbar.toml")
-    with pytest.raises(FabricationError, match="unknown laser setting 'kerf_mm'"):
+    with pytest.raises(SettingsError, match="kerf_mm: unknown section; known: laser, motion"):
         export(design, "dxf", tmp_path, kerf_mm=0.1)
+    with pytest.raises(ValueError, match="lazer: unknown section"):  # a ValueError too
+        export(design, "dxf", tmp_path, lazer={"kerf": 0.1})
     assert not any(tmp_path.iterdir())

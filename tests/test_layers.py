@@ -20,6 +20,7 @@ LAYERS = {
     "errors": 0,
     "outputs": 0,
     "workload": 0,
+    "schema": 0,
     "numerics": 1,
     "network": 1,
     "rigidity": 2,

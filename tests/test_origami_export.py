@@ -131,9 +131,9 @@ def test_fold_check_catches_a_tampered_file(files, tmp_path):
 
 
 def test_bad_settings_write_nothing(design, tmp_path):
-    with pytest.raises(fabkit.FabricationError, match="sheet_size"):
+    with pytest.raises(fabkit.SettingsError, match=r"origami.sheet_size: must be > 0, got -5"):
         export(design, "fold", tmp_path, origami={"sheet_size": -5})
-    with pytest.raises(fabkit.FabricationError, match="unknown key"):
+    with pytest.raises(fabkit.SettingsError, match="origami.sheetsize: unknown key; known: "):
         export(design, "svg", tmp_path, origami={"sheetsize": 100})
     assert list(tmp_path.iterdir()) == []
 

@@ -43,8 +43,8 @@ def test_gap_zero_is_one_line_and_writes_nothing(tmp_path, capsys):
     code = main(["export", str(TEMPLATES / "printed_planar.toml"), "--to", "stl", "-o",
                  str(tmp_path / "out"), "--tolerance-samples", "0", "--set", "print.gap=0"])
     err = capsys.readouterr().err
-    assert code == 1
+    assert code == 2  # a --set value out of range is a usage error
     lines = [line for line in err.splitlines() if "gap" in line]
-    assert len(lines) == 1 and "must be greater than 0 mm" in lines[0]
+    assert len(lines) == 1 and "--set: print.gap: must be > 0, got 0" in lines[0]
     assert "Traceback" not in err
     assert not list((tmp_path / "out").rglob("*.stl"))

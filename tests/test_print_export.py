@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 import fabkit
-from fabkit.errors import FabricationError
+from fabkit.errors import SettingsError
 from fabkit.export import export, get_exporter
 from fabkit.export.stl import applies, binary_stl, export_design, stored_mesh_is_closed
 from fabkit.fab.hinges import print_geometry
@@ -128,7 +128,7 @@ def test_every_material_and_style_gives_a_sound_solid(style, material):
 def test_gap_zero_refused_and_nothing_written(tmp_path):
     design = fabkit.load_template(TEMPLATES / "printed_planar_chain10.toml")
     out = tmp_path / "out"
-    with pytest.raises(FabricationError, match=r"gap: must be greater than 0 mm, got 0"):
+    with pytest.raises(SettingsError, match=r"print.gap: must be > 0, got 0 \(smallest distance"):
         export(design, "stl", out, print={"gap": 0})
     assert not out.exists()
 

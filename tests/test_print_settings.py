@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from fabkit.errors import FabricationError
+from fabkit.errors import FabkitError, FabricationError, SettingsError
 from fabkit.fab.printing import HINGE_STYLES, MATERIALS, print_settings
 
 
@@ -46,29 +46,32 @@ def test_neck_is_plate_less_one_layer():
 
 @pytest.mark.parametrize("gap", [0, 0.0, -0.2])
 def test_gap_zero_or_negative_refused(gap):
-    with pytest.raises(FabricationError) as err:
+    with pytest.raises(SettingsError) as err:
         print_settings({}, {"gap": gap})
     msg = str(err.value)
     assert "\n" not in msg
-    assert msg.startswith("fabrication.print.gap: must be greater than 0 mm")
+    assert msg.startswith(f"fabrication.print.gap: must be > 0, got {gap}")
     assert "not watertight" in msg
 
 
 @pytest.mark.parametrize("table, pattern", [
     ({"hinge_width": 0.3}, r"hinge_width: 0\.3 mm is thinner than the 0\.4 mm nozzle"),
-    ({"material": "ABS"}, r"unknown material 'ABS'; valid: PLA, PETG, TPU"),
-    ({"hinge_style": "film"}, r"unknown style 'film'; valid: neck, bridge"),
-    ({"kerf": 0.1}, r"fabrication\.print\.kerf: unknown key"),
+    ({"material": "ABS"}, r"material: must be one of 'PLA', 'PETG' or 'TPU', got 'ABS'"),
+    ({"hinge_style": "film"}, r"hinge_style: must be one of 'neck' or 'bridge', got 'film'"),
+    ({"kerf": 0.1}, r"fabrication\.print\.kerf: unknown key; known: bed, gap,"),
     ({"scale": "big"}, r"scale: must be a number, got 'big'"),
-    ({"scale": 0}, r"scale: must be positive"),
+    ({"scale": 0}, r"scale: must be > 0, got 0"),
     ({"hinge_style": "bridge", "hinge_layers": 15}, r"is not thinner than the 3 mm plates"),
-    ({"hinge_layers": 0}, r"hinge_layers: must be a positive integer"),
-    ({"hinge_layers": 2, "hinge_thickness": 0.4}, r"give hinge_thickness or hinge_layers"),
+    ({"hinge_style": "bridge", "hinge_layers": 0}, r"hinge_layers: must be >= 1, got 0"),
+    ({"hinge_style": "bridge", "hinge_layers": 2, "hinge_thickness": 0.4},
+     r"give hinge_thickness or hinge_layers"),
+    ({"hinge_layers": 3}, r"hinge_layers: applies to hinge_style = \"bridge\" only; this print "
+                          r"uses \"neck\" hinges \(the PLA default\)"),
     ({"plate_thickness": 2.5}, r"not a whole number of 0\.2 mm layers"),
-    ({"rigid_triangles": [[0, 1]]}, r"rigid_triangles: must be a non-empty array"),
-    ({"preview": "yes"}, r"preview: must be true or false"),
+    ({"rigid_triangles": [[0, 1]]}, r"rigid_triangles\[0\]: must have at least 3 entries"),
+    ({"preview": "yes"}, r"preview: must be true or false, got 'yes'"),
 ])
 def test_bad_values_refused_in_one_line(table, pattern):
-    with pytest.raises(FabricationError, match=pattern) as err:
+    with pytest.raises(FabkitError, match=pattern) as err:
         print_settings(table)
     assert "\n" not in str(err.value)

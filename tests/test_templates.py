@@ -71,7 +71,7 @@ BAD = [
     ("bad drive", "[network]\nnodes = [[0.0, 0.0], [1.0, 0.0]]\nedges = [[0, 1]]\n[motion]\ndrive = \"d9\"\n", "motion.drive", "unknown port 'd9'"),
     ("negative to", GOOD.replace("to = 2.5", "to = -1.0"), "motion.to", "positive distance"),
     ("bad method", GOOD.replace('"projected"', '"euler"'), "motion.method", "unknown method 'euler'"),
-    ("bad option", GOOD.replace("max_step", "max_stp"), "motion.options.max_stp", "unknown key"),
+    ("bad option", GOOD.replace("max_step", "max_stp"), "motion.options.max_stp", "unknown option of the projected method"),
 ]
 
 

@@ -268,7 +268,7 @@ def test_tolerance_command_rejects_bad_values(tmp_path, capsys):
                  "-o", str(tmp_path)]) == 2
     assert "--samples: must be at least 1" in capsys.readouterr().err
     assert main(["tolerance", str(TEMPLATES / "fourbar.toml"), "--set",
-                 "tolerance.scale=-1", "-o", str(tmp_path)]) == 1
+                 "tolerance.scale=-1", "-o", str(tmp_path)]) == 2  # refused before any template
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "fourbar.toml: --set tolerance.scale: must be > 0" in err[0]
+    assert len(err) == 1 and "--set: tolerance.scale: must be > 0, got -1" in err[0]
     assert list(tmp_path.iterdir()) == []

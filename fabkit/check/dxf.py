@@ -166,6 +166,16 @@ def _check_docs(docs: dict, design, settings) -> dict:
         checks.append(_check("parts", False, None, None,
                              "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"))
         return {"ok": False, "checks": checks, "files": sorted(docs)}
+    given = ((settings or {}).get("laser") or {}).get("kerf")
+    if given is not None:
+        # the kerf the user says the file was cut with: undo that one, and say when the file
+        # was drawn for another (its bars would come out the wrong size)
+        same = abs(float(given) - kerf) <= MM_SLACK
+        checks.append(_check("kerf", same, float(given), kerf,
+                             f"kerf of --set laser.kerf against the {kerf:g} mm the file was "
+                             "drawn for" + ("" if same else "; re-export with the kerf of "
+                                                            "your laser")))
+        kerf = float(given)
     bars, problems = {}, []
     for name, sh in sheets.items():
         for pid, part in sh["parts"].items():
@@ -185,9 +195,17 @@ def _check_docs(docs: dict, design, settings) -> dict:
                        "sheet": name}
         problems += [f"{name}: {sh['untagged']} cut entities belong to no part"
                      for name, sh in sheets.items() if sh["untagged"]]
-    missing = sorted(set(range(n_bars)) - set(bars))
-    if missing:
-        problems.append(f"bars {missing[:5]} missing")
+    # the header's count is read from the file, so it is checked, never trusted: no array is
+    # sized by it, and bars beyond it are as wrong as bars missing below it
+    if n_bars < 1:
+        problems.append(f"the header says FABKIT_BARS = {n_bars}; a kit has at least one bar")
+    extra = sorted(k for k in bars if not 0 <= k < n_bars)
+    if extra:
+        problems.append(f"bars {extra[:5]} are not among the {n_bars} of the header")
+    elif len(bars) < n_bars:
+        missing = [k for k in range(min(n_bars, len(bars) + 5)) if k not in bars][:5]
+        problems.append(f"{n_bars - len(bars)} of the header's {n_bars} bars missing (first: "
+                        f"{missing})")
     checks.append(_check("parts", not problems, len(bars), n_bars, "; ".join(problems[:3]) or
                          "every bar found once with two holes and a closed outline"))
     if problems:

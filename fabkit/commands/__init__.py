@@ -7,7 +7,7 @@ from pathlib import Path
 from ..errors import FabkitError
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
-           "check_number"]
+           "check_jobs", "check_number"]
 
 
 def expand_templates(paths) -> list[Path]:
@@ -108,6 +108,19 @@ def check_count(option: str, value, minimum: int = 1, maximum: int | None = None
     if maximum is not None and value > maximum and not allow_large():
         raise BoundsError(option, quantity or option.lstrip("-"), value, maximum,
                           "fabkit --allow-large", option=True)
+
+
+def check_jobs(option: str, value) -> None:
+    """Worker processes: at least 1 and, unless ``fabkit --allow-large``, no more than the cores
+    this process may run on (more only share them, each with its own memory)."""
+    import os
+
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # not on Linux
+        cores = os.cpu_count() or 1
+    check_count(option, value, 1, cores, f"worker processes (this machine has {cores} "
+                                         "cores)")
 
 
 def check_number(option: str, value, *, positive: bool = True) -> None:

@@ -46,11 +46,11 @@ def run(args) -> int:
     from ..check import check_file
     from ..errors import FabkitError
     from ..report import jsonable
-    from ..templates import load_template
+    from ..templates import load_template, with_settings
     from .export import parse_settings
 
     settings = parse_settings(args.settings)
-    design = load_template(args.design) if args.design else None
+    design = with_settings(load_template(args.design), settings) if args.design else None
     failed = 0
     out = {}
     for name in args.files:

@@ -54,7 +54,9 @@ def parse_settings(items) -> dict:
     Raises
     ------
     UsageError
-        An item without ``=`` or without a dotted key, or a key given twice.
+        An item without ``=`` or without a dotted key, a key given twice, or settings that the
+        schema (:mod:`fabkit.schema`) refuses: an unknown section or key, a wrong type, a value
+        out of range.
     """
     from ..errors import UsageError
     from ..templates import tomllib
@@ -82,6 +84,13 @@ def parse_settings(items) -> dict:
         if parts[-1] in node:
             raise UsageError("--set", f"{item!r}: {key} is given twice")
         node[parts[-1]] = value
+    from ..errors import SettingsError
+    from ..export import check_export_settings
+
+    try:  # one declared schema: unknown sections and keys, types and ranges
+        check_export_settings(out)
+    except SettingsError as exc:
+        raise UsageError("--set", str(exc)) from None
     return out
 
 
@@ -104,12 +113,9 @@ def parse_formats(text: str | None) -> list[str] | None:
 def run(args) -> int:
     from ..batch import Progress, exit_code, export_many, summary_table
     from ..errors import UsageError
-    from . import expand_templates
+    from . import check_jobs, expand_templates
 
-    if args.jobs < 1:
-        raise UsageError("--jobs", f"must be at least 1, got {args.jobs}")
-    if args.jobs > 256:
-        raise UsageError("--jobs", f"at most 256 worker processes, got {args.jobs}")
+    check_jobs("--jobs", args.jobs)
     if args.tolerance_samples is not None and args.tolerance_samples < 0:
         raise UsageError("--tolerance-samples", f"must be 0 or more, got {args.tolerance_samples}")
     formats = parse_formats(args.to)

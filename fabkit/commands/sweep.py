@@ -89,6 +89,7 @@ def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..outputs import inside
+    from . import check_jobs
     from ..templates import load_template
 
     try:
@@ -120,8 +121,7 @@ def run(args) -> int:
                                lyapunov_average=avg)
         if not args.connect_timeout > 0:
             _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
-        if args.jobs is not None and args.jobs < 1:
-            _usage(f"--jobs must be at least 1, got {args.jobs}")
+        check_jobs("--jobs", args.jobs)
         if args.chunk_size is not None and args.chunk_size < 1:
             _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
         design = load_template(template)

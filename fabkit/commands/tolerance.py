@@ -60,7 +60,7 @@ def describe(result) -> str:
 def run(args) -> int:
     from ..errors import FabkitError
     from ..report import report_json
-    from ..templates import load_template
+    from ..templates import load_template, with_settings
     from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
     from ..viz import figure_png
     from ..outputs import inside, write_files
@@ -81,7 +81,7 @@ def run(args) -> int:
     overrides = {k: v for k, v in (("samples", args.samples), ("seed", args.seed)) if v is not None}
 
     def one(path) -> bool:
-        design = load_template(path)
+        design = with_settings(load_template(path), settings)
         folder = inside(Path(args.out), design.name)  # before the work
         traj = traced_motion(design)
         if traj is None:

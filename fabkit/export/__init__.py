@@ -16,7 +16,7 @@ from ..errors import FabkitError
 from ..outputs import write_atomic, write_files
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
-           "write_outputs", "export"]
+           "write_outputs", "export", "check_export_settings"]
 
 #: Format name → module implementing it (imported only when the format is used, so a missing
 #: optional dependency matters only to its own format).
@@ -43,6 +43,27 @@ class ExportResult:
 
     files: dict[str, bytes] = field(default_factory=dict)
     report: dict = field(default_factory=dict)
+
+
+def check_export_settings(settings, exporters: dict | None = None) -> dict:
+    """Check overrides nested by section against :mod:`fabkit.schema`, with the sections that
+    export formats of one's own declare (a module-level ``SETTINGS``, a
+    :class:`fabkit.schema.Section` subclass). Returns the settings unchanged.
+
+    Raises
+    ------
+    SettingsError
+    """
+    from ..schema import OVERRIDE_SECTIONS, check_settings
+
+    registry = EXPORTERS if exporters is None else exporters
+    extra = {}
+    for key in settings or {}:
+        if key not in OVERRIDE_SECTIONS and key in registry:
+            model = getattr(importlib.import_module(registry[key]), "SETTINGS", None)
+            if model is not None:
+                extra[key] = model
+    return check_settings(settings, sections=extra)
 
 
 def get_exporter(fmt: str):
@@ -83,11 +104,27 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
 
     All content is computed first; nothing is written when the exporter raises.
 
+    Parameters
+    ----------
+    design : Design
+    fmt : str
+        A key of :data:`EXPORTERS`.
+    outdir : path
+    **settings : dict
+        Overrides nested by section, as ``--set`` gives them (``laser={"kerf": 0.2}``); every
+        section and key is checked against :mod:`fabkit.schema`.
+
     Returns
     -------
     paths : list of pathlib.Path
     report : dict
+
+    Raises
+    ------
+    SettingsError
+        An unknown section or key, or a value of the wrong type or out of range.
     """
+    check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
     module = get_exporter(fmt)
     result: ExportResult = module.export_design(design, settings)
     return write_outputs(result.files, outdir), result.report

@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields, replace
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
+from ..schema import ScrewSection, check_table
 
 __all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length", "ScrewFit",
            "fit_screw", "WASHER_THICKNESS"]
@@ -66,6 +67,9 @@ CATALOGUE: dict[str, ScrewSpec] = {
 DEFAULT_SCREW = "M3-chicago"
 
 _FIELDS = {f.name for f in fields(ScrewSpec)}
+#: What a screw of one's own must give (the rest have defaults).
+_SIZE_FIELDS = ("barrel_diameter", "hole_diameter", "head_diameter", "head_height", "lengths")
+
 
 
 def screw_spec(entry=None) -> ScrewSpec:
@@ -101,38 +105,21 @@ def screw_spec(entry=None) -> ScrewSpec:
                                    f"{', '.join(CATALOGUE)} (or give a table with its sizes)")
         return CATALOGUE[entry]
     elif isinstance(entry, dict):
-        unknown = sorted(set(entry) - _FIELDS)
-        if unknown:
-            raise FabricationError(f"unknown screw field {unknown[0]!r}; fields: "
-                                   f"{', '.join(sorted(_FIELDS))}")
-        base = screw_spec(entry.get("name", DEFAULT_SCREW)) if entry.get("name") in CATALOGUE \
-            else CATALOGUE[DEFAULT_SCREW]
-        values = {}
-        for key, value in entry.items():
-            if key == "name":
-                if not isinstance(value, str):
-                    raise FabricationError(f"screw name must be a string, got {value!r}")
-                values[key] = value
-            elif key == "lengths":
-                if (not isinstance(value, (list, tuple)) or not value
-                        or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value)):
-                    raise FabricationError(f"screw lengths must be a list of numbers (mm), got {value!r}")
-                values[key] = tuple(sorted(float(v) for v in value))
-            else:
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise FabricationError(f"screw {key} must be a number (mm), got {value!r}")
-                values[key] = float(value)
+        given = check_table(ScrewSection, entry, "laser.screw").given()
+        name = given.get("name")
+        if name is not None and name not in CATALOGUE:
+            # a screw of one's own: a misspelt catalogue name must not pass as one
+            missing = [f for f in _SIZE_FIELDS if f not in given]
+            if missing:
+                raise FabricationError(
+                    f"unknown screw {name!r}; catalogue entries: {', '.join(CATALOGUE)}; a "
+                    f"screw of your own needs every size ({', '.join(missing)} missing)")
+        base = CATALOGUE[name] if name in CATALOGUE else CATALOGUE[DEFAULT_SCREW]
+        values = {k: (tuple(sorted(float(x) for x in v)) if k == "lengths" else
+                      (v if k == "name" else float(v))) for k, v in given.items()}
         spec = replace(base, **values)
     else:
         raise FabricationError(f"screw must be a catalogue name or a table, got {entry!r}")
-    for key in ("barrel_diameter", "hole_diameter", "head_diameter", "head_height"):
-        v = getattr(spec, key)
-        if not (math.isfinite(v) and v > 0):
-            raise FabricationError(f"screw {key} must be a positive number of mm, got {v}")
-    if not (math.isfinite(spec.allowance) and spec.allowance >= 0):
-        raise FabricationError(f"screw allowance must be >= 0 mm, got {spec.allowance}")
-    if any(not (math.isfinite(v) and v > 0) for v in spec.lengths):
-        raise FabricationError(f"screw lengths must be positive, got {list(spec.lengths)}")
     if spec.hole_diameter < spec.barrel_diameter:
         raise FabricationError(
             f"screw hole_diameter {spec.hole_diameter} mm is smaller than the barrel "

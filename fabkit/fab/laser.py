@@ -1,8 +1,9 @@
 """Laser-cutting settings: the template's ``[fabrication.laser]`` table merged with overrides.
 
-Every setting has a default that gives a working export for the bundled templates; each value
-is validated where it is read, and a bad one raises :class:`~fabkit.errors.FabricationError`
-with one line that names the setting, the value and a fix.
+Every setting has a default that gives a working export for the bundled templates. Types and
+ranges are declared once, in :class:`fabkit.schema.LaserSection`; what only the settings
+together can tell (a hole that leaves too thin a web) is checked here, with one line that names
+the setting, the value and a fix.
 
 Lengths are millimetres; design units become millimetres through ``scale`` (mm per design
 unit) or ``size`` (mm: the largest extent of the network's reference configuration).
@@ -10,12 +11,12 @@ unit) or ``size`` (mm: the largest extent of the network's reference configurati
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field
 
 from ..errors import FabricationError
-from .hardware import ScrewSpec, screw_spec
 from ..numerics import MM_SLACK
+from ..schema import LaserSection, check_section, section_of
+from .hardware import ScrewSpec, screw_spec
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "DEFAULT_SCALE", "LASER_KEYS"]
 
@@ -23,11 +24,6 @@ __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "DEFAULT_SCALE"
 #: 0.57-2.8 units) become bars of 57-283 mm, comfortably longer than two 4.2 mm holes.
 DEFAULT_SCALE = 100.0
 
-_CHOICES = {
-    "flavour": ("lwpolyline", "line-arc"),
-    "labels": ("text", "outlines", "none"),
-    "reference_square": ("engrave", "cut", "none"),
-}
 
 
 @dataclass(frozen=True)
@@ -102,51 +98,28 @@ class LaserSettings:
         return 0.5 * self.clearance
 
 
-#: Keys accepted in ``[fabrication.laser]`` (and as overrides).
-LASER_KEYS = {f.name for f in fields(LaserSettings)} | {"size"}
-
-_POSITIVE = ("bar_width", "thickness", "clearance", "sheet_width", "sheet_height",
-             "label_height", "spacer_diameter")
-_NON_NEGATIVE = ("spacing", "margin", "thickness_tolerance")
+#: Keys accepted in ``[fabrication.laser]`` (and as overrides): those of the declared schema.
+LASER_KEYS = set(LaserSection.model_fields)
 
 
 def laser_overrides(settings: dict | None) -> dict:
-    """Laser overrides from an exporter's settings: ``{"laser": {...}}`` and/or flat keys.
-
-    Tables of other sections (``{"stl": {...}}``) are ignored; a flat key that is not a laser
-    setting raises, so that a typo does not pass silently.
+    """The laser overrides of an exporter's settings (nested by section, as ``--set`` and the
+    API give them), checked against the schema.
 
     Examples
     --------
-    >>> laser_overrides({"laser": {"kerf": 0.2}, "stl": {"hinge": 0.4}, "scale": 60})
-    {'scale': 60, 'kerf': 0.2}
+    >>> laser_overrides({"laser": {"kerf": 0.2}, "print": {"gap": 0.4}})
+    {'kerf': 0.2}
     """
-    settings = dict(settings or {})
-    nested = settings.pop("laser", None)
-    out = {}
-    for key, value in settings.items():
-        if isinstance(value, dict):
-            continue  # another format's section
-        if key not in LASER_KEYS:
-            raise FabricationError(f"unknown laser setting {key!r}; known: "
-                                   f"{', '.join(sorted(LASER_KEYS))}")
-        out[key] = value
-    if nested is not None:
-        if not isinstance(nested, dict):
-            raise FabricationError(f"laser settings must be a table, got {nested!r}")
-        out.update(nested)
-    return out
-
-
-def _number(key, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise FabricationError(f"laser setting {key} must be a finite number, got {value!r}")
-    return float(value)
+    return section_of(settings, "laser")
 
 
 def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
                    network_size: float | None = None) -> LaserSettings:
     """Resolve laser settings from a template table and overrides (overrides win).
+
+    Types and ranges of every key are those of :class:`fabkit.schema.LaserSection`; here the
+    defaults are filled in and the settings are checked against one another.
 
     Parameters
     ----------
@@ -163,9 +136,11 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
 
     Raises
     ------
+    SettingsError
+        Unknown key, wrong type or a value out of range (the schema).
     FabricationError
-        Unknown key, wrong type, or a value that cannot be cut (negative kerf, web thinner
-        than the hole allows, ...), with a suggested fix.
+        Settings that cannot be cut together (web thinner than the hole allows, a kerf that
+        closes the holes, ...), with a suggested fix.
 
     Examples
     --------
@@ -175,57 +150,28 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
     """
     merged = dict(table or {})
     merged.update(overrides or {})
-    unknown = sorted(set(merged) - LASER_KEYS)
-    if unknown:
-        raise FabricationError(f"unknown laser setting {unknown[0]!r}; known: "
-                               f"{', '.join(sorted(LASER_KEYS))}")
-    values: dict = {}
-    for key in _POSITIVE + _NON_NEGATIVE + ("kerf", "min_web"):
-        if key in merged:
-            values[key] = _number(key, merged[key])
-    for key in _POSITIVE:
-        if key in values and values[key] <= 0:
-            raise FabricationError(f"laser setting {key} must be positive, got {values[key]:g} mm")
-    for key in _NON_NEGATIVE:
-        if key in values and values[key] < 0:
-            raise FabricationError(f"laser setting {key} must be >= 0, got {values[key]:g} mm")
-    if values.get("kerf", 0.0) < 0:
-        raise FabricationError(
-            f"kerf must be >= 0 mm, got {values['kerf']:g}: it is the width the laser burns away "
-            "(about 0.15 mm on 3 mm acrylic); use 0 if the cutting service compensates kerf")
-    if "scale" in merged and "size" in merged and merged["scale"] is not None \
-            and merged["size"] is not None:
+    given = check_section("laser", merged).given()
+    values: dict = {k: float(v) for k, v in given.items()
+                    if k not in ("scale", "size", "screw", "flavour", "labels",
+                                 "reference_square", "max_layers")}
+    if given.get("scale") is not None and given.get("size") is not None:
         raise FabricationError("give either laser scale (mm per design unit) or size (mm), not both")
-    if merged.get("size") is not None:
-        size = _number("size", merged["size"])
-        if size <= 0:
-            raise FabricationError(f"laser setting size must be positive, got {size:g} mm")
+    if given.get("size") is not None:
         if not network_size:
             raise FabricationError("laser setting size needs the network's extent; give scale instead")
-        values["scale"] = size / network_size
-    elif merged.get("scale") is not None:
-        values["scale"] = _number("scale", merged["scale"])
-        if values["scale"] <= 0:
-            raise FabricationError(f"laser setting scale must be positive (mm per design unit), "
-                                   f"got {values['scale']:g}")
-    for key, choices in _CHOICES.items():
-        if key in merged:
-            if merged[key] not in choices:
-                raise FabricationError(f"laser setting {key} must be one of "
-                                       f"{', '.join(choices)}, got {merged[key]!r}")
-            values[key] = merged[key]
-    if "max_layers" in merged:
-        v = merged["max_layers"]
-        if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-            raise FabricationError(f"laser setting max_layers must be a positive integer, got {v!r}")
-        values["max_layers"] = v
+        values["scale"] = float(given["size"]) / network_size
+    elif given.get("scale") is not None:
+        values["scale"] = float(given["scale"])
+    for key in ("flavour", "labels", "reference_square", "max_layers"):
+        if given.get(key) is not None:
+            values[key] = given[key]
     values["screw"] = screw_spec(merged.get("screw"))
     thickness = values.get("thickness", LaserSettings.thickness)
     values.setdefault("min_web", 1.5 * thickness)
     # spacer rings keep the bars' minimum web around their hole, and cover a screw head
     values.setdefault("spacer_diameter", max(values["screw"].head_diameter,
                                              values["screw"].hole_diameter + 2 * values["min_web"]))
-    s = LaserSettings(**values)
+    s = LaserSettings(**{k: v for k, v in values.items() if v is not None})
     _check_consistency(s)
     return s
 

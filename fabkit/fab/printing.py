@@ -15,13 +15,14 @@ from dataclasses import asdict, dataclass
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
+from ..schema import HINGE_STYLES, check_section, section_of
 
 __all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "print_settings", "design_print_settings"]
 
-#: Hinge styles. ``"neck"``: a narrow neck as tall as the plates less one layer, bending in the
-#: plane of the print (stiff out of the plane, compliant in it). ``"bridge"``: a thin bridge of
-#: whole layers on the build plate (the paper's "thin layer of material").
-HINGE_STYLES = ("neck", "bridge")
+# Hinge styles (HINGE_STYLES, declared in fabkit.schema). "neck": a narrow neck as tall as the
+# plates less one layer, bending in the plane of the print (stiff out of the plane, compliant in
+# it). "bridge": a thin bridge of whole layers on the build plate (the paper's "thin layer of
+# material").
 
 #: Defaults per material (mm). ``strain_limit`` is the bending strain a hinge may see in repeated
 #: use (well under the material's yield strain): it sets how long a neck must be for a given
@@ -40,9 +41,6 @@ MATERIALS: dict[str, dict] = {
 
 _DEFAULT_SCALE = 10.0
 
-_KEYS = {"material", "scale", "plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",
-         "hinge_width", "hinge_length", "gap", "layer_height", "nozzle_width", "strain_limit",
-         "rigid_triangles", "preview", "threemf", "printer", "bed"}
 
 
 #: A thickness is a whole number of print layers when it is within this fraction of a layer of
@@ -134,15 +132,6 @@ class PrintSettings:
         return d
 
 
-def _number(table: dict, key: str, where: str, *, positive=True) -> float:
-    value = table[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise FabricationError(f"{where}.{key}: must be a number, got {value!r}")
-    if positive and value <= 0:
-        raise FabricationError(f"{where}.{key}: must be positive, got {value!r}")
-    return float(value)
-
-
 def print_settings(table: dict | None = None, overrides: dict | None = None,
                    where: str = "fabrication.print") -> PrintSettings:
     """Merge a ``[fabrication.print]`` table with overrides over the material's defaults.
@@ -162,10 +151,12 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
 
     Raises
     ------
+    SettingsError
+        Unknown key or material, a value of the wrong type or out of range (the schema,
+        :class:`fabkit.schema.PrintSection`).
     FabricationError
-        Unknown key or material, a value of the wrong type, a gap that is not positive, a hinge
-        narrower than the nozzle, a hinge thickness that is not a whole number of layers or not
-        thinner than the plates.
+        A hinge narrower than the nozzle, a hinge thickness that is not a whole number of
+        layers or not thinner than the plates, a bridge setting on a neck-style print.
 
     Examples
     --------
@@ -176,37 +167,26 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
     2
     """
     merged = {**(table or {}), **(overrides or {})}
-    unknown = sorted(set(merged) - _KEYS)
-    if unknown:
-        raise FabricationError(f"{where}.{unknown[0]}: unknown key; allowed keys: "
-                               f"{', '.join(sorted(_KEYS))}")
-    material = merged.get("material", "PLA")
-    if not isinstance(material, str) or material.upper() not in MATERIALS:
-        raise FabricationError(f"{where}.material: unknown material {material!r}; valid: "
-                               f"{', '.join(MATERIALS)}")
-    material = material.upper()
+    given = check_section("print", merged, where).given()
+    material = given.get("material", "PLA")
     values = {**MATERIALS[material], "scale": _DEFAULT_SCALE}
-    for key in ("scale", "plate_thickness", "hinge_width", "hinge_length", "layer_height",
-                "nozzle_width", "strain_limit"):
-        if key in merged:
-            values[key] = _number(merged, key, where)
-    if "gap" in merged:
-        gap = _number(merged, "gap", where, positive=False)
-        if gap <= 0:
-            raise FabricationError(
-                f"{where}.gap: must be greater than 0 mm, got {gap:g}: plates that touch or "
-                "overlap fuse into a solid that is not watertight and cannot move; use 0.3-0.5")
-        values["gap"] = gap
-    style = merged.get("hinge_style", values["hinge_style"])
-    if style not in HINGE_STYLES:
-        raise FabricationError(f"{where}.hinge_style: unknown style {style!r}; valid: "
-                               f"{', '.join(HINGE_STYLES)}")
+    values.update({k: float(v) for k, v in given.items()
+                   if k in ("scale", "plate_thickness", "hinge_width", "hinge_length", "gap",
+                            "layer_height", "nozzle_width", "strain_limit")})
+    style = given.get("hinge_style", values["hinge_style"])
     values["hinge_style"] = style
     layer = values["layer_height"]
-    if "hinge_thickness" in merged and "hinge_layers" in merged:
+    thin = [k for k in ("hinge_thickness", "hinge_layers") if k in given]
+    if thin and style != "bridge":
+        # a neck's thickness is the plate's less one layer: these would be silently dropped
+        raise FabricationError(
+            f"{where}.{thin[0]}: applies to hinge_style = \"bridge\" only; this print uses "
+            f"\"{style}\" hinges (the {material} default), whose thickness follows the plates; "
+            f"set hinge_style = \"bridge\" or remove {thin[0]}")
+    if len(thin) == 2:
         raise FabricationError(f"{where}: give hinge_thickness or hinge_layers, not both")
-    if "hinge_thickness" in merged:
-        t = _number(merged, "hinge_thickness", where)
+    if "hinge_thickness" in given:
+        t = float(given["hinge_thickness"])
         n = round(t / layer)
         if n < 1 or abs(n * layer - t) > WHOLE_LAYERS_RTOL * layer:
             lo, hi = max(1, math.floor(t / layer)), max(1, math.ceil(t / layer))
@@ -214,11 +194,8 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
                 f"{where}.hinge_thickness: {t:g} mm is not a whole number of {layer:g} mm "
                 f"layers; use {lo * layer:g} or {hi * layer:g}")
         values["hinge_layers"] = int(n)
-    elif "hinge_layers" in merged:
-        n = merged["hinge_layers"]
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise FabricationError(f"{where}.hinge_layers: must be a positive integer, got {n!r}")
-        values["hinge_layers"] = n
+    elif "hinge_layers" in given:
+        values["hinge_layers"] = int(given["hinge_layers"])
     if values["hinge_width"] < values["nozzle_width"]:
         raise FabricationError(
             f"{where}.hinge_width: {values['hinge_width']:g} mm is thinner than the "
@@ -235,27 +212,16 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
         raise FabricationError(
             f"{where}.hinge_layers: a {values['hinge_layers'] * layer:g} mm bridge is not "
             f"thinner than the {values['plate_thickness']:g} mm plates; use fewer layers")
-    triangles = merged.get("rigid_triangles")
+    triangles = given.get("rigid_triangles")
     if triangles is not None:
-        ok = isinstance(triangles, list) and triangles and all(
-            isinstance(t, list) and len(t) == 3
-            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in t)
-            for t in triangles)
-        if not ok:
-            raise FabricationError(f"{where}.rigid_triangles: must be a non-empty array of "
-                                   "[i, j, k] node-index triples")
         triangles = tuple(tuple(t) for t in triangles)
     from .printers import DEFAULT_PRINTER, printer_profile
 
-    bed = merged.get("bed")
-    printer = printer_profile(merged.get("printer", DEFAULT_PRINTER), bed, where)
+    bed = given.get("bed")
+    printer = printer_profile(given.get("printer", DEFAULT_PRINTER), bed, where)
     flags = {"printer": printer.name if bed is None else "custom",
-             "bed": None if bed is None else (printer.width, printer.depth)}
-    for key in ("preview", "threemf"):
-        v = merged.get(key, True)
-        if not isinstance(v, bool):
-            raise FabricationError(f"{where}.{key}: must be true or false, got {v!r}")
-        flags[key] = v
+             "bed": None if bed is None else (printer.width, printer.depth),
+             "preview": given.get("preview", True), "threemf": given.get("threemf", True)}
     return PrintSettings(material=material, scale=values["scale"],
                          plate_thickness=values["plate_thickness"], hinge_style=style,
                          hinge_layers=int(values["hinge_layers"]),
@@ -269,10 +235,4 @@ def design_print_settings(design, settings: dict | None = None):
     """The design's :class:`~fabkit.fab.printing.PrintSettings` with ``settings["print"]``
     overrides (a template's table, then the command line)."""
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    table = fab.get("print", {})
-    if not isinstance(table, dict):
-        raise FabricationError("fabrication.print: must be a table")
-    over = (settings or {}).get("print", {})
-    if not isinstance(over, dict):
-        raise FabricationError("print: overrides must be given as print.KEY=VALUE")
-    return print_settings(table, over)
+    return print_settings(fab.get("print", {}), section_of(settings, "print"))

@@ -141,6 +141,7 @@ class Axis:
         if start == stop and num > 1:
             raise SweepError(f"{key}: START = STOP = {start:g} gives {num} equal values; give "
                              "different ends, or N = 1 for one value")
+        _require_points(f"--vary {key}", int(num))  # before the values are made
         return cls(key, tuple(float(v) for v in np.linspace(start, stop, int(num))))
 
     def as_dict(self) -> dict:
@@ -708,6 +709,13 @@ def _cell(rec: dict, name: str):
 # --------------------------------------------------------------------------------------------
 # The front function
 # --------------------------------------------------------------------------------------------
+def _require_points(where: str, points: int) -> None:
+    """Refuse a grid whose points would take more than a day, before making it."""
+    from ..workload import MAX_SWEEP_SECONDS, require
+
+    require(where, ("sweep point", points), option=True, max_seconds=MAX_SWEEP_SECONDS)
+
+
 def _axes_from(vary) -> tuple:
     if isinstance(vary, Axis):
         vary = [vary]
@@ -780,6 +788,7 @@ def make_spec(template, vary, measure=None, protocol: Protocol | None = None) ->
         if isinstance(old, int) and any(v != round(v) for v in ax.values):
             raise SweepError(f"--vary key {ax.key!r}: {canon} is an integer; give values that "
                              "are whole numbers")
+    _require_points("sweep", int(np.prod([len(a.values) for a in axes], dtype=float)))
     protocol = protocol or Protocol()
     for port in (protocol.d_in, protocol.d_out):
         if port not in design.network.ports:

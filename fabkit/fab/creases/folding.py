@@ -7,7 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import FabricationError, PatternError
+from ...errors import FabricationError, PatternError, SettingsError
+from ...schema import check_section
+from ...workload import require
 from ...network import Network
 from .pattern import (
     ASSIGNMENTS,
@@ -21,8 +23,6 @@ from ...numerics import TINY
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
 
-_ORIGAMI_KEYS = {"assignment", "faces", "sheet_size", "samples", "branch", "sign", "sheet",
-                 "sheets", "spacing", "step_off", "relay"}
 
 
 #: Geometric spacing runs from the start to this fraction of the way left to the target (the
@@ -112,29 +112,12 @@ def _table(design, overrides) -> dict:
     if not isinstance(fab, dict):
         raise FabricationError(f"{_where(design)}: the template has no [fabrication.origami] table")
     merged = {**fab, **(overrides or {})}
-    unknown = sorted(set(merged) - _ORIGAMI_KEYS)
-    if unknown:
-        raise _err(_where(design), unknown[0], f"unknown key; allowed: {', '.join(sorted(_ORIGAMI_KEYS))}")
+    try:
+        given = check_section("origami", merged).given()
+    except SettingsError as exc:  # name the template, as the other origami errors do
+        raise SettingsError(f"{_where(design)}: {exc.key}", exc.reason) from None
     out = {"sheet_size": 150.0, "samples": 41, "branch": "assignment", "sign": None,
-           "spacing": "uniform", "step_off": 1e-3, **merged}
-    size = out["sheet_size"]
-    if isinstance(size, bool) or not isinstance(size, (int, float)) or not size > 0:
-        raise _err(_where(design), "sheet_size", f"must be a positive size in mm, got {size!r}")
-    n = out["samples"]
-    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
-        raise _err(_where(design), "samples", f"must be an integer >= 2, got {n!r}")
-    if out["spacing"] not in ("uniform", "geometric"):
-        raise _err(_where(design), "spacing", f"must be 'uniform' or 'geometric', got {out['spacing']!r}")
-    b = out["branch"]
-    if not (b == "assignment" or (isinstance(b, int) and not isinstance(b, bool) and b >= 1)):
-        raise _err(_where(design), "branch", f"must be 'assignment' or a branch number >= 1, got {b!r}")
-    if out["sign"] not in (None, 1, -1) or isinstance(out["sign"], bool):
-        raise _err(_where(design), "sign", f"must be 1 or -1, got {out['sign']!r}")
-    st = out["step_off"]
-    if isinstance(st, bool) or not isinstance(st, (int, float)) or not 0 < st <= 0.1:
-        raise _err(_where(design), "step_off", f"must be a number in (0, 0.1], got {st!r}")
-    if "relay" in out and not isinstance(out["relay"], str):
-        raise _err(_where(design), "relay", f"must be a port name, got {out['relay']!r}")
+           "spacing": "uniform", "step_off": 1e-3, **given}
     return out
 
 
@@ -161,14 +144,21 @@ def origami_model(design, overrides=None) -> OrigamiModel:
 
     Raises
     ------
+    SettingsError
+        A key of the wrong type or out of range (the schema).
+    BoundsError
+        More samples than can be folded in reasonable time and memory.
     FabricationError
-        Missing or malformed keys, a sheet that is not flat, faces that are not polygons of
-        edges; the message names the key.
+        Missing keys, a sheet that is not flat, faces that are not polygons of edges; the
+        message names the key.
     """
     s = _table(design, overrides)
     net = design.network
     name = design.name
     where = _where(design)
+    # every sample of the folding is a configuration of the whole network
+    require(f"{where}: fabrication.origami.samples", ("origami sample node",
+                                                      s["samples"] * net.n_nodes))
     if net.dim != 3:
         raise FabricationError(f"{where}: origami needs a 3D network (nodes with x, y, z)")
     if "sheets" in s:
