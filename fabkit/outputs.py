@@ -149,13 +149,16 @@ def output_folder(path, option: str = "-o") -> Path:
     return p
 
 
-def inside(folder, *names: str, what: str = "name") -> Path:
+def inside(folder, *names: str, what: str = "name", replace_last: bool = False) -> Path:
     """``folder / name / ...`` with every name checked by :func:`check_name`.
 
     A name may be a relative POSIX path (``"chunks/chunk-0000000-0000099.json"``); each of its
     parts is checked. :data:`RESERVED_NAMES` are not refused here: fabkit writes them itself;
     names that come from a user (a template's ``name``) are checked with :func:`check_name`
     where they are read.
+
+    ``replace_last``: the path is a file about to be replaced by a rename, which replaces a
+    symbolic link in its place instead of writing through it, so a link there is allowed.
 
     Raises
     ------
@@ -171,7 +174,7 @@ def inside(folder, *names: str, what: str = "name") -> Path:
         for part in parts:
             check_name(part, what, reserved=False)
             path = path / part
-    _refuse_escape(root, path)
+    _refuse_escape(root, path.parent if replace_last and path != root else path)
     return path
 
 
@@ -237,7 +240,8 @@ def write_files(folder, files: dict, *, what: str = "file name") -> list[Path]:
         A name that would leave ``folder``; a file that could not be written (the message
         names it and says why, e.g. "No space left on device").
     """
-    targets = [(inside(folder, name, what=what), data) for name, data in sorted(files.items())]
+    targets = [(inside(folder, name, what=what, replace_last=True), data)
+               for name, data in sorted(files.items())]
     staged: list[tuple[Path, Path]] = []
     created: list[Path] = []
     try:

@@ -44,7 +44,8 @@ from .errors import BoundsError, FabkitError, InputFileError, NetworkError, Temp
 from .network import Network
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
-           "TOP_LEVEL_KEYS", "with_settings"]
+           "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
+           "is_template_name", "resolve_template", "with_settings"]
 
 #: Sections that build the network: name → "module:function". The function takes the section
 #: (a dict) and a :class:`TemplateContext` and returns a Network. Exactly one must be present.
@@ -238,12 +239,14 @@ class TemplateContext:
                              f"unknown key; allowed keys here: {', '.join(sorted(allowed))}")
 
     def load(self, relative: str, key: str) -> "Design":
-        """Load another template named relative to this one (for chains and sequences)."""
-        target = (self.path.parent / relative).resolve()
+        """Load another template named relative to this one (for chains and sequences); a bare
+        name not found next to this one is a bundled template (see :func:`resolve_template`)."""
+        target = resolve_template(relative, base=self.path.parent).resolve()
         if str(target) in self.stack:
             raise self.error(key, f"template {relative!r} refers back to itself")
         if not target.exists():
-            raise self.error(key, f"no template file {relative!r} next to this one")
+            also = ", nor a bundled template of that name" if is_template_name(relative) else ""
+            raise self.error(key, f"no template file {relative!r} next to this one{also}")
         design = load_template(target, _stack=self.stack + (str(self.path.resolve()),))
         self.references.setdefault(key, design)
         return design
@@ -469,6 +472,8 @@ def load_template(path, *, _stack=()) -> Design:
     Parameters
     ----------
     path : str or pathlib.Path
+        A file; or, as a string, the name of a bundled template (``"fourbar"``), which a file of
+        that name in the current folder overrides (see :func:`resolve_template`).
 
     Returns
     -------
@@ -490,11 +495,14 @@ def load_template(path, *, _stack=()) -> Design:
     import os
     import stat
 
-    path = Path(path)
+    name, path = path, resolve_template(path)
     try:
         st = os.stat(path)
     except FileNotFoundError:
-        raise TemplateError(path, "", "no such file") from None
+        also = (", nor a bundled template of that name (fabkit templates lists them)"
+                if is_template_name(str(name)) and str(name).removesuffix(".toml")
+                not in bundled_names() else "")
+        raise TemplateError(path, "", f"no such file{also}") from None
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             raise InputFileError(path, "symbolic-link loop: the link never reaches a "
@@ -526,21 +534,103 @@ def load_template(path, *, _stack=()) -> Design:
     return parse_template(text, path, _stack)
 
 
-#: The bundled templates (the paper's modules and designs) shipped beside the package.
-BUNDLED = Path(__file__).resolve().parents[1] / "templates"
+#: The package whose data files are the bundled templates. In the repo they live in ``templates/``
+#: at the top, their only copy; pyproject.toml maps this package onto that folder (``package-dir``),
+#: so wheels, sdists and editable installs all carry them.
+BUNDLED_PACKAGE = "fabkit.bundled_templates"
+
+#: What a bundled template's name looks like: letters, digits, ``_`` and ``-``, with or without
+#: ``.toml``. Anything else (a ``/``, ``..``, a leading dot, a drive) is a path, never a name, so a
+#: name cannot reach outside the bundled folder.
+_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_-]*(?:\.toml)?")
+
+
+def bundled_folder() -> Path:
+    """The folder of the bundled templates, found with :mod:`importlib.resources`.
+
+    A source tree run without installing (``PYTHONPATH=.``) has no ``fabkit.bundled_templates``
+    package; the ``templates`` folder beside the package is used then.
+
+    Raises
+    ------
+    FabkitError
+        The installed package is not on the file system (e.g. inside a zip file).
+    """
+    import importlib.resources
+
+    try:
+        root = importlib.resources.files(BUNDLED_PACKAGE)
+    except ModuleNotFoundError:
+        root = Path(__file__).resolve().parents[1] / "templates"
+    if not isinstance(root, Path):
+        raise FabkitError(f"the bundled templates ({BUNDLED_PACKAGE}) are not files on disk "
+                          f"({root}); install fabkit from a wheel or a folder")
+    return root
+
+
+def bundled_names() -> list[str]:
+    """Names of the bundled templates, sorted (``["and_gate", ..., "velocity_design_example"]``)."""
+    return sorted(p.stem for p in bundled_folder().glob("*.toml"))
+
+
+def is_template_name(text) -> bool:
+    """True when ``text`` is a string of the form of a bundled template's name (``fourbar``,
+    ``fourbar.toml``); False for anything with a folder part (``./fourbar``, ``a/b.toml``,
+    ``..``) and for :class:`pathlib.Path` objects, which are always paths."""
+    return isinstance(text, str) and bool(_NAME.fullmatch(text))
 
 
 def bundled_template(name: str) -> Path:
-    """Path of a bundled template by name (``"super_stable"`` → ``templates/super_stable.toml``).
+    """Path of a bundled template by name (``"super_stable"`` → ``.../super_stable.toml``).
 
     Raises
     ------
     KeyError
-        No such bundled template (the message lists the valid names).
+        No such bundled template, or not a name (the message lists the valid names).
     """
-    path = BUNDLED / f"{name}.toml"
-    if not path.is_file():
-        names = sorted(p.stem for p in BUNDLED.glob("*.toml"))
-        raise KeyError(f"no bundled template {name!r}; valid: {', '.join(names) or 'none'} "
-                       f"(in {BUNDLED})")
+    folder = bundled_folder()
+    path = folder / f"{name.removesuffix('.toml')}.toml" if is_template_name(name) else None
+    if path is None or not path.is_file():
+        raise KeyError(f"no bundled template {name!r}; valid: "
+                       f"{', '.join(bundled_names()) or 'none'} (in {folder})")
     return path
+
+
+def resolve_template(name, base=None) -> Path:
+    """The template file that ``name`` stands for: a path, or a bundled template by name.
+
+    A ``name`` with a folder part, or a :class:`pathlib.Path`, is a path, taken as given
+    (relative to ``base``). A bare name (``fourbar`` or ``fourbar.toml``) is first looked for in
+    ``base``, as given and then with ``.toml`` added, so that a user's own file of that name
+    wins; otherwise it is the bundled template of that name. When nothing matches the path is returned as given, for the reader to
+    say that there is no such file.
+
+    Parameters
+    ----------
+    name : str or pathlib.Path
+    base : str or pathlib.Path, optional
+        The folder relative names are read in (default: the current folder).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Examples
+    --------
+    >>> resolve_template("fourbar").name, resolve_template("fourbar").parent == bundled_folder()
+    ('fourbar.toml', True)
+    >>> str(resolve_template("../fourbar.toml"))
+    '../fourbar.toml'
+    """
+    folder = Path(base) if base is not None else Path()
+    given = folder / name
+    if not is_template_name(name) or given.exists() or given.is_symlink():
+        return given
+    text = name
+    if not text.endswith(".toml"):
+        own = folder / f"{text}.toml"
+        if own.exists() or own.is_symlink():
+            return own
+    bundled = bundled_folder() / f"{text.removesuffix('.toml')}.toml"
+    return bundled if bundled.is_file() else given
+

@@ -468,8 +468,10 @@ def test_check_needs_an_existing_file_of_a_known_kind(tmp_path, capsys):
 
 def test_templates_lists_every_bundled_template(capsys):
     assert main(["templates"]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
+    header, *lines, footer = capsys.readouterr().out.strip().splitlines()
     stems = sorted(p.stem for p in TEMPLATES.glob("*.toml"))
+    assert header == f"{len(stems)} bundled templates in {TEMPLATES}:"
+    assert "fabkit templates --copy NAME" in footer
     assert len(lines) == len(stems)
     names = [load_template(TEMPLATES / f"{s}.toml").name for s in stems]
     assert [ln.split()[0] for ln in lines] == names

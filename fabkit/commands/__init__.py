@@ -11,14 +11,17 @@ __all__ = ["expand_templates", "each_template", "check_output_folder", "check_co
 
 
 def expand_templates(paths) -> list[Path]:
-    """Template files named by files, folders (their ``*.toml``) and glob patterns, in order."""
+    """Template files named by files, folders (their ``*.toml``), glob patterns and names of
+    bundled templates (``fourbar``; a file of that name in the current folder wins, see
+    :func:`fabkit.templates.resolve_template`), in order."""
     import glob
 
     from ..errors import InputFileError
+    from ..templates import resolve_template
 
     out: list[Path] = []
     for raw in paths:
-        p = Path(raw)
+        p = resolve_template(raw)
         try:
             p.stat()
         except OSError as exc:

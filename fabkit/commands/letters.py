@@ -35,9 +35,9 @@ def _module_folder(arg) -> Path:
     if arg is not None:
         folder = Path(arg)
     else:
-        from ..templates import BUNDLED
+        from ..templates import bundled_folder
 
-        folder = BUNDLED
+        folder = bundled_folder()
     missing = [f for f in MODULE_FILES.values() if not (folder / f).is_file()]
     if missing:
         raise FabkitError(f"{folder}: no curvature module template {missing[0]}; "

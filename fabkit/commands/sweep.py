@@ -100,7 +100,7 @@ def run(args) -> int:
             measures = spec_file.measures
             protocol = spec_file.protocol
         else:
-            template, axes, measures, protocol = Path(args.template), (), None, Protocol()
+            template, axes, measures, protocol = args.template, (), None, Protocol()
         if args.vary:  # the command line wins over the spec file
             axes = tuple(parse_vary(v) for v in args.vary)
         if not axes:

@@ -1,16 +1,16 @@
-"""``fabkit templates [FOLDER]``: the bundled templates, one line each."""
+"""``fabkit templates [FOLDER]``: the bundled templates, one line each, and where they live.
+
+``fabkit templates --copy NAME [DIR]`` copies a bundled template, with the templates it refers to
+(a chain's module), into DIR to be edited; the references still resolve in the copy.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 NAME = "templates"
-HELP = "list the bundled templates (or those in a folder), one line each"
-
-
-def bundled_folder() -> Path:
-    """The ``templates`` folder beside the package (a source checkout or an editable install)."""
-    return Path(__file__).resolve().parents[2] / "templates"
+HELP = ("list the bundled templates (or those in a folder), one line each; --copy NAME [DIR] "
+        "copies one to edit")
 
 
 def template_line(path: Path, width: int = 28) -> str:
@@ -30,14 +30,131 @@ def template_line(path: Path, width: int = 28) -> str:
 
 
 def add_arguments(p):
-    p.add_argument("folder", nargs="?", default=None,
-                   help="folder of templates (default: the bundled templates)")
+    p.add_argument("folder", nargs="?", default=None, metavar="FOLDER",
+                   help="folder of templates to list (default: the bundled templates); with "
+                        "--copy, the folder to copy into (default: the current folder)")
+    p.add_argument("--copy", metavar="NAME", default=None,
+                   help="copy the bundled template NAME and the templates it refers to into "
+                        "FOLDER, to edit")
+    p.add_argument("--force", action="store_true",
+                   help="with --copy: overwrite files that already exist")
+
+
+def template_files(name: str) -> dict[str, Path]:
+    """The files of a bundled template and of every template it refers to, by their path
+    relative to the bundled folder (``{"fourbar_chain2.toml": ..., "fourbar.toml": ...}``).
+
+    Raises
+    ------
+    UsageError
+        ``name`` is not the name of a bundled template.
+    FabkitError
+        A referenced template lies outside the bundled folder (it could not be copied with the
+        same relative path).
+    """
+    from ..errors import FabkitError, UsageError
+    from ..templates import bundled_folder, bundled_template, load_template
+
+    try:
+        path = bundled_template(name)
+    except KeyError:
+        raise UsageError("--copy", f"no bundled template {name!r}; `fabkit templates` lists "
+                                   "them") from None
+    root = bundled_folder().resolve()
+    files: dict[str, Path] = {}
+    todo = [load_template(path)]
+    while todo:
+        design = todo.pop()
+        source = design.path.resolve()
+        try:
+            rel = source.relative_to(root).as_posix()
+        except ValueError:
+            raise FabkitError(f"{name}: refers to {source}, outside the bundled templates "
+                              f"({root}); it cannot be copied beside them") from None
+        if rel not in files:
+            files[rel] = source
+            todo.extend(design.references.values())
+    return files
+
+
+def copy_template(name: str, folder, force: bool = False) -> list[Path]:
+    """Copy a bundled template and the templates it refers to into ``folder``, keeping their
+    relative paths so that the references still resolve; returns the files written (the
+    template first).
+
+    Nothing is written when any of the files exists (unless ``force``), and nothing is written
+    outside ``folder``.
+
+    Raises
+    ------
+    UsageError
+        Not a bundled template's name.
+    OutputError
+        A file exists (without ``force``), or is not a regular file.
+    """
+    from ..errors import OutputError
+    from ..outputs import write_files
+
+    files = template_files(name)
+    folder = Path(folder)
+    targets = {rel: folder / rel for rel in files}
+    for rel, target in targets.items():
+        if target.is_symlink() or target.exists():
+            if target.is_dir() or (target.exists() and not target.is_file()):
+                raise OutputError(target, "exists and is not a file; choose another folder")
+            if not force:
+                raise OutputError(target, "exists; give --force to overwrite it, or choose "
+                                          "another folder")
+    data = {Path(rel).as_posix(): source.read_bytes() for rel, source in files.items()}
+    written = write_files(folder, data)  # the one guard: all or nothing, never outside folder
+    first = folder / Path(next(iter(files))).as_posix()
+    return sorted(written, key=lambda p: p != first)
+
+
+def _copy(args) -> int:
+    from . import check_output_folder
+
+    folder = Path(args.folder) if args.folder else Path()
+    check_output_folder(folder, "FOLDER")
+    written = copy_template(args.copy, folder, force=args.force)
+    for path in written:
+        print(f"wrote {path}")
+    print(f"edit it, then e.g.: fabkit info {written[0]}")
+    return 0
+
+
+def _list_bundled() -> int:
+    from ..errors import FabkitError
+    from ..templates import bundled_folder, resolve_template
+
+    folder = bundled_folder()
+    paths = sorted(folder.glob("*.toml"))
+    if not paths:
+        raise FabkitError(f"{folder}: no bundled templates; the installed package is "
+                          "incomplete, reinstall fabkit")
+    width = max(len(p.stem) for p in paths)
+    print(f"{len(paths)} bundled templates in {folder}:")
+    for p in paths:
+        line = template_line(p, width)
+        own = resolve_template(p.stem)
+        if own.resolve() != p.resolve():  # a user's own file of this name wins
+            line += f"  [{own} in this folder is used instead]"
+        print(line)
+    print("Give a name where a template file goes (fabkit export super_stable --to dxf); "
+          "fabkit templates --copy NAME [FOLDER] copies one to edit.")
+    return 0
 
 
 def run(args) -> int:
-    from ..errors import FabkitError
+    from ..errors import FabkitError, UsageError
 
-    folder = Path(args.folder) if args.folder else bundled_folder()
+    if args.copy is not None:
+        return _copy(args)
+    if args.force:
+        raise UsageError("--force", "only goes with --copy NAME")
+    if args.folder is None:
+        return _list_bundled()
+    folder = Path(args.folder)
     if not folder.is_dir():
         raise FabkitError(f"{folder}: no such folder of templates")
     paths = sorted(folder.glob("*.toml"))

@@ -806,7 +806,8 @@ class SweepFile:
     ----------
     path : pathlib.Path
     template : pathlib.Path
-        Resolved relative to the spec file.
+        Resolved relative to the spec file; a bare name found nowhere there (``"chaotic"``) is
+        the bundled template of that name.
     axes : tuple of Axis
     measures : tuple of str or None
     protocol : Protocol
@@ -867,7 +868,9 @@ def read_sweep_file(path) -> SweepFile | None:
     if bad:
         raise SweepError(f"{where}.protocol.{bad[0]}: unknown key; allowed: "
                          f"{', '.join(sorted(fields))}")
-    return SweepFile(path=path, template=(path.parent / tpl),
+    from ..templates import resolve_template
+
+    return SweepFile(path=path, template=resolve_template(tpl, base=path.parent),
                      axes=tuple(parse_vary(v) for v in vary),
                      measures=_measures_from(measure) if measure is not None else None,
                      protocol=Protocol(**prot))
