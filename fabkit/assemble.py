@@ -25,9 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import FabkitError, KinematicsError
+from . import arguments
+from .errors import ArgumentTypeError, ArgumentValueError, FabkitError, KinematicsError
 from .network import Assembly, Network
 from .numerics import DOMAIN_RTOL, TINY, rigid_fit
+from .workload import require
 
 __all__ = [
     "chain",
@@ -317,13 +319,14 @@ def _mirror_flags(mirror, k: int) -> list[bool]:
     if mirror is None:
         return [False] * k
     if isinstance(mirror, str):
-        if mirror not in ("alternate", "none"):
-            raise FabkitError(f"`mirror` must be None, 'alternate' or a list of booleans, got {mirror!r}")
+        arguments.choice("mirror", mirror, ("alternate", "none"))
         return [mirror == "alternate" and c % 2 == 1 for c in range(k)]
-    flags = [bool(f) for f in mirror]
-    if len(flags) != k:
-        raise FabkitError(f"`mirror` has {len(flags)} entries for {k} modules")
-    return flags
+    if not isinstance(mirror, (list, tuple)) or not all(isinstance(f, bool) for f in mirror):
+        raise ArgumentTypeError("mirror", "must be None, 'alternate', 'none' or a list of "
+                                          f"booleans, got {type(mirror).__name__}")
+    if len(mirror) != k:
+        raise ArgumentValueError("mirror", f"has {len(mirror)} entries for {k} modules")
+    return list(mirror)
 
 
 def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = "d2",
@@ -369,20 +372,22 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     (8, ['d1', 'd2', 'd3', 'd4'])
     """
     if isinstance(modules, Network):
-        if copies is None or isinstance(copies, bool) or int(copies) < 1:
-            raise FabkitError(f"`copies` must be a positive integer, got {copies!r}")
-        seq = [modules] * int(copies)
+        if copies is None:
+            raise ArgumentTypeError("copies", "is needed with one module (how many copies?)")
+        base = [modules]
+    elif isinstance(modules, (list, tuple)):
+        base = list(modules)
+        if not base:
+            raise ArgumentValueError("modules", "must hold at least one module")
+        for c, m in enumerate(base):
+            arguments.network(f"modules[{c}]", m)
     else:
-        seq = list(modules)
-        if copies is not None:
-            if isinstance(copies, bool) or int(copies) < 1:
-                raise FabkitError(f"`copies` must be a positive integer, got {copies!r}")
-            seq = seq * int(copies)
-        if not seq:
-            raise FabkitError("a chain needs at least one module")
-        for c, m in enumerate(seq):
-            if not isinstance(m, Network):
-                raise FabkitError(f"module {c + 1} of the chain is not a Network but {type(m).__name__}")
+        raise ArgumentTypeError("modules", "must be a fabkit.Network or a list of them, got "
+                                           f"{type(modules).__name__}")
+    repeat = 1 if copies is None else arguments.whole("copies", copies, minimum=1)
+    # the whole chain's size, before a node of it is made
+    require("chain", ("node", repeat * sum(m.n_nodes for m in base)))
+    seq = base * repeat
     k = len(seq)
     flags = _mirror_flags(mirror, k)
     dim = seq[0].dim
@@ -394,9 +399,8 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
             raise FabkitError(f"module {c + 1} is {m.dim}D but module 1 is {dim}D")
         if id(m) in kinds:
             continue
-        for p in (d_in, d_out):
-            if p not in m.ports:
-                raise FabkitError(f"module {c + 1} has no port {p!r}")
+        arguments.port("d_in", d_in, m)
+        arguments.port("d_out", d_out, m)
         i0, i1 = m.port(d_in)
         o0, o1 = m.port(d_out)
         fresh = np.ones(m.n_nodes, dtype=bool)
@@ -569,14 +573,19 @@ def tessellate(module: Network, shape: tuple[int, int], *, x_join: tuple[str, st
     >>> net.n_nodes, net.n_edges
     (12, 17)
     """
+    arguments.network("module", module)
     if module.dim != 2:
         raise FabkitError("tessellate works on 2D modules")
-    rows, cols = (int(v) for v in shape)
-    if rows < 1 or cols < 1:
-        raise FabkitError(f"`shape` must be two positive integers, got {shape!r}")
-    for p in (*x_join, *y_join):
-        if p not in module.ports:
-            raise FabkitError(f"the module has no port {p!r}")
+    if not isinstance(shape, (list, tuple)) or len(shape) != 2:
+        raise ArgumentTypeError("shape", f"must be (rows, columns), got {shape!r:.40}")
+    rows = arguments.whole("shape[0]", shape[0], minimum=1)
+    cols = arguments.whole("shape[1]", shape[1], minimum=1)
+    require("tessellate", ("node", rows * cols * module.n_nodes))
+    for name, pair in (("x_join", x_join), ("y_join", y_join)):
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise ArgumentTypeError(name, f"must be two port names, got {pair!r:.40}")
+        for i, p in enumerate(pair):
+            arguments.port(f"{name}[{i}]", p, module)
     x = module.nodes
     tx_rot, tx_shift = join_transform(x[list(module.port(x_join[1]))], x[list(module.port(x_join[0]))])
     ty_rot, ty_shift = join_transform(x[list(module.port(y_join[1]))], x[list(module.port(y_join[0]))])

@@ -7,7 +7,8 @@ command needs no edit here. :func:`main` returns an exit code; fabkit errors pri
 
 Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
 2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
-that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM).
+that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM,
+141 when the reader of the output closed the pipe, quietly).
 """
 
 from __future__ import annotations
@@ -90,9 +91,23 @@ def main(argv=None) -> int:
     if args.allow_large:  # an environment variable, so that worker processes see it too
         os.environ["FABKIT_ALLOW_LARGE"] = "1"
     previous = _install_signal_handlers()
+    import warnings
+
+    quiet = warnings.catch_warnings()
+    quiet.__enter__()
+    if not args.debug:
+        # the command line speaks in one-line messages; library warnings (numpy's invalid
+        # values inside a check, matplotlib's layout notes) are for --debug
+        warnings.simplefilter("ignore")
     try:
         _check_output_option(args)
-        return int(args._run(args))
+        code = int(args._run(args))
+        sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at exit
+        return code
+    except BrokenPipeError:
+        # the reader went away (fabkit templates | head -1): end quietly, as after SIGPIPE
+        _silence_stdout()
+        return 128 + signal.SIGPIPE
     except FabkitError as exc:
         if args.debug:
             raise
@@ -116,6 +131,7 @@ def main(argv=None) -> int:
         print(f"fabkit: {internal_error_line(exc)}", file=sys.stderr)
         return ExitCode.INTERNAL
     finally:
+        quiet.__exit__(None, None, None)
         _restore_signal_handlers(previous)
         if saved_large is None:
             os.environ.pop("FABKIT_ALLOW_LARGE", None)
@@ -136,6 +152,18 @@ def _check_output_option(args) -> None:
         value = getattr(args, dest, None)
         if isinstance(value, str):
             check_output_folder(value)
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush of a closed pipe does
+    not raise again on the way out."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a real file (a test's capture)
+        pass
 
 
 def _raise_interrupted(signum, frame):

@@ -23,6 +23,9 @@ __all__ = [
     "UsageError",
     "BoundsError",
     "SettingsError",
+    "ArgumentError",
+    "ArgumentTypeError",
+    "ArgumentValueError",
     "InputFileError",
     "OutputError",
     "WriteError",
@@ -231,6 +234,33 @@ class SettingsError(FabkitError, ValueError):
         self.key = key
         self.reason = reason
         super().__init__(f"{key}: {reason}" if key else reason)
+
+
+class ArgumentError(FabkitError):
+    """An argument of a public function that fabkit cannot use; the message names it.
+
+    Parameters
+    ----------
+    argument : str
+        The argument's name (``"copies"``, ``"net"``).
+    reason : str
+        What is wrong, with the value given.
+    """
+
+    code = "argument"
+
+    def __init__(self, argument: str, reason: str):
+        self.argument = argument
+        self.reason = reason
+        super().__init__(f"{argument} {reason}")
+
+
+class ArgumentTypeError(ArgumentError, TypeError):
+    """An argument of the wrong type (a ``TypeError`` too)."""
+
+
+class ArgumentValueError(ArgumentError, ValueError):
+    """An argument of the right type with a value fabkit cannot use (a ``ValueError`` too)."""
 
 
 class InputFileError(FabkitError):

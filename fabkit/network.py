@@ -7,7 +7,7 @@ maps, fabrication) derives from it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -17,6 +17,9 @@ __all__ = ["Network", "Assembly"]
 
 # Edges shorter than this fraction of the network's size are treated as zero-length.
 _ZERO_LENGTH_RTOL = 1e-12
+#: Coordinates beyond this (design units) are refused: their squares (every length, every
+#: rigidity row) would overflow or drown the rest of the network in round-off.
+MAX_COORDINATE = 1e9
 
 
 def _as_port(name: str, pair, n_nodes: int) -> tuple[int, int]:
@@ -98,7 +101,12 @@ class Network:
     assembly: Assembly | None = None
 
     def __post_init__(self):
-        nodes = np.array(self.nodes, dtype=np.float64, copy=True)
+        try:
+            nodes = np.array(self.nodes, dtype=np.float64, copy=True)
+        except (TypeError, ValueError):
+            raise NetworkError("`nodes` must be an array of coordinates, shape (N, 2) or (N, 3) "
+                               f"(got {type(self.nodes).__name__} that is not one)",
+                               "nodes") from None
         if nodes.ndim != 2 or nodes.shape[1] not in (2, 3):
             raise NetworkError(f"`nodes` must have shape (N, 2) or (N, 3), got {nodes.shape}",
                                "nodes")
@@ -109,7 +117,17 @@ class Network:
             i = int(np.flatnonzero(bad)[0])
             raise NetworkError(f"node {i} has a non-finite coordinate {nodes[i].tolist()}",
                                f"nodes[{i}]")
-        raw_edges = np.asarray(self.edges)
+        far = (np.abs(nodes) > MAX_COORDINATE).any(axis=1)
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise NetworkError(f"node {i} lies at {nodes[i].tolist()}, beyond ±{MAX_COORDINATE:g} "
+                               "design units (lengths squared would overflow); scale the "
+                               "design down", f"nodes[{i}]")
+        try:
+            raw_edges = np.asarray(self.edges)
+        except (TypeError, ValueError):
+            raise NetworkError("`edges` must be an array of node-index pairs, shape (E, 2)",
+                               "edges") from None
         if raw_edges.size == 0:
             raw_edges = raw_edges.reshape(0, 2)
         if raw_edges.ndim != 2 or raw_edges.shape[1] != 2:
@@ -154,6 +172,9 @@ class Network:
                 f"edge {k} {edges[k].tolist()} has zero length: nodes {edges[k, 0]} and "
                 f"{edges[k, 1]} coincide", f"edges[{k}]"
             )
+        if not isinstance(self.ports, Mapping):
+            raise NetworkError("`ports` must be a mapping of name to (i, j) node pair, got "
+                               f"{type(self.ports).__name__}", "ports")
         ports = {str(name): _as_port(name, pair, n) for name, pair in dict(self.ports).items()}
         labels = None
         if self.labels is not None:

@@ -35,9 +35,10 @@ from .errors import SettingsError
 
 __all__ = ["Section", "LaserSection", "ScrewSection", "PrintSection", "OrigamiSection",
            "ToleranceSection", "MotionSection", "FABRICATION_SECTIONS", "OVERRIDE_SECTIONS",
-           "METHOD_OPTIONS", "check_section", "check_table", "check_fabrication", "section_of", "check_settings",
-           "check_method_options", "describe_keys", "LASER_FLAVOURS", "LASER_LABELS",
-           "REFERENCE_SQUARES", "MATERIAL_NAMES", "HINGE_STYLES", "ORIGAMI_SPACINGS"]
+           "METHOD_OPTIONS", "check_section", "check_table", "check_fabrication", "section_of",
+           "check_settings", "check_method_options", "describe_keys",
+           "describe_validation_error", "LASER_FLAVOURS", "LASER_LABELS", "REFERENCE_SQUARES",
+           "MATERIAL_NAMES", "HINGE_STYLES", "ORIGAMI_SPACINGS"]
 
 LASER_FLAVOURS = ("lwpolyline", "line-arc")
 LASER_LABELS = ("text", "outlines", "none")
@@ -398,6 +399,19 @@ def describe_keys(name: str) -> list[tuple[str, str, str]]:
 # --- messages ---------------------------------------------------------------------------------
 
 def _settings_error(exc: ValidationError, where: str, model) -> SettingsError:
+    return SettingsError(*_explain(exc, where, model))
+
+
+def describe_validation_error(exc: ValidationError, model, where: str = "",
+                              aliases: bool = False) -> str:
+    """The first error of a pydantic validation as one sentence: ``key.path: must be ...,
+    got ...`` (with the field's description). Used for files read back as well as settings.
+    ``aliases``: the model names its fields by alias (``"fabkit:scale"``)."""
+    key, reason = _explain(exc, where, model)
+    return f"{key}: {reason}" if key else reason
+
+
+def _explain(exc: ValidationError, where: str, model) -> tuple[str, str]:
     # a value tried against a Union fails every member: report the member that got furthest
     # (a table given for a screw is judged as a table, not as a catalogue name)
     errs = exc.errors(include_url=False)
@@ -418,8 +432,10 @@ def _settings_error(exc: ValidationError, where: str, model) -> SettingsError:
         if sub is None:
             break
         parent = sub
+    if kind == "missing":
+        return key, "is missing"
     if kind == "extra_forbidden":
-        return SettingsError(key, f"unknown key; known: {', '.join(sorted(parent.model_fields))}")
+        return key, f"unknown key; known: {', '.join(sorted(parent.model_fields))}"
     info = parent.model_fields.get(loc[-1]) if loc else None
     doc = f" ({info.description})" if info is not None and info.description else ""
     reasons = {
@@ -427,7 +443,7 @@ def _settings_error(exc: ValidationError, where: str, model) -> SettingsError:
         "greater_than": lambda: f"must be > {_num(ctx.get('gt'))}",
         "less_than_equal": lambda: f"must be <= {_num(ctx.get('le'))}",
         "less_than": lambda: f"must be < {_num(ctx.get('lt'))}",
-        "too_long": lambda: f"must have {ctx.get('max_length')} entries",
+        "too_long": lambda: f"must have at most {ctx.get('max_length')} entries",
         "bool_type": lambda: "must be true or false",
         "float_type": lambda: "must be a number",
         "int_type": lambda: "must be a whole number",
@@ -443,7 +459,7 @@ def _settings_error(exc: ValidationError, where: str, model) -> SettingsError:
     reason = reasons.get(kind, lambda: err["msg"][0].lower() + err["msg"][1:])()
     if kind == "finite_number" or (isinstance(value, float) and not math.isfinite(value)):
         reason = "must be a finite number"
-    return SettingsError(key, f"{reason}, got {_describe(value)}{doc}")
+    return key, f"{reason}, got {_describe(value)}{doc}"
 
 
 def _is_union_tag(part) -> bool:

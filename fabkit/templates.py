@@ -495,6 +495,11 @@ def load_template(path, *, _stack=()) -> Design:
     import os
     import stat
 
+    if not isinstance(path, (str, os.PathLike)):
+        from .errors import ArgumentTypeError
+
+        raise ArgumentTypeError("path", f"must be a file path or a bundled template's name, "
+                                        f"got {type(path).__name__}")
     name, path = path, resolve_template(path)
     try:
         st = os.stat(path)

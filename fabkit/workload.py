@@ -56,6 +56,7 @@ UNITS: dict[str, Unit] = {
     "map evaluation": Unit(1e-7, 0.0, "one evaluation of a 1-D map inside a vectorised "
                                       "Lyapunov protocol (measured 6e-8 s)"),
     "orbit step": Unit(5e-5, 64.0, "one step of a cobweb orbit, evaluated alone (3e-5 s)"),
+    "stored value": Unit(1e-9, 8.0, "one float64 kept in memory for the caller"),
     "node": Unit(2e-5, 400.0, "one node of a built network: coordinates, edges, ports and the "
                               "construction plan (chains of 10 000 modules: 0.44 s)"),
     "trace configuration node": Unit(5e-7, 24.0, "one node in one stored configuration of a "

@@ -11,7 +11,7 @@ import pytest
 
 import fabkit
 from fabkit.assemble import branch, build_tessellation, chain, join, join_transform, tessellate
-from fabkit.errors import FabkitError, TemplateError
+from fabkit.errors import BoundsError, FabkitError, TemplateError
 from fabkit.rigidity import count_modes
 from fabkit.templates import TemplateContext, load_template, parse_template
 
@@ -118,15 +118,29 @@ def test_chain_inverse_map_direction(module):
     assert count_modes(net).conformational == 1
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"copies": 0}, "`copies` must be a positive integer"),
-    ({"copies": 3, "mirror": "sometimes"}, "`mirror` must be None, 'alternate'"),
-    ({"copies": 3, "mirror": [True]}, "`mirror` has 1 entries for 3 modules"),
-    ({"copies": 2, "d_in": "dx"}, "module 1 has no port 'dx'"),
+@pytest.mark.parametrize("kwargs, message, kind", [
+    ({"copies": 0}, "copies must be at least 1, got 0", ValueError),
+    ({"copies": 2.5}, "copies must be a whole number, got 2.5", TypeError),
+    ({"copies": True}, "copies must be a whole number, got True", TypeError),
+    ({}, "copies is needed with one module", TypeError),
+    ({"copies": 3, "mirror": "sometimes"}, "mirror must be one of 'alternate', 'none'",
+     ValueError),
+    ({"copies": 3, "mirror": [True]}, "mirror has 1 entries for 3 modules", ValueError),
+    ({"copies": 3, "mirror": [1, 0, 1]}, "mirror must be None, 'alternate', 'none' or a list "
+                                         "of booleans", TypeError),
+    ({"copies": 2, "d_in": "dx"}, "d_in 'dx' is not a port of the network", ValueError),
+    ({"copies": 2, "d_out": ["d2"]}, "d_out must be a port name", TypeError),
 ])
-def test_chain_errors(fourbar, kwargs, message):
-    with pytest.raises(FabkitError, match=message):
+def test_chain_errors(fourbar, kwargs, message, kind):
+    with pytest.raises(FabkitError, match=message) as info:
         chain(fourbar, **kwargs)
+    assert isinstance(info.value, kind)  # what Python users expect, and fabkit's own class
+
+
+def test_chain_size_is_bounded_before_building(fourbar):
+    with pytest.raises(BoundsError, match=r"chain: about .* GB .*is over the limit of 2 GB of "
+                                          r"memory; fabkit --allow-large"):
+        chain(fourbar, copies=10**7)
 
 
 def test_chain_error_out_of_range(fourbar, super_stable):
@@ -257,10 +271,12 @@ def test_tessellate_fourbar_lattice(fourbar_ports):
 def test_tessellate_errors(fourbar_ports, super_stable):
     with pytest.raises(FabkitError, match="the lattice does not close: node 1 of copy"):
         tessellate(fourbar_ports, (2, 2), x_join=("d2", "b"), y_join=("t", "b"))
-    with pytest.raises(FabkitError, match="the module has no port 'q'"):
+    with pytest.raises(FabkitError, match=r"y_join\[0\] 'q' is not a port of the network"):
         tessellate(fourbar_ports, (2, 2), y_join=("q", "b"))
-    with pytest.raises(FabkitError, match="`shape` must be two positive integers"):
+    with pytest.raises(ValueError, match=r"shape\[0\] must be at least 1, got 0"):
         tessellate(fourbar_ports, (0, 2), y_join=("t", "b"))
+    with pytest.raises(TypeError, match=r"shape must be \(rows, columns\), got '2x2'"):
+        tessellate(fourbar_ports, "2x2", y_join=("t", "b"))
     with pytest.raises(FabkitError, match="`y_join` joins ports of lengths 2 and 2.828427125"):
         tessellate(fourbar_ports.with_ports({**fourbar_ports.ports, "x": (0, 3)}), (2, 2),
                    y_join=("t", "x"))

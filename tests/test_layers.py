@@ -21,6 +21,7 @@ LAYERS = {
     "outputs": 0,
     "workload": 0,
     "schema": 0,
+    "arguments": 1,
     "numerics": 1,
     "network": 1,
     "rigidity": 2,

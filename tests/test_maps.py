@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.errors import DesignError, KinematicsError
+from fabkit.errors import BoundsError, DesignError, KinematicsError
 from fabkit.kinematics import place, plan_construction
 from fabkit.maps import Map1D, classify_slope, map_from_trajectory, module_map, slope_at
 
@@ -275,8 +275,15 @@ def test_lyapunov_table_matches_the_exact_map(module):
     short = dict(initial=100, discard=500, average=3000)
     assert f.lyapunov(method="table", **short).method == "table"
     assert f.lyapunov(method="exact", **short).method == "exact"
-    with pytest.raises(DesignError, match="unknown method"):
+    with pytest.raises(ValueError, match="method must be one of 'auto', 'exact', 'table', got "
+                                         "'fast'"):
         f.lyapunov(method="fast")
+    with pytest.raises(BoundsError, match=r"Map1D.lyapunov: about .* over the limit"):
+        f.lyapunov(initial=100_000, discard=0, average=10**7)
+    with pytest.raises(BoundsError, match=r"Map1D.iterate: about .* over the limit"):
+        f.iterate(2.0, 10**10)
+    with pytest.raises(TypeError, match="steps must be a whole number, got 2.5"):
+        f.iterate(2.0, 2.5)
 
 
 def test_general_evaluator_agrees_with_the_planar_one(module):

@@ -124,7 +124,9 @@ def test_fold_check_catches_a_tampered_file(files, tmp_path):
     doc["edges_assignment"][5] = "Q"
     bad.write_text(json.dumps(doc))
     report = check_file(bad)
-    assert not report["ok"] and "unknown edge assignment 'Q'" in report["checks"][0]["detail"]
+    assert not report["ok"]
+    assert report["checks"][0]["detail"] == ("edges_assignment[5]: must be one of 'B', 'M', 'V', "
+                                             "'F', 'U', 'C' or 'J', got 'Q'")
     (tmp_path / "cut.fold").write_text((out / "origami_sheet.fold").read_text()[:300])
     with pytest.raises(fabkit.FabkitError, match="not FOLD JSON"):
         check_file(tmp_path / "cut.fold")

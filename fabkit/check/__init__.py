@@ -35,5 +35,34 @@ def checker_for(path):
 
 
 def check_file(path, design=None, settings=None) -> dict:
-    """Run the as-built check of an exported file (optionally against its design)."""
-    return checker_for(path).check_file(path, design=design, settings=settings)
+    """Run the as-built check of an exported file (optionally against its design).
+
+    The file must be a regular file, and its size goes through the work estimate before it is
+    read (readers hold several bytes in memory per byte on disk).
+
+    Raises
+    ------
+    InputFileError
+        Not a regular file (a folder, a FIFO, a device), or missing.
+    BoundsError
+        Too large to read back within the bounds (``fabkit --allow-large`` lifts them).
+    FabkitError
+        No check for the file's suffix.
+    """
+    import os
+    import stat
+
+    from ..errors import InputFileError
+    from ..workload import require
+
+    module = checker_for(path)
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise InputFileError(path, "no such file") from None
+    except OSError as exc:
+        raise InputFileError(path, exc.strerror or str(exc)) from None
+    if not stat.S_ISREG(st.st_mode):
+        raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)")
+    require(f"{path}", ("file byte", st.st_size))
+    return module.check_file(path, design=design, settings=settings)

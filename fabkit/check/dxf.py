@@ -33,6 +33,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from ..errors import FabkitError
 from ..numerics import MM_SLACK, project_to_lengths
@@ -59,6 +60,25 @@ _APPID = "FABKIT"
 HEAD_LAYERS_SLACK = 1e-12
 
 
+#: The fabkit part tags of an entity's xdata: id, kind, then whole numbers by kind (bar: its
+#: index, its two joints, its layer; spacer: its joint and layer; reference: none).
+PART_META = {"bar": 4, "spacer": 2, "reference": 0}
+#: Whole numbers in part tags are indices: far below this in any kit fabkit can write.
+MAX_INDEX = 10**7
+
+
+class DxfHeader(BaseModel):
+    """The FABKIT_* variables of a sheet's header (strings in the file, read as numbers)."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    FABKIT_KERF: float = Field(ge=0, le=10, description="kerf the sheet was drawn for (mm)")
+    FABKIT_BAR_WIDTH: float = Field(gt=0, le=1000, description="bar width (mm)")
+    FABKIT_HOLE: float = Field(gt=0, le=1000, description="screw hole diameter (mm)")
+    FABKIT_BARS: int = Field(ge=1, le=MAX_INDEX, description="bars in the kit")
+    FABKIT_SCALE: float = Field(gt=0, le=1e6, description="mm per design unit")
+
+
 def _mm(v: float) -> str:
     return "none" if math.isinf(v) else f"{v:.3f}"
 
@@ -82,6 +102,7 @@ def read_sheet(doc) -> dict:
     parts: dict[str, dict] = {}
     used_layers = set()
     untagged = 0
+    problems: list[str] = []
     for e in doc.modelspace():
         layer = e.dxf.layer
         used_layers.add(layer)
@@ -90,7 +111,11 @@ def read_sheet(doc) -> dict:
                 untagged += 1
             continue
         tags = [t.value for t in e.get_xdata(_APPID)]
-        pid, kind, meta = str(tags[0]), str(tags[1]), [int(v) for v in tags[2:]]
+        tagged = _part_tags(tags)
+        if isinstance(tagged, str):  # damaged: said in the parts check, never raised
+            problems.append(f"a {e.dxftype()} on {layer}: {tagged}")
+            continue
+        pid, kind, meta = tagged
         part = parts.setdefault(pid, {"kind": kind, "meta": meta, "arcs": [], "holes": [],
                                       "outer": [], "layers": set()})
         part["layers"].add(layer)
@@ -108,7 +133,37 @@ def read_sheet(doc) -> dict:
                     part["arcs"].append(((float(v.dxf.center.x), float(v.dxf.center.y)),
                                          float(v.dxf.radius)))
     return {"header": header, "insunits": doc.header.get("$INSUNITS", 0),
-            "layers": used_layers, "parts": parts, "untagged": untagged}
+            "layers": used_layers, "parts": parts, "untagged": untagged, "problems": problems}
+
+
+def _part_tags(tags: list):
+    """(id, kind, meta) of a part's xdata, or why it cannot be read (a sentence)."""
+    if len(tags) < 2 or not all(isinstance(t, str) for t in tags[:2]):
+        return "its fabkit xdata lacks the part id and kind"
+    pid, kind = tags[0], tags[1]
+    if kind not in PART_META:
+        return f"part {pid}: unknown kind {kind!r} (known: {', '.join(PART_META)})"
+    meta = tags[2:]
+    if len(meta) != PART_META[kind]:
+        return f"part {pid}: a {kind} carries {PART_META[kind]} numbers, this one {len(meta)}"
+    if not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_INDEX
+               for v in meta):
+        return f"part {pid}: its numbers must be whole numbers from 0, got {meta}"
+    return pid, kind, list(meta)
+
+
+def _header_values(head: dict):
+    """The FABKIT_* header variables as numbers, or why they cannot be read (a sentence)."""
+    from pydantic import ValidationError
+
+    from ..schema import describe_validation_error
+
+    if "FABKIT_BARS" not in head:
+        return "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"
+    try:
+        return DxfHeader.model_validate(head).model_dump()
+    except ValidationError as exc:
+        return "header " + describe_validation_error(exc, DxfHeader)
 
 
 def check_documents(texts: dict, design=None, settings=None) -> dict:
@@ -156,16 +211,12 @@ def _check_docs(docs: dict, design, settings) -> dict:
     checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
                          "layers that carry entities"))
     head = next(iter(sheets.values()))["header"] if sheets else {}
-    try:
-        kerf = float(head["FABKIT_KERF"])
-        width = float(head["FABKIT_BAR_WIDTH"])
-        hole = float(head["FABKIT_HOLE"])
-        n_bars = int(head["FABKIT_BARS"])
-        scale = float(head["FABKIT_SCALE"])
-    except (KeyError, ValueError):
-        checks.append(_check("parts", False, None, None,
-                             "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"))
+    values = _header_values(head)
+    if isinstance(values, str):
+        checks.append(_check("parts", False, None, None, values))
         return {"ok": False, "checks": checks, "files": sorted(docs)}
+    kerf, width, hole = values["FABKIT_KERF"], values["FABKIT_BAR_WIDTH"], values["FABKIT_HOLE"]
+    n_bars, scale = values["FABKIT_BARS"], values["FABKIT_SCALE"]
     given = ((settings or {}).get("laser") or {}).get("kerf")
     if given is not None:
         # the kerf the user says the file was cut with: undo that one, and say when the file
@@ -176,7 +227,7 @@ def _check_docs(docs: dict, design, settings) -> dict:
                              "drawn for" + ("" if same else "; re-export with the kerf of "
                                                             "your laser")))
         kerf = float(given)
-    bars, problems = {}, []
+    bars, problems = {}, [p for sh in sheets.values() for p in sh["problems"]]
     for name, sh in sheets.items():
         for pid, part in sh["parts"].items():
             if part["kind"] != "bar":
@@ -241,6 +292,12 @@ def _check_docs(docs: dict, design, settings) -> dict:
         report.update(ok=all(c["ok"] for c in checks), checks=checks)
         return report
     net = design.network
+    if len(lengths) != net.n_edges:  # another design's sheets: a failed check, not an error
+        checks.append(_check("topology", False, len(lengths), net.n_edges,
+                             f"the file holds {len(lengths)} bars, the design {design.name} "
+                             f"{net.n_edges} edges: not this design's file"))
+        report.update(ok=False, checks=checks)
+        return report
     want = net.edge_lengths * scale
     dl = float(np.abs(lengths - want).max())
     checks.append(_check("lengths", dl <= LENGTH_TOL, dl, LENGTH_TOL,
@@ -363,9 +420,11 @@ def _sheet_set(path: Path) -> list[Path]:
     m = re.fullmatch(r"(.*sheet)(\d+)\.dxf", path.name, flags=re.IGNORECASE)
     if not m:
         return [path]
-    found = sorted(path.parent.glob(f"{m.group(1)}*.dxf"),
-                   key=lambda p: int(re.sub(r"\D", "", p.name[len(m.group(1)):]) or 0))
-    return found or [path]
+    # only the numbered siblings: a stray laser_sheet_notes.dxf is not a sheet of the kit
+    pattern = re.compile(re.escape(m.group(1)) + r"(\d+)\.dxf", flags=re.IGNORECASE)
+    found = [(int(q.group(1)), p) for p in path.parent.iterdir()
+             if (q := pattern.fullmatch(p.name)) and p.is_file()]
+    return [p for _, p in sorted(found)] or [path]
 
 
 def check_file(path, design=None, settings=None) -> dict:

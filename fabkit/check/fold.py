@@ -57,52 +57,11 @@ def read_fold(path) -> dict:
 
 
 def structure_problems(doc: dict) -> list[str]:
-    """Inconsistencies in the FOLD fields fabkit uses (empty when none)."""
-    from ..fab.creases import ASSIGNMENTS
+    """Problems of the FOLD fields fabkit uses (empty when none): see
+    :func:`fabkit.check.fold_schema.fold_problems`."""
+    from .fold_schema import fold_problems
 
-    out = []
-    for key in ("vertices_coords", "edges_vertices", "edges_assignment", "faces_vertices"):
-        if not isinstance(doc.get(key), list):
-            out.append(f"{key} is missing")
-    if out:
-        return out
-    nv = len(doc["vertices_coords"])
-    ne = len(doc["edges_vertices"])
-    if len(doc["edges_assignment"]) != ne:
-        out.append(f"edges_assignment has {len(doc['edges_assignment'])} entries for {ne} edges")
-    bad = [a for a in doc["edges_assignment"] if a not in ASSIGNMENTS]
-    if bad:
-        out.append(f"unknown edge assignment {bad[0]!r}")
-    angles = doc.get("edges_foldAngle")
-    if angles is not None:
-        if len(angles) != ne:
-            out.append(f"edges_foldAngle has {len(angles)} entries for {ne} edges")
-        elif any(not -180.0 <= float(a) <= 180.0 for a in angles):
-            out.append("edges_foldAngle outside [-180, 180]")
-    if angles is not None and len(angles) == ne:
-        wrong = [k for k, (a, t) in enumerate(zip(doc["edges_assignment"], angles))
-                 if (a == "M" and float(t) > 0) or (a == "V" and float(t) < 0)]
-        if wrong:
-            out.append(f"edge {wrong[0]} is {doc['edges_assignment'][wrong[0]]} but its fold "
-                       f"angle is {angles[wrong[0]]} (valley positive, mountain negative)")
-    ev = np.asarray(doc["edges_vertices"])
-    if ev.ndim != 2 or ev.shape[1] != 2 or ev.min() < 0 or ev.max() >= nv:
-        out.append("edges_vertices names vertices that do not exist")
-        return out
-    keys = {tuple(sorted(e)) for e in ev.tolist()}
-    for f, cyc in enumerate(doc["faces_vertices"]):
-        for a, b in zip(cyc, cyc[1:] + cyc[:1]):
-            if tuple(sorted((a, b))) not in keys:
-                out.append(f"face {f} uses the side {a}-{b}, which is not an edge")
-                break
-    for k, fr in enumerate(doc.get("file_frames", [])):
-        if len(fr.get("vertices_coords", [])) != nv:
-            out.append(f"file_frames[{k}] has {len(fr.get('vertices_coords', []))} vertices, "
-                       f"not {nv}")
-    for key in ("fabkit:ports", "fabkit:motion", "fabkit:map", "fabkit:scale"):
-        if key not in doc:
-            out.append(f"{key} is missing (not written by fabkit: nothing to re-fold against)")
-    return out
+    return fold_problems(doc)
 
 
 def model_from_fold(doc: dict, name: str = "fold"):

@@ -72,6 +72,10 @@ def _stl_kind(data: bytes, path) -> str:
     raise FabricationError(f"{path}: not an STL file ({len(data)} bytes)")
 
 
+#: No printer prints beyond this (mm); vertices farther out are corruption, not a part.
+MAX_COORDINATE_MM = 1e5
+
+
 def _load(path):
     import io
 
@@ -88,6 +92,10 @@ def _load(path):
         raise FabricationError(f"{path}: cannot be read as STL: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise FabricationError(f"{path}: holds no triangles")
+    v = np.asarray(mesh.vertices)
+    if not np.isfinite(v).all() or np.abs(v).max() > MAX_COORDINATE_MM:
+        raise FabricationError(f"{path}: vertices that are not finite or lie beyond "
+                               f"{MAX_COORDINATE_MM:g} mm (a corrupt file)")
     return mesh
 
 

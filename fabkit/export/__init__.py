@@ -70,7 +70,7 @@ def get_exporter(fmt: str):
     """The module that implements a format; ``FabkitError`` listing the valid ones otherwise."""
     try:
         name = EXPORTERS[fmt]
-    except KeyError:
+    except (KeyError, TypeError):
         raise FabkitError(f"unknown export format {fmt!r}; valid: {', '.join(EXPORTERS)}") from None
     try:
         return importlib.import_module(name)

@@ -6,7 +6,8 @@ import dataclasses
 
 import numpy as np
 
-from ..errors import KinematicsError
+from .. import arguments
+from ..errors import ArgumentTypeError, KinematicsError
 from ..network import Network
 from ..numerics import FLAT_RTOL
 
@@ -216,7 +217,10 @@ def _pair(net: Network, spec) -> tuple[int, int]:
             raise KinematicsError(f"unknown port {spec!r}; the network has ports: {known}")
         i, j = net.ports[spec]
         return int(i), int(j)
-    i, j = (int(v) for v in spec)
+    if not isinstance(spec, (list, tuple)) or len(spec) != 2:
+        raise ArgumentTypeError("port", f"must be a port name or a pair of node indices, got "
+                                        f"{spec!r:.40}")
+    i, j = (arguments.whole("node index", v) for v in spec)
     if not (0 <= i < net.n_nodes and 0 <= j < net.n_nodes) or i == j:
         raise KinematicsError(f"node pair ({i}, {j}) is not two distinct nodes of the network")
     return i, j

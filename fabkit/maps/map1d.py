@@ -9,8 +9,10 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from ..errors import DesignError
+from .. import arguments
+from ..errors import ArgumentTypeError, DesignError
 from ..numerics import DOMAIN_RTOL, FIXED_POINT_RTOL
+from ..workload import require
 from .results import Branch, Cycle, FixedPoint, LyapunovResult, classify_slope
 
 
@@ -143,8 +145,15 @@ class Map1D:
             Row k is f^k(d); NaN from the step an orbit leaves the domain (no configuration:
             the chain cannot be assembled that far).
         """
-        x = np.atleast_1d(np.asarray(d, dtype=np.float64))
-        out = np.empty((int(steps) + 1, x.size))
+        try:
+            x = np.atleast_1d(np.asarray(d, dtype=np.float64))
+        except (TypeError, ValueError):
+            raise ArgumentTypeError("d", f"must be a number or an array of numbers, got "
+                                         f"{type(d).__name__}") from None
+        steps = arguments.whole("steps", steps, minimum=0)
+        require("Map1D.iterate", ("orbit step", steps), ("map evaluation", steps * x.size),
+                ("stored value", (steps + 1) * x.size))
+        out = np.empty((steps + 1, x.size))
         out[0] = x
         for k in range(int(steps)):
             x, _ = self._values(x)
@@ -164,8 +173,10 @@ class Map1D:
 
     # -- fixed points and cycles --------------------------------------------------------------
     def _grid(self, samples):
+        samples = arguments.whole("samples", samples, minimum=3)
+        require("Map1D grid", ("map evaluation", samples), ("stored value", 4 * samples))
         lo, hi = self.domain
-        return np.linspace(lo, hi, int(samples))
+        return np.linspace(lo, hi, samples)
 
     def is_identity(self, power: int = 1, tol: float = 1e-10) -> bool:
         """True when f^power(d) = d wherever it is defined on the domain (power 1: every point
@@ -284,9 +295,11 @@ class Map1D:
         list of Cycle, sorted by their smallest value. Empty when f^p is the identity for a
         divisor p of m (every point is periodic: :meth:`is_identity` says so).
         """
-        m = int(period)
+        m = arguments.whole("period", period)
+        samples = arguments.whole("samples", samples, minimum=3)
         if m < 2:
             raise DesignError(f"period must be at least 2 (fixed points: fixed_points()), got {m}")
+        require("Map1D.cycles", ("map evaluation", m * samples))
         if any(self.is_identity(p) for p in range(1, m + 1) if m % p == 0):
             return []  # a continuum of cycles, not isolated ones (see is_identity)
         lo, hi = self.domain
@@ -420,8 +433,15 @@ class Map1D:
         >>> round(tent.lyapunov(initial=10, discard=10, average=100).mean, 10)  # ln 2
         0.6931471806
         """
-        if method not in ("auto", "exact", "table"):
-            raise DesignError(f"unknown method {method!r}; valid: auto, exact, table")
+        arguments.choice("method", method, ("auto", "exact", "table"))
+        discard = arguments.whole("discard", discard, minimum=0)
+        average = arguments.whole("average", average, minimum=1)
+        if np.ndim(initial) == 0:
+            count = arguments.whole("initial", initial, minimum=1)
+        else:
+            count = int(np.size(initial))
+        require("Map1D.lyapunov", ("map evaluation", count * (discard + average)),
+                ("stored value", 8 * count))
         rng = None
         if np.ndim(initial) == 0:
             if lo is None or hi is None:

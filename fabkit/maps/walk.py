@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 from scipy.optimize import brentq
 
+from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
 from ..network import Network
 from ..numerics import FLAT_RTOL, TINY
@@ -147,6 +148,12 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     """
     from ..kinematics import place, plan_construction
 
+    arguments.network("net", net)
+    if toward is not None:
+        toward = arguments.real("toward", toward, positive=True)
+    if branch is not None:
+        branch = arguments.whole("branch", branch, minimum=0)
+    max_branches = arguments.whole("max_branches", max_branches, minimum=1)
     a, b = _pair(net, d_in)
     out = _pair(net, d_out)
     x = net.nodes if reference is None else np.asarray(reference, dtype=np.float64)

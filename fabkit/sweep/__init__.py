@@ -736,6 +736,9 @@ def _axes_from(vary) -> tuple:
                     raise SweepError(f"{key}: a value is given twice")
                 items.append(Axis(str(key), tuple(float(x) for x in vals)))
         vary = items
+    if not isinstance(vary, (list, tuple)) or not all(isinstance(a, Axis) for a in vary):
+        raise SweepError("vary must be an Axis, a list of them, or a mapping of key to "
+                         f"(start, stop, n) or values; got {type(vary).__name__}")
     axes = tuple(vary)
     if not axes:
         raise SweepError("nothing to vary: give at least one key (--vary KEY=START:STOP:N)")
