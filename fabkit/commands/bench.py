@@ -56,15 +56,21 @@ def add_arguments(p):
                    help="also profile 'projected' on the largest chain (profile.txt)")
 
 
+#: Largest chain in the work-precision study without ``--allow-large`` (the full bench's own).
+MAX_BENCH_MODULES = 10_000
+
+
 def _sizes(text):
-    from ..errors import FabkitError
+    from ..errors import UsageError
+    from . import check_count
 
     try:
         sizes = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
-        raise FabkitError(f"--sizes must be comma-separated integers, got {text!r}") from None
+        raise UsageError("--sizes", f"must be comma-separated integers, got {text!r}") from None
     if not sizes or min(sizes) < 1:
-        raise FabkitError(f"--sizes must list positive numbers of modules, got {text!r}")
+        raise UsageError("--sizes", f"must list positive numbers of modules, got {text!r}")
+    check_count("--sizes", max(sizes), 1, MAX_BENCH_MODULES, "modules")
     return sizes
 
 
@@ -128,12 +134,12 @@ PARTS = ("workprecision", "targets", "stability", "large")
 
 
 def _parts(text):
-    from ..errors import FabkitError
+    from ..errors import UsageError
 
     parts = [v.strip() for v in text.split(",") if v.strip()]
     bad = [v for v in parts if v not in PARTS]
     if bad or not parts:
-        raise FabkitError(f"--parts must name some of {', '.join(PARTS)}, got {text!r}")
+        raise UsageError("--parts", f"must name some of {', '.join(PARTS)}, got {text!r}")
     return parts
 
 
@@ -143,8 +149,8 @@ def run(args) -> int:
     from ..bench.workprecision import (FULL_SETTINGS, QUICK_SETTINGS, lyapunov_protocol,
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
-    from ..errors import FabkitError
     from ..outputs import write_files
+    from . import check_number
     from ..viz import figure_png
 
     import signal
@@ -153,10 +159,10 @@ def run(args) -> int:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     mode = "quick" if args.quick else "full"
     cfg = dict(MODES[mode])
-    sizes = _sizes(args.sizes) if args.sizes else cfg["sizes"]
+    # every option is checked before the first measurement
+    sizes = _sizes(args.sizes) if args.sizes is not None else cfg["sizes"]
     budget = cfg["budget"] if args.budget is None else float(args.budget)
-    if not budget > 0:
-        raise FabkitError(f"--budget must be a positive number of seconds, got {args.budget}")
+    check_number("--budget", budget)
     parts = _parts(args.parts)
     settings = QUICK_SETTINGS if args.quick else FULL_SETTINGS
     rk4_step = cfg["rk4_step"]

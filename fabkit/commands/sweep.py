@@ -47,6 +47,9 @@ def add_arguments(p):
                    help="Lyapunov protocol per point (default 32:1000:4000; the paper's "
                         "1000:5000:20000)")
     p.add_argument("--no-plots", action="store_true", help="write the table and sweep.json only")
+    p.add_argument("--point-timeout", type=float, default=None, metavar="SECONDS",
+                   help="seconds a point may take on a worker process before it counts as "
+                        "stopped answering and is recorded as failed (default 600)")
 
 
 def _usage(message: str):
@@ -89,7 +92,7 @@ def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..outputs import inside
-    from . import check_jobs
+    from . import check_jobs, check_number
     from ..templates import load_template
 
     try:
@@ -119,6 +122,7 @@ def run(args) -> int:
 
             protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
                                lyapunov_average=avg)
+        check_number("--point-timeout", args.point_timeout)
         if not args.connect_timeout > 0:
             _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
         check_jobs("--jobs", args.jobs)
@@ -133,7 +137,9 @@ def run(args) -> int:
             result = sweep(design, axes, measures, outdir=outdir, scheduler=scheduler,
                            jobs=args.jobs, chunk_size=args.chunk_size, protocol=protocol,
                            plots=not args.no_plots, progress=bar,
-                           connect_timeout=args.connect_timeout)
+                           connect_timeout=args.connect_timeout,
+                           **({} if args.point_timeout is None
+                              else {"point_timeout": args.point_timeout}))
         except FabkitError:
             raise
         except BaseException:
@@ -159,6 +165,9 @@ def run(args) -> int:
               + (f"; {resumed} read back from an earlier run" if resumed else ""))
     else:
         print(f"  all {resumed} points read back from an earlier run")
+    for name, why in result.damaged:
+        print(f"  damaged chunk {name} set aside as {name}.damaged ({why}); its points were "
+              "computed again")
     for f in result.files:
         print(f"  wrote {f}")
     return 0

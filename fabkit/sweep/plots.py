@@ -44,7 +44,7 @@ def _plt():
 
 def _template_value(result, key):
     """The value the template itself has at a varied key (where its own module sits)."""
-    from . import _key_path, _lookup
+    from .model import _key_path, _lookup
 
     raw = result.spec.raw
     return float(_lookup(raw, _key_path(key, raw), key))
@@ -190,7 +190,7 @@ _DISCRETE = {
 
 
 def _heat_columns(result):
-    from . import COLUMNS, MEASURES
+    from .model import COLUMNS, MEASURES
 
     return [c for m in MEASURES if m in result.spec.measures for c in COLUMNS[m]
             if np.isfinite(result.column(c)).any()]

@@ -1,0 +1,138 @@
+"""Chunks of points, the unit of work on processes and on a cluster, and their files on disk.
+
+A chunk file is read back when a sweep resumes, so it is input like any other: every record is
+validated against :class:`SweepRecord` (types, the status vocabulary, the point's own
+parameters) before it is used. A chunk that fails is set aside as ``*.damaged`` and its points
+are computed again; nothing of it reaches ``sweep.csv``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+from typing import Annotated, Literal, Optional, Sequence
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from .model import Axis, Protocol, Status, SweepSpec, _jsonable
+from .point import evaluate_point
+
+_Real = Optional[float]
+_Count = Optional[Annotated[int, Field(ge=0)]]
+
+
+class SweepRecord(BaseModel):
+    """One point's record as written to a chunk (:func:`fabkit.sweep.evaluate_point`)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
+
+    index: Annotated[int, Field(ge=0)]
+    params: dict[str, float]
+    status: Literal[tuple(s.value for s in Status)]
+    reason: str = ""
+    domain_lo: _Real = None
+    domain_hi: _Real = None
+    reference: _Real = None
+    modes_conformational: _Count = None
+    modes_self_stress: _Count = None
+    fixed_points: Optional[list[dict]] = None
+    fixed_count: _Count = None
+    fixed_value: _Real = None
+    fixed_slope: _Real = None
+    slope_reference: _Real = None
+    cycles: Optional[list[dict]] = None
+    cycle2_count: _Count = None
+    cycle2_low: _Real = None
+    cycle2_high: _Real = None
+    cycle2_multiplier: _Real = None
+    attractor_values: Optional[list[float]] = None
+    attractor_period: Optional[int] = None
+    attractor_min: _Real = None
+    attractor_max: _Real = None
+    lyapunov: _Real = None
+    lyapunov_std: _Real = None
+
+def run_chunk(spec_dict: dict, indices: Sequence[int]) -> dict:
+    """Evaluate a chunk of points; takes and returns plain data so it ships to any worker.
+
+    Returns
+    -------
+    dict
+        ``records`` (one per index) and ``cpu``: CPU seconds of the thread that ran them (the
+        cost of the points whatever else shares the machine; kept out of the records, whose
+        numbers must not depend on where they ran).
+    """
+    t0 = time.thread_time()
+    spec = _spec_from_dict(spec_dict)
+    records = [evaluate_point(spec, int(i)) for i in indices]
+    return {"records": records, "cpu": time.thread_time() - t0}
+
+
+def _spec_from_dict(d: dict) -> SweepSpec:
+    return SweepSpec(template=d["template"], raw=d["raw"],
+                     axes=tuple(Axis(a["key"], tuple(a["values"])) for a in d["axes"]),
+                     measures=tuple(d["measures"]), protocol=Protocol(**d["protocol"]))
+
+
+def _chunks(indices: list, size: int) -> list:
+    return [indices[k:k + size] for k in range(0, len(indices), size)]
+
+
+def _write_chunk(folder: Path, records: list) -> Path:
+    from ..outputs import write_atomic
+
+    first, last = records[0]["index"], records[-1]["index"]
+    text = json.dumps(records, default=_jsonable, allow_nan=False)
+    return write_atomic(folder / f"chunk-{first:07d}-{last:07d}.json", text.encode())
+
+
+def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
+    """Records already on disk, by index, and the chunks that were damaged.
+
+    A chunk cut off mid-write never exists (writes are atomic), but a chunk can still be
+    damaged or edited: each must be JSON, a list of records that :class:`SweepRecord` accepts,
+    for points of this grid with this grid's parameters. A damaged chunk is renamed
+    ``<name>.damaged`` (kept, never read again) and its points are computed again.
+
+    Returns
+    -------
+    done : dict of int to dict
+    damaged : list of (str, str)
+        (file name, why) of every chunk set aside.
+    """
+    done, damaged = {}, []
+    for f in sorted(folder.glob("chunk-*.json")):
+        why = None
+        try:
+            records = json.loads(f.read_text(encoding="utf-8"))
+            if not isinstance(records, list) or not records:
+                raise ValueError("not a list of records")
+            for rec in records:
+                SweepRecord.model_validate(rec)
+                i = rec["index"]
+                if i >= spec.size:
+                    raise ValueError(f"point {i} is not on the grid of {spec.size} points")
+                want = spec.point(i)
+                if set(rec["params"]) != set(want) or any(
+                        not math.isclose(rec["params"][k], v, rel_tol=0, abs_tol=0)
+                        for k, v in want.items()):
+                    raise ValueError(f"point {i} carries other parameter values than the grid")
+        except ValidationError as exc:
+            from ..schema import describe_validation_error
+
+            why = describe_validation_error(exc, SweepRecord)
+        except json.JSONDecodeError as exc:
+            why = f"not JSON: {exc}"
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            why = str(exc)
+        if why is not None:
+            f.rename(f.with_name(f.name + ".damaged"))
+            damaged.append((f.name, why))
+            continue
+        for rec in records:
+            done[rec["index"]] = rec
+    return done, damaged
+
+
