@@ -32,6 +32,8 @@ def add_arguments(p):
                    help="design a chain whose final state follows this curve (.svg or .csv, mm)")
     p.add_argument("--module-size", type=float, default=50.0, metavar="MM",
                    help="--curve: the chain's pitch along the curve in mm (default 50)")
+    p.add_argument("--curve-scale", type=float, default=1.0, metavar="F",
+                   help="--curve: draw the curve F times larger (default 1)")
     p.add_argument("--types", type=int, default=3,
                    help="--curve: number of module types, odd (default 3)")
     p.add_argument("--name", default=None,
@@ -90,6 +92,7 @@ def run(args) -> int:
             raise UsageError("--curve", "designs a chain from a curve; give it without "
                                         "--fixed-point and --cycle")
         check_number("--module-size", args.module_size)
+        check_number("--curve-scale", args.curve_scale)
         return _run_curve(args, name, out, figure_png)
     if not args.fixed_point and args.cycle is None:
         raise UsageError("", "give --fixed-point D[:SLOPE] (up to two) and/or --cycle A,B, or "
@@ -139,7 +142,11 @@ def _run_curve(args, name, out, figure_png) -> int:
     from ..designer import design_curve_chain
     from ..designplots import curve_design_figure
 
+    from ..designer.curve import scaled
+
     curve = _read_curve_file(args.curve)
+    if args.curve_scale != 1.0:
+        curve = scaled(curve, args.curve_scale)
     result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
                                 name=name)
     report = result.report

@@ -14,7 +14,8 @@ whole motion never sweeps over another module's bars; of those, the pair with th
 (barycentric distance to the triangle's sides, half the distance between the two variable
 nodes) and a well-conditioned rigidity matrix is taken. A scan over initial apex angles 70-140°
 and leg ratios 0.8-1.25 (docs/design.md) found the widest range of final apex angles with such
-designs at an initial apex of 110° and a leg ratio of 1.1: final apex angles 50-90°.
+designs at an initial apex of 110° and a leg ratio of 1.1: final apex angles 50-90° (50-86° are
+used, see ``APEX_RANGE_DEG``).
 """
 
 from __future__ import annotations
@@ -27,21 +28,30 @@ import numpy as np
 from ..design import displacement_space
 from ..errors import DesignError, FabkitError
 from ..network import Network
-from .geometry import (MODULE_EDGES, bar_lengths, inside_margin, module_positions,
-                       rigidity_margin, triangle)
+from .geometry import (MODULE_EDGES, bar_clearance, bar_lengths, inside_margin,
+                       joint_separation, module_positions, rigidity_margin, triangle)
 
 __all__ = ["CurvatureType", "design_curvature_type", "INITIAL_APEX_DEG", "LEG_RATIO",
-           "APEX_RANGE_DEG", "STRAIGHT_APEX_DEG"]
+           "APEX_RANGE_DEG", "MIN_PAIR_APEX_DEG"]
 
 #: Apex angle of every curvature module's initial triangle (legs D1* = 1): all modules start
 #: alike, so the chain starts straight.
 INITIAL_APEX_DEG = 110.0
 #: D2* / D1*: the legs' length in the final state (D1* = 1 design unit).
 LEG_RATIO = 1.1
-#: Final apex angles the family builds with a margin (from the scan, see the module docstring).
-APEX_RANGE_DEG = (50.0, 90.0)
-#: Final apex angle of the straight type (the middle of the range).
-STRAIGHT_APEX_DEG = 70.0
+#: Final apex angles used: the scan above finds buildable modules from 50 to 90 deg; above
+#: 86 deg the rigidity margin falls below 0.1 and the bars pass within 0.03 design units of the
+#: joints, and laser kits of arcs with 88.6 and 89.2 deg modules found no stacking (or took the
+#: 20 s exact search), while every arc tried with the range capped at 86 stacked in 8 layers
+#: within a second (docs/design.md).
+APEX_RANGE_DEG = (50.0, 86.0)
+#: Two neighbouring modules of a chain must have final apex angles averaging at least this: two
+#: narrow modules side by side crowd their joints so that the bars at a designed joint stack
+#: higher than a screw reaches (laser kits of 8-module chains, default settings, 79 mm/unit:
+#: pairs 66/66, 66/70, 63/63, 58.5/58.5 find no stacking; 58/74 and 58.5/70 need the 20 s exact
+#: search; every pair averaging 70 or more (54/86, 62/78, 66/78, 70/74, 72/72, 66/90, ...)
+#: stacks in 8 layers within 0.5 s).
+MIN_PAIR_APEX_DEG = 70.0
 #: Rays cast to sample the displacement solution space, and how far out (design units).
 RAYS = 400
 RADIUS = 3.0
@@ -55,6 +65,9 @@ MIN_RIGIDITY = 0.03
 MAX_BAR_RATIO = 4.0
 #: The final triangle must match the wished apex to this (relative bottom length).
 APEX_RTOL = 1e-9
+#: Weight of the least joint-to-bar distance against the other margins in the score: a bar
+#: that sweeps close past another joint's screw must be stacked clear of it.
+CLEARANCE_WEIGHT = 2.0
 #: Configurations sampled along the motion for the margins.
 SAMPLES = 25
 
@@ -75,7 +88,12 @@ class CurvatureType:
         |x0 - x2| in the final state (design units).
     margins : dict
         ``inside`` (least barycentric margin of the variable nodes in their triangle along the
-        motion), ``separation`` (least joint distance), ``rigidity``, ``bar_length_ratio``.
+        motion), ``separation`` (least distance between the variable nodes), ``rigidity``,
+        ``bar_clearance`` (least joint-to-bar distance), ``joints`` (least distance between
+        any two joints), ``bar_length_ratio``.
+    score : float
+        min(inside, separation / 2, 2 x bar clearance), scaled down where the rigidity margin
+        is below 0.2: what the choice of the variable nodes maximises.
     """
 
     apex: float
@@ -85,19 +103,23 @@ class CurvatureType:
     variable: np.ndarray
     bottom: float
     margins: dict
+    score: float = 0.0
 
 
 def _mirror(p: np.ndarray) -> np.ndarray:
     return p * np.array([-1.0, 1.0])
 
 
-def design_curvature_type(apex_deg: float) -> CurvatureType:
+def design_curvature_type(apex_deg: float, min_joint: float = 0.0) -> CurvatureType:
     """Design the curvature module with this final apex angle.
 
     Parameters
     ----------
     apex_deg : float
         Final apex angle in degrees (within ``APEX_RANGE_DEG`` for a buildable module).
+    min_joint : float
+        Least distance between two joints along the motion (design units; a screw head's
+        room at the kit's scale).
 
     Returns
     -------
@@ -151,20 +173,25 @@ def design_curvature_type(apex_deg: float) -> CurvatureType:
             continue
         inside = float(inside_margin(xs[:, 3:], xs[:, :3]).min())
         sep = float(np.linalg.norm(xs[:, 3] - xs[:, 4], axis=1).min())
+        clear = float(bar_clearance(xs).min())
+        joints = float(joint_separation(xs).min())
         rig = float(rigidity_margin(xs).min())
         lengths = bar_lengths(net.nodes)
         ratio = float(lengths.max() / lengths.min())
-        if inside < MIN_INSIDE or rig < MIN_RIGIDITY or ratio > MAX_BAR_RATIO:
+        if (inside < MIN_INSIDE or rig < MIN_RIGIDITY or ratio > MAX_BAR_RATIO
+                or joints < min_joint):
             continue
-        score = min(inside, 0.5 * sep) * min(1.0, rig / 0.2)
+        score = min(inside, 0.5 * sep, CLEARANCE_WEIGHT * clear) * min(1.0, rig / 0.2)
         if score > best_score:
             best_score = score
             best = CurvatureType(apex=math.radians(apex_deg), network=net, designed=x0,
-                                 final=x1, variable=var, bottom=bottom,
+                                 final=x1, variable=var, bottom=bottom, score=score,
                                  margins={"inside": inside, "separation": sep, "rigidity": rig,
+                                          "bar_clearance": clear, "joints": joints,
                                           "bar_length_ratio": ratio})
     if best is None:
+        room = f" and its joints {min_joint:.3g} apart" if min_joint > 0 else ""
         raise DesignError(f"no curvature module with final apex {apex_deg:g} deg keeps its "
-                          f"variable nodes inside its triangle (buildable range "
+                          f"variable nodes inside its triangle{room} (buildable range "
                           f"{APEX_RANGE_DEG[0]:g}-{APEX_RANGE_DEG[1]:g} deg)")
     return best

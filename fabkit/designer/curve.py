@@ -5,17 +5,20 @@ The curve (mm) and the module size (the chain's pitch along the curve, mm) fix e
 
 1. the sharpest turn of the curve over two module pitches sets the spread of final apex angles
    the modules need (a chain mirrored every second module turns by the difference of two
-   neighbours' apex angles, see :mod:`fabkit.letters`), centred on the straight type's apex;
+   neighbours' apex angles, see :mod:`fabkit.letters`);
 2. one curvature module is designed per apex angle (:func:`design_curvature_type`): the types
    are evenly spaced over the spread, so a circular arc is followed by alternating the extreme
-   two, which turn the chain by exactly the arc's angle per two pitches;
+   two, which turn the chain by exactly the arc's angle per two pitches; the spread's centre
+   (the straight type) is chosen for the best margins, with its joints kept ``MIN_JOINT_MM``
+   apart at the kit's scale;
 3. the scale (mm per design unit) makes the straight type's pitch the module size;
-4. the beam search of :func:`fabkit.letters.design_curve` chooses every module's type, so the
-   number of modules follows from the curve's length and the module size;
+4. :func:`fabkit.designer.sequence.choose_types` chooses every module's type (the letters'
+   beam search among others), so the number of modules follows from the curve's length and the
+   module size;
 5. the chain is built from the written module templates, traced to its final state
    (``constructive``), moved onto the curve by a rigid best fit and compared with it: the fit
-   error in mm (largest and RMS distance of the chain's centre line to the curve, and of its end
-   to the curve's end), and the proportions (length, and a circle fitted to each).
+   error in mm (largest and RMS distance of the chain's centre line to the curve, and of its ends
+   to the curve's ends), and the proportions (length, chord, and a circle fitted to each).
 """
 
 from __future__ import annotations
@@ -29,13 +32,14 @@ import numpy as np
 from ..errors import DesignError
 from ..network import Network
 from ..numerics import apply_fit, rigid_fit
-from .curvature import (APEX_RANGE_DEG, LEG_RATIO, STRAIGHT_APEX_DEG, CurvatureType,
-                        design_curvature_type)
+from .curvature import APEX_RANGE_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG, design_curvature_type
 from .curve_files import Curve
+from .sequence import choose_types
 from .toml_text import curvature_template, chain_template
 from .wishes import WishError
 
-__all__ = ["CurveDesign", "design_curve_chain", "circle_fit", "needed_turn", "MAX_MODULES"]
+__all__ = ["CurveDesign", "design_curve_chain", "circle_fit", "needed_turn", "scaled",
+           "MAX_MODULES"]
 
 #: Turns below this (degrees per two modules) are straight: one module type does.
 STRAIGHT_TURN_DEG = 0.05
@@ -43,6 +47,16 @@ STRAIGHT_TURN_DEG = 0.05
 MAX_MODULES = 2000
 #: Beam width of the type search (partial designs kept per module).
 BEAM = 96
+#: Least distance (mm) between two joints of a module along its motion: an M3 Chicago screw's
+#: heads are 8.5 mm across (FABRICATION.md), plus the laser kit's default 1 mm clearance; the
+#: laser export refuses joints closer than two heads.
+MIN_JOINT_MM = 9.5
+#: Enlargements of a drawing tried when no module size can follow it.
+CURVE_SCALES = (1.25, 1.5, 2.0, 2.5, 3.0, 4.0)
+#: Points per module length at which a curve's turn is measured.
+SAMPLES_PER_MODULE = 8
+#: Spacing (degrees) of the straight type's final apex angles tried.
+CENTRE_STEP_DEG = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,71 +142,103 @@ def circle_fit(points) -> tuple[float, np.ndarray, float]:
     return float(r), c, float(abs(ang[-1] - ang[0]))
 
 
-def _headings(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    d = np.diff(p, axis=0)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(d, axis=1))])
-    th = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
-    return 0.5 * (s[:-1] + s[1:]), th
+def needed_turn(points: np.ndarray, module: float) -> float:
+    """The largest turn (radians) of a curve over two modules: the angle between the chords of
+    one module length centred a module before and a module after each point (exactly 2m/R on
+    a circle of radius R, whatever polyline approximates it)."""
+    p = np.asarray(points, dtype=np.float64)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    length = float(s[-1])
+
+    def at(t):
+        t = np.clip(t, 0.0, length)
+        return np.column_stack([np.interp(t, s, p[:, 0]), np.interp(t, s, p[:, 1])])
+
+    if length <= 2 * module:
+        d = p[-1] - p[0]
+        mid = at(np.array([0.5 * length]))[0]
+        a, b = mid - p[0], p[-1] - mid
+        return float(abs(math.atan2(a[0] * b[1] - a[1] * b[0], float(a @ b)))) if np.any(d) else 0.0
+    centres = np.linspace(module, length - module, max(2, int(SAMPLES_PER_MODULE * length / module)))
+    before = at(centres - 0.5 * module) - at(centres - 1.5 * module)
+    after = at(centres + 1.5 * module) - at(centres + 0.5 * module)
+    cross = before[:, 0] * after[:, 1] - before[:, 1] * after[:, 0]
+    dot = np.sum(before * after, axis=1)
+    return float(np.max(np.abs(np.arctan2(cross, dot))))
 
 
-def needed_turn(points: np.ndarray, window: float) -> float:
-    """The largest turn (radians) of a curve over any stretch of arclength ``window``."""
-    s, th = _headings(points)
-    if s[-1] - s[0] <= window:
-        return float(abs(th[-1] - th[0]))
-    ahead = np.interp(s + window, s, th)
-    valid = s + window <= s[-1]
-    return float(np.max(np.abs(ahead[valid] - th[valid])))
+def scaled(curve: Curve, factor: float) -> Curve:
+    """The curve drawn ``factor`` times larger."""
+    return Curve(points=curve.points * factor, length=curve.length * factor, source=curve.source,
+                 strokes=curve.strokes)
 
 
-def _greedy(target: np.ndarray, modules, first: int) -> np.ndarray:
-    """Module types that keep the chain's centre line on ``target`` (design units), chosen
-    module by module: the type whose new centre-line point lies nearest the target point at the
-    same arclength, with the heading error weighted in (a step ahead of the position error)."""
-    from ..letters import _point_at, _resample, strip_model
+def _nearest(curve: Curve, module_size: float, types: int, sizes) -> str | None:
+    """The first module size of ``sizes`` with which the curve can be built, else the smallest
+    enlargement of the drawing (``--curve-scale``) with which it can at this module size."""
+    def builds(c, m):
+        try:
+            design_curve_chain(c, module_size=m, types=types, name="probe", _suggest=False)
+        except WishError:
+            return False
+        return True
 
-    s_nodes = _resample(target)
-    length = float(s_nodes[-1])
-    chord = target[np.searchsorted(s_nodes, min(0.05 * length, s_nodes[-1]))] - target[0]
-    heading0 = math.atan2(chord[1], chord[0])
-    apex0 = modules[first].apex
-    start = heading0 + 0.5 * (math.pi - apex0)  # module 1 turns clockwise (strip_model)
-    types = [first]
-    for _ in range(MAX_MODULES):
-        best, best_cost, done = None, math.inf, False
-        for t in range(len(modules)):
-            m = strip_model(types + [t], modules, start_heading=start, origin=target[0])
-            c = 0.5 * (m[:-1] + m[1:])
-            seg = np.linalg.norm(np.diff(c, axis=0), axis=1)
-            s = float(seg.sum())
-            here = _point_at(target, s_nodes, np.array([s]))[0]
-            ahead = _point_at(target, s_nodes, np.array([s + seg[-1]]))[0]
-            want = ahead - here
-            step = c[-1] - c[-2]
-            cross = step[0] * want[1] - step[1] * want[0]
-            err = math.atan2(cross, float(step @ want)) if np.any(want) else 0.0
-            cost = float(np.sum((c[-1] - here) ** 2)) + (seg[-1] * err) ** 2
-            if cost < best_cost:
-                best, best_cost, done = t, cost, s >= length - 0.5 * seg[-1]
-        types.append(best)
-        if done:
-            break
-    return np.array(types, dtype=int)
+    for m in sizes:
+        m = float(f"{m:.3g}")
+        if m > 0 and builds(curve, m):
+            return f"--module-size {m:g}"
+    for f in CURVE_SCALES:
+        if builds(scaled(curve, f), module_size):
+            return f"--curve-scale {f:g} (the drawing {f:g}x larger)"
+    return None
 
 
-def _strip_error(types, modules, target) -> float:
-    """RMS distance of a type sequence's centre line, rigidly fitted, to the target."""
-    from ..letters import polyline_distance, strip_model
+def _module_types(need: float, n: int, module_size: float):
+    """The straight type's apex and the designed types, spread over ``need`` degrees, or
+    (None, []) when no spread keeps the joints ``MIN_JOINT_MM`` apart at this module size.
 
-    m = strip_model(types, modules)
-    c = 0.5 * (m[:-1] + m[1:])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
-    from ..letters import _point_at, _resample
+    The spread's centre is free: at least ``MIN_PAIR_APEX_DEG`` (neighbours must not both be
+    narrow; where the range allows, high enough for every two adjacent types to neighbour each
+    other), and chosen, on a grid, where the worse of the two extreme types has the best score
+    (variable nodes farthest inside their triangle, from each other and from the bars, see
+    :func:`design_curvature_type`). The centre sets the scale (its pitch is the module size),
+    and with it how far apart, in design units, the joints must stay."""
+    lo, hi = APEX_RANGE_DEG
+    straight_only = need < STRAIGHT_TURN_DEG
+    last = hi - need / 2
+    every_pair = MIN_PAIR_APEX_DEG + need / 2 - (0.0 if straight_only else need / (2 * (n - 1)))
+    first = every_pair if every_pair <= last else max(lo + need / 2, MIN_PAIR_APEX_DEG)
+    count = max(1, int(math.floor((last - first) / CENTRE_STEP_DEG)) + 1)
+    centres = np.linspace(first, last, count) if count > 1 else [0.5 * (first + last)]
+    cache: dict = {}
 
-    ref = _point_at(target, _resample(target), s)
-    moved = apply_fit(rigid_fit(c, ref, handedness="proper"), c)
-    d = polyline_distance(moved, target)
-    return float(np.sqrt(np.mean(d ** 2)) + np.linalg.norm(moved[-1] - target[-1]))
+    def room(centre):
+        # joints MIN_JOINT_MM apart, in design units at the scale this centre gives
+        return MIN_JOINT_MM * LEG_RATIO * math.sin(math.radians(centre) / 2) / module_size
+
+    def typ(apex, centre):
+        key = (round(float(apex), 9), round(room(centre), 12))
+        if key not in cache:
+            try:
+                cache[key] = design_curvature_type(key[0], key[1])
+            except DesignError:
+                cache[key] = None
+        return cache[key]
+
+    def score(apex, centre):
+        t = typ(apex, centre)
+        return -1.0 if t is None else t.score
+
+    ends = (0.0,) if straight_only else (-need / 2, need / 2)
+    worst = [min(score(c + e, c) for e in ends) for c in centres]
+    if max(worst) <= 0:
+        return None, []
+    centre = float(centres[int(np.argmax(worst))])
+    apexes = [centre] if straight_only else centre + need * (np.arange(n) / (n - 1) - 0.5)
+    types = [typ(a, centre) for a in apexes]
+    if any(t is None for t in types):
+        return None, []
+    return centre, types
 
 
 def _proportions(curve_pts: np.ndarray, center: np.ndarray) -> dict:
@@ -206,7 +252,7 @@ def _proportions(curve_pts: np.ndarray, center: np.ndarray) -> dict:
 
 
 def design_curve_chain(curve, *, module_size: float = 50.0, types: int = 3,
-                       name: str = "curve", beam: int = BEAM) -> CurveDesign:
+                       name: str = "curve", beam: int = BEAM, _suggest: bool = True) -> CurveDesign:
     """Design a chain of curvature modules whose final state follows ``curve``.
 
     Parameters
@@ -230,13 +276,14 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int = 3,
     Raises
     ------
     WishError
-        The curve turns more sharply than modules of this size can follow (the nearest module
-        size that can is named), or is shorter than two modules.
+        The curve turns more sharply than modules of this size can follow, modules of this size
+        would bring joints closer than a screw head allows, or the curve is shorter than two
+        modules; the nearest module size (or enlargement of the drawing) that builds is named.
     """
     from ..assemble import chain
     from ..kinematics import trace
     from ..letters import (_point_at, _resample, chain_centerline, curvature_modules,
-                           design_curve, polyline_distance)
+                           polyline_distance)
     from ..templates import parse_template
 
     start = time.perf_counter()
@@ -251,42 +298,43 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int = 3,
                                             "and pairs either side)")
     pts = curve.points
     wish = f"--curve with --module-size {module_size:g}"
+
+    def suggest(sizes):
+        return _nearest(curve, module_size, int(types), sizes) if _suggest else None
+
     if curve.length < 2 * module_size:
         raise WishError(wish, f"the curve ({curve.length:.1f} mm) is shorter than two modules",
-                        f"--module-size {curve.length / 4:.3g}")
-    turn = needed_turn(pts, 2 * module_size)
-    half = min(STRAIGHT_APEX_DEG - APEX_RANGE_DEG[0], APEX_RANGE_DEG[1] - STRAIGHT_APEX_DEG)
+                        suggest([curve.length / 2.5, curve.length / 3, curve.length / 4]))
+    turn = needed_turn(pts, module_size)
+    span = APEX_RANGE_DEG[1] - APEX_RANGE_DEG[0]
     need = math.degrees(turn)
-    if need > 2 * half:
-        size = module_size * (2 * half) / need
+    if need > span:
+        bound = module_size * span / need
         raise WishError(wish, f"the curve turns by {need:.1f} deg within two modules "
                               f"({2 * module_size:g} mm); the modules turn a chain by at most "
-                              f"{2 * half:g} deg per two", f"--module-size {math.floor(size):g}")
-    if need < STRAIGHT_TURN_DEG:
-        apexes = [STRAIGHT_APEX_DEG]
-    else:
-        n = int(types)
-        apexes = [float(a) for a in STRAIGHT_APEX_DEG + need * (np.arange(n) / (n - 1) - 0.5)]
-    designed: list[CurvatureType] = [design_curvature_type(a) for a in apexes]
+                              f"{span:g} deg per two",
+                        suggest([bound * f for f in (0.98, 0.9, 0.8, 0.7)]))
+    straight, designed = _module_types(need, int(types), module_size)
+    if straight is None:
+        raise WishError(wish, f"no curvature modules of {module_size:g} mm keep their joints "
+                              f"{MIN_JOINT_MM:g} mm apart (Chicago screw heads) while turning "
+                              f"the chain by {need:.1f} deg per two",
+                        suggest([module_size * 1.1 ** k for k in range(1, 8)]))
     files = {f"{name}_m{j + 1}.toml": curvature_template(f"{name}_m{j + 1}", t)
              for j, t in enumerate(designed)}
     nets = {}
     for fname, text in files.items():
         nets[fname] = parse_template(text, f"<{fname}>").network
     modules = curvature_modules(nets, LEG_RATIO)
-    pitch = LEG_RATIO * math.sin(math.radians(STRAIGHT_APEX_DEG) / 2)
+    pitch = LEG_RATIO * math.sin(math.radians(straight) / 2)
     scale = module_size / pitch
     target = pts / scale
     max_modules = int(math.ceil(2.5 * curve.length / module_size)) + 4
     if max_modules > MAX_MODULES:
         raise WishError(wish, f"the curve ({curve.length:.0f} mm) needs more than {MAX_MODULES} "
-                              "modules", f"--module-size {curve.length / MAX_MODULES * 2.5:.3g}")
-    # Two searches: the letters' beam search, and a module-by-module one from each first type;
-    # the sequence whose centre line, fitted onto the curve, lies closest to it is taken.
-    options = [design_curve(target, modules, beam=int(beam), max_modules=max_modules).types]
-    options += [_greedy(target, modules, t) for t in range(len(modules))]
-    scores = [_strip_error(o, modules, target) for o in options]
-    chosen = options[int(np.argmin(scores))]
+                              "modules", suggest([curve.length / MAX_MODULES * f
+                                                  for f in (2.5, 3, 4)]))
+    chosen = choose_types(target, modules, beam=int(beam), limit=max_modules)
     names = [modules[t].name for t in chosen]
     net = chain([nets[n] for n in names], mirror="alternate")
     traj = trace(net, "d1", to=LEG_RATIO, method="constructive", samples=2)
@@ -312,6 +360,7 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int = 3,
         "curve": {"source": curve.source, "length_mm": curve.length, "strokes": curve.strokes,
                   "sharpest_turn_deg_per_two_modules": need},
         "module_size_mm": module_size, "scale_mm_per_unit": scale, "modules": k,
+        "straight_apex_deg": straight,
         "types": [{"template": f, "final_apex_deg": math.degrees(t.apex), "count": counts[f],
                    "margins": t.margins} for f, t in zip(files, designed)],
         "fit_error_mm": errors, "proportions": props,

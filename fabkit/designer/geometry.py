@@ -106,6 +106,25 @@ def joint_separation(x: np.ndarray) -> np.ndarray:
     return np.linalg.norm(x[..., i, :] - x[..., j, :], axis=-1).min(axis=-1)
 
 
+def bar_clearance(x: np.ndarray) -> np.ndarray:
+    """Least distance from a joint to a bar not ending at it, in configurations (..., 5, 2):
+    how close a bar sweeps past another joint's screw.
+
+    Returns
+    -------
+    numpy.ndarray, shape (...)
+    """
+    x = np.asarray(x, dtype=np.float64)
+    pairs = [(j, e) for j in range(5) for e in range(len(MODULE_EDGES)) if j not in MODULE_EDGES[e]]
+    joints = np.array([j for j, _ in pairs])
+    a = x[..., MODULE_EDGES[[e for _, e in pairs], 0], :]
+    b = x[..., MODULE_EDGES[[e for _, e in pairs], 1], :]
+    p = x[..., joints, :]
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), TINY), 0, 1)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1).min(axis=-1)
+
+
 def inside_margin(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Smallest barycentric coordinate of each point in the triangle ``tri`` (3, 2): positive
     inside, negative outside, 0 on a side.
