@@ -145,10 +145,6 @@ class MapDesign:
         return iter((self.design, self.report))
 
 
-def _velocity(x, slope, turn):
-    return slope_velocities(x, slope, turn)
-
-
 def _specs(wish: MapWish) -> list[_Spec]:
     """Every combination of the free choices for this wish."""
     apex = [math.radians(a) for a in APEX_DEGREES]
@@ -166,7 +162,7 @@ def _specs(wish: MapWish) -> list[_Spec]:
                                 {"apex_final_deg": math.degrees(a1)}) for a1 in apex]
             for s in slopes:
                 for t in TURNS:
-                    v = _velocity(x0, s, t)
+                    v = slope_velocities(x0, s, t)
                     for finals, extra in finals_sets:
                         out.append(_Spec(x0, v, finals, {"apex_deg": math.degrees(a0),
                                                          "slope_designed": s, "turn": t, **extra}))
@@ -262,8 +258,6 @@ def _motion_range(wish: MapWish, domain) -> tuple[float, float]:
 
 def _meets(fmap, wish: MapWish) -> dict | None:
     """Residuals of every wish on the map's branch, or None when one is not met."""
-    from ..maps import Map1D  # noqa: F401  (the map type checked here)
-
     lo, hi = fmap.domain
     out = {"fixed_points": [], "cycle": None}
     for p in wish.fixed_points:
