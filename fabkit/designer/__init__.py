@@ -1,0 +1,19 @@
+"""Design by the map: modules from wished fixed points, slopes and cycles, chains from drawn curves.
+
+:func:`design_map` builds a module template whose map has exactly the wished fixed points (and
+slope, and 2-cycle) with the paper's construction, choosing what the construction leaves free for
+a module that can be built. :func:`design_curve_chain` builds a chain of curvature modules whose
+final state follows a drawn curve (:func:`read_curve` reads SVG paths and CSV polylines).
+Both check their result independently: the module's map is recomputed by
+:func:`fabkit.module_map` from the network the written template builds; the chain is traced to
+its final state and compared with the curve.
+"""
+
+from .curve import CurveDesign, design_curve_chain
+from .curve_files import Curve, read_curve
+from .module import MapDesign, design_map
+from .wishes import FixedPointWish, MapWish, WishError, check_wish, parse_cycle, parse_fixed_point
+
+__all__ = ["design_map", "MapDesign", "design_curve_chain", "CurveDesign", "read_curve", "Curve",
+           "WishError", "FixedPointWish", "MapWish", "check_wish", "parse_fixed_point",
+           "parse_cycle"]

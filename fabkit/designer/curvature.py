@@ -1,0 +1,197 @@
+"""Curvature modules designed from their map for buildable curve-following chains.
+
+Fig 4's modules share the fixed points D1* and D2* of a symmetric map (d1 = d2 all along the
+motion); they differ in the apex angle of their final triangle, which sets how a chain of them,
+mirrored every second module, turns. Here such modules are designed, one per wished final apex
+angle, with the displacement construction: the designed nodes go from an isosceles triangle with
+legs D1* = 1 and apex ``INITIAL_APEX_DEG`` to one with legs D2* = ``LEG_RATIO`` and the wished
+apex; the variable nodes are a mirror-symmetric pair on the displacement solution space, so the
+module is symmetric and its map is the identity (every state a fixed point, d1 = d2).
+
+The free choices are made so that a chain can be laser cut: a chain's modules are the triangles
+of a strip, and a module whose variable nodes stay inside its own designed triangle along the
+whole motion never sweeps over another module's bars; of those, the pair with the largest margin
+(barycentric distance to the triangle's sides, half the distance between the two variable
+nodes) and a well-conditioned rigidity matrix is taken. A scan over initial apex angles 70-140°
+and leg ratios 0.8-1.25 (docs/design.md) found the widest range of final apex angles with such
+designs at an initial apex of 110° and a leg ratio of 1.1: final apex angles 50-90° (50-86° are
+used, see ``APEX_RANGE_DEG``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..design import displacement_space
+from ..errors import DesignError, FabkitError
+from ..network import Network
+from .geometry import (MODULE_EDGES, bar_clearance, bar_lengths, inside_margin,
+                       joint_separation, module_positions, rigidity_margin, triangle)
+
+__all__ = ["CurvatureType", "design_curvature_type", "INITIAL_APEX_DEG", "LEG_RATIO",
+           "APEX_RANGE_DEG", "MIN_PAIR_APEX_DEG"]
+
+#: Apex angle of every curvature module's initial triangle (legs D1* = 1): all modules start
+#: alike, so the chain starts straight.
+INITIAL_APEX_DEG = 110.0
+#: D2* / D1*: the legs' length in the final state (D1* = 1 design unit).
+LEG_RATIO = 1.1
+#: Final apex angles used: the scan above finds buildable modules from 50 to 90 deg; above
+#: 86 deg the rigidity margin falls below 0.1 and the bars pass within 0.03 design units of the
+#: joints, and laser kits of arcs with 88.6 and 89.2 deg modules found no stacking (or took the
+#: 20 s exact search), while every arc tried with the range capped at 86 stacked in 8 layers
+#: within a second (docs/design.md).
+APEX_RANGE_DEG = (50.0, 86.0)
+#: Two neighbouring modules of a chain must have final apex angles averaging at least this: two
+#: narrow modules side by side crowd their joints so that the bars at a designed joint stack
+#: higher than a screw reaches (laser kits of 8-module chains, default settings, 79 mm/unit:
+#: pairs 66/66, 66/70, 63/63, 58.5/58.5 find no stacking; 58/74 and 58.5/70 need the 20 s exact
+#: search; every pair averaging 70 or more (54/86, 62/78, 66/78, 70/74, 72/72, 66/90, ...)
+#: stacks in 8 layers within 0.5 s).
+MIN_PAIR_APEX_DEG = 70.0
+#: Rays cast to sample the displacement solution space, and how far out (design units).
+RAYS = 400
+RADIUS = 3.0
+#: Candidates verified with the module's map.
+VERIFY = 24
+#: Least margin inside the own triangle (barycentric) along the motion.
+MIN_INSIDE = 0.02
+#: Least conditioning of the rigidity matrix along the motion.
+MIN_RIGIDITY = 0.03
+#: Largest bar-length ratio.
+MAX_BAR_RATIO = 4.0
+#: The final triangle must match the wished apex to this (relative bottom length).
+APEX_RTOL = 1e-9
+#: Weight of the least joint-to-bar distance against the other margins in the score: a bar
+#: that sweeps close past another joint's screw must be stacked clear of it.
+CLEARANCE_WEIGHT = 2.0
+#: Configurations sampled along the motion for the margins.
+SAMPLES = 25
+
+
+@dataclass(frozen=True, eq=False)
+class CurvatureType:
+    """A designed curvature module.
+
+    Attributes
+    ----------
+    apex : float
+        Final apex angle (radians).
+    network : Network
+        The module at its initial state (ports d1 = (0, 1), d2 = (1, 2), bottom = (0, 2)).
+    designed, final, variable : numpy.ndarray
+        The specification written to its template.
+    bottom : float
+        |x0 - x2| in the final state (design units).
+    margins : dict
+        ``inside`` (least barycentric margin of the variable nodes in their triangle along the
+        motion), ``separation`` (least distance between the variable nodes), ``rigidity``,
+        ``bar_clearance`` (least joint-to-bar distance), ``joints`` (least distance between
+        any two joints), ``bar_length_ratio``.
+    score : float
+        min(inside, separation / 2, 2 x bar clearance), scaled down where the rigidity margin
+        is below 0.2: what the choice of the variable nodes maximises.
+    """
+
+    apex: float
+    network: Network
+    designed: np.ndarray
+    final: np.ndarray
+    variable: np.ndarray
+    bottom: float
+    margins: dict
+    score: float = 0.0
+
+
+def _mirror(p: np.ndarray) -> np.ndarray:
+    return p * np.array([-1.0, 1.0])
+
+
+def design_curvature_type(apex_deg: float, min_joint: float = 0.0) -> CurvatureType:
+    """Design the curvature module with this final apex angle.
+
+    Parameters
+    ----------
+    apex_deg : float
+        Final apex angle in degrees (within ``APEX_RANGE_DEG`` for a buildable module).
+    min_joint : float
+        Least distance between two joints along the motion (design units; a screw head's
+        room at the kit's scale).
+
+    Returns
+    -------
+    CurvatureType
+
+    Raises
+    ------
+    DesignError
+        No symmetric pair of variable nodes keeps inside its triangle with the margins asked.
+
+    Examples
+    --------
+    >>> t = design_curvature_type(70.0)
+    >>> round(float(np.degrees(2 * np.arcsin(t.bottom / (2 * LEG_RATIO)))), 9)
+    70.0
+    """
+    from ..maps import module_map
+    from ..rigidity import count_modes
+
+    x0 = triangle(1.0, 1.0, math.radians(INITIAL_APEX_DEG))
+    x1 = triangle(LEG_RATIO, LEG_RATIO, math.radians(apex_deg))
+    space = displacement_space(x0, x1)
+    pts = space.sample(RAYS, radius=RADIUS)
+    pts = pts[pts[:, 0] < 0.0]
+    if pts.size == 0:
+        raise DesignError(f"the curvature module with final apex {apex_deg:g} deg has no "
+                          "variable node position")
+    fin = space.partner(pts)
+    half = -pts[:, 0]
+    screen = np.minimum(np.minimum(inside_margin(pts, x0), inside_margin(fin, x1)), half)
+    target = 2.0 * LEG_RATIO * math.sin(math.radians(apex_deg) / 2)
+    best, best_score = None, 0.0
+    for i in np.argsort(-screen)[:VERIFY]:
+        if screen[i] <= 0:
+            break
+        var = np.array([pts[i], _mirror(pts[i])])
+        net = Network(module_positions(x0, var), MODULE_EDGES,
+                      ports={"d1": (0, 1), "d2": (1, 2), "bottom": (0, 2)})
+        modes = count_modes(net)
+        if modes.conformational != 1 or modes.self_stress != 0:
+            continue
+        try:
+            fmap = module_map(net)
+        except FabkitError:
+            continue
+        if not (fmap.domain[0] <= 1.0 and LEG_RATIO <= fmap.domain[1]):
+            continue  # the final state is not on the branch through the initial one
+        xs = fmap.configuration(np.linspace(1.0, LEG_RATIO, SAMPLES))
+        bottom = float(np.linalg.norm(xs[-1, 0] - xs[-1, 2]))
+        if abs(bottom - target) > APEX_RTOL * target:
+            continue
+        inside = float(inside_margin(xs[:, 3:], xs[:, :3]).min())
+        sep = float(np.linalg.norm(xs[:, 3] - xs[:, 4], axis=1).min())
+        clear = float(bar_clearance(xs).min())
+        joints = float(joint_separation(xs).min())
+        rig = float(rigidity_margin(xs).min())
+        lengths = bar_lengths(net.nodes)
+        ratio = float(lengths.max() / lengths.min())
+        if (inside < MIN_INSIDE or rig < MIN_RIGIDITY or ratio > MAX_BAR_RATIO
+                or joints < min_joint):
+            continue
+        score = min(inside, 0.5 * sep, CLEARANCE_WEIGHT * clear) * min(1.0, rig / 0.2)
+        if score > best_score:
+            best_score = score
+            best = CurvatureType(apex=math.radians(apex_deg), network=net, designed=x0,
+                                 final=x1, variable=var, bottom=bottom, score=score,
+                                 margins={"inside": inside, "separation": sep, "rigidity": rig,
+                                          "bar_clearance": clear, "joints": joints,
+                                          "bar_length_ratio": ratio})
+    if best is None:
+        room = f" and its joints {min_joint:.3g} apart" if min_joint > 0 else ""
+        raise DesignError(f"no curvature module with final apex {apex_deg:g} deg keeps its "
+                          f"variable nodes inside its triangle{room} (buildable range "
+                          f"{APEX_RANGE_DEG[0]:g}-{APEX_RANGE_DEG[1]:g} deg)")
+    return best

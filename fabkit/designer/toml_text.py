@@ -1,0 +1,222 @@
+"""Template text written by the designer: plain TOML with comments that say what was wished,
+how it was built and what the map recomputed from it gives."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["points_toml", "module_template", "toml_string", "curvature_template", "chain_template"]
+
+
+def toml_string(text: str) -> str:
+    """A TOML basic string (quotes and backslashes escaped)."""
+    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def points_toml(key: str, points) -> list[str]:
+    """``key = [[x, y], ...]`` one point a line, floats written to round-trip exactly."""
+    rows = [f"    [{float(p[0])!r}, {float(p[1])!r}]," for p in np.asarray(points, dtype=float)]
+    return [f"{key} = [", *rows, "]"]
+
+
+def _kind(slope: float) -> str:
+    from ..maps import classify_slope
+
+    return classify_slope(slope)
+
+
+def module_template(name: str, wish, cand) -> str:
+    """Text of the ``[design]`` template of a module designed from map wishes.
+
+    Parameters
+    ----------
+    name : str
+    wish : MapWish
+    cand
+        The chosen candidate (its specification, variable nodes and measures).
+
+    Returns
+    -------
+    str
+    """
+    spec, m = cand.spec, cand.metrics
+    met = m["met"]
+    ch = spec.choices
+    lines = [f"# Designed by `fabkit design {wish.options()}` from its map wishes.",
+             "# Construction (paper, supplement \"Elaborating on Single Module Design\"): the "
+             "designed nodes 0, 1, 2",
+             "# sit at the first wished state (d1 = |x0 - x1|, d2 = |x1 - x2|); their velocities "
+             "fix the slope there,",
+             "# their final positions a further point of the map; variable nodes 3 and 4 lie on "
+             "the solution spaces",
+             "# of these specifications, each joined to all three designed nodes."]
+    free = [f"apex angle {ch['apex_deg']:.0f} deg at the first state"]
+    if "apex_final_deg" in ch:
+        free.append(f"{ch['apex_final_deg']:.0f} deg at the final state")
+    if "apex_fixed_deg" in ch:
+        free.append(f"{ch['apex_fixed_deg']:.0f} deg at the fixed point")
+    if spec.velocities is not None:
+        free.append(f"leg turn {ch['turn']:g}")
+        if all(p.slope is None for p in wish.fixed_points[:1]):
+            free.append(f"slope {ch['slope_designed']:g} (none was wished)")
+    lines.append("# Free choices, made for buildability: " + ", ".join(free) + ";")
+    lines.append(f"# variable nodes: points {cand.points[0]} and {cand.points[1]} of the "
+                 + ("intersection of the two solution spaces." if len(spec.finals)
+                    + (spec.velocities is not None) == 2 else "solution space (sampled)."))
+    lines.append(f"# Buildability: bar-length ratio {m['bar_length_ratio']:.2f}, joints at least "
+                 f"{m['joint_separation']:.3f} apart, rigidity margin {m['rigidity_margin']:.3f} "
+                 "along the motion.")
+    lines.append("# Map recomputed by fabkit.module_map from this file:")
+    for p in met["fixed_points"]:
+        lines.append(f"#   fixed point {p['value']:.10g}: |f(D) - D| = {p['residual']:.1e}, slope "
+                     f"{p['slope']:.10g} ({_kind(p['slope'])})")
+    if met["cycle"] is not None:
+        c = met["cycle"]
+        lines.append(f"#   2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residuals "
+                     f"{max(c['residuals']):.1e}, multiplier {c['multiplier']:.6g}")
+    description = f"module designed from its map: {wish.options().replace('--', '')}"
+    lines += [f"name = {toml_string(name)}", f"description = {toml_string(description)}", "",
+              "[design]", "# initial positions of the designed nodes"]
+    lines += points_toml("designed", spec.designed)
+    if spec.velocities is not None:
+        s = ch["slope_designed"]
+        lines.append(f"# velocities: d1 grows at rate 1, d2 at rate {s:g} (the slope at the first "
+                     "state); node 1 stands still")
+        lines += points_toml("velocities", spec.velocities)
+    if spec.finals:
+        f = spec.finals[0]
+        d1, d2 = np.linalg.norm(f[0] - f[1]), np.linalg.norm(f[1] - f[2])
+        lines.append(f"# final positions: d1 = {d1:.10g}, d2 = {d2:.10g}")
+        lines += points_toml("final", f)
+    if len(spec.finals) > 1:
+        f = spec.finals[1]
+        lines.append("# (a second final state, d1 = d2 = "
+                     f"{np.linalg.norm(f[0] - f[1]):.10g}, also fixed the variable nodes: "
+                     "designed positions " + ", ".join(f"[{float(a):.10g}, {float(b):.10g}]"
+                                                       for a, b in f) + ")")
+    lines.append("# variable nodes, exact (checked against the solution spaces when loaded)")
+    lines += points_toml("variable", cand.variable)
+    lines += ["ports = { d1 = [0, 1], d2 = [1, 2] }", "", "[motion]", 'drive = "d1"']
+    target, why = _motion_target(wish, cand.fmap)
+    lines += [f"to = {target!r}  # {why}", 'method = "auto"', ""]
+    return "\n".join(lines)
+
+
+def _motion_target(wish, fmap) -> tuple[float, str]:
+    if wish.cycle is not None:
+        return float(wish.cycle[1]), "the cycle's other state"
+    if len(wish.fixed_points) > 1:
+        return float(wish.fixed_points[1].value), "the second fixed point"
+    d = wish.fixed_points[0].value
+    lo, hi = fmap.domain
+    up = min(d * 1.1, d + 0.5 * (hi - d))
+    down = max(d * 0.9, d - 0.5 * (d - lo))
+    target = up if hi - d >= d - lo else down
+    if not math.isfinite(target):
+        target = d
+    return float(target), "a state beyond the fixed point, inside the branch"
+
+
+def curvature_template(name: str, ctype) -> str:
+    """Text of the ``[design]`` template of a designed curvature module.
+
+    Parameters
+    ----------
+    name : str
+    ctype : CurvatureType
+    """
+    from .curvature import INITIAL_APEX_DEG, LEG_RATIO
+
+    apex = math.degrees(ctype.apex)
+    m = ctype.margins
+    lines = [
+        f"# Curvature module designed by `fabkit design --curve`: symmetric map d1 = d2 from "
+        f"D1* = 1 to D2* = {LEG_RATIO:g},",
+        f"# final apex angle {apex:.6g} deg (bottom distance {ctype.bottom:.10g} at D2*).",
+        f"# Designed nodes: apex {INITIAL_APEX_DEG:g} deg at the start (every module alike, so the "
+        "chain starts straight),",
+        "# the final triangle below; variable nodes: a mirror-symmetric pair on the displacement "
+        "solution space,",
+        "# chosen to stay inside the module's own triangle along the motion (modules of a chain "
+        "never sweep",
+        f"# over each other): margin {m['inside']:.3f}, variable nodes at least "
+        f"{m['separation']:.3f} apart, rigidity margin {m['rigidity']:.3f}, "
+        f"bar-length ratio {m['bar_length_ratio']:.2f}.",
+        f"name = {toml_string(name)}",
+        f"description = {toml_string(f'curvature module, final apex {apex:.4g} deg')}",
+        "",
+        "[design]",
+    ]
+    lines += points_toml("designed", ctype.designed)
+    lines += points_toml("final", ctype.final)
+    lines += points_toml("variable", ctype.variable)
+    lines += ["ports = { d1 = [0, 1], d2 = [1, 2], bottom = [0, 2] }", "", "[motion]",
+              'drive = "d1"', f"to = {float(LEG_RATIO)!r}  # D2*: the final shape",
+              'method = "constructive"', ""]
+    return "\n".join(lines)
+
+
+def chain_template(name: str, modules, scale: float, errors: dict, props: dict, curve,
+                   module_size: float) -> str:
+    """Text of the ``[chain]`` template of a curve-following chain.
+
+    Parameters
+    ----------
+    name : str
+    modules : list of str
+        Module template file names, one per module of the chain.
+    scale : float
+        mm per design unit (the kit's size: the curve's own).
+    errors, props : dict
+        Fit error (mm) and proportions of the traced final state against the curve.
+    curve : Curve
+    module_size : float
+    """
+    from .curvature import LEG_RATIO
+
+    rows, line = [], []
+    for m in modules:
+        line.append(toml_string(m))
+        if len(line) == 3:
+            rows.append("    " + ", ".join(line) + ",")
+            line = []
+    if line:
+        rows.append("    " + ", ".join(line) + ",")
+    c, ch = props["curve"], props["chain"]
+    lines = [
+        f"# A chain of {len(modules)} curvature modules whose final state follows a drawn curve "
+        f"({curve.source}, {curve.length:.1f} mm),",
+        f"# designed by `fabkit design --curve` with modules of {module_size:g} mm; straight at "
+        "the start, the curve at the end.",
+        "# Checked by tracing the chain to its final state (constructive) and fitting it onto "
+        "the curve:",
+        f"#   fit error: rms {errors['rms']:.3f} mm, max {errors['max']:.3f} mm, start "
+        f"{errors['start']:.3f} mm, end {errors['end']:.3f} mm",
+        f"#   length: curve {c['length']:.2f} mm, chain centre line {ch['length']:.2f} mm; "
+        f"chord: {c['chord']:.2f} / {ch['chord']:.2f} mm",
+        f"#   fitted circle: curve r = {c['circle_radius']:.2f} mm over "
+        f"{c['circle_sweep_deg']:.2f} deg, chain r = {ch['circle_radius']:.2f} mm over "
+        f"{ch['circle_sweep_deg']:.2f} deg",
+        f"name = {toml_string(name)}",
+        "description = " + toml_string(
+            f"{len(modules)} curvature modules following a {curve.length:.0f} mm curve; fit error "
+            f"rms {errors['rms']:.2f} mm, max {errors['max']:.2f} mm"),
+        "",
+        "[chain]",
+        "modules = [",
+        *rows,
+        "]",
+        'mirror = "alternate"',
+        "",
+        "[motion]",
+        'drive = "d1"',
+        f"to = {float(LEG_RATIO)!r}  # D2*: every module in its final shape",
+        'method = "constructive"',
+        "",
+        "[fabrication.laser]",
+        f"scale = {float(scale)!r}  # mm per design unit: the kit has the curve's size",
+        "",
+    ]
+    return "\n".join(lines)

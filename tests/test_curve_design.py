@@ -1,0 +1,223 @@
+"""``fabkit design --curve``: chains whose final state follows a drawn curve. Each chain is
+loaded back from the written templates, traced to its final state and compared with the curve
+here, with the test's own circle fit; the laser kits are exported and checked as built."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.cli import main
+from fabkit.designer import design_curve_chain, read_curve
+from fabkit.designer.curvature import APEX_RANGE_DEG, LEG_RATIO, design_curvature_type
+from fabkit.errors import FabkitError
+from fabkit.letters import chain_centerline
+from fabkit.maps import module_map
+
+R = 250.0
+QUARTER = f"""<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="300mm"
+ viewBox="0 0 300 300"><path d="M 275 275 A {R:g} {R:g} 0 0 0 25 25" fill="none"
+ stroke="black"/></svg>"""
+HALF = f"""<svg xmlns="http://www.w3.org/2000/svg" width="600mm" height="300mm"
+ viewBox="0 0 600 300"><path d="M 50 280 A {R:g} {R:g} 0 0 1 550 280" fill="none"
+ stroke="black"/></svg>"""
+
+
+def run_cli(args, capsys):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def circle(points):
+    """Algebraic (Kasa) circle fit: radius and the angle swept, first to last point."""
+    p = np.asarray(points)
+    A = np.column_stack([2 * p, np.ones(len(p))])
+    sol = np.linalg.lstsq(A, np.sum(p * p, axis=1), rcond=None)[0]
+    c = sol[:2]
+    r = math.sqrt(sol[2] + c @ c)
+    ang = np.unwrap(np.arctan2(p[:, 1] - c[1], p[:, 0] - c[0]))
+    return r, math.degrees(abs(ang[-1] - ang[0]))
+
+
+def traced(path):
+    """The chain template as written: its initial and final centre lines in mm."""
+    design = fabkit.load_template(path)
+    scale = design.fabrication["laser"]["scale"]
+    traj = fabkit.trace(design.network, "d1", to=design.motion.to, method="constructive",
+                        samples=2)
+    assert str(traj.status) == "finished" and traj.max_edge_error < 1e-12
+    k = len(design.raw["chain"]["modules"])
+    start = chain_centerline(design.network, traj.positions[0], k) * scale
+    end = chain_centerline(design.network, traj.positions[-1], k) * scale
+    return design, start, end
+
+
+@pytest.fixture(scope="module")
+def arcs(tmp_path_factory):
+    out = {}
+    for name, svg in (("quarter", QUARTER), ("half", HALF)):
+        folder = tmp_path_factory.mktemp(name)
+        src = folder / f"{name}.svg"
+        src.write_text(svg)
+        code = main(["design", "--curve", str(src), "-o", str(folder / "kit")])
+        assert code == 0
+        out[name] = folder / "kit"
+    return out
+
+
+@pytest.mark.parametrize("name, sweep", [("quarter", 90.0), ("half", 180.0)])
+def test_arc_chains_have_the_arcs_proportions(arcs, name, sweep):
+    design, start, end = traced(arcs[name] / f"{name}.toml")
+    length = math.radians(sweep) * R
+    k = len(design.raw["chain"]["modules"])
+    assert k == round(length / 50.0)  # the module count follows from length / module size
+    # straight at the start
+    u = (start[-1] - start[0]) / np.linalg.norm(start[-1] - start[0])
+    off = (start - start[0]) @ np.array([-u[1], u[0]])
+    assert np.abs(off).max() < 1e-9 * length
+    # the final state is the arc: radius, angle swept, chord against length
+    r, swept = circle(end)
+    assert abs(r - R) / R < 0.03
+    assert abs(swept - sweep) < 4.0
+    seg = np.linalg.norm(np.diff(end, axis=0), axis=1).sum()
+    assert abs(seg - length) / length < 0.02
+    chord_ratio = np.linalg.norm(end[-1] - end[0]) / seg
+    assert abs(chord_ratio - math.sin(math.radians(sweep) / 2) / (math.radians(sweep) / 2)) < 0.02
+    report = json.loads((arcs[name] / f"{name}_fit.json").read_text())
+    assert report["fit_error_mm"]["rms"] < 3.0 and report["fit_error_mm"]["max"] < 12.0
+    assert report["modules"] == k
+
+
+def test_fit_error_is_written_with_the_template(arcs):
+    text = (arcs["quarter"] / "quarter.toml").read_text()
+    report = json.loads((arcs["quarter"] / "quarter_fit.json").read_text())
+    e = report["fit_error_mm"]
+    assert f"fit error: rms {e['rms']:.3f} mm, max {e['max']:.3f} mm" in text
+    design = fabkit.load_template(arcs["quarter"] / "quarter.toml")
+    assert f"rms {e['rms']:.2f} mm" in design.description
+    rows = (arcs["quarter"] / "quarter_centerline.csv").read_text().splitlines()[1:]
+    assert len(rows) == report["modules"] + 1
+
+
+@pytest.mark.parametrize("name", ["quarter", "half"])
+def test_arc_chains_export_a_laser_kit_that_passes_its_check(arcs, tmp_path, name):
+    from fabkit.check import check_file
+    from fabkit.export import export
+
+    design = fabkit.load_template(arcs[name] / f"{name}.toml")
+    paths, report = export(design, "dxf", tmp_path)
+    bom = json.loads((tmp_path / "laser_bom.json").read_text())
+    assert bom["layers"]["count"] <= 12
+    sheet = [p for p in paths if p.name == "laser_sheet1.dxf"][0]
+    assert check_file(sheet, design=design)["ok"]
+
+
+def test_curvature_modules_are_designed_as_wished(arcs):
+    for f in sorted(arcs["quarter"].glob("quarter_m*.toml")):
+        design = fabkit.load_template(f)
+        fmap = module_map(design.network)
+        # symmetric module: the identity map from D1* = 1 to D2*, both ends on one branch
+        d = np.linspace(1.0, LEG_RATIO, 11)
+        assert np.abs(fmap(d) - d).max() < 1e-12
+        final = fmap.configuration(LEG_RATIO)
+        apex = math.degrees(2 * math.asin(np.linalg.norm(final[0] - final[2]) / (2 * LEG_RATIO)))
+        assert APEX_RANGE_DEG[0] - 1e-9 <= apex <= APEX_RANGE_DEG[1] + 1e-9
+
+
+def test_variable_nodes_stay_inside_their_triangle():
+    from fabkit.designer.geometry import inside_margin
+
+    for apex in (50.0, 70.0, 90.0):
+        t = design_curvature_type(apex)
+        xs = module_map(t.network).configuration(np.linspace(1.0, LEG_RATIO, 21))
+        assert inside_margin(xs[:, 3:], xs[:, :3]).min() >= 0.02
+    with pytest.raises(FabkitError):
+        design_curvature_type(120.0)
+
+
+def test_csv_polyline(tmp_path, capsys):
+    t = np.linspace(0, np.pi / 2, 60)
+    rows = "\n".join(f"{R * math.cos(a):.6f},{R * math.sin(a):.6f}" for a in t)
+    src = tmp_path / "arc.csv"
+    src.write_text("x,y\n" + rows + "\n")
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+    _, _, end = traced(tmp_path / "o" / "arc.toml")
+    r, swept = circle(end)
+    assert abs(r - R) / R < 0.03 and abs(swept - 90.0) < 4.0
+
+
+def test_bezier_s_curve_turns_both_ways():
+    svg = b"""<svg xmlns="http://www.w3.org/2000/svg" width="800mm" height="400mm"
+     viewBox="0 0 800 400"><path d="M 0 200 C 250 -100 550 500 800 200" fill="none"
+     stroke="black"/></svg>"""
+    curve = read_curve(svg, "s.svg")
+    result = design_curve_chain(curve, module_size=50.0)
+    assert result.errors["rms"] < 0.01 * curve.length
+    c = result.centerline
+    d = np.diff(c, axis=0)
+    turn = d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0]
+    # smoothed over module pairs, the chain turns one way, then the other
+    pair = turn[:-1] + turn[1:]
+    assert pair.max() > 0 and pair.min() < 0
+
+
+def test_svg_units_transforms_and_shapes():
+    svg = b"""<svg xmlns="http://www.w3.org/2000/svg" width="100mm" height="100mm"
+     viewBox="0 0 50 50"><g transform="scale(2)"><path d="M 0 0 L 10 0"/></g>
+     <polyline points="0,5 30,5 30,20"/></svg>"""
+    curve = read_curve(svg, "u.svg")
+    # user unit = 2 mm; the polyline (45 units) is the longest of the two strokes
+    assert curve.strokes == 2
+    assert curve.length == pytest.approx(90.0, rel=1e-6)  # svgelements: 3.779528 px per mm
+    assert curve.points[0] == pytest.approx([0.0, -10.0], abs=1e-4)  # y up
+
+
+def test_too_tight_a_curve_names_a_wish_that_builds(tmp_path, capsys):
+    src = tmp_path / "tight.svg"
+    src.write_text(QUARTER.replace(f"A {R:g} {R:g}", "A 100 100").replace("M 275 275",
+                                                                          "M 125 125"))
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    # r = 100 mm turns by 2 x 50 / 100 rad = 57.3 deg over two 50 mm modules; 36 is the most
+    assert "turns by 57.3 deg within two modules" in line and "at most 36 deg" in line
+    assert not (tmp_path / "o").exists()
+    option, value = line.rsplit("nearest feasible: ", 1)[1].split()[:2]
+    assert option in ("--module-size", "--curve-scale")
+    code, out, err = run_cli(["design", "--curve", src, option, value, "-o", tmp_path / "o"],
+                             capsys)
+    assert code == 0, err
+
+
+def test_bad_curve_input_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.svg"
+    bad.write_text("<svg><path d=")
+    code, _, err = run_cli(["design", "--curve", bad, "-o", tmp_path / "o"], capsys)
+    assert code == 1 and len(err.strip().splitlines()) == 1 and "bad.svg" in err
+    code, _, err = run_cli(["design", "--curve", tmp_path / "none.svg", "-o", tmp_path / "o"],
+                           capsys)
+    assert code == 1 and "no such curve file" in err
+    empty = tmp_path / "empty.svg"
+    empty.write_text('<svg xmlns="http://www.w3.org/2000/svg"/>')
+    code, _, err = run_cli(["design", "--curve", empty, "-o", tmp_path / "o"], capsys)
+    assert code == 1 and "no path or shape" in err
+    code, _, err = run_cli(["design", "--curve", empty, "--fixed-point", "1.6", "-o",
+                            tmp_path / "o"], capsys)
+    assert code == 2
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_hundred_module_curve():
+    x = np.linspace(0.0, 4400.0, 2000)
+    curve = np.column_stack([x, 300.0 * np.sin(2 * np.pi * x / 1600.0)])
+    result = design_curve_chain(curve, module_size=50.0)
+    length = float(np.linalg.norm(np.diff(curve, axis=0), axis=1).sum())
+    assert abs(result.report["modules"] - length / 50.0) <= 0.05 * length / 50.0
+    assert result.report["modules"] >= 100
+    assert result.errors["rms"] < 5.0 and result.errors["max"] < 20.0
