@@ -446,6 +446,8 @@ def _explain(exc: ValidationError, where: str, model) -> tuple[str, str]:
         "too_long": lambda: f"must have at most {ctx.get('max_length')} entries",
         "bool_type": lambda: "must be true or false",
         "float_type": lambda: "must be a number",
+        "float_parsing": lambda: "must be a number",
+        "int_parsing": lambda: "must be a whole number",
         "int_type": lambda: "must be a whole number",
         "string_type": lambda: "must be a string",
         "finite_number": lambda: "must be a finite number",
@@ -453,6 +455,7 @@ def _explain(exc: ValidationError, where: str, model) -> tuple[str, str]:
         "too_short": lambda: ("must not be empty" if ctx.get("min_length") == 1 else
                               f"must have at least {ctx.get('min_length')} entries"),
         "tuple_type": lambda: "must be an array",
+        "list_type": lambda: "must be an array",
         "model_type": lambda: "must be a table",
         "dict_type": lambda: "must be a table",
     }

@@ -72,6 +72,9 @@ def _stl_kind(data: bytes, path) -> str:
     raise FabricationError(f"{path}: not an STL file ({len(data)} bytes)")
 
 
+#: One triangle of a binary STL: normal, three vertices, attribute count.
+_BINARY_TRIANGLE = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+
 #: No printer prints beyond this (mm); vertices farther out are corruption, not a part.
 MAX_COORDINATE_MM = 1e5
 
@@ -85,7 +88,13 @@ def _load(path):
         data = Path(path).read_bytes()
     except OSError as exc:
         raise FabricationError(f"{path}: cannot be read: {exc.strerror}") from None
-    _stl_kind(data, path)
+    if _stl_kind(data, path) == "binary":
+        # trimesh drops non-finite triangles while it processes; a file that holds them is
+        # corrupt, and is said to be so
+        count = int.from_bytes(data[80:84], "little")
+        tri = np.frombuffer(data, dtype=_BINARY_TRIANGLE, count=count, offset=84)
+        if not np.isfinite(tri["v"]).all():
+            raise FabricationError(f"{path}: vertices that are not finite (a corrupt file)")
     try:
         mesh = trimesh.load(io.BytesIO(data), file_type="stl", force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for unreadable files

@@ -51,6 +51,9 @@ __all__ = ["Sweep", "sample_motion", "sample_chain", "segment_distance", "point_
 
 # Samples per block when scanning pairs over the motion (bounds memory to ~block x pairs).
 _BLOCK = 256
+#: Largest (samples x pairs) block measured at once: 2^20 doubles (8 MB) per array, so the
+#: kernels' temporaries stay near 100 MB however many pairs a kit has.
+_BLOCK_ELEMENTS = 2**20
 # Refuse motions that need more samples than this to meet the step bound.
 _MAX_SAMPLES = 200_000
 # Time limit of the exact layer search (s); past it the best stacking found and the solver's
@@ -546,8 +549,11 @@ def _min_over_samples(func, positions, *index_arrays):
     where = np.zeros(n, dtype=np.int64)
     if n == 0:
         return best, where
-    for start in range(0, positions.shape[0], _BLOCK):
-        x = positions[start:start + _BLOCK]
+    # samples per block so that one (block, n) array stays within the budget: the kernels make
+    # about a dozen of them, and n (pairs) grows with the square of the kit
+    block = int(max(1, min(_BLOCK, _BLOCK_ELEMENTS // n)))
+    for start in range(0, positions.shape[0], block):
+        x = positions[start:start + block]
         d = func(x, *index_arrays)  # (block, n)
         k = np.argmin(d, axis=0)
         v = d[k, np.arange(n)]
@@ -666,6 +672,90 @@ def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
     return inc
 
 
+def _joint_pairs(edges: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair (a < b) of bars that share a joint, in the order of ``np.triu_indices``."""
+    ends = np.concatenate([edges[:, 0], edges[:, 1]])
+    bars = np.concatenate([np.arange(edges.shape[0])] * 2)
+    order = np.lexsort((bars, ends))
+    ends, bars = ends[order], bars[order]
+    bounds = np.flatnonzero(np.diff(np.r_[-1, ends, n_nodes + 1]))
+    pa, pb = [], []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        group = bars[lo:hi]
+        if group.size >= 2:
+            i, j = np.triu_indices(group.size, k=1)
+            pa.append(group[i])
+            pb.append(group[j])
+    if not pa:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    a, b = np.concatenate(pa), np.concatenate(pb)
+    key = np.unique(a * edges.shape[0] + b)  # two bars share at most one joint; sorted as triu
+    return key // edges.shape[0], key % edges.shape[0]
+
+
+def _share_joint(edges: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """True where bars a[k] and b[k] share a joint (from their ends: O(pairs), where an
+    incidence-matrix product would hold nodes x pairs booleans)."""
+    e0, e1 = edges[:, 0], edges[:, 1]
+    return (e0[a] == e0[b]) | (e0[a] == e1[b]) | (e1[a] == e0[b]) | (e1[a] == e1[b])
+
+
+def _box_pairs(lo_a, hi_a, lo_b, hi_b, reach: float, *, same: bool = False):
+    """Index pairs (i, j) whose boxes ``[lo_a[i], hi_a[i]]`` and ``[lo_b[j], hi_b[j]]`` come
+    within ``reach`` of each other in x and in y (``same``: one set, i < j).
+
+    Sort and sweep along x: box j can reach box i only if its left edge lies in
+    ``[lo_a[i] - reach - W, hi_a[i] + reach]`` with W the widest box of set b, so each box meets
+    its neighbours along x, not the whole set: linear in the kit for chains and lattices,
+    where the pairs of all bars grow with its square.
+    """
+    lo_a, hi_a = np.asarray(lo_a, dtype=np.float64), np.asarray(hi_a, dtype=np.float64)
+    lo_b, hi_b = np.asarray(lo_b, dtype=np.float64), np.asarray(hi_b, dtype=np.float64)
+    if lo_a.shape[0] == 0 or lo_b.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    order = np.argsort(lo_b[:, 0], kind="stable")
+    left = lo_b[order, 0]
+    widest = float((hi_b[:, 0] - lo_b[:, 0]).max())
+    start = np.searchsorted(left, lo_a[:, 0] - reach - widest, side="left")
+    stop = np.searchsorted(left, hi_a[:, 0] + reach, side="right")
+    counts = np.maximum(stop - start, 0)
+    total = int(counts.sum())
+    i = np.repeat(np.arange(lo_a.shape[0]), counts)
+    first = np.repeat(start - np.cumsum(counts) + counts, counts)
+    j = order[first + np.arange(total)]
+    near = ((lo_a[i] - reach <= hi_b[j]) & (lo_b[j] - reach <= hi_a[i])).all(axis=1)
+    if same:
+        near &= i < j
+    i, j = i[near], j[near]
+    order = np.lexsort((j, i))  # (i, j) ascending: the order of the full enumeration
+    return i[order], j[order]
+
+
+def _exact_least(func, x, offset, pairs_within, lower_bound_reach, start_reach: float,
+                 limit_reach: float):
+    """The smallest ``func - offset`` over samples and pairs, exactly, looking only at pairs
+    whose swept boxes come within a reach that grows until it provably holds the minimum.
+
+    ``pairs_within(reach)`` gives the index arrays of the pairs within ``reach``;
+    ``lower_bound_reach(value)`` turns a found minimum into the reach beyond which no pair can
+    do better (a distance is never below its boxes' distance). Stops when the found minimum
+    lies within the reach searched, or when the reach covers everything (``limit_reach``).
+
+    Returns
+    -------
+    (value, k, sample, arrays) : the minimum, the pair, the sample, and the index arrays
+    searched last (``k`` indexes them); ``(inf, -1, -1, arrays)`` when there is no pair.
+    """
+    reach = start_reach
+    while True:
+        arrays = pairs_within(reach)
+        value, k, where = _least(func, x, offset(arrays) if callable(offset) else offset,
+                                 *arrays)
+        if (k >= 0 and lower_bound_reach(value) <= reach) or reach >= limit_reach:
+            return value, k, where, arrays
+        reach = min(4.0 * reach, limit_reach)
+
+
 def find_conflicts(edges, positions, *, width: float, clearance: float,
                    column_radius: float, screw_joints=None,
                    spacer_radius: float | None = None) -> Conflicts:
@@ -695,19 +785,20 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     """
     edges = np.asarray(edges, dtype=np.int64)
     x = np.asarray(positions, dtype=np.float64)
-    n_nodes, n_bars = x.shape[1], edges.shape[0]
+    n_nodes = x.shape[1]
     inc = _incidence(edges, n_nodes)
-    a, b = np.triu_indices(n_bars, k=1)
-    share = (inc[:, a] & inc[:, b]).any(axis=0)
-    ja, jb = a[share], b[share]
-    # Only pairs whose swept boxes (over the whole motion) come within reach need the scan.
+    # bars that share a joint always conflict (from the joints' bar lists: O(bars))
+    ja, jb = _joint_pairs(edges, n_nodes)
+    # Only pairs whose swept boxes (over the whole motion) come within reach need the scan,
+    # and only those are ever formed (sort and sweep: linear in the kit, not quadratic).
     lo_n, hi_n = x.min(axis=0), x.max(axis=0)                      # (N, 2) each
     r_col = max(column_radius, spacer_radius or 0.0)
     reach = 0.5 * width + clearance + r_col
     bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]]) - reach
     bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]]) + reach
-    near_box = ((bar_lo[a] <= bar_hi[b]) & (bar_lo[b] <= bar_hi[a])).all(axis=1)
-    fa, fb = a[~share & near_box], b[~share & near_box]
+    fa, fb = _box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, 0.0, same=True)
+    keep = ~_share_joint(edges, fa, fb)
+    fa, fb = fa[keep], fb[keep]
     if fa.size:
         seg_gap, where = _pruned_min(_bar_bar(edges), x, width + clearance, fa, fb)
     else:
@@ -722,13 +813,11 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     degree = inc.sum(axis=1)
     screw_joints = (np.flatnonzero(degree >= 2) if screw_joints is None
                     else np.asarray(screw_joints, dtype=np.int64))
-    # bar vs screw column at a joint the bar does not belong to
-    bb, jj = np.meshgrid(np.arange(n_bars), screw_joints, indexing="ij")
-    bb, jj = bb.ravel(), jj.ravel()
+    # bar vs screw column at a joint the bar does not belong to (near ones only)
+    bb, jk = _box_pairs(bar_lo, bar_hi, lo_n[screw_joints], hi_n[screw_joints], reach)
+    jj = screw_joints[jk]
     keep = ~inc[jj, bb]
     bb, jj = bb[keep], jj[keep]
-    inside = ((lo_n[jj] - reach <= bar_hi[bb]) & (bar_lo[bb] <= hi_n[jj] + reach)).all(axis=1)
-    bb, jj = bb[inside], jj[inside]
     if bb.size:
         d, _ = _pruned_min(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
@@ -742,11 +831,9 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         keepout = keepout_span = np.zeros((0, 2), dtype=np.int64)
     # screw column vs screw column
     if screw_joints.size >= 2:
-        ia, ib = np.triu_indices(screw_joints.size, k=1)
+        sl, sh = lo_n[screw_joints], hi_n[screw_joints]
+        ia, ib = _box_pairs(sl, sh, sl, sh, 2 * reach, same=True)
         ia, ib = screw_joints[ia], screw_joints[ib]
-        r2 = 2 * reach
-        inside = ((lo_n[ia] - r2 <= hi_n[ib]) & (lo_n[ib] - r2 <= hi_n[ia])).all(axis=1)
-        ia, ib = ia[inside], ib[inside]
         d, _ = _pruned_min(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
             x, 2.0 * r_col + clearance, ia, ib)
@@ -1483,15 +1570,25 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
     layer = np.asarray(layer)
     x = np.asarray(positions, dtype=np.float64)
     inc = _incidence(edges, x.shape[1])
-    a, b = np.triu_indices(edges.shape[0], k=1)
-    same = (layer[a] == layer[b]) & ~(inc[:, a] & inc[:, b]).any(axis=0)
-    a, b = a[same], b[same]
     out = {"bar_gap": math.inf, "bar_pair": None, "sample": None,
            "screw_gap": math.inf, "column_gap": math.inf}
-    # Only the smallest gap of each kind is reported: pairs that cannot reach it are measured
-    # at every 32nd sample only (exact, see _least); the full scan dominated the as-built check.
-    if a.size:
-        gap, k, where = _least(_bar_bar(edges), x, width, a, b)
+    # Only the smallest gap of each kind is reported, exactly: pairs are taken from their swept
+    # boxes, nearest first (a segment distance is never below its boxes' distance), and of
+    # those, pairs that cannot reach the minimum are measured at every 32nd sample only (see
+    # _least). The whole kit's pairs, quadratic in its size, are never formed.
+    lo_n, hi_n = x.min(axis=0), x.max(axis=0)
+    bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]])
+    bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]])
+    whole = float(np.hypot(*(hi_n.max(axis=0) - lo_n.min(axis=0)))) + 1.0
+
+    def bar_pairs(reach):
+        a, b = _box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, reach, same=True)
+        keep = (layer[a] == layer[b]) & ~_share_joint(edges, a, b)
+        return a[keep], b[keep]
+
+    gap, k, where, (a, b) = _exact_least(_bar_bar(edges), x, width, bar_pairs,
+                                         lambda g: g + width, 2.0 * width, whole)
+    if k >= 0:
         out.update(bar_gap=gap, bar_pair=[int(a[k]), int(b[k])], sample=where)
     if joints:
         js = list(joints)
