@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.check import check_file
 from fabkit.cli import main
 from fabkit.errors import (ArgumentError, BoundsError, FabkitError, SettingsError,
                            TemplateError)
