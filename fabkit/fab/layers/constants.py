@@ -1,0 +1,32 @@
+"""Limits and slacks of the stacking, with their origin."""
+
+from __future__ import annotations
+
+
+# Samples per block when scanning pairs over the motion (bounds memory to ~block x pairs).
+_BLOCK = 256
+#: Largest (samples x pairs) block measured at once: 2^20 doubles (8 MB) per array, so the
+#: kernels' temporaries stay near 100 MB however many pairs a kit has.
+_BLOCK_ELEMENTS = 2**20
+# Refuse motions that need more samples than this to meet the step bound.
+_MAX_SAMPLES = 200_000
+# Time limit of the exact layer search (s); past it the best stacking found and the solver's
+# proven lower bound are reported.
+_MILP_SECONDS = 20.0
+# Larger problems get their bound from a neighbourhood of the largest clique only.
+_MILP_BARS = 60
+# Smaller neighbourhoods tried first when a valid stacking is at hand (each proves a bound for
+# the whole; the bundled chains' counts are proven on 16 bars in a fifth of the time of 60),
+# and the time limit of each (s).
+_MILP_STEPS = (16, 32)
+_MILP_STEP_SECONDS = 5.0
+
+
+#: A sampled step may exceed its limit by this relative amount (round-off of the bisection).
+STEP_RTOL = 1e-9
+#: The solver's dual bound counts as an integer within this (HiGHS reports bounds to ~1e-9).
+DUAL_BOUND_SLACK = 1e-6
+#: Screw heads spanning a whole number of sheets to round-off take that many layers, not one more.
+HEAD_LAYERS_SLACK = 1e-12
+
+
