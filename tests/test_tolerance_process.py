@@ -13,8 +13,8 @@ import pytest
 from fabkit.errors import TemplateError
 from fabkit.kinematics import make_problem, place
 from fabkit.templates import load_template
-from fabkit.tolerance import (ToleranceSpec, _find_plan, _place_builds, _plan_edge_index,
-                              analyse_tolerance, design_process, tolerance_spec)
+from fabkit.tolerance import ToleranceSpec, analyse_tolerance, design_process, tolerance_spec
+from fabkit.tolerance.placement import _find_plan, _place_builds, _plan_edge_index
 from fabkit.tolerance.processes import ProcessGeometry, sample_lengths
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
