@@ -6,18 +6,26 @@ docs/printing.md, docs/batch.md for the defaults and where they come from). Leng
 become design units through the process's own scale (the laser settings' scale, the print's
 ``scale``, the origami sheet's ``sheet_size``), so every figure is in the maker's millimetres.
 
-Each sampled build is driven to the template's target ``motion.to`` (the input is set exactly:
-the error is in the structure, not the actuation). Where a construction order exists (from the
-start, or from the folded target for a flat origami sheet) all builds and all drive values are
-placed by intersections in one vectorised pass; otherwise each build's lengths are realised by
-Gauss-Newton and traced by projected continuation. A build that locks at a turning point short of
-the target ends there (the maker pulls until it stops): it *reaches* the target when it locks
-within the limit of it, and its ports are measured where it locked.
+A build is judged by what its design is for (:mod:`fabkit.tolerance.behaviour`), inferred from
+the design's module map and motion or stated in the template (``[motion] intent``): its crystal
+states (the module map's fixed points exist in every built module, with the same stability,
+within the state tolerance), its order (a chain's modules switch one after another, one front),
+its end state (every module ends in the designed crystal, or where it locks), or, where the
+target value itself is the point, the port distances at the end (within the limit: a fraction
+of the module size), or the final shape of a curvature design. Lengths of what a build is made
+in (a print as printed, a sheet flat) carry that state's errors only; bent hinges and folded
+panels add theirs as the build moves (:func:`~fabkit.tolerance.processes.state_profile`).
 
-A design is flagged only when the process's errors keep it from its target: fewer than
-``min_reached`` of the builds reach it, or the 95th-percentile port error exceeds the limit
-(default ``limit_fraction`` of the module size, the mean designed port distance). The verdict of
-a flagged design names the error source that stops it (each source is simulated alone).
+A design is flagged when fewer than ``min_reached`` of the builds keep its behaviour. Every
+verdict carries a margin (:mod:`fabkit.tolerance.margin`): the factor by which every error of
+the process may grow with the verdict unchanged (below 1 when flagged: how much more precise
+the process must be), with the fraction of builds that keep the behaviour against the error
+scale, for all sources together and for each alone.
+
+Where a construction order exists (from the start, or from the folded target for a flat origami
+sheet), builds, modules and drive values are placed by intersections in vectorised passes;
+otherwise each build's lengths are realised by Gauss-Newton and traced by projected
+continuation (capped in number).
 
 For chains of modules the analysis also estimates the Lyapunov exponent λ of the module map
 (from the chain's own gains ∂d_{k+1}/∂d_k, or by iterating a single module's map) and the
@@ -26,14 +34,16 @@ error grows, as e^{λk}, to the size of a module.
 
 The package splits along the work: :mod:`.processes` (each process's error model),
 :mod:`.spec` (settings and their sources), :mod:`.placement` (placing many builds at once, locks),
+:mod:`.modules` (each built module's map), :mod:`.behaviour` (what a design is for),
+:mod:`.criteria` (judging builds against it), :mod:`.margin` (how far errors may grow),
 :mod:`.horizon` (Lyapunov exponent, predictability horizon), :mod:`.analysis` (the Monte Carlo
-and its verdict), :mod:`.result` (the result object) and :mod:`.figure` (its picture).
+and its verdict), :mod:`.result` (the result object) and :mod:`.figure` (its pictures).
 """
 
 from __future__ import annotations
 
 from .analysis import analyse_tolerance
-from .figure import tolerance_figure
+from .figure import keep_chart, tolerance_figure
 from .horizon import lyapunov_estimate
 from .processes import PROCESSES, SOURCES
 from .result import ToleranceResult
@@ -42,4 +52,4 @@ from .spec import (TOLERANCE_KEYS, ToleranceSpec, design_process, model_summary,
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
            "perturbed_lengths", "lyapunov_estimate", "tolerance_figure", "TOLERANCE_KEYS",
-           "PROCESSES", "SOURCES", "design_process", "model_summary"]
+           "PROCESSES", "SOURCES", "design_process", "model_summary", "keep_chart"]

@@ -40,13 +40,18 @@ class ToleranceSpec:
         σ (0.2 mm, knife or cutter), paper thickness (0.1 mm, 80 g/m² copy paper), panel bowing
         σ (0.2 mm).
     limit : float or None
-        Allowed 95th-percentile error of every port distance at the target (mm); None:
+        Allowed error of every port distance at the end, where the port distances are what a
+        design is for (mm); None:
         ``limit_fraction`` of the module size.
     limit_fraction : float
         Default limit as a fraction of the mean designed port distance (0.02: a 2 % change of
         a module's shape is about what a maker sees by eye).
     min_reached : float
-        Fraction of builds that must reach the target (default 0.95).
+        Fraction of builds that must keep the design's behaviour (default 0.95).
+    state_fraction : float
+        A built module is in a designed state (a crystal, its lock) within this fraction of
+        its travel between its states (default 0.25: nearer that state than the middle of
+        the transition by a factor of two); see :mod:`fabkit.tolerance.behaviour`.
     samples : int
         Number of simulated builds (default 200).
     seed : int
@@ -72,6 +77,7 @@ class ToleranceSpec:
     limit: float | None = None
     limit_fraction: float = 0.02
     min_reached: float = 0.95
+    state_fraction: float = 0.25
     samples: int = 200
     seed: int = 0
 
@@ -84,11 +90,12 @@ class ToleranceSpec:
 
 
 TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)}
-_COMMON = ("process", "scale", "limit", "limit_fraction", "min_reached", "samples", "seed")
+_COMMON = ("process", "scale", "limit", "limit_fraction", "min_reached", "state_fraction",
+           "samples", "seed")
 _NON_NEGATIVE = ("length_sigma", "kerf_sigma", "hole_clearance", "thickness_sigma", "xy_sigma",
                  "shrinkage_sigma", "line_width_sigma", "hinge_length", "crease_sigma",
                  "cut_sigma", "paper_thickness", "compliance_sigma")
-_POSITIVE = ("scale", "thickness", "limit", "limit_fraction")
+_POSITIVE = ("scale", "thickness", "limit", "limit_fraction", "state_fraction")
 _OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k in src}
 _OWNER["thickness"] = "laser"
 
@@ -235,7 +242,7 @@ def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
                 raise TemplateError(path, full, f"must be >= 0 mm, got {value}")
             if key in _POSITIVE and value <= 0:
                 raise TemplateError(path, full, f"must be > 0, got {value}")
-            if key in ("min_reached", "shrinkage") and not 0 <= value <= 1:
+            if key in ("min_reached", "shrinkage", "state_fraction") and not 0 <= value <= 1:
                 raise TemplateError(path, full, f"must be a fraction in 0..1, got {value}")
             values[key] = float(value)
     return ToleranceSpec(**values)
