@@ -13,6 +13,7 @@ so scripts can gate on it.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 NAME = "tolerance"
@@ -65,7 +66,7 @@ def describe(result) -> str:
             if obs:
                 text += (f"; observed along the motion: {100 * obs['monotone_fraction']:.1f}% "
                          f"monotone ({obs['samples']} instants)")
-        elif c["p95_mm"] is None:
+        elif c["p95_mm"] is None or not math.isfinite(c["p95_mm"]):
             text = (f"{pct:.1f}% of builds; {c['missing']} with no such state within "
                     f"{c['limit_mm']:.3g} mm")
         else:
