@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import TemplateError
 from ..numerics import TINY
+from .behaviour import STATE_FRACTION
 from .processes import PROCESSES, SOURCES, ProcessGeometry, sample_lengths
 
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
@@ -77,7 +78,7 @@ class ToleranceSpec:
     limit: float | None = None
     limit_fraction: float = 0.02
     min_reached: float = 0.95
-    state_fraction: float = 0.25
+    state_fraction: float = STATE_FRACTION
     samples: int = 200
     seed: int = 0
 
