@@ -105,6 +105,80 @@ def _table(header, rows) -> list[str]:
     return lines
 
 
+def _tolerance_markdown(tol) -> list[str]:
+    """The tolerance section of report.md: the process's own error model, what the design is
+    for, each criterion, the verdict and its margin."""
+    from .tolerance.margin import margin_text
+
+    if not tol:
+        return []
+    out = ["## Tolerance", ""]
+    if tol.get("error"):
+        return out + [f"Not analysed: {tol['error']}", ""]
+    if tol.get("model"):
+        out += [f"Monte Carlo, {tol.get('samples')} builds; error model of the process: "
+                f"{tol['model']}.", ""]
+    else:  # a report written before the error models were per process
+        out += [f"Monte Carlo, {tol.get('samples')} builds: bar-length error σ "
+                f"{_fmt(tol.get('length_sigma_mm'))} mm, hole clearance "
+                f"{_fmt(tol.get('hole_clearance_mm'))} mm, sheet "
+                f"{_fmt(tol.get('thickness_mm'))} ± {_fmt(tol.get('thickness_sigma_mm'))} mm "
+                f"(scale {_fmt(tol.get('scale_mm'))} mm per unit).", ""]
+    out += [f"**{tol.get('verdict', '')}**", ""]
+    b = tol.get("behaviour") or {}
+    if b:
+        how = "stated in the template" if b.get("intent", "auto") != "auto" else \
+            "inferred from its map and motion"
+        parts = [f"{c['role']} crystal D* = {_fmt(c['value'])} ({c['kind']}"
+                 + (", at a turning point)" if c.get("at_turning_point") else ")")
+                 for c in b.get("crystals", [])]
+        if b.get("end_lock"):
+            parts.append(f"ends where its first module locks (d_in {_fmt(b['end_lock'][0])})")
+        if b.get("order"):
+            parts.append(f"the front runs {b['order']}")
+        parts.append(f"judged at the end by its {b.get('end')} ({b.get('end_at')}, drive "
+                     f"{_fmt(b.get('end_drive'))})")
+        out += [f"What the design is for ({how}): " + "; ".join(parts) + ". A state is kept "
+                f"within {_fmt(b.get('state_tolerance_mm'))} mm, a port distance within "
+                f"{_fmt(b.get('limit_mm'))} mm.", ""]
+        for note in b.get("notes", []):
+            out += [f"- {note}"]
+        if b.get("notes"):
+            out.append("")
+    rows = [(c["criterion"], f"{100 * c['kept_fraction']:.1f}%",
+             c["p95_mm"] if c["criterion"] != "order" else "-",
+             c["limit_mm"] if c["criterion"] != "order" else "-",
+             c["missing"]) for c in tol.get("criteria", [])]
+    if rows:
+        out += _table(["criterion", "builds that keep it", "95% of builds (mm)", "allowed (mm)",
+                       "no such state"], rows)
+        out.append("")
+    if tol.get("margin") is not None:
+        alone = ", ".join(f"{n} {margin_text(v['value'], v['bound'])}"
+                          for n, v in (tol.get("source_margins") or {}).items())
+        out += [f"Margin {margin_text(tol['margin'], tol.get('margin_bound'))}: every error "
+                "of the process may grow by this factor and the verdict stays the same"
+                + (f"; each source alone: {alone}" if alone else "") + ". The chart (fraction "
+                "of builds that keep the behaviour against the error scale) is in report.html "
+                "and preview_tolerance.png.", ""]
+    if tol.get("ports_judged", True):
+        rows = [(p["port"], p["nominal"], p["mean"], p["std"], p["p95_abs_error_mm"],
+                 p["limit_mm"]) for p in tol.get("ports", [])]
+        if rows:
+            out += _table(["port", "designed", "built (mean)", "std", "95% error (mm)",
+                           "limit (mm)"], rows)
+            out.append("")
+    hz = tol.get("horizon")
+    if hz and hz.get("modules") is not None:
+        out += [f"Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
+                f"({hz.get('source')}): predictability horizon about "
+                f"{hz['modules']:.1f} modules; {hz.get('detail', '')}.", ""]
+    elif hz:
+        out += [f"Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
+                f"({hz.get('source')}): {hz.get('detail', '')}.", ""]
+    return out
+
+
 def report_markdown(report: dict) -> bytes:
     """``report.md`` bytes: the design, its motion, each format with its checks, tolerance, and
     the preview images (relative links, so the folder can be moved).
@@ -196,32 +270,7 @@ def report_markdown(report: dict) -> bytes:
                 out.append(f"- error: {f['error']}")
             out.append("")
 
-    tol = r.get("tolerance")
-    if tol:
-        out += ["## Tolerance", ""]
-        if tol.get("error"):
-            out += [f"Not analysed: {tol['error']}", ""]
-        else:
-            out += [f"Monte Carlo, {tol.get('samples')} builds: bar-length error σ "
-                    f"{_fmt(tol.get('length_sigma_mm'))} mm, hole clearance "
-                    f"{_fmt(tol.get('hole_clearance_mm'))} mm, sheet "
-                    f"{_fmt(tol.get('thickness_mm'))} ± {_fmt(tol.get('thickness_sigma_mm'))} mm "
-                    f"(scale {_fmt(tol.get('scale_mm'))} mm per unit).", "",
-                    f"**{tol.get('verdict', '')}**", ""]
-            rows = [(p["port"], p["nominal"], p["mean"], p["std"], p["p95_abs_error_mm"],
-                     p["limit_mm"]) for p in tol.get("ports", [])]
-            if rows:
-                out += _table(["port", "designed", "built (mean)", "std", "95% error (mm)",
-                               "limit (mm)"], rows)
-                out.append("")
-            hz = tol.get("horizon")
-            if hz and hz.get("modules") is not None:
-                out += [f"Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
-                        f"({hz.get('source')}): predictability horizon about "
-                        f"{hz['modules']:.1f} modules; {hz.get('detail', '')}.", ""]
-            elif hz:
-                out += [f"Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
-                        f"({hz.get('source')}): {hz.get('detail', '')}.", ""]
+    out += _tolerance_markdown(r.get("tolerance"))
 
     pics = r.get("previews") or []
     if pics:

@@ -199,6 +199,9 @@ class ToleranceSection(Section):
                                                                     "fraction of the module")
     min_reached: Optional[float] = Field(None, ge=0, le=1, description="fraction of builds "
                                                                        "that must reach")
+    state_fraction: Optional[float] = Field(None, gt=0, le=1, description="how near a built "
+                                            "state must stay to the designed one, as a fraction "
+                                            "of the module's travel between its states")
     samples: Optional[int] = Field(None, ge=1, description="simulated builds")
     seed: Optional[int] = Field(None, ge=0, lt=2**63, description="random seed")
 

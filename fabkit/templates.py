@@ -16,6 +16,7 @@ A template has one section that builds the network and optional sections around 
     method = "auto"                  # auto | constructive | projected | rk4-nullspace
     hold = []                        # ports held at their start values
     options = { samples = 101 }      # method options
+    intent = "auto"                  # what a build must keep (fabkit.tolerance.behaviour)
 
     [fabrication.laser]              # read by the fabrication stages, not by the core
 
@@ -114,7 +115,7 @@ def _check_sizes(ctx, builder_key: str, section: dict, raw: dict) -> None:
 TOP_LEVEL_KEYS = {"name", "description", "figure", "notes", "motion", "fabrication", "analysis",
                   "tags"}
 
-_MOTION_KEYS = {"drive", "to", "method", "hold", "options", "start"}
+_MOTION_KEYS = {"drive", "to", "method", "hold", "options", "start", "intent"}
 
 
 @dataclass(frozen=True)

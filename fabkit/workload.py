@@ -20,7 +20,7 @@ Examples
 >>> require("map --lyapunov", ("map evaluation", 100_000 * 10_000_000))
 Traceback (most recent call last):
 ...
-fabkit.errors.BoundsError: map --lyapunov: about 1.2 days (1e+12 map evaluations) is over the limit of 30 min of work; fabkit --allow-large lifts the limit
+fabkit.errors.BoundsError: map --lyapunov: about 1.16 days (1e+12 map evaluations) is over the limit of 30 min of work; fabkit --allow-large lifts the limit
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ def describe_bytes(b: float) -> str:
 
 
 def _figure(v: float) -> str:
-    return f"{v:.2g}" if v < 10 else f"{v:.0f}"
+    return f"{v:.3g}" if v < 100 else f"{v:.0f}"
 
 
 def _count(n: float) -> str:

@@ -72,7 +72,7 @@ def test_a_chain_of_chains_is_counted_through_every_level(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, words", [
     (["map", "chaotic", "--lyapunov", "--orbits", "100000", "--average", "10000000"],
-     ["map --lyapunov: about 1.2 days", "1e+12 map evaluations", "limit of 30 min of work",
+     ["map --lyapunov: about 1.16 days", "1e+12 map evaluations", "limit of 30 min of work",
       "--allow-large"]),
     (["sweep", "chaotic", "--vary", "nodes[4].x=-0.4:-0.2:1000000000"],
      ["--vary nodes[4].x: about", "1e+09 sweep points", "over the limit"]),

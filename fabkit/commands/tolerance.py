@@ -3,18 +3,21 @@
 Monte Carlo over the manufacturing errors of the design's process (laser: bar length, kerf,
 hole play, sheet thickness; print: xy accuracy, shrinkage, line width, hinge flexure; origami:
 crease position, cut, paper thickness, crease compliance; see :mod:`fabkit.tolerance`), in mm at
-the process's own scale,: prints the spread of the final port distances and of the far-end
-positions, the verdict, and for chains the Lyapunov exponent and predictability horizon; writes
-``tolerance.png`` and ``tolerance.json`` into ``DIR/<name>/``. Exits 1 when a design is flagged
-(its intended final state is not reached within tolerance), so scripts can gate on it.
+the process's own scale: prints what the design is for (its crystals, order and end), what
+fraction of builds keep each part of it, the verdict with its margin (the factor by which every
+error may grow with the verdict unchanged), and for chains the Lyapunov exponent and
+predictability horizon; writes ``tolerance.png`` and ``tolerance.json`` into ``DIR/<name>/``.
+Exits 1 when a design is flagged (fewer than ``min_reached`` of the builds keep its behaviour),
+so scripts can gate on it.
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 NAME = "tolerance"
-HELP = "Monte Carlo of manufacturing errors: final distances, end positions, horizon"
+HELP = "Monte Carlo of manufacturing errors: the behaviour builds keep, the verdict's margin"
 
 
 def add_arguments(p):
@@ -32,23 +35,64 @@ def add_arguments(p):
 
 def describe(result) -> str:
     """Terminal lines for a :class:`~fabkit.tolerance.ToleranceResult`."""
+    from ..tolerance.margin import margin_text
+
     d = result.as_dict()
+    b = d.get("behaviour") or {}
     lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
-             f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS",
-             f"  reached       {100 * d['reached_fraction']:.1f}% of builds reach the target"]
-    for name, v in (d.get("sources") or {}).items():
-        err = v["p95_error_mm"]
-        lines.append(f"  alone         {name}: {100 * v['reached_fraction']:.0f}% reach, 95% "
-                     "port error " + ("n/a" if err is None else f"{err:.3g} mm"))
-    for p in d["ports"]:
-        if p["mean"] is None:
-            continue
-        lines.append(f"  {p['port']:<13} designed {p['nominal']:.6g}, built {p['mean']:.6g} ± "
-                     f"{p['std']:.2g}; 95% |error| {p['p95_abs_error_mm']:.3g} mm "
-                     f"(limit {p['limit_mm']:.3g} mm)")
-    if "end_position_p95_mm" in d:
-        lines.append(f"  far end       nodes {', '.join(map(str, result.end_nodes))}: 95% within "
-                     f"{d['end_position_p95_mm']:.3g} mm, worst {d['end_position_max_mm']:.3g} mm")
+             f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS"]
+    if b:
+        how = "stated in the template" if b["intent"] != "auto" else "inferred"
+        lines.append(f"  behaviour     {', '.join(b['criteria'])} ({how}; the end: "
+                     f"{b['end']} at the {b['end_at']}, drive {b['end_drive']:.6g})")
+        for c in b["crystals"]:
+            lines.append(f"  crystal       {c['role']}: D* = {c['value']:.6g}, slope "
+                         f"{c['slope']:.3g} ({c['kind']})"
+                         + (", at a turning point" if c["at_turning_point"] else ""))
+        if b.get("end_lock"):
+            lines.append(f"  lock          the first module ends where it locks: d_in = "
+                         f"{b['end_lock'][0]:.6g}, d_out = {b['end_lock'][1]:.6g}")
+        if b.get("order"):
+            lines.append(f"  order         the front runs {b['order']}")
+        for note in b.get("notes", []):
+            lines.append(f"  note          {note}")
+    for c in d.get("criteria", []):
+        pct = 100 * c["kept_fraction"]
+        if c["criterion"] == "order":
+            side = c["detail"]
+            text = (f"{pct:.1f}% of builds: every module on the designed side of the diagonal "
+                    f"over d_in {side['interval'][0]:.4g}..{side['interval'][1]:.4g}")
+            obs = d.get("observed_order")
+            if obs:
+                text += (f"; observed along the motion: {100 * obs['monotone_fraction']:.1f}% "
+                         f"monotone ({obs['samples']} instants)")
+        elif c["p95_mm"] is None or not math.isfinite(c["p95_mm"]):
+            text = (f"{pct:.1f}% of builds; {c['missing']} with no such state within "
+                    f"{c['limit_mm']:.3g} mm")
+        else:
+            text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g} mm (95%: "
+                    f"{c['p95_mm']:.3g} mm, worst {c['worst_mm']:.3g} mm)")
+            slopes = (c["detail"] or {}).get("slopes")
+            if isinstance(slopes, list):
+                text += f"; built slopes {slopes[0]:.3g}..{slopes[1]:.3g}"
+        lines.append(f"  {c['criterion']:<13} {text}")
+    if d.get("ports_judged"):
+        for p in d["ports"]:
+            if p["mean"] is None:
+                continue
+            lines.append(f"  {p['port']:<13} designed {p['nominal']:.6g}, built {p['mean']:.6g} ± "
+                         f"{p['std']:.2g}; 95% |error| {p['p95_abs_error_mm']:.3g} mm "
+                         f"(limit {p['limit_mm']:.3g} mm)")
+        if "end_position_p95_mm" in d:
+            lines.append(f"  far end       nodes {', '.join(map(str, result.end_nodes))}: 95% "
+                         f"within {d['end_position_p95_mm']:.3g} mm, worst "
+                         f"{d['end_position_max_mm']:.3g} mm")
+    if d.get("margin") is not None:
+        alone = ", ".join(f"{n} {margin_text(v['value'], v['bound'])}"
+                          for n, v in (d.get("source_margins") or {}).items())
+        lines.append(f"  margin        {margin_text(d['margin'], d['margin_bound'])}: every error "
+                     "may grow by this factor with the verdict unchanged"
+                     + (f"; each source alone: {alone}" if alone else ""))
     hz = d.get("horizon")
     if hz:
         lines.append(f"  lyapunov      λ = {hz['lyapunov']:.4g} per module ({hz['source']})")

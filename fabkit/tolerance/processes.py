@@ -21,20 +21,26 @@ Print (triangle plates joined by flexure hinges, printed flat in one piece)
     width per build, which grows every plate by half of it on each side and so shortens each
     hinge's free length by it; ``hinge flexure``: a hinge of free length ``ℓ`` turned by ``θ``
     bends into an arc whose chord is ``ℓ sin(θ/2) / (θ/2)``, so every bar loses
-    ``ℓ/2 (1 - sin(θ/2)/(θ/2))`` at each of its joints (``θ``: that joint's largest turn at the
-    target). Layer height and hinge thickness (a whole number of layers) set the hinges'
-    stiffness and strain, not the joint-to-joint geometry: they are checked by the print
-    export's strain check, not here.
+    ``ℓ/2 (1 - sin(θ/2)/(θ/2))`` at each of its joints (``θ``: that joint's largest turn from
+    the printed state to the state the build is in; straight, as printed, it loses nothing).
+    Layer height and hinge thickness (a whole number of layers) set the hinges' stiffness and
+    strain, not the joint-to-joint geometry: they are checked by the print export's strain
+    check, not here.
 
-Origami (a creased sheet, the paper's bar-and-joint idealisation: creases and boundary edges
-are rigid bars, crease intersections are joints)
+Origami (sheets of paper, the paper's bar-and-joint idealisation: creases and boundary edges
+are rigid bars, crease intersections are joints). A sheet is made flat: its vertex errors lie in
+its flat pattern, so that every build can lie flat, as paper does.
     ``crease position``: every crease vertex folded ``N(0, crease_sigma)`` off its drawn place
-    per coordinate (hand folding along a printed line); ``cut``: boundary corners
-    ``N(0, cut_sigma)`` off (knife or cutter); ``paper thickness``: a sheet of thickness ``t``
-    folds about its inner surface, so the hinge line sits up to ``t`` (uniformly, any direction)
-    from the mid-surface line the bars idealise; ``crease compliance``: creases and panels are
-    not rigid, panels bow between their corners, which shortens each bar by a half-normal of
-    ``compliance_sigma`` (bars never stretch).
+    per in-plane coordinate of its sheet's pattern (hand folding along a printed line);
+    ``cut``: boundary corners ``N(0, cut_sigma)`` off (knife or cutter); a bar two glued sheets
+    share takes the mean of their two lengths. What only a fold brings grows with it (the
+    sheet's largest crease angle over π: zero flat, one folded flat on itself):
+    ``paper thickness``: a sheet of thickness ``t`` folds about its inner surface, so the hinge
+    line sits up to ``t`` (uniformly, any direction) from the mid-surface line the bars
+    idealise; ``crease compliance``: panels bow between their corners under the fold, which
+    shortens each bar by a half-normal of ``compliance_sigma`` (bars never stretch). Without a
+    ``[fabrication.origami]`` table of sheets the vertices of the network's rest configuration
+    move in 3D and every error applies in every state.
 """
 
 from __future__ import annotations
@@ -44,7 +50,9 @@ from dataclasses import dataclass
 import numpy as np
 from ..numerics import TINY
 
-__all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "sample_lengths"]
+__all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "Sheet", "BuildLengths",
+           "sample_lengths", "sample_builds", "hinge_shortening", "state_profile",
+           "joint_turns"]
 
 #: The processes and, for each, its error sources (names used in verdicts) with the spec keys
 #: each one reads.
@@ -86,6 +94,8 @@ class ProcessGeometry:
         Largest turn (radians) between two bars at each joint from the start to the target.
     boundary : numpy.ndarray of bool, shape (N,) or None
         Origami: nodes on the sheet's cut boundary.
+    sheets : tuple of Sheet or None
+        Origami: every sheet of paper with its flat pattern (the state it is made in).
     """
 
     nodes: np.ndarray
@@ -93,6 +103,33 @@ class ProcessGeometry:
     lengths: np.ndarray
     joint_turn: np.ndarray | None = None
     boundary: np.ndarray | None = None
+    sheets: tuple | None = None
+
+
+@dataclass(frozen=True)
+class Sheet:
+    """One sheet of paper: its flat pattern and where it sits in the network.
+
+    Attributes
+    ----------
+    nodes : numpy.ndarray of int, shape (V,)
+        Network node of each pattern vertex.
+    flat : numpy.ndarray, shape (V, 2)
+        The flat pattern (design units).
+    edges : numpy.ndarray of int, shape (F, 2)
+        Paper edges as pattern vertex pairs.
+    boundary : numpy.ndarray of bool, shape (V,)
+        Vertices on the cut boundary.
+    creases : numpy.ndarray of int, shape (C, 4)
+        Per crease (a folded edge): its two vertices and the third vertex of each of its two
+        faces (counter-clockwise in the pattern), for its fold angle.
+    """
+
+    nodes: np.ndarray
+    flat: np.ndarray
+    edges: np.ndarray
+    boundary: np.ndarray
+    creases: np.ndarray
 
 
 def _active(spec, sources) -> set:
@@ -107,19 +144,30 @@ def _moved(geo: ProcessGeometry, pos) -> np.ndarray:
     return geo.lengths[None, :] + np.linalg.norm(pos[:, i] - pos[:, j], axis=-1) - nominal
 
 
-def _laser(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
+def _gain(gain, m: int) -> np.ndarray:
+    """Per-build factor on every error parameter, shape (M,)."""
+    if gain is None:
+        return np.ones(m)
+    g = np.broadcast_to(np.asarray(gain, dtype=np.float64), (m,))
+    if not np.all(np.isfinite(g)) or np.any(g < 0):
+        raise ValueError("gain must be finite and >= 0")
+    return np.array(g)
+
+
+def _laser(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.ndarray]:
     L = np.asarray(geo.lengths, dtype=np.float64)
     m, e = spec.samples, L.size
     L_mm = L * spec.scale
-    t = np.maximum(spec.thickness + spec.thickness_sigma * rng.standard_normal(m),
+    g1, g2, g3 = g[:, None], g[:, None, None], g
+    t = np.maximum(spec.thickness + g3 * spec.thickness_sigma * rng.standard_normal(m),
                    0.1 * spec.thickness)
-    length_err = spec.length_sigma * rng.standard_normal((m, e))
-    kerf = spec.kerf_sigma * rng.standard_normal((m, e, 2))
+    length_err = g1 * spec.length_sigma * rng.standard_normal((m, e))
+    kerf = g2 * spec.kerf_sigma * rng.standard_normal((m, e, 2))
     radius_u = np.sqrt(rng.random((m, e, 2)))
     angle_u = rng.random((m, e, 2))
     tilt_u = rng.random((m, e))
-    play = (spec.hole_clearance if "hole play" in on else 0.0) \
-        + (kerf if "kerf" in on else np.zeros_like(kerf))
+    hole = g2 * spec.hole_clearance
+    play = (hole if "hole play" in on else 0.0) + (kerf if "kerf" in on else np.zeros_like(kerf))
     clearance = np.maximum(play, 0.0)
     out = np.zeros((m, e))
     if "bar length" in on:
@@ -131,59 +179,293 @@ def _laser(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
         # tilt in the holes, bounded by the tighter hole of the bar; the nominal sheet when its
         # thickness is not a source, the nominal hole when its play is not
         tt = t if "sheet thickness" in on else np.full(m, spec.thickness)
-        room = clearance if "hole play" in on else np.full_like(clearance, spec.hole_clearance)
+        room = clearance if "hole play" in on else np.broadcast_to(hole, clearance.shape)
         tilt = np.arctan(room.min(axis=2) / tt[:, None]) * tilt_u
         out -= L_mm[None, :] * (1.0 - np.cos(tilt))
-    return L[None, :] + out / spec.scale
+    return L[None, :] + out / spec.scale, np.zeros((m, e))
 
 
-def _print(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
+def _print(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.ndarray]:
     x = geo.nodes * spec.scale
     m = spec.samples
-    i, j = geo.edges[:, 0], geo.edges[:, 1]
-    xy = spec.xy_sigma * rng.standard_normal((m,) + x.shape)
-    shrink = spec.shrinkage + spec.shrinkage_sigma * rng.standard_normal(m)
-    width = spec.line_width_sigma * rng.standard_normal(m)
+    xy = g[:, None, None] * spec.xy_sigma * rng.standard_normal((m,) + x.shape)
+    shrink = g * (spec.shrinkage + spec.shrinkage_sigma * rng.standard_normal(m))
+    width = g * spec.line_width_sigma * rng.standard_normal(m)
     pos = x[None] + (xy if "xy accuracy" in on else np.zeros_like(xy))
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "shrinkage" in on:
         L = L * (1.0 - shrink[:, None])
-    if ("hinge flexure" in on or "line width" in on) and geo.joint_turn is not None:
-        # the plates grow by half the extra width on each side: a shorter free hinge length
-        ell = np.maximum(spec.hinge_length - (width if "line width" in on else 0.0 * width), 0.0)
-        half = 0.5 * geo.joint_turn  # (N,)
-        sinc = np.where(half > SINC_SMALL, np.sin(half) / np.where(half > SINC_SMALL, half, 1.0), 1.0)
-        loss = 0.5 * ell[:, None] * (1.0 - sinc)[None, :]  # (M, N) mm at each joint
-        if "hinge flexure" not in on:
-            nominal = 0.5 * spec.hinge_length * (1.0 - sinc)[None, :]
-            loss = loss - nominal  # the line width's share only
-        L = L - loss[:, i] - loss[:, j]
-    return L / spec.scale
+    # the plates grow by half the extra width on each side: a shorter free hinge length; a hinge
+    # bent by θ then shortens each bar at it by half its free length times (1 - sinc(θ/2))
+    hinge = g * spec.hinge_length if "hinge flexure" in on else np.full(m, spec.hinge_length)
+    ell = np.maximum(hinge - (width if "line width" in on else 0.0), 0.0)
+    if "hinge flexure" in on:
+        bend = 0.5 * ell
+    elif "line width" in on:
+        bend = 0.5 * (ell - spec.hinge_length)  # the line width's share only
+    else:
+        bend = np.zeros(m)
+    return L / spec.scale, np.repeat((bend / spec.scale)[:, None], geo.edges.shape[0], axis=1)
 
 
-def _origami(geo: ProcessGeometry, spec, rng, on: set) -> np.ndarray:
+def _origami(geo: ProcessGeometry, spec, rng, on: set, gain) -> tuple[np.ndarray, np.ndarray]:
+    if geo.sheets:
+        return _origami_sheets(geo, spec, rng, on, gain)
     x = geo.nodes * spec.scale
     m, (n, d) = spec.samples, x.shape
     i = geo.edges[:, 0]
+    g = gain[:, None, None]
     boundary = geo.boundary if geo.boundary is not None else np.zeros(n, dtype=bool)
-    g = rng.standard_normal((m, n, d))
+    z = rng.standard_normal((m, n, d))
     direction = rng.standard_normal((m, n, d))
     reach = rng.random((m, n))
     bow = np.abs(rng.standard_normal((m, i.size)))
     sigma = np.where(boundary, spec.cut_sigma if "cut" in on else 0.0,
                      spec.crease_sigma if "crease position" in on else 0.0)
-    pos = x[None] + sigma[None, :, None] * g
+    pos = x[None] + g * sigma[None, :, None] * z
     if "paper thickness" in on:
         # the hinge line of a crease vertex sits up to t from the drawn (mid-surface) line
         u = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), TINY)
-        pos = pos + np.where(boundary, 0.0, spec.paper_thickness * reach)[..., None] * u
+        pos = pos + g * np.where(boundary, 0.0, spec.paper_thickness * reach)[..., None] * u
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "crease compliance" in on:
-        L = L - spec.compliance_sigma * bow
-    return L / spec.scale
+        L = L - gain[:, None] * spec.compliance_sigma * bow
+    return L / spec.scale, np.zeros((m, i.size))
+
+
+def _origami_sheets(geo: ProcessGeometry, spec, rng, on: set, gain):
+    """Sheets made flat: vertex errors lie in each sheet's flat pattern (its lengths stay those
+    of a flat sheet), and what only a fold brings (the hinge line's offset by the paper's
+    thickness, panels bowing) grows with the fold, zero in the flat state."""
+    m, e = spec.samples, geo.edges.shape[0]
+    lookup = {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(geo.edges.tolist())}
+    g = gain[:, None, None]
+    change = np.zeros((m, e))
+    count = np.zeros(e)
+    fold = np.zeros((m, e))
+    bow = np.abs(rng.standard_normal((m, e)))
+    for sh in geo.sheets:
+        v = sh.flat.shape[0]
+        z = rng.standard_normal((m, v, 2))
+        direction = rng.standard_normal((m, v, 3))
+        reach = rng.random((m, v))
+        sigma = np.where(sh.boundary, spec.cut_sigma if "cut" in on else 0.0,
+                         spec.crease_sigma if "crease position" in on else 0.0)
+        p = sh.flat * spec.scale
+        pos = p[None] + g * sigma[None, :, None] * z
+        a, b = sh.edges[:, 0], sh.edges[:, 1]
+        ids = np.array([lookup[(min(int(sh.nodes[i]), int(sh.nodes[j])),
+                                max(int(sh.nodes[i]), int(sh.nodes[j])))]
+                        for i, j in sh.edges.tolist()])
+        nominal = np.linalg.norm(p[a] - p[b], axis=-1)
+        np.add.at(change.T, ids, (np.linalg.norm(pos[:, a] - pos[:, b], axis=-1) - nominal).T)
+        np.add.at(count, ids, 1.0)
+        if "paper thickness" in on:
+            # folded, the hinge line of a crease vertex sits up to t from the drawn line
+            u = direction / np.maximum(np.linalg.norm(direction, axis=-1, keepdims=True), TINY)
+            off = g * np.where(sh.boundary, 0.0, spec.paper_thickness * reach)[..., None] * u
+            rest = geo.nodes[sh.nodes] * spec.scale
+            moved = np.linalg.norm((rest[a] + off[:, a]) - (rest[b] + off[:, b]), axis=-1) \
+                - np.linalg.norm(rest[a] - rest[b], axis=-1)
+            np.add.at(fold.T, ids, moved.T)
+    change = change / np.maximum(count, 1.0)  # a bar of two glued sheets: their mean
+    L = geo.lengths[None, :] * spec.scale + (change if on & {"cut", "crease position"}
+                                             else np.zeros((m, e)))
+    shortening = -fold / np.maximum(count, 1.0)
+    if "crease compliance" in on:
+        shortening = shortening + gain[:, None] * spec.compliance_sigma * bow
+    return L / spec.scale, shortening / spec.scale
 
 
 _MODELS = {"laser": _laser, "print": _print, "origami": _origami}
+
+
+@dataclass(frozen=True)
+class BuildLengths:
+    """Effective rest lengths of ``M`` builds, in two parts.
+
+    Attributes
+    ----------
+    base : numpy.ndarray, shape (M, E)
+        Every length error of the state the build is made in (design units).
+    bend : numpy.ndarray, shape (M, E)
+        What a state's :func:`state_profile` (zero in the made state) takes off each bar, per
+        unit of profile (design units): half the free hinge length of a print (a hinge bent by
+        θ shortens each bar at it by ``bend * (1 - sinc(θ/2))``), the bowing of a folded sheet's
+        panels less the offset of its hinge lines; zero for laser-cut bars.
+    """
+
+    base: np.ndarray
+    bend: np.ndarray
+
+    def at(self, shortening=None) -> np.ndarray:
+        """Lengths in one state per build.
+
+        Parameters
+        ----------
+        shortening : numpy.ndarray, shape (E,) or (M, E), optional
+            :func:`state_profile` of the state; None: the state the builds are made in.
+
+        Returns
+        -------
+        numpy.ndarray, shape (M, E)
+        """
+        if shortening is None:
+            return self.base
+        return self.base - self.bend * np.asarray(shortening, dtype=np.float64)
+
+    def over(self, shortening) -> np.ndarray:
+        """Lengths in many states (columns) per build.
+
+        Parameters
+        ----------
+        shortening : numpy.ndarray, shape (C, E) or (M, C, E)
+
+        Returns
+        -------
+        numpy.ndarray, shape (M, C, E)
+        """
+        s = np.asarray(shortening, dtype=np.float64)
+        if s.ndim == 2:
+            s = s[None]
+        return self.base[:, None, :] - self.bend[:, None, :] * s
+
+    def select(self, rows) -> "BuildLengths":
+        """The builds ``rows`` only."""
+        return BuildLengths(self.base[rows], self.bend[rows])
+
+
+def hinge_shortening(edges, turn) -> np.ndarray:
+    """Per bar, the sum over its two joints of ``1 - sinc(θ/2)`` (θ: the joint's largest turn).
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+    turn : numpy.ndarray, shape (..., N)
+        Radians.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., E)
+
+    Examples
+    --------
+    >>> hinge_shortening(np.array([[0, 1]]), np.array([np.pi, 0.0])).round(4).tolist()
+    [0.3634]
+    """
+    half = 0.5 * np.asarray(turn, dtype=np.float64)
+    safe = np.where(half > SINC_SMALL, half, 1.0)
+    h = 1.0 - np.where(half > SINC_SMALL, np.sin(half) / safe, 1.0)
+    return h[..., edges[:, 0]] + h[..., edges[:, 1]]
+
+
+def joint_turns(edges, rest, configs) -> np.ndarray:
+    """Largest turn between two bars at every joint from the rest layout (2D), many states.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+    rest : numpy.ndarray, shape (N, 2)
+    configs : numpy.ndarray, shape (C, N, 2)
+
+    Returns
+    -------
+    numpy.ndarray, shape (C, N)
+        Radians; zero in 3D (folded sheets have no flexure hinges) and where a state is NaN.
+    """
+    configs = np.asarray(configs, dtype=np.float64)
+    c, n = configs.shape[0], rest.shape[0]
+    if rest.shape[1] != 2:
+        return np.zeros((c, n))
+    i, j = edges[:, 0], edges[:, 1]
+    d0 = rest[j] - rest[i]
+    d = configs[:, j] - configs[:, i]
+    turn = np.angle(np.exp(1j * (np.arctan2(d[..., 1], d[..., 0])
+                                 - np.arctan2(d0[:, 1], d0[:, 0]))))  # (C, E)
+    turn = np.nan_to_num(turn)
+    hi = np.full((n, c), -np.inf)
+    lo = np.full((n, c), np.inf)
+    for ends in (i, j):
+        np.maximum.at(hi, ends, turn.T)
+        np.minimum.at(lo, ends, turn.T)
+    out = np.where(np.isfinite(hi), np.minimum(hi - lo, 2 * np.pi), 0.0)
+    return out.T
+
+
+def _fold_fractions(sheet: Sheet, x) -> np.ndarray:
+    """Largest fold angle of a sheet's creases over π, in every state ``x`` (C, V, 3) -> (C,)."""
+    if sheet.creases.size == 0:
+        return np.zeros(x.shape[0])
+    i, j, k, l_ = sheet.creases.T
+    n1 = np.cross(x[:, j] - x[:, i], x[:, k] - x[:, i])
+    n2 = np.cross(x[:, l_] - x[:, i], x[:, j] - x[:, i])
+    cos = np.sum(n1 * n2, axis=-1) / np.maximum(
+        np.linalg.norm(n1, axis=-1) * np.linalg.norm(n2, axis=-1), TINY)
+    return np.nan_to_num(np.arccos(np.clip(cos, -1.0, 1.0)) / np.pi).max(axis=1)
+
+
+def state_profile(geo: ProcessGeometry, process: str, configs, nodes, edge_ids):
+    """How far each bar is from the state its build was made in, per unit of
+    :attr:`BuildLengths.bend`: a print's :func:`hinge_shortening`, a sheet's fold fraction
+    (its largest crease angle over π); None for laser-cut bars (no such state).
+
+    Parameters
+    ----------
+    geo : ProcessGeometry
+    process : str
+    configs : numpy.ndarray, shape (C, n, d)
+        States of the nodes ``nodes`` (the whole network, or one module).
+    nodes : numpy.ndarray of int, shape (n,)
+    edge_ids : numpy.ndarray of int, shape (K,)
+        Bars (both ends among ``nodes``) whose profile is wanted.
+
+    Returns
+    -------
+    numpy.ndarray, shape (C, K) or None
+    """
+    configs = np.asarray(configs, dtype=np.float64)
+    local = {int(v): i for i, v in enumerate(np.asarray(nodes).tolist())}
+    pairs = np.array([[local[int(a)], local[int(b)]] for a, b in geo.edges[edge_ids].tolist()],
+                     dtype=np.int64).reshape(-1, 2)
+    if process == "print":
+        turns = joint_turns(pairs, geo.nodes[np.asarray(nodes)], configs)
+        return hinge_shortening(pairs, turns)
+    if process != "origami" or not geo.sheets:
+        return None
+    out = np.zeros((configs.shape[0], len(edge_ids)))
+    lookup = {(min(a, b), max(a, b)): k for k, (a, b) in enumerate(geo.edges[edge_ids].tolist())}
+    for sh in geo.sheets:
+        if not all(int(v) in local for v in sh.nodes.tolist()):
+            continue
+        w = _fold_fractions(sh, configs[:, [local[int(v)] for v in sh.nodes.tolist()]])
+        for i, j in sh.edges.tolist():
+            key = (min(int(sh.nodes[i]), int(sh.nodes[j])), max(int(sh.nodes[i]), int(sh.nodes[j])))
+            if key in lookup:
+                out[:, lookup[key]] = np.maximum(out[:, lookup[key]], w)
+    return out
+
+
+def sample_builds(geo: ProcessGeometry, spec, rng, sources=None, gain=None) -> BuildLengths:
+    """Effective rest lengths of ``spec.samples`` builds, with the hinges' bending kept apart.
+
+    Parameters
+    ----------
+    geo : ProcessGeometry
+    spec : ToleranceSpec
+    rng : numpy.random.Generator
+    sources : iterable of str, optional
+        Only these error sources; None: all of them.
+    gain : float or array_like, shape (M,), optional
+        Factor on every error parameter of each build (the same random draws, scaled): the
+        margin of a design is found by varying it.
+
+    Returns
+    -------
+    BuildLengths
+    """
+    g = _gain(gain, spec.samples)
+    base, bend = _MODELS[spec.process](geo, spec, rng, _active(spec, sources), g)
+    return BuildLengths(base, bend)
 
 
 def sample_lengths(geo: ProcessGeometry, spec, rng, sources=None) -> np.ndarray:
@@ -212,4 +494,7 @@ def sample_lengths(geo: ProcessGeometry, spec, rng, sources=None) -> np.ndarray:
     >>> sample_lengths(geo, spec, np.random.default_rng(0), sources=()).tolist()
     [[1.0], [1.0], [1.0]]
     """
-    return _MODELS[spec.process](geo, spec, rng, _active(spec, sources))
+    builds = sample_builds(geo, spec, rng, sources)
+    if geo.joint_turn is None or spec.process != "print":
+        return builds.base
+    return builds.at(hinge_shortening(geo.edges, geo.joint_turn))

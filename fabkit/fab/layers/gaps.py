@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 
-from .distances import (_bar_bar, _box_pairs, _exact_least, _incidence, _least,
-                        _share_joint, point_segment_distance)
+from .distances import (_bar_bar, _box_pairs, _exact_least, _incidence, _share_joint, point_segment_distance)
 
 def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slots: int = 1,
                   column_radius: float = 0.0, spacer_radius: float | None = None) -> dict:
@@ -63,35 +61,39 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
         out.update(bar_gap=gap, bar_pair=[int(a[k]), int(b[k])], sample=where)
     if joints:
         js = list(joints)
-        span = {st.joint: (min(st.layers) - head_slots, max(st.layers) + head_slots) for st in js}
-        bb, jj = [], []
-        for st in js:
-            z0, z1 = span[st.joint]
-            inside = (layer >= z0) & (layer <= z1) & ~inc[st.joint]
-            bb.extend(np.flatnonzero(inside).tolist())
-            jj.extend([st.joint] * int(inside.sum()))
-        if bb:
-            bb, jj = np.array(bb), np.array(jj)
+        jid = np.array([st.joint for st in js], dtype=np.int64)
+        z0 = np.array([min(st.layers) for st in js]) - head_slots  # the column with its heads
+        z1 = np.array([max(st.layers) for st in js]) + head_slots
+        r_max = max(column_radius, spacer_radius or 0.0)
+        jlo, jhi = lo_n[jid], hi_n[jid]
+
+        def screw_pairs(reach):  # a bar and a column whose layers it occupies, near ones only
+            bb, jk = _box_pairs(bar_lo, bar_hi, jlo, jhi, reach)
+            keep = (layer[bb] >= z0[jk]) & (layer[bb] <= z1[jk]) & ~inc[jid[jk], bb]
+            return bb[keep], jk[keep]
+
+        def screw_offset(arrays):
+            bb, jk = arrays
             radius = np.full(bb.size, column_radius)
             if spacer_radius is not None:
                 # on the stack's own layers the spacer rings are the wider part of the column
-                z0 = np.array([span[j][0] + head_slots for j in jj.tolist()])
-                z1 = np.array([span[j][1] - head_slots for j in jj.tolist()])
-                inner = (layer[bb] >= z0) & (layer[bb] <= z1)
+                inner = (layer[bb] >= z0[jk] + head_slots) & (layer[bb] <= z1[jk] - head_slots)
                 radius[inner] = max(column_radius, spacer_radius)
-            out["screw_gap"], _, _ = _least(
-                lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
-                                                          xs[:, edges[bi, 1]]),
-                x, 0.5 * width + radius, bb, jj)
-        pa, pb = [], []
-        for s1, s2 in itertools.combinations(js, 2):
-            (a0, a1), (b0, b1) = span[s1.joint], span[s2.joint]
-            if a0 <= b1 and b0 <= a1:
-                pa.append(s1.joint)
-                pb.append(s2.joint)
-        if pa:
-            pa, pb = np.array(pa), np.array(pb)
-            out["column_gap"], _, _ = _least(
-                lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)), x,
-                2.0 * column_radius, pa, pb)
+            return 0.5 * width + radius
+
+        out["screw_gap"], _, _, _ = _exact_least(
+            lambda xs, bi, ki: point_segment_distance(xs[:, jid[ki]], xs[:, edges[bi, 0]],
+                                                      xs[:, edges[bi, 1]]),
+            x, screw_offset, screw_pairs, lambda g: g + 0.5 * width + r_max,
+            1.5 * width + r_max, whole)
+
+        def column_pairs(reach):  # two columns that share a layer, near ones only
+            ia, ib = _box_pairs(jlo, jhi, jlo, jhi, reach, same=True)
+            keep = (z0[ia] <= z1[ib]) & (z0[ib] <= z1[ia])
+            return ia[keep], ib[keep]
+
+        out["column_gap"], _, _, _ = _exact_least(
+            lambda xs, i1, i2: np.sqrt(((xs[:, jid[i1]] - xs[:, jid[i2]]) ** 2).sum(-1)), x,
+            2.0 * column_radius, column_pairs, lambda g: g + 2.0 * column_radius,
+            2.0 * width + 2.0 * column_radius, whole)
     return out

@@ -1,0 +1,430 @@
+"""The Monte Carlo of built copies of a design, judged against what the design is for, and its
+margin."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..errors import FabkitError, KinematicsError, TemplateError
+from ..numerics import EDGE_RTOL, project_to_lengths
+from .behaviour import infer_behaviour
+from .criteria import judge_modules, judge_ports, judge_shape, profile_order
+from .horizon import MIN_MAP_STEPS, NEUTRAL_LYAPUNOV, lyapunov_estimate
+from ..workload import require
+from .margin import (CURVE_SCALES, SCALE_BISECTIONS, critical_scales, keep_curve, margin_of,
+                     margin_text)
+from .placement import (BUILD_RTOL, PROJECTED_SAMPLES_CAP, Driver, _chain_ports, _find_plan,
+                        _process_geometry, _to_drive_frame)
+from .processes import SOURCES, sample_builds
+from .result import ToleranceResult
+from .spec import ToleranceSpec, tolerance_spec
+
+__all__ = ["analyse_tolerance"]
+
+#: Builds per error source in the chart's curves (the first ones of the sample, same draws):
+#: the curves show where each source starts to matter; the margin itself uses every build.
+SOURCE_SAMPLES = 32
+
+#: Bisection steps of each source's curve: within a factor 10^(1/16) = 1.15 of the scale.
+SOURCE_BISECTIONS = 3
+
+#: Builds per error source when each build is traced on its own (no construction order).
+PROJECTED_SOURCE_SAMPLES = 6
+
+#: Extra drive values past a lock, in limits: a build may lock a little later than the design.
+LOCK_OVERSHOOT = (0.25, 0.5, 1.0, 2.0)
+
+#: Geometric samples towards each build's own end (the observed order of a soliton, whose front
+#: crosses a module per factor of the end crystal's slope).
+OBSERVE_GEOMETRIC = 30
+
+
+@dataclass
+class _Run:
+    """One Monte Carlo run: which builds keep the behaviour, judged how."""
+
+    keep: np.ndarray
+    judged: dict
+    driven: object = None
+
+
+class _Constructive:
+    """Runs of builds placed by intersections (the design has a construction order)."""
+
+    def __init__(self, design, spec, behaviour, plan, problem, pairs, geo, grid, limit_mm,
+                 clearance_mm):
+        from .modules import ModuleMaps
+
+        self.spec, self.behaviour, self.geo = spec, behaviour, geo
+        self.limit_mm = limit_mm
+        b = behaviour
+        self.maps = ModuleMaps(b.modules, geo, spec.process) if b.modules else None
+        start, end = b.start_drive, b.end_drive
+        self.driver = Driver(plan, problem, design.network, pairs, geo, spec.process,
+                             (start, end))
+        values = np.linspace(start, end, grid)
+        if b.end_at == "lock":
+            sgn = 1.0 if end >= start else -1.0
+            over = end + sgn * (limit_mm / spec.scale) * np.asarray(LOCK_OVERSHOOT)
+            values = np.concatenate([values, over])
+        self.values = values
+        self.clearance = clearance_mm / spec.scale
+
+    def builds(self, gains, rows, sources):
+        g = np.ones(self.spec.samples)
+        g[rows] = gains
+        return sample_builds(self.geo, self.spec, np.random.default_rng(self.spec.seed),
+                             sources, gain=g).select(rows)
+
+    def __call__(self, gains, rows, sources=None, observe=False) -> _Run:
+        b = self.behaviour
+        builds = self.builds(gains, rows, sources)
+        judged = judge_modules(b, self.maps, builds) if self.maps is not None else {}
+        driven = None
+        if b.end != "state" or observe:
+            driven = self.driver.drive(builds, self.values, self.clearance)
+            if b.end == "ports":
+                judged["end ports"] = judge_ports(b, driven, self.limit_mm)
+            elif b.end == "shape":
+                judged["end shape"] = judge_shape(b, driven)
+        keep = np.ones(len(rows), dtype=bool)
+        for j in judged.values():
+            keep &= j.ok
+        return _Run(keep, judged, driven)
+
+    def observe_order(self, run: _Run, rows, chain_cols) -> dict | None:
+        """The order seen along the driven motion: every build driven again geometrically
+        towards its own end, the profile read at every instant."""
+        b = self.behaviour
+        if not b.order or run.driven is None:
+            return None
+        builds = self.builds(np.ones(len(rows)), rows, None)
+        stop = run.driven.stop
+        start = b.start_drive
+        geo = stop[:, None] + (start - stop[:, None]) * 0.5 ** np.arange(1, OBSERVE_GEOMETRIC + 1)
+        again = self.driver.drive(builds, geo[:, ::-1], self.clearance)
+        sampled = np.concatenate([run.driven.sampled, again.sampled], axis=1)
+        lead = profile_order(b, sampled, chain_cols)
+        return {"monotone_fraction": float(np.mean(lead <= self.spec.state_fraction)),
+                "worst_lead": float(np.max(lead)), "samples": int(sampled.shape[1])}
+
+
+class _Projected:
+    """Runs of builds realised one by one (Gauss-Newton) and traced by projected continuation."""
+
+    def __init__(self, design, spec, behaviour, geo, pairs, limit_mm):
+        self.design, self.spec, self.behaviour, self.geo = design, spec, behaviour, geo
+        self.pairs, self.limit_mm = pairs, limit_mm
+
+    def __call__(self, gains, rows, sources=None, observe=False) -> _Run:
+        from ..kinematics import trace
+        from .criteria import Judged
+
+        g = np.ones(self.spec.samples)
+        g[rows] = gains
+        net, m = self.design.network, self.design.motion
+        built = sample_builds(self.geo, self.spec, np.random.default_rng(self.spec.seed), sources,
+                              gain=g).select(rows).base
+        dist = np.full((len(rows), self.pairs.shape[0]), np.nan)
+        for s in range(len(rows)):
+            proj = project_to_lengths(net.edges, built[s], net.nodes, rtol=BUILD_RTOL,
+                                      max_iter=30)
+            if not proj.converged:
+                continue
+            try:
+                tr = trace(net.with_nodes(proj.positions), drive=m.drive, to=m.to,
+                           method="projected", hold=m.hold)
+            except (KinematicsError, FabkitError):
+                continue
+            if tr.success:
+                dist[s] = np.linalg.norm(tr.final[self.pairs[:, 0]] - tr.final[self.pairs[:, 1]],
+                                         axis=-1)
+        err = np.abs(dist - self.behaviour.end_ports[None]) * self.spec.scale
+        worst = np.nan_to_num(err, nan=np.inf).max(axis=1)
+        j = Judged("end ports", worst <= self.limit_mm, worst, self.limit_mm,
+                   {"assembled": int(np.isfinite(dist).all(axis=1).sum())})
+        driven = _Traced(dist)
+        return _Run(j.ok, {"end ports": j}, driven)
+
+
+@dataclass
+class _Traced:
+    ports: np.ndarray
+
+
+def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=None,
+                      grid: int = 41, attribute: bool = True) -> ToleranceResult:
+    """Monte Carlo of built copies of a design, judged against what it is for.
+
+    The design's behaviour (:mod:`fabkit.tolerance.behaviour`) is inferred from its map and
+    motion (or read from ``[motion] intent``); every build is judged by its criteria
+    (:mod:`fabkit.tolerance.criteria`), and the verdict is ok when at least ``min_reached`` of
+    the builds keep it. The margin (:mod:`fabkit.tolerance.margin`) says by how much every error
+    may grow before that changes.
+
+    Parameters
+    ----------
+    design : Design
+        With ``motion.to`` set.
+    spec : ToleranceSpec, optional
+        Default: :func:`tolerance_spec` of the design.
+    trajectory : Trajectory, optional
+        The nominal motion (traced when not given).
+    grid : int
+        Drive values checked between the start and the end for every build.
+    attribute : bool
+        Also find each error source's own margin and curve (``margin["sources"]``), and name
+        in a flagged verdict the sources that stop the design.
+
+    Returns
+    -------
+    ToleranceResult
+
+    Raises
+    ------
+    TemplateError
+        No target (``motion.to``), a nominal motion that does not reach it, or an unknown
+        ``[motion] intent``.
+
+    Examples
+    --------
+    >>> from fabkit.templates import load_template
+    >>> from pathlib import Path
+    >>> d = load_template(Path(__file__).parents[2] / "templates" / "fourbar.toml")
+    >>> res = analyse_tolerance(d, tolerance_spec(d, samples=50), attribute=False)
+    >>> res.keep_fraction, res.flagged, res.margin["value"] >= 1
+    (1.0, False, True)
+    """
+    from ..kinematics import make_problem, place
+
+    path = design.path or design.name
+    spec = spec or tolerance_spec(design)
+    net = design.network
+    m = design.motion
+    # builds x nodes over every run (main, the margin's bisections, each source's own): one
+    # estimate of the work before any of it
+    sources = len(SOURCES[spec.process]) if attribute else 0
+    builds = (spec.samples + SOURCE_SAMPLES * sources) * (2 + SCALE_BISECTIONS)
+    require(f"{path}: tolerance ({spec.samples} builds)", ("build node", builds * net.n_nodes))
+    if m.to is None:
+        raise TemplateError(path, "motion.to", "the tolerance analysis needs a target value")
+    if trajectory is None:
+        trajectory = design.trace()
+    if not trajectory.success:
+        raise TemplateError(path, "motion.to", f"the designed motion does not reach the target: "
+                                               f"{trajectory.message}")
+    problem = make_problem(net, m.drive, m.to, hold=m.hold)
+    ports = _chain_ports(net)
+    pairs = np.array([net.port(p) for p in ports])
+    chain_cols = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
+    a, b = problem.drive
+    n_chain = len(chain_cols)
+    end_nodes = sorted(set(pairs[max(n_chain, 1) - 1].tolist()))
+    plan = _find_plan(problem, trajectory)
+    if plan is None:
+        spec = replace(spec, samples=min(spec.samples, PROJECTED_SAMPLES_CAP))
+    target_x = place(plan, [m.to])[0][0] if plan is not None else trajectory.final
+    at_target = np.linalg.norm(target_x[pairs[:, 0]] - target_x[pairs[:, 1]], axis=-1)
+    size_mm = float(np.mean(at_target)) * spec.scale
+    limit_mm = spec.limit if spec.limit is not None else spec.limit_fraction * size_mm
+    behaviour = infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs, limit_mm)
+    geo = _process_geometry(design, spec, problem, behaviour.end_config)
+    clearance_mm = 2 * spec.hole_clearance if spec.process == "laser" else limit_mm
+    if plan is not None:
+        method = "constructive"
+        run = _Constructive(design, spec, behaviour, plan, problem, pairs, geo, grid, limit_mm,
+                            clearance_mm)
+    else:
+        method = "projected"
+        run = _Projected(design, spec, behaviour, geo, pairs, limit_mm)
+
+    M = spec.samples
+    rows = np.arange(M)
+    main = run(np.ones(M), rows, observe=True)
+    keep = main.keep
+    crit = critical_scales(lambda g, r: run(g, r).keep, keep)
+    margin, bound = margin_of(crit, spec.min_reached)
+    names = list(SOURCES[spec.process])
+    curves = {"scales": CURVE_SCALES.tolist(), "all": keep_curve(crit).tolist()}
+    source_margins = {}
+    if attribute:
+        k = min(M, SOURCE_SAMPLES if method == "constructive" else PROJECTED_SOURCE_SAMPLES)
+        few = np.arange(k)
+        for name in names:
+            one = run(np.ones(k), few, [name]).keep
+            c = critical_scales(lambda g, r, name=name: run(g, few[r], [name]).keep, one,
+                                SOURCE_BISECTIONS)
+            curves[name] = keep_curve(c).tolist()
+            source_margins[name] = margin_of(c, spec.min_reached)
+    observed = run.observe_order(main, rows, chain_cols) if method == "constructive" else None
+
+    # the builds at their end, for the ports table and the pictures
+    driven = main.driven
+    built = sample_builds(geo, spec, np.random.default_rng(spec.seed)).base
+    length_rms = float(np.sqrt(np.mean((built - net.edge_lengths[None, :]) ** 2)) * spec.scale)
+    nominal = behaviour.end_ports
+    end_offsets = None
+    if driven is not None:
+        dist = np.array(driven.ports, dtype=np.float64)
+        if method == "constructive":
+            near = np.abs(driven.stop - behaviour.end_drive) <= limit_mm / spec.scale
+            reached = near & driven.closed
+            ref_dir = (plan.reference[b] - plan.reference[a])[:2]
+            framed = _to_drive_frame(driven.final, a, b, ref_dir)
+            nominal_framed = _to_drive_frame(behaviour.end_config[None], a, b, ref_dir)[0]
+            end_offsets = framed[:, end_nodes] - nominal_framed[None, end_nodes]
+        else:
+            reached = np.isfinite(dist).all(axis=1)
+        dist[~reached] = np.nan
+    else:
+        dist = np.full((M, len(ports)), np.nan)
+        reached = np.zeros(M, dtype=bool)
+
+    horizon = _horizon(design, plan, dist, reached, ports, length_rms, size_mm, limit_mm,
+                       behaviour)
+    frac = float(keep.mean())
+    flagged = frac < spec.min_reached
+    margin_info = {"value": margin, "bound": bound, "min_reached": spec.min_reached,
+                   "curves": curves,
+                   "sources": {n: {"value": v, "bound": bd} for n, (v, bd) in
+                               source_margins.items()},
+                   "source_samples": min(M, SOURCE_SAMPLES if method == "constructive"
+                                         else PROJECTED_SOURCE_SAMPLES) if attribute else 0}
+    verdict = _verdict(spec, behaviour, main.judged, frac, flagged, margin, bound,
+                       source_margins, horizon, ports)
+    extra = {"drive": m.drive, "target": float(m.to), "module_size_mm": size_mm,
+             "end_drive": behaviour.end_drive, "end_at": behaviour.end_at}
+    if observed is not None:
+        extra["observed_order"] = observed
+    return ToleranceResult(spec=spec, method=method, ports=ports, nominal=nominal, distances=dist,
+                           reached=reached, keep=keep, end_nodes=end_nodes,
+                           end_offsets=end_offsets, length_rms=length_rms,
+                           limits=np.full(len(ports), limit_mm), horizon=horizon,
+                           flagged=flagged, verdict=verdict, behaviour=behaviour,
+                           judged=main.judged, margin=margin_info, critical=crit, extra=extra)
+
+
+def _horizon(design, plan, dist, reached, ports, length_rms, size_mm, limit_mm, behaviour):
+    """Lyapunov exponent and predictability horizon of a chain (None without a plan)."""
+    lyap = lyapunov_estimate(design, plan) if plan is not None else None
+    if lyap is None:
+        return None
+    lam = lyap["lyapunov"]
+    eps = max(length_rms, EDGE_RTOL)
+    modules = None
+    if lyap["steps"] < MIN_MAP_STEPS:
+        detail = (f"the module map leaves the module's range after {lyap['steps']} step(s) "
+                  "from the target: too short an orbit to estimate a horizon")
+    elif abs(lam) < NEUTRAL_LYAPUNOV:
+        detail = "neutral map (λ ≈ 0): errors neither grow nor shrink exponentially"
+    elif lam < 0:
+        detail = "errors shrink along the chain (λ < 0): no horizon"
+    elif size_mm <= eps:
+        detail = "the error is already as large as a module"
+    else:
+        modules = math.log(size_mm / eps) / lam
+        detail = (f"a {eps:.3g} mm bar error grows to the {size_mm:.3g} mm module size after "
+                  f"about {modules:.1f} modules")
+    out = {**lyap, "error_mm": eps, "module_size_mm": size_mm, "modules": modules,
+           "detail": detail}
+    if behaviour.chaos is not None:
+        lam_map = behaviour.chaos["lyapunov"]
+        out["map_lyapunov"] = lam_map
+        out["limit_modules"] = math.log(limit_mm / eps) / lam_map if limit_mm > eps else 0.0
+    chain = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
+    ok = dist[reached]
+    if len(chain) >= 3 and ok.shape[0] >= 5:
+        spread = ok[:, chain].std(axis=0)
+        kk = np.arange(len(chain))
+        good = spread > 0
+        if good.sum() >= 3:
+            out["monte_carlo_slope"] = float(np.polyfit(kk[good], np.log(spread[good]), 1)[0])
+            out["monte_carlo_std"] = spread.tolist()
+    return out
+
+
+def _failure(name, j, spec, behaviour, ports) -> str:
+    """A clause for a criterion that some builds fail."""
+    lost = 100.0 * (1.0 - float(j.ok.mean()))
+    v = j.value_mm
+    p95 = float(np.percentile(v, 95, method="higher")) if v.size else math.inf
+    if name == "crystals":
+        missing = int(np.sum(~np.isfinite(v)))
+        what = ", ".join(f"{c.value:.6g} ({c.kind})" for c in behaviour.crystals
+                         if c.role == "start")
+        tail = (f"in {missing} builds a module has none of its kind within "
+                f"{j.limit_mm:.3g} mm" if missing else
+                f"they move by up to {p95:.3g} mm (95% of builds; allowed {j.limit_mm:.3g} mm)")
+        return f"{lost:.1f}% of builds lose a crystal at {what}: {tail}"
+    if name == "order":
+        return (f"{lost:.1f}% of builds lose the order: a module meets the diagonal, turns "
+                "back or locks between its states (a second front, or a stalled one)")
+    if name == "end state":
+        end = [c for c in behaviour.crystals if c.role == "end"]
+        what = f"the crystal {end[0].value:.6g} ({end[0].kind})" if end else \
+            f"its lock at {behaviour.end_lock[0]:.6g}"
+        missing = int(np.sum(~np.isfinite(v)))
+        tail = (f"in {missing} builds some module has none within {j.limit_mm:.3g} mm" if missing
+                else f"a module ends up to {p95:.3g} mm from it (95% of builds; allowed "
+                     f"{j.limit_mm:.3g} mm)")
+        return f"{lost:.1f}% of builds miss the end state, {what}: {tail}"
+    if name == "end shape":
+        return (f"the end shape is off by up to {p95:.3g} mm after the best rigid fit (95% of "
+                f"builds; allowed {j.limit_mm:.3g} mm)")
+    # end ports: the worst port
+    if j.detail.get("assembled") == 0:
+        return (f"none of the {j.ok.size} builds assembles: rigid bars with their own length "
+                "errors cannot all take their lengths at once (an over-constrained network, a "
+                "state of self-stress), and the model has no joint play to take that up")
+    where = "at the target" if behaviour.end_at == "target" else "where the motion locks"
+    by_port = np.asarray(j.detail.get("p95_by_port_mm", [p95]))
+    k = int(np.argmax(by_port))
+    name = ports[k] if k < len(ports) else "a port"
+    worst = float(by_port[k])
+    off = "cannot be reached" if not math.isfinite(worst) else f"is off by up to {worst:.3g} mm"
+    return (f"{name} {where} {off} (95% of builds; allowed {j.limit_mm:.3g} mm)")
+
+
+def _verdict(spec, behaviour, judged, frac, flagged, margin, bound, source_margins, horizon,
+             ports) -> str:
+    unit = f"{spec.process} builds"
+    names = list(judged)
+    head_margin = margin_text(margin, bound)
+    if not flagged:
+        parts = []
+        for name, j in judged.items():
+            fin = j.value_mm[np.isfinite(j.value_mm)]
+            if name == "order" or not fin.size:
+                parts.append(name)
+            else:
+                parts.append(f"{name} within {np.percentile(j.value_mm, 95):.3g} of "
+                             f"{j.limit_mm:.3g} mm")
+        return (f"ok, margin {head_margin}: {100 * frac:.1f}% of {unit} keep the behaviour "
+                f"({'; '.join(parts)})")
+    shrink = "" if bound == "below" else f"; errors must shrink to {margin:.2g}×"
+    if bound == "below":
+        shrink = "; errors must shrink more than tenfold"
+    clauses = [_failure(n, judged[n], spec, behaviour, ports) for n in names
+               if not judged[n].ok.all()]
+    if behaviour.chaos is not None and horizon and horizon.get("limit_modules") is not None:
+        lam = behaviour.chaos["lyapunov"]
+        clauses.append(f"chaotic (λ = {lam:.2f} per module): a {horizon['error_mm']:.3g} mm "
+                       f"error outgrows the limit after about {horizon['limit_modules']:.1f} "
+                       f"modules, and the design asks for {ports[behaviour.chaos['modules']]} "
+                       f"{behaviour.chaos['modules']} modules on")
+    cause = ""
+    if source_margins:
+        alone = {n: v for n, (v, bd) in source_margins.items() if v < 1.0}
+        if alone:
+            cause = "; stopped by " + ", ".join(
+                f"{n} (alone margin {margin_text(*source_margins[n])})"
+                for n in sorted(alone, key=alone.get))
+        else:
+            n = min(source_margins, key=lambda k: source_margins[k][0])
+            cause = (f"; no single source stops it, their sum does (smallest margin alone: {n}, "
+                     f"{margin_text(*source_margins[n])})")
+    return (f"FLAG, margin {head_margin}{shrink}: only {100 * frac:.1f}% of {unit} keep the "
+            f"behaviour (need {100 * spec.min_reached:.0f}%): " + "; ".join(clauses) + cause)

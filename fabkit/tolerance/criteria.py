@@ -1,0 +1,203 @@
+"""Judging built copies against a design's behaviour (:mod:`fabkit.tolerance.behaviour`).
+
+Each criterion gives, for every build, whether it keeps that part of the behaviour and the
+number it was judged on (mm, the worst of its modules or ports):
+
+- ``crystals``: every built module has a fixed point within the state tolerance of each start
+  crystal, with the same stability (attracting |f'| < 1 or repelling |f'| > 1; a neutral one
+  only has to exist); a crystal at a turning point (a flat state) is kept where the built module
+  locks (its branch end and its output there both within the tolerance);
+- ``order``: every built module, between its start state and its end, stays on the designed side
+  of the diagonal (f(d) > d, or f(d) < d) and its map rises (or falls) as designed, so that each
+  module switches after its neighbour and the chain keeps one front (a chain of such maps has a
+  monotone profile at every instant: d_{k+1} = f(d_k) lies on the same side of d_k for all k);
+- ``end state``: every built module ends in the designed state: the end crystal (as above), or
+  its lock next to the designed one;
+- ``end ports``: every port distance where the build ends (the target, or where it locks) lies
+  within the limit of the design's;
+- ``end shape``: every node, after the best rigid fit of the built end state onto the design's,
+  lies within the shape limit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..numerics import FIXED_POINT_RTOL, rigid_fit
+
+__all__ = ["Judged", "judge_modules", "judge_ports", "judge_shape", "profile_order"]
+
+#: d_in values per window around a state (a crystal or a lock), across twice the state
+#: tolerance: roots of f(d) - d are bracketed between them and placed by linear interpolation.
+WINDOW_POINTS = 9
+
+#: d_in values across the interval each module crosses between its states.
+TRANSIT_POINTS = 9
+
+
+@dataclass
+class Judged:
+    """One criterion over M builds.
+
+    Attributes
+    ----------
+    name : str
+    ok : numpy.ndarray of bool, shape (M,)
+    value_mm : numpy.ndarray, shape (M,)
+        The number each build is judged on (mm; inf: the state does not exist).
+    limit_mm : float
+        ``ok`` is ``value_mm <= limit_mm`` (the order: value < 0 mm on the wrong side).
+    detail : dict
+        Extra figures (slopes of the built crystals, ...).
+    per_part : numpy.ndarray, shape (M, K) or None
+        The number per module (module criteria) or per port (``end ports``), mm.
+    """
+
+    name: str
+    ok: np.ndarray
+    value_mm: np.ndarray
+    limit_mm: float
+    detail: dict = field(default_factory=dict)
+    per_part: np.ndarray | None = field(default=None, repr=False)
+
+
+def _window(center: float, tol: float) -> np.ndarray:
+    return center + tol * np.linspace(-1.0, 1.0, WINDOW_POINTS)
+
+
+def _crystal_distance(maps, builds, crystal, tol: float, toward: float):
+    """Distance of each built module's nearest fixed point of the crystal's stability from it
+    (design units, inf if none in the window), and that fixed point's slope, (M, n)."""
+    q = _window(crystal.value, tol)
+    f, _ = maps.evaluate(builds, q)
+    g = f - q
+    ga, gb = g[..., :-1], g[..., 1:]
+    xa, xb = np.broadcast_to(q[:-1], ga.shape), np.broadcast_to(q[1:], gb.shape)
+    fa, fb = f[..., :-1], f[..., 1:]
+    if crystal.branch_end is not None:
+        # a root between the last valid value and the branch end (a fixed point next to a
+        # turning point) is bracketed by the branch end itself
+        end, f_end, last, f_last = maps.branch_end(builds, q, toward)
+        ga = np.concatenate([ga, (f_last - last)[..., None]], axis=-1)
+        gb = np.concatenate([gb, (f_end - end)[..., None]], axis=-1)
+        xa = np.concatenate([xa, last[..., None]], axis=-1)
+        xb = np.concatenate([xb, end[..., None]], axis=-1)
+        fa = np.concatenate([fa, f_last[..., None]], axis=-1)
+        fb = np.concatenate([fb, f_end[..., None]], axis=-1)
+    cross = np.isfinite(ga) & np.isfinite(gb) & (np.sign(ga) != np.sign(gb))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        root = xa - ga * (xb - xa) / (gb - ga)
+        slope = (fb - fa) / (xb - xa)
+    if crystal.side < 0:
+        cross &= np.abs(slope) < 1.0
+    elif crystal.side > 0:
+        cross &= np.abs(slope) > 1.0
+    dist = np.where(cross, np.abs(root - crystal.value), np.inf)
+    # a root met on a sampled value itself (a touching fixed point, as designed, is no sign
+    # change: f(d) - d only reaches zero)
+    on = np.isfinite(g) & (np.abs(g) <= FIXED_POINT_RTOL * max(abs(crystal.value), 1.0))
+    dist = np.concatenate([dist, np.where(on, np.abs(q - crystal.value), np.inf)], axis=-1)
+    slope = np.concatenate([slope, np.full(g.shape, np.nan)], axis=-1)
+    cross = np.concatenate([cross, on], axis=-1)
+    best = np.argmin(dist, axis=-1)
+    d = np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
+    s = np.take_along_axis(np.where(cross, slope, np.nan), best[..., None], axis=-1)[..., 0]
+    if crystal.at_turning:
+        lock = np.maximum(np.abs(end - crystal.value), np.abs(f_end - crystal.value))
+        d = np.fmin(d, np.where(np.isfinite(lock), lock, np.inf))
+    return d, s
+
+
+def judge_modules(behaviour, maps, builds) -> dict:
+    """The module-level criteria (``crystals``, ``order``, ``end state``) of M builds.
+
+    Parameters
+    ----------
+    behaviour : Behaviour
+    maps : ModuleMaps
+    builds : BuildLengths
+
+    Returns
+    -------
+    dict of str to Judged
+    """
+    b = behaviour
+    scale, tol = b.scale, b.state_tol
+    m = builds.base.shape[0]
+    out = {}
+    starts = [c for c in b.crystals if c.role == "start"]
+    if starts:
+        per = np.zeros((m, len(maps.modules)))
+        slopes = {}
+        for c in starts:
+            d, s = _crystal_distance(maps, builds, c, tol, b.module_end)
+            per = np.maximum(per, d)
+            slopes[f"{c.value:.6g}"] = [float(np.nanmin(s)), float(np.nanmax(s))] \
+                if np.isfinite(s).any() else None
+        worst = per.max(axis=1)
+        out["crystals"] = Judged("crystals", worst <= tol, worst * scale, tol * scale,
+                                 {"slopes": slopes}, per * scale)
+    if b.order and b.transit is not None:
+        lo, hi, sign, rise = b.transit
+        q = np.linspace(lo, hi, TRANSIT_POINTS)
+        f, margin = maps.evaluate(builds, q)
+        side = sign * (f - q)  # > 0 on the designed side
+        # the map rises (or falls) as designed: the chain's profile keeps its direction
+        slope_ok = np.all(rise * np.diff(f, axis=-1) > 0, axis=-1) if rise else True
+        valid = np.all(margin >= 0, axis=-1)
+        closest = np.where(valid, np.min(side, axis=-1), -np.inf)  # (M, n)
+        worst = np.min(closest, axis=1)
+        ok = np.all(valid & slope_ok & (closest > 0), axis=1)
+        out["order"] = Judged("order", ok, -worst * scale, 0.0,
+                              {"interval": [lo, hi], "side": int(sign), "rise": int(rise)},
+                              -closest * scale)
+    ends = [c for c in b.crystals if c.role == "end"]
+    if b.end == "state":
+        if ends:
+            per, s = _crystal_distance(maps, builds, ends[0], tol, b.module_start)
+            detail = {"crystal": ends[0].value,
+                      "slopes": [float(np.nanmin(s)), float(np.nanmax(s))]
+                      if np.isfinite(s).any() else None}
+        else:
+            t, ft = b.end_lock
+            end, f_end, _, _ = maps.branch_end(builds, _window(t, tol), b.module_start)
+            lock = np.maximum(np.abs(end - t), np.abs(f_end - ft))
+            per = np.where(np.isfinite(lock), lock, np.inf)
+            detail = {"lock": [t, ft]}
+        worst = per.max(axis=1)
+        out["end state"] = Judged("end state", worst <= tol, worst * scale, tol * scale,
+                                  detail, per * scale)
+    return out
+
+
+def judge_ports(behaviour, driven, limit_mm: float) -> "Judged":
+    """``end ports``: every port distance at the end within the limit of the design's."""
+    err = np.abs(driven.ports - behaviour.end_ports[None, :]) * behaviour.scale
+    err = np.where(driven.closed[:, None], np.nan_to_num(err, nan=np.inf), np.inf)
+    worst = err.max(axis=1)
+    return Judged("end ports", worst <= limit_mm, worst, limit_mm,
+                  {"p95_by_port_mm": np.percentile(err, 95, axis=0, method="higher").tolist()}, err)
+
+
+def judge_shape(behaviour, driven) -> "Judged":
+    """``end shape``: every node within the shape limit after the best rigid fit."""
+    fit = rigid_fit(driven.final, behaviour.end_config[None])
+    moved = driven.final @ np.swapaxes(fit.rotation, -1, -2) + fit.shift[:, None, :]
+    dev = np.linalg.norm(moved - behaviour.end_config[None], axis=-1).max(axis=1)
+    worst = np.where(driven.closed & np.isfinite(dev), dev * behaviour.scale, np.inf)
+    return Judged("end shape", worst <= behaviour.shape_limit_mm, worst,
+                  behaviour.shape_limit_mm)
+
+
+def profile_order(behaviour, sampled, chain_cols) -> np.ndarray:
+    """Largest lead of a module over its neighbour behind the front, per build, as a fraction of
+    the travel, over every sampled instant of the driven motion (the observed order)."""
+    d0 = behaviour.crystals[0].value if behaviour.crystals else behaviour.start_drive
+    d1 = behaviour.end_lock[0] if behaviour.end_lock else \
+        [c.value for c in behaviour.crystals if c.role == "end"][0]
+    p = np.clip((sampled[..., chain_cols] - d0) / (d1 - d0), 0.0, 1.0)
+    lead = behaviour.order * np.diff(p, axis=-1)  # > 0: a module ahead of the one before it
+    with np.errstate(invalid="ignore"):
+        return np.nanmax(np.where(np.isfinite(lead), lead, -np.inf), axis=(1, 2))

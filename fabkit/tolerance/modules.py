@@ -1,0 +1,303 @@
+"""A design's modules on their own: each built module's map d_out = f(d_in), evaluated for many
+builds at once.
+
+A chain is an iterated map only if its modules are: module k carries port d_k to port d_{k+1}.
+A chain built by :func:`fabkit.chain` records its copies (``Network.assembly``), an origami chain
+lists its sheets (``[fabrication.origami] sheets``), and a single module is the whole network
+with ports d1 and d2. Each module becomes a network of its own (the chain's nodes and bars that
+belong to it, at the chain's start) with a construction plan from its input pair, so a built
+module's map is its plan placed with the build's own bar lengths: every build, module and d_in
+value is one column of one :func:`fabkit.kinematics.place` call per kind of module.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConstructionError, FabkitError
+from ..network import Network
+from .placement import _plan_edge_index
+from .processes import BuildLengths, ProcessGeometry, state_profile
+
+__all__ = ["Module", "chain_modules", "ModuleMaps"]
+
+#: Bisection steps that find where a built module's branch ends (its own turning point) inside
+#: a window of half its motion: 2^-16 of the window (4e-6 of the motion) is far below any
+#: error studied.
+BRANCH_END_BISECTIONS = 16
+
+#: Samples of a module's nominal branch at which the state profile (bent hinges, folds) is
+#: tabulated; it is smooth along the branch and interpolated between them.
+PROFILE_SAMPLES = 257
+
+
+def _interp_rows(values, grid, table) -> np.ndarray:
+    """Linear interpolation of every column of ``table`` (G, K) at ``values`` (Q,), clamped."""
+    v = np.clip(values, grid[0], grid[-1])
+    i = np.clip(np.searchsorted(grid, v) - 1, 0, grid.size - 2)
+    t = ((v - grid[i]) / (grid[i + 1] - grid[i]))[:, None]
+    return (1.0 - t) * table[i] + t * table[i + 1]
+
+
+@dataclass(frozen=True, eq=False)
+class Module:
+    """One module of a design, on its own.
+
+    Attributes
+    ----------
+    index : int
+        Position in the chain (0: the module driven by d1).
+    nodes : numpy.ndarray of int
+        The design's nodes that belong to it (its local node order).
+    edges : numpy.ndarray of int
+        The design's bars that belong to it, in its local edge order.
+    network : Network
+        The module at the design's start, with ports ``in`` (d_k) and ``out`` (d_{k+1}).
+    plan : ConstructionPlan
+        Construction from the ``in`` pair, sides from the reference configuration.
+    eidx : numpy.ndarray of int
+        Local edge of every (placed node, parent) pair of the plan (-1: none).
+    rest : numpy.ndarray, shape (n, d)
+        The module's nodes in the design's rest layout (the printed state).
+    """
+
+    index: int
+    nodes: np.ndarray
+    edges: np.ndarray
+    network: Network
+    plan: object
+    eidx: np.ndarray
+    rest: np.ndarray
+
+    def key(self) -> tuple:
+        """Modules with equal keys share one placement (same order, parents and sides)."""
+        p = self.plan
+        return (p.seed, p.order.tobytes(), p.parents.tobytes(), p.signs.tobytes(),
+                self.eidx.tobytes())
+
+
+def _node_sets(design) -> list[np.ndarray] | None:
+    net = design.network
+    if net.assembly is not None:
+        return [np.asarray(idx, dtype=np.int64) for _m, idx, _f in net.assembly.copies]
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    sheets = (fab.get("origami") or {}).get("sheets") if isinstance(fab.get("origami"), dict) \
+        else None
+    if isinstance(sheets, list) and sheets:
+        try:
+            return [np.asarray(s, dtype=np.int64) for s in sheets]
+        except (TypeError, ValueError):
+            return None
+    chain = [p for p in net.ports if re.fullmatch(r"d\d+", p)]
+    if sorted(chain) == ["d1", "d2"]:
+        return [np.arange(net.n_nodes)]
+    return None
+
+
+def chain_modules(design, references) -> list[Module] | None:
+    """The modules of a design, or None when it is not a chain of 1-D maps.
+
+    Parameters
+    ----------
+    design : Design
+    references : sequence of numpy.ndarray, shape (N, d)
+        Configurations of the whole design tried in turn for the sides of each module's plan
+        (its start, then its end: a flat start has no sides).
+
+    Returns
+    -------
+    list of Module or None
+        None when the design records no modules, a module does not hold its ports d_k and
+        d_{k+1}, or a module has no construction order from d_k.
+    """
+    from ..kinematics import plan_construction
+
+    net = design.network
+    sets = _node_sets(design)
+    if not sets:
+        return None
+    lookup = {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(net.edges.tolist())}
+    modules = []
+    for k, s in enumerate(sets):
+        pin, pout = net.ports.get(f"d{k + 1}"), net.ports.get(f"d{k + 2}")
+        if pin is None or pout is None or s.size != np.unique(s).size \
+                or s.min() < 0 or s.max() >= net.n_nodes:
+            return None
+        local = {int(v): i for i, v in enumerate(s.tolist())}
+        if not all(v in local for v in (*pin, *pout)):
+            return None
+        ids = sorted(e for (i, j), e in lookup.items() if i in local and j in local)
+        edges = [[local[int(net.edges[e, 0])], local[int(net.edges[e, 1])]] for e in ids]
+        ports = {"in": (local[pin[0]], local[pin[1]]), "out": (local[pout[0]], local[pout[1]])}
+        plan = sub = None
+        for ref in references:
+            try:
+                sub = Network(np.asarray(ref)[s], edges, ports)
+                plan = plan_construction(sub, sub.port("in"))
+                break
+            except (ConstructionError, FabkitError):
+                plan = None
+        if plan is None or plan.order.size != s.size - 2:
+            return None
+        modules.append(Module(k, s, np.asarray(ids, dtype=np.int64), sub, plan,
+                              _plan_edge_index(plan, sub), net.nodes[s]))
+    return modules
+
+
+class ModuleMaps:
+    """Built modules' maps, for every build and module at once.
+
+    Parameters
+    ----------
+    modules : list of Module
+    geo : ProcessGeometry, optional
+        With ``process``: what a state takes off the bars (:func:`state_profile`: a print's
+        bent hinges, a folded sheet); None: lengths do not depend on the state.
+    process : str
+    """
+
+    def __init__(self, modules: list[Module], geo: ProcessGeometry | None = None,
+                 process: str = "laser"):
+        self.modules = modules
+        self.geo, self.process = geo, process
+        bending = geo is not None and process in ("print", "origami")
+        self.bending = bending
+        groups: dict = {}
+        for m in modules:
+            groups.setdefault(m.key(), []).append(m.index)
+        self.groups = list(groups.values())
+        self.tables = {}
+        if bending:
+            from ..maps import module_map
+
+            for group in self.groups:
+                first = modules[group[0]]
+                try:
+                    domain = module_map(first.network, "in", "out").domain
+                except (ConstructionError, FabkitError):
+                    d0 = float(first.network.port_distance("in"))
+                    domain = (d0, d0 + 1.0)
+                for k in group:
+                    self.tables[k] = self._table(modules[k], domain)
+
+    def _table(self, module: Module, domain) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`state_profile` of the module's bars along its nominal branch, tabulated."""
+        from ..kinematics import place
+
+        grid = np.linspace(domain[0], domain[1], PROFILE_SAMPLES)
+        x, margin, _ = place(module.plan, grid)
+        x = np.where((margin >= 0)[:, None, None], x, module.network.nodes[None])
+        out = state_profile(self.geo, self.process, x, module.nodes, module.edges)
+        return grid, np.zeros((grid.size, module.edges.size)) if out is None else out
+
+    def _shortening(self, module: Module, values) -> np.ndarray:
+        """:func:`state_profile` of the module's bars in its nominal state at each d_in,
+        (Q, E_k), interpolated in its table; beyond the nominal branch, that of its end."""
+        grid, table = self.tables[module.index]
+        return _interp_rows(np.asarray(values, dtype=np.float64), grid, table)
+
+    def evaluate(self, builds: BuildLengths, values) -> tuple[np.ndarray, np.ndarray]:
+        """d_out of every built module at the given d_in values.
+
+        Parameters
+        ----------
+        builds : BuildLengths
+            Lengths of the whole design's bars, M builds.
+        values : array_like, shape (Q,) or (M, n, Q)
+            d_in values: the same for every build and module, or each its own.
+
+        Returns
+        -------
+        f : numpy.ndarray, shape (M, n, Q)
+            NaN where the built module has no configuration.
+        margin : numpy.ndarray, shape (M, n, Q)
+            Smallest intersection margin (negative: no configuration).
+        """
+        from ..kinematics import place
+
+        m, n = builds.base.shape[0], len(self.modules)
+        v = np.asarray(values, dtype=np.float64)
+        q = v.shape[-1]
+        per = np.broadcast_to(v, (m, n, q))
+        f = np.full((m, n, q), np.nan)
+        margin = np.full((m, n, q), -np.inf)
+        for group in self.groups:
+            first = self.modules[group[0]]
+            radii, cols = [], []
+            for k in group:
+                mod = self.modules[k]
+                lengths = builds.base[:, None, mod.edges]  # (M, 1, E_k)
+                if self.bending and np.any(builds.bend):
+                    if v.ndim == 1:
+                        short = self._shortening(mod, v)[None]  # (1, Q, E_k)
+                    else:
+                        short = self._shortening(mod, per[:, k, :].ravel()).reshape(
+                            m, q, mod.edges.size)
+                    lengths = lengths - builds.bend[:, None, mod.edges] * short
+                lengths = np.broadcast_to(lengths, (m, q, mod.edges.size))
+                mask = mod.eidx >= 0
+                r = np.where(mask[None, None], lengths[:, :, np.maximum(mod.eidx, 0)], 0.0)
+                radii.append(r.reshape((m * q,) + mod.eidx.shape))
+                cols.append(per[:, k, :].reshape(m * q))
+            x, mg, _ = place(first.plan, np.concatenate(cols), radii=np.concatenate(radii))
+            a, b = first.network.port("out")
+            out = np.linalg.norm(x[:, a] - x[:, b], axis=-1)
+            out = np.where(mg >= 0, out, np.nan)
+            for slot, k in enumerate(group):
+                sl = slice(slot * m * q, (slot + 1) * m * q)
+                f[:, k, :] = out[sl].reshape(m, q)
+                margin[:, k, :] = mg[sl].reshape(m, q)
+        return f, margin
+
+    def branch_end(self, builds: BuildLengths, window, toward: float):
+        """Where each built module's branch ends inside ``window``, walking from the side
+        nearer ``toward`` (the side the motion comes from).
+
+        Parameters
+        ----------
+        builds : BuildLengths
+        window : numpy.ndarray, shape (Q,)
+            Increasing d_in values.
+        toward : float
+            A d_in value on the valid side.
+
+        Returns
+        -------
+        end, f_end : numpy.ndarray, shape (M, n)
+            The branch end and d_out there; NaN where the branch does not end inside the
+            window (or is not valid where the walk starts).
+        last, f_last : numpy.ndarray, shape (M, n)
+            The window's last valid value before the end, and d_out there.
+        """
+        w = np.asarray(window, dtype=np.float64)
+        if abs(toward - w[-1]) < abs(toward - w[0]):
+            w = w[::-1]
+        f, margin = self.evaluate(builds, w)
+        ok = margin >= 0
+        m, n, _ = ok.shape
+        bad = ~ok
+        bad[..., 0] = False
+        has_end = ok[..., 0] & bad.any(axis=-1)
+        first = np.argmax(bad, axis=-1)
+        prev = np.maximum(first - 1, 0)
+        last = np.where(has_end, w[prev], np.nan)
+        f_last = np.where(has_end, np.take_along_axis(f, prev[..., None], axis=-1)[..., 0],
+                          np.nan)
+        lo, hi = last.copy(), np.where(has_end, w[first], np.nan)
+        end = np.full((m, n), np.nan)
+        f_end = np.full((m, n), np.nan)
+        if not has_end.any():
+            return end, f_end, last, f_last
+        for _ in range(BRANCH_END_BISECTIONS):
+            mid = 0.5 * (lo + hi)
+            _, mg = self.evaluate(builds, np.where(has_end, mid, w[0])[..., None])
+            good = mg[..., 0] >= 0
+            lo = np.where(good, mid, lo)
+            hi = np.where(good, hi, mid)
+        fv, mg = self.evaluate(builds, np.where(has_end, lo, w[0])[..., None])
+        end = np.where(has_end & (mg[..., 0] >= 0), lo, np.nan)
+        f_end = np.where(np.isfinite(end), fv[..., 0], np.nan)
+        return end, f_end, last, f_last

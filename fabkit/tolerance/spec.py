@@ -1,0 +1,280 @@
+"""Tolerance settings: the process a design is built by, its error parameters and limits."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from ..errors import SettingsError, TemplateError
+from ..numerics import TINY
+from ..schema import ToleranceSection, check_table
+from .behaviour import STATE_FRACTION
+from .processes import PROCESSES, SOURCES, ProcessGeometry, sample_lengths
+
+#: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
+#: typical figures quoted by filament makers for parts that the slicer does not compensate.
+SHRINKAGE = {"PLA": (0.003, 0.001), "PETG": (0.004, 0.0015), "TPU": (0.006, 0.002)}
+
+
+@dataclass(frozen=True)
+class ToleranceSpec:
+    """Manufacturing errors of one process and the acceptance limits (lengths in mm).
+
+    Attributes
+    ----------
+    process : str
+        ``"laser"``, ``"print"`` or ``"origami"``: which error model applies (default: the
+        design's fabrication table).
+    scale : float
+        mm per design unit (default: the process's own scale).
+    length_sigma, kerf_sigma, hole_clearance, thickness, thickness_sigma : float
+        Laser: bar-length σ (0.05 mm, laser positioning), hole-diameter σ from uneven kerf
+        (0.03 mm), hole minus barrel diameter (the screw's 4.2 - 4.0 = 0.2 mm), sheet thickness
+        and its build-to-build σ (3.0 ± 0.15 mm: extruded acrylic, ~5 %).
+    xy_sigma, shrinkage, shrinkage_sigma, line_width_sigma, hinge_length : float
+        Print: joint position σ per coordinate (0.1 mm, typical FDM accuracy), shrinkage
+        fraction and its σ (by material, :data:`SHRINKAGE`), extrusion-width σ (0.03 mm), the
+        hinges' free length (the print settings').
+    crease_sigma, cut_sigma, paper_thickness, compliance_sigma : float
+        Origami: crease-vertex position σ (0.5 mm, folding by hand on a printed line), boundary
+        σ (0.2 mm, knife or cutter), paper thickness (0.1 mm, 80 g/m² copy paper), panel bowing
+        σ (0.2 mm).
+    limit : float or None
+        Allowed error of every port distance at the end, where the port distances are what a
+        design is for (mm); None:
+        ``limit_fraction`` of the module size.
+    limit_fraction : float
+        Default limit as a fraction of the mean designed port distance (0.02: a 2 % change of
+        a module's shape is about what a maker sees by eye).
+    min_reached : float
+        Fraction of builds that must keep the design's behaviour (default 0.95).
+    state_fraction : float
+        A built module is in a designed state (a crystal, its lock) within this fraction of
+        its travel between its states (default 0.25: nearer that state than the middle of
+        the transition by a factor of two); see :mod:`fabkit.tolerance.behaviour`.
+    samples : int
+        Number of simulated builds (default 200).
+    seed : int
+        Seed of the random numbers (same seed, same result).
+    """
+
+    process: str = "laser"
+    scale: float = 50.0
+    length_sigma: float = 0.05
+    kerf_sigma: float = 0.03
+    hole_clearance: float = 0.2
+    thickness: float = 3.0
+    thickness_sigma: float = 0.15
+    xy_sigma: float = 0.1
+    shrinkage: float = 0.003
+    shrinkage_sigma: float = 0.001
+    line_width_sigma: float = 0.03
+    hinge_length: float = 6.0
+    crease_sigma: float = 0.5
+    cut_sigma: float = 0.2
+    paper_thickness: float = 0.1
+    compliance_sigma: float = 0.2
+    limit: float | None = None
+    limit_fraction: float = 0.02
+    min_reached: float = 0.95
+    state_fraction: float = STATE_FRACTION
+    samples: int = 200
+    seed: int = 0
+
+    def process_keys(self) -> tuple[str, ...]:
+        """The spec fields that belong to this process (its error sources' parameters)."""
+        keys = [k for src in SOURCES[self.process].values() for k in src]
+        if self.process == "laser":
+            keys.insert(keys.index("thickness_sigma"), "thickness")
+        return tuple(keys)
+
+
+TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)}
+_OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k in src}
+_OWNER["thickness"] = "laser"
+
+
+def design_process(design) -> str:
+    """The process a design is built by: its ``[fabrication.tolerance] process``, else the first
+    of its origami / print / laser tables, else origami for 3D networks and laser for planar."""
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    table = fab.get("tolerance")
+    if isinstance(table, dict) and table.get("process") in PROCESSES:
+        return table["process"]
+    for proc, key in (("origami", "origami"), ("print", "print"), ("laser", "laser")):
+        if key in fab:
+            return proc
+    return "origami" if design.network.dim == 3 else "laser"
+
+
+def _laser_defaults(design, settings) -> dict:
+    """Scale, thickness and hole clearance from the laser settings."""
+    from ..errors import FabricationError
+    from ..fab.laser import laser_settings
+
+    laser = design.fabrication.get("laser") if isinstance(design.fabrication, dict) else None
+    try:
+        s = laser_settings(laser if isinstance(laser, dict) else {},
+                           (settings or {}).get("laser") or {},
+                           network_size=float(design.network.size))
+    except FabricationError as exc:
+        raise TemplateError(design.path or design.name, "fabrication.laser", str(exc)) from None
+    out = {"scale": float(s.scale), "thickness": float(s.thickness)}
+    screw = getattr(s, "screw", None)
+    if screw is not None:
+        out["hole_clearance"] = float(screw.hole_diameter - screw.barrel_diameter)
+    return out
+
+
+def _print_defaults(design, settings) -> dict:
+    """Scale, hinge length and the material's shrinkage from the print settings."""
+    from ..errors import FabricationError
+    from ..fab.printing import design_print_settings
+
+    try:
+        s = design_print_settings(design, settings)
+    except FabricationError as exc:
+        raise TemplateError(design.path or design.name, "fabrication.print", str(exc)) from None
+    mean, sd = SHRINKAGE.get(s.material, SHRINKAGE["PLA"])
+    return {"scale": float(s.scale), "hinge_length": float(s.hinge_length), "shrinkage": mean,
+            "shrinkage_sigma": sd}
+
+
+def _origami_defaults(design, settings) -> dict:
+    """Scale from the sheet size of the [fabrication.origami] table (150 mm when absent)."""
+    from ..errors import FabricationError
+    from ..fab.creases import origami_model
+
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    if "origami" not in fab:
+        return {"scale": 150.0 / max(float(design.network.size), TINY)}
+    try:
+        return {"scale": float(origami_model(design, (settings or {}).get("origami")).scale)}
+    except FabricationError as exc:
+        raise TemplateError(design.path or design.name, "fabrication.origami", str(exc)) from None
+
+
+_DEFAULTS = {"laser": _laser_defaults, "print": _print_defaults, "origami": _origami_defaults}
+
+
+def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
+    """The tolerance settings of a design: defaults < the process's settings (scale, sheet,
+    hinge, material) < the template's ``[fabrication.tolerance]`` table < ``settings
+    ["tolerance"]`` (command line) < ``overrides``.
+
+    Parameters
+    ----------
+    design : Design
+    settings : dict, optional
+        Command-line overrides, nested by section (``{"tolerance": {"samples": 50}}``).
+    **overrides
+        Final say on any field of :class:`ToleranceSpec`.
+
+    Returns
+    -------
+    ToleranceSpec
+
+    Raises
+    ------
+    TemplateError
+        Unknown key, a key of another process, wrong type, or a negative or zero value, naming
+        ``fabrication.tolerance.<key>``; invalid settings of the process (they give the scale).
+
+    Examples
+    --------
+    >>> from fabkit.templates import parse_template
+    >>> d = parse_template('[network]\\nnodes=[[0,0],[1,0],[0,1],[1,1]]\\n'
+    ...                    'edges=[[0,1],[0,2],[1,3],[2,3]]\\nports={d1=[0,3]}\\n'
+    ...                    '[fabrication.tolerance]\\nscale=20\\nsamples=10')
+    >>> tolerance_spec(d).scale, tolerance_spec(d, samples=5).samples, tolerance_spec(d).process
+    (20.0, 5, 'laser')
+    """
+    path = design.path or design.name
+    table = design.fabrication.get("tolerance", {}) if isinstance(design.fabrication, dict) else {}
+    cli = (settings or {}).get("tolerance", {})
+    sources = (("fabrication.tolerance", table), ("--set tolerance", cli),
+               ("tolerance option", overrides))
+    process = design_process(design)
+    checked = []
+    for where, source in sources:
+        try:  # types and ranges: the declared schema (fabkit.schema.ToleranceSection)
+            given = check_table(ToleranceSection, source, where).given()
+        except SettingsError as exc:
+            raise TemplateError(path, exc.key, exc.reason) from None
+        if given.get("process") is not None:
+            process = given["process"]
+        checked.append((where, given))
+    values: dict = {"process": process}
+    values.update(_DEFAULTS[process](design, settings))
+    for where, given in checked:
+        for key, value in given.items():
+            if key == "process":
+                continue
+            if _OWNER.get(key, process) != process:  # a setting that does not apply here
+                raise TemplateError(path, f"{where}.{key}",
+                                    f"is a {_OWNER[key]} error; this design is analysed as "
+                                    f"{process} (set process = \"{_OWNER[key]}\" to change "
+                                    "that)")
+            values[key] = value if key in ("samples", "seed") or value is None else float(value)
+    return ToleranceSpec(**values)
+
+
+def perturbed_lengths(lengths, spec: ToleranceSpec, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Sample the edge lengths of ``spec.samples`` laser-cut builds (every laser error source).
+
+    Parameters
+    ----------
+    lengths : array_like, shape (E,)
+        Design lengths (design units).
+    spec : ToleranceSpec
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    built : numpy.ndarray, shape (M, E)
+        Effective lengths of every build (design units).
+    thickness : numpy.ndarray, shape (M,)
+        Sheet thickness of every build (mm).
+
+    Examples
+    --------
+    >>> spec = ToleranceSpec(samples=4, length_sigma=0, kerf_sigma=0, hole_clearance=0)
+    >>> built, t = perturbed_lengths([1.0, 2.0], spec, np.random.default_rng(0))
+    >>> bool(np.allclose(built, [[1.0, 2.0]] * 4))
+    True
+    """
+    L = np.asarray(lengths, dtype=np.float64)
+    geo = ProcessGeometry(np.zeros((L.size + 1, 2)), np.zeros((L.size, 2), dtype=np.int64), L)
+    state = rng.bit_generator.state
+    built = sample_lengths(geo, replace(spec, process="laser"), rng)
+    # the thickness is the first draw of the laser model: replay it
+    rng2 = np.random.Generator(type(rng.bit_generator)())
+    rng2.bit_generator.state = state
+    t = np.maximum(spec.thickness + spec.thickness_sigma * rng2.standard_normal(spec.samples),
+                   0.1 * spec.thickness)
+    return built, t
+
+
+def model_summary(spec: ToleranceSpec) -> str:
+    """One sentence: the process's error sources with their values, in mm.
+
+    Examples
+    --------
+    >>> model_summary(ToleranceSpec(process="origami", scale=100.0))[:40]
+    'origami: crease position σ 0.5 mm, cut σ'
+    """
+    if spec.process == "laser":
+        parts = [f"bar length σ {spec.length_sigma:g} mm", f"kerf σ {spec.kerf_sigma:g} mm",
+                 f"hole play {spec.hole_clearance:g} mm",
+                 f"sheet {spec.thickness:g} ± {spec.thickness_sigma:g} mm"]
+    elif spec.process == "print":
+        parts = [f"xy accuracy σ {spec.xy_sigma:g} mm",
+                 f"shrinkage {100 * spec.shrinkage:g} ± {100 * spec.shrinkage_sigma:g} %",
+                 f"line width σ {spec.line_width_sigma:g} mm",
+                 f"hinge flexure over {spec.hinge_length:g} mm"]
+    else:
+        parts = [f"crease position σ {spec.crease_sigma:g} mm", f"cut σ {spec.cut_sigma:g} mm",
+                 f"paper {spec.paper_thickness:g} mm thick",
+                 f"crease compliance σ {spec.compliance_sigma:g} mm"]
+    return f"{spec.process}: " + ", ".join(parts) + f" (scale {spec.scale:.4g} mm per unit)"
