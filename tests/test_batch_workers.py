@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import signal
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
@@ -97,6 +98,34 @@ def test_a_worker_dying_at_any_moment_fails_only_its_design(tmp_path, lengths, m
     assert sorted(k for k in files if not k.startswith("index")) == sorted(
         f"{n}/{f}" for n in DESIGNS if n != VICTIM
         for f in (f"{n}_lengths.txt", "report.html", "report.json", "report.md"))
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("action, limits, words", [
+    # stopped (SIGSTOP): even its heartbeat is silent, so the silence limit finds it
+    ("stop", {"silence": 3.0}, "the worker stopped answering (no word for 3 s) while "
+                               "exporting super_stable, and was stopped"),
+    # stuck in the export while its heartbeat goes on: the design's time limit finds it
+    ("hang", {"timeout": 4.0}, "exporting super_stable ran past the time limit of 4 s "
+                               "(--timeout), and was stopped"),
+])
+def test_a_worker_that_stops_answering_fails_only_its_design(tmp_path, lengths, monkeypatch,
+                                                             action, limits, words):
+    out = tmp_path / "out"
+    monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@{Stage.WRITE}:{action}")
+    t0 = time.monotonic()
+    results = export_many([TEMPLATES / f"{n}.toml" for n in DESIGNS], None, out, jobs=2,
+                          exporters=lengths, previews=False, tolerance_samples=0, **limits)
+    assert time.monotonic() - t0 < 60  # found within its limit, not waited on forever
+    by_name = {r.name: r for r in results}
+    stuck = by_name[VICTIM]
+    assert stuck.outcome is Outcome.FAILED and stuck.error_code == "timeout"
+    assert stuck.error == (f"{TEMPLATES / (VICTIM + '.toml')}: {words}; nothing of "
+                           f"{VICTIM} was written")
+    assert stuck.worker_exit == -signal.SIGKILL
+    assert all(by_name[n].outcome is Outcome.OK for n in DESIGNS if n != VICTIM)
+    assert exit_code(results) == 1
+    assert not any(VICTIM in k for k in _files(out))
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
 
 

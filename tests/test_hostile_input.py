@@ -339,6 +339,9 @@ def test_a_sweep_point_that_stops_answering_is_recorded_and_the_rest_goes_on(mon
      "tolerance.seed: must be >= 0, got -1"),
     (["export", "fourbar", "--set", "print.preview=no"], 2,
      "print.preview: must be true or false, got 'no'"),
+    (["export", "fourbar", "--timeout", "-1"], 2, "--timeout: must be 0 (no limit) or a number"),
+    (["sweep", "chaotic", "--vary", "nodes[4].x=-0.4:-0.2:3", "--point-timeout", "0"], 2,
+     "--point-timeout: must be positive"),
 ])
 def test_settings_are_refused_not_dropped(argv, code, words, tmp_path, capsys):
     out = tmp_path / "out"

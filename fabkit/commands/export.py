@@ -41,6 +41,9 @@ def add_arguments(p):
                         "(default: refuse at once)")
     p.add_argument("--quiet", "-q", action="store_true",
                    help="no progress lines on stderr")
+    p.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
+                   help="seconds one design may take before it is stopped and failed "
+                        "(default 3600; 0: no limit)")
 
 
 # --- command-line values ---------------------------------------------------------------------
@@ -116,6 +119,10 @@ def run(args) -> int:
     from . import check_jobs, expand_templates
 
     check_jobs("--jobs", args.jobs)
+    if args.timeout is not None and not (args.timeout >= 0 and args.timeout < float("inf")):
+        raise UsageError("--timeout", f"must be 0 (no limit) or a number of seconds, got "
+                                      f"{args.timeout}")
+    timeout = {} if args.timeout is None else {"timeout": args.timeout or None}
     if args.tolerance_samples is not None and args.tolerance_samples < 0:
         raise UsageError("--tolerance-samples", f"must be 0 or more, got {args.tolerance_samples}")
     formats = parse_formats(args.to)
@@ -126,7 +133,7 @@ def run(args) -> int:
                           check=not args.no_check, tolerance_samples=args.tolerance_samples,
                           progress=progress, previews=not args.no_previews,
                           debug=getattr(args, "debug", False), wait=args.wait,
-                          allow_large=getattr(args, "allow_large", False))
+                          allow_large=getattr(args, "allow_large", False), **timeout)
     print(summary_table(results))
     for r in results:
         if not r.ok:
