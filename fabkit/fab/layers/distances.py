@@ -11,11 +11,19 @@ from .constants import _BLOCK, _BLOCK_ELEMENTS
 # -- distances ------------------------------------------------------------------------------
 
 def _node_steps(x: np.ndarray) -> np.ndarray:
-    """Largest node displacement between consecutive configurations, shape (S-1,)."""
+    """Largest node displacement between consecutive configurations, shape (S-1,).
+
+    Blocked over samples so that no second array of all positions is made (a long chain's
+    sampled motion is the largest array of the laser kit)."""
     if x.shape[0] < 2:
         return np.zeros(0)
-    d = x[1:] - x[:-1]
-    return np.sqrt(_dot(d, d)).max(axis=-1)  # _dot: the same sums, without numpy's reduction
+    out = np.empty(x.shape[0] - 1)
+    block = int(max(1, _BLOCK_ELEMENTS // max(1, x.shape[1])))
+    for start in range(0, x.shape[0] - 1, block):
+        stop = min(start + block, x.shape[0] - 1)
+        d = x[start + 1:stop + 1] - x[start:stop]
+        out[start:stop] = np.sqrt(_dot(d, d)).max(axis=-1)  # _dot: no numpy reduction
+    return out
 
 
 def point_segment_distance(x, p, q) -> np.ndarray:

@@ -120,7 +120,9 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
         raise FabricationError(
             f"the {traj.method} trace moves a node {max_step:.3g} mm between samples, more than "
             f"the {step_limit:g} mm the collision check needs; use method = \"constructive\"")
-    return Sweep(positions=np.ascontiguousarray(x * scale), drive=np.asarray(drive),
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    x *= scale  # in place: the samples of a long chain are the largest array of the kit
+    return Sweep(positions=x, drive=np.asarray(drive),
                  step_limit=float(step_limit), max_step=max_step, method=traj.method,
                  status=str(traj.status), message=traj.message)
 
@@ -131,8 +133,8 @@ def _refine(placer, values, limit: float, scale: float, floor_limit, drive_name:
     ``placer(values) -> (S, N, d)`` places configurations. Intervals between adjacent floats
     whose step is within ``floor_limit`` mm are accepted; others raise. Returns values, x.
     """
+    x = placer(values)
     for _ in range(80):
-        x = placer(values)
         steps = _node_steps(x)
         bad = np.flatnonzero(steps > limit)
         if bad.size == 0:
@@ -158,7 +160,11 @@ def _refine(placer, values, limit: float, scale: float, floor_limit, drive_name:
             raise FabricationError(
                 f"sampling the motion to {limit * scale:g} mm steps needs more than "
                 f"{_MAX_SAMPLES} samples; raise the clearance or check the motion")
-        values = np.insert(values, bad + 1, 0.5 * (values[bad] + values[bad + 1]))
+        # only the new midpoints are placed (each configuration is placed on its own, so the
+        # samples are the same as placing all of them again)
+        mids = 0.5 * (values[bad] + values[bad + 1])
+        x = np.insert(x, bad + 1, placer(mids), axis=0)
+        values = np.insert(values, bad + 1, mids)
     raise FabricationError("could not sample the motion finely enough")  # pragma: no cover
 
 
