@@ -21,6 +21,8 @@ LAYERS = {
     "numerics": 1,
     "network": 1,
     "rigidity": 2,
+    "construction": 2,
+    "rigidity_structure": 2,
     "kinematics": 3,
     "maps": 4,
     "design": 4,
