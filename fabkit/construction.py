@@ -77,28 +77,30 @@ class ConstructionPlan:
 
     @cached_property
     def lists(self) -> tuple[list, list, list, list]:
-        """The plan as plain Python lists (order, parents, squared radii per parent slot,
-        signs), made once: placement loops over nodes read them element by element, and
-        converting a 100 000-module chain's plan takes longer than a third of its placement."""
-        return (self.order.tolist(), self.parents.tolist(), (self.radii ** 2).T.tolist(),
+        """The plan as plain Python lists, made once: the order, the parents and the squared
+        radii per parent slot (a list per slot, not a list per node: a 100 000-module chain's
+        300 000 small lists kept the garbage collector busy for longer than the conversion),
+        and the signs. Placement loops over nodes read them element by element."""
+        return (self.order.tolist(), self.parents.T.tolist(), (self.radii ** 2).T.tolist(),
                 self.signs.tolist())
 
     @cached_property
-    def runs(self) -> list[tuple[int, int, int, int]]:
+    def run_table(self) -> np.ndarray:
         """Runs of consecutive placements with the same two parents (a module's two variable
-        nodes), none a parent of another: (start, stop, p, q) per run, placed together."""
-        order, parents, _, _ = self.lists
-        runs = []
-        start = 0
-        n = len(order)
-        while start < n:
-            p, q = parents[start][0], parents[start][1]
-            stop = start + 1
-            while stop < n and parents[stop][0] == p and parents[stop][1] == q:
-                stop += 1
-            runs.append((start, stop, p, q))
-            start = stop
-        return runs
+        nodes), none a parent of another, placed together: rows (start, stop, p, q)."""
+        par = self.parents
+        m = par.shape[0]
+        if m == 0:
+            return np.zeros((0, 4), dtype=np.int64)
+        same = (par[1:, 0] == par[:-1, 0]) & (par[1:, 1] == par[:-1, 1])
+        starts = np.concatenate([[0], np.flatnonzero(~same) + 1])
+        stops = np.concatenate([starts[1:], [m]])
+        return np.column_stack([starts, stops, par[starts, 0], par[starts, 1]])
+
+    @cached_property
+    def runs(self) -> list[tuple[int, int, int, int]]:
+        """:attr:`run_table` as a list of tuples (what the placement loop reads)."""
+        return list(zip(*self.run_table.T.tolist()))
 
 
 @dataclass(frozen=True)
@@ -438,24 +440,34 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     layout = net.assembly
     if layout is None or net.dim != 2 or net.ports.get("d1") != tuple(drive):
         return None
-    plans: dict[int, ConstructionPlan | None] = {}  # per distinct module
-    orders, parents, radii = [], [], []
-    for module, index, _flag in layout.copies:
-        mp = plans.get(id(module), False)
-        if mp is False:
-            try:
-                mp = cached_plan(module, module.port(layout.d_in))
-            except ConstructionError:
-                mp = None
-            plans[id(module)] = mp
-        if mp is None or mp.seed != module.port(layout.d_in):
+    # the copies of each distinct module at once: a 100 000-module chain has one or two kinds
+    kinds: dict[int, list[int]] = {}
+    plans: dict[int, ConstructionPlan] = {}
+    for c, (module, _index, _flag) in enumerate(layout.copies):
+        kinds.setdefault(id(module), []).append(c)
+    sizes = np.empty(len(layout.copies), dtype=np.int64)
+    for key, members in kinds.items():
+        module = layout.copies[members[0]][0]
+        try:
+            mp = cached_plan(module, module.port(layout.d_in))
+        except ConstructionError:
             return None
-        orders.append(index[mp.order])
-        parents.append(index[mp.parents])
-        radii.append(mp.radii)
-    order = np.concatenate(orders)
-    par = np.concatenate(parents)
-    rad = np.concatenate(radii)
+        if mp.seed != module.port(layout.d_in):
+            return None
+        plans[key] = mp
+        sizes[members] = mp.order.size
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    total = int(sizes.sum())
+    order = np.empty(total, dtype=np.int64)
+    par = np.empty((total, 2), dtype=np.int64)
+    rad = np.empty((total, 2))
+    for key, members in kinds.items():
+        mp = plans[key]
+        index = np.stack([layout.copies[c][1] for c in members])  # (copies, module nodes)
+        at = (starts[members][:, None] + np.arange(mp.order.size)).ravel()
+        order[at] = index[:, mp.order].ravel()
+        par[at] = index[:, mp.parents].reshape(-1, 2)
+        rad[at] = np.broadcast_to(mp.radii, (len(members),) + mp.radii.shape).reshape(-1, 2)
     n = net.n_nodes
     a, b = drive
     step = np.full(n, -1, dtype=np.int64)

@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import KinematicsError
 from ..network import Network
 from ..numerics import START_RTOL, TINY, apply_fit, rigid_fit
+from .record import Record, edge_errors, keep_rule, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
 
 __all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
@@ -72,9 +73,12 @@ class Outcome:
         True when the positions are already in the gauge frame.
     method : str, optional
         The name to report when a method delegates (e.g. ``"branch/constructive"``).
+    record : Record, optional
+        The configurations already reduced to what the trace keeps, in the gauge frame
+        (``positions`` and ``arclength`` are then not used).
     """
 
-    positions: np.ndarray
+    positions: np.ndarray | None
     status: Status
     message: str
     marks: tuple = ()
@@ -82,6 +86,7 @@ class Outcome:
     arclength: np.ndarray | None = None
     aligned: bool = False
     method: str | None = None
+    record: Record | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,6 +108,9 @@ class Problem:
         Drive value to reach.
     gauge : tuple of int
         Nodes held still: an edge (2D) or a triangle (3D) of ``work``.
+    keep : str or int
+        What the trajectory keeps of its configurations: ``"all"``, ``"ports"`` or every k-th
+        (see :mod:`.record`).
     """
 
     network: Network
@@ -112,6 +120,7 @@ class Problem:
     drive_name: str
     target: float
     gauge: tuple[int, ...]
+    keep: str | int = "all"
 
     @property
     def dim(self) -> int:
@@ -139,16 +148,25 @@ class Problem:
             steps = np.linalg.norm((pos[1:] - pos[:-1]).reshape(len(pos) - 1, pos[0].size), axis=1)
             arclength = np.concatenate([[0.0], np.cumsum(steps)])
         arclength = np.asarray(arclength, dtype=np.float64)
-        drive = self.drive_of(pos)
-        last = len(pos) - 1
+        record = Record(pos, None, self.drive_of(pos), arclength,
+                        edge_errors(self.network, pos), None)
+        return self.trajectory_of(record, method, status, message, marks, stats)
+
+    def trajectory_of(self, record: Record, method: str, status: Status, message: str,
+                      marks=(), stats=None) -> Trajectory:
+        """Package a :class:`~.record.Record` (configurations reduced to what the trace keeps)
+        as a :class:`Trajectory`; events take the drive value and arclength of the marked
+        configuration."""
+        drive, arclength = record.drive, record.arclength
+        last = len(drive) - 1
         events = tuple(Event(m.kind, min(int(m.index), last), float(drive[min(int(m.index), last)]),
                              float(arclength[min(int(m.index), last)]), m.detail) for m in marks)
         return Trajectory(
             network=self.network,
-            positions=pos,
+            positions=record.positions,
             drive=drive,
             arclength=arclength,
-            edge_error=np.atleast_1d(self.network.edge_error(pos)),
+            edge_error=record.edge_error,
             method=method,
             status=status,
             message=message,
@@ -156,6 +174,8 @@ class Problem:
             target=self.target,
             events=events,
             stats=dict(stats or {}),
+            kept=record.kept,
+            port_values=record.ports,
         )
 
 
@@ -246,8 +266,10 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     return apply_fit(rigid_fit(x[:, list(gauge)], ref), x)
 
 
-def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) -> Problem:
+def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
+                 keep="all") -> Problem:
     """Validate a tracing request and build the :class:`Problem` every method solves."""
+    keep = keep_rule(keep)
     if not isinstance(net, Network):
         raise TypeError(f"`net` must be a fabkit.Network, got {type(net).__name__}")
     pair, name = _resolve_port(net, drive)
@@ -293,7 +315,7 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None) ->
         if any(not 0 <= v < net.n_nodes for v in gauge) or len(set(gauge)) != len(gauge):
             raise KinematicsError(f"`gauge` must name distinct nodes of the network, got {gauge}")
     return Problem(network=net, work=work, start=np.array(x0), drive=pair, drive_name=name,
-                   target=target, gauge=gauge)
+                   target=target, gauge=gauge, keep=keep)
 
 
 class Method(ABC):
@@ -322,14 +344,22 @@ class Method(ABC):
         """Trace the motion; return an Outcome whatever happens (status and message say how)."""
 
     def run(self) -> Trajectory:
-        """Trace the motion and package it: gauge frame, arclength, events, edge errors."""
+        """Trace the motion and package it: gauge frame, arclength, events, edge errors, and
+        only the configurations ``keep`` asks for."""
         out = self.solve()
         p = self.problem
+        name = out.method or self.name
+        if out.record is not None:  # the method reduced its configurations itself
+            return p.trajectory_of(out.record, name, out.status, out.message, out.marks,
+                                   out.stats)
         x = np.asarray(out.positions, dtype=np.float64)
         if not out.aligned:
             x = align_to_gauge(x, p.start, p.gauge)
-        return p.trajectory(x, out.method or self.name, out.status, out.message, out.marks,
-                            out.stats, out.arclength)
+        if p.keep != "all":
+            return p.trajectory_of(record_positions(p, x, out.arclength), name, out.status,
+                                   out.message, out.marks, out.stats)
+        return p.trajectory(x, name, out.status, out.message, out.marks, out.stats,
+                            out.arclength)
 
     # Helpers shared by the methods -------------------------------------------------------------
     def direction(self) -> float:
