@@ -1,5 +1,6 @@
 """What a trace keeps (keep="all" | "ports" | k): the same drive, arclength, edge errors and port
-distances as the full trace, the positions of the configurations asked for only."""
+distances as the full trace, the positions of the configurations asked for only; and projected on
+the long mirrored super-stable chain, in a gauge that keeps the far end still."""
 
 from __future__ import annotations
 
@@ -118,3 +119,29 @@ def test_the_streamed_sweep_matches_the_placement(monkeypatch, name, block):
     steps = np.linalg.norm((want[1:] - want[:-1]).reshape(16, -1), axis=1)
     np.testing.assert_allclose(traj.arclength[1:], np.cumsum(steps), rtol=1e-12)
     np.testing.assert_allclose(traj.edge_error, net.edge_error(want), atol=1e-14)
+
+
+def test_projected_holds_the_still_far_end_of_a_long_chain():
+    """The near-drive gauge swung the whole far chain about the collapse front: steps grew with
+    the chain and a third of them were rejected. Holding the stillest part keeps the step count
+    of a short chain; the output is still in the caller's gauge frame."""
+    to = soliton_target()
+    steps = {}
+    for k in (100, 2000):
+        net = chain(k)
+        traj = fabkit.trace(net, "d1", to=to, method="projected")
+        ref = fabkit.trace(net, "d1", to=to, method="constructive", samples=2)
+        assert traj.status == ref.status == Status.FINISHED and not traj.events
+        assert traj.stats["gauge_changes"] >= 1 and traj.stats["rejected"] <= 10
+        steps[k] = traj.stats["steps"]
+        # the configuration reached is the constructive one, in the same gauge frame, where d1
+        # determines it in float64: the distance to D2* grows by 4 per module, so round-off in
+        # d1 (1e-16) moves the collapse front 20 modules in by 1e-5; the first 10 modules are
+        # fixed to 1e-10
+        np.testing.assert_allclose(traj.final[:32], ref.final[:32], atol=1e-9)
+        ports = [f"d{i}" for i in range(1, 11)] + [f"d{i}" for i in range(40, k + 2)]
+        np.testing.assert_allclose([traj.distance(p)[-1] for p in ports],
+                                   [ref.distance(p)[-1] for p in ports], atol=1e-9)
+        g = traj.positions[:, [0, 4]]  # the gauge edge near the drive: held still
+        np.testing.assert_allclose(g, np.broadcast_to(net.nodes[[0, 4]], g.shape), atol=1e-12)
+    assert steps[2000] <= steps[100] + 10
