@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import KinematicsError
 from ..network import Network
-from ..numerics import START_RTOL, TINY, apply_fit, rigid_fit
+from ..numerics import START_RTOL, TINY, rigid_fit
 from .record import Record, edge_errors, keep_rule, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
 
@@ -263,7 +263,18 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     """
     x = np.asarray(positions, dtype=np.float64)
     ref = np.asarray(reference, dtype=np.float64)[list(gauge)]
-    return apply_fit(rigid_fit(x[:, list(gauge)], ref), x)
+    fit = rigid_fit(x[:, list(gauge)], ref)
+    # x @ Rᵀ + t with the sums written out: a batched matmul with an inner size of 2 or 3 is
+    # several times slower (70 ms for 36 configurations of a 30 000-node chain)
+    rot, shift = fit.rotation, fit.shift
+    out = np.empty_like(x)
+    for a in range(x.shape[-1]):
+        acc = x[..., 0] * rot[:, None, a, 0]
+        for b in range(1, x.shape[-1]):
+            acc += x[..., b] * rot[:, None, a, b]
+        acc += shift[:, None, a]
+        out[..., a] = acc
+    return out
 
 
 def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,

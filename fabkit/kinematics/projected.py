@@ -117,8 +117,9 @@ def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
 GAUGE_SWITCH = 3.0
 
 #: Accepted steps between two looks for a stiller gauge (a look costs a few vector operations
-#: on the whole network, about a tenth of a step).
-GAUGE_CHECK_EVERY = 4
+#: on the whole network, about a fifth of a step; a collapse front passes a module in about two
+#: steps, so a gauge that starts to move is left within a few modules).
+GAUGE_CHECK_EVERY = 8
 
 #: Largest ``kl + ku`` for which the banded LAPACK factorisation is used (else SuperLU).
 BAND_LIMIT = 64
@@ -215,6 +216,23 @@ class _System:
         self._base_keys = key[self._base_order]
         self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
         self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
+        # Band assembly without re-deriving the fixed entries at every factorisation: inserting
+        # the last row at position ins moves the rows at or after it down by one, so an entry's
+        # row is its base position plus (base position >= ins), and the band widths follow from
+        # prefix and suffix maxima over the entries sorted by base position.
+        bpos = np.empty(m - 1, dtype=np.int64)
+        bpos[self._base_order] = np.arange(m - 1)
+        entry = bpos[fixed_rows]
+        by = np.argsort(entry, kind="stable")
+        self._entry_bpos = entry
+        self._sorted_bpos = entry[by]
+        lower = (entry - fixed_cpos)[by]
+        upper = (fixed_cpos - entry)[by]
+        self._lower_head = np.maximum.accumulate(lower)
+        self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
+        self._upper_head = np.maximum.accumulate(upper)
+        self._upper_tail = np.maximum.accumulate(upper[::-1])[::-1]
+        self._band_base: dict[int, np.ndarray] = {}
 
     def regauge(self, gcols: np.ndarray, gvals: np.ndarray) -> None:
         """Hold other coordinates still (as many as before): the gauge rows and the row order
@@ -253,20 +271,35 @@ class _System:
         else SuperLU), or None when the matrix is exactly singular."""
         x = xf.reshape(self.n, self.d)
         diff = self.diff(x)
-        vals = np.concatenate([np.concatenate([diff, -diff], axis=1).ravel(),
-                               np.ones(self.gcols.size), last_vals])
+        e, d = diff.shape
         m = self.n_rows
+        fixed = np.empty(e * 2 * d + self.gcols.size)  # values in the order of the entries
+        pairs = fixed[:e * 2 * d].reshape(e, 2 * d)
+        pairs[:, :d] = diff
+        np.negative(diff, out=pairs[:, d:])
+        fixed[e * 2 * d:] = 1.0
         last_cpos = self._colpos[last_cols]
         ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
         rowperm = np.insert(self._base_order, ins, m - 1)
-        rpos = np.empty(m, dtype=np.int64)
-        rpos[rowperm] = np.arange(m)
-        ri = rpos[np.concatenate([self._fixed_rows, np.full(last_cols.size, m - 1)])]
-        ci = np.concatenate([self._fixed_cpos, last_cpos])
-        kl, ku = int(max(0, (ri - ci).max())), int(max(0, (ci - ri).max()))
+        cut = int(np.searchsorted(self._sorted_bpos, ins))  # entries before / from the new row
+        n_fix = self._sorted_bpos.size
+        kl = max(0, int((ins - last_cpos).max()),
+                 int(self._lower_head[cut - 1]) if cut > 0 else 0,
+                 int(self._lower_tail[cut]) + 1 if cut < n_fix else 0)
+        ku = max(0, int((last_cpos - ins).max()),
+                 int(self._upper_head[cut - 1]) if cut > 0 else 0,
+                 int(self._upper_tail[cut]) - 1 if cut < n_fix else 0)
         if kl + ku <= BAND_LIMIT:
-            ab = np.zeros((2 * kl + ku + 1, m), order="F")
-            ab[kl + ku + ri - ci, ci] = vals
+            ldab = 2 * kl + ku + 1
+            base = self._band_base.get(ldab)
+            if base is None:  # flat index in the Fortran-ordered band, before the shift by ins
+                base = self._band_base[ldab] = self._entry_bpos + self._fixed_cpos * (ldab - 1)
+            flat = base + (self._entry_bpos >= ins)
+            flat += kl + ku
+            ab = np.zeros((ldab, m), order="F")
+            band = ab.T.reshape(-1)  # a view: the band's columns one after the other
+            band[flat] = fixed
+            ab[kl + ku + ins - last_cpos, last_cpos] = last_vals
             lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
             if info != 0:
                 return None
@@ -275,7 +308,7 @@ class _System:
             return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, sign)
         rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
         cols = np.concatenate([self._cols, self.gcols, last_cols])
-        a = sp.csc_matrix((vals, (rows, cols)), shape=(m, m))
+        a = sp.csc_matrix((np.concatenate([fixed, last_vals]), (rows, cols)), shape=(m, m))
         try:
             return _SuperLU(spla.splu(a, permc_spec="COLAMD"))
         except RuntimeError:
