@@ -255,7 +255,7 @@ class ModeCount:
         One sentence on the certificate (seeds, parts, extra bars), or why no structural
         certificate was found.
     cross_check : str
-        The numeric rank's verdict on a structural certificate (``"agrees"``, ``"ambiguous:
+        The numeric rank's verdict on a structural certificate (``"agrees"``, ``"undecided:
         ..."``, ``"disagrees: ..."``) or why it did not run; empty for numeric counts.
     """
 
@@ -649,7 +649,7 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     else:
         used, rank, gap, smallest, note = numeric
         if note:
-            check = f"ambiguous: {note}"
+            check = f"undecided: {note}"
         elif d * n - rank == cert.total:
             check = "agrees"
         else:
