@@ -12,12 +12,13 @@ from fabkit.errors import ResourceError
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def chain_template(tmp_path, copies):
-    path = tmp_path / f"chain{copies}.toml"
+def chain_template(tmp_path, copies, mirror=False):
+    path = tmp_path / f"chain{copies}{'m' if mirror else ''}.toml"
     path.write_text(
         f'name = "chain{copies}"\ndescription = "super-stable chain"\n'
         f'[chain]\nmodule = "{(ROOT / "templates" / "super_stable.toml").as_posix()}"\n'
-        f'copies = {copies}\n[motion]\ndrive = "d1"\nto = 1.2\n'
+        f'copies = {copies}\n' + ('mirror = "alternate"\n' if mirror else '')
+        + '[motion]\ndrive = "d1"\nto = 1.2\n'
     )
     return path
 
@@ -57,18 +58,8 @@ def test_dense_memory_check_uses_the_available_memory(monkeypatch):
         rigidity.count_modes(net, method="qr")
 
 
-def mirrored_template(tmp_path, copies):
-    path = tmp_path / f"mirrored{copies}.toml"
-    path.write_text(
-        f'name = "mirrored{copies}"\ndescription = "mirrored super-stable chain"\n'
-        f'[chain]\nmodule = "{(ROOT / "templates" / "super_stable.toml").as_posix()}"\n'
-        f'copies = {copies}\nmirror = "alternate"\n[motion]\ndrive = "d1"\nto = 1.0099505\n'
-    )
-    return path
-
-
 def test_info_proves_the_counts_of_a_hundred_thousand_module_chain(tmp_path, capsys):
-    path = mirrored_template(tmp_path, 100_000)
+    path = chain_template(tmp_path, 100_000, mirror=True)
     assert main(["--allow-large", "info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "nodes, edges  300002, 600000" in out
@@ -80,7 +71,7 @@ def test_info_proves_the_counts_of_a_hundred_thousand_module_chain(tmp_path, cap
 
 
 def test_info_says_where_the_numeric_rank_alone_cannot_decide(tmp_path, capsys):
-    path = mirrored_template(tmp_path, 10_000)
+    path = chain_template(tmp_path, 10_000, mirror=True)
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "certificate   structure: " in out and "ambiguous" not in out
