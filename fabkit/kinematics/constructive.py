@@ -404,12 +404,17 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
             X[c, row[b]] = ref[a, c] + dv * u[c]
         par_rows = np.where(plan.parents >= 0, row[np.maximum(plan.parents, 0)], -1).T.tolist()
     # what each block completes: edges and ports by their later node, nodes by position
+    # (sorted once into contiguous rows: gathering them per block from a large edge array was
+    # the one part that did not scale linearly)
     e_later = pos[edges].max(axis=1)
     e_sorted = np.argsort(e_later, kind="stable")
     e_cut = np.searchsorted(e_later[e_sorted], block_end)
+    e_rows = row[edges[e_sorted]]
+    e_rest = rest[e_sorted]
     p_later = pos[pairs].max(axis=1) if len(names) else np.zeros(0, dtype=np.int64)
     p_sorted = np.argsort(p_later, kind="stable")
     p_cut = np.searchsorted(p_later[p_sorted], block_end)
+    p_rows = row[pairs[p_sorted]]
     kept = kept_indices(k, p.keep)
     out = np.empty((kept.size, n, d))
     squares = np.zeros(max(k - 1, 0))
@@ -428,10 +433,11 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
             return np.stack([zz.real.T, zz.imag.T], axis=-1)
         return X[:, rows_].transpose(2, 1, 0)
 
-    def lengths(i, j):
+    def lengths(ri, rj):
+        """Distances between the nodes in rows ri[m] and rj[m], shape (len, K)."""
         if d == 2:
-            return np.abs(z[row[i]] - z[row[j]])
-        diff = X[:, row[i]] - X[:, row[j]]
+            return np.abs(z[ri] - z[rj])
+        diff = X[:, ri] - X[:, rj]
         return np.sqrt(np.einsum("cmk,cmk->mk", diff, diff))
 
     with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: NaN
@@ -464,17 +470,19 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
                 squares += np.einsum("cms,cms->s", step, step)
                 out[:, nodes] = w[:, :, kept].transpose(2, 1, 0)
             lo_pos = hi_pos
-            sel = e_sorted[lo_edge:e_cut[blk]]
-            if sel.size:
-                rel = np.abs(lengths(edges[sel, 0], edges[sel, 1]) / rest[sel, None] - 1.0)
+            hi_edge = int(e_cut[blk])
+            if hi_edge > lo_edge:
+                got = lengths(e_rows[lo_edge:hi_edge, 0], e_rows[lo_edge:hi_edge, 1])
+                rel = np.abs(got / e_rest[lo_edge:hi_edge, None] - 1.0)
                 np.maximum(err, rel.max(axis=0), out=err)
-            lo_edge = int(e_cut[blk])
-            sel = p_sorted[lo_port:p_cut[blk]]
-            if sel.size:
-                dist[sel] = lengths(pairs[sel, 0], pairs[sel, 1])
-            lo_port = int(p_cut[blk])
+            lo_edge = hi_edge
+            hi_port = int(p_cut[blk])
+            if hi_port > lo_port:
+                dist[p_sorted[lo_port:hi_port]] = lengths(p_rows[lo_port:hi_port, 0],
+                                                          p_rows[lo_port:hi_port, 1])
+            lo_port = hi_port
             if blk == 0:
-                drive = lengths(np.array([p.drive[0]]), np.array([p.drive[1]]))[0]
+                drive = lengths(row[[p.drive[0]]], row[[p.drive[1]]])[0]
     arclength = np.concatenate([[0.0], np.cumsum(np.sqrt(squares))])
     if p.keep == "all":
         record = Record(out, None, drive, arclength, err, None)
