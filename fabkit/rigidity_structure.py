@@ -497,7 +497,12 @@ def certify(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> Certifi
         extra = f"; {part.note}" if part.note else "; no extra bars"
         return Certificate("structure", total, stress, part.margin,
                            f"every node placed by transversal intersections from {name}{extra}")
-    parts, interface = _substructure(net, x, rtol, find)
+    try:
+        parts, interface = _substructure(net, x, rtol, find)
+    except Uncertified as exc:
+        if not reasons:
+            raise
+        raise Uncertified(f"{reasons[0]}; cut into parts: {exc}") from None
     margin = min(p.margin for p in parts)
     if interface is None:
         total, stress = _count(parts[0], x)

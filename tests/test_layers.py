@@ -23,6 +23,7 @@ LAYERS = {
     "rigidity": 2,
     "construction": 2,
     "rigidity_structure": 2,
+    "rigidity_edges": 2,
     "kinematics": 3,
     "maps": 4,
     "design": 4,

@@ -58,69 +58,25 @@ def place(plan: ConstructionPlan, drive_values, *,
     ValueError
         ``radii`` of another shape.
     """
-    cols, margins = _place_columns(plan, drive_values, radii)
+    rows, margins = _place_columns(plan, drive_values, radii)
     margin, worst = _margin_of(margins)
-    return cols.positions(), margin, worst
+    return _positions(rows), margin, worst
 
 
-class _Columns:
-    """Configurations stored as columns: one contiguous row of K values per node (and
-    coordinate), as the placement writes them. 2D: complex coordinates z (N, K); 3D: X (3, N, K).
-    """
-
-    def __init__(self, z=None, X=None):
-        self.z, self.X = z, X
-
-    @property
-    def dim(self) -> int:
-        return 2 if self.z is not None else 3
-
-    @property
-    def count(self) -> int:
-        return (self.z if self.z is not None else self.X[0]).shape[1]
-
-    def positions(self, cols=None) -> np.ndarray:
-        """Configurations (K, N, d), or those of the columns ``cols``."""
-        if self.z is not None:
-            z = self.z if cols is None else self.z[:, cols]
-            out = np.empty((z.shape[1], z.shape[0], 2))
-            out[..., 0] = z.real.T
-            out[..., 1] = z.imag.T
-            return out
-        X = self.X if cols is None else self.X[:, :, cols]
-        return np.ascontiguousarray(X.transpose(2, 1, 0))
-
-    def coords(self, nodes) -> np.ndarray:
-        """Positions of some nodes in every column, shape (K, len(nodes), d)."""
-        return self.positions_of(np.asarray(nodes, dtype=np.int64))
-
-    def positions_of(self, nodes) -> np.ndarray:
-        if self.z is not None:
-            z = self.z[nodes]
-            return np.stack([z.real.T, z.imag.T], axis=-1)
-        return self.X[:, nodes].transpose(2, 1, 0)
-
-    def distances(self, i, j) -> np.ndarray:
-        """Distances between nodes i[m] and j[m] in every column, shape (len(i), K)."""
-        if self.z is not None:
-            return np.abs(self.z[i] - self.z[j])
-        diff = self.X[:, i] - self.X[:, j]
-        return np.sqrt(np.einsum("cmk,cmk->mk", diff, diff))
-
-    def take(self, cols) -> "_Columns":
-        if self.z is not None:
-            return _Columns(z=self.z[:, cols])
-        return _Columns(X=self.X[:, :, cols])
-
-    def join(self, other: "_Columns") -> "_Columns":
-        if self.z is not None:
-            return _Columns(z=np.concatenate([self.z, other.z], axis=1))
-        return _Columns(X=np.concatenate([self.X, other.X], axis=2))
+def _positions(rows) -> np.ndarray:
+    """Configurations (K, N, d) from the placement's rows: complex z (N, K) in 2D, X (3, N, K)
+    in 3D."""
+    if np.iscomplexobj(rows):
+        out = np.empty((rows.shape[1], rows.shape[0], 2))
+        out[..., 0] = rows.real.T
+        out[..., 1] = rows.imag.T
+        return out
+    return np.ascontiguousarray(rows.transpose(2, 1, 0))
 
 
 def _place_columns(plan: ConstructionPlan, drive_values, radii=None):
-    """The placement of :func:`place`, as columns and the margins of every intersection
-    (shape (M, K))."""
+    """The placement of :func:`place`: one row of K values per node (2D: complex coordinates
+    z (N, K); 3D: X (3, N, K)) and the margins of every intersection (shape (M, K))."""
     dv = np.atleast_1d(np.asarray(drive_values, dtype=np.float64))
     k = dv.size
     ref = plan.reference
@@ -151,14 +107,14 @@ def _place_columns(plan: ConstructionPlan, drive_values, radii=None):
         with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: NaN
             _place_loop_2d(z, margins, 0, order, plan.runs, r0s, c0s, signs,
                            _radii_rows(r0s, c0s, signs))
-        return _Columns(z=z), margins
+        return z, margins
     X = np.empty((d, n, k))
     for c in range(d):
         X[c, a] = ref[a, c]
         X[c, b] = ref[a, c] + dv * u[c]
     with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
         _place_loop_3d(X, margins, 0, order, parents, r0s, c0s, r2s, signs, plan, 0, len(order))
-    return _Columns(X=X), margins
+    return X, margins
 
 
 def _margin_of(margins) -> tuple[np.ndarray, np.ndarray]:
