@@ -91,3 +91,59 @@ def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch):
     assert {"count_modes", "fourbar_chains", "lattice"} <= set(doc["large"])
     assert {"count_modes_10000", "projected_10000"} <= set(doc["targets"])
     assert not doc["targets"]["count_modes_10000"]["met"]  # not measured at 10 000 here
+
+
+def test_certified_points_record_proved_counts_and_thinned_traces():
+    pts = large.certified_points(counts=(100, 1000), traces=(50, 200), projected=100, bundled=20,
+                                 budget=60, repeats=1)
+    for p in pts["counts"]:
+        assert p["outcome"] == "ok" and p["counts"] == [4, 3, 1, 0] and not p["ambiguous"]
+        assert p["certificate"] == "structure"
+        assert p["margin"] == pytest.approx(3 ** 0.5 / 2, abs=1e-12)  # the module's sine
+    (info,) = pts["info"]
+    assert info["outcome"] == "ok" and info["modules"] == 1000 and not info["ambiguous"]
+    assert info["modes"].startswith("4 zero modes = 3 rigid + 1 conformational")
+    assert info["certificate"].startswith("structure: every node placed")
+    assert [(p["modules"], p["keep"]) for p in pts["traces"]] == [
+        (50, "ports"), (50, "all"), (200, "ports"), (200, "all")]
+    assert all(p["status"] == "finished" and p["configurations"] == 101 for p in pts["traces"])
+    assert {p["method"]: p["status"] for p in pts["projected"]} == {
+        "constructive": "finished", "projected": "finished"}
+    names = {p["module"] for p in pts["bundled"]}
+    assert {"super_stable", "fourbar", "chaotic"} <= names
+    counted = [p for p in pts["bundled"] if p["outcome"] == "ok"]
+    assert counted and not any(p["ambiguous"] for p in counted)
+    goals = large.certified_targets(pts)
+    assert goals["no_ambiguous_chain"]["met"]
+    assert not goals["count_modes_100000_mirrored"]["met"]  # not measured at 100 000 here
+
+
+def _cert(counts=None, info=None, traces=None, projected=None):
+    return {"counts": counts or [], "info": info or [], "traces": traces or [],
+            "projected": projected or [], "bundled": []}
+
+
+def test_certified_targets_judge_the_figures():
+    good = _cert(
+        counts=[{"modules": 100_000, "outcome": "ok", "time_s": 1.0, "counts": [4, 3, 1, 0],
+                 "ambiguous": False, "certificate": "structure", "margin": 0.87}],
+        info=[{"modules": 100_000, "outcome": "ok", "time_s": 3.0, "ambiguous": False}],
+        traces=[{"modules": m, "keep": "ports", "outcome": "ok", "status": "finished",
+                 "time_s": t, "max_edge_error": 1e-11} for m, t in ((10_000, 0.5), (100_000, 5.5))],
+        projected=[{"method": "constructive", "outcome": "ok", "time_s": 0.5,
+                    "status": "finished"},
+                   {"method": "projected", "outcome": "ok", "time_s": 1.2, "status": "finished",
+                    "stats": {}}])
+    goals = large.certified_targets(good)
+    assert all(g["met"] for g in goals.values()), goals
+    assert goals["constructive_trace_100000"]["ratio"] == pytest.approx(11.0)
+    assert goals["projected_vs_constructive_10000_mirrored"]["ratio"] == pytest.approx(2.4)
+    bad = _cert(
+        counts=[{**good["counts"][0], "time_s": 6.0}],
+        info=[{**good["info"][0], "ambiguous": True}],
+        traces=[{**good["traces"][0]}, {**good["traces"][1], "time_s": 6.5}],
+        projected=[good["projected"][0], {**good["projected"][1], "time_s": 1.6}])
+    bad["counts"].append({"modules": 10, "outcome": "ok", "ambiguous": True})
+    goals = large.certified_targets(bad)
+    assert not any(g["met"] for g in goals.values())
+    assert goals["no_ambiguous_chain"]["ambiguous"] == ["super_stable x 10"]

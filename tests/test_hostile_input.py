@@ -399,6 +399,14 @@ def test_simulate_exits_1_when_the_target_is_not_reached(tmp_path, capsys):
            "4.828427125" in one_line(err)
 
 
+def test_a_target_beyond_reach_is_a_turning_point_not_an_overflow(tmp_path, capsys):
+    rc = main(["simulate", "fourbar", "--to", "1e308", "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == 1
+    assert "target d1 = 1e+308 is not reached: stopped at a turning point of d1 = 4.82842712" \
+        in one_line(err)
+
+
 def test_several_templates_name_the_bad_one_and_go_on(tmp_path, capsys):
     bad = write(tmp_path, "bad.toml", "[network\n")
     rc = main(["simulate", "fourbar", str(bad), "super_stable", "-o", str(tmp_path / "o")])
@@ -445,6 +453,13 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
     (lambda n: fabkit.tessellate(n, (2, -1), y_join=("d1", "d2")), ValueError,
      "shape[1] must be at least 1"),
     (lambda n: fabkit.module_map(None), TypeError, "net must be a fabkit.Network, got None"),
+    (lambda n: fabkit.count_modes(None), TypeError, "net must be a fabkit.Network, got None"),
+    (lambda n: fabkit.count_modes(n, [[0, 0]]), ValueError, "positions must have shape (4, 2)"),
+    (lambda n: fabkit.count_modes(n, method="svd"), ValueError,
+     "method must be one of 'auto', 'structure', 'dense', 'sparse'"),
+    (lambda n: fabkit.trace(n, to="far"), TypeError, "to must be a number, got 'far'"),
+    (lambda n: fabkit.trace(n, drive=[0], to=2.5), TypeError,
+     "drive must be a port name or a pair of node indices"),
     (lambda n: fabkit.module_map(n, toward="x"), TypeError, "toward must be a number, got 'x'"),
     (lambda n: fabkit.module_map(n, branch=-1), ValueError, "branch must be at least 0"),
     (lambda n: fabkit.module_map(n, d_in=["a"]), TypeError, "port must be a port name or a pair"),

@@ -180,8 +180,19 @@ def test_bad_arguments(fourbar):
         trace(fourbar, to=2.5, method="projected", stepp=0.1)
     with pytest.raises(KinematicsError, match="unknown port 'd9'"):
         trace(fourbar, drive="d9", to=2.5)
-    with pytest.raises(KinematicsError, match="positive finite"):
+    with pytest.raises(ValueError, match="to must be positive, got -1"):
         trace(fourbar, to=-1.0)
+    with pytest.raises(TypeError, match="to must be a number, got '2.5'"):
+        trace(fourbar, to="2.5")
+    with pytest.raises(TypeError, match="net must be a fabkit.Network, got None"):
+        trace(None, to=2.5)
+    with pytest.raises(TypeError, match="hold must be a port name or a list of them"):
+        trace(fourbar, to=2.5, hold=3)
+    # a target farther than all bars together is traced toward that length and reported as
+    # not reached where the motion turns back; no step ever sees 1e308
+    far = trace(fourbar, to=1e308)
+    assert str(far.status) == "turning_point" and far.target == 1e308
+    assert abs(far.drive[-1] - (1 + 2 ** 0.5) * 2) < 1e-8
     with pytest.raises(KinematicsError, match="required"):
         trace(fourbar)
     with pytest.raises(KinematicsError, match="share an edge"):

@@ -7,7 +7,11 @@
 - :func:`fourbar_chain_points`: ``projected`` against ``constructive`` on chains of k 4-bars
   driven from d1 = 2 to 2.6, with the float64 floor of the edge error of each chain;
 - :func:`lattice_points`: ``projected`` on a square lattice (:func:`fabkit.tessellate`) of the
-  paper's 4-bar, a network without a construction order, driven from d1 = 2 to 2.5.
+  paper's 4-bar, driven from d1 = 2 to 2.5;
+- :func:`certified_points`: the mirrored super-stable chain (the Fig. 3f design scaled up) at
+  10⁴ and 10⁵ modules: counts proved from the construction, ``fabkit info``, linear
+  constructive traces that keep the ports only, ``projected`` against ``constructive``; and
+  every bundled module chained, none counted "ambiguous" (:func:`certified_targets` judges them).
 
 Every measurement runs in a child process with a time budget
 (:func:`fabkit.bench.workprecision.run_budgeted`), single-threaded BLAS, median of repeats.
@@ -23,7 +27,8 @@ from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
 
 __all__ = ["count_modes_scaling", "fourbar_chain_points", "lattice_points", "lattice",
-           "edge_floor", "large_targets", "large_figure"]
+           "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
+           "certified_points", "certified_targets", "certified_line"]
 
 
 def _skip(est, budget) -> bool:
@@ -95,17 +100,19 @@ def edge_floor(net) -> float:
     return float(np.finfo(float).eps * extent / np.min(net.edge_lengths))
 
 
-def _trace_point(net, drive, to, method, budget, repeats, **options) -> dict:
+def _trace_point(net, drive, to, method, budget, repeats, cold=False, **options) -> dict:
     from ..kinematics import trace
 
     def evaluate(traj):
         return {"status": str(traj.status), "message": traj.message,
-                "configurations": int(len(traj.positions)),
+                "configurations": int(traj.n_steps),
                 "max_edge_error": float(traj.max_edge_error),
+                "events": [[str(e.kind), float(e.drive)] for e in traj.events],
                 "stats": {k: str(v) for k, v in traj.stats.items()}}
 
-    outcome, times, info = run_budgeted(
-        lambda: trace(net, drive, to=to, method=method, **options), evaluate, budget, repeats)
+    work = lambda: trace(net, drive, to=to, method=method, **options)  # noqa: E731
+    outcome, times, info = run_budgeted(_cold(net, work) if cold else work, evaluate, budget,
+                                        repeats)
     pt = {"method": method, "nodes": net.n_nodes, "outcome": outcome, "budget_s": budget,
           "times": [float(t) for t in times],
           "time_s": float(np.median(times)) if times else None,
@@ -232,7 +239,8 @@ def large_figure(modes, chains, lattice_pts):
         ax.loglog(n, t, style, color=color, label=label)
 
     draw(ax1, [p for p in modes if p["path"] == "auto"], "time_s", "o-", "C2",
-         f"count_modes (dense up to {SPARSE_FROM} coordinates, sparse beyond)")
+         f"count_modes (structure, numeric cross-check: dense up to {SPARSE_FROM} "
+         "coordinates, sparse beyond)")
     draw(ax1, [p for p in modes if p["path"] == "dense"], "time_s", "s--", "C3",
          "dense SVD forced")
     for p in modes:
@@ -260,3 +268,238 @@ def large_figure(modes, chains, lattice_pts):
         ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     return fig
+
+
+# -- certified counts and linear traces at 10⁵ modules --------------------------------------------
+
+def mirrored_chain(k: int):
+    """The bundled super-stable module chained k times, every second one mirrored (the straight
+    chain of the paper's Fig. 3f, ``fabkit.chain(super_stable, copies=k, mirror="alternate")``)."""
+    from ..assemble import chain
+
+    return chain(paper_module("super_stable"), copies=int(k), mirror="alternate")
+
+
+def bundled_modules() -> list[str]:
+    """Names of the bundled templates that are planar modules with ports d1 and d2, the ones
+    :func:`fabkit.chain` chains port to port. (The origami sheet is joined by three corners,
+    :func:`fabkit.fab.creases.chains.sheet_chain`; chained by its d2/d1 pair alone each join is
+    a hinge, a network of a thousand motions at its flat state.)"""
+    from ..templates import BUNDLED, load_template
+
+    names = []
+    for path in sorted(BUNDLED.glob("*.toml")):
+        net = load_template(path).network
+        if (net.assembly is None and net.dim == 2 and {"d1", "d2"} <= set(net.ports)
+                and net.n_nodes <= 12):
+            names.append(path.stem)
+    return names
+
+
+def _cold(net, fn):
+    """``fn`` on a network with nothing remembered from an earlier call (construction plans),
+    so that every repeat is a first call."""
+    def run():
+        net._cache.clear()
+        return fn()
+    return run
+
+
+def _count_row(net, budget, repeats) -> dict:
+    from ..rigidity import count_modes
+
+    def evaluate(m):
+        return {"counts": [m.total, m.rigid, m.conformational, m.self_stress],
+                "certificate": m.certificate, "margin": m.margin, "ambiguous": m.ambiguous,
+                "method": m.method, "cross_check": m.cross_check, "detail": m.detail}
+
+    outcome, times, info = run_budgeted(_cold(net, lambda: count_modes(net)), evaluate, budget,
+                                        repeats)
+    pt = {"nodes": net.n_nodes, "outcome": outcome, "times": [float(t) for t in times],
+          "time_s": float(np.median(times)) if times else None, "budget_s": budget}
+    pt.update(info if isinstance(info, dict) else {"message": info})
+    return pt
+
+
+def _info_row(k: int, budget: float, repeats: int) -> dict:
+    """``fabkit --allow-large info`` on a template of the k-module mirrored chain, as a user
+    runs it (a fresh process: reading the template, building the chain, counting)."""
+    import subprocess
+    import sys
+    import tempfile
+    import time
+    from pathlib import Path
+
+    from ..templates import bundled_template
+
+    times, out, code = [], "", None
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"mirrored_chain_{k}.toml"
+        path.write_text(
+            f'name = "mirrored_chain_{k}"\ndescription = "mirrored super-stable chain"\n'
+            f'[chain]\nmodule = "{bundled_template("super_stable").as_posix()}"\n'
+            f'copies = {k}\nmirror = "alternate"\n[motion]\ndrive = "d1"\nto = 1.0099505\n')
+        for _ in range(max(1, repeats)):
+            t0 = time.perf_counter()
+            try:
+                res = subprocess.run([sys.executable, "-m", "fabkit", "--allow-large", "info",
+                                      str(path)], capture_output=True, text=True,
+                                     timeout=budget + 30.0)
+            except subprocess.TimeoutExpired:
+                return {"modules": k, "outcome": STOPPED, "times": times, "time_s": None}
+            times.append(time.perf_counter() - t0)
+            out, code = res.stdout, res.returncode
+            if code != 0 or sum(times) + times[-1] > 0.5 * budget:
+                break
+    modes = next((line.split("modes", 1)[1].strip() for line in out.splitlines()
+                  if line.strip().startswith("modes")), "")
+    return {"modules": k, "nodes": 3 * k + 2, "outcome": "ok" if code == 0 else "error",
+            "exit_code": code, "times": times, "time_s": float(np.median(times)),
+            "modes": modes, "ambiguous": "ambiguous" in out,
+            "certificate": next((line.split("certificate", 1)[1].strip() for line in
+                                 out.splitlines() if line.strip().startswith("certificate")), "")}
+
+
+def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
+                     projected: int | None = 10_000, bundled: int | None = 1000,
+                     budget: float = 60.0, repeats: int = 3, progress=None) -> dict:
+    """The measurements of exact counts and linear traces on the mirrored super-stable chain.
+
+    Parameters
+    ----------
+    counts : sequence of int
+        Chain sizes (modules) whose modes :func:`fabkit.count_modes` counts; ``fabkit info`` runs
+        on the largest.
+    traces : sequence of int
+        Chain sizes traced by ``constructive`` (101 samples) from √3 to D₂* + 1e-12, keeping the
+        ports only and keeping everything.
+    projected : int or None
+        Chain size on which ``projected`` and ``constructive`` are timed in one run.
+    bundled : int or None
+        Every bundled module chained this many times (plain and mirrored), counted.
+    budget : float
+        Seconds per measurement (each in a child process, single-threaded BLAS; every repeat a
+        first call: the network remembers no construction plan).
+
+    Returns
+    -------
+    dict
+        ``counts``, ``info``, ``traces``, ``projected``, ``bundled``: lists of rows.
+    """
+    from .workprecision import _default_target
+
+    to = _default_target()
+    out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": []}
+
+    def note(kind, pt):
+        out[kind].append(pt)
+        if progress:
+            progress(kind, pt)
+
+    for k in counts:
+        net = mirrored_chain(k)
+        pt = _count_row(net, budget, repeats)
+        pt["modules"] = int(k)
+        note("counts", pt)
+    if counts:
+        note("info", _info_row(int(max(counts)), budget, repeats))
+    for k in traces:
+        net = mirrored_chain(k)
+        for keep in ("ports", "all"):
+            pt = _trace_point(net, "d1", to, "constructive", budget, repeats, keep=keep,
+                              cold=True)
+            pt.update(modules=int(k), keep=keep)
+            note("traces", pt)
+    if projected:
+        net = mirrored_chain(projected)
+        for method in ("constructive", "projected"):
+            pt = _trace_point(net, "d1", to, method, budget, repeats, cold=True)
+            pt["modules"] = int(projected)
+            note("projected", pt)
+    if bundled:
+        from ..assemble import chain
+        from ..errors import FabkitError
+
+        for name in bundled_modules():
+            for mirror in (None, "alternate"):
+                try:
+                    net = chain(paper_module(name), copies=int(bundled), mirror=mirror)
+                except FabkitError as exc:  # the map leaves the module's domain along the chain
+                    note("bundled", {"module": name, "mirror": mirror, "modules": int(bundled),
+                                     "outcome": "not a chain", "message": str(exc)})
+                    continue
+                pt = _count_row(net, budget, 1)
+                pt.update(module=name, mirror=mirror, modules=int(bundled))
+                note("bundled", pt)
+    return out
+
+
+def certified_targets(points: dict) -> dict:
+    """The targets of exact counts and linear traces, each with the measured figure and whether
+    it is met (from :func:`certified_points`)."""
+    goals = {}
+    counts = {p["modules"]: p for p in points.get("counts", []) if p["outcome"] == "ok"}
+    big = counts.get(100_000)
+    goals["count_modes_100000_mirrored"] = {
+        "target": "count_modes on the 100 000-module mirrored super-stable chain <= 5 s, exact "
+                  "(1 conformational motion, 0 self-stress, not ambiguous)",
+        "time_s": big["time_s"] if big else None,
+        "counts": big.get("counts") if big else None,
+        "certificate": big.get("certificate") if big else None,
+        "margin": big.get("margin") if big else None,
+        "met": bool(big and big["time_s"] <= 5.0 and big["counts"] == [4, 3, 1, 0]
+                    and not big["ambiguous"] and big["certificate"] == "structure")}
+    info = next((p for p in points.get("info", []) if p.get("modules") == 100_000), None)
+    goals["info_100000_mirrored"] = {
+        "target": "fabkit info on the 100 000-module mirrored chain <= 10 s, not ambiguous",
+        "time_s": info["time_s"] if info else None,
+        "met": bool(info and info["outcome"] == "ok" and info["time_s"] <= 10.0
+                    and not info["ambiguous"])}
+    done = {(p["modules"], p["keep"]): p for p in points.get("traces", [])
+            if p["outcome"] == "ok" and p.get("status") == "finished"}
+    a, b = done.get((100_000, "ports")), done.get((10_000, "ports"))
+    ratio = a["time_s"] / b["time_s"] if a and b else None
+    goals["constructive_trace_100000"] = {
+        "target": "constructive trace of the 100 000-module mirrored chain to D2* + 1e-12 "
+                  "(keeping the ports) <= 8 s and <= 12x the 10 000-module one",
+        "time_s": a["time_s"] if a else None, "ratio": ratio,
+        "edge_error": a["max_edge_error"] if a else None,
+        "met": bool(ratio is not None and a["time_s"] <= 8.0 and ratio <= 12.0)}
+    pr = {p["method"]: p for p in points.get("projected", []) if p["outcome"] == "ok"}
+    c, q = pr.get("constructive"), pr.get("projected")
+    ratio = q["time_s"] / c["time_s"] if c and q else None
+    goals["projected_vs_constructive_10000_mirrored"] = {
+        "target": "projected <= 3x constructive on the 10 000-module mirrored super-stable chain "
+                  "(to D2* + 1e-12), same status",
+        "ratio": ratio, "statuses": [c.get("status"), q.get("status")] if c and q else None,
+        "stats": q.get("stats") if q else None,
+        "met": bool(ratio is not None and ratio <= 3.0 and c.get("status") == q.get("status"))}
+    counted = [p for p in points.get("counts", []) + points.get("bundled", [])
+               if p.get("outcome") == "ok"]
+    goals["no_ambiguous_chain"] = {
+        "target": "no 'ambiguous' count on any chain of the bundled modules (up to 100 000 "
+                  "modules)",
+        "chains": len(counted), "ambiguous": [f"{p.get('module', 'super_stable')} x "
+                                              f"{p['modules']}" for p in counted
+                                              if p.get("ambiguous")],
+        "met": bool(counted) and not any(p.get("ambiguous") for p in counted)}
+    return goals
+
+
+def certified_line(kind: str, p: dict) -> str:
+    """One line of progress for a row of :func:`certified_points`."""
+    t = "-" if p.get("time_s") is None else f"{p['time_s']:.3g} s"
+    what = {"counts": "count_modes", "info": "fabkit info", "bundled": "count_modes"}.get(kind)
+    if kind == "traces":
+        what = f"constructive keep={p['keep']}"
+    elif kind == "projected":
+        what = p["method"]
+    name = f"{p.get('module', 'super_stable')}{' mirrored' if p.get('mirror') else ''}"
+    tail = ""
+    if p.get("counts"):
+        tail = f"  counts {p['counts']} {p.get('certificate', '')}" + (
+            " AMBIGUOUS" if p.get("ambiguous") else "")
+    if p.get("status"):
+        tail = f"  {p['status']}  edge {p.get('max_edge_error', float('nan')):.1e}"
+    return (f"  {name:<28} {p.get('modules', '-'):>7} modules  {what:<24} "
+            f"{p.get('outcome', ''):<12} {t:>9}{tail}")

@@ -27,14 +27,18 @@ MODES = {
               "stability": {"super_stable_modules": 8}, "rk4_step": 0.05,
               "horizon_modules": 200, "profile_modules": 1000,
               "large": {"modes": (10, 100, 1000, 10000), "chains": (10, 100, 1000),
-                        "lattice": (3, 10, 20, 30)}},
+                        "lattice": (3, 10, 20, 30),
+                        "certified": {"counts": (10000, 100000), "traces": (10000, 100000),
+                                      "projected": 10000, "bundled": 1000}}},
     "full": {"sizes": (10, 100, 1000, 10000), "budget": 30.0, "repeats": 3,
              "compare_modules": 300,
              "lyapunov": (1000, 500, 2000), "stability": {}, "rk4_step": 0.02,
              "horizon_modules": 200, "profile_modules": 10000,
              "large": {"modes": (10, 100, 300, 1000, 3000, 10000),
                        "chains": (10, 100, 1000, 10000),
-                       "lattice": (3, 10, 20, 30, 50, 70, 100)}},
+                       "lattice": (3, 10, 20, 30, 50, 70, 100),
+                       "certified": {"counts": (10000, 100000), "traces": (10000, 100000),
+                                     "projected": 10000, "bundled": 100000}}},
 }
 
 
@@ -235,6 +239,13 @@ def run(args) -> int:
                                        progress=lambda p: _say(_large_line(p)))
         doc["large"] = {"count_modes": modes, "fourbar_chains": chains, "lattice": lattice}
         doc.setdefault("targets", {}).update(large.large_targets(modes, chains))
+        if "certified" in lcfg:
+            _say("large networks: exact counts and linear traces, mirrored super-stable chain")
+            cert = large.certified_points(**lcfg["certified"], budget=max(budget, 60.0),
+                                          repeats=cfg["repeats"],
+                                          progress=lambda k, p: _say(large.certified_line(k, p)))
+            doc["large"]["certified"] = cert
+            doc["targets"].update(large.certified_targets(cert))
         files["large_networks.png"] = figure_png(large.large_figure(modes, chains, lattice))
 
     if args.profile:

@@ -8,15 +8,19 @@ HELP = "describe a template: sizes, mode count, self-stress, applicable methods"
 
 def add_arguments(p):
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
-    p.add_argument("--rank-method", choices=("auto", "dense", "sparse"), default="auto",
-                   help="how the modes are counted: dense SVD up to 1000 coordinates and the "
-                        "certified sparse path beyond (auto), or either one; a dense SVD that "
-                        "cannot fit in memory is refused before it starts")
+    p.add_argument("--rank-method", choices=("auto", "structure", "dense", "sparse"),
+                   default="auto",
+                   help="how the modes are counted: proved from the network's construction "
+                        "where it has one, cross-checked by the numeric rank up to 100 000 "
+                        "coordinates, the numeric rank alone otherwise (auto); the structural "
+                        "proof only (structure); or the numeric rank by a dense SVD or the "
+                        "certified sparse path; a dense SVD that cannot fit in memory is refused "
+                        "before it starts")
 
 
 def describe(design, rank_method: str = "auto") -> str:
     from ..errors import ConstructionError
-    from ..kinematics import plan_construction
+    from ..kinematics.constructive import cached_plan
     from ..rigidity import count_modes
 
     net = design.network
@@ -25,16 +29,27 @@ def describe(design, rank_method: str = "auto") -> str:
     lines.append(f"  dimension     {net.dim}D")
     lines.append(f"  nodes, edges  {net.n_nodes}, {net.n_edges}")
     lines.append(f"  modes         {m}")
-    bound = "at least " if m.method == "sparse" else ""
-    lines.append(f"  rank gap      {bound}{m.gap:.2e} (smallest kept singular value "
-                 f"{m.smallest_nonzero:.2e}; {m.method})")
+    if m.certificate == "numeric":
+        why = f" ({m.detail})" if m.detail else ""
+        lines.append(f"  certificate   numeric rank{why}")
+    else:
+        lines.append(f"  certificate   {m.certificate}: {m.detail}; margin (smallest "
+                     f"intersection sine) {m.margin:.3g}")
+    if m.method == "structure":
+        lines.append(f"  rank gap      not measured (numeric cross-check {m.cross_check})")
+    else:
+        bound = "at least " if m.method == "sparse" else ""
+        lines.append(f"  rank gap      {bound}{m.gap:.2e} (smallest kept singular value "
+                     f"{m.smallest_nonzero:.2e}; {m.method})")
+        if m.certificate != "numeric":
+            lines.append(f"  cross-check   numeric rank {m.cross_check}")
     ports = ", ".join(f"{k}={v}" for k, v in list(net.ports.items())[:12])
     more = f" ... ({len(net.ports)} ports)" if len(net.ports) > 12 else ""
     lines.append(f"  ports         {ports}{more}")
     drive = design.motion.drive
     if drive in net.ports:
         try:
-            plan_construction(net, net.port(drive))
+            cached_plan(net, net.port(drive))
             cons = f"yes (nodes placed by intersections from {drive})"
         except ConstructionError as exc:
             cons = f"no: {exc}"

@@ -9,289 +9,23 @@ the branch of the reference. Exact to round-off; the motion ends where an inters
 
 from __future__ import annotations
 
-import copy
-import math
-from collections import deque
-from dataclasses import dataclass
-
 import numpy as np
 
-from ..errors import ConstructionError, FlatStateError, KinematicsError
-from ..network import Network
-from ..numerics import FLAT_RTOL, TINY
+# the construction order lives below kinematics (mode counting proves counts from it too); its
+# names stay importable from here
+from ..construction import (ON_AXIS_RTOL, ConstructionPlan, _tiled_chain_plan,  # noqa: F401
+                            cached_plan, plan_construction)
+from ..errors import KinematicsError
+from ..numerics import rigid_fit
 from .base import Mark, Method, Outcome
+from .record import Record, kept_indices
 from .trajectory import EventKind, Status
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
 
-#: A node this close to the seed axis (relative to the network) lies on it and fixes no rotation.
-ON_AXIS_RTOL = 1e-9
 #: Edges the construction does not use (a state of self-stress) must keep their length to this
 #: relative error along the trace; beyond it the self-stress does not persist and they break.
 UNUSED_EDGE_RTOL = 1e-9
-
-
-@dataclass(frozen=True)
-class ConstructionPlan:
-    """Order and data of a construction by intersections.
-
-    Attributes
-    ----------
-    dim : int
-    seed : tuple of int
-        The drive's node pair (a, b): a stays at its reference position, b moves along the
-        reference direction from a.
-    order : numpy.ndarray of int, shape (K,)
-        Nodes in the order they are placed.
-    parents : numpy.ndarray of int, shape (K, dim)
-        Already placed nodes each is placed from (-1 for the free slot of the 3D gauge node).
-    radii : numpy.ndarray, shape (K, dim)
-        Edge lengths to the parents.
-    signs : numpy.ndarray, shape (K,)
-        Side of the parents' line (2D) or plane (3D) in the reference: +1 or -1 (0 for the 3D
-        gauge node, which is placed in the half-plane it has in the reference).
-    reference : numpy.ndarray, shape (N, dim)
-    gauge_perp : numpy.ndarray, shape (dim,)
-        3D only: unit vector fixing the rotation about the seed axis.
-    """
-
-    dim: int
-    seed: tuple[int, int]
-    order: np.ndarray
-    parents: np.ndarray
-    radii: np.ndarray
-    signs: np.ndarray
-    reference: np.ndarray
-    gauge_perp: np.ndarray
-
-    @property
-    def n_nodes(self) -> int:
-        return int(self.reference.shape[0])
-
-
-def _edge_index(net: Network) -> dict[tuple[int, int], int]:
-    e = net.edges
-    return {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(e.tolist())}
-
-
-def plan_construction(net: Network, drive: tuple[int, int], reference=None) -> ConstructionPlan:
-    """Find an order that places every node by intersections, starting from the drive pair.
-
-    Parameters
-    ----------
-    net : Network
-        Topology and rest lengths.
-    drive : (int, int)
-        The seed pair.
-    reference : array_like, shape (N, d), optional
-        Configuration that decides the side of every intersection (``net.nodes`` by default).
-
-    Returns
-    -------
-    ConstructionPlan
-
-    Raises
-    ------
-    ConstructionError
-        When some nodes cannot be reached (no construction order for this drive), or when a node
-        of the reference lies on the line/plane of its parents (a flat state: its side, and so
-        the branch, is undetermined).
-    """
-    x = net.nodes if reference is None else np.asarray(reference, dtype=np.float64)
-    n, d = x.shape
-    a, b = drive
-    nbrs = net.adjacency()
-    eidx = _edge_index(net)
-    lengths = net.edge_lengths
-    # plain Python lists: this loop runs once per node and numpy scalar access would dominate
-    placed = [False] * n
-    placed[a] = placed[b] = True
-    count = [0] * n
-    for s in (a, b):
-        for v in nbrs[s]:
-            count[v] += 1
-    gauge_done = d == 2  # in 3D the first node after the seed fixes the rotation about a-b
-    queue: deque[int] = deque(v for v in range(n) if not placed[v] and count[v] >= 2)
-    queued = [False] * n
-    for v in queue:
-        queued[v] = True
-    order, parents, radii, signs = [], [], [], []
-    gauge_perp = np.zeros(d)
-    u_seed = (x[b] - x[a]) / np.linalg.norm(x[b] - x[a])
-
-    xl = x.tolist()
-
-    def radius(v, p):
-        return lengths[eidx[(min(v, p), max(v, p))]]
-
-    while queue:
-        v = queue.popleft()
-        queued[v] = False
-        if placed[v]:
-            continue
-        cand = [p for p in nbrs[v] if placed[p]]
-        if d == 2:
-            best, best_sin = None, -1.0
-            xv, yv = xl[v]
-            for ii in range(len(cand)):
-                for jj in range(ii + 1, len(cand)):
-                    p, q = cand[ii], cand[jj]
-                    ax_, ay_ = xl[p][0] - xv, xl[p][1] - yv
-                    bx_, by_ = xl[q][0] - xv, xl[q][1] - yv
-                    sin = abs(ax_ * by_ - ay_ * bx_) / math.sqrt(
-                        (ax_ * ax_ + ay_ * ay_) * (bx_ * bx_ + by_ * by_))
-                    if sin > best_sin:
-                        best, best_sin = (p, q), sin
-            p, q = best
-            if best_sin < FLAT_RTOL:
-                raise FlatStateError(
-                    f"node {v} is collinear with nodes {p} and {q} in the start configuration: a flat "
-                    "state, where the side of the intersection (and so the branch) is undetermined",
-                    v, (p, q))
-            side = ((xl[q][0] - xl[p][0]) * (xl[v][1] - xl[p][1])
-                    - (xl[q][1] - xl[p][1]) * (xl[v][0] - xl[p][0]))
-            order.append(v)
-            parents.append((p, q))
-            radii.append((radius(v, p), radius(v, q)))
-            signs.append(1.0 if side > 0 else -1.0)
-        elif not gauge_done:
-            off = x[v] - x[a]
-            perp = off - (off @ u_seed) * u_seed
-            if np.linalg.norm(perp) <= ON_AXIS_RTOL * max(net.size, TINY):
-                continue  # on the seed axis: fixes no rotation; placed later from 3 parents
-            p, q = cand[0], cand[1]
-            gauge_perp = perp / np.linalg.norm(perp)
-            order.append(v)
-            parents.append((p, q, -1))
-            radii.append((radius(v, p), radius(v, q), 0.0))
-            signs.append(0.0)
-            gauge_done = True
-        else:
-            if len(cand) < 3:
-                continue  # queued again when a third neighbour is placed
-            best, best_score = None, -1.0
-            for i1 in range(len(cand)):
-                for i2 in range(i1 + 1, len(cand)):
-                    for i3 in range(i2 + 1, len(cand)):
-                        p1, p2, p3 = cand[i1], cand[i2], cand[i3]
-                        m = np.stack([x[p1] - x[v], x[p2] - x[v], x[p3] - x[v]])
-                        m = m / np.linalg.norm(m, axis=1, keepdims=True)
-                        score = abs(np.linalg.det(m))
-                        if score > best_score:
-                            best, best_score = (p1, p2, p3), score
-            p1, p2, p3 = best
-            ez = np.cross(x[p2] - x[p1], x[p3] - x[p1])
-            nz = np.linalg.norm(ez)
-            side = (x[v] - x[p1]) @ ez / (nz * np.linalg.norm(x[v] - x[p1])) if nz > 0 else 0.0
-            if abs(side) < FLAT_RTOL:
-                raise FlatStateError(
-                    f"node {v} lies in the plane of nodes {p1}, {p2} and {p3} in the start "
-                    "configuration: a flat state, where the side of the intersection (and so the "
-                    "branch) is undetermined", v, (p1, p2, p3))
-            order.append(v)
-            parents.append((p1, p2, p3))
-            radii.append(tuple(radius(v, p) for p in (p1, p2, p3)))
-            signs.append(np.sign(side))
-        placed[v] = True
-        need = 2 if gauge_done is False or d == 2 else 3
-        for w in nbrs[v]:
-            if not placed[w]:
-                count[w] += 1
-        # every unplaced node with enough placed neighbours gets (another) turn
-        for w in (range(n) if (d == 3 and len(order) == 1) else nbrs[v]):
-            if not placed[w] and not queued[w] and count[w] >= need:
-                queue.append(w)
-                queued[w] = True
-    missing = np.flatnonzero(~np.array(placed))
-    if missing.size:
-        shown = ", ".join(str(int(m)) for m in missing[:8]) + (" ..." if missing.size > 8 else "")
-        raise ConstructionError(
-            f"no construction order from the drive pair ({a}, {b}): node(s) {shown} cannot be "
-            f"placed from {d} already placed neighbours; use method='projected'"
-        )
-    return ConstructionPlan(
-        dim=d,
-        seed=(a, b),
-        order=np.array(order, dtype=np.int64),
-        parents=np.array(parents, dtype=np.int64).reshape(len(order), d),
-        radii=np.array(radii, dtype=np.float64).reshape(len(order), d),
-        signs=np.array(signs, dtype=np.float64),
-        reference=np.array(x),
-        gauge_perp=gauge_perp,
-    )
-
-
-def cached_plan(net: Network, drive: tuple[int, int], reference=None) -> ConstructionPlan:
-    """:func:`plan_construction`, remembered on the network for its reference configuration.
-
-    The plan depends only on the topology, the rest lengths, the drive pair and the sides of the
-    reference configuration, so tracing the same network again (other targets, repeats) skips
-    the search. Other reference configurations are planned afresh.
-    """
-    if reference is not None and reference is not net.nodes and not np.array_equal(reference, net.nodes):
-        return plan_construction(net, drive, reference)
-    key = ("construction_plan", tuple(int(v) for v in drive))
-    cache = net._cache
-    if key not in cache:
-        try:
-            cache[key] = _tiled_chain_plan(net, drive) or plan_construction(net, drive)
-        except ConstructionError as exc:
-            cache[key] = exc
-    found = cache[key]
-    if isinstance(found, ConstructionError):
-        raise copy.copy(found)  # a fresh exception per call: the cached one keeps no traceback
-    return found
-
-
-def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
-    """A chain's plan assembled from its modules' plans (2D chains built by fabkit.chain).
-
-    Each module's plan starts from its input pair, which is the previous module's output pair,
-    so the chain's plan is the modules' plans one after the other, renumbered. Sides are read
-    off the chain's own reference configuration (vectorised), and the result is checked (every
-    node placed once, parents placed before, radii equal to the edge lengths); None whenever
-    anything does not fit, and the node-by-node search runs instead.
-    """
-    layout = net.assembly
-    if layout is None or net.dim != 2 or net.ports.get("d1") != tuple(drive):
-        return None
-    orders, parents, radii = [], [], []
-    for module, index, _flag in layout.copies:
-        try:
-            mp = cached_plan(module, module.port(layout.d_in))
-        except ConstructionError:
-            return None
-        if mp.seed != module.port(layout.d_in):
-            return None
-        orders.append(index[mp.order])
-        parents.append(index[mp.parents])
-        radii.append(mp.radii)
-    order = np.concatenate(orders)
-    par = np.concatenate(parents)
-    rad = np.concatenate(radii)
-    n = net.n_nodes
-    a, b = drive
-    step = np.full(n, -1, dtype=np.int64)
-    step[[a, b]] = 0
-    if order.size != n - 2 or np.any(step[order] == 0):
-        return None
-    step[order] = np.arange(1, order.size + 1)
-    if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
-        return None  # a parent placed after its child (or never)
-    x = net.nodes
-    measured = np.linalg.norm(x[order][:, None, :] - x[par], axis=2)
-    if not np.allclose(measured, rad, rtol=1e-9, atol=0.0):
-        return None
-    rad = measured  # the chain's own rest lengths (its joins carry their own round-off)
-    dpq = x[par[:, 1]] - x[par[:, 0]]
-    dpv = x[order] - x[par[:, 0]]
-    cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
-    norm = np.linalg.norm(dpq, axis=1) * np.linalg.norm(dpv, axis=1)
-    if np.any(np.abs(cross) < FLAT_RTOL * norm):
-        return None  # a flat reference: let the search raise its precise error
-    return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
-                            signs=np.where(cross > 0, 1.0, -1.0), reference=np.array(x),
-                            gauge_perp=np.zeros(2))
 
 
 def place(plan: ConstructionPlan, drive_values, *,
@@ -324,6 +58,25 @@ def place(plan: ConstructionPlan, drive_values, *,
     ValueError
         ``radii`` of another shape.
     """
+    rows, margins = _place_columns(plan, drive_values, radii)
+    margin, worst = _margin_of(margins)
+    return _positions(rows), margin, worst
+
+
+def _positions(rows) -> np.ndarray:
+    """Configurations (K, N, d) from the placement's rows: complex z (N, K) in 2D, X (3, N, K)
+    in 3D."""
+    if np.iscomplexobj(rows):
+        out = np.empty((rows.shape[1], rows.shape[0], 2))
+        out[..., 0] = rows.real.T
+        out[..., 1] = rows.imag.T
+        return out
+    return np.ascontiguousarray(rows.transpose(2, 1, 0))
+
+
+def _place_columns(plan: ConstructionPlan, drive_values, radii=None):
+    """The placement of :func:`place`: one row of K values per node (2D: complex coordinates
+    z (N, K); 3D: X (3, N, K)) and the margins of every intersection (shape (M, K))."""
     dv = np.atleast_1d(np.asarray(drive_values, dtype=np.float64))
     k = dv.size
     ref = plan.reference
@@ -331,18 +84,13 @@ def place(plan: ConstructionPlan, drive_values, *,
     a, b = plan.seed
     u = ref[b] - ref[a]
     u = u / np.linalg.norm(u)
-    # One contiguous row of K values per node and coordinate: the loop below runs once per node
-    # (in construction order) and does a dozen ufunc calls on rows of length K.
-    X = np.full((d, n, k), np.nan)
-    for c in range(d):
-        X[c, a] = ref[a, c]
-        X[c, b] = ref[a, c] + dv * u[c]
+    # One contiguous row of K values per node (and coordinate): the loop below runs once per
+    # node (in construction order) and does a dozen ufunc calls on rows of length K. Every node
+    # but the seed is written once by the loop (a plan places them all).
     margins = np.empty((plan.order.size, k))
-    order = plan.order.tolist()
-    parents = plan.parents.tolist()
+    order, parents, sq, signs = plan.lists
     if radii is None:
-        # Python floats: the common case stays scalar arithmetic on each row
-        sq = (plan.radii ** 2).T.tolist()
+        pass  # Python floats: the common case stays scalar arithmetic on each row
     else:
         rad = np.asarray(radii, dtype=np.float64)
         if rad.shape != (k,) + plan.radii.shape:
@@ -352,93 +100,102 @@ def place(plan: ConstructionPlan, drive_values, *,
     r0s = sq[0]
     c0s = [r0 - r1 for r0, r1 in zip(sq[0], sq[1])]
     r2s = sq[2] if d == 3 else None
-    signs = plan.signs.tolist()
-    with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
-        _place_loop(X, margins, order, parents, r0s, c0s, r2s, signs, plan, d)
-    positions = np.ascontiguousarray(X.transpose(2, 1, 0))
-    if margins.size:
-        worst = np.argmin(margins, axis=0)  # a NaN margin is the minimum
-        margin = margins[worst, np.arange(k)]
-        margin[np.isnan(margin)] = -np.inf
-    else:
-        worst = np.zeros(k, dtype=np.int64)
-        margin = np.full(k, np.inf)
-    return positions, margin, worst
-
-
-def _groups(order, parents):
-    """Runs of consecutive placements with the same parents and no parent among themselves:
-    (start, stop, p, q) per run."""
-    runs = []
-    start = 0
-    n = len(order)
-    while start < n:
-        p, q = parents[start]
-        stop = start + 1
-        while stop < n and parents[stop][0] == p and parents[stop][1] == q:
-            stop += 1
-        runs.append((start, stop, p, q))
-        start = stop
-    return runs
-
-
-def _place_loop(X, margins, order, parents, r0s, c0s, r2s, signs, plan, d):
-    """The intersections of :func:`place`, in construction order. ``r0s``, ``c0s`` and ``r2s``
-    hold one float per placement, or one row of K values per placement (radii per column)."""
-    sqrt, maximum = np.sqrt, np.maximum
     if d == 2:
-        # complex coordinates z = x + iy: a node is p + (along + i·height)·(q - p)/|pq|, a
-        # handful of ufunc calls; consecutive nodes with the same parents (a module's two
-        # variable nodes) are placed together, sharing the work on their parents
-        z = X[0] + 1j * X[1]
-        r0a = np.asarray(r0s)
-        c0a = np.asarray(c0s)
-        sa = np.asarray(signs)[:, None]
-        if r0a.ndim == 1:  # one radius per placement: a column against the row of K values
-            r0a, c0a = r0a[:, None], c0a[:, None]
-        for start, stop, p, q in _groups(order, parents):
-            zp = z[p]
-            D = z[q] - zp
-            dist2 = D.real * D.real + D.imag * D.imag
-            if stop - start == 1:
-                r0, c0, sg = r0s[start], c0s[start], signs[start]
-            else:
-                r0, c0, sg = r0a[start:stop], c0a[start:stop], sa[start:stop]
-            along = (c0 + dist2) / (2.0 * dist2)
-            h2 = r0 - along * along * dist2
-            hs = sg * sqrt(maximum(h2, 0.0) / dist2)
-            z[order[start:stop] if stop - start > 1 else order[start]] = zp + (along + 1j * hs) * D
-            margins[start:stop] = h2 / r0
-        X[0] = z.real
-        X[1] = z.imag
-    else:
-        for idx, v in enumerate(order):
-            par = parents[idx]
-            r0 = r0s[idx]
-            p1 = X[:, par[0]]
-            e12 = X[:, par[1]] - p1
-            dist2 = (e12 * e12).sum(axis=0)
-            dd = sqrt(dist2)
-            ex = e12 / dd
-            xx = (c0s[idx] + dist2) / (2.0 * dd)
-            if par[2] < 0:  # 3D gauge node: circle about the seed axis, in the reference half-plane
-                g = plan.gauge_perp[:, None] - (ex * plan.gauge_perp[:, None]).sum(axis=0) * ex
-                g = g / sqrt((g * g).sum(axis=0))
-                h2 = r0 - xx * xx
-                X[:, v] = p1 + xx * ex + sqrt(maximum(h2, 0.0)) * g
-                margins[idx] = h2 / r0
-                continue
-            w = X[:, par[2]] - p1
-            i = (ex * w).sum(axis=0)
-            ey = w - i * ex
-            j = sqrt((ey * ey).sum(axis=0))
-            ey = ey / j
-            ez = np.stack([ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
-                           ex[0] * ey[1] - ex[1] * ey[0]])
-            yy = (r0 - r2s[idx] + i * i + j * j) / (2.0 * j) - (i / j) * xx
-            z2 = r0 - xx * xx - yy * yy
-            X[:, v] = p1 + xx * ex + yy * ey + (signs[idx] * sqrt(maximum(z2, 0.0))) * ez
-            margins[idx] = z2 / r0
+        z = np.empty((n, k), dtype=np.complex128)
+        z[a] = complex(ref[a, 0], ref[a, 1])
+        z[b] = (ref[a, 0] + dv * u[0]) + 1j * (ref[a, 1] + dv * u[1])
+        with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: NaN
+            _place_loop_2d(z, margins, 0, order, plan.runs, r0s, c0s, signs,
+                           _radii_rows(r0s, c0s, signs))
+        return z, margins
+    X = np.empty((d, n, k))
+    for c in range(d):
+        X[c, a] = ref[a, c]
+        X[c, b] = ref[a, c] + dv * u[c]
+    with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: margin < 0, NaN
+        _place_loop_3d(X, margins, 0, order, parents, r0s, c0s, r2s, signs, plan, 0, len(order))
+    return X, margins
+
+
+def _margin_of(margins) -> tuple[np.ndarray, np.ndarray]:
+    """Smallest margin per column (-inf where it is NaN) and the placement that has it."""
+    k = margins.shape[1]
+    if not margins.size:
+        return np.full(k, np.inf), np.zeros(k, dtype=np.int64)
+    worst = np.argmin(margins, axis=0)  # a NaN margin is the minimum
+    margin = margins[worst, np.arange(k)]
+    margin[np.isnan(margin)] = -np.inf
+    return margin, worst
+
+
+def _radii_rows(r0s, c0s, signs):
+    """The per-placement radii and signs as arrays for the placements placed together (made
+    once per placement, not once per block)."""
+    r0a = np.asarray(r0s)
+    c0a = np.asarray(c0s)
+    sa = np.asarray(signs)[:, None]
+    if r0a.ndim == 1:  # one radius per placement: a column against the row of K values
+        r0a, c0a = r0a[:, None], c0a[:, None]
+    return r0a, c0a, sa
+
+
+def _place_loop_2d(z, margins, base, order, runs, r0s, c0s, signs, rows):
+    """The intersections of :func:`place` in 2D, in construction order, on complex coordinates
+    z (rows, K): a node is p + (along + i·height)·(q - p)/|pq|, a handful of ufunc calls;
+    consecutive nodes with the same parents (a module's two variable nodes) are placed together,
+    sharing the work on their parents. ``order`` and the parents in ``runs`` are rows of z;
+    ``r0s`` and ``c0s`` hold one float per placement, or one row of K values per placement
+    (radii per column); ``rows`` are the same as arrays (:func:`_radii_rows`). The margin of
+    placement i goes to ``margins[i - base]``."""
+    sqrt, maximum = np.sqrt, np.maximum
+    r0a, c0a, sa = rows
+    for start, stop, p, q in runs:
+        zp = z[p]
+        D = z[q] - zp
+        dist2 = D.real * D.real + D.imag * D.imag
+        if stop - start == 1:
+            r0, c0, sg = r0s[start], c0s[start], signs[start]
+        else:
+            r0, c0, sg = r0a[start:stop], c0a[start:stop], sa[start:stop]
+        along = (c0 + dist2) / (2.0 * dist2)
+        h2 = r0 - along * along * dist2
+        hs = sg * sqrt(maximum(h2, 0.0) / dist2)
+        z[order[start:stop] if stop - start > 1 else order[start]] = zp + (along + 1j * hs) * D
+        margins[start - base:stop - base] = h2 / r0
+
+
+def _place_loop_3d(X, margins, base, order, parents, r0s, c0s, r2s, signs, plan, first, last):
+    """The intersections of :func:`place` in 3D, node by node in construction order (placements
+    ``first`` to ``last - 1``; ``order`` and ``parents`` are rows of X)."""
+    sqrt, maximum = np.sqrt, np.maximum
+    par0, par1, par2 = parents  # one list per parent slot
+    for idx in range(first, last):
+        v = order[idx]
+        r0 = r0s[idx]
+        p1 = X[:, par0[idx]]
+        e12 = X[:, par1[idx]] - p1
+        dist2 = (e12 * e12).sum(axis=0)
+        dd = sqrt(dist2)
+        ex = e12 / dd
+        xx = (c0s[idx] + dist2) / (2.0 * dd)
+        if par2[idx] < 0:  # 3D gauge node: circle about the seed axis, in the reference half-plane
+            g = plan.gauge_perp[:, None] - (ex * plan.gauge_perp[:, None]).sum(axis=0) * ex
+            g = g / sqrt((g * g).sum(axis=0))
+            h2 = r0 - xx * xx
+            X[:, v] = p1 + xx * ex + sqrt(maximum(h2, 0.0)) * g
+            margins[idx - base] = h2 / r0
+            continue
+        w = X[:, par2[idx]] - p1
+        i = (ex * w).sum(axis=0)
+        ey = w - i * ex
+        j = sqrt((ey * ey).sum(axis=0))
+        ey = ey / j
+        ez = np.stack([ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
+                       ex[0] * ey[1] - ex[1] * ey[0]])
+        yy = (r0 - r2s[idx] + i * i + j * j) / (2.0 * j) - (i / j) * xx
+        z2 = r0 - xx * xx - yy * yy
+        X[:, v] = p1 + xx * ex + yy * ey + (signs[idx] * sqrt(maximum(z2, 0.0))) * ez
+        margins[idx - base] = z2 / r0
 
 
 class Constructive(Method):
@@ -463,8 +220,8 @@ class Constructive(Method):
         plan = self.opts["plan"] or cached_plan(p.work, p.drive, p.start)
         d0 = p.start_drive
         values = np.linspace(d0, p.target, samples)
-        X, margin, worst = place(plan, values)
-        valid = margin >= 0.0
+        record, margin, err = _sweep(plan, values, p)
+        valid = margin >= 0.0  # a NaN margin (no intersection at all) is not valid either
         valid[0] = True  # the start exists by definition; round-off must not say otherwise
         status, message, marks = Status.FINISHED, self.finished_message(), []
         if not valid.all():
@@ -472,15 +229,16 @@ class Constructive(Method):
             lo, hi = values[k - 1], values[k]
             for _ in range(8):  # vectorised bisection: 32^8 ≈ 1e12 refinement of the bracket
                 grid = np.linspace(lo, hi, 33)
-                _, m, _ = place(plan, grid)
-                ok = m >= 0.0
+                _, m = _place_columns(plan, grid)
+                ok = m.min(axis=0) >= 0.0
                 ok[0] = True
                 if ok.all():
                     lo = grid[-1]
                     break
                 last = int(np.argmin(ok)) - 1
                 lo, hi = grid[last], grid[last + 1]
-            Xe, _, we = place(plan, [lo])
+            _, m_end = _place_columns(plan, [lo])
+            we = _margin_of(m_end)[1]
             node = int(plan.order[we[0]])
             par = [int(v) for v in plan.parents[we[0]] if v >= 0]
             shape = "collinear" if plan.dim == 2 else "coplanar"
@@ -489,20 +247,201 @@ class Constructive(Method):
                 f"node {node} becomes {shape} with nodes {', '.join(map(str, par))} "
                 f"(a flat state): {p.drive_name} = {lo:.10g} is its {what} value on this branch"
             )
-            X = np.concatenate([X[:k], Xe], axis=0)
+            values = np.append(values[:k], lo)
+            record, _, err = _sweep(plan, values, p)  # the configurations up to the turn
             status = Status.TURNING_POINT
             message = f"stopped at a turning point of {p.drive_name} = {lo:.10g}: {detail}"
-            marks.append(Mark(EventKind.TURNING_POINT, len(X) - 1, detail))
-        stats = {"samples": int(X.shape[0]), "nodes_placed": int(plan.order.size)}
+            marks.append(Mark(EventKind.TURNING_POINT, values.size - 1, detail))
+        stats = {"samples": int(values.size), "nodes_placed": int(plan.order.size)}
         # Over-constrained networks: edges not used by the construction must still hold.
-        err = np.atleast_1d(p.network.edge_error(X))
         bad = np.flatnonzero(err > UNUSED_EDGE_RTOL)
         if bad.size and bad[0] > 0:
             k = int(bad[0])
-            drive = p.drive_of(X[k - 1])
-            X = X[:k]
+            record, _, _ = _sweep(plan, values[:k], p)
+            drive = float(record.drive[-1])
             marks = [m for m in marks if m.index < k]
             status = Status.FAILED
             message = (f"the construction breaks edges beyond {p.drive_name} = {drive:.10g} "
                        "(the network is over-constrained along this drive)")
-        return Outcome(X, status, message, tuple(marks), stats)
+        return Outcome(None, status, message, tuple(marks), stats, record=record)
+
+
+#: Placements per block of the streamed sweep (:func:`_sweep`): after each block the nodes it
+#: placed are reduced (moved to the gauge frame, measured, kept or not) and rows no later block
+#: needs are reused, so a chain's sweep holds a few thousand rows of K values instead of all of
+#: them (0.5 GB for 101 configurations of a 100 000-module chain, whose first touch alone took
+#: a second).
+BLOCK = 2048
+
+
+def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.ndarray]:
+    """Constructive placement of every drive value in one pass over the plan, reduced as it goes.
+
+    The placements run in blocks. Each node needs its row until the last block that places a
+    child of it, or completes an edge or a port with it; rows are a ring of ``W`` rows (a node
+    at position i of the construction lives in row ``i mod W``), ``W`` the longest such life:
+    a few blocks for chains, the whole network for a network whose nodes are needed far apart.
+    After each block the nodes it placed are moved to the gauge frame (one rigid fit per drive
+    value, from the gauge nodes, which the first block places), their steps add to the
+    arclength and the kept configurations take their positions; the edges and ports they
+    complete are measured.
+
+    Returns
+    -------
+    record : Record
+        What ``p.keep`` asks for, for every value.
+    margin : numpy.ndarray, shape (K,)
+        Smallest intersection margin per value (NaN where an intersection does not exist).
+    edge_error : numpy.ndarray, shape (K,)
+        Largest relative length error over the network's edges.
+    """
+    dv = np.atleast_1d(np.asarray(values, dtype=np.float64))
+    k = dv.size
+    ref = plan.reference
+    n, d = ref.shape
+    a, b = plan.seed
+    order, parents, sq, signs = plan.lists
+    m = len(order)
+    pos = np.empty(n, dtype=np.int64)
+    pos[[a, b]] = 0, 1
+    pos[plan.order] = np.arange(2, m + 2)
+    at = np.empty(n, dtype=np.int64)  # the node at each position
+    at[pos] = np.arange(n)
+    # blocks of placements, ending where a run of placements ends (2D) and not before the
+    # gauge nodes are placed (their fit moves every block to the gauge frame)
+    gauge = list(p.gauge)
+    first = max(BLOCK, int(pos[gauge].max()) - 1)
+    if d == 2:
+        run_stop = plan.run_table[:, 1]
+        ends, last = [], 0
+        for want in list(range(first, m, BLOCK)) + [m]:
+            i = int(np.searchsorted(run_stop, max(want, last + 1)))
+            stop = int(run_stop[min(i, run_stop.size - 1)]) if run_stop.size else 0
+            if stop > last:
+                ends.append(stop)
+                last = stop
+        ends = ends or [0]
+        run_ends = np.searchsorted(run_stop, ends, side="right")
+    else:
+        ends = sorted(set(list(range(first, m, BLOCK)) + [m]))
+    block_end = np.array(ends, dtype=np.int64) + 2  # in positions
+    # how long each node is needed: its children, the edges and the ports it closes
+    edges, rest = p.network.edges, p.network.edge_lengths
+    names = list(p.network.ports)
+    pairs = np.array([p.network.ports[x] for x in names], dtype=np.int64).reshape(-1, 2)
+    need = pos.copy()
+    has = plan.parents >= 0
+    np.maximum.at(need, plan.parents[has],
+                  np.broadcast_to(pos[plan.order][:, None], plan.parents.shape)[has])
+    for pr in (edges, pairs):
+        later = pos[pr].max(axis=1)
+        np.maximum.at(need, pr[:, 0], later)
+        np.maximum.at(need, pr[:, 1], later)
+    alive_to = block_end[np.searchsorted(block_end, need, side="right")]
+    width = int(min(n, (alive_to - pos).max()))
+    row = pos % width
+    # rows of the parents and children, as the placement loops read them
+    order_rows = row[plan.order].tolist()
+    u = ref[b] - ref[a]
+    u = u / np.linalg.norm(u)
+    r0s = sq[0]
+    c0s = [r0 - r1 for r0, r1 in zip(sq[0], sq[1])]
+    if d == 2:
+        z = np.empty((width, k), dtype=np.complex128)
+        z[row[a]] = complex(ref[a, 0], ref[a, 1])
+        z[row[b]] = (ref[a, 0] + dv * u[0]) + 1j * (ref[a, 1] + dv * u[1])
+        table = plan.run_table
+        runs = list(zip(*np.column_stack([table[:, :2], row[table[:, 2:]]]).T.tolist()))
+        radii_rows = _radii_rows(r0s, c0s, signs)
+    else:
+        X = np.empty((d, width, k))
+        for c in range(d):
+            X[c, row[a]] = ref[a, c]
+            X[c, row[b]] = ref[a, c] + dv * u[c]
+        par_rows = np.where(plan.parents >= 0, row[np.maximum(plan.parents, 0)], -1).T.tolist()
+    # what each block completes: edges and ports by their later node, nodes by position
+    # (sorted once into contiguous rows: gathering them per block from a large edge array was
+    # the one part that did not scale linearly)
+    e_later = pos[edges].max(axis=1)
+    e_sorted = np.argsort(e_later, kind="stable")
+    e_cut = np.searchsorted(e_later[e_sorted], block_end)
+    e_rows = row[edges[e_sorted]]
+    e_rest = rest[e_sorted]
+    p_later = pos[pairs].max(axis=1) if len(names) else np.zeros(0, dtype=np.int64)
+    p_sorted = np.argsort(p_later, kind="stable")
+    p_cut = np.searchsorted(p_later[p_sorted], block_end)
+    p_rows = row[pairs[p_sorted]]
+    kept = kept_indices(k, p.keep)
+    out = np.empty((kept.size, n, d))
+    squares = np.zeros(max(k - 1, 0))
+    margin = np.full(k, np.inf)
+    err = np.zeros(k)
+    dist = np.empty((len(names), k))
+    buf = np.empty((max(int(np.diff(np.concatenate([[0], ends])).max()), 1), k))
+    fit = None
+    lo_place = lo_pos = lo_edge = lo_port = 0
+    lo_run = 0
+
+    def coords(rows_):
+        """(K, len, d) positions of some rows."""
+        if d == 2:
+            zz = z[rows_]
+            return np.stack([zz.real.T, zz.imag.T], axis=-1)
+        return X[:, rows_].transpose(2, 1, 0)
+
+    def lengths(ri, rj):
+        """Distances between the nodes in rows ri[m] and rj[m], shape (len, K)."""
+        if d == 2:
+            return np.abs(z[ri] - z[rj])
+        diff = X[:, ri] - X[:, rj]
+        return np.sqrt(np.einsum("cmk,cmk->mk", diff, diff))
+
+    with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: NaN
+        for blk, stop in enumerate(ends):
+            if d == 2:
+                _place_loop_2d(z, buf, lo_place, order_rows, runs[lo_run:run_ends[blk]], r0s,
+                               c0s, signs, radii_rows)
+                lo_run = int(run_ends[blk])
+            else:
+                _place_loop_3d(X, buf, lo_place, order_rows, par_rows, r0s, c0s,
+                               sq[2], signs, plan, lo_place, stop)
+            if stop > lo_place:
+                np.minimum(margin, buf[:stop - lo_place].min(axis=0), out=margin)
+            lo_place = stop
+            if fit is None:
+                fit = rigid_fit(coords(row[gauge]), p.start[gauge])  # one fit per value
+            hi_pos = int(block_end[blk])
+            nodes = at[lo_pos:hi_pos]
+            if d == 2:
+                rot = fit.rotation[:, 0, 0] + 1j * fit.rotation[:, 1, 0]
+                w = z[row[nodes]] * rot + (fit.shift[:, 0] + 1j * fit.shift[:, 1])
+                step = w[:, 1:] - w[:, :-1]
+                squares += (step.real * step.real + step.imag * step.imag).sum(axis=0)
+                out[:, nodes, 0] = w[:, kept].real.T
+                out[:, nodes, 1] = w[:, kept].imag.T
+            else:
+                w = np.einsum("sij,jms->ims", fit.rotation, X[:, row[nodes]]) \
+                    + fit.shift.T[:, None, :]
+                step = w[:, :, 1:] - w[:, :, :-1]
+                squares += np.einsum("cms,cms->s", step, step)
+                out[:, nodes] = w[:, :, kept].transpose(2, 1, 0)
+            lo_pos = hi_pos
+            hi_edge = int(e_cut[blk])
+            if hi_edge > lo_edge:
+                got = lengths(e_rows[lo_edge:hi_edge, 0], e_rows[lo_edge:hi_edge, 1])
+                rel = np.abs(got / e_rest[lo_edge:hi_edge, None] - 1.0)
+                np.maximum(err, rel.max(axis=0), out=err)
+            lo_edge = hi_edge
+            hi_port = int(p_cut[blk])
+            if hi_port > lo_port:
+                dist[p_sorted[lo_port:hi_port]] = lengths(p_rows[lo_port:hi_port, 0],
+                                                          p_rows[lo_port:hi_port, 1])
+            lo_port = hi_port
+            if blk == 0:
+                drive = lengths(row[[p.drive[0]]], row[[p.drive[1]]])[0]
+    arclength = np.concatenate([[0.0], np.cumsum(np.sqrt(squares))])
+    if p.keep == "all":
+        record = Record(out, None, drive, arclength, err, None)
+    else:
+        record = Record(out, kept, drive, arclength, err, dict(zip(names, dist)))
+    return record, margin, err

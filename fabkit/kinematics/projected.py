@@ -22,9 +22,20 @@ more than 30°; after easy steps h grows. Along the way:
 - target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
   equation, so the trace ends exactly on the target value;
 - turning points of the drive: a sign change of ``∇drive · t``; located by a secant search and
-  reported (the trace stops there, it never reverses the drive silently);
+  reported (the trace stops there, it never reverses the drive silently). The step's tangent
+  comes from the factors at the predicted point; where the drive barely moves (1e-12 above the
+  super-stable chain's collapsed fixed point its rate is 1e-7 of the motion) that tangent can
+  flip the sign on its own, so a sign change is confirmed by the exact tangent at the new
+  point before the trace stops;
 - branch points: a sign change of ``τ = sign(det A) · sign(t_j)`` (the AUTO/MATCONT test function
   ``det [J; tᵀ]``), with det A's sign read off the LU factors; located by bisection and reported.
+
+The gauge held by the rows G starts as the caller's and moves to the part of the network that
+moves least when that is a clear gain (:meth:`Projected._follow_quiet_gauge`): a long chain whose
+far end only turns rigidly about a collapse front otherwise carries that rotation in every
+tangent, and its steps and rejections grew with the chain. The configurations are returned in
+the caller's gauge frame. The loop runs with one BLAS thread (banded solves and vector
+operations on one trace, where threads only contend).
 """
 
 from __future__ import annotations
@@ -34,12 +45,14 @@ import math
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+import threadpoolctl
 from scipy.linalg.lapack import dgbtrf as _gbtrf
 from scipy.linalg.lapack import dgbtrs as _gbtrs
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
 from ..numerics import START_RTOL
+from .base import choose_gauge
 from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 
@@ -97,6 +110,16 @@ def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
         cols.append(d * g[2] + int(np.argmax(np.abs(normal))))
     return np.array(cols, dtype=np.int64)
 
+
+#: The gauge moves to the stillest rigid element when holding the current one makes the
+#: tangent this many times longer (see :meth:`Projected._follow_quiet_gauge`): a clear gain
+#: only, so that networks whose motion is spread out keep the gauge near the drive.
+GAUGE_SWITCH = 3.0
+
+#: Accepted steps between two looks for a stiller gauge (a look costs a few vector operations
+#: on the whole network, about a fifth of a step; a collapse front passes a module in about two
+#: steps, so a gauge that starts to move is left within a few modules).
+GAUGE_CHECK_EVERY = 8
 
 #: Largest ``kl + ku`` for which the banded LAPACK factorisation is used (else SuperLU).
 BAND_LIMIT = 64
@@ -179,14 +202,45 @@ class _System:
         self._colperm = (d * order[:, None] + np.arange(d)).ravel()
         self._colpos = np.empty(m, dtype=np.int64)
         self._colpos[self._colperm] = np.arange(m)
+        self._order_rows()
+
+    def _order_rows(self):
+        """Rows ordered by the mean position of their entries (the gauge rows by their one
+        entry); the last row is inserted at each factorisation."""
+        m = self.n_rows
         fixed_rows = np.concatenate([self._rows, self._grow])
-        fixed_cpos = self._colpos[np.concatenate([self._cols, gcols])]
+        fixed_cpos = self._colpos[np.concatenate([self._cols, self.gcols])]
         key = (np.bincount(fixed_rows, weights=fixed_cpos, minlength=m - 1)
                / np.maximum(np.bincount(fixed_rows, minlength=m - 1), 1))
         self._base_order = np.argsort(key, kind="stable")
         self._base_keys = key[self._base_order]
         self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
         self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
+        # Band assembly without re-deriving the fixed entries at every factorisation: inserting
+        # the last row at position ins moves the rows at or after it down by one, so an entry's
+        # row is its base position plus (base position >= ins), and the band widths follow from
+        # prefix and suffix maxima over the entries sorted by base position.
+        bpos = np.empty(m - 1, dtype=np.int64)
+        bpos[self._base_order] = np.arange(m - 1)
+        entry = bpos[fixed_rows]
+        by = np.argsort(entry, kind="stable")
+        self._entry_bpos = entry
+        self._sorted_bpos = entry[by]
+        lower = (entry - fixed_cpos)[by]
+        upper = (fixed_cpos - entry)[by]
+        self._lower_head = np.maximum.accumulate(lower)
+        self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
+        self._upper_head = np.maximum.accumulate(upper)
+        self._upper_tail = np.maximum.accumulate(upper[::-1])[::-1]
+        self._band_base: dict[int, np.ndarray] = {}
+
+    def regauge(self, gcols: np.ndarray, gvals: np.ndarray) -> None:
+        """Hold other coordinates still (as many as before): the gauge rows and the row order
+        change, the column order (along the structure) does not."""
+        if gcols.size != self.gcols.size:
+            raise KinematicsError("internal: a new gauge must fix as many coordinates")
+        self.gcols, self.gvals = gcols, gvals
+        self._order_rows()
 
     def diff(self, x: np.ndarray) -> np.ndarray:
         """Edge vectors ``x_i - x_j`` (``take`` on contiguous index arrays: several times faster
@@ -217,20 +271,35 @@ class _System:
         else SuperLU), or None when the matrix is exactly singular."""
         x = xf.reshape(self.n, self.d)
         diff = self.diff(x)
-        vals = np.concatenate([np.concatenate([diff, -diff], axis=1).ravel(),
-                               np.ones(self.gcols.size), last_vals])
+        e, d = diff.shape
         m = self.n_rows
+        fixed = np.empty(e * 2 * d + self.gcols.size)  # values in the order of the entries
+        pairs = fixed[:e * 2 * d].reshape(e, 2 * d)
+        pairs[:, :d] = diff
+        np.negative(diff, out=pairs[:, d:])
+        fixed[e * 2 * d:] = 1.0
         last_cpos = self._colpos[last_cols]
         ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
         rowperm = np.insert(self._base_order, ins, m - 1)
-        rpos = np.empty(m, dtype=np.int64)
-        rpos[rowperm] = np.arange(m)
-        ri = rpos[np.concatenate([self._fixed_rows, np.full(last_cols.size, m - 1)])]
-        ci = np.concatenate([self._fixed_cpos, last_cpos])
-        kl, ku = int(max(0, (ri - ci).max())), int(max(0, (ci - ri).max()))
+        cut = int(np.searchsorted(self._sorted_bpos, ins))  # entries before / from the new row
+        n_fix = self._sorted_bpos.size
+        kl = max(0, int((ins - last_cpos).max()),
+                 int(self._lower_head[cut - 1]) if cut > 0 else 0,
+                 int(self._lower_tail[cut]) + 1 if cut < n_fix else 0)
+        ku = max(0, int((last_cpos - ins).max()),
+                 int(self._upper_head[cut - 1]) if cut > 0 else 0,
+                 int(self._upper_tail[cut]) - 1 if cut < n_fix else 0)
         if kl + ku <= BAND_LIMIT:
-            ab = np.zeros((2 * kl + ku + 1, m), order="F")
-            ab[kl + ku + ri - ci, ci] = vals
+            ldab = 2 * kl + ku + 1
+            base = self._band_base.get(ldab)
+            if base is None:  # flat index in the Fortran-ordered band, before the shift by ins
+                base = self._band_base[ldab] = self._entry_bpos + self._fixed_cpos * (ldab - 1)
+            flat = base + (self._entry_bpos >= ins)
+            flat += kl + ku
+            ab = np.zeros((ldab, m), order="F")
+            band = ab.T.reshape(-1)  # a view: the band's columns one after the other
+            band[flat] = fixed
+            ab[kl + ku + ins - last_cpos, last_cpos] = last_vals
             lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
             if info != 0:
                 return None
@@ -239,7 +308,7 @@ class _System:
             return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, sign)
         rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
         cols = np.concatenate([self._cols, self.gcols, last_cols])
-        a = sp.csc_matrix((vals, (rows, cols)), shape=(m, m))
+        a = sp.csc_matrix((np.concatenate([fixed, last_vals]), (rows, cols)), shape=(m, m))
         try:
             return _SuperLU(spla.splu(a, permc_spec="COLAMD"))
         except RuntimeError:
@@ -300,6 +369,12 @@ class Projected(StepMethod):
         "detect_branch_points": True,
     }
 
+    def solve(self):
+        # banded solves and vector operations on one trace: BLAS threads only contend (a
+        # 3000-module chain took 3.5 s with them on a busy two-core machine, 1.1 s without)
+        with threadpoolctl.threadpool_limits(1):
+            return super().solve()
+
     # -- set-up ---------------------------------------------------------------------------------
     def _setup(self):
         p = self.problem
@@ -307,6 +382,7 @@ class Projected(StepMethod):
         x0 = p.start
         n, d = x0.shape
         self.n, self.d = n, d
+        self.gauge = tuple(p.gauge)
         gcols = gauge_rows(x0, p.gauge)
         rest2 = work.edge_lengths ** 2
         e = work.n_edges
@@ -537,7 +613,77 @@ class Projected(StepMethod):
         # the state one step carries to the next
         self.state = (t, lu, j, tau, f_prev, g_prev)
         self.curvature = None
+        self.accepted = 0
+        self._follow_quiet_gauge(x, rescale=False)  # the first step is in units of the shape
         return None
+
+    # -- the gauge that moves least -------------------------------------------------------------
+    def _rigid_fields(self, x: np.ndarray, centre: np.ndarray) -> np.ndarray:
+        """Rigid velocity fields about ``centre``, columns of shape (d·N,): translations and
+        rotations."""
+        c = x - centre
+        n, d = x.shape
+        cols = [np.tile(np.eye(d)[a], n) for a in range(d)]
+        if d == 2:
+            cols.append(np.column_stack([-c[:, 1], c[:, 0]]).ravel())
+        else:
+            cols += [np.cross(np.eye(3)[a], c).ravel() for a in range(3)]
+        return np.column_stack(cols)
+
+    def _held(self, fields: np.ndarray, t: np.ndarray, gauge) -> np.ndarray:
+        """The tangent t as seen with ``gauge`` held still: t minus the rigid motion (columns of
+        ``fields``) that the gauge nodes make."""
+        g = np.asarray(gauge, dtype=np.int64)
+        rows = (self.d * g[:, None] + np.arange(self.d)).ravel()
+        beta = np.linalg.lstsq(fields[rows], t[rows], rcond=None)[0]
+        return t - fields @ beta
+
+    def _follow_quiet_gauge(self, xf: np.ndarray, rescale: bool = True) -> None:
+        """Hold the part of the network that moves least.
+
+        With the gauge near the drive, a part that only turns rigidly (the far end of a long
+        chain, swung about the front of a collapse) carries the tangent: its nodes move in
+        proportion to their distance, so the path in coordinates grows with the network and a
+        linear predictor leaves the far nodes off their arcs (about a third of the steps of the
+        mirrored super-stable chain were rejected, and their number grew with N). The tangent
+        without rigid motion (least squares) tells where the network is still; when holding
+        the current gauge makes the tangent more than ``GAUGE_SWITCH`` times longer than
+        holding a rigid element at the stillest node, that element becomes the gauge. The
+        configurations are then moved back into the caller's gauge frame (a rigid fit)."""
+        t, lu, j, tau, f, g = self.state
+        x = xf.reshape(self.n, self.d)
+        fields = self._rigid_fields(x, x.mean(axis=0))
+        # about the centroid the fields are nearly orthogonal: the normal equations are small
+        # and well conditioned
+        free = t - fields @ np.linalg.solve(fields.T @ fields, fields.T @ t)
+        base = float(np.linalg.norm(free))
+        if not base > 0:
+            return
+        speed = np.einsum("ij,ij->i", free.reshape(self.n, self.d), free.reshape(self.n, self.d))
+        quiet = choose_gauge(self.problem.work, x, (int(np.argmin(speed)),) * 2)
+        if set(quiet) == set(self.gauge):
+            return
+        now = float(np.linalg.norm(self._held(fields, t, self.gauge))) / base
+        held = self._held(fields, t, quiet)
+        then = float(np.linalg.norm(held)) / base
+        gcols = gauge_rows(x, quiet)
+        if now <= GAUGE_SWITCH * then or gcols.size != self.sys.gcols.size:
+            return
+        self.sys.regauge(gcols, xf[gcols].copy())
+        exact = self._tangent(xf, int(np.argmax(np.abs(held))), orient_like=held)
+        if exact is None:
+            self.sys.regauge(gauge_rows(x, self.gauge), xf[gauge_rows(x, self.gauge)].copy())
+            return
+        self.gauge = tuple(quiet)
+        self.aligned = False  # the caller's gauge is restored by a rigid fit
+        self.counts["gauge_changes"] = self.counts.get("gauge_changes", 0) + 1
+        t2, lu2, tau2 = exact
+        direction = self.direction()
+        self.state = (t2, lu2, int(np.argmax(np.abs(t2))), tau2, f,
+                      float(self._drive_grad(xf) @ t2) * direction)
+        self.curvature = None
+        if rescale:
+            self.h *= then / now  # the same progress of the shape per step
 
     def _step(self) -> Step | Stop:
         p = self.problem
@@ -586,6 +732,13 @@ class Projected(StepMethod):
             if tau_new != tau and self.opts["detect_branch_points"]:
                 return self._stop_at_branch(x, t, lu, j, h, tau, g_prev * g_new < 0)
             if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
+                # t_new is the tangent at the predicted point: confirm the turn at x_new itself
+                exact = self._tangent(x_new, j_new, orient_like=t_new)
+                if exact is not None:
+                    ge = float(self._drive_grad(x_new) @ exact[0]) * direction
+                    if ge > 0 and g_prev > 0:
+                        t_new, lu_p, tau_new, g_new = exact[0], exact[1], exact[2], ge
+            if g_new * g_prev < 0 or g_new <= 0 and g_prev > 0:
                 # the target may lie between x and the turning point, too close to the turn for
                 # the step to have crossed it on this side: walk the drive towards it by landing
                 landed = self._walk_to_target(x, t, h)
@@ -599,6 +752,9 @@ class Projected(StepMethod):
             self.state = (t_new, lu_p, j_new, tau_new, f_new, g_new)
             # with the Jacobian at the predicted point the contraction grows like h²: aim at 0.1
             self.h *= min(2.0, max(0.7, math.sqrt(0.1 / max(theta, 0.025))))
+            self.accepted += 1
+            if self.accepted % GAUGE_CHECK_EVERY == 0:
+                self._follow_quiet_gauge(x_new)
             return Step(x_new)
 
     def _reject(self):

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import Mark, Method, Outcome
+from .record import Recorder
 from .trajectory import EventKind, Status
 
 __all__ = ["Step", "Stop", "StepMethod"]
@@ -92,10 +93,22 @@ class StepMethod(Method):
         p = self.problem
         x0 = p.start.ravel().copy()
         self.positions = [x0]
+        # with keep other than "all", configurations go to the recorder as soon as the next one
+        # is accepted, and only the last stays in self.positions (where the next step starts)
+        recorder = None if p.keep == "all" else Recorder(p, aligned=self.aligned)
+        count = 1
         stop = self._start(x0)
         limit = int(self.opts["max_steps"])
+
+        def accept(x):
+            nonlocal count
+            self.positions.append(x)
+            count += 1
+            if recorder is not None:  # in the gauge frame unless the method moved its gauge
+                recorder.add(self.positions.pop(0), aligned=self.aligned)
+
         while stop is None:
-            if len(self.positions) > limit:
+            if count > limit:
                 stop = self._exhausted()
                 break
             result = self._step()
@@ -105,18 +118,23 @@ class StepMethod(Method):
             x = np.asarray(result.x, dtype=np.float64)
             if x.shape != x0.shape or not np.isfinite(x).all():
                 stop = Stop(Status.FAILED,
-                            f"step {len(self.positions)} of '{self.name}' gave a configuration "
+                            f"step {count} of '{self.name}' gave a configuration "
                             "with non-finite coordinates; the trace stops before it")
                 break
-            self.positions.append(x)
+            accept(x)
         for x in stop.append:
             x = np.asarray(x, dtype=np.float64)
             if x.shape == x0.shape and np.isfinite(x).all():
-                self.positions.append(x)
+                accept(x)
         marks = ()
         if stop.event is not None:
-            marks = (Mark(stop.event, len(self.positions) - 1, stop.detail),)
-        stats = {"steps": len(self.positions) - 1, **self._stats()}
-        stats["steps"] = len(self.positions) - 1
+            marks = (Mark(stop.event, count - 1, stop.detail),)
+        stats = {"steps": count - 1, **self._stats()}
+        stats["steps"] = count - 1
+        if recorder is not None:
+            for x in self.positions:
+                recorder.add(x, aligned=self.aligned)
+            return Outcome(None, stop.status, stop.message, marks, stats,
+                           record=recorder.finish())
         X = np.array(self.positions).reshape((len(self.positions),) + p.start.shape)
         return Outcome(X, stop.status, stop.message, marks, stats, aligned=self.aligned)

@@ -7,6 +7,7 @@ from enum import Enum
 
 import numpy as np
 
+from ..errors import KinematicsError
 from ..network import Network
 
 __all__ = ["Status", "EventKind", "Event", "Trajectory"]
@@ -78,6 +79,8 @@ class Trajectory:
         The network traced (with any held ports added as virtual edges removed).
     positions : numpy.ndarray, shape (S, N, d)
         Node positions at each accepted step, in the gauge frame (the gauge edge held still).
+        With ``keep`` other than ``"all"`` (see :func:`fabkit.trace`), only the configurations
+        listed in ``kept`` (always the first and the last): shape (len(kept), N, d).
     drive : numpy.ndarray, shape (S,)
         Value of the driven distance at each step.
     arclength : numpy.ndarray, shape (S,)
@@ -97,6 +100,11 @@ class Trajectory:
     events : tuple of Event
     stats : dict
         Method-specific counters (steps, rejected steps, factorisations, ...).
+    kept : numpy.ndarray of int or None
+        Indices of the configurations held in ``positions``; None when every one is.
+    port_values : dict of str to numpy.ndarray, or None
+        With ``keep`` other than ``"all"``: the distance of every port of the network at every
+        configuration, shape (S,) each (what :meth:`distance` reads for a port name).
     """
 
     network: Network
@@ -111,6 +119,8 @@ class Trajectory:
     target: float
     events: tuple[Event, ...] = ()
     stats: dict = field(default_factory=dict)
+    kept: np.ndarray | None = None
+    port_values: dict | None = None
 
     @property
     def success(self) -> bool:
@@ -119,8 +129,8 @@ class Trajectory:
 
     @property
     def n_steps(self) -> int:
-        """Number of configurations S."""
-        return int(self.positions.shape[0])
+        """Number of configurations S (also those whose positions were not kept)."""
+        return int(self.drive.shape[0])
 
     @property
     def max_edge_error(self) -> float:
@@ -133,8 +143,22 @@ class Trajectory:
         return self.positions[-1]
 
     def distance(self, port) -> np.ndarray:
-        """Distance of a port (name or node pair) at every step, shape (S,)."""
+        """Distance of a port (name or node pair) at every step, shape (S,).
+
+        Raises
+        ------
+        KinematicsError
+            A node pair that is not a port, asked of a trace that kept only some positions.
+        """
+        if isinstance(port, str) and self.port_values is not None:
+            self.network.port(port)  # an unknown name raises with the list of ports
+            return self.port_values[port]
         i, j = self.network.port(port) if isinstance(port, str) else port
+        if self.kept is not None:
+            raise KinematicsError(
+                f"the trace kept the positions of {len(self.kept)} of its {self.n_steps} "
+                f"configurations (keep=...): the distance of nodes ({i}, {j}) is not known at "
+                "the others; ask for a port by name, or trace with keep='all'")
         return np.linalg.norm(self.positions[:, i] - self.positions[:, j], axis=-1)
 
     def distances(self, names=None) -> dict[str, np.ndarray]:
