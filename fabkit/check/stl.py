@@ -1,4 +1,10 @@
-"""As-built check of a printed triangle-hinge network, read back from its STL file with trimesh.
+"""As-built check of a printed network, read back from its STL files with trimesh.
+
+Every bed of the export is read (``NAME_bed<k>.stl`` together, :mod:`fabkit.check.beds`) and,
+with the design, each piece is moved back from its place on the bed into its own frame. A
+print-in-place bar linkage (``linkage = "pins"``) is checked by :mod:`fabkit.check.pinned`; a
+triangle-hinge network as follows (a print split into pieces piece by piece, against each
+piece's own network, without the transition).
 
 Solid checks: the mesh is watertight, consistently wound, exactly one body, with a volume equal to
 the analytic volume of plates plus hinges (relative 1e-6), and no feature thinner than the nozzle
