@@ -203,11 +203,11 @@ def test_predictability_horizon_small():
 
 # -- command line -------------------------------------------------------------------------------
 def test_cli_rejects_bad_options(capsys):
-    assert main(["bench", "--sizes", "ten"]) == 1
+    assert main(["bench", "--sizes", "ten"]) == 2  # usage errors, before any measurement
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--sizes must be comma-separated integers" in err[0]
-    assert main(["bench", "--parts", "charts"]) == 1
-    assert main(["bench", "--budget", "0"]) == 1
+    assert len(err) == 1 and "--sizes: must be comma-separated integers" in err[0]
+    assert main(["bench", "--parts", "charts"]) == 2
+    assert main(["bench", "--budget", "0"]) == 2
 
 
 def test_cli_workprecision_part_writes_charts_and_json(tmp_path):
