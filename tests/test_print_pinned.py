@@ -15,7 +15,7 @@ import fabkit
 from fabkit.check import check_file
 from fabkit.check.threemf import read_package
 from fabkit.cli import main
-from fabkit.errors import FabricationError
+from fabkit.errors import FabricationError, SettingsError
 from fabkit.export import export
 from fabkit.export.stl import export_design
 from fabkit.fab.pinned import bar_body, pin_profile, pinned_print
@@ -87,6 +87,18 @@ def test_pin_clearance_comes_from_the_printer():
 def test_pin_settings_that_cannot_print_are_refused(table, pattern):
     with pytest.raises(FabricationError, match=pattern) as err:
         print_settings(table, linkage="pins")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("key, value, pattern", [
+    ("layer_gap", 0, r"fabrication\.print\.layer_gap: must be > 0, got 0"),
+    ("max_layers", 0, r"fabrication\.print\.max_layers: must be >= 1, got 0"),
+    ("linkage", "glue", r"fabrication\.print\.linkage: must be one of 'hinges' or 'pins', "
+                        r"got 'glue'"),
+])
+def test_the_schema_declares_the_pin_keys(key, value, pattern):
+    with pytest.raises(SettingsError, match=pattern) as err:
+        print_settings({key: value}, linkage="pins")
     assert "\n" not in str(err.value)
 
 
@@ -236,11 +248,33 @@ def test_a_missing_body_is_caught(exported, tmp_path):
     assert _by_name(r)["one closed body per bar"]["value"] == 5
 
 
+def test_a_missing_pin_is_caught(tmp_path, monkeypatch):
+    import fabkit.fab.pinned as pinned
+
+    real = pinned.pinned_print
+
+    def without_pin(design, s):
+        plan = real(design, s)
+        plan.carrier.pop(3)  # joint 3 (three bars) printed with holes only, no pin
+        return plan
+
+    design = fabkit.load_template(TEMPLATES / "super_stable.toml")
+    monkeypatch.setattr(pinned, "pinned_print", without_pin)
+    export(design, "stl", tmp_path, print={"preview": False, "threemf": False})
+    monkeypatch.undo()
+    r = check_file(tmp_path / "super_stable.stl", design=design)
+    c = _by_name(r)["pins -> joints"]
+    assert not r["ok"] and not c["ok"]
+    assert c["value"] == [5, 4] and c["limit"] == [5, 5]
+
+
 def test_a_tighter_hole_than_asked_is_caught(exported):
     design, folder, _, _ = exported["super_stable"]
     r = check_file(folder / "super_stable.stl", design=design,
                    settings={"print": {"pin_clearance": 0.4}})
-    assert not r["ok"]  # printed with 0.3 mm, checked against 0.4 mm
+    c = _by_name(r)["pin clearance"]  # printed with 0.3 mm, checked against 0.4 mm
+    assert not r["ok"] and not c["ok"]
+    assert c["limit"] == 0.4 and c["value"] == pytest.approx(0.3, abs=1e-4)
 
 
 def test_wrong_slicer_settings_are_caught(exported, tmp_path):

@@ -281,7 +281,9 @@ def check_pinned(meshes, names, design, s, report) -> dict:
             above = cap_top - bars[top[0]]["z0"] - bars[top[0]]["thickness"]
             head_slots = max(head_slots, math.ceil(above / pitch - MEASURE_TOL_MM))
     unpinned = [jf for jf in joints if len(jf) >= 2 and not any(f[1] == "pin" for f in jf)]
-    checks.append(_check("pins -> joints", not problems and len(joints) == design.network.n_nodes,
+    ok = (not problems and len(joints) == design.network.n_nodes
+          and len(pin_of) == len(plan.carrier) and len(unpinned) == len(plan.cut_joints))
+    checks.append(_check("pins -> joints", ok,
                          value=[len(joints), len(pin_of)],
                          limit=[design.network.n_nodes, len(plan.carrier)],
                          detail="; ".join(problems[:3]) or
@@ -307,12 +309,15 @@ def check_pinned(meshes, names, design, s, report) -> dict:
                           "layers": int(layer.max()) + 1, "node_deviation_mm": dev,
                           "pin_clearance_mm": None if math.isinf(clear) else clear,
                           "cap_overlap_mm": None if math.isinf(hold) else hold}
-    measured = {"width": max(widths), "cap_radius": cap_radius or 0.5 * s.cap_diameter,
+    # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
+    measured = {"width": _to_resolution(max(widths)),
+                "cap_radius": _to_resolution(cap_radius or 0.5 * s.cap_diameter),
                 "head_slots": head_slots}
+    x_mm = _joints_mm(design.network, lengths, s)
     key = ("motion",) + _design_key(design, s) + (
-        np.round(lengths, 9).tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
+        x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
     try:
-        motion, facts = _memo(key, lambda: _motion_checks(design, edge_layer, lengths, s,
+        motion, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
                                                          measured))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
         motion, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
@@ -409,21 +414,33 @@ def _rebuilt_network(design, plan, joints, bars, checks, s):
     return (joint_xy, layer, lengths, float(dist.max()))
 
 
-def _motion_checks(design, layer, lengths, s, measured) -> tuple[list[dict], dict]:
-    """Modes, the re-simulated motion and every clearance along it (see the module docstring);
-    the checks and the report's ``motion`` facts."""
-    from ..fab.layers import JointStack, sample_motion, stacking_gaps
-    from ..kinematics import trace
-    from ..network import Network
-    from ..numerics import project_to_lengths
-    from ..rigidity import count_modes
+def _to_resolution(mm: float) -> float:
+    return round(mm / FILE_RESOLUTION_MM) * FILE_RESOLUTION_MM
 
-    net = design.network
-    out = []
+
+def _joints_mm(net, lengths, s) -> np.ndarray:
+    """The rebuilt network's joints (mm): the design's where the read-back lengths are the
+    design's to the files' resolution (a refit would only add the files' rounding), else the
+    design's joints refitted to the read-back lengths."""
+    from ..numerics import project_to_lengths
+
     x_mm = net.nodes * s.scale
     err = np.abs(np.linalg.norm(x_mm[net.edges[:, 0]] - x_mm[net.edges[:, 1]], axis=1) - lengths)
     if err.max() > FILE_RESOLUTION_MM:  # not the design's lengths: the joints as read back
         x_mm = project_to_lengths(net.edges, lengths, x_mm).positions
+    return np.ascontiguousarray(x_mm)
+
+
+def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
+    """Modes, the re-simulated motion and every clearance along it (see the module docstring);
+    the checks and the report's ``motion`` facts."""
+    from ..fab.layers import JointStack, sample_motion, stacking_gaps
+    from ..network import Network
+    from ..rigidity import count_modes
+    from .motion import compare_motion
+
+    net = design.network
+    out = []
     built = Network(x_mm / s.scale, net.edges, net.ports, net.labels)
     modes = count_modes(built)
     # a print is faithful when it moves as its design does
@@ -434,21 +451,11 @@ def _motion_checks(design, layer, lengths, s, measured) -> tuple[list[dict], dic
                       f"conformational motions of the rebuilt network ({modes.self_stress} states "
                       "of self-stress)"))
     m = design.motion
-    ref = design.trace()
-    got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)
-    n = min(ref.n_steps, got.n_steps)
-    worst, port = 0.0, None
-    for p in net.ports:
-        if p == m.drive:
-            continue
-        diff = float(np.abs(ref.distance(p)[:n] - got.distance(p)[:n]).max())
-        if diff >= worst:
-            worst, port = diff, p
-    limit = MAP_RTOL * net.size
-    same_end = ref.n_steps == got.n_steps and str(ref.status) == str(got.status)
-    out.append(_check("motion re-simulated", worst <= limit and same_end, worst, limit,
-                      f"largest port-distance difference (design units, at {port}) between the "
-                      f"design's motion and the rebuilt network's; both {got.status}"))
+    cmp = compare_motion(design, built, MAP_RTOL)
+    out.append(_check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
+                      f"largest port-distance difference (design units, at {cmp['port']}) "
+                      f"between the design's motion and the rebuilt network's; the rebuilt one "
+                      f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
     fine = sample_motion(built, m, s.scale, 0.25 * s.clearance, floor_limit=s.clearance)
     inc = {}
     for b, (i, j) in enumerate(net.edges.tolist()):

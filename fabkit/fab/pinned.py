@@ -351,10 +351,9 @@ def bar_body(plan: PinnedPrint, bar: int):
     FabricationError
         manifold3d is missing, or the body is not a valid manifold.
     """
-    try:
-        import manifold3d as mf
-    except ImportError as exc:  # optional dependency: only the STL format needs it
-        raise FabricationError(f"3D printing needs the manifold3d package: {exc}") from None
+    from .hinges import manifold3d
+
+    mf = manifold3d()
     s = plan.settings
     rings = [np.ascontiguousarray(plan.bar_outline(bar))]
     rings += [np.ascontiguousarray(circle_polygon(plan.positions[j], 0.5 * s.hole_diameter,
