@@ -15,7 +15,7 @@ import fabkit
 from fabkit.check import check_file
 from fabkit.check.threemf import read_package
 from fabkit.cli import main
-from fabkit.errors import FabricationError, SettingsError
+from fabkit.errors import BoundsError, FabricationError, SettingsError
 from fabkit.export import export
 from fabkit.export.stl import export_design
 from fabkit.fab.pinned import bar_body, pin_profile, pinned_print
@@ -115,6 +115,16 @@ def test_bars_too_short_for_their_caps_are_refused():
                                                r"need >= 5\.80 mm; raise print\.scale to >= "
                                                r"10\.25"):
         export_design(design, {"print": {"scale": 10.0}})
+
+
+def test_a_print_past_the_work_bound_is_refused_before_work(tmp_path, monkeypatch):
+    monkeypatch.delenv("FABKIT_ALLOW_LARGE", raising=False)
+    (tmp_path / "big.toml").write_text('name = "big"\n[chain]\nmodule = "fourbar.toml"\n'
+                                       'copies = 6000\n[motion]\ndrive = "d1"\nto = 2.5\n')
+    design = fabkit.load_template(tmp_path / "big.toml")
+    with pytest.raises(BoundsError, match=r"big\.toml: print-in-place linkage: about 20 min, "
+                                          r"8\.94 GB \(24000 printed bars\) is over the limit"):
+        export_design(design)
 
 
 # --- geometry -------------------------------------------------------------------------------

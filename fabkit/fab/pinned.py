@@ -145,6 +145,8 @@ class PinnedPrint:
     layer : numpy.ndarray of int, shape (E,)
     carrier : dict of int to int
         Joint -> the bar that carries its pin (the joint's lowest bar).
+    incidence : dict of int to numpy.ndarray
+        Joint -> its bars, lowest layer first.
     cut_joints : tuple of int
         Joints where the print is cut between pieces: plain holes, joined by the maker.
     pieces : list of dict
@@ -161,6 +163,7 @@ class PinnedPrint:
     stacking: object
     layer: np.ndarray
     carrier: dict
+    incidence: dict
     cut_joints: tuple
     pieces: list
     layout: list
@@ -179,7 +182,8 @@ class PinnedPrint:
         return float(self.layer[bar]) * self.settings.layer_pitch
 
     def joint_bars(self, joint: int) -> np.ndarray:
-        return np.flatnonzero((self.edges == joint).any(axis=1))
+        """The bars at a joint, lowest layer first."""
+        return self.incidence.get(int(joint), np.zeros(0, dtype=np.int64))
 
     def pin_stack(self, joint: int) -> list[tuple[float, float]]:
         """Collars and cap of the pin at a joint, bottom to top: (z_bottom, z_top) in mm."""
@@ -291,6 +295,8 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
     FabricationError
         Not planar, bars too short for their pins, no collision-free stacking within
         ``max_layers``, a piece that fits the bed in no orientation.
+    BoundsError
+        More bars than the work estimate allows (``fabkit --allow-large`` lifts it).
     """
     from .layers import plan_layers
     from .printers import split_to_fit
@@ -303,6 +309,9 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
         raise FabricationError("a print-in-place linkage is stacked over the design's motion; "
                                "the template has no [motion] to")
     _check_bars(net, s)
+    from ..workload import require
+
+    require(f"{design.path or design.name}: print-in-place linkage", ("printed bar", net.n_edges))
     sweep = _sweep(design, s)
     stacking = plan_layers(net.edges, sweep, stack_settings(s))
     layer = np.asarray(stacking.layer, dtype=np.int64)
@@ -330,13 +339,16 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
         owner[bars] = p
         pieces.append({"bars": bars, "nodes": np.asarray(nodes), "joined_at": cut})
     cut_joints = sorted({int(v) for _, cut in split if cut for v in net.port(cut)})
-    carrier = {}
-    for j in range(net.n_nodes):
-        bars = np.flatnonzero((edges == j).any(axis=1))
-        if len(bars) >= 2 and j not in cut_joints:
-            carrier[j] = int(bars[np.argmin(layer[bars])])
+    # the bars of every joint, lowest layer first (one sort, not a search per joint)
+    ends = edges.ravel()
+    bars_at = np.repeat(np.arange(len(edges)), 2)
+    order = np.lexsort((layer[bars_at], ends))
+    nodes, starts = np.unique(ends[order], return_index=True)
+    incidence = dict(zip(nodes.tolist(), np.split(bars_at[order], starts[1:])))
+    cut = set(cut_joints)
+    carrier = {j: int(b[0]) for j, b in incidence.items() if len(b) >= 2 and j not in cut}
     return PinnedPrint(settings=s, edges=edges, positions=positions, offset=offset, sweep=sweep,
-                       stacking=stacking, layer=layer, carrier=carrier,
+                       stacking=stacking, layer=layer, carrier=carrier, incidence=incidence,
                        cut_joints=tuple(cut_joints), pieces=pieces, layout=layout,
                        stats={"samples": int(sweep.n_samples), "layers": int(stacking.n_layers),
                               "proof": stacking.proof_text()})

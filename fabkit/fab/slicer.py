@@ -84,7 +84,7 @@ class SlicerSettings:
     notes: tuple = ()
 
     def as_dict(self) -> dict:
-        return {"slicer": "PrusaSlicer 2.4 or later (3MF metadata of PrusaSlicer)",
+        return {"slicer": "PrusaSlicer (its 3MF metadata; tested with 2.5)",
                 "material": self.material, "material_reason": self.material_reason,
                 "per_object": dict(self.per_object), "project": dict(self.project),
                 "reasons": dict(self.reasons), "notes": list(self.notes),
