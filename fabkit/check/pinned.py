@@ -365,7 +365,8 @@ def _layer_gap_check(pin_of, bars, bodies, s) -> dict:
     return _check("layer gaps", ok, value=round(worst, 6), limit=round(limit, 6),
                   detail=f"widest reach (mm) of a pin's body from its axis within "
                          f"{s.layer_gap - eps:g} mm above or below a bar on the pin (the pin's "
-                         f"radius: collars and caps keep their gap){'' if where is None else f', at bar body {where[0]}'}; "
+                         f"radius: collars and caps keep their gap)"
+                         f"{'' if ok or where is None else f', exceeded at {where[1]:.3f} mm'}; "
                          f"stacked bars {pitch_gap:.4g} mm apart")
 
 
