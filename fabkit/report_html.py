@@ -487,7 +487,13 @@ def _fabrication_sections(report: dict, files: dict) -> str:
         r = stl.get("report") or {}
         pr = r.get("printer") or {}
         body = []
-        if r:
+        if r.get("linkage") == "pins":
+            s = r.get("settings") or {}
+            body.append(f"<p>Printed in place: {r.get('bars')} bars in {r.get('layers')} layers "
+                        f"on {r.get('printed_pins')} printed pins ({_esc(s.get('material'))}), "
+                        f"{_fmt(r.get('height_mm'))} mm tall, {_fmt(r.get('volume_mm3'))} mm³."
+                        "</p>")
+        elif r:
             s = r.get("settings") or {}
             body.append(f"<p>{r.get('plates')} plates, {r.get('hinges')} hinges "
                         f"({_esc(s.get('hinge_style'))}, {_esc(s.get('material'))}), "
@@ -521,8 +527,11 @@ def _bom_section(report: dict, files: dict) -> str:
         rows.append("<table><tr><th>printed part</th><th>quantity</th></tr>"
                     f"<tr><td>{_esc(s.get('material'))} filament</td>"
                     f"<td>{_fmt((stl.get('volume_mm3') or 0) / 1000.0)} cm³</td></tr>"
-                    f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
-                    f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr></table>")
+                    + (f"<tr><td>printed bars</td><td>{stl.get('bars')}</td></tr>"
+                       f"<tr><td>printed pins</td><td>{stl.get('printed_pins')}</td></tr>"
+                       if stl.get("linkage") == "pins" else
+                       f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
+                       f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table>")
     svg = ((report.get("formats") or {}).get("svg") or {}).get("report")
     if svg:
         rows.append("<table><tr><th>origami</th><th>quantity</th></tr>"

@@ -38,13 +38,16 @@ __all__ = ["Section", "LaserSection", "ScrewSection", "PrintSection", "OrigamiSe
            "METHOD_OPTIONS", "check_section", "check_table", "check_fabrication", "section_of",
            "check_settings", "check_method_options", "describe_keys",
            "describe_validation_error", "LASER_FLAVOURS", "LASER_LABELS", "REFERENCE_SQUARES",
-           "MATERIAL_NAMES", "HINGE_STYLES", "ORIGAMI_SPACINGS"]
+           "MATERIAL_NAMES", "HINGE_STYLES", "PRINT_LINKAGES", "ORIGAMI_SPACINGS"]
 
 LASER_FLAVOURS = ("lwpolyline", "line-arc")
 LASER_LABELS = ("text", "outlines", "none")
 REFERENCE_SQUARES = ("engrave", "cut", "none")
 MATERIAL_NAMES = ("PLA", "PETG", "TPU")
 HINGE_STYLES = ("neck", "bridge")
+#: How a printed network is built: ``"hinges"``, rigid triangles joined by thin hinges in one
+#: solid; ``"pins"``, bars stacked in layers on printed pins, one body per bar (print in place).
+PRINT_LINKAGES = ("hinges", "pins")
 ORIGAMI_SPACINGS = ("uniform", "geometric")
 PROCESS_NAMES = ("laser", "print", "origami")
 
@@ -116,7 +119,13 @@ def _upper(value):
 
 
 class PrintSection(Section):
-    """``[fabrication.print]``: 3D-printed triangle-hinge networks (lengths in mm)."""
+    """``[fabrication.print]``: 3D-printed networks (lengths in mm): triangle-hinge solids, or
+    bar linkages printed in place on pins."""
+
+    linkage: Optional[Literal[PRINT_LINKAGES]] = Field(
+        None, description="hinges (rigid triangles joined by thin hinges, one solid) or pins "
+                          "(bars in layers on printed pins, one body per bar); default: hinges "
+                          "for a network made of triangles, else pins")
 
     material: Optional[Annotated[Literal[MATERIAL_NAMES], BeforeValidator(_upper)]] = Field(
         None, description="PLA, PETG or TPU (any case)")
@@ -144,6 +153,23 @@ class PrintSection(Section):
     bed: Optional[Annotated[list[Annotated[float, Field(gt=0)]],
                             Field(min_length=2, max_length=2)]] = Field(
         None, description="a custom bed, width and depth (mm)")
+    # print-in-place bar linkages (linkage = "pins")
+    bar_width: Optional[float] = _mm("width of every printed bar (pins)", gt=0, le=100)
+    bar_thickness: Optional[float] = _mm("height of every printed bar, whole layers (pins)",
+                                         gt=0, le=20)
+    layer_gap: Optional[float] = _mm("vertical gap between stacked bars, and between a bar and "
+                                     "a pin's cap or collar, whole layers (pins); 0.3-0.5 keeps "
+                                     "the layers from fusing", gt=0, le=5)
+    pin_diameter: Optional[float] = _mm("diameter of the printed pins (pins)", gt=0, le=50)
+    pin_clearance: Optional[float] = _mm("radial clearance between a pin and the holes it turns "
+                                         "in (pins); default: the printer's", gt=0, le=2)
+    cap_diameter: Optional[float] = _mm("diameter of the caps that keep the bars on a pin, and "
+                                        "of the collars that keep empty layers free (pins)",
+                                        gt=0, le=100)
+    clearance: Optional[float] = _mm("least gap between bars (or a bar and a cap) of one layer "
+                                     "over the whole motion (pins)", gt=0, le=50)
+    max_layers: Optional[int] = Field(None, ge=1, le=64,
+                                      description="most layers of bars accepted (pins)")
 
 
 # --- origami ----------------------------------------------------------------------------------

@@ -46,11 +46,28 @@ def test_one_watertight_body_with_the_analytic_volume(exported, name):
     geo = print_geometry(design.network, print_settings(design.fabrication["print"]))
     assert abs(mesh.volume - geo.volume) / geo.volume <= 1e-6
     assert report["volume_mm3"] == pytest.approx(geo.volume, rel=1e-15)
-    # millimetres: the solid spans the scaled network and the plate thickness
+    # millimetres: the solid spans the scaled network (turned onto the bed when it does not fit
+    # as it lies) and the plate thickness
     ext = mesh.bounds[1] - mesh.bounds[0]
     assert ext[2] == pytest.approx(3.0, abs=1e-6)
-    assert np.allclose(ext[:2], geo.size[:2], atol=1e-4)
+    (piece,) = report["printer"]["pieces"]
+    assert np.allclose(ext[:2], piece["size_mm"], atol=1e-4)
+    if piece["angle_deg"] == 0:
+        assert np.allclose(ext[:2], geo.size[:2], atol=1e-4)
+    # the STL is centred on the 200 x 200 mm bed and keeps 5 mm from its edges
+    assert np.abs(mesh.bounds[:, :2]).max() <= 100.0 - 5.0 + 1e-4
     assert report["plates"] == len(geo.triangles)
+
+
+def test_the_bare_stl_fits_the_bed_turned():
+    # 207 mm long as designed: turned by 28 degrees, it fits PrusaSlicer's 200 x 200 mm bed
+    design = fabkit.load_template(TEMPLATES / "printed_planar_chain10.toml")
+    res = export_design(design, {"print": {"preview": False}})
+    mesh = trimesh.load(io.BytesIO(res.files["printed_planar_chain10.stl"]), file_type="stl")
+    ext = mesh.bounds[1] - mesh.bounds[0]
+    assert res.report["size_mm"][0] > 200.0
+    assert ext[0] == pytest.approx(189.58, abs=0.01) and ext[1] == pytest.approx(110.18, abs=0.01)
+    assert res.report["printer"]["pieces"][0]["angle_deg"] == 28.0
 
 
 def test_chain_dimensions(exported):
@@ -75,7 +92,9 @@ def test_binary_stl_layout(exported):
 def test_threemf_holds_the_same_mesh_in_millimetres(exported):
     _, folder, _, report = exported["printed_planar"]
     with zipfile.ZipFile(folder / "printed_planar.3mf") as z:
-        assert set(z.namelist()) == {"[Content_Types].xml", "_rels/.rels", "3D/3dmodel.model"}
+        assert set(z.namelist()) == {"[Content_Types].xml", "_rels/.rels", "3D/3dmodel.model",
+                                     "Metadata/Slic3r_PE.config",
+                                     "Metadata/Slic3r_PE_model.config"}
         root = ET.fromstring(z.read("3D/3dmodel.model"))
     ns = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
     assert root.get("unit") == "millimeter"
@@ -144,7 +163,9 @@ def test_registry_and_applies():
     assert get_exporter("stl").FORMAT == "stl"
     assert applies(fabkit.load_template(TEMPLATES / "printed_planar.toml"))
     assert applies(fabkit.load_template(TEMPLATES / "printed_planar_chain10.toml"))
-    assert not applies(fabkit.load_template(TEMPLATES / "fourbar.toml"))  # bars, no triangles
+    # bars, no triangles: a print-in-place linkage on pins; origami sheets fold in 3D
+    assert applies(fabkit.load_template(TEMPLATES / "fourbar.toml"))
+    assert not applies(fabkit.load_template(TEMPLATES / "origami_sheet.toml"))
 
 
 def test_stored_mesh_check_catches_merging_vertices():

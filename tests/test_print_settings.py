@@ -58,7 +58,8 @@ def test_gap_zero_or_negative_refused(gap):
     ({"hinge_width": 0.3}, r"hinge_width: 0\.3 mm is thinner than the 0\.4 mm nozzle"),
     ({"material": "ABS"}, r"material: must be one of 'PLA', 'PETG' or 'TPU', got 'ABS'"),
     ({"hinge_style": "film"}, r"hinge_style: must be one of 'neck' or 'bridge', got 'film'"),
-    ({"kerf": 0.1}, r"fabrication\.print\.kerf: unknown key; known: bed, gap,"),
+    ({"kerf": 0.1}, r"fabrication\.print\.kerf: unknown key; known: bar_thickness, bar_width, "
+                    r"bed, cap_diameter, clearance, gap,"),
     ({"scale": "big"}, r"scale: must be a number, got 'big'"),
     ({"scale": 0}, r"scale: must be > 0, got 0"),
     ({"hinge_style": "bridge", "hinge_layers": 15}, r"is not thinner than the 3 mm plates"),

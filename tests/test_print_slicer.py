@@ -1,4 +1,6 @@
-"""A real slicer reads fabkit's printed networks: PrusaSlicer's command line (Debian package).
+"""A real slicer reads fabkit's printed networks: PrusaSlicer's command line (Debian package):
+triangle-hinge solids and print-in-place linkages, on its default profile, with the settings
+their 3MF files carry.
 
 PrusaSlicer exits with 0 for a mesh with holes (and slices it), so its output is parsed: ``--info``
 must report a manifold mesh in one part with the analytic volume, and ``--export-gcode`` must end
@@ -12,6 +14,7 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 
 import fabkit
@@ -87,19 +90,92 @@ def test_output_is_parsed_because_the_exit_code_says_nothing(files, tmp_path):
     assert int(re.search(r"^open_edges = (\d+)$", out, flags=re.M).group(1)) > 0
 
 
-def test_the_chain_slices_on_the_default_profile_from_its_bed_ready_3mf(files, tmp_path):
+def _gcode_config(text: str) -> dict:
+    """The settings PrusaSlicer lists at the end of its G-code (``; key = value``)."""
+    return dict(re.findall(r"^; (\w+) = (.*)$", text, flags=re.M))
+
+
+def test_the_chain_slices_on_the_default_profile_from_both_files(files, tmp_path):
     # no printer options: PrusaSlicer's own default profile and its 200 x 200 mm bed
     folder, report = files["printed_planar_chain10"]
     assert report["printer"]["printer"]["bed_mm"] == [200.0, 200.0]
-    assert not report["printer"]["fits_as_designed"]
-    code, out = _run(["--export-gcode", str(folder / "printed_planar_chain10.stl")], tmp_path)
-    assert "could not fit" in out  # the part as designed, 207 mm long, does not fit ...
-    gcode = tmp_path / "chain.gcode"
-    code, out = _run(["--export-gcode", "--output", str(gcode),
-                      str(folder / "printed_planar_chain10.3mf")], tmp_path)
-    assert code == 0 and "Slicing result exported" in out, out  # ... turned, it does
-    assert not re.search(r"error|could not|terminate", out, flags=re.I), out
-    assert "; bed_shape = 0x0,200x0,200x200,0x200" in gcode.read_text()
+    assert not report["printer"]["fits_as_designed"]  # 207 mm long as designed ...
+    for suffix in (".stl", ".3mf"):  # ... turned by 28 degrees in both files, it fits
+        gcode = tmp_path / f"chain{suffix}.gcode"
+        code, out = _run(["--export-gcode", "--output", str(gcode),
+                          str(folder / f"printed_planar_chain10{suffix}")], tmp_path)
+        assert code == 0 and "Slicing result exported" in out, out
+        assert not re.search(r"error|could not|terminate", out, flags=re.I), out
+        assert "; bed_shape = 0x0,200x0,200x200,0x200" in gcode.read_text()
+
+
+def test_the_chain_prints_in_its_own_material_and_layers(files, tmp_path):
+    # the 3MF alone, sliced with no option, prints in TPU ("FLEX") at 0.2 mm layers; the bare
+    # STL on the same default profile in PLA at 0.3 mm (what the 3MF's settings replace)
+    folder, report = files["printed_planar_chain10"]
+    found = {}
+    for suffix in (".3mf", ".stl"):
+        gcode = tmp_path / f"chain{suffix}.gcode"
+        code, out = _run(["--export-gcode", "--output", str(gcode),
+                          str(folder / f"printed_planar_chain10{suffix}")], tmp_path)
+        assert code == 0, out
+        text = gcode.read_text()
+        found[suffix] = (_gcode_config(text), [float(z) for z in
+                                               re.findall(r"^;Z:([\d.]+)$", text, flags=re.M)])
+    cfg, z = found[".3mf"]
+    assert cfg["filament_type"] == "FLEX"
+    assert cfg["layer_height"] == "0.2" and cfg["first_layer_height"] == "0.2"
+    assert (cfg["temperature"], cfg["bed_temperature"]) == ("230", "50")
+    assert cfg["filament_max_volumetric_speed"] == "3"
+    assert np.allclose(z, 0.2 * np.arange(1, 16))  # 3 mm of plates in fifteen 0.2 mm layers
+    # the file leaves the printer alone: PrusaSlicer's own bed and nozzle
+    assert cfg["bed_shape"] == "0x0,200x0,200x200,0x200" and cfg["nozzle_diameter"] == "0.4"
+    cfg, z = found[".stl"]
+    assert (cfg["filament_type"], cfg["layer_height"]) == ("PLA", "0.3")
+    assert report["slicer"]["project"]["filament_type"] == "FLEX"
+
+
+@pytest.fixture(scope="module")
+def pinned(tmp_path_factory):
+    out = {}
+    for name in ("super_stable", "fourbar_chain"):
+        design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+        folder = tmp_path_factory.mktemp(name)
+        paths, report = export(design, "stl", folder, print={"preview": False})
+        out[name] = (folder, sorted(paths), report)
+    return out
+
+
+@pytest.mark.parametrize("name", ["super_stable", "fourbar_chain"])
+def test_print_in_place_linkages_slice_on_the_default_profile(pinned, name, tmp_path):
+    folder, paths, report = pinned[name]
+    for path in paths:
+        bars = sum(len(p["bars"]) for p in report["printer"]["pieces"]
+                   if path.stem.endswith(f"bed{p['bed']}") or report["printer"]["beds"] == 1)
+        code, out = _run(["--info", str(path)], tmp_path)
+        fields = dict(re.findall(r"^(\w+) = +(.+)$", out, flags=re.M))
+        assert fields["manifold"] == "yes", out
+        assert int(fields["number_of_parts"]) == bars  # one body per bar, nothing fused
+        gcode = tmp_path / f"{path.name}.gcode"
+        code, out = _run(["--export-gcode", "--output", str(gcode), str(path)], tmp_path)
+        assert code == 0 and "Slicing result exported" in out, out
+        assert not re.search(r"error|could not|terminate", out, flags=re.I), out
+
+
+def test_print_in_place_settings_reach_the_gcode(pinned, tmp_path):
+    folder, _, report = pinned["super_stable"]
+    gcode = tmp_path / "ss.gcode"
+    code, out = _run(["--export-gcode", "--output", str(gcode), str(folder / "super_stable.3mf")],
+                     tmp_path)
+    assert code == 0, out
+    text = gcode.read_text()
+    cfg = _gcode_config(text)
+    assert (cfg["filament_type"], cfg["layer_height"]) == ("PLA", "0.2")
+    # per object: supports from the bed under the upper layers' bars
+    assert ";TYPE:Support material" in text
+    heights = report["height_mm"]
+    z = [float(v) for v in re.findall(r"^;Z:([\d.]+)$", text, flags=re.M)]
+    assert max(z) == pytest.approx(heights, abs=1e-6)
 
 
 def test_split_pieces_slice_on_a_small_bed(tmp_path):

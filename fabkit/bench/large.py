@@ -285,10 +285,10 @@ def bundled_modules() -> list[str]:
     :func:`fabkit.chain` chains port to port. (The origami sheet is joined by three corners,
     :func:`fabkit.fab.creases.chains.sheet_chain`; chained by its d2/d1 pair alone each join is
     a hinge, a network of a thousand motions at its flat state.)"""
-    from ..templates import BUNDLED, load_template
+    from ..templates import bundled_folder, load_template
 
     names = []
-    for path in sorted(BUNDLED.glob("*.toml")):
+    for path in sorted(bundled_folder().glob("*.toml")):
         net = load_template(path).network
         if (net.assembly is None and net.dim == 2 and {"d1", "d2"} <= set(net.ports)
                 and net.n_nodes <= 12):

@@ -19,6 +19,7 @@ CHECKERS: dict[str, str] = {
     "dxf": "fabkit.check.dxf",
     "fold": "fabkit.check.fold",
     "stl": "fabkit.check.stl",
+    "3mf": "fabkit.check.threemf",
 }
 
 

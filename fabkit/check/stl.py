@@ -1,4 +1,10 @@
-"""As-built check of a printed triangle-hinge network, read back from its STL file with trimesh.
+"""As-built check of a printed network, read back from its STL files with trimesh.
+
+Every bed of the export is read (``NAME_bed<k>.stl`` together, :mod:`fabkit.check.beds`) and,
+with the design, each piece is moved back from its place on the bed into its own frame. A
+print-in-place bar linkage (``linkage = "pins"``) is checked by :mod:`fabkit.check.pinned`; a
+triangle-hinge network as follows (a print split into pieces piece by piece, against each
+piece's own network, without the transition).
 
 Solid checks: the mesh is watertight, consistently wound, exactly one body, with a volume equal to
 the analytic volume of plates plus hinges (relative 1e-6), and no feature thinner than the nozzle
@@ -25,7 +31,8 @@ from ..errors import FabkitError, FabricationError
 from ..network import Network
 from ..numerics import START_RTOL
 
-__all__ = ["FORMAT", "SUFFIXES", "check_file", "check_mesh", "slab_sections", "rebuild_linkage",
+__all__ = ["FORMAT", "SUFFIXES", "check_file", "check_meshes", "check_mesh", "slab_sections",
+           "rebuild_linkage",
            "module_fixed_points", "sequential_transition", "as_built_tolerance", "VOLUME_RTOL"]
 
 FORMAT = "stl"
@@ -164,12 +171,18 @@ def slab_sections(mesh, settings) -> dict:
     return {"plates": plates, "hinges": hinges, "tolerance": tol}
 
 
-def check_mesh(mesh, settings=None, expected_volume=None, sections=None) -> list[dict]:
-    """Solid checks of a loaded mesh (see the module docstring); one dict per check."""
+def check_mesh(mesh, settings=None, expected_volume=None, sections=None, *,
+               bodies: int | None = 1) -> list[dict]:
+    """Solid checks of a loaded mesh (see the module docstring); one dict per check.
+
+    ``bodies``: the number of separate bodies the mesh must have (None: any, reported as
+    ``bodies``)."""
+    count = int(mesh.body_count)
     checks = [
         _check("watertight", mesh.is_watertight, detail="every edge shared by exactly two faces"),
         _check("winding consistent", mesh.is_winding_consistent),
-        _check("one body", mesh.body_count == 1, value=int(mesh.body_count), limit=1),
+        _check("one body", count == 1, value=count, limit=1) if bodies == 1 else
+        _check("bodies", bodies is None or count == bodies, value=count, limit=bodies),
         _check("outward normals", mesh.volume > 0, value=float(mesh.volume)),
     ]
     if expected_volume is not None:
@@ -527,12 +540,18 @@ def _module_of(design):
     return design.network, 1
 
 
+#: Words in a binary STL's header that mark a print-in-place linkage (one body per bar).
+PINNED_HEADER = b"print-in-place"
+
+
 def check_file(path, design=None, settings=None) -> dict:
-    """Read an exported STL back and check it (see the module docstring).
+    """Read an exported STL back (with the other beds of its export) and check it (see the
+    module docstring).
 
     Parameters
     ----------
     path : str or pathlib.Path
+        ``NAME.stl``, or one ``NAME_bed<k>.stl`` (every bed of the export is read).
     design : Design, optional
         Without it only the solid checks run (the volume, the rebuilt linkage and the motion
         need the design).
@@ -543,25 +562,128 @@ def check_file(path, design=None, settings=None) -> dict:
     -------
     dict
         ``ok``, ``checks`` (name, ok, value, limit, detail), and with a design ``as_built``
-        (modes, node deviation) and ``transition``.
+        (modes, node deviation) and ``transition`` (hinges) or ``motion`` (pins); ``files``
+        when several beds were read.
 
     Raises
     ------
     FabricationError
-        The file cannot be read as an STL mesh.
+        A file cannot be read as an STL mesh.
+    """
+    from .beds import bed_set
+
+    paths = bed_set(path)
+    meshes = [_load(p) for p in paths]
+    pinned = all(PINNED_HEADER in p.read_bytes()[:80] for p in paths)
+    if design is not None:  # an STL is centred on its bed's centre: back onto the bed
+        from ..export.stl import stl_origin
+        from ..fab.printing import design_print_settings
+
+        origin = stl_origin(design_print_settings(design, settings).printer_profile())
+        meshes = [m.copy().apply_translation(origin) for m in meshes]
+    return check_meshes(meshes, [p.name for p in paths], design, settings, pinned=pinned)
+
+
+def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT,
+                 pinned: bool = False) -> dict:
+    """Check the beds of one export, read back as meshes in bed coordinates (mm).
+
+    Parameters
+    ----------
+    meshes : list of trimesh.Trimesh
+        One per bed, in bed order.
+    names : list of str
+        Their file names.
+    design, settings
+        As for :func:`check_file`.
+    fmt : str
+        Format name for the report.
+    pinned : bool
+        Without a design: the file says it is a print-in-place linkage (one body per bar), so
+        the solid checks do not ask for one body.
+
+    Returns
+    -------
+    dict
     """
     from ..fab.printing import design_print_settings
-    from ..fab.hinges import print_geometry
-    from ..rigidity import count_modes
 
-    mesh = _load(path)
-    report = {"file": Path(path).name, "format": FORMAT}
+    report = {"file": names[0], "format": fmt}
+    if len(names) > 1:
+        report["files"] = list(names)
     if design is None:
-        checks = check_mesh(mesh)
+        checks = []
+        for name, mesh in zip(names, meshes):
+            for c in check_mesh(mesh, bodies=None if pinned else 1):
+                if len(names) > 1:
+                    c["name"] = f"{name}: {c['name']}"
+                checks.append(c)
         report.update(ok=all(c["ok"] for c in checks), checks=checks)
         return report
     s = design_print_settings(design, settings)
-    geo = print_geometry(design.network, s)
+    if s.linkage == "pins":
+        from .pinned import check_pinned
+
+        return check_pinned(meshes, names, design, s, report)
+    return _check_hinge_beds(meshes, names, design, s, report)
+
+
+def _check_hinge_beds(meshes, names, design, s, report) -> dict:
+    """The hinge print's beds: every piece back in its own frame, then checked."""
+    from ..export.stl import hinge_layout, piece_network
+    from .beds import assign_bodies, split_bodies, unplace
+
+    pieces, geos, layout = hinge_layout(design, s)
+    beds = 1 + max(p.bed for p in layout)
+    if len(meshes) != beds:
+        checks = [_check("bed files", False, len(meshes), beds,
+                         f"the design prints on {beds} bed(s) with these settings")]
+        report.update(ok=False, checks=checks)
+        return report
+    if len(pieces) == 1:
+        p = layout[0]
+        mesh = unplace(meshes[p.bed], p.matrix())
+        checks = _check_hinge_piece(mesh, design, design.network, geos[0], s, report,
+                                    transition=True)
+        report.update(ok=all(c["ok"] for c in checks), checks=checks)
+        return report
+    checks, built = [], []
+    for b, mesh in enumerate(meshes):
+        on_bed = [p for p in layout if p.bed == b]
+        owners = assign_bodies(split_bodies(mesh), on_bed)
+        stray = owners.pop(-1, [])
+        if stray:
+            checks.append(_check(f"{names[b]}: bodies in place", False, len(stray), 0,
+                                 "bodies outside every piece's place on the bed"))
+        for p in on_bed:
+            bodies = owners.get(p.piece, [])
+            if not bodies:
+                checks.append(_check(f"piece {p.piece + 1}: found", False, 0, 1,
+                                     f"no body where piece {p.piece + 1} goes on {names[b]}"))
+                continue
+            import trimesh
+
+            mesh_p = unplace(trimesh.util.concatenate(bodies), p.matrix())
+            sub = {}
+            nodes, _ = pieces[p.piece]
+            for c in _check_hinge_piece(mesh_p, design, piece_network(design.network, nodes),
+                                        geos[p.piece], s, sub, transition=False):
+                c["name"] = f"piece {p.piece + 1}: {c['name']}"
+                checks.append(c)
+            built.append({"piece": p.piece + 1, **sub.get("as_built", {})})
+    report["as_built"] = {"pieces": built}
+    report["transition"] = {"status": f"not simulated: the print is split into {len(pieces)} "
+                                      "pieces, each checked on its own; joined, they are the "
+                                      "design"}
+    report.update(ok=all(c["ok"] for c in checks), checks=checks)
+    return report
+
+
+def _check_hinge_piece(mesh, design, net, geo, s, report, *, transition: bool) -> list[dict]:
+    """Solid, rebuilt linkage and (with ``transition``) the D1* -> D2* transition of one piece
+    in its own print frame (``net`` is the piece's network)."""
+    from ..rigidity import count_modes
+
     sections = slab_sections(mesh, s)
     checks = check_mesh(mesh, s, geo.volume, sections)
     built = rebuild_linkage(mesh, s, sections)
@@ -569,13 +691,11 @@ def check_file(path, design=None, settings=None) -> dict:
                          value=[len(built.triangles), len(built.joints)],
                          limit=[len(geo.triangles), len(geo.joints)],
                          detail="; ".join(built.problems) or "every hinge holds one joint"))
-    net = design.network
     offset = _frame_offset(net, s)
     if len(built.nodes) != net.n_nodes or built.problems:
         checks.append(_check("rebuilt nodes match the design", False, value=len(built.nodes),
                              limit=net.n_nodes))
-        report.update(ok=False, checks=checks)
-        return report
+        return checks
     from scipy.spatial import cKDTree
 
     dist, match = cKDTree(net.nodes * s.scale - offset).query(built.nodes)
@@ -587,8 +707,7 @@ def check_file(path, design=None, settings=None) -> dict:
                                 + ("" if bijective else "; two rebuilt nodes match one design "
                                                         "node")))
     if not matched:  # the file was not made from this design with these settings
-        report.update(ok=False, checks=checks)
-        return report
+        return checks
     # as-built network in design units, numbered like the design
     order = np.empty(net.n_nodes, dtype=np.int64)
     order[match] = np.arange(net.n_nodes)
@@ -598,8 +717,7 @@ def check_file(path, design=None, settings=None) -> dict:
         asbuilt = Network(nodes, edges, ports=dict(net.ports))
     except FabkitError as exc:
         checks.append(_check("rebuilt edges match the design", False, detail=str(exc)))
-        report.update(ok=False, checks=checks)
-        return report
+        return checks
     same_edges = {tuple(e) for e in np.sort(edges, 1).tolist()} == {
         tuple(e) for e in np.sort(net.edges, 1).tolist()}
     checks.append(_check("rebuilt edges match the design", same_edges,
@@ -616,6 +734,8 @@ def check_file(path, design=None, settings=None) -> dict:
     report["as_built"] = {"nodes": asbuilt.n_nodes, "edges": asbuilt.n_edges,
                           "triangles": int(len(built.triangles)), "joints": int(len(built.joints)),
                           "node_deviation_mm": float(dist.max()), "modes": str(modes)}
+    if not transition:
+        return checks
     if modes.conformational != 1 or "d1" not in net.ports or "d2" not in net.ports:
         report["transition"] = {"status": "not applicable: needs one motion and ports d1, d2"}
     else:
@@ -627,5 +747,4 @@ def check_file(path, design=None, settings=None) -> dict:
         else:
             checks.extend(_transition_checks(report, asbuilt, module, copies, fixed, geo, s,
                                              float(dist.max()) / s.scale))
-    report.update(ok=all(c["ok"] for c in checks), checks=checks)
-    return report
+    return checks

@@ -1,38 +1,44 @@
-"""STL (and 3MF) export of printed triangle-hinge networks: one watertight body in millimetres.
+"""STL (and 3MF) export of printed networks, in millimetres, laid out on the printer's bed.
 
-The network's rigid triangles become plates and its shared vertices hinges
-(:mod:`fabkit.fab.hinges`), with the settings of the template's ``[fabrication.print]`` table and
-the ``print`` overrides (:mod:`fabkit.fab.printing`). Files (``NAME`` is the design's name):
+Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.fab.printing`):
 
-* ``NAME.stl`` — binary STL of the whole part as designed (centred on its bounding box),
-  millimetres, outward normals: the file the as-built check reads;
-* ``NAME.3mf`` — the bed-ready layout as a 3MF package (unit millimetre), unless ``threemf =
-  false``: the part turned and placed to fit the chosen printer's bed
-  (:mod:`fabkit.fab.printers`, default the 200 x 200 mm bed PrusaSlicer assumes); a chain too
-  long for any orientation is split between modules into pieces arranged on as few beds as
-  needed (``NAME_bed1.3mf``, ``NAME_bed2.3mf`` ... when more than one); a piece that fits no
-  orientation is refused with the bed size it needs;
+* ``"hinges"`` (the default for a network made of rigid triangles): plates and hinges as one
+  watertight body (:mod:`fabkit.fab.hinges`), described below;
+* ``"pins"`` (the default for every other planar network): bars stacked in layers on printed
+  pins, one body per bar, printed in place (:mod:`fabkit.export.pinned`).
+
+Files of a hinge print (``NAME`` is the design's name; ``_bed<k>`` when it needs more than one
+bed):
+
+* ``NAME.stl`` — binary STL of the bed as it prints, centred on the bed's centre (an STL carries
+  no placement): the part turned and placed to fit the chosen printer's bed (:mod:`fabkit.fab.printers`, default the 200 x 200 mm bed PrusaSlicer
+  assumes), outward normals; a chain too long for any orientation is split between modules into
+  pieces arranged on as few beds as needed; a piece that fits no orientation is refused with
+  the bed size it needs;
+* ``NAME.3mf`` — the same bed as a 3MF package (each piece an object placed by its build item),
+  with the print settings the design needs (:mod:`fabkit.fab.slicer`), unless ``threemf =
+  false``;
 * ``NAME_print.png`` — a top view of plates and hinges, unless ``preview = false``.
 
 Pure: returns bytes, never opens a file. The report gives the analytic volume the STL is checked
 against, the narrowest features, the largest hinge rotation along the design's motion and the
-bending strain it puts in the hinges.
+bending strain it puts in the hinges, where each piece went on the bed, and what the 3MF tells
+the slicer.
 """
 
 from __future__ import annotations
 
-import io
 import re
-import zipfile
 
 import numpy as np
 
 from ..errors import FabkitError, FabricationError
 from . import ExportResult
 from ..numerics import MM_SLACK
+from .threemf import threemf_package
 
 __all__ = ["FORMAT", "applies", "export_design", "binary_stl", "threemf_package",
-           "stored_mesh_is_closed"]
+           "stored_mesh_is_closed", "hinge_layout", "piece_network", "stl_origin"]
 
 FORMAT = "stl"
 
@@ -40,19 +46,9 @@ _STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("
 
 
 def applies(design) -> bool:
-    """True for planar designs with a ``[fabrication.print]`` table or made of rigid triangles."""
-    net = design.network
-    if net.dim != 2:
-        return False
-    if isinstance(design.fabrication, dict) and "print" in design.fabrication:
-        return True
-    from ..fab.hinges import rigid_triangles
-
-    try:
-        rigid_triangles(net)
-    except FabkitError:
-        return False
-    return True
+    """True for planar designs: a network of rigid triangles prints as one hinged solid, any
+    other planar network as a print-in-place linkage of bars on pins."""
+    return design.network.dim == 2
 
 
 def binary_stl(vertices, faces, header: str = "fabkit printed network, units mm") -> bytes:
@@ -91,100 +87,88 @@ def binary_stl(vertices, faces, header: str = "fabkit printed network, units mm"
     return head + np.uint32(len(f)).tobytes() + rec.tobytes()
 
 
-def threemf_package(vertices, faces, name: str = "network", transform=None, *,
-                    objects=None) -> bytes:
-    """A minimal 3MF package (unit millimetre), byte-for-byte reproducible.
-
-    Parameters
-    ----------
-    vertices : array_like, shape (V, 3)
-    faces : array_like of int, shape (F, 3)
-    name : str
-    transform : array_like, shape (3, 4), optional
-        Placement of the object on the build plate (``x' = R x + t``, mm).
-    objects : list of (vertices, faces, name, transform), optional
-        Several objects (pieces) instead of the one above; ``vertices`` and ``faces`` are then
-        ignored.
-
-    Returns
-    -------
-    bytes
-        A ZIP archive with ``[Content_Types].xml``, ``_rels/.rels`` and ``3D/3dmodel.model``.
-    """
-    from xml.sax.saxutils import quoteattr
-
-    if objects is None:
-        objects = [(vertices, faces, name, transform)]
-    resources, items = [], []
-    for oid, (vv, ff, nm, tr) in enumerate(objects, start=1):
-        v = np.asarray(vv, dtype=np.float32)
-        f = np.asarray(ff, dtype=np.int64)
-        vtxt = "".join(f'<vertex x="{a!r}" y="{b!r}" z="{c!r}"/>'
-                       for a, b, c in v.astype(float).tolist())
-        ftxt = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in f.tolist())
-        resources.append(f'<object id="{oid}" type="model" name={quoteattr(nm)}>'
-                         f'<mesh><vertices>{vtxt}</vertices><triangles>{ftxt}</triangles></mesh>'
-                         '</object>')
-        if tr is None:
-            items.append(f'<item objectid="{oid}"/>')
-        else:
-            m = np.asarray(tr, dtype=np.float64)
-            # 3MF matrices act on row vectors: m00 m01 m02 m10 m11 m12 m20 m21 m22 m30 m31 m32
-            vals = list(m[:, :3].T.ravel()) + list(m[:, 3])
-            items.append(f'<item objectid="{oid}" transform="'
-                         + " ".join(f"{x:.9g}" for x in vals) + '"/>')
-    model = (
-        '<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<model unit="millimeter" xml:lang="en-US" '
-        'xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">'
-        '<resources>' + "".join(resources) + '</resources><build>' + "".join(items)
-        + '</build></model>')
-    types = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-             '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
-             '<Default Extension="rels" '
-             'ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
-             '<Default Extension="model" '
-             'ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>')
-    rels = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-            '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
-            '<Relationship Target="/3D/3dmodel.model" Id="rel0" '
-            'Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/>'
-            '</Relationships>')
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for arcname, text in (("[Content_Types].xml", types), ("_rels/.rels", rels),
-                              ("3D/3dmodel.model", model)):
-            info = zipfile.ZipInfo(arcname, date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            z.writestr(info, text.encode("utf-8"))
-    return buf.getvalue()
-
-
 JOIN = ("each cut port's two hinge hubs are printed on both pieces: lay the later piece's hubs "
         "on the earlier piece's (the port named in the layout), push a 1.75 mm filament pin "
         "through each stacked pair or bond them with a drop of cyanoacrylate, and keep the "
         "plates of both pieces free to turn about the pin")
 
 
-def _piece_mesh(net, nodes, s):
-    """Plates and hinges of the sub-network on ``nodes`` (mm, its own print frame)."""
-    from ..fab.hinges import print_geometry, print_solid, solid_mesh
+def piece_network(net, nodes):
+    """The sub-network on ``nodes`` (renumbered in their order) that a split piece prints."""
     from ..network import Network
 
     keep = np.zeros(net.n_nodes, dtype=bool)
     keep[nodes] = True
     index = np.cumsum(keep) - 1
     e = net.edges[keep[net.edges].all(axis=1)]
-    sub = Network(net.nodes[keep], index[e])
-    verts, faces = solid_mesh(print_solid(print_geometry(sub, s)))
+    return Network(net.nodes[keep], index[e])
+
+
+def _outline(geo) -> np.ndarray:
+    """Every corner of a hinge print's plates, arms and hubs: the hull of the solid's top view."""
+    return np.concatenate([np.concatenate(geo.plates), geo.arms.reshape(-1, 2),
+                           geo.hubs.reshape(-1, 2)])
+
+
+def hinge_layout(design, s, geo=None):
+    """Where a hinge print goes on the bed: its pieces, their geometries and placements.
+
+    The whole network when it fits the bed in some orientation, else a chain cut into the
+    fewest runs of modules that fit (:func:`fabkit.fab.printers.split_to_fit`). Pure: the
+    as-built check calls it to put what it reads back into the design's frame.
+
+    Parameters
+    ----------
+    design : Design
+    s : PrintSettings
+    geo : PrintGeometry, optional
+        The whole network's geometry, when already built.
+
+    Returns
+    -------
+    pieces : list of (nodes, cut)
+    geos : list of PrintGeometry
+        Each piece's geometry in its own frame (:func:`fabkit.fab.hinges.print_geometry` of
+        :func:`piece_network`).
+    layout : list of Placement
+
+    Raises
+    ------
+    FabricationError
+        A piece (or the whole part, if it is not a chain) fits the bed in no orientation.
+    """
+    from ..fab.hinges import print_geometry
+    from ..fab.printers import split_to_fit
+
+    net = design.network
+    whole = geo if geo is not None else print_geometry(net, s)
+    geos = {}
+
+    def outline(nodes):
+        key = tuple(np.asarray(nodes).tolist())
+        if len(nodes) == net.n_nodes:
+            geos[key] = whole
+        elif key not in geos:
+            geos[key] = print_geometry(piece_network(net, nodes), s)
+        return _outline(geos[key])
+
+    pieces, layout = split_to_fit(net, outline, s.printer_profile())
+    return pieces, [geos[tuple(np.asarray(n).tolist())] for n, _ in pieces], layout
+
+
+def _piece_solid(geo):
+    from ..fab.hinges import print_solid, solid_mesh
+
+    body = print_solid(geo)
+    verts, faces = solid_mesh(body)
     if not stored_mesh_is_closed(verts, faces):
         raise FabricationError("a split piece's solid is not watertight in float32 coordinates; "
                                "change hinge_width or scale slightly")
     return verts, faces
 
 
-def bed_files(design, s, verts, faces, name: str) -> tuple[dict, dict]:
-    """The bed-ready 3MF file(s) and the layout report (see the module docstring).
+def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]:
+    """The bed-ready STL and 3MF file(s) and the layout report (see the module docstring).
 
     Returns
     -------
@@ -198,45 +182,45 @@ def bed_files(design, s, verts, faces, name: str) -> tuple[dict, dict]:
     FabricationError
         A piece (or the whole part, if it is not a chain) fits the bed in no orientation.
     """
-    from ..fab.printers import bed_layout, chain_pieces
+    from ..fab.slicer import slicer_settings
+    from .pinned import bed_file_names
 
     printer = s.printer_profile()
     xy = np.asarray(verts)[:, :2]
     w, h = np.ptp(xy, axis=0)
     margin = 5.0
     fits = bool(w <= printer.width - 2 * margin and h <= printer.depth - 2 * margin)
-    pieces = [(np.arange(design.network.n_nodes), "")]
-    meshes = [(verts, faces)]
-    try:
-        layout = bed_layout([xy], printer, margin=margin)
-    except FabricationError as whole:
-        chain = [p for p in design.network.ports if re.fullmatch(r"d\d+", p)]
-        layout = None
-        refusal = whole
-        for n in range(2, len(chain)):
-            try:
-                pieces = chain_pieces(design.network, n)
-            except FabricationError:
-                break
-            meshes = [_piece_mesh(design.network, nodes, s) for nodes, _ in pieces]
-            try:
-                layout = bed_layout([m[0][:, :2] for m in meshes], printer, margin=margin)
-                break
-            except FabricationError as exc:
-                refusal = exc
-        if layout is None:
-            raise FabricationError(f"the print does not fit the {printer.name} bed "
-                                   f"({printer.width:g} x {printer.depth:g} mm): {refusal}") \
-                from None
+    pieces, geos, layout = hinge_layout(design, s, geo)
+    meshes = [(verts, faces)] if len(pieces) == 1 else [_piece_solid(g) for g in geos]
     beds = 1 + max(p.bed for p in layout)
     files = {}
-    if s.threemf:
-        for b in range(beds):
+    stls, mfs = bed_file_names(name, beds, ".stl"), bed_file_names(name, beds, ".3mf")
+    slicer = slicer_settings(s)
+    for b in range(beds):
+        on_bed = [p for p in layout if p.bed == b]
+        placed = []
+        for p in on_bed:
+            v, f = meshes[p.piece]
+            m = p.matrix()
+            vb = v @ m[:, :3].T + m[:, 3]
+            if not (stored_mesh_is_closed(vb, f)
+                    and stored_mesh_is_closed(vb - stl_origin(printer), f)):
+                raise FabricationError("the solid is not watertight once turned onto the bed "
+                                       "and rounded to float32; change hinge_width or scale "
+                                       "slightly")
+            placed.append((vb, f))
+        offsets = np.cumsum([0] + [len(v) for v, _ in placed[:-1]])
+        files[stls[b]] = binary_stl(np.concatenate([v for v, _ in placed]) - stl_origin(printer),
+                                    np.concatenate([f + o for (_, f), o in zip(placed, offsets)]),
+                                    header=f"fabkit printed network, units mm, bed {b + 1} of "
+                                           f"{beds}")
+        if s.threemf:
             objs = [(meshes[p.piece][0], meshes[p.piece][1],
                      name if len(pieces) == 1 else f"{name}_piece{p.piece + 1}", p.matrix())
-                    for p in layout if p.bed == b]
-            fname = f"{name}.3mf" if beds == 1 else f"{name}_bed{b + 1}.3mf"
-            files[fname] = threemf_package(None, None, objects=objs)
+                    for p in on_bed]
+            files[mfs[b]] = threemf_package(None, None, objects=objs, project=slicer.project,
+                                            per_object=slicer.per_object,
+                                            title=f"fabkit print settings for {design.name}")
     report = {"printer": printer.as_dict(), "fits_as_designed": fits, "beds": beds,
               "pieces": [{"piece": p.piece + 1, "bed": p.bed + 1, "angle_deg": p.angle,
                           "offset_mm": list(p.offset), "size_mm": list(p.size),
@@ -244,6 +228,12 @@ def bed_files(design, s, verts, faces, name: str) -> tuple[dict, dict]:
                           "joined_at": pieces[p.piece][1] or None} for p in layout],
               "join": JOIN if len(pieces) > 1 else None, "files": sorted(files)}
     return files, report
+
+
+def stl_origin(printer) -> np.ndarray:
+    """Where an STL's origin lies on the bed: its centre. An STL carries no placement (slicers
+    put it mid-bed), and float32 keeps more digits near the origin."""
+    return np.array([0.5 * printer.width, 0.5 * printer.depth, 0.0])
 
 
 def stored_mesh_is_closed(vertices, faces) -> bool:
@@ -320,12 +310,13 @@ def _hinge_report(design, geo) -> dict:
 
 
 def export_design(design, settings: dict | None = None) -> ExportResult:
-    """Plates and hinges of a design as STL (+ 3MF, preview PNG).
+    """A printed network as STL (+ 3MF, preview PNG), laid out on the printer's bed.
 
     Parameters
     ----------
     design : fabkit.templates.Design
-        A planar network of rigid triangles.
+        A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
+        linkage), as ``linkage`` says.
     settings : dict, optional
         Command-line overrides; ``settings["print"]`` holds print keys (``gap``, ``scale`` ...).
 
@@ -337,12 +328,21 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     ------
     FabricationError
         Invalid print settings (a gap of 0 among them), a network that is not made of
-        triangles, plates that would touch, hinges that do not fit; nothing is produced.
+        triangles, plates that would touch, hinges that do not fit; bars that cannot be stacked
+        or pinned (:func:`fabkit.fab.pinned.pinned_print`); nothing is produced.
     """
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
     from ..fab.printing import design_print_settings
 
     s = design_print_settings(design, settings)
+    name = _safe(design.name)
+    if design.network.dim != 2:
+        raise FabricationError(f"printing needs a planar network; {design.name} is "
+                               f"{design.network.dim}D")
+    if s.linkage == "pins":
+        from .pinned import export_pinned
+
+        return export_pinned(design, s, name)
     geo = print_geometry(design.network, s)
     body = print_solid(geo)
     verts, faces = solid_mesh(body)
@@ -350,10 +350,9 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         raise FabricationError(
             "the solid has features so close that they merge in the STL's float32 coordinates "
             "(the file would not be watertight); change hinge_width or scale slightly")
-    name = _safe(design.name)
-    files = {f"{name}.stl": binary_stl(verts, faces)}
-    bed, layout = bed_files(design, s, verts, faces, name)
-    files.update(bed)
+    files, layout = bed_files(design, s, verts, faces, name, geo)
+    if not s.threemf:
+        layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
         files[f"{name}_print.png"] = _preview_png(geo, design.name)
     hinges = _hinge_report(design, geo)
@@ -367,13 +366,13 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     if not layout["fits_as_designed"]:
         how = (f"split into {len(layout['pieces'])} pieces (see printer.join)"
                if layout["join"] else "turned to fit")
-        note = (f"the part is {size[0]:.0f} x {size[1]:.0f} mm: as designed it does not fit the "
-                f"{layout['printer']['name']} bed")
-        if layout["files"]:
-            layout["note"] = f"{note}; {', '.join(layout['files'])} holds it {how}"
-        else:  # nothing bed-ready is written: the maker must do it
-            warnings.append(f"{note}; it must be {how}: set threemf = true for a bed-ready file")
+        layout["note"] = (f"the part is {size[0]:.0f} x {size[1]:.0f} mm: as designed it does "
+                          f"not fit the {layout['printer']['name']} bed; "
+                          f"{', '.join(layout['files'])} holds it {how}")
+    from ..fab.slicer import slicer_settings
+
     report = {
+        "linkage": "hinges",
         "settings": s.as_dict(),
         "plates": len(geo.plates),
         "hinges": int(len(geo.joints)),
@@ -386,6 +385,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         "min_feature_mm": geo.min_feature,
         "hinge_motion": hinges,
         "printer": layout,
+        "slicer": slicer_settings(s).as_dict() if s.threemf else None,
         "warnings": warnings,
         "files": sorted(files),
     }

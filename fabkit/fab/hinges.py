@@ -31,7 +31,7 @@ from ..network import Network
 from .printing import PrintSettings
 
 __all__ = ["rigid_triangles", "PrintGeometry", "print_geometry", "print_solid", "solid_mesh",
-           "hinge_bending"]
+           "hinge_bending", "manifold3d"]
 
 #: Sides of the polygon standing for a hub (circle) at a joint.
 _HUB_SIDES = 24
@@ -450,6 +450,16 @@ def _check_clearances(tri, plates, arms, arm_plate, arm_joint, hubs, joints, s):
     return float(shapely.area(exposed)), plate_gap
 
 
+def manifold3d():
+    """The manifold3d module, or a FabricationError saying that printing needs it (an optional
+    dependency: only the STL format uses it)."""
+    try:
+        import manifold3d as mf
+    except ImportError as exc:
+        raise FabricationError(f"3D printing needs the manifold3d package: {exc}") from None
+    return mf
+
+
 def print_solid(geo: PrintGeometry):
     """The printable body as a manifold3d ``Manifold`` (mm, z from 0 up).
 
@@ -462,10 +472,7 @@ def print_solid(geo: PrintGeometry):
     FabricationError
         manifold3d is missing, or the union is not a valid manifold.
     """
-    try:
-        import manifold3d as mf
-    except ImportError as exc:  # optional dependency: only the STL format needs it
-        raise FabricationError(f"3D printing needs the manifold3d package: {exc}") from None
+    mf = manifold3d()
     s = geo.settings
     plates = mf.CrossSection([np.ascontiguousarray(q) for q in geo.plates],
                              mf.FillRule.Positive)

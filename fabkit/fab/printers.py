@@ -32,33 +32,49 @@ import numpy as np
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
 
-__all__ = ["Printer", "PRINTERS", "DEFAULT_PRINTER", "printer_profile", "Placement",
-           "bed_layout", "best_orientation", "chain_pieces"]
+__all__ = ["Printer", "PRINTERS", "DEFAULT_PRINTER", "GENERIC_PIN_CLEARANCE", "printer_profile", "Placement",
+           "bed_layout", "best_orientation", "chain_pieces", "split_to_fit", "BED_MARGIN"]
+
+#: Distance (mm) kept from the bed's edges.
+BED_MARGIN = 5.0
+
+
+#: Radial clearance (mm) of a printed pin in its hole when the printer is not known: the 0.3 mm
+#: that print-in-place joints need on most desktop printers with a 0.4 mm nozzle.
+GENERIC_PIN_CLEARANCE = 0.3
 
 
 @dataclass(frozen=True)
 class Printer:
-    """A printer's build volume (mm)."""
+    """A printer's build volume (mm), and the radial clearance a print-in-place pin needs on it.
+
+    ``pin_clearance`` is the gap (mm) between a printed pin and the hole it turns in that comes
+    free after printing on this class of machine (makers' clearance tests with a 0.4 mm nozzle:
+    0.2 mm on enclosed, calibrated machines, 0.35 mm on a stock bed-slinger); when the joints of
+    a first print bind or rattle, set ``pin_clearance`` for your machine.
+    """
 
     name: str
     width: float
     depth: float
     height: float | None
     description: str
+    pin_clearance: float = GENERIC_PIN_CLEARANCE
 
     def as_dict(self) -> dict:
         return {"name": self.name, "bed_mm": [self.width, self.depth], "height_mm": self.height,
-                "description": self.description}
+                "description": self.description, "pin_clearance_mm": self.pin_clearance}
 
 
 #: Beds of common printers (makers' data sheets), smallest first.
 PRINTERS: dict[str, Printer] = {p.name: p for p in (
-    Printer("mini", 180.0, 180.0, 180.0, "Original Prusa MINI+ (180 x 180 mm)"),
+    Printer("mini", 180.0, 180.0, 180.0, "Original Prusa MINI+ (180 x 180 mm)", 0.25),
     Printer("generic", 200.0, 200.0, 200.0,
-            "PrusaSlicer's default bed when no printer profile is chosen (200 x 200 mm)"),
-    Printer("ender3", 220.0, 220.0, 250.0, "Creality Ender-3 (220 x 220 mm)"),
-    Printer("mk4", 250.0, 210.0, 220.0, "Original Prusa MK4 / i3 MK3S+ (250 x 210 mm)"),
-    Printer("x1", 256.0, 256.0, 256.0, "Bambu Lab X1 / P1 series (256 x 256 mm)"),
+            "PrusaSlicer's default bed when no printer profile is chosen (200 x 200 mm)",
+            GENERIC_PIN_CLEARANCE),
+    Printer("ender3", 220.0, 220.0, 250.0, "Creality Ender-3 (220 x 220 mm)", 0.35),
+    Printer("mk4", 250.0, 210.0, 220.0, "Original Prusa MK4 / i3 MK3S+ (250 x 210 mm)", 0.25),
+    Printer("x1", 256.0, 256.0, 256.0, "Bambu Lab X1 / P1 series (256 x 256 mm)", 0.2),
 )}
 
 #: The printer used when a template names none.
@@ -153,13 +169,15 @@ def best_orientation(points, width: float, depth: float) -> tuple[float, float, 
 @dataclass(frozen=True)
 class Placement:
     """Where one piece goes: bed number, turn about z (degrees, about the piece's own origin),
-    then translation (mm) that puts it on the bed (bed corner at the origin)."""
+    then translation (mm) that puts it on the bed (bed corner at the origin); ``size`` and
+    ``box_lo`` are the turned piece's bounding box on the bed."""
 
     piece: int
     bed: int
     angle: float
     offset: tuple[float, float]
     size: tuple[float, float]
+    box_lo: tuple[float, float] = (0.0, 0.0)
 
     def matrix(self) -> np.ndarray:
         """3 × 4 affine map ``x' = R x + t`` (rows), mm."""
@@ -232,7 +250,8 @@ def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
         lo = np.array([(hull[:, 0] * c - hull[:, 1] * s).min(),
                        (hull[:, 0] * s + hull[:, 1] * c).min()])
         placements[k] = Placement(k, bed, ang, (float(margin + x - lo[0]),
-                                                float(margin + y - lo[1])), (w, h))
+                                                float(margin + y - lo[1])), (w, h),
+                                  (float(margin + x), float(margin + y)))
         x += w + spacing
         row = max(row, h)
     # centre each bed's content: slicers that keep positions then print it mid-bed
@@ -247,7 +266,8 @@ def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
         allp = np.vstack(pts)
         shift = 0.5 * (np.array([printer.width, printer.depth]) - allp.min(0) - allp.max(0))
         out.extend(Placement(p.piece, b, p.angle, (p.offset[0] + float(shift[0]),
-                                                   p.offset[1] + float(shift[1])), p.size)
+                                                   p.offset[1] + float(shift[1])), p.size,
+                             (p.box_lo[0] + float(shift[0]), p.box_lo[1] + float(shift[1])))
                    for p in mine)
     return sorted(out, key=lambda p: p.piece)
 
@@ -297,12 +317,60 @@ def chain_pieces(net, n_pieces: int) -> list[tuple[np.ndarray, str]]:
             comp.add(v)
             for u in adj[v]:
                 if u in port_nodes:
-                    touched.update(k for k, pn in enumerate(ports) if u in pn)
+                    touched.add(u)
                 elif u not in comp:
                     stack.append(u)
         seen |= comp
-        k = min(touched) if touched else 0
+        # the module whose two ports hold every port node the piece touches (consecutive ports
+        # may share a node, as in chains of the paper's three-port modules)
+        fits = [k for k in range(modules) if touched <= members[k]]
+        k = fits[0] if fits else min(
+            (k for k, pn in enumerate(ports) if pn & touched), default=0)
         members[min(k, modules - 1)] |= comp
     bounds = np.linspace(0, modules, n_pieces + 1).round().astype(int)
     return [(np.array(sorted(set().union(*members[a:b]))), chain[b] if b < modules else "")
             for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def split_to_fit(net, outline, printer: Printer, *, margin: float = BED_MARGIN):
+    """The whole network on the bed, or else a chain cut into the fewest runs of modules that fit.
+
+    Parameters
+    ----------
+    net : Network
+    outline : callable
+        ``outline(nodes) -> (k, 2)`` points (mm) bounding the print of those nodes, in its own
+        frame.
+    printer : Printer
+    margin : float
+
+    Returns
+    -------
+    pieces : list of (nodes, cut)
+        As :func:`chain_pieces` (one piece, ``cut = ""``, when the whole fits).
+    layout : list of Placement
+        One per piece (:func:`bed_layout`).
+
+    Raises
+    ------
+    FabricationError
+        The whole fits in no orientation and is not a chain, or even single modules do not fit.
+    """
+    whole = [(np.arange(net.n_nodes), "")]
+    try:
+        return whole, bed_layout([outline(whole[0][0])], printer, margin=margin)
+    except FabricationError as exc:
+        refusal = exc
+    chain = [p for p in net.ports if re.fullmatch(r"d\d+", p)]
+    for n in range(2, len(chain)):
+        try:
+            pieces = chain_pieces(net, n)
+        except FabricationError:
+            break
+        try:
+            return pieces, bed_layout([outline(nodes) for nodes, _ in pieces], printer,
+                                      margin=margin)
+        except FabricationError as exc:
+            refusal = exc
+    raise FabricationError(f"the print does not fit the {printer.name} bed ({printer.width:g} x "
+                           f"{printer.depth:g} mm): {refusal}")

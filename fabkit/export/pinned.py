@@ -1,0 +1,235 @@
+"""STL and 3MF of a print-in-place bar linkage (:mod:`fabkit.fab.pinned`): the ``stl`` format
+for planar bar networks.
+
+Files (``NAME`` is the design's name; ``_bed<k>`` when the print needs more than one bed):
+
+* ``NAME.stl`` — binary STL of the bed as it prints (millimetres, turned and placed on the
+  chosen printer's bed, every piece lowered onto it; centred on the bed's centre, as an STL
+  carries no placement): one closed shell per bar;
+* ``NAME.3mf`` — the same bed, one object per piece (its bars as named parts, in bed
+  coordinates), with the print settings the design needs
+  (:mod:`fabkit.fab.slicer`), unless ``threemf = false``;
+* ``NAME_print.png`` — the beds seen from above, bars coloured by layer, unless
+  ``preview = false``.
+
+Pure: returns bytes. The as-built check (:mod:`fabkit.check.pinned`) reads the STL or 3MF
+back, finds the bars, pins and holes, rebuilds the joints and re-simulates the motion.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FabricationError
+from . import ExportResult
+
+__all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED"]
+
+JOIN_PINNED = ("the pieces meet at the joints of the port named joined_at, where every bar has a "
+               "plain hole: lay the later piece on the earlier one so that those holes line up, "
+               "bars in the order of their layers (joints[].layers), fill each empty layer with "
+               "a {pitch:g} mm spacer and push an M3 bolt through each stack, held by a lock nut "
+               "left loose enough for the bars to turn")
+
+
+def bed_file_names(name: str, beds: int, suffix: str) -> list[str]:
+    """``NAME.suffix`` for one bed, else ``NAME_bed1.suffix``, ``NAME_bed2.suffix``, ..."""
+    if beds == 1:
+        return [f"{name}{suffix}"]
+    return [f"{name}_bed{b + 1}{suffix}" for b in range(beds)]
+
+
+def body_meshes(plan) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Every bar's body as (vertices (V, 3) mm in the print frame, triangles (F, 3))."""
+    from ..fab.hinges import solid_mesh
+    from ..fab.pinned import bar_body
+
+    return [solid_mesh(bar_body(plan, k)) for k in range(plan.n_bars)]
+
+
+def _placed(vertices, matrix) -> np.ndarray:
+    return vertices @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def _preview_png(plan, title: str) -> bytes:
+    from matplotlib.collections import PolyCollection
+
+    from ..viz import _mpl, figure_png
+
+    plt = _mpl()
+    s = plan.settings
+    printer = s.printer_profile()
+    beds = plan.beds
+    cols = min(beds, 3)
+    rows = -(-beds // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 4.2 * rows + 0.4), squeeze=False)
+    cmap = plt.get_cmap("viridis", max(int(plan.layer.max()) + 1, 2))
+    piece_of = plan.piece_of_bar()
+    order = np.argsort(plan.layer, kind="stable")  # upper layers drawn on top
+    for b, ax in enumerate(axes.ravel()):
+        if b >= beds:
+            ax.axis("off")
+            continue
+        ax.add_patch(plt.Rectangle((0, 0), printer.width, printer.depth, fill=False, lw=0.8,
+                                   ec="0.5"))
+        polys, colours = [], []
+        for k in order:
+            p = int(piece_of[k])
+            if plan.layout[p].bed != b:
+                continue
+            m = plan.placement_matrix(p)
+            polys.append(plan.bar_outline(k) @ m[:2, :2].T + m[:2, 3])
+            colours.append(cmap(int(plan.layer[k])))
+        ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="k", lw=0.4,
+                                         alpha=0.85))
+        for j, k in plan.carrier.items():
+            m = plan.placement_matrix(int(piece_of[k]))
+            if plan.layout[int(piece_of[k])].bed == b:
+                x, y = plan.positions[j] @ m[:2, :2].T + m[:2, 3]
+                ax.add_patch(plt.Circle((x, y), 0.5 * s.cap_diameter, fc="w", ec="k", lw=0.5))
+        ax.set_xlim(-5, printer.width + 5)
+        ax.set_ylim(-5, printer.depth + 5)
+        ax.set_aspect("equal")
+        ax.set_title(f"bed {b + 1} of {beds}", fontsize=9)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers "
+                 f"(colour = layer), {len(plan.carrier)} printed pins (white caps), "
+                 f"{printer.width:g} x {printer.depth:g} mm bed", fontsize=9)
+    fig.tight_layout()
+    png = figure_png(fig)
+    plt.close(fig)
+    return png
+
+
+def _stacks(plan) -> list[dict]:
+    out = []
+    s = plan.settings
+    for st in plan.stacking.joints:
+        j = int(st.joint)
+        pinned = j in plan.carrier
+        out.append({"joint": j, "bars": list(st.bars), "layers": list(st.layers),
+                    "collars": list(st.spacers) if pinned else [],
+                    "spacers": [] if pinned else list(st.spacers),
+                    "pin": "printed" if pinned else "M3 bolt (the print is cut here)",
+                    "carrier": plan.carrier.get(j),
+                    "pin_length_mm": (round(plan.pin_stack(j)[-1][1]
+                                            - plan.z(plan.carrier[j]) - s.bar_thickness, 6)
+                                      if pinned else None)})
+    return out
+
+
+def export_pinned(design, s, name: str) -> ExportResult:
+    """Files and report of a design's print-in-place linkage (see the module docstring).
+
+    Parameters
+    ----------
+    design : Design
+    s : PrintSettings
+        ``linkage = "pins"``.
+    name : str
+        File name stem.
+
+    Returns
+    -------
+    ExportResult
+
+    Raises
+    ------
+    FabricationError
+        See :func:`fabkit.fab.pinned.pinned_print`; a body that is not watertight once its
+        coordinates are rounded to float32.
+    """
+    from ..fab.pinned import pinned_print
+    from ..fab.slicer import slicer_settings
+    from .stl import binary_stl, stl_origin, stored_mesh_is_closed
+
+    plan = pinned_print(design, s)
+    meshes = body_meshes(plan)
+    beds = plan.beds
+    files: dict[str, bytes] = {}
+    stl_names = bed_file_names(name, beds, ".stl")
+    mf_names = bed_file_names(name, beds, ".3mf")
+    slicer = slicer_settings(s)
+    origin = stl_origin(s.printer_profile())
+    triangles = 0
+    for b in range(beds):
+        verts, faces, offset = [], [], 0
+        objects = []
+        for p, piece in enumerate(plan.pieces):
+            if plan.layout[p].bed != b:
+                continue
+            m = plan.placement_matrix(p)
+            pv, pf, volumes = [], [], []
+            first = poff = 0
+            for k in piece["bars"]:
+                v, f = meshes[k]
+                placed = _placed(v, m)
+                if not (stored_mesh_is_closed(placed, f)
+                        and stored_mesh_is_closed(placed - origin, f)):
+                    raise FabricationError(
+                        f"bar {k}'s body is not watertight once its coordinates are rounded to "
+                        "float32 (features too close); change bar_width or scale slightly")
+                verts.append(placed)
+                faces.append(f + offset)
+                offset += len(v)
+                pv.append(placed)
+                pf.append(f + poff)
+                poff += len(v)
+                i, j = plan.edges[k]
+                volumes.append((first, first + len(f) - 1,
+                                f"bar {k} (joints {i}-{j}), layer {int(plan.layer[k]) + 1}"))
+                first += len(f)
+            # placed in the mesh itself: PrusaSlicer 2.5 applies a build item's transform to
+            # the first part of an object only
+            objects.append((np.concatenate(pv), np.concatenate(pf),
+                            name if len(plan.pieces) == 1 else f"{name}_piece{p + 1}", None,
+                            volumes))
+        v_bed, f_bed = np.concatenate(verts) - origin, np.concatenate(faces)
+        triangles += len(f_bed)
+        files[stl_names[b]] = binary_stl(
+            v_bed, f_bed, header=f"fabkit print-in-place linkage, units mm, bed {b + 1} of {beds}")
+        if s.threemf:
+            files[mf_names[b]] = _threemf(objects, slicer, design.name)
+    if s.preview:
+        files[f"{name}_print.png"] = _preview_png(plan, design.name)
+    volumes = plan.volumes
+    pieces = [{"piece": p + 1, "bed": plan.layout[p].bed + 1, "angle_deg": plan.layout[p].angle,
+               "offset_mm": list(plan.layout[p].offset), "size_mm": list(plan.layout[p].size),
+               "lowered_mm": plan.piece_floor(p), "bars": [int(k) for k in piece["bars"]],
+               "joined_at": piece["joined_at"] or None} for p, piece in enumerate(plan.pieces)]
+    printer = s.printer_profile()
+    split = len(plan.pieces) > 1
+    report = {
+        "linkage": "pins",
+        "settings": s.as_dict(),
+        "bars": plan.n_bars,
+        "bodies": plan.n_bars,
+        "layers": int(plan.stacking.n_layers),
+        "layers_proof": plan.stacking.proof_text(),
+        "printed_pins": len(plan.carrier),
+        "cut_joints": list(plan.cut_joints),
+        "joints": _stacks(plan),
+        "height_mm": float(plan.layer.max() * s.layer_pitch + 2 * s.bar_thickness
+                           + s.layer_gap),
+        "clearances_mm": {"pin_radial": s.pin_clearance, "layer_gap": s.layer_gap,
+                          "same_layer_over_motion": s.clearance},
+        "motion_samples": plan.stats["samples"],
+        "volume_mm3": float(volumes.sum()),
+        "body_volumes_mm3": [float(v) for v in volumes],
+        "mesh": {"triangles": int(triangles), "bodies": plan.n_bars},
+        "printer": {"printer": printer.as_dict(), "beds": beds, "pieces": pieces,
+                    "join": JOIN_PINNED.format(pitch=s.layer_pitch) if split else None,
+                    "files": sorted(n for n in files if n.endswith((".stl", ".3mf")))},
+        "slicer": slicer.as_dict() if s.threemf else None,
+        "warnings": [],
+        "files": sorted(files),
+    }
+    return ExportResult(files=files, report=report)
+
+
+def _threemf(objects, slicer, title: str) -> bytes:
+    from .threemf import threemf_package
+
+    return threemf_package(None, None, objects=objects, project=slicer.project,
+                           per_object=slicer.per_object,
+                           title=f"fabkit print settings for {title}")

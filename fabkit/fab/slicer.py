@@ -1,0 +1,153 @@
+"""What a printed network's 3MF tells the slicer: the settings the design needs, and no more.
+
+PrusaSlicer reads two kinds of settings from a 3MF (2.5, ``src/libslic3r/Format/3mf.cpp``):
+
+* **per object** (``Metadata/Slic3r_PE_model.config``): settings of the object alone, kept
+  whichever way the file is opened, "Import geometry only" included. Layer height, perimeters,
+  thin walls and supports are object settings;
+* **project** (``Metadata/Slic3r_PE.config``): read by the command line (its own options win)
+  and by "Open as project" in the window, which fills every setting the file leaves out with
+  PrusaSlicer's defaults. Material and first layer height exist only there.
+
+So the design's needs go per object wherever PrusaSlicer allows; the project part carries the
+material (and the first layer, so that the printed heights fall on whole layers). Printer, bed
+shape and nozzle are never written: they stay the user's (the report says so, and how to keep
+them when opening the file in the window).
+
+:func:`slicer_settings` gives both parts with the reason for every key; the 3MF writer
+(:func:`fabkit.export.stl.threemf_package`) writes them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = ["SlicerSettings", "slicer_settings", "FILAMENTS", "LEFT_TO_USER"]
+
+#: Filament settings per material (PrusaSlicer keys): its name for the material, and the middle
+#: of the nozzle and bed temperature ranges filament makers print on their spools (check yours).
+FILAMENTS: dict[str, dict] = {
+    "PLA": {"filament_type": "PLA", "temperature": 210, "first_layer_temperature": 215,
+            "bed_temperature": 60, "first_layer_bed_temperature": 60},
+    "PETG": {"filament_type": "PETG", "temperature": 240, "first_layer_temperature": 240,
+             "bed_temperature": 80, "first_layer_bed_temperature": 80},
+    # PrusaSlicer calls flexible filaments FLEX; a soft filament buckles in the extruder when it
+    # is pushed fast: 3 mm^3/s is a common limit for TPU 95A
+    "TPU": {"filament_type": "FLEX", "temperature": 230, "first_layer_temperature": 230,
+            "bed_temperature": 50, "first_layer_bed_temperature": 50,
+            "filament_max_volumetric_speed": 3},
+}
+
+#: What the file never sets.
+LEFT_TO_USER = ("printer and its profile", "bed shape and size", "nozzle diameter",
+                "extrusion widths", "speeds (but the TPU volumetric limit)", "cooling",
+                "retraction")
+
+_WHY_MATERIAL = {
+    ("hinges", "TPU"): "the hinges turn far: TPU takes the bending strain (limit {limit:g}) "
+                       "where PLA (0.02) and PETG (0.03) hinges break",
+    ("hinges", "PLA"): "the template asks for PLA: keep the hinge strain below {limit:g} (see "
+                       "the hinge report)",
+    ("hinges", "PETG"): "the template asks for PETG: keep the hinge strain below {limit:g} (see "
+                        "the hinge report)",
+    ("pins", "PLA"): "bars and pins are rigid and nothing bends: PLA is stiff, prints accurate "
+                     "holes and pins, and is the easiest to print in place",
+    ("pins", "PETG"): "the template asks for PETG: tougher pins than PLA, but it strings more, "
+                      "which can bridge the clearances",
+    ("pins", "TPU"): "the template asks for TPU: the bars will flex; PLA is the usual choice",
+}
+
+
+@dataclass(frozen=True)
+class SlicerSettings:
+    """Settings written into a 3MF, each with its reason.
+
+    Attributes
+    ----------
+    material : str
+    material_reason : str
+    project : dict
+        Key -> value for ``Metadata/Slic3r_PE.config``.
+    per_object : dict
+        Key -> value for every object in ``Metadata/Slic3r_PE_model.config``.
+    reasons : dict
+        Key -> why the design needs it.
+    notes : tuple of str
+        What was looked at and left alone.
+    """
+
+    material: str
+    material_reason: str
+    project: dict = field(default_factory=dict)
+    per_object: dict = field(default_factory=dict)
+    reasons: dict = field(default_factory=dict)
+    notes: tuple = ()
+
+    def as_dict(self) -> dict:
+        return {"slicer": "PrusaSlicer (its 3MF metadata; tested with 2.5)",
+                "material": self.material, "material_reason": self.material_reason,
+                "per_object": dict(self.per_object), "project": dict(self.project),
+                "reasons": dict(self.reasons), "notes": list(self.notes),
+                "left_to_user": list(LEFT_TO_USER),
+                "how_to_open": "PrusaSlicer's command line slices with both parts (its own "
+                               "options win). In the window, 'Import geometry only' (Ctrl+I) "
+                               "keeps your printer and filament and applies the per-object "
+                               "settings; choose the material named here yourself. 'Open as "
+                               "project' also loads the material, and fills every setting the "
+                               "file leaves out (printer, bed, nozzle) with PrusaSlicer's "
+                               "defaults: choose your printer again after opening."}
+
+
+def slicer_settings(s) -> SlicerSettings:
+    """The settings a print needs from the slicer (see the module docstring).
+
+    Parameters
+    ----------
+    s : PrintSettings
+
+    Returns
+    -------
+    SlicerSettings
+
+    Examples
+    --------
+    >>> from fabkit.fab.printing import print_settings
+    >>> ss = slicer_settings(print_settings({"material": "TPU"}))
+    >>> ss.project["filament_type"], ss.per_object["layer_height"]
+    ('FLEX', 0.2)
+    """
+    layer = float(s.layer_height)
+    material = FILAMENTS[s.material]
+    reasons = {
+        "layer_height": f"every height of the print is a whole number of {layer:g} mm layers",
+        "first_layer_height": "the first layer as tall as the others, so that the layer "
+                              "boundaries fall where the design's heights change",
+    }
+    project = {"layer_height": layer, "first_layer_height": layer, **material}
+    for key in material:
+        reasons[key] = f"the material, {s.material}"
+    per_object = {"layer_height": layer}
+    notes = []
+    if s.linkage == "pins":
+        per_object.update(perimeters=4, support_material=1, support_material_buildplate_only=1)
+        reasons.update(
+            perimeters=f"the {s.pin_diameter:g} mm pins print solid from perimeters alone (four "
+                       "0.45 mm lines reach their centre), and the webs around the holes are "
+                       "walls, not infill",
+            support_material="bars of upper layers overhang the empty bed",
+            support_material_buildplate_only="support only from the bed: support standing on a "
+                                             "lower bar would fill the gap between the layers "
+                                             "and fuse them; over a lower bar the upper bar "
+                                             "bridges the layer gap")
+    elif s.hinge_style == "neck" and s.hinge_width < 2.0 * s.nozzle_width:
+        # measured in PrusaSlicer 2.5's G-code (0.4 mm nozzle): each 0.6 mm neck of the printed
+        # chain is one 0.6 mm line along the hinge, with or without thin walls, and however
+        # many perimeters; the filament then runs the length of the hinge, the strong way to
+        # bend it. No setting is needed, so none is written.
+        notes.append(f"each {s.hinge_width:g} mm hinge neck prints as one extrusion line along "
+                     "the hinge (PrusaSlicer 2.5, 0.4 mm nozzle): the filament runs the length of "
+                     "the hinge, the way it bends best; no perimeter setting changes that, so "
+                     "none is written")
+    why = _WHY_MATERIAL[(s.linkage, s.material)].format(limit=s.strain_limit)
+    return SlicerSettings(material=s.material, material_reason=why, project=project,
+                          per_object=per_object, reasons=reasons, notes=tuple(notes))
