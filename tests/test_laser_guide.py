@@ -23,7 +23,7 @@ def chain():
     design = fabkit.load_template(TEMPLATES / "super_stable_chain.toml")
     plan = laser_plan(design)
     bom = bill_of_materials(plan, [])
-    return plan, bom, guide_pages(plan, bom, pngs=True)
+    return plan, bom, guide_pages(plan, bom, pngs=True, check=True)
 
 
 def _text(guide, page: int) -> str:
@@ -151,8 +151,9 @@ def test_labels_never_overlap_and_the_assembly_picture_is_split_into_rows(chain)
 
     plan, bom, guide = chain
     assert guide.stats["overlaps"] == 0 and guide.stats["dropped"] == 0
+    assert guide.stats["clipped"] == []  # every text fits on its page
     png, stats = assembly_picture(plan, guide.plan)
-    assert stats["overlaps"] == 0 and stats["dropped"] == 0
+    assert stats["overlaps"] == 0 and stats["dropped"] == 0 and stats["clipped"] == []
     # every bar once, every joint once, and the two joints where rows meet in both rows
     assert stats["labels"] == 144 + 74 + 2 * (stats["rows"] - 1)
     # 2.1 m cut into rows (never one squashed strip), at least 2 px per mm

@@ -47,7 +47,8 @@ class Guide:
     stats: dict
 
 
-def guide_pages(plan, bom: dict, *, dpi: int = 100, pngs: bool = False) -> Guide:
+def guide_pages(plan, bom: dict, *, dpi: int = 100, pngs: bool = False,
+                check: bool = False) -> Guide:
     """The assembly guide of a laser plan.
 
     Parameters
@@ -60,11 +61,13 @@ def guide_pages(plan, bom: dict, *, dpi: int = 100, pngs: bool = False) -> Guide
         Resolution of the page PNGs.
     pngs : bool
         Render every page as PNG (the first page always is).
+    check : bool
+        List the texts that do not fit on their page (``stats["clipped"]``).
 
     Returns
     -------
     Guide
     """
     gp = guide_plan(plan, bom)
-    pdf, images, texts, stats = render_pages(gp, plan, dpi=dpi, pngs=pngs)
+    pdf, images, texts, stats = render_pages(gp, plan, dpi=dpi, pngs=pngs, check=check)
     return Guide(pdf, images, texts, gp, stats)

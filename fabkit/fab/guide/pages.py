@@ -367,8 +367,11 @@ def _motion_page(fig, gp: GuidePlan, plan, edges, r, labellers):
         labellers.append(Labeller(ax))
 
 
-def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False):
+def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
+                 check: bool = False):
     """Draw the pages of a guide plan.
+
+    ``check``: also list every text that does not fit on its page (``stats["clipped"]``).
 
     Returns
     -------
@@ -380,19 +383,20 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False):
     stats : dict
         ``pages``, ``labels`` placed, ``overlaps`` (pairs of label boxes that overlap, 0),
         ``shrunk``, ``dropped`` (labels with no free place) and ``dropped_on`` (the page of
-        each).
+        each); with ``check``, ``clipped`` ((page, text) that does not fit on its page).
     """
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
 
-    from ...viz import _mpl
+    from ...viz import _mpl, clipped_texts
 
     plt = _mpl()
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     x = plan.design.network.nodes * s.scale
     r = 0.5 * s.bar_width
-    stats = {"pages": 0, "labels": 0, "overlaps": 0, "shrunk": 0, "dropped": 0, "dropped_on": []}
+    stats = {"pages": 0, "labels": 0, "overlaps": 0, "shrunk": 0, "dropped": 0, "dropped_on": [],
+             "clipped": []}
     images, texts = [], []
     buf = io.BytesIO()
     drawers = [lambda fig, labs: _overview(fig, gp, plan, x, edges, r, labs),
@@ -414,6 +418,8 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False):
                     stats[key] += lab.stats[key]
                 stats["dropped_on"] += [k + 1] * lab.stats["dropped"]
             texts.append([t.get_text() for t in fig.findobj(Text) if t.get_text()])
+            if check:
+                stats["clipped"] += [(k + 1, t) for t in clipped_texts(fig)]
             pdf.savefig(fig)
             if pngs or k == 0:
                 png = io.BytesIO()

@@ -43,9 +43,10 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     -------
     png : bytes
     stats : dict
-        ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``.
+        ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
+        ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import _mpl, figure_png
+    from ...viz import _mpl, clipped_texts, figure_png
 
     plt = _mpl()
     s = plan.settings
@@ -97,6 +98,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
                  f"{scale * 25.4:.3g}:1 on a 100 dpi screen{pages_note}", fontsize=11,
                  y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
+    stats["clipped"] = clipped_texts(fig)
     return figure_png(fig, dpi=_DPI), stats
 
 
