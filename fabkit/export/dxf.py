@@ -378,7 +378,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     files["laser_guide.pdf"] = guide.pdf
     files["laser_guide_page1.png"] = guide.images[0]
     files["laser_assembly.png"] = assembly_picture(plan, guide.plan)[0]
-    files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)
+    files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)[0]
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
     files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
     return ExportResult(files=files, report={"format": FORMAT, **bom})

@@ -409,7 +409,6 @@ def render(model, fold) -> tuple[bytes, dict]:
         c = (dx + (centre[0] - lo[0]) * scale, dy + (top - centre[1]) * scale)
         body.append(f'<text x="{_fmt(c[0])}" y="{_fmt(c[1] + 12)}" font-size="6" '
                     f'text-anchor="middle" fill="#000000">sheet {k + 1}</text>')
-        labels = pat.labels or tuple(str(i) for i in range(pat.n_vertices))
         for a, q in enumerate(pat.vertices):
             x, y = p[a]
             # put the mark outside the sheet, along the ray from its centre

@@ -75,13 +75,17 @@ def _page_spans(x, edges, pages, idx):
 def _overview(fig, gp: GuidePlan, plan, x, edges, r, labellers):
     layers = plan.stacking.layer
     n = gp.n_pages
-    _header(fig, f"{gp.name}: assembly guide, page 1 of {n}: overview",
-            f"Built size {gp.size_mm[0]:.0f} × {gp.size_mm[1]:.0f} mm (bars and screw heads) "
+    size = (f"Built size {gp.size_mm[0]:.0f} × {gp.size_mm[1]:.0f} mm (bars and screw heads) "
             f"at the start; the motion test needs {gp.motion_size_mm[0]:.0f} × "
-            f"{gp.motion_size_mm[1]:.0f} mm. Build on a flat table at least "
-            f"{gp.size_mm[0] + 100:.0f} mm long, or in sections (page 2). The brackets name the "
-            "page of this guide that draws each part (p<page>); red rings mark the screws two "
-            "pages share: the later page closes them.")
+            f"{gp.motion_size_mm[1]:.0f} mm. ")
+    if len(gp.pages) > 1:
+        size += (f"Build on a flat table at least {gp.size_mm[0] + 100:.0f} mm long, or in "
+                 "sections (page 2). The brackets name the page of this guide that draws each "
+                 "part (p<page>); red rings mark the screws two pages share: the later page "
+                 "closes them.")
+    else:
+        size += f"Page {gp.pages[0].number} draws every bar and lists every screw."
+    _header(fig, f"{gp.name}: assembly guide, page 1 of {n}: overview", size)
     pages = gp.pages
     open_j = sorted({j for p in pages for j in p.open_joints})
 
@@ -110,8 +114,8 @@ def _overview(fig, gp: GuidePlan, plan, x, edges, r, labellers):
             later.setdefault(q, []).append(f"J{j}")
         how = "; ".join(f"leaves {', '.join(v)} loose for p{q}" for q, v in sorted(later.items()))
         joins.append(f"p{p.number}: {_mods(p)}" + (f"; {how}" if how else ""))
-    head = fig.text(_LEFT / A4[0], y, "How the pages join", fontsize=9.5, weight="bold",
-                    va="top")
+    head = fig.text(_LEFT / A4[0], y, "How the pages join" if len(pages) > 1 else "Pages",
+                    fontsize=9.5, weight="bold", va="top")
     y = _bottom(fig, head)
     ncol = 2 if len(joins) > 8 else 1
     per = int(np.ceil(len(joins) / ncol))
@@ -298,7 +302,7 @@ def _module_page(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
              va="top", family=_MONO)
 
 
-def _motion_page(fig, gp: GuidePlan, plan, edges, r, labellers):
+def _motion_page(fig, gp: GuidePlan, plan, edges, r):
     m = gp.motion
     s = plan.settings
     name = m.drive
@@ -364,7 +368,6 @@ def _motion_page(fig, gp: GuidePlan, plan, edges, r, labellers):
         ax.set_title(frame_caption(m, f), fontsize=7.5, loc="left", pad=2)
         for side in ax.spines.values():
             side.set_color("0.8")
-        labellers.append(Labeller(ax))
 
 
 def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
@@ -405,7 +408,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
         drawers.append(lambda fig, labs, page=page: _module_page(fig, gp, page, plan, x, edges,
                                                                  r, labs))
     if gp.motion is not None:
-        drawers.append(lambda fig, labs: _motion_page(fig, gp, plan, edges, r, labs))
+        drawers.append(lambda fig, labs: _motion_page(fig, gp, plan, edges, r))
     with PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
                                  "Producer": "fabkit"}) as pdf:
         for k, draw in enumerate(drawers):

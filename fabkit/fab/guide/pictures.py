@@ -16,12 +16,13 @@ from .plan import GuidePlan, frame_caption
 
 __all__ = ["assembly_picture", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
 
-#: Width of the pictures (inches at :data:`_DPI`: 1600 pixels).
-PICTURE_WIDTH = 16.0
+#: Width of the pictures (inches at :data:`_DPI`: 1100 pixels, the width of a report's column,
+#: where they show at their own size).
+PICTURE_WIDTH = 11.0
 _DPI = 100
 #: Rows are added until the drawing has at least this many pixels per mm (a 7 pt label is
-#: about 40 px wide, a bar of the paper's chain about 90 mm long).
-MIN_PX_PER_MM = 2.0
+#: about 40 px wide and 10 px tall; a bar of the paper's chain is 100 mm long and 13 mm wide).
+MIN_PX_PER_MM = 1.6
 #: No more than this (a small design is not blown up past legibility into a poster).
 MAX_PX_PER_MM = 4.0
 _MARGIN, _GAP, _TOP, _BOTTOM, _BAND = 0.3, 0.45, 0.75, 0.55, 0.5
@@ -94,18 +95,25 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
             stats[key] += lab.stats[key]
     pages_note = "; p<k>: page k of laser_guide.pdf" if chain else ""
     fig.suptitle(f"{plan.design.name}: assembly, {plan.stacking.n_layers} layers (0 = bottom), "
-                 f"{len(rows)} row{'s' if len(rows) > 1 else ''} at "
-                 f"{scale * 25.4:.3g}:1 on a 100 dpi screen{pages_note}", fontsize=11,
-                 y=1 - 0.3 / height)
+                 f"{len(rows)} row{'s' if len(rows) > 1 else ''}, {scale * _DPI:.2g} px per mm"
+                 f"{pages_note}", fontsize=11, y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
     stats["clipped"] = clipped_texts(fig)
     return figure_png(fig, dpi=_DPI), stats
 
 
-def motion_picture(plan, gp: GuidePlan) -> bytes:
-    """The kit at the motion test's moments (start, the collapse on its way, end), one
-    full-width row each, bars by layer, the pushed pair in red."""
-    from ...viz import _mpl, figure_png
+def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
+    """The kit at the motion test's moments (start, the collapse on its way, end), bars by
+    layer, the pushed pair in red: one full-width row each for a long design, side by side for
+    a compact one (as many as keep :data:`MIN_PX_PER_MM`), always to one scale.
+
+    Returns
+    -------
+    png : bytes
+    stats : dict
+        ``columns``, ``px_per_mm``, ``clipped`` (texts that do not fit in the picture).
+    """
+    from ...viz import _mpl, clipped_texts, figure_png
 
     plt = _mpl()
     s = plan.settings
@@ -123,22 +131,50 @@ def motion_picture(plan, gp: GuidePlan) -> bytes:
     used = np.unique(edges)
     ext = [extent(pts[f][used], 2 * r) for f in frames]
     x0, x1 = min(e[0] for e in ext), max(e[2] for e in ext)
-    ext = [(x0, e[1], x1, e[3]) for e in ext]  # one x range: the held joint stays in place
     width = PICTURE_WIDTH - 2 * _MARGIN
-    scale = min(width / (x1 - x0), MAX_PX_PER_MM / _DPI)
-    height = _TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1) + _BOTTOM
-    fig = plt.figure(figsize=(PICTURE_WIDTH, height))
-    for f, title, (ax, _) in zip(frames, titles, row_axes(fig, ext, scale, _MARGIN, _TOP, _GAP,
-                                                          width)):
+    # a compact design: the moments side by side, as many as keep MIN_PX_PER_MM
+    cols = 1
+    for c in range(len(frames), 1, -1):
+        if (width - _GAP * (c - 1)) / (c * (x1 - x0)) >= MIN_PX_PER_MM / _DPI:
+            cols = c
+            break
+    if cols == 1:
+        ext = [(x0, e[1], x1, e[3]) for e in ext]  # one x range: the held joint stays put
+        scale = min(width / (x1 - x0), MAX_PX_PER_MM / _DPI)
+        height = _TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1) + _BOTTOM
+        fig = plt.figure(figsize=(PICTURE_WIDTH, height))
+        axes = [ax for ax, _ in row_axes(fig, ext, scale, _MARGIN, _TOP, _GAP, width)]
+    else:
+        y0, y1 = min(e[1] for e in ext), max(e[3] for e in ext)
+        rows = int(np.ceil(len(frames) / cols))
+        scale = min((width - _GAP * (cols - 1)) / (cols * (x1 - x0)), MAX_PX_PER_MM / _DPI)
+        w, h = (x1 - x0) * scale, (y1 - y0) * scale
+        height = _TOP + rows * h + _GAP * (rows - 1) + _BOTTOM
+        fig = plt.figure(figsize=(PICTURE_WIDTH, height))
+        axes = []
+        for k in range(len(frames)):
+            row, col = divmod(k, cols)
+            left = _MARGIN + col * (w + _GAP)
+            top = _TOP + row * (h + _GAP)
+            ax = fig.add_axes([left / PICTURE_WIDTH, (height - top - h) / height,
+                               w / PICTURE_WIDTH, h / height])
+            ax.set_xlim(x0, x1)
+            ax.set_ylim(y0, y1)
+            ax.set_aspect("equal", adjustable="box")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            axes.append(ax)
+    for f, title, ax in zip(frames, titles, axes):
         draw_bars(ax, pts[f], edges, np.arange(edges.shape[0]), plan.stacking.layer, r,
                   alpha=0.55, lw=0.4)
         if pair is not None:
             ax.plot(pts[f][list(pair), 0], pts[f][list(pair), 1], "-o", color="#d00000", lw=2,
                     ms=4, zorder=6)
-        ax.set_title(title, fontsize=10, loc="left", pad=3)
+        ax.set_title(title, fontsize=10 if cols == 1 else 8, loc="left", pad=3)
         for side in ax.spines.values():
             side.set_color("0.85")
     fig.suptitle(f"{plan.design.name}: the motion test with the stacking layers, to one scale "
                  f"({scale * _DPI:.2g} px per mm)", fontsize=11, y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
-    return figure_png(fig, dpi=_DPI)
+    stats = {"columns": cols, "px_per_mm": scale * _DPI, "clipped": clipped_texts(fig)}
+    return figure_png(fig, dpi=_DPI), stats
