@@ -61,7 +61,9 @@ def perforate(p, q, perf: Perforation) -> np.ndarray:
     Examples
     --------
     >>> perforate([0, 0], [20, 0], Perforation(2.0, 1.0, 3.0))[:, :, 0].tolist()
-    [[3.5, 5.5], [6.5, 8.5], [9.5, 11.5], [12.5, 14.5]]
+    [[3.0, 5.0], [6.0, 8.0], [9.0, 11.0], [12.0, 14.0], [15.0, 17.0]]
+    >>> perforate([0, 0], [21, 0], Perforation(2.0, 1.0, 3.0))[[0, -1], :, 0].tolist()
+    [[3.5, 5.5], [15.5, 17.5]]
     """
     p, q = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
     length = float(np.linalg.norm(q - p))
