@@ -30,42 +30,65 @@ def layer_colour(layer: int):
 class Labeller:
     """Places text labels in one axes without overlaps.
 
+    A label's box is measured once per text and size (a text's extent does not depend on
+    where it stands) and moved to each candidate; the labels placed are measured again, as
+    drawn, by :meth:`overlaps`.
+
     Parameters
     ----------
     ax : matplotlib.axes.Axes
-        Its view limits must be final (the figure is drawn once to measure).
+        Its view limits and aspect must be final.
     """
 
     def __init__(self, ax):
         self.ax = ax
-        ax.figure.canvas.draw()
+        ax.apply_aspect()
         self.renderer = ax.figure.canvas.get_renderer()
-        self.boxes = []
+        self.boxes, self.placed = [], []
+        self._extents: dict = {}
         self.stats = {"labels": 0, "shrunk": 0, "dropped": 0}
+
+    def _text(self, x, y, text, fs, colour, weight):
+        return self.ax.text(x, y, text, fontsize=fs, ha="center", va="center", color=colour,
+                            weight=weight, zorder=10,
+                            bbox=dict(boxstyle="square,pad=0.1", fc="white", ec="none",
+                                      alpha=0.85))
+
+    def _extent(self, text, fs, weight):
+        """The label's box relative to its anchor (display units), with a little margin."""
+        key = (text, fs, weight)
+        if key not in self._extents:
+            t = self._text(0.0, 0.0, text, fs, "black", weight)
+            e = t.get_window_extent(self.renderer).expanded(1.05, 1.1)
+            ax0, ay0 = self.ax.transData.transform((0.0, 0.0))
+            t.remove()
+            self._extents[key] = (e.x0 - ax0, e.y0 - ay0, e.x1 - ax0, e.y1 - ay0)
+        return self._extents[key]
 
     def put(self, text: str, candidates, size: float, colour="black", weight="normal") -> bool:
         """Place ``text`` at the first free candidate (data coordinates); True when placed."""
+        from matplotlib.transforms import Bbox
+
         ax = self.ax
+        where = ax.transData.transform(np.asarray(candidates, dtype=np.float64).reshape(-1, 2))
+        frame = ax.bbox
         for fs in (size, 0.8 * size, 0.65 * size):
-            for pos in candidates:
-                t = ax.text(pos[0], pos[1], text, fontsize=fs, ha="center", va="center",
-                            color=colour, weight=weight, zorder=10,
-                            bbox=dict(boxstyle="square,pad=0.1", fc="white", ec="none",
-                                      alpha=0.85))
-                box = t.get_window_extent(self.renderer).expanded(1.05, 1.1)
-                inside = ax.bbox.contains(box.x0, box.y0) and ax.bbox.contains(box.x1, box.y1)
+            x0, y0, x1, y1 = self._extent(text, fs, weight)
+            for (cx, cy), pos in zip(where, candidates):
+                box = Bbox.from_extents(cx + x0, cy + y0, cx + x1, cy + y1)
+                inside = frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1)
                 if inside and not any(box.overlaps(b) for b in self.boxes):
                     self.boxes.append(box)
+                    self.placed.append(self._text(pos[0], pos[1], text, fs, colour, weight))
                     self.stats["labels"] += 1
                     self.stats["shrunk"] += fs < size
                     return True
-                t.remove()
         self.stats["dropped"] += 1
         return False
 
     def overlaps(self) -> int:
-        """Pairs of placed label boxes that overlap (0 by construction; counted again)."""
-        b = self.boxes
+        """Pairs of placed labels whose boxes, measured as drawn, overlap (0)."""
+        b = [t.get_window_extent(self.renderer) for t in self.placed]
         return sum(b[i].overlaps(b[j]) for i in range(len(b)) for j in range(i + 1, len(b)))
 
     def mm_per_point(self) -> float:
