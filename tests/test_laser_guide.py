@@ -181,3 +181,21 @@ def test_a_network_that_is_not_a_chain_is_one_page():
     # a compact design's moments side by side (not four rows of 1.2 m each)
     png, stats = motion_picture(plan, gp)
     assert stats["columns"] >= 2 and stats["px_per_mm"] >= 1.6 and stats["clipped"] == []
+
+
+@pytest.mark.parametrize("name, order", [("slope_one_chain", "together"),
+                                         ("period_two_chain16", "backward"),
+                                         ("super_stable_chain8", "forward")])
+def test_the_motion_test_says_how_the_ports_follow(name, order):
+    from fabkit.fab.guide import guide_plan
+
+    plan = laser_plan(fabkit.load_template(TEMPLATES / f"{name}.toml"))
+    m = guide_plan(plan, bill_of_materials(plan, [])).motion
+    assert m.order == order
+    halves = np.array([p[3] for p in m.followers])
+    if order == "together":  # slope one: every port goes the drive's way, at the same time
+        assert np.ptp(halves) <= 2 and all(abs(p[2] - m.end_mm) < 0.1 for p in m.ports)
+    elif order == "backward":  # an expanding map: the far end moves first
+        assert halves[-1] < halves[0]
+    else:
+        assert np.all(np.diff(halves) >= 0)

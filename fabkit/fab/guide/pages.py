@@ -315,18 +315,22 @@ def _motion_page(fig, gp: GuidePlan, plan, edges, r):
              "backward": f"one after another, starting at the far end and travelling towards "
                          f"{name}",
              "together": "all together",
-             "mixed": "not in order (see the table: some open, some close)",
+             "mixed": "not in order along the chain (see the table)",
              "none": "not at all: only the pushed part moves"}[m.order]
     moved = ", ".join(p[0] for p in fol) or "none"
+    opening = {np.sign(p[2] - p[1]) for p in fol} - {0.0}
+    if len(opening) > 1:
+        order += "; some open while others close"
     text = (f"{push} joints J{a} and J{b} {together}: their centre-to-centre distance {name} "
             f"goes from {m.start_mm:.1f} mm to {m.end_mm:.1f} mm. Measure it between the "
             f"screw posts: the gap between the posts plus {s.screw.barrel_diameter:g} mm (the "
             f"post diameter). Hold J{a} in place and move J{b} along the line J{a}-J{b}.\n\n"
-            f"What you should see: the ports that follow move {order}. "
-            f"{len(fol)} of the {len(m.ports) - 1} other ports make at least half of their "
+            "What you should see: "
+            + (f"the ports that follow move {order}. " if len(fol) > 1 else "")
+            + f"{len(fol)} of the {len(m.ports) - 1} other ports make at least half of their "
             f"change ({moved}); the table gives where each starts and ends. The pictures below "
             "show the kit on its way, to one scale, with the pushed pair in red.")
-    if len(m.frames) > 2 and m.order in ("forward", "backward"):
+    if len(m.frames) > 2 and m.order in ("forward", "backward") and len(fol) > 1:
         away = abs(m.drive_mm[m.frames[len(m.frames) // 2]] - m.end_mm)
         if away < MEASURABLE_MM:
             text += (f" Half of them move while {name} is within {MEASURABLE_MM:g} mm of "

@@ -29,6 +29,11 @@ MODULES_PER_PAGE = 2
 #: A port counts as having followed the drive when it moved at least this share of the drive's
 #: own change.
 FOLLOW_SHARE = 0.5
+#: Ports half way within this share of the motion's samples of each other move together.
+TOGETHER_SHARE = 0.05
+#: Ports whose half-way samples have at least this rank correlation with their order along the
+#: chain follow one after another.
+IN_ORDER_RHO = 0.8
 #: The motion test's samples run geometrically to this fraction of the way left to the target
 #: (a super-stable chain's front crosses a module each time the way left shrinks fourfold).
 GEOMETRIC_END = 1e-12
@@ -89,8 +94,10 @@ class MotionTest:
         Every port in order: name, start and end (mm), and the sample at which it has made half
         its change (-1 when it moves less than :data:`FOLLOW_SHARE` of the drive's change).
     order : str
-        How the ports follow: ``"forward"`` (one after another from the drive's end),
-        ``"backward"``, ``"together"``, ``"mixed"`` or ``"none"``.
+        How the ports follow: ``"forward"`` (one after another from the drive's end: the
+        samples at which they are half way rise along the chain, rank correlation at least
+        :data:`IN_ORDER_RHO`), ``"backward"`` (from the far end), ``"together"`` (all within
+        :data:`TOGETHER_SHARE` of the motion), ``"mixed"`` or ``"none"`` (no port follows).
     drive_mm : numpy.ndarray, shape (K,)
         The drive at each sample.
     positions : numpy.ndarray, shape (K, N, 2)
@@ -268,6 +275,22 @@ def _dense_motion(plan):
     return values, x
 
 
+def _order(halves: list, samples: int) -> str:
+    """How ports that follow the drive do so, from the sample at which each is half way, in
+    port order (see :attr:`MotionTest.order`)."""
+    if not halves:
+        return "none"
+    h = np.asarray(halves, dtype=np.float64)
+    if len(h) == 1:
+        return "forward"
+    if np.ptp(h) <= TOGETHER_SHARE * samples:
+        return "together"
+    rank = np.argsort(np.argsort(h, kind="stable"), kind="stable").astype(np.float64)
+    rho = float(np.corrcoef(np.arange(len(h)), rank)[0, 1])
+    return "forward" if rho >= IN_ORDER_RHO else ("backward" if rho <= -IN_ORDER_RHO
+                                                  else "mixed")
+
+
 def _motion_test(plan) -> MotionTest | None:
     net, motion = plan.design.network, plan.design.motion
     sweep = np.asarray(plan.sweep.positions, dtype=np.float64)
@@ -291,17 +314,7 @@ def _motion_test(plan) -> MotionTest | None:
             if name != motion.drive:
                 past += moved >= 0.5 * total
         ports.append((name, float(d[0]), float(d[-1]), half))
-    halves = [p[3] for p in ports if p[0] != motion.drive and p[3] >= 0]
-    if not halves:
-        order = "none"
-    elif len(set(halves)) == 1 and len(halves) > 1:
-        order = "together"
-    elif all(u <= v for u, v in zip(halves, halves[1:])):
-        order = "forward"
-    elif all(u >= v for u, v in zip(halves, halves[1:])):
-        order = "backward"
-    else:
-        order = "mixed"
+    order = _order([p[3] for p in ports if p[0] != motion.drive and p[3] >= 0], x.shape[0])
     last = x.shape[0] - 1
     frames = {0, last}
     if past[-1] >= 2:
