@@ -23,10 +23,16 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["design_html", "index_html", "write_design_report", "write_index", "motion_frames",
-           "keep_chart_svg"]
+           "keep_chart_svg", "design_process", "describe_file", "not_exported", "image_size",
+           "PROCESSES", "FILE_ROLES"]
 
 #: Most frames of a motion kept in a page (evenly spaced along the trace).
 MAX_FRAMES = 61
+#: CSS pixels per mm (96 per inch): an SVG drawn in mm shows at its true size.
+PX_PER_MM = 96 / 25.4
+#: Tables of a bill of materials longer than this are folded (the screws and sheets stay open,
+#: the 144 bars of a long chain do not bury what follows).
+FOLD_ROWS = 12
 
 _MOTION_TAG = "fabkit-motion"
 _LAYER_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
@@ -39,19 +45,24 @@ body{font:15px/1.45 system-ui,-apple-system,"Segoe UI",sans-serif;margin:0;color
 background:#fafafa}
 header{background:#263238;color:#fff;padding:14px 24px}header h1{margin:0;font-size:22px}
 header p{margin:4px 0 0;color:#cfd8dc}main{padding:12px 24px;max-width:1200px}
+h1,h2,h3,p,td,th,li,figcaption,summary{overflow-wrap:anywhere}
 section{background:#fff;border:1px solid #ddd;border-radius:6px;padding:12px 16px;margin:12px 0}
 h2{font-size:18px;margin:4px 0 10px}table{border-collapse:collapse;margin:6px 0;font-size:13px}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#f0f0f0}.ok{color:#1b5e20;font-weight:600}.bad{color:#b71c1c;font-weight:600}
-.warn{color:#e65100}.pics img{max-width:100%;border:1px solid #eee;margin:4px 0}
+.warn{color:#e65100}.lead{border-left:5px solid #263238}.lead p{margin:4px 0}
+.nowrap{white-space:nowrap}
+.scroll{overflow-x:auto;max-width:100%}.pic{margin:8px 0}.pic img{max-width:none;display:block;
+border:1px solid #eee}figcaption{font-size:13px;color:#555}
+details{margin:8px 0}summary{cursor:pointer;font-weight:600}
 .motion svg{width:100%;max-height:520px;background:#fff;border:1px solid #eee}
 .controls{display:flex;gap:12px;align-items:center;margin:6px 0}
-.controls input[type=range]{flex:1}.legend span{display:inline-block;margin-right:12px}
+.controls input[type=range]{flex:1;min-width:0}.legend span{display:inline-block;margin-right:12px}
 .legend i{display:inline-block;width:18px;height:4px;vertical-align:middle;margin-right:4px}
-.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(330px,1fr));gap:12px}
-.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:10px}
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(min(330px,100%),1fr));gap:12px}
+.card{background:#fff;border:1px solid #ddd;border-radius:6px;padding:10px;min-width:0}
 .card svg{width:100%;height:220px;background:#fff}.card h3{margin:0 0 4px;font-size:16px}
-.inline-svg svg{max-width:100%;height:auto}
+.inline-svg svg{max-width:none;height:auto}
 """
 
 # One player for a page: every <svg data-motion="ID"> is bound to the frames in the JSON block
@@ -265,14 +276,33 @@ def _data_uri(name: str, data: bytes) -> str:
     return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
 
 
-def _img(name: str, data: bytes, alt: str) -> str:
-    return f'<figure><img src="{_data_uri(name, data)}" alt="{_esc(alt)}"><figcaption>' \
-           f'{_esc(name)}</figcaption></figure>'
+def image_size(name: str, data: bytes) -> tuple[int, int] | None:
+    """Width and height (CSS pixels) at which a picture shows its text at its own size: a PNG's
+    pixels, an SVG's ``width``/``height`` in mm at 96 px per inch; None when not known."""
+    if name.lower().endswith(".png") and data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) >= 24:
+        return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+    if name.lower().endswith(".svg"):
+        head = data[:2000].decode("utf-8", "replace")
+        m = re.search(r'<svg[^>]*\bwidth="([\d.]+)mm"[^>]*\bheight="([\d.]+)mm"', head)
+        if m:
+            return (round(float(m.group(1)) * PX_PER_MM), round(float(m.group(2)) * PX_PER_MM))
+    return None
 
 
-def _markdown(text: str) -> str:
-    """The small Markdown of fabkit's own files (headings, tables, paragraphs) as HTML."""
+def _img(name: str, data: bytes, alt: str, caption: str | None = None) -> str:
+    """A picture at its own size (never scaled down: its box scrolls sideways instead)."""
+    size = image_size(name, data)
+    dims = f' width="{size[0]}" height="{size[1]}"' if size else ""
+    return (f'<figure class="pic"><div class="scroll"><img src="{_data_uri(name, data)}" '
+            f'alt="{_esc(alt)}"{dims}></div><figcaption>{_esc(caption or name)}</figcaption>'
+            "</figure>")
+
+
+def _markdown(text: str, fold_rows: int | None = None) -> str:
+    """The small Markdown of fabkit's own files (headings, tables, paragraphs) as HTML; a table
+    longer than ``fold_rows`` rows is folded under its heading (``<details>``)."""
     out, table = [], []
+    heading = [""]
 
     def flush():
         if table:
@@ -281,7 +311,11 @@ def _markdown(text: str) -> str:
             body = "".join("<tr>" + "".join(f"<{'th' if k == 0 else 'td'}>{_esc(c)}"
                                              f"</{'th' if k == 0 else 'td'}>" for c in row)
                            + "</tr>" for k, row in enumerate(cells))
-            out.append(f"<table>{body}</table>")
+            html_table = f'<div class="scroll"><table>{body}</table></div>'
+            if fold_rows is not None and len(cells) - 1 > fold_rows:
+                html_table = (f"<details><summary>{_esc(heading[0] or 'table')}: "
+                              f"{len(cells) - 1} rows</summary>{html_table}</details>")
+            out.append(html_table)
             table.clear()
 
     for line in text.splitlines():
@@ -292,6 +326,7 @@ def _markdown(text: str) -> str:
         m = re.match(r"(#+)\s+(.*)", line)
         if m:
             level = min(len(m.group(1)) + 2, 6)
+            heading[0] = m.group(2)
             out.append(f"<h{level}>{_esc(m.group(2))}</h{level}>")
         elif line.strip():
             out.append(f"<p>{_esc(line)}</p>")
@@ -329,9 +364,9 @@ def _checks_section(report: dict) -> str:
         rows.append(f'<tr><td colspan=5 class="bad">{_esc(e)}</td></tr>')
     if not rows:
         return ""
-    return ("<section id=checks><h2>Verdicts</h2><table><tr><th>check</th><th>result</th>"
-            "<th>value</th><th>limit</th><th>detail</th></tr>" + "".join(rows)
-            + "</table></section>")
+    return ("<section id=checks><h2>Verdicts</h2><div class=\"scroll\"><table><tr><th>check</th>"
+            "<th>result</th><th>value</th><th>limit</th><th>detail</th></tr>" + "".join(rows)
+            + "</table></div></section>")
 
 
 def keep_chart_svg(tol: dict) -> str:
@@ -432,9 +467,9 @@ def _tolerance_section(report: dict, files: dict) -> str:
         f"<td>{_fmt(c['limit_mm']) if c['criterion'] != 'order' else '–'}</td>"
         f"<td>{c['missing']}</td></tr>" for c in tol.get("criteria", []))
     if rows:
-        parts.append("<table><tr><th>criterion</th><th>builds that keep it</th><th>95% of "
-                     "builds (mm)</th><th>allowed (mm)</th><th>no such state</th></tr>"
-                     + rows + "</table>")
+        parts.append("<div class=\"scroll\"><table><tr><th>criterion</th><th>builds that keep "
+                     "it</th><th>95% of builds (mm)</th><th>allowed (mm)</th><th>no such state"
+                     "</th></tr>" + rows + "</table></div>")
     chart = keep_chart_svg(tol)
     if chart:
         from .tolerance.margin import margin_text
@@ -445,14 +480,15 @@ def _tolerance_section(report: dict, files: dict) -> str:
         parts.append(f"<p>Margin {_esc(margin_text(tol['margin'], tol.get('margin_bound')))}"
                      ": every error of the process may grow by this factor and the verdict stays "
                      "the same" + (f"; each source alone: {alone}" if alone else "") + ".</p>"
-                     f'<div class="inline-svg">{chart}</div>')
+                     f'<div class="inline-svg scroll">{chart}</div>')
     if tol.get("ports_judged", True):
         rows = "".join(f"<tr><td>{_esc(p['port'])}</td><td>{_fmt(p['nominal'])}</td>"
                        f"<td>{_fmt(p['mean'])}</td><td>{_fmt(p['p95_abs_error_mm'])}</td>"
                        f"<td>{_fmt(p['limit_mm'])}</td></tr>" for p in tol.get("ports", []))
         if rows:
-            parts.append("<table><tr><th>port</th><th>designed</th><th>built (mean)</th>"
-                         "<th>95% error (mm)</th><th>limit (mm)</th></tr>" + rows + "</table>")
+            parts.append("<div class=\"scroll\"><table><tr><th>port</th><th>designed</th>"
+                         "<th>built (mean)</th><th>95% error (mm)</th><th>limit (mm)</th></tr>"
+                         + rows + "</table></div>")
     hz = tol.get("horizon")
     if hz:
         parts.append(f"<p>Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
@@ -460,101 +496,330 @@ def _tolerance_section(report: dict, files: dict) -> str:
     name = "preview_tolerance.png"
     if name in files:
         pic = _img(name, files[name], "tolerance")
-        parts.append(f'<div class="pics">{pic}</div>')
+        parts.append(pic)
     return "<section id=tolerance><h2>Tolerance</h2>" + "".join(parts) + "</section>"
 
 
-def _fabrication_sections(report: dict, files: dict) -> str:
-    out = []
+#: The processes a design can be made for, the formats of each, and how to say it.
+PROCESSES = {"print": ("stl",), "origami": ("svg", "fold", "cp"), "laser": ("dxf",)}
+_MADE_FOR = {"laser": "laser-cut acrylic (Chicago screws)", "origami": "folded paper (origami)",
+             "print": "a 3D print"}
+
+#: What each file of a design folder is, by name (first match).
+FILE_ROLES = (
+    (r"laser_guide\.pdf", "assembly guide: A4 pages to print and follow at the bench"),
+    (r"laser_guide_page1\.png", "the assembly guide's first page (overview)"),
+    (r".*coupon.*", "test coupon: cut it first to check kerf and fit"),
+    (r"laser_sheet(\d+)\.dxf", "sheet {0} to cut (DXF, mm)"),
+    (r"laser_sheet(\d+)\.svg", "sheet {0} to cut (SVG for laser programs, mm)"),
+    (r"laser_bom\.md", "bill of materials (to read)"),
+    (r"laser_bom\.json", "bill of materials (data)"),
+    (r"laser_assembly\.png", "picture: the kit by layer, in rows"),
+    (r"laser_layers_motion\.png", "picture: the motion test with the layers"),
+    (r".*_cut\.svg", "cut-ready sheet: perforated creases and the outline (laser or vinyl cutter)"),
+    (r".*_layout\.svg", "crease patterns of every sheet and how they join (to print and fold)"),
+    (r".*\.svg", "crease pattern (to print and fold; Origami Simulator reads it)"),
+    (r".*\.fold", "FOLD file with the simulated folding"),
+    (r".*\.cp", "ORIPA crease pattern"),
+    (r".*\.3mf", "3D print with its settings (3MF)"),
+    (r".*\.stl", "3D print (STL)"),
+    (r".*_print\.png", "picture: the printed part"),
+    (r"preview_motion\.png", "picture: the motion"),
+    (r"preview_map\.png", "picture: the map and cobweb"),
+    (r"preview_tolerance\.png", "picture: the tolerance analysis"),
+    (r"report\.json", "this report as data"),
+    (r"report\.md", "this report as text"),
+)
+
+
+def describe_file(name: str) -> str:
+    """What a file of a design folder is (``""`` when fabkit does not know the name)."""
+    for pattern, text in FILE_ROLES:
+        m = re.fullmatch(pattern, name)
+        if m:
+            return text.format(*m.groups())
+    return ""
+
+
+def design_process(report: dict, design=None) -> str | None:
+    """The process a design was made for: the one its tolerance analysis judges it by
+    (:func:`fabkit.tolerance.design_process`: its template's tables, else origami for 3D and
+    laser for planar networks), as the design or its report says; else the first of origami,
+    laser and print whose files were written (every planar bar design also gets a
+    print-in-place linkage, which does not make it a print); None when there is neither."""
+    if design is not None:
+        from .tolerance import design_process as made_for
+
+        return made_for(design)
+    judged = (report.get("tolerance") or {}).get("process")
+    if judged in PROCESSES:
+        return judged
+    for proc in ("origami", "laser", "print"):
+        if _exported(report, proc):
+            return proc
+    return None
+
+
+def _exported(report: dict, proc: str) -> bool:
     formats = report.get("formats") or {}
-    laser = [n for n in sorted(files) if n.startswith("laser_") and n.endswith((".png", ".svg"))]
-    if laser:
-        out.append("<section id=laser><h2>Laser-cut layers</h2><div class=\"pics\">"
-                   + "".join(_img(n, files[n], n) for n in laser) + "</div></section>")
-    origami = formats.get("svg") or formats.get("fold")
-    if origami and origami.get("status") == "exported":
-        svgs = [n for n in (formats.get("svg") or {}).get("files", []) if n.endswith(".svg")]
-        body = "".join(f'<div class="inline-svg">{_img(n, files[n], "crease pattern")}</div>'
-                       for n in svgs if n in files)
-        angles = (formats.get("fold") or {}).get("report", {}).get("final_fold_angles")
-        if angles:
-            body += f"<p>Final fold angles (degrees): {_esc(_fmt(angles))}</p>"
-        out.append("<section id=origami><h2>Crease pattern</h2><p>Mountain folds red, valley "
-                   "folds blue; the motion above shows the sheet folding.</p>" + body
-                   + "</section>")
-    stl = formats.get("stl")
-    if stl and stl.get("status") == "exported":
-        r = stl.get("report") or {}
-        pr = r.get("printer") or {}
-        body = []
+    return any((formats.get(f) or {}).get("status") == "exported" for f in PROCESSES[proc])
+
+
+def not_exported(report: dict) -> list:
+    """Why each format that was tried wrote nothing: ``["dxf: skipped by the template – …"]``."""
+    out = []
+    for fmt, f in sorted((report.get("formats") or {}).items()):
+        if f.get("status") != "exported":
+            out.append(f"{fmt}: {f.get('status', '')}" + (f" – {f['detail']}" if f.get("detail")
+                                                          else ""))
+    return out
+
+
+def _link(name: str) -> str:
+    return f'<a href="{_esc(name)}">{_esc(name)}</a>'
+
+
+def _size(n: int) -> str:
+    return f"{n / 1e6:.1f} MB" if n >= 1e6 else (f"{n / 1e3:.0f} kB" if n >= 1e3 else f"{n} B")
+
+
+def _pdf_pages(data: bytes) -> int:
+    return len(re.findall(rb"/Type\s*/Page\b", data))
+
+
+def _lead_section(report: dict, files: dict, process: str | None) -> str:
+    formats = report.get("formats") or {}
+    why = not_exported(report)
+    if process is None or not _exported(report, process):
+        what = _MADE_FOR.get(process, "no process")
+        reasons = "; ".join(why) or (report.get("error") or "no export format applies to it")
+        return (f'<section id=made-for class=lead><h2>Made for {_esc(what)}: no files</h2>'
+                f'<p class="warn">Nothing to build was written: {_esc(reasons)}.</p></section>')
+    parts = []
+    if process == "laser":
+        b = (formats.get("dxf") or {}).get("report") or {}
+        st = b.get("settings") or {}
+        sheets = b.get("sheets") or []
+        sizes = sorted({f"{s['size_mm'][0]:g} × {s['size_mm'][1]:g} mm" for s in sheets})
+        screws = sum(s.get("count", 0) for s in b.get("screws", []))
+        parts.append(f"<p>{len(sheets)} sheet{'s' if len(sheets) != 1 else ''} of "
+                     f"{_esc(', '.join(sizes))}, {_fmt(st.get('thickness'))} mm acrylic; "
+                     f"{len(b.get('bars', []))} bars in {_esc((b.get('layers') or {}).get('count'))}"
+                     f" layers; {screws} screws, {(b.get('washers') or {}).get('count', 0)} "
+                     f"washers, {(b.get('spacer_rings') or {}).get('count', 0)} spacer rings "
+                     "(see the bill of materials).</p>")
+        if "laser_guide.pdf" in files:
+            parts.append(f"<p><b>Start here:</b> {_link('laser_guide.pdf')}, the assembly guide "
+                         f"({_pdf_pages(files['laser_guide.pdf'])} A4 pages: overview, how to "
+                         "build, a page per two modules, the motion test).</p>")
+    elif process == "origami":
+        r = (formats.get("svg") or {}).get("report") or {}
+        sheet = r.get("sheet") or {}
+        if sheet.get("shape") == "square":
+            paper = (f"a square of side {sheet['side_mm']:.2f} mm ({sheet['across_mm']:.2f} mm "
+                     "corner to corner)")
+        else:
+            paper = f"{_esc(sheet.get('shape', 'a sheet'))} {_fmt(sheet.get('bbox_mm'))} mm"
+        n = r.get("sheets", 1)
+        parts.append(f"<p>One sheet of paper, {paper}.</p>" if n == 1 else
+                     f"<p>{n} sheets of paper, each {paper}.</p>")
+        if r.get("file"):
+            parts.append(f"<p><b>Start here:</b> {_link(r['file'])} (print at 100 %, fold)"
+                         + (f", or cut {_link(r['cut_file'])} on a laser or vinyl cutter"
+                            if r.get("cut_file") else "") + ".</p>")
+    else:
+        r = (formats.get("stl") or {}).get("report") or {}
+        st = r.get("settings") or {}
+        size = " × ".join(_fmt(v) for v in r.get("size_mm") or [])
         if r.get("linkage") == "pins":
-            s = r.get("settings") or {}
-            body.append(f"<p>Printed in place: {r.get('bars')} bars in {r.get('layers')} layers "
-                        f"on {r.get('printed_pins')} printed pins ({_esc(s.get('material'))}), "
-                        f"{_fmt(r.get('height_mm'))} mm tall, {_fmt(r.get('volume_mm3'))} mm³."
-                        "</p>")
-        elif r:
-            s = r.get("settings") or {}
-            body.append(f"<p>{r.get('plates')} plates, {r.get('hinges')} hinges "
-                        f"({_esc(s.get('hinge_style'))}, {_esc(s.get('material'))}), "
-                        f"{_esc(_fmt(r.get('size_mm')))} mm, {_fmt(r.get('volume_mm3'))} mm³.</p>")
-        if pr:
-            bed = pr.get("printer") or {}
-            layout = "; ".join(f"piece {p['piece']} on bed {p['bed']} turned "
-                               f"{p['angle_deg']:.0f}°" + (f", joined at {p['joined_at']}"
-                                                          if p.get("joined_at") else "")
-                               for p in pr.get("pieces", []))
-            body.append(f"<p>Printer: {_esc(bed.get('description'))}. {_esc(layout)}. "
-                        f"Files: {_esc(', '.join(pr.get('files', [])))}.</p>")
-            if pr.get("note"):
-                body.append(f"<p>{_esc(pr['note'])}</p>")
-            if pr.get("join"):
-                body.append(f"<p>Join: {_esc(pr['join'])}</p>")
-        pics = [n for n in sorted(files) if n.endswith("_print.png")]
-        body.append('<div class="pics">' + "".join(_img(n, files[n], "printed part")
-                                                   for n in pics) + "</div>")
-        out.append("<section id=print><h2>Printed part</h2>" + "".join(body) + "</section>")
-    return "".join(out)
+            parts.append(f"<p>Printed in place: {_esc(r.get('bars'))} bars in "
+                         f"{_esc(r.get('layers'))} layers on {_esc(r.get('printed_pins'))} "
+                         f"printed pins ({_esc(st.get('material'))}).</p>")
+        else:
+            parts.append(f"<p>{_esc(r.get('plates'))} plates joined by "
+                         f"{_esc(r.get('hinges'))} hinges ({_esc(st.get('hinge_style'))}, "
+                         f"{_esc(st.get('material'))}), {_esc(size)} mm.</p>")
+        written = (formats.get("stl") or {}).get("files", [])
+        prints = sorted((n for n in written if n.endswith((".3mf", ".stl"))),
+                        key=lambda n: (not n.endswith(".3mf"), n))
+        if prints:
+            parts.append("<p><b>Start here:</b> " + ", ".join(_link(n) for n in prints) + ".</p>")
+    others = [p for p in PROCESSES if p != process and _exported(report, p)]
+    if others:
+        parts.append("<p>Also exported: " + ", ".join(
+            f'<a href="#also-{p}">{_esc(_MADE_FOR[p])}</a>' for p in others) + " (folded below)."
+                     "</p>")
+    if why:
+        parts.append(f"<p class=\"warn\">Not written: {_esc('; '.join(why))}.</p>")
+    return (f"<section id=made-for class=lead><h2>Made for {_esc(_MADE_FOR[process])}</h2>"
+            + "".join(parts) + "</section>")
 
 
-def _bom_section(report: dict, files: dict) -> str:
-    rows = []
-    if "laser_bom.md" in files:
-        rows.append(_markdown(files["laser_bom.md"].decode("utf-8")))
-    stl = ((report.get("formats") or {}).get("stl") or {}).get("report")
-    if stl:
-        s = stl.get("settings") or {}
-        rows.append("<table><tr><th>printed part</th><th>quantity</th></tr>"
-                    f"<tr><td>{_esc(s.get('material'))} filament</td>"
-                    f"<td>{_fmt((stl.get('volume_mm3') or 0) / 1000.0)} cm³</td></tr>"
-                    + (f"<tr><td>printed bars</td><td>{stl.get('bars')}</td></tr>"
-                       f"<tr><td>printed pins</td><td>{stl.get('printed_pins')}</td></tr>"
-                       if stl.get("linkage") == "pins" else
-                       f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
-                       f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table>")
-    svg = ((report.get("formats") or {}).get("svg") or {}).get("report")
-    if svg:
-        rows.append("<table><tr><th>origami</th><th>quantity</th></tr>"
-                    f"<tr><td>paper sheets ({_fmt(svg.get('sheet_size_mm'))} mm)</td>"
-                    f"<td>{_fmt(svg.get('sheets', 1))}</td></tr></table>")
-    if not rows:
+def _files_section(listing: dict, process: str | None) -> str:
+    def rank(name):
+        if name.startswith(("report.", "preview_")):
+            return 3
+        owner = ("laser" if name.startswith("laser_") else
+                 "print" if name.endswith((".stl", ".3mf", "_print.png")) else "origami")
+        return 0 if owner == process else (1 if name != "report.html" else 2)
+
+    rows = "".join(f"<tr><td>{_link(n)}</td><td class=nowrap>{_size(listing[n])}</td>"
+                   f"<td>{_esc(describe_file(n))}</td></tr>"
+                   for n in sorted(listing, key=lambda n: (rank(n), n)) if n != "report.html")
+    return ("<section id=files><h2>Files</h2><p>Every file written for this design, next to this "
+            'page.</p><div class="scroll"><table><tr><th>file</th><th>size</th><th>what it is'
+            "</th></tr>" + rows + "</table></div></section>")
+
+
+def _laser_section(report: dict, files: dict, ident: str = "laser") -> str:
+    pics = [n for n in ("laser_assembly.png", "laser_layers_motion.png",
+                        "laser_guide_page1.png") if n in files]
+    pics += [n for n in sorted(files) if n.startswith("laser_") and n.endswith(".png")
+             and n not in pics]
+    sheets = [n for n in sorted(files) if n.startswith("laser_sheet") and n.endswith(".svg")]
+    body = "".join(_img(n, files[n], n, f"{n}: {describe_file(n)}") for n in pics)
+    if sheets:
+        body += ("<details><summary>The cut sheets at true size (1 mm = 3.78 px)</summary>"
+                 + "".join(_img(n, files[n], n) for n in sheets) + "</details>")
+    return f"<section id={ident}><h2>Laser-cut kit</h2>{body}</section>"
+
+
+def _laser_bom(files: dict, ident: str = "bom") -> str:
+    if "laser_bom.md" not in files:
         return ""
-    return "<section id=bom><h2>Bill of materials</h2>" + "".join(rows) + "</section>"
+    return (f"<section id={ident}><h2>Bill of materials</h2>"
+            + _markdown(files["laser_bom.md"].decode("utf-8"), FOLD_ROWS) + "</section>")
 
 
-def design_html(report: dict, files: dict, design=None, trajectory=None) -> bytes:
+def _origami_section(report: dict, files: dict, ident: str = "origami") -> str:
+    formats = report.get("formats") or {}
+    r = (formats.get("svg") or {}).get("report") or {}
+    svgs = [n for n in (formats.get("svg") or {}).get("files", [])
+            if n.endswith(".svg") and not n.endswith("_cut.svg") and n in files]
+    body = "".join(_img(n, files[n], "crease pattern", f"{n}: {describe_file(n)}")
+                   for n in svgs)
+    creases = r.get("creases") or []
+    if creases:
+        rows = "".join(f"<tr><td>{_esc(c['crease'])}</td><td>{_esc(c['fold'])}</td>"
+                       f"<td>{c['angle_deg']:.1f}°</td></tr>" for c in creases)
+        body += ("<p>Fold every crease to its angle (0° flat, 180° folded flat), seen from the "
+                 'printed side:</p><div class="scroll"><table><tr><th>crease</th><th>fold</th>'
+                 f"<th>angle</th></tr>{rows}</table></div>")
+    cut = r.get("cut") or {}
+    if r.get("cut_file") in files:
+        perf = cut.get("perforation") or {}
+        body += (f"<details><summary>Cut-ready sheet {_esc(r['cut_file'])}: "
+                 f"{_fmt(perf.get('dash_mm'))} mm cuts, {_fmt(perf.get('gap_mm'))} mm gaps, "
+                 f"{_fmt(perf.get('stop_mm'))} mm whole at every vertex</summary>"
+                 + _img(r["cut_file"], files[r["cut_file"]], "cut-ready sheet") + "</details>")
+    return (f"<section id={ident}><h2>Crease pattern</h2><p>Valley folds blue and dashed, "
+            "mountain folds red and dash-dot; the motion above shows the sheet folding.</p>"
+            + body + "</section>")
+
+
+def _origami_bom(report: dict, ident: str = "bom") -> str:
+    svg = ((report.get("formats") or {}).get("svg") or {}).get("report")
+    if not svg:
+        return ""
+    sheet = svg.get("sheet") or {}
+    size = (f"square, side {sheet['side_mm']:.2f} mm" if sheet.get("shape") == "square"
+            else f"{_fmt(sheet.get('bbox_mm'))} mm")
+    return (f"<section id={ident}><h2>Bill of materials</h2><table><tr><th>origami</th>"
+            f"<th>quantity</th></tr><tr><td>paper sheets ({_esc(size)})</td>"
+            f"<td>{_fmt(svg.get('sheets', 1))}</td></tr></table></section>")
+
+
+def _print_section(report: dict, files: dict, ident: str = "print") -> str:
+    formats = report.get("formats") or {}
+    stl = formats.get("stl")
+    if not (stl and stl.get("status") == "exported"):
+        return ""
+    r = stl.get("report") or {}
+    pr = r.get("printer") or {}
+    body = []
+    if r.get("linkage") == "pins":
+        s = r.get("settings") or {}
+        body.append(f"<p>Printed in place: {r.get('bars')} bars in {r.get('layers')} layers "
+                    f"on {r.get('printed_pins')} printed pins ({_esc(s.get('material'))}), "
+                    f"{_fmt(r.get('height_mm'))} mm tall, {_fmt(r.get('volume_mm3'))} mm³.</p>")
+    elif r:
+        s = r.get("settings") or {}
+        body.append(f"<p>{r.get('plates')} plates, {r.get('hinges')} hinges "
+                    f"({_esc(s.get('hinge_style'))}, {_esc(s.get('material'))}), "
+                    f"{_esc(_fmt(r.get('size_mm')))} mm, {_fmt(r.get('volume_mm3'))} mm³.</p>")
+    if pr:
+        bed = pr.get("printer") or {}
+        layout = "; ".join(f"piece {p['piece']} on bed {p['bed']} turned "
+                           f"{p['angle_deg']:.0f}°" + (f", joined at {p['joined_at']}"
+                                                      if p.get("joined_at") else "")
+                           for p in pr.get("pieces", []))
+        body.append(f"<p>Printer: {_esc(bed.get('description'))}. {_esc(layout)}. "
+                    f"Files: {_esc(', '.join(pr.get('files', [])))}.</p>")
+        if pr.get("note"):
+            body.append(f"<p>{_esc(pr['note'])}</p>")
+        if pr.get("join"):
+            body.append(f"<p>Join: {_esc(pr['join'])}</p>")
+    pics = [n for n in sorted(files) if n.endswith("_print.png")]
+    body.append("".join(_img(n, files[n], "printed part") for n in pics))
+    return f"<section id={ident}><h2>Printed part</h2>" + "".join(body) + "</section>"
+
+
+def _print_bom(report: dict, ident: str = "bom") -> str:
+    stl = ((report.get("formats") or {}).get("stl") or {}).get("report")
+    if not stl:
+        return ""
+    s = stl.get("settings") or {}
+    return (f"<section id={ident}><h2>Bill of materials</h2>"
+            "<table><tr><th>printed part</th><th>quantity</th></tr>"
+            f"<tr><td>{_esc(s.get('material'))} filament</td>"
+            f"<td>{_fmt((stl.get('volume_mm3') or 0) / 1000.0)} cm³</td></tr>"
+            + (f"<tr><td>printed bars</td><td>{stl.get('bars')}</td></tr>"
+               f"<tr><td>printed pins</td><td>{stl.get('printed_pins')}</td></tr>"
+               if stl.get("linkage") == "pins" else
+               f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
+               f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table></section>")
+
+
+def _process_sections(proc: str, report: dict, files: dict, primary: bool) -> str:
+    """A process's pictures and bill of materials: open when the design was made for it,
+    folded under "Also exported" otherwise."""
+    if not _exported(report, proc):
+        return ""
+    suffix = "" if primary else f"-{proc}"
+    if proc == "laser":
+        body = _laser_section(report, files, "laser") + _laser_bom(files, "bom" + suffix)
+    elif proc == "origami":
+        body = _origami_section(report, files, "origami") + _origami_bom(report, "bom" + suffix)
+    else:
+        body = _print_section(report, files, "print") + _print_bom(report, "bom" + suffix)
+    if primary:
+        return body
+    return (f'<details id="also-{proc}"><summary>Also exported: {_esc(_MADE_FOR[proc])}'
+            f"</summary>{body}</details>")
+
+
+def design_html(report: dict, files: dict, design=None, trajectory=None,
+                listing: dict | None = None) -> bytes:
     """A design's ``report.html``.
+
+    It opens with the process the design was made for (what to buy, which file to start from)
+    and a link to every file written for it; then the motion, that process's pictures and bill
+    of materials, the map, any other process's files folded, the tolerance and the verdicts.
+    Pictures show at their own size (a wide one scrolls sideways in its box).
 
     Parameters
     ----------
     report : dict
         The design's report.json content.
     files : dict of str to bytes
-        The files of its folder (pictures are inlined from here).
+        The files of its folder that the page shows or reads (pictures are inlined from here).
     design : Design, optional
-        For the scrubbable motion (none without it).
+        For the scrubbable motion (none without it) and the process it was made for.
     trajectory : Trajectory, optional
         Its traced motion (traced from ``design`` when not given).
+    listing : dict of str to int, optional
+        Every file of the folder and its size in bytes, for the links (default: the names in
+        ``report["files"]``).
 
     Returns
     -------
@@ -570,7 +835,10 @@ def design_html(report: dict, files: dict, design=None, trajectory=None) -> byte
             + f"</h1><p>{_esc(d.get('description', ''))}"
             + (f" · {_esc(d['figure'])}" if d.get("figure") else "")
             + f" · fabkit {_esc(report.get('fabkit_version', ''))}</p></header>")
-    body = []
+    if listing is None:
+        listing = {n: len(files.get(n, b"")) for n in report.get("files", [])}
+    process = design_process(report, design)
+    body = [_lead_section(report, files, process), _files_section(listing, process)]
     data = motion_frames(design, trajectory, report) if design is not None else None
     m = report.get("motion") or {}
     if data is not None:
@@ -589,23 +857,31 @@ def design_html(report: dict, files: dict, design=None, trajectory=None) -> byte
     elif m:
         body.append(f"<section id=motion><h2>Motion</h2><p>{_esc(m.get('message', ''))}</p>"
                     "</section>")
+    if process is not None:
+        body.append(_process_sections(process, report, files, True))
     pics = [n for n in ("preview_motion.png", "preview_map.png") if n in files]
     if pics:
-        body.append("<section id=map><h2>Map and cobweb</h2><div class=\"pics\">"
-                    + "".join(_img(n, files[n], n) for n in pics) + "</div></section>")
-    body.append(_fabrication_sections(report, files))
-    body.append(_bom_section(report, files))
+        body.append("<section id=map><h2>Map and cobweb</h2>"
+                    + "".join(_img(n, files[n], n) for n in pics) + "</section>")
+    for proc in PROCESSES:
+        if proc != process:
+            body.append(_process_sections(proc, report, files, False))
     body.append(_tolerance_section(report, files))
     body.append(_checks_section(report))
     page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
+            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{_esc(name)} – fabkit report</title><style>{_CSS}</style></head><body>"
             + head + "<main>" + "".join(body) + f"</main><script>{_JS}</script></body></html>")
     return page.encode("utf-8")
 
 
-def _folder_files(folder: Path) -> dict:
-    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())
-            if p.is_file() and p.suffix.lower() in (".png", ".svg", ".md", ".json")}
+def _folder_files(folder: Path) -> tuple[dict, dict]:
+    """The files a page shows or reads (pictures, Markdown, JSON, the guide PDF), and the size
+    of every file of the folder."""
+    paths = [p for p in sorted(folder.iterdir()) if p.is_file() and not p.name.startswith(".")]
+    shown = {p.name: p.read_bytes() for p in paths
+             if p.suffix.lower() in (".png", ".svg", ".md", ".json", ".pdf")}
+    return shown, {p.name: p.stat().st_size for p in paths}
 
 
 def write_design_report(folder, design=None, trajectory=None) -> Path:
@@ -620,7 +896,8 @@ def write_design_report(folder, design=None, trajectory=None) -> Path:
 
     folder = Path(folder)
     report = json.loads((folder / "report.json").read_text(encoding="utf-8"))
-    page = design_html(report, _folder_files(folder), design, trajectory)
+    shown, listing = _folder_files(folder)
+    page = design_html(report, shown, design, trajectory, listing)
     write_atomic(folder / "report.html", page)
     return folder / "report.html"
 
@@ -654,9 +931,25 @@ def index_html(entries) -> bytes:
         tol = report.get("tolerance") or {}
         formats = ", ".join(f for f, v in sorted((report.get("formats") or {}).items())
                             if v.get("status") == "exported")
-        lines = [f"<p>{_esc(d.get('description', report.get('error', '')))}</p>",
-                 f"<p>checks: {_verdict(bool(ok)) if ok is not None else '–'}"
-                 + (f" · formats: {_esc(formats)}" if formats else "") + "</p>"]
+        checked = sum(len(v.get("checks") or []) for v in (report.get("formats") or {}).values())
+        lines = [f"<p>{_esc(d.get('description', ''))}</p>"]
+        if report.get("error"):
+            lines.append(f'<p class="bad">{_esc(report["error"])}</p>')
+        process = design_process(report)
+        if formats:
+            lines.append(f"<p>made for {_esc(_MADE_FOR[process])} · formats: {_esc(formats)}"
+                         "</p>" if process else f"<p>formats: {_esc(formats)}</p>")
+            lines.append(f"<p>checks: {_verdict(bool(ok)) if checked else 'none run'}"
+                         + (f" ({checked} file{'s' if checked != 1 else ''} read back)"
+                            if checked else "") + "</p>")
+        else:
+            why = "; ".join(not_exported(report)) or "no export format applies to it"
+            lines.append(f'<p class="warn">No files to build: {_esc(why)}</p>')
+        if formats and process and not _exported(report, process):
+            # files of another process were written, none of the one it was made for: say why
+            why = "; ".join(w for w in not_exported(report)
+                            if w.split(":")[0] in PROCESSES[process])
+            lines.append(f'<p class="warn">No {_esc(process)} files: {_esc(why)}</p>')
         if tol.get("verdict"):
             lines.append(f"<p class=\"{'warn' if tol.get('flagged') else 'ok'}\">tolerance: "
                          f"{_esc(tol['verdict'])}</p>")

@@ -195,6 +195,12 @@ class OrigamiSection(Section):
     step_off: Optional[float] = Field(None, gt=0, le=0.1, description="step off the flat "
                                                                       "state (fraction)")
     relay: Optional[str] = Field(None, description="port that takes over the drive")
+    perforation_dash: Optional[float] = _mm("cut-ready sheet: length of each perforation cut "
+                                            "along a crease (mm)", gt=0)
+    perforation_gap: Optional[float] = _mm("cut-ready sheet: paper left between two cuts (mm)",
+                                           gt=0)
+    perforation_stop: Optional[float] = _mm("cut-ready sheet: paper left whole at each end of "
+                                            "a crease, so the sheet holds together (mm)", gt=0)
 
 
 # --- tolerance --------------------------------------------------------------------------------

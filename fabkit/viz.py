@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["draw_network", "motion_figure", "figure_png"]
+__all__ = ["draw_network", "motion_figure", "figure_png", "clipped_texts"]
 
 
 #: Floor of edge errors drawn on a log scale (an exact zero has no logarithm).
@@ -79,3 +79,38 @@ def figure_png(fig, dpi: int = 110) -> bytes:
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(fig)
     return buf.getvalue()
+
+
+def clipped_texts(fig) -> list:
+    """The visible texts of a figure that do not fit inside it (a title cut off at the edge).
+
+    Tick labels count as one text per axis (``"x ticks of <axes title>"``), and only those
+    drawn (within the axis' limits).
+
+    Returns
+    -------
+    list of str
+    """
+    from matplotlib.text import Text
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    box = fig.bbox
+
+    def outside(e) -> bool:
+        return e is not None and (e.x0 < box.x0 - 0.5 or e.y0 < box.y0 - 0.5
+                                  or e.x1 > box.x1 + 0.5 or e.y1 > box.y1 + 0.5)
+
+    ticks, out = set(), []
+    for ax in fig.axes:
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                ticks.update((id(tick.label1), id(tick.label2)))
+            if axis.get_visible() and outside(axis.get_tightbbox(renderer)):
+                out.append(f"{name} ticks of {ax.get_title() or 'an axes'}")
+    for t in fig.findobj(Text):
+        if id(t) in ticks or not t.get_visible() or not t.get_text().strip():
+            continue
+        if outside(t.get_window_extent(renderer)):
+            out.append(t.get_text())
+    return out

@@ -157,17 +157,19 @@ def test_dense_resampling_finds_the_stacking_clear(name):
 def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
     import re
 
-    from fabkit.export.dxf import laser_plan
+    from fabkit.export.dxf import bill_of_materials, laser_plan
     from fabkit.fab.guide import guide_pages
 
     design, result = chain24
     plan = laser_plan(design)
-    pdf, png, stats = guide_pages(plan)
-    assert stats["pages"] == 12 and stats["overlaps"] == 0
+    guide = guide_pages(plan, bill_of_materials(plan, []))
+    pdf, png, stats = guide.pdf, guide.images[0], guide.stats
+    # overview, how to build, 12 pages of two modules, the motion test
+    assert stats["pages"] == 15 and stats["overlaps"] == 0 and stats["dropped"] == 0
     # every bar is labelled once, every screw once per page it appears on
     assert stats["labels"] >= 144 + 25
     boxes = re.findall(rb"/MediaBox \[\s*0 0 ([\d.]+) ([\d.]+)\s*\]", pdf)
-    assert len(boxes) == 12
+    assert len(boxes) == 15
     for w, h in boxes:   # A4 portrait in points
         assert abs(float(w) - 595.3) < 1.0 and abs(float(h) - 841.7) < 1.0
     assert png[:8] == b"\x89PNG\r\n\x1a\n"

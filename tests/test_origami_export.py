@@ -73,14 +73,17 @@ def test_fold_file_fields_and_frames(files, design):
     assert doc["fabkit:motion"]["branch"] == 2 and len(doc["fabkit:motion"]["branches"]) == 2
 
 
-def test_svg_colours_opacity_and_no_groups(files):
+def test_svg_colours_opacity_and_creases_direct_children(files):
     out, _ = files
     root = ET.parse(out / "origami_sheet.svg").getroot()
     doc = json.loads((out / "origami_sheet.fold").read_text())
     assert root.tag == SVG + "svg" and root.get("width") == "170mm"
-    assert not root.findall(f".//{SVG}g")
+    # Origami Simulator reads only direct children: the creases; the legend, dimension and
+    # labels are groups it ignores
     lines = [c for c in root if c.tag == SVG + "line"]
-    assert len(lines) == 8 and all(c.tag in (SVG + "line", SVG + "title") for c in root)
+    assert len(lines) == 8 and all(c.tag in (SVG + "line", SVG + "title", SVG + "g") for c in root)
+    assert {g.get("id") for g in root.findall(f"{SVG}g")} == {"legend", "fold-angles",
+                                                              "vertex-labels", "dimensions"}
     assert all(line.get("opacity") is None for line in lines)
     for line, lab, ang in zip(lines, doc["edges_assignment"], doc["edges_foldAngle"]):
         assert line.get("stroke") == COLOURS[lab]
@@ -89,6 +92,49 @@ def test_svg_colours_opacity_and_no_groups(files):
     # the crease vertex P: all four creases meet at one point, 10 mm margin
     ends = {(line.get("x2"), line.get("y2")) for line in lines[4:]}
     assert len(ends) == 1
+
+
+def test_mountain_and_valley_differ_by_dash_pattern_as_well_as_colour(files):
+    out, _ = files
+    root = ET.parse(out / "origami_sheet.svg").getroot()
+    lines = [c for c in root if c.tag == SVG + "line"]
+    dash = {lab: {line.get("stroke-dasharray") for line, a in zip(lines, "BBBBVVVM") if a == lab}
+            for lab in "BVM"}
+    assert dash["B"] == {None}  # the edge: solid
+    (valley,), (mountain,) = dash["V"], dash["M"]
+    v = [float(x) for x in valley.split()]
+    m = [float(x) for x in mountain.split()]
+    # valley dashed (dash, gap); mountain dash-dot (dash, gap, dot, gap): in black and white too
+    assert len(v) == 2 and len(m) == 4 and m[2] < m[0] / 2
+    # the legend shows the same three styles, each with what it means
+    legend = root.find(f"{SVG}g[@id='legend']")
+    samples = {ln.get("stroke"): ln.get("stroke-dasharray") for ln in legend.findall(f"{SVG}line")}
+    assert samples == {"#000000": None, "#0000ff": valley, "#ff0000": mountain}
+    texts = [t.text for t in legend.findall(f"{SVG}text")]
+    assert any(t.startswith("valley fold (dashed)") for t in texts)
+    assert any(t.startswith("mountain fold (dash-dot)") for t in texts)
+
+
+def test_svg_states_the_side_length_and_the_fold_angle_of_every_named_crease(files):
+    out, reports = files
+    root = ET.parse(out / "origami_sheet.svg").getroot()
+    legend = [t.text for t in root.find(f"{SVG}g[@id='legend']").findall(f"{SVG}text")]
+    # the BOM's "150 mm" is the diagonal: the sheet is a 106.07 mm square
+    assert "Sheet: square, side 106.07 mm (150.00 mm corner to corner)" in legend
+    geom = reports["svg"]["sheet"]
+    assert geom["shape"] == "square" and geom["side_mm"] == pytest.approx(150 / np.sqrt(2), 1e-4)
+    assert geom["sides_mm"] == [pytest.approx(106.066, abs=1e-3)] * 4
+    assert legend[-2:] == ["A–P valley 165.4°    B–P valley 131.1°",
+                           "C–P valley 165.4°    D–P mountain 131.1°"]
+    assert [(c["crease"], c["fold"], c["angle_deg"]) for c in reports["svg"]["creases"]] == [
+        ("A–P", "valley", 165.42), ("B–P", "valley", 131.06), ("C–P", "valley", 165.42),
+        ("D–P", "mountain", 131.06)]
+    # on the sheet: each crease's angle beside it, each corner named, the side dimensioned
+    beside = [t.text for t in root.find(f"{SVG}g[@id='fold-angles']")]
+    assert sorted(beside) == ["M 131°", "V 131°", "V 165°", "V 165°"]
+    assert [t.text for t in root.find(f"{SVG}g[@id='vertex-labels']")] == list("ABCDP")
+    dim = root.find(f"{SVG}g[@id='dimensions']").find(f"{SVG}text")
+    assert dim.text == "106.07 mm"
 
 
 def test_cp_file(files):
@@ -200,7 +246,8 @@ def test_fold_command_reports_bifurcation_and_writes_checked_files(tmp_path, cap
     assert "crease D-P      M  fold angle -131.0604 deg" in out
     assert "check        refold_map: ok" in out
     names = sorted(p.name for p in (tmp_path / "origami_sheet").iterdir())
-    assert names == ["origami_sheet.cp", "origami_sheet.fold", "origami_sheet.svg"]
+    assert names == ["origami_sheet.cp", "origami_sheet.fold", "origami_sheet.svg",
+                     "origami_sheet_cut.svg"]
 
 
 def test_fold_command_errors_are_one_line(tmp_path, capsys):

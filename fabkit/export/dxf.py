@@ -328,70 +328,6 @@ def bom_markdown(bom: dict) -> str:
     return "\n".join(lines)
 
 
-# -- pictures -------------------------------------------------------------------------------
-
-def _draw_layers(ax, plan, x, *, joint_labels):
-    from matplotlib.collections import PolyCollection
-
-    from ..fab.bars import stadium_polygon
-    from ..viz import _mpl
-
-    plt = _mpl()
-    cmap = plt.get_cmap("tab10")
-    e = plan.bars.edges
-    r = 0.5 * plan.settings.bar_width
-    order = np.argsort(plan.stacking.layer, kind="stable")  # lower layers drawn first
-    polys = [stadium_polygon(x[e[k, 0]], x[e[k, 1]], r) for k in order]
-    colours = [cmap(int(plan.stacking.layer[k]) % 10) for k in order]
-    ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="k", linewidths=0.4,
-                                     alpha=0.55))
-    joints = [js.joint for js in plan.stacking.joints]
-    ax.plot(x[joints, 0], x[joints, 1], "o", ms=3, color="k", zorder=50)
-    if joint_labels:
-        for js in plan.stacking.joints:
-            ax.annotate(f"J{js.joint}\n{js.screw_length:g} mm", x[js.joint], fontsize=6,
-                        zorder=51, ha="center", va="bottom", xytext=(0, 4),
-                        textcoords="offset points")
-    ax.set_aspect("equal")
-    ax.autoscale_view()
-    ax.set_xlabel("mm")
-
-
-def assembly_png(plan: LaserPlan) -> bytes:
-    """Bars in the reference configuration coloured by layer, joints labelled with screws."""
-    from matplotlib.patches import Patch
-
-    from ..viz import _mpl, figure_png
-
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(8, 6))
-    _draw_layers(ax, plan, plan.design.network.nodes * plan.settings.scale, joint_labels=True)
-    cmap = plt.get_cmap("tab10")
-    ax.legend(handles=[Patch(color=cmap(z % 10), alpha=0.55, label=f"layer {z}")
-                       for z in range(plan.stacking.n_layers)], fontsize=7, loc="best")
-    ax.set_title(f"{plan.design.name}: assembly ({plan.stacking.n_layers} layers, bottom = 0)")
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.08, top=0.93)
-    return figure_png(fig, dpi=90)
-
-
-def motion_png(plan: LaserPlan, frames: int = 4) -> bytes:
-    """The motion with the layers: bars coloured by layer at a few configurations."""
-    from ..viz import _mpl, figure_png
-
-    plt = _mpl()
-    x = plan.sweep.positions
-    idx = np.unique(np.linspace(0, x.shape[0] - 1, frames).round().astype(int))
-    fig, axes = plt.subplots(1, idx.size, figsize=(3.2 * idx.size, 3.4))
-    for ax, i in zip(np.atleast_1d(axes), idx):
-        _draw_layers(ax, plan, x[i], joint_labels=False)
-        ax.set_title(f"drive {plan.sweep.drive[i]:.4g}", fontsize=8)
-        ax.tick_params(labelsize=6)
-    fig.suptitle(f"{plan.design.name}: motion with stacking layers "
-                 f"({plan.sweep.n_samples} samples checked)", fontsize=9)
-    fig.subplots_adjust(left=0.05, right=0.99, bottom=0.15, top=0.85, wspace=0.3)
-    return figure_png(fig, dpi=90)
-
-
 # -- entry ----------------------------------------------------------------------------------
 
 def export_design(design, settings: dict | None = None) -> ExportResult:
@@ -433,15 +369,16 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     for sheet in plan.sheets:
         files[f"laser_sheet{sheet.index}.dxf"] = sheet_dxf(sheet, plan, n)
         files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan.settings)
-    files["laser_assembly.png"] = assembly_png(plan)
-    files["laser_layers_motion.png"] = motion_png(plan)
-    from ..fab.guide import guide_pages
+    from ..fab.guide import assembly_picture, guide_pages, motion_picture
 
-    guide, first_page, _ = guide_pages(plan)
-    files["laser_guide.pdf"] = guide
-    files["laser_guide_page1.png"] = first_page
-    names = sorted([*files, "laser_bom.json", "laser_bom.md"])
+    names = sorted([*files, "laser_assembly.png", "laser_layers_motion.png", "laser_guide.pdf",
+                    "laser_guide_page1.png", "laser_bom.json", "laser_bom.md"])
     bom = bill_of_materials(plan, names)
+    guide = guide_pages(plan, bom)  # hardware per page as the bill of materials names it
+    files["laser_guide.pdf"] = guide.pdf
+    files["laser_guide_page1.png"] = guide.images[0]
+    files["laser_assembly.png"] = assembly_picture(plan, guide.plan)[0]
+    files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)[0]
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
     files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
     return ExportResult(files=files, report={"format": FORMAT, **bom})

@@ -1,11 +1,20 @@
-"""SVG crease patterns in the conventions origami software reads (Origami Simulator).
+"""SVG crease patterns a folder can use, in the conventions origami software reads (Origami
+Simulator), and a cut-ready variant (:mod:`fabkit.export.svg_cut`).
 
 Every crease or boundary segment is one ``<line>`` that is a direct child of ``<svg>`` (no
-groups, no transforms), in mm. Stroke colour: black boundary, red (#ff0000) mountain, blue
-(#0000ff) valley, green (#00ff00) cut, yellow (#ffff00) flat/facet, magenta (#ff00ff)
-unassigned. ``stroke-opacity`` = |target fold angle| / 180° on mountain and valley creases (the
-angle where the crease is folded most along the simulated motion), 1 elsewhere; ``opacity`` is never set (the
-two multiply). The pattern is drawn as seen from the side its faces face (+z), y up.
+transforms), in mm. Stroke colour: black boundary, red (#ff0000) mountain, blue (#0000ff)
+valley, green (#00ff00) cut, yellow (#ffff00) flat/facet, magenta (#ff00ff) unassigned.
+``stroke-opacity`` = |target fold angle| / 180° on mountain and valley creases (the angle where
+the crease is folded most along the simulated motion), 1 elsewhere; ``opacity`` is never set
+(the two multiply). Mountain and valley differ by line style too, so they read apart in black
+and white: valley dashed (:data:`DASHES`), mountain dash-dot, the boundary solid (Origami
+Simulator ignores dash patterns). The pattern is drawn as seen from the side its faces face
+(+z), y up.
+
+What a folder needs and a simulator must not read is in groups (Origami Simulator reads only
+direct children of ``<svg>``): the legend (line styles, the sheet's side length, the fold angle
+of every crease by name), a dimension along the sheet's longest side and each crease's angle
+beside it.
 
 A design of several sheets (a chain) gets a printable layout instead: every sheet drawn
 separately in a grid, its corners labelled with the corners of the neighbouring sheets they are
@@ -21,15 +30,35 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from ..numerics import TINY
 from . import ExportResult
 
 FORMAT = "svg"
+
+#: Outline sides equal (and corners right) to this fraction of the longest side make a square.
+SHAPE_RTOL = 1e-9
+#: Sheets of a chain whose fold angles for one crease differ by less than this (degrees) are
+#: given one angle in the legend.
+ANGLE_SPREAD_DEG = 0.05
 
 #: Stroke colour of each FOLD assignment (Origami Simulator's import colours).
 COLOURS = {"B": "#000000", "M": "#ff0000", "V": "#0000ff", "C": "#00ff00", "F": "#ffff00",
            "U": "#ff00ff", "J": "#ff00ff"}
 
+#: Dash patterns (mm) by assignment: valley dashed, mountain dash-dot (the folding diagrams'
+#: convention); others solid.
+DASHES = {"V": "4 2", "M": "4 1.5 0.8 1.5"}
+#: What each assignment means to a folder.
+MEANING = {"V": "valley fold (dashed): the sides come up towards you",
+           "M": "mountain fold (dash-dot): the sides go away from you",
+           "B": "edge of the sheet", "C": "cut", "F": "flat (do not fold)",
+           "U": "unassigned crease"}
+NAMES = {"V": "valley", "M": "mountain", "U": "flat", "F": "flat", "B": "edge", "C": "cut"}
+
 _MARGIN = 10.0  # mm around each sheet
+_FONT = 3.5  # mm: legend text
+_LINE = 5.0  # mm between legend lines
+_CORNER_CHAR = 2.4  # mm: width of a character of a 4 mm corner label, at most
 
 
 def applies(design) -> bool:
@@ -54,10 +83,195 @@ def _lines(pattern, target, scale, dx, dy):
         x1, y1 = dx + (p[0] - lo[0]) * scale, dy + (top - p[1]) * scale
         x2, y2 = dx + (q[0] - lo[0]) * scale, dy + (top - q[1]) * scale
         op = min(abs(float(target[k])) / 180.0, 1.0) if lab in ("M", "V") else 1.0
+        dash = f' stroke-dasharray="{DASHES[lab]}"' if lab in DASHES else ""
         out.append(f'<line x1="{_fmt(x1)}" y1="{_fmt(y1)}" x2="{_fmt(x2)}" y2="{_fmt(y2)}" '
-                   f'stroke="{COLOURS[lab]}" stroke-opacity="{_fmt(op)}" stroke-width="0.5" '
-                   f'fill="none"/>')
+                   f'stroke="{COLOURS[lab]}" stroke-opacity="{_fmt(op)}" stroke-width="0.5"'
+                   f'{dash} fill="none"/>')
     return out
+
+
+def sheet_geometry(pattern, scale: float) -> dict:
+    """The paper a sheet is cut from, in mm: its outline's sides, and a name for its shape.
+
+    Returns
+    -------
+    dict
+        ``shape`` ("square", "rectangle" or "polygon"), ``sides_mm`` (outline sides in order),
+        ``side_mm`` (a square's side, else None), ``bbox_mm`` (width, height as drawn),
+        ``across_mm`` (the longest distance between two corners).
+    """
+    from ..fab.creases.perforation import outline_loops
+
+    v = np.asarray(pattern.vertices, dtype=np.float64) * scale
+    lab = np.asarray(pattern.assignment)
+    loops = outline_loops(pattern.edges, np.isin(lab, ["B", "C"]))
+    loop = max(loops, key=len)
+    p = v[loop]
+    sides = np.linalg.norm(np.roll(p, -1, axis=0) - p, axis=1)
+    shape, side = "polygon", None
+    if len(loop) == 4:
+        d = np.roll(p, -1, axis=0) - p
+        right = all(abs(float(np.dot(d[k], d[(k + 1) % 4]))) <= SHAPE_RTOL * sides.max() ** 2
+                    for k in range(4))
+        if right and np.ptp(sides) <= SHAPE_RTOL * sides.max():
+            shape, side = "square", float(sides.mean())
+        elif right:
+            shape = "rectangle"
+    across = max(float(np.linalg.norm(a - b)) for a in p for b in p)
+    return {"shape": shape, "sides_mm": [round(float(x), 4) for x in sides],
+            "side_mm": None if side is None else round(side, 4),
+            "bbox_mm": [round(float(x), 4) for x in np.ptp(v, axis=0)],
+            "across_mm": round(across, 4)}
+
+
+def sheet_text(geom: dict) -> str:
+    """The sheet in words: ``"square, side 106.07 mm (150.00 mm corner to corner)"``."""
+    if geom["shape"] == "square":
+        return (f"square, side {geom['side_mm']:.2f} mm ({geom['across_mm']:.2f} mm corner to "
+                "corner)")
+    sides = " × ".join(f"{x:.2f}" for x in geom["sides_mm"])
+    return f"{geom['shape']}, sides {sides} mm"
+
+
+def crease_names(pattern) -> list:
+    """A name per edge from its vertices' labels: ``"A–P"`` (vertex numbers without labels)."""
+    labels = pattern.labels or tuple(str(i) for i in range(pattern.n_vertices))
+    return [f"{labels[a]}–{labels[b]}" for a, b in pattern.edges.tolist()]
+
+
+def crease_table(model, targets) -> list:
+    """Every mountain and valley crease of a sheet by name, with its fold angle.
+
+    Returns
+    -------
+    list of dict
+        ``crease``, ``fold`` ("mountain"/"valley"), ``angle_deg`` (its magnitude where it is
+        folded most; 0 = flat, 180 = folded flat) and, for several sheets, ``min_deg`` and
+        ``max_deg`` over them. One sheet's pattern names the creases (all sheets share it).
+    """
+    pat = model.sheets[0].pattern
+    names = crease_names(pat)
+    out = []
+    for k, lab in enumerate(pat.assignment):
+        if lab not in ("M", "V"):
+            continue
+        a = np.array([abs(float(t[k])) for t in targets])
+        row = {"crease": names[k], "fold": NAMES[lab], "angle_deg": round(float(a.mean()), 2)}
+        if len(targets) > 1:
+            row.update(min_deg=round(float(a.min()), 2), max_deg=round(float(a.max()), 2))
+        out.append(row)
+    return out
+
+
+def _legend(x0, y0, width, geom, table, sheets: int):
+    """The legend (a group) with its top-left corner at (x0, y0); returns (svg, height)."""
+    out = ['<g id="legend">']
+    y = y0 + _FONT
+    for lab in ("B", "V", "M"):
+        dash = f' stroke-dasharray="{DASHES[lab]}"' if lab in DASHES else ""
+        text = MEANING[lab] + (": cut along it" if lab == "B" else "")
+        out.append(f'<line x1="{_fmt(x0)}" y1="{_fmt(y - 1.2)}" x2="{_fmt(x0 + 14)}" '
+                   f'y2="{_fmt(y - 1.2)}" stroke="{COLOURS[lab]}" stroke-width="0.5"{dash}/>'
+                   f'<text x="{_fmt(x0 + 17)}" y="{_fmt(y)}" font-size="{_FONT}" '
+                   f'font-family="sans-serif">{escape(text)}</text>')
+        y += _LINE
+    each = f"{sheets} sheets, each " if sheets > 1 else "Sheet: "
+    out.append(f'<text x="{_fmt(x0)}" y="{_fmt(y)}" font-size="{_FONT}" font-family="sans-serif" '
+               f'font-weight="bold">{escape(each + sheet_text(geom))}</text>')
+    y += _LINE
+    out.append(f'<text x="{_fmt(x0)}" y="{_fmt(y)}" font-size="{_FONT}" '
+               'font-family="sans-serif">Fold angles, seen from this side (0° flat, 180° '
+               'folded flat):</text>')
+    y += _LINE
+    per_line = max(1, int(width // 62))
+    for k in range(0, len(table), per_line):
+        parts = []
+        for row in table[k:k + per_line]:
+            ang = f"{row['angle_deg']:.1f}°"
+            if "min_deg" in row and row["max_deg"] - row["min_deg"] >= ANGLE_SPREAD_DEG:
+                ang = f"{row['min_deg']:.1f}-{row['max_deg']:.1f}°"
+            parts.append(f"{row['crease']} {row['fold']} {ang}")
+        out.append(f'<text x="{_fmt(x0 + 4)}" y="{_fmt(y)}" font-size="{_FONT}" '
+                   f'font-family="sans-serif" xml:space="preserve">'
+                   f'{escape("    ".join(parts))}</text>')
+        y += _LINE
+    out.append("</g>")
+    return out, y - y0
+
+
+def _place(pattern, scale, dx, dy):
+    """Drawing coordinates (mm, y down) of a sheet's vertices placed at (dx, dy)."""
+    v = pattern.vertices
+    lo, top = v.min(axis=0), v[:, 1].max()
+    return np.stack([dx + (v[:, 0] - lo[0]) * scale, dy + (top - v[:, 1]) * scale], axis=1)
+
+
+def _angle_labels(pattern, target, p, size):
+    """Each crease's fold angle beside it, along it (text elements)."""
+    out = []
+    for k, (a, b) in enumerate(pattern.edges.tolist()):
+        lab = pattern.assignment[k]
+        if lab not in ("M", "V"):
+            continue
+        d = p[b] - p[a]
+        ang = float(np.degrees(np.arctan2(d[1], d[0])))
+        if ang > 90 or ang <= -90:  # keep the text upright
+            ang -= 180 if ang > 0 else -180
+        n = np.array([-d[1], d[0]]) / max(float(np.linalg.norm(d)), TINY)
+        c = 0.5 * (p[a] + p[b]) + n * 1.1 * size
+        out.append(f'<text x="{_fmt(c[0])}" y="{_fmt(c[1])}" font-size="{_fmt(size)}" '
+                   f'font-family="sans-serif" text-anchor="middle" dominant-baseline="central" '
+                   f'fill="{COLOURS[lab]}" '
+                   f'transform="rotate({_fmt(ang)} {_fmt(c[0])} {_fmt(c[1])})">'
+                   f'{NAMES[lab][0].upper()} {abs(float(target[k])):.0f}°</text>')
+    return out
+
+
+def _vertex_labels(pattern, p, size):
+    """Each vertex's label (the names the legend's creases use) beside it (text elements)."""
+    labels = pattern.labels or tuple(str(i) for i in range(pattern.n_vertices))
+    centre = p.mean(axis=0)
+    out = []
+    for a, q in enumerate(p):
+        ray = q - centre
+        nrm = float(np.linalg.norm(ray))
+        off = ray / nrm * 1.6 * size if nrm > 0 else np.array([0.0, -1.6 * size])
+        if nrm > 0 and nrm < 0.5 * float(np.abs(p - centre).max()):  # inside: beside it
+            off = np.array([1.3 * size, -1.0 * size])
+        c = q + off
+        out.append(f'<text x="{_fmt(c[0])}" y="{_fmt(c[1])}" font-size="{_fmt(size)}" '
+                   'font-family="sans-serif" font-weight="bold" text-anchor="middle" '
+                   f'dominant-baseline="central">{escape(labels[a])}</text>')
+    return out
+
+
+def _dimension(geom_p, loop, size):
+    """A dimension line along the sheet's longest outline side, outside it (a group)."""
+    p = geom_p[loop]
+    q = np.roll(p, -1, axis=0)
+    k = int(np.argmax(np.linalg.norm(q - p, axis=1)))
+    a, b = p[k], q[k]
+    centre = p.mean(axis=0)
+    d = b - a
+    length = float(np.linalg.norm(d))
+    n = np.array([-d[1], d[0]]) / length
+    if np.dot(0.5 * (a + b) - centre, n) < 0:
+        n = -n
+    a2, b2 = a + n * 4.0, b + n * 4.0
+    ang = float(np.degrees(np.arctan2(d[1], d[0])))
+    if ang > 90 or ang <= -90:
+        ang -= 180 if ang > 0 else -180
+    c = 0.5 * (a2 + b2) + n * 1.2
+    ticks = "".join(f'<line x1="{_fmt(e[0] + n[0])}" y1="{_fmt(e[1] + n[1])}" '
+                    f'x2="{_fmt(e[0] + 5 * n[0])}" y2="{_fmt(e[1] + 5 * n[1])}" '
+                    'stroke="#555555" stroke-width="0.25"/>' for e in (a, b))
+    return ['<g id="dimensions">', ticks,
+            f'<line x1="{_fmt(a2[0])}" y1="{_fmt(a2[1])}" x2="{_fmt(b2[0])}" y2="{_fmt(b2[1])}" '
+            'stroke="#555555" stroke-width="0.25"/>',
+            f'<text x="{_fmt(c[0])}" y="{_fmt(c[1])}" font-size="{_fmt(size)}" '
+            'font-family="sans-serif" text-anchor="middle" fill="#555555" '
+            f'transform="rotate({_fmt(ang)} {_fmt(c[0])} {_fmt(c[1])})">{length:.2f} mm</text>',
+            "</g>"]
 
 
 def _document(width, height, body, title):
@@ -99,11 +313,10 @@ def join_marks(model) -> list[dict]:
     return marks
 
 
-def render(model, fold) -> tuple[bytes, dict]:
-    """The SVG of a model (one sheet, or a layout of all sheets) and a small report.
-
-    Crease colours follow the folding the simulator did (:func:`folded_assignment`).
-    """
+def realised_model(model, fold):
+    """The model with every sheet's assignment as the simulated folding realises it
+    (:func:`fabkit.fab.creases.folded_assignment`), so that files never contradict their fold
+    angles."""
     from dataclasses import replace
 
     from ..fab.creases import CreasePattern, folded_assignment
@@ -117,54 +330,110 @@ def render(model, fold) -> tuple[bytes, dict]:
                 for a, b in pat.edges.tolist()]
         sheets.append(replace(sh, pattern=CreasePattern(pat.vertices, pat.edges, labs, pat.faces,
                                                         pat.labels)))
-    model = replace(model, sheets=tuple(sheets))
-    scale = model.scale
-    targets = sheet_targets(model, fold)
-    if len(model.sheets) == 1:
-        pat = model.sheets[0].pattern
-        w, h = np.ptp(pat.vertices, axis=0) * scale
-        body = _lines(pat, targets[0], scale, _MARGIN, _MARGIN)
-        data = _document(w + 2 * _MARGIN, h + 2 * _MARGIN, body, model.name)
-        return data, {"sheets": 1, "lines": len(body), "width_mm": float(w + 2 * _MARGIN),
-                      "height_mm": float(h + 2 * _MARGIN)}
-    marks = join_marks(model)
+    return replace(model, sheets=tuple(sheets))
+
+
+def grid(model, label_chars: int = 0):
+    """Where each sheet of a layout goes.
+
+    Returns
+    -------
+    (width, height, offsets)
+        The document's size (mm) and the (dx, dy) of each sheet's bounding box; columns leave
+        room for corner labels of ``label_chars`` characters on both sides of each sheet.
+    """
     n = len(model.sheets)
     cols = int(np.ceil(np.sqrt(n)))
     rows = int(np.ceil(n / cols))
-    cell = model.sheet_size + 4 * _MARGIN
-    body, n_lines = [], 0
+    room = 2 * _MARGIN + max(0.0, label_chars * _CORNER_CHAR + 6.0 - _MARGIN)
+    cell_w, cell_h = model.sheet_size + 2 * room, model.sheet_size + 4 * _MARGIN
+    offsets = [(c * cell_w + room, r * cell_h + 2 * _MARGIN)
+               for r, c in (divmod(k, cols) for k in range(n))]
+    return cols * cell_w + 2 * _MARGIN, rows * cell_h + 2 * _MARGIN, offsets
+
+
+def _corner_text(pattern, marks, a) -> str:
+    labels = pattern.labels or tuple(str(i) for i in range(pattern.n_vertices))
+    return labels[a] + ("=" + ",".join(marks[a]) if a in marks else "")
+
+
+def _corner_chars(model, marks) -> int:
+    """Longest corner label of a layout (characters)."""
+    return max(len(_corner_text(sh.pattern, marks[k], a)) for k, sh in enumerate(model.sheets)
+               for a in range(sh.pattern.n_vertices))
+
+
+def render(model, fold) -> tuple[bytes, dict]:
+    """The SVG of a model (one sheet, or a layout of all sheets) and a small report.
+
+    Crease colours follow the folding the simulator did (:func:`realised_model`).
+    """
+    from ..fab.creases.perforation import outline_loops
+
+    model = realised_model(model, fold)
+    scale = model.scale
+    targets = sheet_targets(model, fold)
+    pat0 = model.sheets[0].pattern
+    geom = sheet_geometry(pat0, scale)
+    table = crease_table(model, targets)
+    facts = {"sheet": geom, "creases": table}
+    if len(model.sheets) == 1:
+        w, h = np.ptp(pat0.vertices, axis=0) * scale
+        body = _lines(pat0, targets[0], scale, _MARGIN, _MARGIN)
+        n_lines = len(body)
+        p = _place(pat0, scale, _MARGIN, _MARGIN)
+        body += ['<g id="fold-angles">', *_angle_labels(pat0, targets[0], p, 3.0), "</g>",
+                 '<g id="vertex-labels">', *_vertex_labels(pat0, p, 4.0), "</g>"]
+        loop = max(outline_loops(pat0.edges, np.isin(pat0.assignment, ["B", "C"])), key=len)
+        body += _dimension(p, loop, 3.0)
+        width = w + 2 * _MARGIN
+        legend, lh = _legend(_MARGIN, h + 2 * _MARGIN, width - 2 * _MARGIN, geom, table, 1)
+        data = _document(width, h + 3 * _MARGIN + lh, body + legend,
+                         f"{model.name}: crease pattern, {sheet_text(geom)}")
+        return data, {"sheets": 1, "lines": n_lines, "width_mm": float(width),
+                      "height_mm": float(h + 3 * _MARGIN + lh), **facts}
+    marks = join_marks(model)
+    n = len(model.sheets)
+    width, bottom, offsets = grid(model, _corner_chars(model, marks))
+    body, n_lines, angles = [], 0, []
     for k, sh in enumerate(model.sheets):
         pat = sh.pattern
-        r, c = divmod(k, cols)
-        dx, dy = c * cell + 2 * _MARGIN, r * cell + 2 * _MARGIN
+        dx, dy = offsets[k]
         lines = _lines(pat, targets[k], scale, dx, dy)
         n_lines += len(lines)
         body += lines
-        lo, top = pat.vertices.min(axis=0), pat.vertices[:, 1].max()
+        p = _place(pat, scale, dx, dy)
+        angles += _angle_labels(pat, targets[k], p, 2.5)
         centre = pat.vertices.mean(axis=0)
-        cx, cy = dx + (centre[0] - lo[0]) * scale, dy + (top - centre[1]) * scale
-        body.append(f'<text x="{_fmt(cx)}" y="{_fmt(cy + 12)}" font-size="6" '
+        lo, top = pat.vertices.min(axis=0), pat.vertices[:, 1].max()
+        c = (dx + (centre[0] - lo[0]) * scale, dy + (top - centre[1]) * scale)
+        body.append(f'<text x="{_fmt(c[0])}" y="{_fmt(c[1] + 12)}" font-size="6" '
                     f'text-anchor="middle" fill="#000000">sheet {k + 1}</text>')
-        labels = pat.labels or tuple(str(i) for i in range(pat.n_vertices))
-        for a, p in enumerate(pat.vertices):
-            x = dx + (p[0] - lo[0]) * scale
-            y = dy + (top - p[1]) * scale
+        for a, q in enumerate(pat.vertices):
+            x, y = p[a]
             # put the mark outside the sheet, along the ray from its centre
-            ray = p - centre
+            ray = q - centre
             nrm = np.linalg.norm(ray)
             ox, oy = (ray / nrm * 6.0) if nrm > 0 else (0.0, 0.0)
-            text = labels[a] + ("=" + ",".join(marks[k][a]) if a in marks[k] else "")
+            text = _corner_text(pat, marks[k], a)
             if a in marks[k]:
                 body.append(f'<circle cx="{_fmt(x)}" cy="{_fmt(y)}" r="1.5" fill="#000000"/>')
+            side = ray[0] / nrm if nrm > 0 else 0.0  # right of the centre: text to the right
+            anchor = "start" if side > 0.5 else ("end" if side < -0.5 else "middle")
             body.append(f'<text x="{_fmt(x + ox)}" y="{_fmt(y - oy + 2)}" font-size="4" '
-                        f'text-anchor="middle" fill="#000000">{escape(text)}</text>')
-    data = _document(cols * cell + 2 * _MARGIN, rows * cell + 2 * _MARGIN, body,
-                     f"{model.name}: layout of {n} sheets")
-    return data, {"sheets": n, "lines": n_lines, "joins": marks}
+                        f'text-anchor="{anchor}" fill="#000000">{escape(text)}</text>')
+    legend, lh = _legend(2 * _MARGIN, bottom, width - 4 * _MARGIN, geom, table, n)
+    body += ['<g id="fold-angles">', *angles, "</g>"] + legend
+    height = bottom + _MARGIN + lh
+    data = _document(width, height, body, f"{model.name}: layout of {n} sheets, each "
+                                          f"{sheet_text(geom)}")
+    return data, {"sheets": n, "lines": n_lines, "joins": marks, "width_mm": float(width),
+                  "height_mm": float(height), **facts}
 
 
 def export_design(design, settings: dict) -> ExportResult:
-    """Crease pattern SVG (``<name>.svg``), or the layout of all sheets (``<name>_layout.svg``).
+    """Crease pattern SVG (``<name>.svg``, or the layout of all sheets ``<name>_layout.svg``)
+    and the cut-ready sheet(s) (``<name>_cut.svg``, :mod:`fabkit.export.svg_cut`).
 
     Raises
     ------
@@ -172,10 +441,22 @@ def export_design(design, settings: dict) -> ExportResult:
         No [fabrication.origami] table, bad settings, or a folding the simulator cannot do.
     """
     from ..fab.creases import fold_model, origami_model
+    from ..fab.creases.perforation import Perforation
+    from .svg_cut import cut_svg
 
     model = origami_model(design, (settings or {}).get("origami"))
     fold = fold_model(model, design.motion.drive, design.motion.to)
     data, report = render(model, fold)
     name = f"{design.name}.svg" if len(model.sheets) == 1 else f"{design.name}_layout.svg"
-    report.update(format=FORMAT, sheet_size_mm=model.sheet_size, file=name)
-    return ExportResult(files={name: data}, report=report)
+    if len(model.sheets) == 1:
+        w, h = np.ptp(model.sheets[0].pattern.vertices, axis=0) * model.scale
+        offsets, size = [(_MARGIN, _MARGIN)], (w + 2 * _MARGIN, h + 2 * _MARGIN)
+    else:
+        w, h, offsets = grid(model, _corner_chars(model, join_marks(model)))
+        size = (w, h)
+    cut, cut_report = cut_svg(realised_model(model, fold),
+                              Perforation.from_settings(model.settings), offsets, size)
+    cut_name = f"{design.name}_cut.svg"
+    report.update(format=FORMAT, sheet_size_mm=model.sheet_size, file=name, cut_file=cut_name,
+                  cut=cut_report)
+    return ExportResult(files={name: data, cut_name: cut}, report=report)

@@ -11,6 +11,8 @@ __all__ = ["tolerance_figure", "keep_chart"]
 
 #: Floor of the log-scale error plot (an exact zero has no logarithm).
 LOG_FLOOR = 1e-12
+#: Characters per line of the verdict over the three panels (8 pt on a 14 in figure).
+TITLE_CHARS = 190
 
 
 def _chart(ax, result: ToleranceResult) -> None:
@@ -70,8 +72,11 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
     """
     from ..viz import _mpl
 
+    import textwrap
+
     plt = _mpl()
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.4))
+    head = textwrap.wrap(f"{title + ': ' if title else ''}{result.verdict}", TITLE_CHARS)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2 + 0.16 * len(head)), layout="constrained")
     _chart(axes[0], result)
     ax = axes[1]
     judged = [(n, j) for n, j in result.judged.items() if n != "order"]
@@ -106,11 +111,10 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         shown = True
     if shown:
         ax.legend(fontsize=8)
-        ax.set_xlabel("module (state criteria) or port (port distances), along the chain")
+        ax.set_xlabel("module or port, along the chain")
         ax.set_ylabel("mm")
     else:
         ax.text(0.5, 0.5, "a single part", ha="center", va="center", transform=ax.transAxes)
     ax.set_title("along the chain", fontsize=10)
-    fig.suptitle(f"{title + ': ' if title else ''}{result.verdict}", fontsize=8, wrap=True)
-    fig.tight_layout()
+    fig.suptitle("\n".join(head), fontsize=8)
     return fig

@@ -1,0 +1,201 @@
+"""The assembly guide a person follows alone: an overview of how the pages join, how to build,
+every screw closed on exactly one page (the others name that page), hardware per page that adds
+up to the bill of materials, and the motion test's numbers; the kit's pictures split into rows
+where labels read."""
+
+from __future__ import annotations
+
+import io
+import re
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.export.dxf import bill_of_materials, laser_plan
+from fabkit.fab.guide import assembly_picture, guide_pages, motion_picture
+
+from conftest import TEMPLATES
+
+
+@pytest.fixture(scope="module")
+def chain():
+    design = fabkit.load_template(TEMPLATES / "super_stable_chain.toml")
+    plan = laser_plan(design)
+    bom = bill_of_materials(plan, [])
+    return plan, bom, guide_pages(plan, bom, pngs=True, check=True)
+
+
+def _text(guide, page: int) -> str:
+    return "\n".join(guide.texts[page - 1])
+
+
+def _stack_lines(text: str) -> dict:
+    """Joint → the parts of its stack line ("J5: B18(L0) / B8(L2,p3) / S5.5 ... | post ...")."""
+    out = {}
+    for m in re.finditer(r"^J(\d+): (.*?)\s+\| post ([\d.]+) mm", text, flags=re.M):
+        out[int(m.group(1))] = (m.group(2).split(" / "), float(m.group(3)))
+    return out
+
+
+def test_pages_overview_method_modules_and_motion_test(chain):
+    plan, bom, guide = chain
+    gp = guide.plan
+    assert guide.stats["pages"] == gp.n_pages == 15 == len(guide.texts) == len(guide.images)
+    assert [p.number for p in gp.pages] == list(range(3, 15))
+    assert [p.modules for p in gp.pages] == [(2 * k + 1, 2 * k + 2) for k in range(12)]
+    one = _text(guide, 1)
+    assert "page 1 of 15: overview" in one and "How the pages join" in one
+    # the chain as built is about 2.1 m long: its size, and a table long enough for it
+    w, h = gp.size_mm
+    assert 2100 < w < 2250 and 150 < h < 200
+    assert f"Built size {w:.0f} × {h:.0f} mm" in one
+    # every page is named in the overview with its modules, and what it leaves for the next
+    for p in gp.pages[:-1]:
+        assert re.search(rf"^p{p.number}: modules {p.modules[0]}-{p.modules[1]}; leaves .* "
+                         rf"loose for p{p.number + 1}$", one, flags=re.M)
+    two = _text(guide, 2)
+    assert "how to build" in two and "up from below" in two
+    assert "washers the page lists: on top, under the screw head" in two
+    assert "A LONG CHAIN, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
+    for k, im in enumerate(guide.images):  # A4 at 100 dpi
+        assert im[:8] == b"\x89PNG\r\n\x1a\n"
+        from PIL import Image
+
+        assert Image.open(io.BytesIO(im)).size == (827, 1169), k
+
+
+def test_every_stack_is_listed_whole_on_one_page_and_named_on_the_others(chain):
+    plan, bom, guide = chain
+    gp = guide.plan
+    stacks = {js.joint: js for js in plan.stacking.joints}
+    edges = np.asarray(plan.bars.edges)
+    listed = {}
+    for p in gp.pages:
+        text = _text(guide, p.number)
+        lines = _stack_lines(text)
+        assert set(lines) == set(p.closes)
+        for j, (parts, post) in lines.items():
+            assert j not in listed, f"J{j} listed on pages {listed[j]} and {p.number}"
+            listed[j] = p.number
+            js = stacks[j]
+            assert post == js.screw_length
+            # bottom to top: every layer from the lowest to the highest, a bar or a ring
+            assert len(parts) == max(js.layers) - min(js.layers) + 1
+            for z, b in zip(js.layers, js.bars):
+                own = gp.closing_page[j] == p.number and b in p.bars
+                want = f"B{b}(L{z})" if own else f"B{b}(L{z},p{p.bar_page[b]})"
+                assert parts[z - min(js.layers)] == want
+            for z in js.spacers:
+                assert parts[z - min(js.layers)] == f"S{j}.{z}"
+        # a joint this page's bars reach but another page closes: named with that page
+        reach = {int(j) for j in edges[np.asarray(p.bars)].ravel()} & set(stacks)
+        for j in reach - set(p.closes):
+            assert f"J{j}→p{gp.closing_page[j]}" in text
+            assert gp.closing_page[j] > p.number
+    assert set(listed) == set(stacks)
+    # the paper's chain: two modules meet at two screws, so each page but the last leaves two
+    assert [len(p.open_joints) for p in gp.pages] == [2] * 11 + [0]
+    assert sum(len(p.ghosts) for p in gp.pages) > 0
+
+
+def test_hardware_per_page_adds_up_to_the_bill_of_materials(chain):
+    plan, bom, guide = chain
+    per_name: dict = {}
+    for p in guide.plan.pages:
+        for name, n in p.hardware:
+            per_name[name] = per_name.get(name, 0) + n
+        text = _text(guide, p.number)
+        for name, n in p.hardware:
+            assert re.search(rf"^\s*{n} × {re.escape(name)}$", text, flags=re.M)
+    for s in bom["screws"]:
+        name = next(k for k in per_name if k.startswith(s["name"]) and
+                    f"{s['post_length_mm']:g} mm" in k)
+        assert per_name[name] == s["count"]
+    assert sum(s["count"] for s in bom["screws"]) == 74
+    washers = next(v for k, v in per_name.items() if k.startswith("washer"))
+    rings = next(v for k, v in per_name.items() if k.startswith("spacer ring"))
+    assert washers == bom["washers"]["count"] == 97
+    assert rings == bom["spacer_rings"]["count"] == 52
+    # and the overview lists the same totals
+    one = _text(guide, 1)
+    assert re.search(r"^\s*97 × washer", one, flags=re.M)
+    assert re.search(r"^\s*144 × bars", one, flags=re.M)
+
+
+def test_the_motion_test_says_what_to_push_from_what_to_what(chain):
+    plan, bom, guide = chain
+    m = guide.plan.motion
+    assert m.drive == "d1" and m.joints == (0, 1)
+    assert m.start_mm == pytest.approx(100 * np.sqrt(3), abs=1e-9)   # D1* = sqrt(3)
+    assert m.end_mm == pytest.approx(100.9950493837, abs=1e-6)       # D2* + 1e-12
+    text = _text(guide, 15)
+    assert "Push joints J0 and J1 together" in text
+    assert "d1 goes from 173.2 mm to 101.0 mm" in text
+    assert re.search(r"^\s+d1:\s+173\.2 →\s+101\.0 mm \(pushed\)", text, flags=re.M)
+    # the front runs from the pushed end: d2 ... d20 follow in order, d21 ... d25 stay open
+    assert m.order == "forward"
+    assert [p[0] for p in m.followers] == [f"d{k}" for k in range(2, 21)]
+    ends = {p[0]: p[2] for p in m.ports}
+    assert all(abs(ends[f"d{k}"] - 101.0) < 0.5 for k in range(2, 16))
+    assert ends["d25"] == pytest.approx(173.2, abs=0.1)
+    assert "one after another, starting next to d1" in text
+    # the pictures: start, the front a quarter, half, three quarters of the way, the end
+    assert [int(m.moved[f]) for f in m.frames] == [0, 5, 10, 15, 19]
+    assert "d1 = 173.21 mm (start): 0 of 19 following ports past half way" in text
+    assert "d1 = 101.00 mm (end): 19 of 19 following ports past half way" in text
+
+
+def test_labels_never_overlap_and_the_assembly_picture_is_split_into_rows(chain):
+    from PIL import Image
+
+    plan, bom, guide = chain
+    assert guide.stats["overlaps"] == 0 and guide.stats["dropped"] == 0
+    assert guide.stats["clipped"] == []  # every text fits on its page
+    png, stats = assembly_picture(plan, guide.plan)
+    assert stats["overlaps"] == 0 and stats["dropped"] == 0 and stats["clipped"] == []
+    # every bar once, every joint once, and the two joints where rows meet in both rows
+    assert stats["labels"] == 144 + 74 + 2 * (stats["rows"] - 1)
+    # 2.1 m cut into rows (never one squashed strip), at least 1.6 px per mm
+    assert stats["rows"] >= 3 and stats["px_per_mm"] >= 1.6
+    w, h = Image.open(io.BytesIO(png)).size
+    assert w == 1100 and h > 1000
+    png, stats = motion_picture(plan, guide.plan)
+    w, h = Image.open(io.BytesIO(png)).size
+    # five moments of the 2.1 m chain, each a full-width row, to one scale
+    assert w == 1100 and h >= 5 * 100 and stats["columns"] == 1 and stats["clipped"] == []
+
+
+def test_a_network_that_is_not_a_chain_is_one_page():
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    plan = laser_plan(design)
+    guide = guide_pages(plan, bill_of_materials(plan, []))
+    gp = guide.plan
+    assert gp.n_pages == 4 and len(gp.pages) == 1
+    page = gp.pages[0]
+    assert page.modules == () and page.open_joints == {} and page.ghosts == ()
+    assert set(page.closes) == {0, 1, 2, 3}
+    assert guide.stats["overlaps"] == 0 and guide.stats["dropped"] == 0
+    text = "\n".join(guide.texts[3])
+    assert "d1 goes from 200.0 mm to 300.0 mm" in text and "Pull joints J0 and J1 apart" in text
+    # a compact design's moments side by side (not four rows of 1.2 m each)
+    png, stats = motion_picture(plan, gp)
+    assert stats["columns"] >= 2 and stats["px_per_mm"] >= 1.6 and stats["clipped"] == []
+
+
+@pytest.mark.parametrize("name, order", [("slope_one_chain", "together"),
+                                         ("period_two_chain16", "backward"),
+                                         ("super_stable_chain8", "forward")])
+def test_the_motion_test_says_how_the_ports_follow(name, order):
+    from fabkit.fab.guide import guide_plan
+
+    plan = laser_plan(fabkit.load_template(TEMPLATES / f"{name}.toml"))
+    m = guide_plan(plan, bill_of_materials(plan, [])).motion
+    assert m.order == order
+    halves = np.array([p[3] for p in m.followers])
+    if order == "together":  # slope one: every port goes the drive's way, at the same time
+        assert np.ptp(halves) <= 2 and all(abs(p[2] - m.end_mm) < 0.1 for p in m.ports)
+    elif order == "backward":  # an expanding map: the far end moves first
+        assert halves[-1] < halves[0]
+    else:
+        assert np.all(np.diff(halves) >= 0)

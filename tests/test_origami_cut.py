@@ -1,0 +1,160 @@
+"""The cut-ready origami sheet: creases as perforations with their dash and gap in mm, stopping
+short of every vertex, mountain and valley on layers of their own, the outline as a cut; measured
+against the crease pattern SVG written with it."""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.export import export
+
+from conftest import TEMPLATES
+
+SVG = "{http://www.w3.org/2000/svg}"
+INK = "{http://www.inkscape.org/namespaces/inkscape}"
+#: Coordinates are written with 4 decimals.
+ROUND = 2e-4
+
+
+@pytest.fixture(scope="module")
+def design():
+    return fabkit.load_template(TEMPLATES / "origami_sheet.toml")
+
+
+def _write(design, folder, **origami):
+    _, report = export(design, "svg", folder, **({"origami": origami} if origami else {}))
+    return report
+
+
+def _cuts(path_d: str) -> np.ndarray:
+    """(K, 2, 2) segments of a path of 'M x y L x y' cuts."""
+    nums = [float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", path_d)]
+    assert path_d.count("M") == path_d.count("L") == len(nums) // 4
+    return np.array(nums).reshape(-1, 2, 2)
+
+
+def _layers(root):
+    return {g.get("id"): g for g in root.findall(f"{SVG}g")}
+
+
+def _creases(folder, name):
+    """Crease lines of the crease-pattern SVG by colour: (a, b) endpoints in drawing mm."""
+    root = ET.parse(folder / name).getroot()
+    out = {}
+    for ln in root.findall(f"{SVG}line"):
+        p = np.array([[float(ln.get("x1")), float(ln.get("y1"))],
+                      [float(ln.get("x2")), float(ln.get("y2"))]])
+        out.setdefault(ln.get("stroke"), []).append(p)
+    return out
+
+
+def _on(seg, crease, tol=1e-3):
+    """A cut lies on the crease's line, between its ends."""
+    a, b = crease
+    u = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-u[1], u[0]])
+    return all(abs(np.dot(p - a, n)) < tol and -tol <= np.dot(p - a, u) <= np.linalg.norm(b - a)
+               + tol for p in seg)
+
+
+def test_layers_in_cutting_order_with_their_perforation(design, tmp_path):
+    report = _write(design, tmp_path)
+    root = ET.parse(tmp_path / "origami_sheet_cut.svg").getroot()
+    assert root.get("width") == "170mm" and root.get("viewBox") == "0 0 170 170"
+    groups = root.findall(f"{SVG}g")
+    assert [g.get("id") for g in groups] == ["valley-perforations", "mountain-perforations",
+                                            "outline"]
+    assert all(g.get(f"{INK}groupmode") == "layer" for g in groups)
+    assert groups[0].get(f"{INK}label") == "valley perforations (2 mm cut, 1 mm gap)"
+    colours = [g.find(f"{SVG}path").get("stroke") for g in groups]
+    assert colours == ["#0000ff", "#ff0000", "#000000"]
+    assert not root.findall(f".//{SVG}text")  # nothing a cutter would cut as letters
+    assert report["cut_file"] == "origami_sheet_cut.svg"
+    assert report["cut"]["perforation"] == {"dash_mm": 2.0, "gap_mm": 1.0, "stop_mm": 3.0}
+
+
+def test_perforations_stop_short_of_every_vertex(design, tmp_path):
+    report = _write(design, tmp_path)
+    creases = _creases(tmp_path, "origami_sheet.svg")
+    root = ET.parse(tmp_path / "origami_sheet_cut.svg").getroot()
+    layers = _layers(root)
+    vertices = np.unique(np.round(np.concatenate([np.concatenate(v) for v in creases.values()]),
+                                  4), axis=0)
+    assert len(vertices) == 5  # A, B, C, D and P
+    for layer, colour, n_creases in (("valley-perforations", "#0000ff", 3),
+                                     ("mountain-perforations", "#ff0000", 1)):
+        cuts = _cuts(layers[layer].find(f"{SVG}path").get("d"))
+        lines = creases[colour]
+        assert len(lines) == n_creases
+        # every cut is 2 mm long and lies on a crease of its own kind
+        assert np.allclose(np.linalg.norm(cuts[:, 1] - cuts[:, 0], axis=1), 2.0, atol=ROUND)
+        owner = [next(k for k, c in enumerate(lines) if _on(s, c)) for s in cuts]
+        for k, (a, b) in enumerate(lines):
+            mine = cuts[np.array(owner) == k]
+            u = (b - a) / np.linalg.norm(b - a)
+            t = np.sort(np.concatenate([mine @ u]) - a @ u, axis=1)
+            t = t[np.argsort(t[:, 0])]
+            # 1 mm of paper between consecutive cuts
+            assert np.allclose(t[1:, 0] - t[:-1, 1], 1.0, atol=ROUND)
+            # and at least 3 mm whole at both ends, at most half a period more
+            length = np.linalg.norm(b - a)
+            ends = [t[0, 0], length - t[-1, 1]]
+            assert min(ends) >= 3.0 - ROUND and max(ends) <= 3.0 + 1.5 + ROUND
+            assert abs(ends[0] - ends[1]) < ROUND  # centred
+        # no cut comes within 3 mm of any vertex (the crease vertex P included)
+        p = vertices[:, None, None, :]
+        a, b = cuts[None, :, 0][:, :, None], cuts[None, :, 1][:, :, None]
+        ab = b - a
+        tt = np.clip(np.sum((p - a) * ab, -1) / np.sum(ab * ab, -1), 0, 1)
+        gap = np.linalg.norm(p - (a + tt[..., None] * ab), axis=-1).min()
+        assert gap >= 3.0 - ROUND
+    assert report["cut"]["closest_cut_to_a_vertex_mm"] == pytest.approx(3.0165, abs=1e-3)
+
+
+def test_the_outline_is_one_closed_cut_around_the_sheet(design, tmp_path):
+    _write(design, tmp_path)
+    creases = _creases(tmp_path, "origami_sheet.svg")
+    root = ET.parse(tmp_path / "origami_sheet_cut.svg").getroot()
+    d = _layers(root)["outline"].find(f"{SVG}path").get("d")
+    assert d.startswith("M") and d.endswith("Z") and d.count("M") == 1
+    corners = np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", d)]).reshape(-1, 2)
+    assert len(corners) == 4
+    sides = np.linalg.norm(np.roll(corners, -1, axis=0) - corners, axis=1)
+    assert np.allclose(sides, 150 / np.sqrt(2), atol=1e-3)  # the 106.07 mm square
+    edges = np.concatenate(creases["#000000"])
+    assert all(np.min(np.linalg.norm(edges - c, axis=1)) < 1e-3 for c in corners)
+
+
+def test_dash_gap_and_stop_are_settings_and_short_creases_are_named(design, tmp_path):
+    report = _write(design, tmp_path / "a", perforation_dash=5.0, perforation_gap=2.0,
+                    perforation_stop=8.0)
+    root = ET.parse(tmp_path / "a" / "origami_sheet_cut.svg").getroot()
+    cuts = _cuts(_layers(root)["valley-perforations"].find(f"{SVG}path").get("d"))
+    assert np.allclose(np.linalg.norm(cuts[:, 1] - cuts[:, 0], axis=1), 5.0, atol=ROUND)
+    assert report["cut"]["closest_cut_to_a_vertex_mm"] >= 8.0
+    # B-P is 53.0 mm: with 30 mm left whole at both ends there is no room for a 5 mm cut
+    report = _write(design, tmp_path / "b", perforation_dash=5.0, perforation_stop=30.0)
+    assert report["cut"]["short_creases"] == ["B–P"]
+    with pytest.raises(fabkit.SettingsError, match=r"origami.perforation_stop: must be > 0"):
+        _write(design, tmp_path / "c", perforation_stop=0.0)
+    assert not (tmp_path / "c").exists()
+
+
+def test_a_chain_of_sheets_is_cut_sheet_by_sheet(tmp_path):
+    chain = fabkit.load_template(TEMPLATES / "origami_chain12.toml")
+    report = _write(chain, tmp_path)
+    root = ET.parse(tmp_path / "origami_chain12_cut.svg").getroot()
+    d = _layers(root)["outline"].find(f"{SVG}path").get("d")
+    assert d.count("M") == d.count("Z") == 12
+    assert report["cut"]["cuts"]["outline"] == 12
+    assert report["cut"]["closest_cut_to_a_vertex_mm"] >= 3.0
+    # the same sheets as the layout, at the same places
+    layout = _creases(tmp_path, "origami_chain12_layout.svg")
+    corners = np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", d)]).reshape(-1, 2)
+    edges = np.concatenate(layout["#000000"])
+    assert all(np.min(np.linalg.norm(edges - c, axis=1)) < 1e-3 for c in corners)
