@@ -85,6 +85,9 @@ class Outcome(str, Enum):
     OK = "ok"                      #: every file written and every as-built check passed
     FAILED = "failed"              #: nothing written: bad template, impossible motion, refusal
     CHECK_FAILED = "check failed"  #: files written, but an as-built check failed
+    #: a format asked for (``--to``) cannot be produced: report.json names it ``refused`` with
+    #: the reason; the formats that could be made are written
+    REFUSED = "refused"
     INTERRUPTED = "interrupted"    #: stopped by a signal before it finished; nothing written
 
     def __str__(self) -> str:
@@ -99,6 +102,9 @@ class FormatStatus(str, Enum):
     DOES_NOT_APPLY = "does not apply"
     NOT_AVAILABLE = "not available"
     SKIPPED = "skipped by the template"
+    #: asked for by name and cannot be produced (it does not apply, the template opts out, or
+    #: it is not installed): the design fails with the reason in ``detail``
+    REFUSED = "refused"
 
     def __str__(self) -> str:
         return self.value
@@ -424,31 +430,47 @@ def load_exporter(fmt: str, exporters: dict):
         raise UnavailableError(f"export format {fmt!r}", str(exc)) from None
 
 
+def _not_applicable(fmt: str, module) -> str:
+    """Why a format does not apply: the exporter's ``NOT_APPLICABLE``, else its rule."""
+    why = getattr(module, "NOT_APPLICABLE", None)
+    if why:
+        return str(why)
+    rule = (getattr(module.applies, "__doc__", None) or "").strip().splitlines()
+    return f"{fmt} does not apply to this design" + (
+        f" (the exporter's rule: {rule[0].rstrip('.')})" if rule else "")
+
+
 def choose_formats(design, formats, exporters) -> tuple[list, dict]:
     """The format modules to run for a design, and the FormatResults of those not run.
 
     The one place that decides which formats a design gets: asked for (``formats``) or every
-    registered one that ``applies(design)`` and that the template does not opt out of.
+    registered one that ``applies(design)`` and that the template does not opt out of. A format
+    asked for by name that cannot be produced is :attr:`FormatStatus.REFUSED` with the reason;
+    without ``formats`` those that do not apply are listed as such.
     """
     from .export import skip_reason
 
+    asked = formats is not None
     chosen, skipped = [], {}
-    for fmt in (formats if formats is not None else list(exporters)):
+    for fmt in (formats if asked else list(exporters)):
         try:
             module = load_exporter(fmt, exporters)
         except UnavailableError as exc:
-            if formats is not None:
-                raise
-            skipped[fmt] = FormatResult(fmt, FormatStatus.NOT_AVAILABLE, detail=str(exc))
+            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
+                                        else FormatStatus.NOT_AVAILABLE, detail=str(exc))
             continue
         applies = getattr(module, "applies", None)
         if applies is not None and not applies(design):
-            if formats is not None:
-                skipped[fmt] = FormatResult(fmt, FormatStatus.DOES_NOT_APPLY)
+            skipped[fmt] = (FormatResult(fmt, FormatStatus.REFUSED,
+                                         detail=_not_applicable(fmt, module)) if asked
+                            else FormatResult(fmt, FormatStatus.DOES_NOT_APPLY))
             continue
         reason = skip_reason(design, fmt)
         if reason is not None:  # the template opts out of this format and says why
-            skipped[fmt] = FormatResult(fmt, FormatStatus.SKIPPED, detail=reason)
+            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
+                                        else FormatStatus.SKIPPED,
+                                        detail=f"the template opts out: {reason}" if asked
+                                        else reason)
             continue
         chosen.append((fmt, module))
     return chosen, skipped
@@ -889,8 +911,13 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                 if not chk.ok:
                     fmts[fmt].status = FormatStatus.CHECK_FAILED
                     outcome = Outcome.CHECK_FAILED
+        refused = [f"{f}: {v.detail}" for f, v in fmts.items()
+                   if v.status is FormatStatus.REFUSED]
+        if refused:  # asked for and not made: a failure with its reason, never "ok"
+            outcome = Outcome.REFUSED
         names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
         report = _report_dict(facts, fmts, outcome, names)
+        report["errors"] = [f"{line} (format refused)" for line in refused]
         write_atomic(stage_dir / "report.md", report_markdown(report))
         write_atomic(stage_dir / "report.json", report_json(report))
         write_design_report(stage_dir, design)  # report.html: from report.json and the files
@@ -901,7 +928,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             res.staged = str(stage_dir)
         stage_dir = None
         res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
-        if outcome is Outcome.CHECK_FAILED:
+        if outcome is Outcome.REFUSED:
+            res.error = f"{path}: cannot produce {'; '.join(refused)}"
+            res.error_code = "refused"
+        elif outcome is Outcome.CHECK_FAILED:
             bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
             res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
                          f"(see {folder / 'report.md'})")

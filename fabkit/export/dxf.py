@@ -46,6 +46,10 @@ LAYERS = {"CUT": 1, "CUT_INNER": 5, "ENGRAVE": 7, "REFERENCE": 3}
 APPID = "FABKIT"
 
 
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to dxf``).
+NOT_APPLICABLE = ("laser-cut bars need a planar (2D) network; this design is 3D: fold it (svg, "
+                  "fold) or print it")
+
 def applies(design) -> bool:
     """Laser-cut bars need a planar network."""
     return design.network.dim == 2

@@ -32,6 +32,11 @@ COLOURS = {"B": "#000000", "M": "#ff0000", "V": "#0000ff", "C": "#00ff00", "F": 
 _MARGIN = 10.0  # mm around each sheet
 
 
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to svg``).
+NOT_APPLICABLE = ("a crease pattern needs a [fabrication.origami] table (mountain/valley "
+                  "assignment); this design has none: cut it (dxf) or print it (stl)")
+
+
 def applies(design) -> bool:
     """True when the template has a ``[fabrication.origami]`` table."""
     fab = getattr(design, "fabrication", None)
