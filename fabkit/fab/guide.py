@@ -161,9 +161,7 @@ def guide_pages(plan, *, dpi: int = 100):
                 at = dict(zip(js.layers, js.bars))
                 seq = " / ".join(f"B{at[z]}(L{z})" if z in at else f"S{j}.{z}"
                                  for z in range(min(js.layers), max(js.layers) + 1))
-                wash = f" + {js.washers} washer{'s' if js.washers != 1 else ''}" \
-                    if js.washers else ""
-                rows.append(f"J{j}: {seq}   |  screw {js.screw_length:g} mm{wash}")
+                rows.append(f"J{j}: {seq}   |  {js.fastener.describe()}")
             ncol = 2 if len(rows) > 18 else 1
             per = int(np.ceil(len(rows) / ncol)) if rows else 0
             fig.text(0.06, 0.335, "Stack at each screw, bottom to top (spacer = ring "
