@@ -195,7 +195,28 @@ def check_documents(texts: dict, design=None, settings=None) -> dict:
             checks.append(_check("readable", False, name, None, f"{name}: {exc}"))
     if checks:
         return {"ok": False, "checks": checks, "files": sorted(texts)}
-    return _check_docs(docs, design, settings)
+    return _check_groups(docs, design, settings)
+
+
+def _check_groups(docs: dict, design, settings) -> dict:
+    """The kit's sheets, its uncompensated copy and its coupon are checked each on their own
+    when given together; the first group's result carries the others' checks, prefixed."""
+    groups: dict[str, dict] = {}
+    for name, doc in docs.items():
+        head = {k: v for k, v in doc.header.custom_vars}
+        kind = "coupon" if "FABKIT_COUPON" in head else head.get("FABKIT_VARIANT", "")
+        groups.setdefault(kind, {})[name] = doc
+    if len(groups) <= 1:
+        return _check_docs(docs, design, settings)
+    main, *rest = sorted(groups)   # the kit's own sheets ("") first
+    out = _check_docs(groups[main], design, settings)
+    for kind in rest:
+        other = _check_docs(groups[kind], design, settings)
+        out["checks"] = out["checks"] + [{**c, "name": f"{kind}: {c['name']}"}
+                                         for c in other["checks"]]
+        out["ok"] = bool(out["ok"] and other["ok"])
+        out["files"] = sorted([*out["files"], *other["files"]])
+    return out
 
 
 def _check_docs(docs: dict, design, settings) -> dict:

@@ -394,8 +394,8 @@ def bom_markdown(bom: dict) -> str:
     sh = buy["sheets"]
     lines = [f"# Laser-cut kit: {bom['design']}", "",
              f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
-             f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}, "
-             f"{bom['layers']['depth_mm']:g} mm deep.", "",
+             f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}. The "
+             f"stack is {bom['layers']['depth_mm']:g} mm deep.", "",
              f"**Kerf: {bom['kerf']['note']}.**", "",
              "## What to buy", "",
              f"- {sh['material']}, {sh['thickness_mm']:g} mm thick, "

@@ -663,6 +663,21 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
                     layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
                 bound = max(bound, milp_bound)
         proven = not viol and k == bound
+    if viol:
+        x0 = sweep.positions[0][conf.screw_joints]
+        d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
+        np.fill_diagonal(d0, np.inf)
+        i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
+        where = (f"up to {_DEEP_LAYERS} layers" if deep is not None else
+                 f"max_layers = {s.max_layers}")
+        if d0.size and d0[i, j] < 2 * column_radius:
+            ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
+            raise FabricationError(
+                f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
+                f"two screw heads ({2 * column_radius:g} mm), and no stacking within {where} "
+                f"separates their screws (at least {bound if deep is None else deep.bound} "
+                "layers needed); merge them in the design, or for chains of modules try "
+                "mirror = \"alternate\"")
     if viol and deep is not None:
         fewer = ("fewer are ruled out by complete search" if deep.bound > clique else
                  "the largest clique of the conflict graph")
@@ -671,17 +686,6 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             f"{deep.bound} are needed ({fewer}): "
             + _violation_message(layer, joint_bars, conf, head, edges))
     if viol:
-        x0 = sweep.positions[0][conf.screw_joints]
-        d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
-        np.fill_diagonal(d0, np.inf)
-        i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
-        if d0.size and d0[i, j] < 2 * column_radius:
-            ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
-            raise FabricationError(
-                f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
-                f"two screw heads ({2 * column_radius:g} mm), and no stacking within "
-                f"max_layers = {s.max_layers} separates their screws; merge them in the "
-                "design, or for chains of modules try mirror = \"alternate\"")
         if bound > s.max_layers:
             raise FabricationError(
                 f"every stacking of these bars needs at least {bound} layers (proven by exact "
