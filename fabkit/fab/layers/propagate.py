@@ -33,6 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .constants import _DEEP_NODES, _DEEP_TOTAL_NODES
+
 __all__ = ["DeepSearch", "deep_search", "propagate_layers", "PROPAGATE_BARS"]
 
 #: Largest kit searched this way (each branch scans every bar for the one to place next).
@@ -60,6 +62,14 @@ class DeepSearch:
     bound: int
     nodes: int
     tried: tuple
+
+
+def _popcount(v: int) -> int:
+    return bin(v).count("1")
+
+
+if hasattr(int, "bit_count"):  # Python >= 3.10
+    _popcount = int.bit_count  # noqa: F811
 
 
 class _Rules:
@@ -94,7 +104,7 @@ class _Rules:
                              for j in self.joints_of[b]) for b in range(self.n)]
 
 
-def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=20_000):
+def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=_DEEP_NODES):
     """A stacking with at most ``layers`` layers meeting every rule, by complete search.
 
     Parameters
@@ -209,23 +219,21 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
 
     nodes = [0]
 
+    degree = rules.degree
+
     def solve(dom, z, lo, hi):
         nodes[0] += 1
         if nodes[0] > node_limit:
             return None
-        best, key = -1, None
-        for b in range(n):
-            if z[b] < 0:
-                k = (bin(dom[b]).count("1") / weight[b], -rules.degree[b], b)
-                if key is None or k < key:
-                    best, key = b, k
-        if best < 0:
+        free = [b for b in range(n) if z[b] < 0]
+        if not free:
             return list(z)
+        best = min(free, key=lambda b: (_popcount(dom[b]) / weight[b], -degree[b], b))
         d = dom[best]
         values = sorted((v for v in range(K) if (d >> v) & 1),
                         key=lambda v: (added_span(lo, hi, best, v), v))
         for v in values:
-            d2, z2, lo2, hi2 = list(dom), list(z), dict(lo), dict(hi)
+            d2, z2, lo2, hi2 = dom[:], z[:], lo[:], hi[:]
             if assign(d2, z2, lo2, hi2, best, v):
                 found = solve(d2, z2, lo2, hi2)
                 if found is not None:
@@ -236,8 +244,9 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
 
     dom = [full] * n
     z = [-1] * n
-    lo = {j: None for j in bars_at}
-    hi = {j: None for j in bars_at}
+    n_joints = max(bars_at, default=-1) + 1
+    lo = [None] * n_joints   # lowest and highest layer of the bars placed at each joint
+    hi = [None] * n_joints
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, n + 200))  # one frame per bar placed
     try:
@@ -249,8 +258,8 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     return None, nodes[0], nodes[0] <= node_limit
 
 
-def deep_search(n_bars, conf, joint_bars, head, counts, *, node_limit=20_000,
-                total_limit=120_000) -> DeepSearch:
+def deep_search(n_bars, conf, joint_bars, head, counts, *, node_limit=_DEEP_NODES,
+                total_limit=_DEEP_TOTAL_NODES) -> DeepSearch:
     """The fewest layers among ``counts`` (ascending) for which a stacking exists.
 
     ``counts[0]`` must itself be a proven lower bound (the largest clique of the conflict
