@@ -31,6 +31,13 @@ def _kit(name):
     assert {f"laser_sheet{k}.{x}" for k in range(1, n + 1) for x in ("dxf", "svg")} <= names
     assert {"laser_bom.json", "laser_bom.md", "laser_guide.pdf", "laser_coupon.dxf",
             "laser_coupon.svg", "laser_coupon.md"} <= names
+    # the kerf stated where a cutter reads it, the coupon drawn as the kit's parts
+    assert "do not compensate kerf again" in bom["kerf"]["note"]
+    assert b"do not compensate kerf again" in result.files["laser_sheet1.dxf"]
+    assert b"do not compensate kerf again" in result.files["laser_coupon.dxf"]
+    coupon = check_documents({"laser_coupon.dxf": result.files["laser_coupon.dxf"].decode()},
+                             design=design)
+    assert coupon["ok"] and coupon["coupon"]
     return design, bom, check, {c["name"]: c for c in check["checks"]}
 
 
