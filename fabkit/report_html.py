@@ -567,12 +567,14 @@ def _exported(report: dict, proc: str) -> bool:
 
 def not_exported(report: dict) -> list:
     """Why each format that was tried wrote nothing: ``["dxf: skipped by the template – …"]``."""
-    out = []
+    out, never = [], []
     for fmt, f in sorted((report.get("formats") or {}).items()):
-        if f.get("status") != "exported":
+        if f.get("status") == "does not apply":
+            never.append(f"{fmt}: does not apply")  # said only when nothing else explains it
+        elif f.get("status") != "exported":
             out.append(f"{fmt}: {f.get('status', '')}" + (f" – {f['detail']}" if f.get("detail")
                                                           else ""))
-    return out
+    return out or never
 
 
 def _link(name: str) -> str:

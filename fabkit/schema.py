@@ -110,6 +110,13 @@ class LaserSection(Section):
     reference_square: Optional[Literal[REFERENCE_SQUARES]] = Field(
         None, description="100 mm square on the first sheet")
     max_layers: Optional[int] = Field(None, ge=1, description="most stacking layers accepted")
+    motion_from: Optional[float] = _mm("drive value where the kit's motion starts (a state "
+                                       "along the design's motion; default: its start)", gt=0)
+    motion_to: Optional[float] = _mm("drive value where the kit's motion ends (default: "
+                                     "motion.to)", gt=0)
+    uncompensated: Optional[bool] = Field(
+        None, description="also write the sheets drawn at true size (kerf not applied), for a "
+                          "cutting service that compensates kerf itself")
 
 
 # --- print ------------------------------------------------------------------------------------

@@ -47,6 +47,7 @@ def test_files_written(exported, key):
     n = len(report["sheets"])
     assert names == sorted(["laser_assembly.png", "laser_bom.json", "laser_bom.md",
                             "laser_layers_motion.png", "laser_guide.pdf", "laser_guide_page1.png",
+                            "laser_coupon.dxf", "laser_coupon.svg", "laser_coupon.md",
                             *[f"laser_sheet{k}.dxf" for k in range(1, n + 1)],
                             *[f"laser_sheet{k}.svg" for k in range(1, n + 1)]])
     for p in paths:

@@ -15,8 +15,10 @@ from fabkit.kinematics.constructive import place, plan_construction
 
 from conftest import TEMPLATES
 
-#: Templates that opt out of DXF, each with a physical reason and a fix the user can apply.
-OPT_OUT = {"fixed_point_chain8", "curvature_chain", "physical_fourbar_chain", "and_gate"}
+#: Templates that opt out of DXF, each with a physical reason and a fix the user can apply:
+#: none since deep stacks are held by the catalogue's fasteners and a kit may cover part of a
+#: motion (tests/test_laser_deep_kits.py builds the four that used to opt out).
+OPT_OUT: set = set()
 
 
 def _planar_templates():
@@ -30,7 +32,7 @@ def _planar_templates():
 
 def test_every_planar_template_exports_dxf_or_states_a_reason_with_a_fix():
     planar = _planar_templates()
-    assert len(planar) >= 20
+    assert len(planar) >= 24
     skipped = {name: skip_reason(d, "dxf") for name, d in planar if skip_reason(d, "dxf")}
     assert set(skipped) == OPT_OUT
     for name, reason in skipped.items():
@@ -203,3 +205,68 @@ def test_chain_sampling_does_not_grow_with_the_chain(tmp_path):
     per_a = a.conflicts.pairs.shape[0] / 12
     per_b = b.conflicts.pairs.shape[0] / 60
     assert abs(per_a - per_b) / per_b < 0.1
+
+
+# -- parts as sold ----------------------------------------------------------------------------
+
+def test_every_bom_part_of_the_chain_is_a_catalogue_part(chain24):
+    from fabkit.fab.hardware import CATALOGUE, PINS, WASHER_CLEARANCE, WASHERS, spares
+
+    _, result = chain24
+    bom = json.loads(result.files["laser_bom.json"])
+    hardware = bom["buy"]["hardware"]
+    assert {h["kind"] for h in hardware} == {"chicago screw", "washer"}
+    screw = CATALOGUE[bom["settings"]["screw"]["name"]]
+    used = {}
+    for h in hardware:
+        assert h["order"] == h["count"] + h["spares"] and h["spares"] == spares(h["count"])
+        if h["kind"] == "chicago screw":
+            # a post length the series is sold in, named with barrel, head, length, material
+            assert h["post_length_mm"] in screw.lengths
+            assert h["barrel_diameter_mm"] == screw.barrel_diameter == 4.0
+            assert h["head_diameter_mm"] == screw.head_diameter == 8.5
+            assert h["description"] == (
+                f"Chicago screw (sex bolt) M3, barrel 4 mm, head 8.5 mm, post length "
+                f"{h['post_length_mm']:g} mm, stainless steel A2")
+            used[h["post_length_mm"]] = h["count"]
+        else:
+            w = WASHERS[h["washer"]]
+            assert (h["inner_diameter_mm"], h["outer_diameter_mm"], h["thickness_mm"]) == \
+                (w.inner, w.outer, w.thickness) == (4.3, 8.0, 0.5)
+            # over the 4.0 mm barrel with clearance: not the M3 washer's 3.2 mm hole
+            assert h["inner_diameter_mm"] >= h["over_mm"] + WASHER_CLEARANCE == 4.2
+            assert h["count"] == bom["washers"]["count"] == sum(j["washers"] for j in bom["joints"])
+    # every joint's screw is on the list, counted once
+    assert sum(used.values()) == len(bom["joints"]) == 74
+    for j in bom["joints"]:
+        assert j["screw_length_mm"] in used
+    assert not PINS.keys() & {h.get("pin") for h in hardware}
+    sheets = bom["buy"]["sheets"]
+    assert sheets["count"] == len(bom["sheets"]) == 2 and sheets["size_mm"] == [600.0, 400.0]
+    assert sheets["thickness_mm"] == 3.0 and "acrylic" in sheets["material"]
+    md = result.files["laser_bom.md"].decode()
+    assert "## What to buy" in md and "600 x 400 mm: 2 sheet(s) + 1 spare" in md
+    assert "M3 washer" not in md and "(M3)" not in md
+
+
+def test_the_chain_states_its_kerf_in_every_file_a_cutter_reads(chain24):
+    import io
+
+    import ezdxf
+
+    _, result = chain24
+    note = ("kerf 0.15 mm already applied: outlines grown and holes shrunk by 0.075 mm; cut on "
+            "the line, do not compensate kerf again")
+    for name in [n for n in result.files if n.endswith(".dxf")]:
+        doc = ezdxf.read(io.StringIO(result.files[name].decode("ascii")))
+        head = dict(doc.header.custom_vars)
+        assert head["FABKIT_KERF"] == "0.15" and head["FABKIT_KERF_NOTE"] == note, name
+    for name in [n for n in result.files if n.endswith(".svg")]:
+        text = result.files[name].decode()
+        assert f'<desc id="kerf">{note.capitalize()}.</desc>' in text, name
+        assert 'mm="0.15" applied="true"' in text
+    bom = json.loads(result.files["laser_bom.json"])
+    assert bom["kerf"] == {"kerf_mm": 0.15, "applied": True, "note": note,
+                           "uncompensated_files": []}
+    assert f"**Kerf: {note}.**" in result.files["laser_bom.md"].decode()
+    assert {"laser_coupon.dxf", "laser_coupon.svg", "laser_coupon.md"} <= set(result.files)

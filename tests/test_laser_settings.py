@@ -58,7 +58,8 @@ def test_screw_catalogue_entries_and_overrides():
     ({"kerff": 0.1}, "fabrication.laser.kerff: unknown key; known: bar_width, clearance"),
     ({"min_web": -5}, "min_web: must be >= 0, got -5"),
     ({"screw": {"name": "M5-chicgo"}}, "unknown screw 'M5-chicgo'; catalogue entries: "
-                                       "M3-chicago, M4-chicago, M5-chicago; a screw of your own "
+                                       "M3-chicago, M4-chicago, M5-chicago, inch-chicago; a screw "
+                                       "of your own "
                                        "needs every size"),
     ({"sheet_width": 90}, "cannot hold the 100 mm reference square"),
     ({"scale": 10, "size": 100}, "either laser scale"),

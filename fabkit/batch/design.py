@@ -100,8 +100,13 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                 if not chk.ok:
                     fmts[fmt].status = FormatStatus.CHECK_FAILED
                     outcome = Outcome.CHECK_FAILED
+        refused = [f"{f}: {v.detail}" for f, v in fmts.items()
+                   if v.status is FormatStatus.REFUSED]
+        if refused:  # asked for and not made: a failure with its reason, never "ok"
+            outcome = Outcome.REFUSED
         names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
         report = _report_dict(facts, fmts, outcome, names)
+        report["errors"] = [f"{line} (format refused)" for line in refused]
         write_atomic(stage_dir / "report.md", report_markdown(report))
         write_atomic(stage_dir / "report.json", report_json(report))
         write_design_report(stage_dir, design)  # report.html: from report.json and the files
@@ -112,7 +117,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             res.staged = str(stage_dir)
         stage_dir = None
         res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
-        if outcome is Outcome.CHECK_FAILED:
+        if outcome is Outcome.REFUSED:
+            res.error = f"{path}: cannot produce {'; '.join(refused)}"
+            res.error_code = "refused"
+        elif outcome is Outcome.CHECK_FAILED:
             bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
             res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
                          f"(see {folder / 'report.md'})")

@@ -55,31 +55,47 @@ def load_exporter(fmt: str, exporters: dict):
         raise UnavailableError(f"export format {fmt!r}", str(exc)) from None
 
 
+def _not_applicable(fmt: str, module) -> str:
+    """Why a format does not apply: the exporter's ``NOT_APPLICABLE``, else its rule."""
+    why = getattr(module, "NOT_APPLICABLE", None)
+    if why:
+        return str(why)
+    rule = (getattr(module.applies, "__doc__", None) or "").strip().splitlines()
+    return f"{fmt} does not apply to this design" + (
+        f" (the exporter's rule: {rule[0].rstrip('.')})" if rule else "")
+
+
 def choose_formats(design, formats, exporters) -> tuple[list, dict]:
     """The format modules to run for a design, and the FormatResults of those not run.
 
     The one place that decides which formats a design gets: asked for (``formats``) or every
-    registered one that ``applies(design)`` and that the template does not opt out of.
+    registered one that ``applies(design)`` and that the template does not opt out of. A format
+    asked for by name that cannot be produced is :attr:`FormatStatus.REFUSED` with the reason;
+    without ``formats`` those that do not apply are listed as such.
     """
     from ..export import skip_reason
 
+    asked = formats is not None
     chosen, skipped = [], {}
-    for fmt in (formats if formats is not None else list(exporters)):
+    for fmt in (formats if asked else list(exporters)):
         try:
             module = load_exporter(fmt, exporters)
         except UnavailableError as exc:
-            if formats is not None:
-                raise
-            skipped[fmt] = FormatResult(fmt, FormatStatus.NOT_AVAILABLE, detail=str(exc))
+            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
+                                        else FormatStatus.NOT_AVAILABLE, detail=str(exc))
             continue
         applies = getattr(module, "applies", None)
         if applies is not None and not applies(design):
-            if formats is not None:
-                skipped[fmt] = FormatResult(fmt, FormatStatus.DOES_NOT_APPLY)
+            skipped[fmt] = (FormatResult(fmt, FormatStatus.REFUSED,
+                                         detail=_not_applicable(fmt, module)) if asked
+                            else FormatResult(fmt, FormatStatus.DOES_NOT_APPLY))
             continue
         reason = skip_reason(design, fmt)
         if reason is not None:  # the template opts out of this format and says why
-            skipped[fmt] = FormatResult(fmt, FormatStatus.SKIPPED, detail=reason)
+            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
+                                        else FormatStatus.SKIPPED,
+                                        detail=f"the template opts out: {reason}" if asked
+                                        else reason)
             continue
         chosen.append((fmt, module))
     return chosen, skipped

@@ -13,6 +13,9 @@ class Outcome(str, Enum):
     OK = "ok"                      #: every file written and every as-built check passed
     FAILED = "failed"              #: nothing written: bad template, impossible motion, refusal
     CHECK_FAILED = "check failed"  #: files written, but an as-built check failed
+    #: a format asked for (``--to``) cannot be produced: report.json names it ``refused`` with
+    #: the reason; the formats that could be made are written
+    REFUSED = "refused"
     INTERRUPTED = "interrupted"    #: stopped by a signal before it finished; nothing written
 
     def __str__(self) -> str:
@@ -27,6 +30,9 @@ class FormatStatus(str, Enum):
     DOES_NOT_APPLY = "does not apply"
     NOT_AVAILABLE = "not available"
     SKIPPED = "skipped by the template"
+    #: asked for by name and cannot be produced (it does not apply, the template opts out, or
+    #: it is not installed): the design fails with the reason in ``detail``
+    REFUSED = "refused"
 
     def __str__(self) -> str:
         return self.value

@@ -195,7 +195,28 @@ def check_documents(texts: dict, design=None, settings=None) -> dict:
             checks.append(_check("readable", False, name, None, f"{name}: {exc}"))
     if checks:
         return {"ok": False, "checks": checks, "files": sorted(texts)}
-    return _check_docs(docs, design, settings)
+    return _check_groups(docs, design, settings)
+
+
+def _check_groups(docs: dict, design, settings) -> dict:
+    """The kit's sheets, its uncompensated copy and its coupon are checked each on their own
+    when given together; the first group's result carries the others' checks, prefixed."""
+    groups: dict[str, dict] = {}
+    for name, doc in docs.items():
+        head = {k: v for k, v in doc.header.custom_vars}
+        kind = "coupon" if "FABKIT_COUPON" in head else head.get("FABKIT_VARIANT", "")
+        groups.setdefault(kind, {})[name] = doc
+    if len(groups) <= 1:
+        return _check_docs(docs, design, settings)
+    main, *rest = sorted(groups)   # the kit's own sheets ("") first
+    out = _check_docs(groups[main], design, settings)
+    for kind in rest:
+        other = _check_docs(groups[kind], design, settings)
+        out["checks"] = out["checks"] + [{**c, "name": f"{kind}: {c['name']}"}
+                                         for c in other["checks"]]
+        out["ok"] = bool(out["ok"] and other["ok"])
+        out["files"] = sorted([*out["files"], *other["files"]])
+    return out
 
 
 def _check_docs(docs: dict, design, settings) -> dict:
@@ -211,6 +232,8 @@ def _check_docs(docs: dict, design, settings) -> dict:
     checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
                          "layers that carry entities"))
     head = next(iter(sheets.values()))["header"] if sheets else {}
+    if "FABKIT_COUPON" in head:
+        return _check_coupon(sheets, head, checks, design, settings, sorted(docs))
     values = _header_values(head)
     if isinstance(values, str):
         checks.append(_check("parts", False, None, None, values))
@@ -218,7 +241,7 @@ def _check_docs(docs: dict, design, settings) -> dict:
     kerf, width, hole = values["FABKIT_KERF"], values["FABKIT_BAR_WIDTH"], values["FABKIT_HOLE"]
     n_bars, scale = values["FABKIT_BARS"], values["FABKIT_SCALE"]
     given = ((settings or {}).get("laser") or {}).get("kerf")
-    if given is not None:
+    if given is not None and head.get("FABKIT_VARIANT") != "uncompensated":
         # the kerf the user says the file was cut with: undo that one, and say when the file
         # was drawn for another (its bars would come out the wrong size)
         same = abs(float(given) - kerf) <= MM_SLACK
@@ -314,13 +337,84 @@ def _check_docs(docs: dict, design, settings) -> dict:
     return report
 
 
+class CouponHeader(BaseModel):
+    """The FABKIT_* variables of a test coupon's header."""
+
+    model_config = ConfigDict(extra="ignore", allow_inf_nan=False)
+
+    FABKIT_KERF: float = Field(ge=0, le=10, description="kerf the coupon was drawn for (mm)")
+    FABKIT_BAR_WIDTH: float = Field(gt=0, le=1000, description="bar width (mm)")
+    FABKIT_HOLE: float = Field(gt=0, le=1000, description="screw hole diameter (mm)")
+    FABKIT_SPACER: float = Field(gt=0, le=1000, description="spacer ring diameter (mm)")
+    FABKIT_SPACING: float = Field(gt=0, le=1000, description="hole spacing of the bars (mm)")
+
+
+def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
+    """The kerf and fit test coupon: two bars and a ring drawn as the kit's parts, and (with a
+    design) the same width, hole, ring and kerf as the kit those settings make."""
+    from pydantic import ValidationError
+
+    from ..fab.bars import undo_kerf
+    from ..schema import describe_validation_error
+
+    try:
+        v = CouponHeader.model_validate(head).model_dump()
+    except ValidationError as exc:
+        checks.append(_check("parts", False, None, None,
+                             "coupon header " + describe_validation_error(exc, CouponHeader)))
+        return {"ok": False, "checks": checks, "files": files, "coupon": True}
+    parts = [p for sh in sheets.values() for p in sh["parts"].values()]
+    bars = [p for p in parts if p["kind"] == "bar"]
+    rings = [p for p in parts if p["kind"] == "spacer"]
+    shaped = (len(bars) == 2 and len(rings) == 1
+              and all(len(b["holes"]) == 2 and len(b["arcs"]) == 2 for b in bars)
+              and len(rings[0]["holes"]) == 1 and len(rings[0]["outer"]) == 1)
+    checks.append(_check("parts", shaped, len(parts), 3,
+                         "two bars with two holes and round ends, one spacer ring"))
+    if not shaped:
+        return {"ok": False, "checks": checks, "files": files, "coupon": True}
+    kerf = v["FABKIT_KERF"]
+    ar = np.array([[a[1] for a in b["arcs"]] for b in bars])
+    hr = np.array([[h[1] for h in b["holes"]] for b in bars] + [[rings[0]["holes"][0][1]] * 2])
+    w, h = undo_kerf(ar, hr, kerf)
+    ring_d, _ = undo_kerf(np.array([rings[0]["outer"][0][1]]), np.zeros(1), kerf)
+    spacing = np.array([np.linalg.norm(np.subtract(b["holes"][0][0], b["holes"][1][0]))
+                        for b in bars])
+    want = {"width_after_kerf": (w, v["FABKIT_BAR_WIDTH"]),
+            "hole_after_kerf": (h, v["FABKIT_HOLE"]),
+            "ring_after_kerf": (ring_d, v["FABKIT_SPACER"]),
+            "spacing": (spacing, v["FABKIT_SPACING"])}
+    for name, (got, expect) in want.items():
+        d = float(np.abs(np.asarray(got) - expect).max())
+        checks.append(_check(name, d <= LENGTH_TOL, d, LENGTH_TOL,
+                             f"drawn size with the {kerf:g} mm kerf undone vs {expect:g} mm"))
+    if design is not None:
+        from ..fab.laser import laser_overrides, laser_settings
+
+        s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
+                           network_size=design.network.size)
+        kit = {"kerf": s.kerf, "bar width": s.bar_width, "hole": s.screw.hole_diameter,
+               "ring": s.spacer_diameter}
+        read = {"kerf": kerf, "bar width": v["FABKIT_BAR_WIDTH"], "hole": v["FABKIT_HOLE"],
+                "ring": v["FABKIT_SPACER"]}
+        off = [k for k in kit if abs(kit[k] - read[k]) > MM_SLACK]
+        checks.append(_check("same_as_kit", not off, off or None, None,
+                             "kerf, bar width, hole and ring of the kit's settings"
+                             + (f"; differ: {', '.join(off)}" if off else "")))
+    return {"ok": all(c["ok"] for c in checks), "checks": checks, "files": files,
+            "coupon": True}
+
+
 def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) -> list:
-    from ..fab.laser import laser_overrides, laser_settings
+    from ..fab.laser import kit_design, laser_overrides, laser_settings
     from ..fab.layers import JointStack, sample_motion, stacking_gaps
     from ..kinematics import trace
     from ..network import Network
     from ..rigidity import count_modes
 
+    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
+                       network_size=design.network.size)
+    design = kit_design(design, s)  # the motion the kit was planned for (motion_from / _to)
     net = design.network
     out = []
     # Joint positions with the read-back lengths. When the design's own joints already have them
@@ -330,14 +424,19 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     x_mm = net.nodes * scale
     start_err = np.abs(np.linalg.norm(x_mm[edges[:, 0]] - x_mm[edges[:, 1]], axis=1) - lengths_mm)
     if start_err.max() > FILE_RESOLUTION_MM:
-        x_mm = project_to_lengths(edges, lengths_mm, x_mm).positions
-    built = Network(x_mm / scale, edges, net.ports, net.labels)
+        x = project_to_lengths(edges, lengths_mm, x_mm).positions / scale
+    else:  # the design's own joints, not a round trip through mm (a branch point would see it)
+        x = net.nodes
+    built = Network(x, edges, net.ports, net.labels)
     err = float(np.abs(built.edge_lengths * scale - lengths_mm).max())
     modes = count_modes(built)
-    out.append(_check("modes", modes.conformational == 1 and err <= LENGTH_TOL,
-                      modes.conformational, 1,
+    # the design's own count: 1 for a mechanism, more for a design that starts at a branch
+    # point on purpose (the AND gate: two infinitesimal motions and a state of self-stress)
+    want = count_modes(net).conformational
+    out.append(_check("modes", modes.conformational == want and err <= LENGTH_TOL,
+                      modes.conformational, want,
                       f"conformational motions of the rebuilt network (fit residual {err:.1e} mm, "
-                      f"{modes.self_stress} states of self-stress)"))
+                      f"{modes.self_stress} states of self-stress) against the design's"))
     m = design.motion
     if m.to is None:
         out.append(_check("module_map", False, None, None, "the design has no motion target"))
@@ -357,8 +456,6 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     out.append(_check("module_map", worst <= limit and same_end, worst, limit,
                       f"largest port-distance difference (design units, at {worst_port}) between "
                       f"the design's and the rebuilt network's motion; both {got.status}"))
-    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
-                       network_size=net.size)
     out.append(_screws_close(edges, layer, s))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
     # the gap required grows by the excess (the planner widened its clearance the same way)
@@ -390,7 +487,7 @@ def _screws_close(edges, layer, s) -> dict:
     """Every joint's screw, chosen for the layers read back, closes on the thickest sheets the
     thickness tolerance allows (and the catalogue has such a post)."""
     from ..errors import FabricationError
-    from ..fab.hardware import fit_screw
+    from ..fab.hardware import fit_fastener
 
     spans: dict[int, list[int]] = {}
     for b, (i, j) in enumerate(edges.tolist()):
@@ -402,7 +499,7 @@ def _screws_close(edges, layer, s) -> dict:
             continue
         n = max(zs) - min(zs) + 1
         try:
-            fit = fit_screw(s.screw, n, s.thickness, s.thickness_tolerance)
+            fit = fit_fastener(s.screw, n, s.thickness, s.thickness_tolerance)
         except FabricationError as exc:
             problem = f"joint {joint}: {exc}"
             worst, where = -math.inf, joint
@@ -416,12 +513,14 @@ def _screws_close(edges, layer, s) -> dict:
 
 
 def _sheet_set(path: Path) -> list[Path]:
-    """The sheets of one export: ``laser_sheet<k>.dxf`` beside the given one, else itself."""
-    m = re.fullmatch(r"(.*sheet)(\d+)\.dxf", path.name, flags=re.IGNORECASE)
+    """The sheets of one export: ``laser_sheet<k>.dxf`` beside the given one (or the
+    ``laser_sheet<k>_uncompensated.dxf`` set), else itself."""
+    m = re.fullmatch(r"(.*sheet)(\d+)(_uncompensated)?\.dxf", path.name, flags=re.IGNORECASE)
     if not m:
         return [path]
     # only the numbered siblings: a stray laser_sheet_notes.dxf is not a sheet of the kit
-    pattern = re.compile(re.escape(m.group(1)) + r"(\d+)\.dxf", flags=re.IGNORECASE)
+    pattern = re.compile(re.escape(m.group(1)) + r"(\d+)" + re.escape(m.group(3) or "")
+                         + r"\.dxf", flags=re.IGNORECASE)
     found = [(int(q.group(1)), p) for p in path.parent.iterdir()
              if (q := pattern.fullmatch(p.name)) and p.is_file()]
     return [p for _, p in sorted(found)] or [path]

@@ -17,6 +17,11 @@ FORMAT = "cp"
 TYPES = {"B": 1, "C": 1, "M": 2, "V": 3}
 
 
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to cp``).
+NOT_APPLICABLE = ("an ORIPA .cp crease pattern needs a single sheet with a [fabrication.origami] "
+                  "table; chains of sheets are written as svg and fold")
+
+
 def applies(design) -> bool:
     """True for a single-sheet design with a ``[fabrication.origami]`` table."""
     fab = getattr(design, "fabrication", None)

@@ -18,7 +18,9 @@ The pipeline (all pure, nothing is written here):
 
 Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``laser_bom.md``,
 ``laser_assembly.png``, ``laser_layers_motion.png``, ``laser_guide.pdf`` (A4 assembly pages,
-:mod:`fabkit.fab.guide`) and ``laser_guide_page1.png``.
+:mod:`fabkit.fab.guide`), ``laser_guide_page1.png``, the kerf and fit test coupon
+``laser_coupon.dxf`` / ``.svg`` / ``.md`` (:mod:`fabkit.fab.coupon`) and, with
+``uncompensated = true``, ``laser_sheet<k>_uncompensated.dxf`` / ``.svg`` drawn at true size.
 """
 
 from __future__ import annotations
@@ -35,7 +37,8 @@ from ..errors import FabricationError
 from . import ExportResult
 
 __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
-           "bill_of_materials", "bom_markdown", "LAYERS", "APPID"]
+           "bill_of_materials", "bom_markdown", "kerf_note", "LAYERS", "APPID",
+           "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
 
@@ -44,6 +47,11 @@ FORMAT = "dxf"
 LAYERS = {"CUT": 1, "CUT_INNER": 5, "ENGRAVE": 7, "REFERENCE": 3}
 #: Application id of the extended data that names each part (ignored by cutting programs).
 APPID = "FABKIT"
+
+
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to dxf``).
+NOT_APPLICABLE = ("laser-cut bars need a planar (2D) network; this design is 3D: fold it (svg, "
+                  "fold) or print it")
 
 
 def applies(design) -> bool:
@@ -62,6 +70,8 @@ class LaserPlan:
     stacking: object
     parts: list
     sheets: list
+    #: ``""`` for the kit as cut; ``"uncompensated"`` for its copy drawn at true size
+    variant: str = ""
 
 
 def laser_plan(design, settings: dict | None = None) -> LaserPlan:
@@ -85,7 +95,7 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         a sheet; one line each with a suggested fix.
     """
     from ..fab.bars import bar_set
-    from ..fab.laser import laser_overrides, laser_settings
+    from ..fab.laser import kit_design, laser_overrides, laser_settings
     from ..fab.layers import plan_layers, sample_chain, sample_motion
     from ..fab.nest import make_parts, nest_parts
 
@@ -96,11 +106,18 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
     if not isinstance(table, dict):
         raise FabricationError("[fabrication.laser] must be a table")
     s = laser_settings(table, laser_overrides(settings), network_size=net.size)
-    bars = bar_set(net.edge_lengths * s.scale, net.edges, s, scale=s.scale)
-    sweep = sample_chain(net, design.motion, s.scale, s.sample_step, width=s.bar_width,
-                         clearance=s.clearance,
-                         column_radius=0.5 * s.screw.head_diameter,
-                         spacer_radius=0.5 * s.spacer_diameter, floor_limit=s.clearance)
+    lengths = net.edge_lengths * s.scale  # the design's own, wherever the kit starts
+    design = kit_design(design, s)
+    net = design.network
+    bars = bar_set(lengths, net.edges, s, scale=s.scale)
+    # Module windows are sampled over the union of the ranges their modules sweep in the whole
+    # motion: from a start part way along it (motion_from) one module sweeps most of the map
+    # while the others hardly move, and the union would count every module's neighbours as
+    # sweeping it all; such a kit is sampled along its own motion.
+    sweep = None if s.motion_from is not None else sample_chain(
+        net, design.motion, s.scale, s.sample_step, width=s.bar_width, clearance=s.clearance,
+        column_radius=0.5 * s.screw.head_diameter, spacer_radius=0.5 * s.spacer_diameter,
+        floor_limit=s.clearance)
     if sweep is None:  # not a chain of modules: sample the whole motion
         sweep = sample_motion(net, design.motion, s.scale, s.sample_step,
                               floor_limit=s.clearance)
@@ -108,6 +125,38 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
     parts = make_parts(bars, stacking, s)
     sheets = nest_parts(parts, s)
     return LaserPlan(design, s, bars, sweep, stacking, parts, sheets)
+
+
+def coupon_files(plan: LaserPlan) -> dict:
+    """The kerf and fit test coupon: ``laser_coupon.dxf`` and ``.svg`` (the kit's bar pair
+    and spacer ring, drawn as on its sheets) and ``laser_coupon.md`` (what to check)."""
+    from ..fab.coupon import COUPON_NAME, COUPON_SPACING, coupon_sheet, coupon_text
+    from .laser_svg import sheet_svg
+
+    s = plan.settings
+    sheet = coupon_sheet(s)
+    header = {"FABKIT_COUPON": COUPON_NAME, "FABKIT_DESIGN": plan.design.name,
+              "FABKIT_KERF": _fmt(s.kerf), "FABKIT_KERF_NOTE": kerf_note(s),
+              "FABKIT_BAR_WIDTH": _fmt(s.bar_width), "FABKIT_HOLE": _fmt(s.screw.hole_diameter),
+              "FABKIT_SPACER": _fmt(s.spacer_diameter), "FABKIT_SPACING": _fmt(COUPON_SPACING),
+              "FABKIT_THICKNESS": _fmt(s.thickness)}
+    return {f"{COUPON_NAME}.dxf": sheet_dxf(sheet, plan, 1, header=header),
+            f"{COUPON_NAME}.svg": sheet_svg(sheet, s),
+            f"{COUPON_NAME}.md": coupon_text(s, plan.design.name).encode("utf-8")}
+
+
+def uncompensated_plan(plan: LaserPlan) -> LaserPlan:
+    """The same kit drawn at true size (kerf 0), every part where it was nested, for a
+    cutting service that compensates kerf itself."""
+    from dataclasses import replace
+
+    from ..fab.bars import bar_set
+    from ..fab.nest import make_parts, place_like
+
+    s = replace(plan.settings, kerf=0.0)
+    bars = bar_set(plan.bars.lengths, plan.bars.edges, s, scale=s.scale)
+    sheets = place_like(make_parts(bars, plan.stacking, s), plan.sheets)
+    return replace(plan, settings=s, bars=bars, sheets=sheets, variant="uncompensated")
 
 
 # -- DXF ------------------------------------------------------------------------------------
@@ -130,7 +179,7 @@ def _fmt(v: float) -> str:
     return repr(float(v))
 
 
-def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
+def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None) -> bytes:
     """One sheet as DXF bytes (R2010, mm).
 
     Parameters
@@ -138,6 +187,8 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
     sheet : Sheet
     plan : LaserPlan
     n_sheets : int
+    header : dict, optional
+        FABKIT_* header variables in place of the kit's (the test coupon's).
 
     Returns
     -------
@@ -164,13 +215,16 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
             "FABKIT_SHEET": f"{sheet.index}/{n_sheets}",
             "FABKIT_SCALE": _fmt(s.scale),
             "FABKIT_KERF": _fmt(s.kerf),
+            "FABKIT_KERF_NOTE": kerf_note(s),
             "FABKIT_BAR_WIDTH": _fmt(s.bar_width),
             "FABKIT_HOLE": _fmt(s.screw.hole_diameter),
             "FABKIT_THICKNESS": _fmt(s.thickness),
             "FABKIT_LAYERS": str(plan.stacking.n_layers),
             "FABKIT_BARS": str(plan.bars.n_bars),
             "FABKIT_TEMPLATE": plan.design.path.name if plan.design.path else "",
-        }
+        } if header is None else header
+        if plan.variant and header is None:
+            meta["FABKIT_VARIANT"] = plan.variant
         for key, value in meta.items():
             custom.append(key, value)
         msp = doc.modelspace()
@@ -240,21 +294,53 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int) -> bytes:
 
 # -- bill of materials ----------------------------------------------------------------------
 
+#: The sheet stock a kit is cut from, as it is sold.
+SHEET_MATERIAL = "cast acrylic (PMMA) sheet"
+
+
+def kerf_note(settings) -> str:
+    """What a cutter must know about the kerf, in one sentence (DXF header, SVG, BOM)."""
+    if settings.kerf == 0:
+        return ("drawn at true size (kerf 0): let the laser or the cutting service compensate "
+                "its kerf")
+    return (f"kerf {settings.kerf:g} mm already applied: outlines grown and holes shrunk by "
+            f"{0.5 * settings.kerf:g} mm; cut on the line, do not compensate kerf again")
+
+
 def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
-    """Parts, sheets, screws by length, spacer rings and the stack at every joint (JSON-able)."""
-    from ..fab.hardware import WASHER_THICKNESS
+    """Parts, sheets and hardware to buy, screws by length, spacer rings and the stack at
+    every joint (JSON-able). Every piece of hardware is named as a shop lists it
+    (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
+    from ..fab.hardware import part_lines, spares
     from ..fab.nest import utilisation
 
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
-    screws: dict[float, int] = {}
-    for js in st.joints:
-        screws[js.screw_length] = screws.get(js.screw_length, 0) + 1
+    fasteners = [js.fastener for js in st.joints]
+    kinds: dict[tuple, int] = {}
+    for f in fasteners:
+        key = (f.kind, f.post, tuple(f.extensions))
+        kinds[key] = kinds.get(key, 0) + 1
     n_spacers = sum(len(js.spacers) for js in st.joints)
+    shim = s.screw.shim()
+    lines = part_lines(fasteners)
+    n_sheets = len(plan.sheets)
+    motion = plan.design.motion
     return {
         "design": plan.design.name,
         "scale_mm_per_unit": s.scale,
         "settings": s.as_dict(),
+        "kerf": {"kerf_mm": s.kerf, "applied": s.kerf > 0, "note": kerf_note(s),
+                 "uncompensated_files": sorted(n for n in files if "_uncompensated" in n)},
+        "buy": {"sheets": {"material": SHEET_MATERIAL, "thickness_mm": s.thickness,
+                           "size_mm": [s.sheet_width, s.sheet_height], "count": n_sheets,
+                           "spares": 1,
+                           "note": f"the kit fills {n_sheets} sheet(s); one more for the test "
+                                   "coupon and a recut"},
+                "hardware": [{"key": ln.key, "kind": ln.kind, "description": ln.description,
+                              "count": ln.count, "spares": spares(ln.count),
+                              "order": ln.count + spares(ln.count), **ln.size}
+                             for ln in lines]},
         "sheets": [{"index": sh.index, "file": f"laser_sheet{sh.index}.dxf",
                     "size_mm": [sh.width, sh.height], "parts": [p.id for p in sh.parts],
                     "utilisation": round(utilisation(sh), 4)}
@@ -265,23 +351,31 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
                   "sheet": sheet_of[f"B{k}"]} for k in range(bars.n_bars)],
         "layers": {"count": st.n_layers, "lower_bound": st.lower_bound,
                    "proven_minimal": st.proven_minimal, "proof": st.proof_text(),
-                   "method": st.strategy, "head_slots": st.head_slots},
-        "screws": [{"name": s.screw.name, "post_length_mm": length, "count": count}
-                   for length, count in sorted(screws.items())],
-        "washers": {"count": sum(js.washers for js in st.joints),
-                    "thickness_mm": WASHER_THICKNESS, "inner_diameter_mm": s.screw.barrel_diameter,
-                    "note": f"screws close on sheets up to {s.thickness + s.thickness_tolerance:g} "
-                            "mm; measure the sheet and drop washers where the stack is thicker"},
+                   "method": st.strategy, "head_slots": st.head_slots,
+                   "depth_mm": round(st.n_layers * s.thickness, 6)},
+        "screws": [{"name": s.screw.name, "kind": kind, "post_length_mm": post,
+                    "extensions_mm": list(ext), "count": count}
+                   for (kind, post, ext), count in sorted(kinds.items())],
+        "washers": {"count": sum(js.washers for js in st.joints), "name": shim.name,
+                    "thickness_mm": shim.thickness, "inner_diameter_mm": shim.inner,
+                    "outer_diameter_mm": shim.outer, "over_mm": s.screw.barrel_diameter,
+                    "note": f"shims over the {s.screw.barrel_diameter:g} mm barrel; screws close "
+                            f"on sheets up to {s.thickness + s.thickness_tolerance:g} mm; "
+                            "measure the sheet and drop washers where the stack is thicker"},
         "spacer_rings": {"count": n_spacers, "outer_diameter_mm": s.spacer_diameter,
                          "hole_diameter_mm": s.screw.hole_diameter, "thickness_mm": s.thickness,
                          "note": "cut from the same sheet"},
         "joints": [{"joint": js.joint, "bottom_to_top": js.order(), "layers": list(js.layers),
                     "screw_length_mm": js.screw_length, "stack_mm": round(js.stack_height, 6),
                     "play_mm": round(js.play, 6), "spacers": len(js.spacers),
-                    "washers": js.washers,
+                    "washers": js.washers, "fastener": js.fastener.describe(),
+                    "fastener_kind": js.fastener.kind,
                     "play_with_washers_mm": [round(v, 6) for v in js.play_range]}
                    for js in st.joints],
         "motion": {"method": plan.sweep.method, "status": plan.sweep.status,
+                   "drive": motion.drive,
+                   "from": float(plan.design.network.port_distance(motion.drive)),
+                   "to": float(motion.to) if motion.to is not None else None,
                    "samples": plan.sweep.stats.get("window_samples", plan.sweep.n_samples),
                    **({"windows": plan.sweep.stats} if plan.sweep.stats else {}),
                    "step_limit_mm": plan.sweep.step_limit,
@@ -296,17 +390,30 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
 def bom_markdown(bom: dict) -> str:
     """The bill of materials as Markdown for a person at the bench."""
     s = bom["settings"]
+    buy = bom["buy"]
+    sh = buy["sheets"]
     lines = [f"# Laser-cut kit: {bom['design']}", "",
              f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
-             f"acrylic; bars {s['bar_width']:g} mm wide; kerf {s['kerf']:g} mm; "
-             f"{bom['layers']['proof']}.", "",
-             "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
-    for sh in bom["sheets"]:
-        lines.append(f"| {sh['index']} | {sh['file']} | {len(sh['parts'])} | "
-                     f"{100 * sh['utilisation']:.1f} % |")
-    lines += ["", "## Screws", "", "| screw | post length (mm) | count |", "|---|---|---|"]
+             f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}. The "
+             f"stack is {bom['layers']['depth_mm']:g} mm deep.", "",
+             f"**Kerf: {bom['kerf']['note']}.**", "",
+             "## What to buy", "",
+             f"- {sh['material']}, {sh['thickness_mm']:g} mm thick, "
+             f"{sh['size_mm'][0]:g} x {sh['size_mm'][1]:g} mm: {sh['count']} sheet(s) + "
+             f"{sh['spares']} spare ({sh['note']}).", "",
+             "| part | used | spares | order |", "|---|---|---|---|"]
+    for h in buy["hardware"]:
+        lines.append(f"| {h['description']} | {h['count']} | {h['spares']} | {h['order']} |")
+    lines += ["", "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
+    for sheet in bom["sheets"]:
+        lines.append(f"| {sheet['index']} | {sheet['file']} | {len(sheet['parts'])} | "
+                     f"{100 * sheet['utilisation']:.1f} % |")
+    lines += ["", "## Screws", "", "| fastener | post length (mm) | extensions (mm) | count |",
+              "|---|---|---|---|"]
     for sc in bom["screws"]:
-        lines.append(f"| {sc['name']} | {sc['post_length_mm']:g} | {sc['count']} |")
+        ext = " + ".join(f"{v:.4g}" for v in sc["extensions_mm"]) or "-"
+        lines.append(f"| {sc['name']} {sc['kind']} | {sc['post_length_mm']:.4g} | {ext} | "
+                     f"{sc['count']} |")
     sp = bom["spacer_rings"]
     lines += ["", f"Spacer rings: {sp['count']} (outer {sp['outer_diameter_mm']:g} mm, hole "
               f"{sp['hole_diameter_mm']:g} mm, {sp['thickness_mm']:g} mm thick, {sp['note']}).",
@@ -316,15 +423,18 @@ def bom_markdown(bom: dict) -> str:
         lines.append(f"| {b['id']} | {b['joints'][0]}-{b['joints'][1]} | {b['layer']} | "
                      f"{b['length_mm']:.3f} | {b['sheet']} |")
     lines += ["", "## Stack at each joint (bottom to top)", "",
-              "| joint | stack | screw (mm) | washers | play thick-thin sheets (mm) |",
-              "|---|---|---|---|---|"]
+              "| joint | stack | fastener | play thick-thin sheets (mm) |",
+              "|---|---|---|---|"]
     for j in bom["joints"]:
         p0, p1 = j["play_with_washers_mm"]
-        lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | "
-                     f"{j['screw_length_mm']:g} | {j['washers']} | {p0:.2f}-{p1:.2f} |")
+        lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | {j['fastener']} | "
+                     f"{p0:.2f}-{p1:.2f} |")
     wa = bom["washers"]
-    lines += ["", f"Washers: {wa['count']} x {wa['thickness_mm']:g} mm (M3); {wa['note']}."]
-    lines += ["", "Motion: " + bom["motion"]["guarantee"] + ".", ""]
+    lines += ["", f"Washers: {wa['count']} x {wa['name']} ({wa['inner_diameter_mm']:g} mm ID x "
+              f"{wa['outer_diameter_mm']:g} mm OD x {wa['thickness_mm']:g} mm); {wa['note']}."]
+    mo = bom["motion"]
+    lines += ["", f"Motion: {mo['drive']} from {mo['from']:.6g} to {mo['to']:.6g} (design "
+              "units); " + mo["guarantee"] + ".", ""]
     return "\n".join(lines)
 
 
@@ -369,6 +479,12 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     for sheet in plan.sheets:
         files[f"laser_sheet{sheet.index}.dxf"] = sheet_dxf(sheet, plan, n)
         files[f"laser_sheet{sheet.index}.svg"] = sheet_svg(sheet, plan.settings)
+    if plan.settings.uncompensated and plan.settings.kerf > 0:
+        raw = uncompensated_plan(plan)
+        for sheet in raw.sheets:
+            files[f"laser_sheet{sheet.index}_uncompensated.dxf"] = sheet_dxf(sheet, raw, n)
+            files[f"laser_sheet{sheet.index}_uncompensated.svg"] = sheet_svg(sheet, raw.settings)
+    files.update(coupon_files(plan))
     from ..fab.guide import assembly_picture, guide_pages, motion_picture
 
     names = sorted([*files, "laser_assembly.png", "laser_layers_motion.png", "laser_guide.pdf",

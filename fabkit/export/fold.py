@@ -27,6 +27,11 @@ from . import ExportResult
 FORMAT = "fold"
 
 
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to fold``).
+NOT_APPLICABLE = ("a FOLD file needs a [fabrication.origami] table (mountain/valley assignment); "
+                  "this design has none: cut it (dxf) or print it (stl)")
+
+
 def applies(design) -> bool:
     """True when the template has a ``[fabrication.origami]`` table."""
     fab = getattr(design, "fabrication", None)

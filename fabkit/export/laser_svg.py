@@ -57,6 +57,12 @@ def _poly_path(points, H: float) -> str:
     return head + " " + " ".join(f"L {_f(x)} {_f(H - y)}" for x, y in p[1:]) + " Z"
 
 
+def _kerf_text(settings) -> str:
+    from .dxf import kerf_note
+
+    return kerf_note(settings).capitalize() + "."
+
+
 def sheet_svg(sheet, settings) -> bytes:
     """One nested sheet as a laser-ready SVG (see the module notes for the conventions).
 
@@ -100,6 +106,9 @@ def sheet_svg(sheet, settings) -> bytes:
            f'viewBox="0 0 {_f(W)} {_f(H)}">',
            f"<title>sheet {sheet.index}: red {CUT} outer cut, blue {INNER} inner cut, "
            f"black {ENGRAVE} engrave; 1 unit = 1 mm</title>",
+           f'<desc id="kerf">{_kerf_text(settings)}</desc>',
+           f'<metadata><fabkit:kerf xmlns:fabkit="urn:fabkit" mm="{_f(settings.kerf)}" '
+           f'applied="{"true" if settings.kerf > 0 else "false"}"/></metadata>',
            '<g id="engrave">', *engrave, "</g>",
            '<g id="inner-cut">', *inner, "</g>",
            '<g id="outer-cut">', *outer, "</g>",

@@ -61,6 +61,11 @@ _LINE = 5.0  # mm between legend lines
 _CORNER_CHAR = 2.4  # mm: width of a character of a 4 mm corner label, at most
 
 
+#: Why the format does not apply, when :func:`applies` says so (reported by ``--to svg``).
+NOT_APPLICABLE = ("a crease pattern needs a [fabrication.origami] table (mountain/valley "
+                  "assignment); this design has none: cut it (dxf) or print it (stl)")
+
+
 def applies(design) -> bool:
     """True when the template has a ``[fabrication.origami]`` table."""
     fab = getattr(design, "fabrication", None)

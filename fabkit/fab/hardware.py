@@ -1,26 +1,201 @@
-"""Chicago-screw catalogue: barrel, running hole, head and the post lengths one can buy.
+"""Hardware as sold: Chicago screws and their extensions, clevis pins, washers, split pins.
 
-A Chicago screw (sex bolt) is a barrel with a female thread and a screw with a male one; the
-barrel's post length is the thickness it clamps. Vendors name it by that length ("3/16 in"),
-not by its diameter. The default entry is the metric set used for laser-cut linkages: M3
-thread, 4.0 mm barrel, 4.2 mm running hole, 8.5 mm heads 1.9 mm tall, posts 4-16 mm in 1 mm
-steps then 18, 20, 22, 25, 28, 30 mm.
+One catalogue chooses the fastener of every joint of a laser kit and names each part the way a
+shop lists it (series, barrel, post length, material), so that the bill of materials can be
+ordered as it stands.
+
+* **Chicago screws** (sex bolts, binding posts): a barrel with a female thread, a screw with a
+  male one; the barrel is the pin the bars turn on, and vendors name a screw by its post
+  (barrel) length, not by its diameter ("1/4 in" is a length). Metric sets for laser-cut
+  linkages (M3 thread, 4.0 mm barrel, 8.5 mm heads, posts 4-16 mm in 1 mm steps then 18-30
+  mm) and the inch "standard" binding post (#8-32 thread, 3/16 in barrel, 3/8 in heads, posts
+  1/8-2 in, aluminium) with its screw-on extensions (1/4-1 in) are listed as hardware and
+  bookbinding suppliers commonly list them.
+* **Deep stacks** (more sheets than the longest post holds): inch posts take up to
+  :data:`MAX_EXTENSIONS` screw-on extensions, which keep the heads of the post; a metric joint
+  gets a clevis pin of the barrel's diameter (ISO 2341 B: the bars turn on its plain shank),
+  a washer and a split pin, with shims taking up the play. Both stand no taller above the
+  stack than a Chicago screw's head and its shims, which is what the stacking reserves above
+  and below every screw (bars sweep over the joints of a deep kit). A bolt with a lock nut
+  and spacers would hold the stack too, but its thread and nut stand 10-20 mm proud of it.
+* **Washers** are chosen by inner diameter: a shim under a Chicago screw's head goes over the
+  barrel, so its hole must clear it (an M3 washer's 3.2 mm hole does not go over a 4.0 mm
+  barrel; a DIN 433 M4 washer, 4.3 mm, does).
+
+Sizes are typical catalogue values; parts differ between makers by a few tenths of a
+millimetre, so measure what you bought and override the entry (``laser.screw`` as a table).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, fields, replace
+from fractions import Fraction
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
 from ..schema import ScrewSection, check_table
 
-__all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length", "ScrewFit",
-           "fit_screw", "WASHER_THICKNESS"]
+__all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length",
+           "WASHER_THICKNESS", "WASHER_CLEARANCE", "Washer", "WASHERS",
+           "choose_washer", "PinSpec", "PINS", "Fastener", "fit_fastener", "PartLine",
+           "part_lines", "spares", "inch_text", "MM_PER_INCH", "MAX_EXTENSIONS"]
 
-#: Thickness of the thin washers (shims) listed to take up large axial play (mm).
+#: Thickness of the thin washers (shims) the metric entries take up axial play with (mm).
 WASHER_THICKNESS = 0.5
+#: A washer over a barrel or a shank must clear it by at least this much (mm): the barrel's
+#: tolerance is negative, a washer's hole positive, and a tight fit binds the turning bar.
+WASHER_CLEARANCE = 0.2
+MM_PER_INCH = 25.4
+#: Most screw-on extensions stacked on one post.
+MAX_EXTENSIONS = 3
+
+
+def inch_text(mm: float) -> str:
+    """A length in mm as the inch fraction a shop lists (to 1/64 in): ``"1 1/4 in"``.
+
+    Examples
+    --------
+    >>> inch_text(31.75), inch_text(4.7625)
+    ('1 1/4 in', '3/16 in')
+    """
+    q = Fraction(round(mm / MM_PER_INCH * 64), 64)
+    whole, rest = divmod(q, 1)
+    parts = ([str(whole)] if whole else []) + ([f"{rest.numerator}/{rest.denominator}"]
+                                               if rest else [])
+    return " ".join(parts or ["0"]) + " in"
+
+
+def _inch(*values) -> tuple[float, ...]:
+    return tuple(float(Fraction(v) * Fraction(254, 10)) for v in values)
+
+
+@dataclass(frozen=True)
+class Washer:
+    """A flat washer as sold (mm).
+
+    Attributes
+    ----------
+    name : str
+        Catalogue key, e.g. ``"DIN 433 M4"``.
+    inner, outer, thickness : float
+    material : str
+    unit : str
+        ``"mm"`` or ``"in"`` (how the shop states its sizes).
+    """
+
+    name: str
+    inner: float
+    outer: float
+    thickness: float
+    material: str = "stainless steel A2"
+    unit: str = "mm"
+
+    def description(self) -> str:
+        if self.unit == "in":
+            return (f"flat washer {self.name}: {self.inner / MM_PER_INCH:.3f} in ID x "
+                    f"{self.outer / MM_PER_INCH:.3f} in OD x {self.thickness / MM_PER_INCH:.3f} "
+                    f"in ({self.inner:.2f} x {self.outer:.2f} x {self.thickness:.2f} mm), "
+                    f"{self.material}")
+        return (f"washer {self.name}: {self.inner:g} mm ID x {self.outer:g} mm OD x "
+                f"{self.thickness:g} mm, {self.material}")
+
+
+#: Flat washers: DIN 433 (small outer diameter, thin) and ISO 7089 (normal series), metric;
+#: SAE flat washers, inch.
+WASHERS: dict[str, Washer] = {w.name: w for w in (
+    Washer("DIN 433 M3", 3.2, 6.0, 0.5),
+    Washer("DIN 433 M4", 4.3, 8.0, 0.5),
+    Washer("DIN 433 M5", 5.3, 9.0, 1.0),
+    Washer("DIN 433 M6", 6.4, 11.0, 1.6),
+    Washer("ISO 7089 M3", 3.2, 7.0, 0.5),
+    Washer("ISO 7089 M4", 4.3, 9.0, 0.8),
+    Washer("ISO 7089 M5", 5.3, 10.0, 1.0),
+    Washer("ISO 7089 M6", 6.4, 12.0, 1.6),
+    Washer("SAE #10", *_inch("0.219", "0.5", "0.049"), material="steel, zinc-plated",
+           unit="in"),
+)}
+
+
+def choose_washer(shaft: float, *, outer_max: float | None = None, family: str = "DIN 433",
+                  unit: str = "mm") -> Washer:
+    """The catalogue washer of ``family`` with the smallest hole that clears ``shaft`` by
+    :data:`WASHER_CLEARANCE` (and an outer diameter within ``outer_max``).
+
+    Raises
+    ------
+    FabricationError
+        No washer of the catalogue fits.
+
+    Examples
+    --------
+    >>> choose_washer(4.0).name          # a 4.0 mm barrel: not the M3 washer (3.2 mm hole)
+    'DIN 433 M4'
+    """
+    fits = [w for w in WASHERS.values()
+            if w.inner >= shaft + WASHER_CLEARANCE - MM_SLACK and w.unit == unit
+            and (unit == "in" or w.name.startswith(family))
+            and (outer_max is None or w.outer <= outer_max + MM_SLACK)]
+    if not fits:
+        raise FabricationError(f"no {family} washer of the catalogue goes over a {shaft:g} mm "
+                               f"shaft with {WASHER_CLEARANCE:g} mm clearance")
+    return min(fits, key=lambda w: (w.inner, w.thickness))
+
+
+@dataclass(frozen=True)
+class PinSpec:
+    """A clevis pin series for deep stacks (ISO 2341 B: a head, a plain shank and a hole for
+    a split pin), with the washer and split pin that go with it.
+
+    Attributes
+    ----------
+    name : str
+        ``"4-pin"``.
+    diameter : float
+        Shank diameter (mm): the pin the bars turn on.
+    head_diameter, head_height : float
+    lengths : tuple of float
+        Lengths sold (mm, under the head).
+    hole_to_end : float
+        Distance from the split-pin hole's centre to the pin's end (mm).
+    split_pin : float
+        Diameter of the split pin (ISO 1234) and of its hole (mm).
+    washer : str
+        Key of the washer under the split pin (:data:`WASHERS`).
+    material : str
+    """
+
+    name: str
+    diameter: float
+    head_diameter: float
+    head_height: float
+    lengths: tuple[float, ...]
+    hole_to_end: float
+    split_pin: float
+    washer: str
+    material: str = "steel, zinc-plated"
+
+    def clamp(self, length: float) -> float:
+        """Room between the head and the split pin (mm)."""
+        return length - self.hole_to_end - 0.5 * self.split_pin
+
+    def pin(self, length: float) -> str:
+        return (f"clevis pin ISO 2341 B {self.diameter:g} x {length:g} (with split-pin hole), "
+                f"head {self.head_diameter:g} mm, {self.material}")
+
+    def split(self) -> str:
+        return (f"split pin ISO 1234 {self.split_pin:g} x {4 * self.diameter:g}, "
+                f"{self.material}")
+
+
+_PIN_LENGTHS = tuple(float(v) for v in [*range(8, 34, 2), 35, 40, 45, 50, 55, 60, 65, 70])
+#: Clevis pins by shank diameter, for stacks deeper than the longest post.
+PINS: dict[str, PinSpec] = {p.name: p for p in (
+    PinSpec("4-pin", 4.0, 6.0, 1.0, _PIN_LENGTHS, 2.2, 1.0, "ISO 7089 M4"),
+    PinSpec("5-pin", 5.0, 8.0, 1.6, _PIN_LENGTHS[1:], 2.9, 1.2, "ISO 7089 M5"),
+    PinSpec("6-pin", 6.0, 10.0, 2.0, _PIN_LENGTHS[2:], 3.2, 1.6, "ISO 7089 M6"),
+)}
 
 
 @dataclass(frozen=True)
@@ -40,6 +215,18 @@ class ScrewSpec:
         Post lengths available, ascending.
     allowance : float
         Axial play added to the stack height before choosing a length.
+    thread : str
+        Thread of the screw (``"M3"``, ``"#8-32"``), as the shop names the series.
+    material : str
+    unit : str
+        ``"mm"`` or ``"in"``: how the shop states the sizes (post lengths in inch fractions).
+    extensions : tuple of float
+        Lengths of the screw-on extensions sold for the series (mm; empty: none).
+    pin : str or None
+        Key of the clevis pin series (:data:`PINS`) for stacks deeper than the posts and their
+        extensions reach.
+    washer : str or None
+        Key of the shim washer (:data:`WASHERS`); None: the thinnest that clears the barrel.
     """
 
     name: str
@@ -49,19 +236,59 @@ class ScrewSpec:
     head_height: float
     lengths: tuple[float, ...]
     allowance: float = 0.1
+    thread: str = ""
+    material: str = ""
+    unit: str = "mm"
+    extensions: tuple[float, ...] = ()
+    pin: str | None = None
+    washer: str | None = None
 
     def as_dict(self) -> dict:
-        return {f.name: (list(getattr(self, f.name)) if f.name == "lengths" else getattr(self, f.name))
-                for f in fields(self)}
+        return {f.name: (list(getattr(self, f.name)) if f.name in ("lengths", "extensions")
+                         else getattr(self, f.name)) for f in fields(self)}
+
+    def length_text(self, mm: float) -> str:
+        """A post or extension length as the shop lists it."""
+        return inch_text(mm) if self.unit == "in" else f"{mm:g} mm"
+
+    def size_text(self, mm: float) -> str:
+        return f"{inch_text(mm)} ({mm:.2f} mm)" if self.unit == "in" else f"{mm:g} mm"
+
+    def post(self, length: float) -> str:
+        """The screw of one post length as a shop lists it."""
+        return (f"Chicago screw (sex bolt) {self.thread or self.name}, barrel "
+                f"{self.size_text(self.barrel_diameter)}, head "
+                f"{self.size_text(self.head_diameter)}, post length {self.length_text(length)}"
+                + (f", {self.material}" if self.material else ""))
+
+    def extension(self, length: float) -> str:
+        return (f"Chicago screw extension {self.thread or self.name}, "
+                f"{self.length_text(length)}" + (f", {self.material}" if self.material else ""))
+
+    def shim(self) -> Washer:
+        """The washer that takes up axial play under a head: it goes over the barrel."""
+        if self.washer is not None:
+            return WASHERS[self.washer]
+        return choose_washer(self.barrel_diameter, unit=self.unit)
 
 
 _METRIC_LENGTHS = tuple(float(v) for v in [*range(4, 17), 18, 20, 22, 25, 28, 30])
+#: Inch binding posts: lengths 1/8-2 in and their screw-on extensions (aluminium).
+_INCH_LENGTHS = _inch("1/8", "3/16", "1/4", "5/16", "3/8", "7/16", "1/2", "5/8", "3/4", "7/8",
+                      "1", "5/4", "3/2", "7/4", "2")
+_INCH_EXTENSIONS = _inch("1/4", "1/2", "3/4", "1")
 
 #: Built-in entries; a template may override any field of one of them.
 CATALOGUE: dict[str, ScrewSpec] = {
-    "M3-chicago": ScrewSpec("M3-chicago", 4.0, 4.2, 8.5, 1.9, _METRIC_LENGTHS),
-    "M4-chicago": ScrewSpec("M4-chicago", 5.0, 5.2, 10.0, 2.0, _METRIC_LENGTHS[1:]),
-    "M5-chicago": ScrewSpec("M5-chicago", 6.0, 6.2, 12.0, 2.5, _METRIC_LENGTHS[2:]),
+    "M3-chicago": ScrewSpec("M3-chicago", 4.0, 4.2, 8.5, 1.9, _METRIC_LENGTHS, thread="M3",
+                            material="stainless steel A2", pin="4-pin"),
+    "M4-chicago": ScrewSpec("M4-chicago", 5.0, 5.2, 10.0, 2.0, _METRIC_LENGTHS[1:], thread="M4",
+                            material="stainless steel A2", pin="5-pin"),
+    "M5-chicago": ScrewSpec("M5-chicago", 6.0, 6.2, 12.0, 2.5, _METRIC_LENGTHS[2:], thread="M5",
+                            material="stainless steel A2", pin="6-pin"),
+    "inch-chicago": ScrewSpec("inch-chicago", *_inch("3/16"), 5.0, *_inch("3/8", "1/16"),
+                              _INCH_LENGTHS, thread="#8-32", material="aluminium", unit="in",
+                              extensions=_INCH_EXTENSIONS),
 }
 
 DEFAULT_SCREW = "M3-chicago"
@@ -69,7 +296,6 @@ DEFAULT_SCREW = "M3-chicago"
 _FIELDS = {f.name for f in fields(ScrewSpec)}
 #: What a screw of one's own must give (the rest have defaults).
 _SIZE_FIELDS = ("barrel_diameter", "hole_diameter", "head_diameter", "head_height", "lengths")
-
 
 
 def screw_spec(entry=None) -> ScrewSpec:
@@ -117,6 +343,9 @@ def screw_spec(entry=None) -> ScrewSpec:
         base = CATALOGUE[name] if name in CATALOGUE else CATALOGUE[DEFAULT_SCREW]
         values = {k: (tuple(sorted(float(x) for x in v)) if k == "lengths" else
                       (v if k == "name" else float(v))) for k, v in given.items()}
+        if name is not None and name not in CATALOGUE:
+            # sizes of one's own: no series, extensions or pins of a catalogue entry
+            values.update(thread="", material="", unit="mm", extensions=(), pin=None)
         spec = replace(base, **values)
     else:
         raise FabricationError(f"screw must be a catalogue name or a table, got {entry!r}")
@@ -154,26 +383,68 @@ def choose_length(spec: ScrewSpec, stack: float) -> float:
         "entry, use thinner sheet, or reduce the layers (smaller bar_width or larger scale)")
 
 
+def _stack(layers, thickness, tolerance):
+    return round(layers * (thickness - tolerance), 9), round(layers * (thickness + tolerance), 9)
+
+
+def _shims(spec, length, stack_min, stack_max):
+    t = spec.shim().thickness
+    washers = max(int(math.floor((length - stack_max - spec.allowance) / t + MM_SLACK)), 0)
+    fill = washers * t
+    return washers, round(length - stack_max - fill, 9), round(length - stack_min - fill, 9)
+
+
+# -- the fastener of one joint ----------------------------------------------------------------
+
 @dataclass(frozen=True)
-class ScrewFit:
-    """A screw chosen for a stack of sheets whose thickness is only known within a tolerance.
+class PartLine:
+    """Parts of one kind as a shop lists them, and how many.
 
     Attributes
     ----------
+    key : str
+        Stable identifier (``"chicago:M3-chicago:12"``, ``"washer:DIN 433 M4"``).
+    kind : str
+        ``"chicago screw"``, ``"extension"``, ``"clevis pin"``, ``"split pin"``,
+        ``"washer"``.
+    description : str
+        The part as a shop lists it.
+    count : int
+    size : dict
+        The sizes that identify it in the catalogue (mm): ``post_length_mm``,
+        ``barrel_diameter_mm``, ``inner_diameter_mm``, ...
+    """
+
+    key: str
+    kind: str
+    description: str
+    count: int
+    size: dict
+
+
+@dataclass(frozen=True)
+class Fastener:
+    """What holds one joint's stack: a Chicago screw, one with extensions, or a clevis pin.
+
+    Attributes
+    ----------
+    kind : str
+        ``"chicago"``, ``"chicago+extensions"`` or ``"clevis pin"``.
     layers : int
-        Sheets clamped (bars and spacer rings).
     length : float
-        Post length (mm): closes on the thickest sheets, ``layers x (t + tol)`` plus the
-        allowance.
+        Post length (with its extensions) or clevis pin length (mm).
     stack_min, stack_max : float
         Stack height on the thinnest and thickest sheets (mm).
     washers : int
-        Thin washers (``WASHER_THICKNESS``) to add under a head; still closes on the thickest
-        sheets.
+        Shim washers taking up the axial play.
     play_min, play_max : float
-        Axial play with the washers, on the thickest and thinnest sheets (mm).
+        Axial play with the shims on the thickest and thinnest sheets (mm).
+    extensions : tuple of float
+    parts : tuple of PartLine
+        What to buy for this joint.
     """
 
+    kind: str
     layers: int
     length: float
     stack_min: float
@@ -181,34 +452,170 @@ class ScrewFit:
     washers: int
     play_min: float
     play_max: float
+    extensions: tuple = ()
+    parts: tuple = ()
+    unit: str = "mm"
 
     @property
     def closes(self) -> bool:
-        """True when the post is long enough for the thickest stack with its washers."""
         return self.play_min >= -MM_SLACK
 
+    @property
+    def post(self) -> float:
+        """The post length without extensions (the pin length for a clevis pin)."""
+        return self.length - sum(self.extensions)
 
-def fit_screw(spec: ScrewSpec, layers: int, thickness: float, tolerance: float) -> ScrewFit:
-    """Post length and washers for ``layers`` sheets of ``thickness +- tolerance`` mm.
+    def describe(self) -> str:
+        """One line for the guide and the BOM: ``"post 25 mm + 5 washers"``."""
+        shims = f" + {self.washers} washers" if self.washers else ""
+        if self.kind == "clevis pin":
+            return f"clevis pin {self.length:g} mm, washer, split pin{shims}"
+        size = inch_text if self.unit == "in" else (lambda v: f"{v:g} mm")
+        ext = " + ".join(size(v) for v in self.extensions)
+        return f"post {size(self.post)}" + (f" + extensions {ext}" if ext else "") + shims
+
+
+def _chicago_parts(spec: ScrewSpec, post: float, extensions, washers: int) -> tuple:
+    lines = [PartLine(f"chicago:{spec.name}:{post:g}", "chicago screw", spec.post(post), 1,
+                      {"post_length_mm": post, "barrel_diameter_mm": spec.barrel_diameter,
+                       "head_diameter_mm": spec.head_diameter, "screw": spec.name})]
+    for e in extensions:
+        lines.append(PartLine(f"extension:{spec.name}:{e:g}", "extension", spec.extension(e), 1,
+                              {"length_mm": e, "barrel_diameter_mm": spec.barrel_diameter,
+                               "screw": spec.name}))
+    if washers:
+        w = spec.shim()
+        lines.append(PartLine(f"washer:{w.name}", "washer", w.description(), washers,
+                              {"inner_diameter_mm": w.inner, "outer_diameter_mm": w.outer,
+                               "thickness_mm": w.thickness, "washer": w.name,
+                               "over_mm": spec.barrel_diameter}))
+    return tuple(lines)
+
+
+def _with_extensions(spec: ScrewSpec, need: float):
+    """The post and extensions (fewest parts, then shortest) reaching ``need`` mm."""
+    best = None
+    for k in range(1, MAX_EXTENSIONS + 1):
+        for ext in itertools.combinations_with_replacement(spec.extensions, k):
+            for post in spec.lengths:
+                total = post + sum(ext)
+                if total >= need - MM_SLACK:
+                    key = (k, total)
+                    if best is None or key < best[0]:
+                        best = (key, post, ext)
+                    break
+        if best is not None:
+            return best[1], tuple(sorted(best[2], reverse=True))
+    return None
+
+
+def _pin_set(spec: ScrewSpec, layers, stack_min, stack_max) -> Fastener | None:
+    """The shortest clevis pin whose room between head and split pin holds the stack, its
+    washer and the allowance on the thickest sheets; shims take up the rest."""
+    if spec.pin is None:
+        return None
+    p = PINS[spec.pin]
+    w = WASHERS[p.washer]
+    for length in p.lengths:
+        room = p.clamp(length) - w.thickness
+        if room >= stack_max + spec.allowance - MM_SLACK:
+            washers, pmin, pmax = _shims(spec, room, stack_min, stack_max)
+            shim = spec.shim()
+            parts = [PartLine(f"pin:{p.name}:{length:g}", "clevis pin", p.pin(length), 1,
+                              {"length_mm": length, "diameter_mm": p.diameter,
+                               "pin": p.name}),
+                     PartLine(f"washer:{w.name}", "washer", w.description(), 1,
+                              {"inner_diameter_mm": w.inner, "outer_diameter_mm": w.outer,
+                               "thickness_mm": w.thickness, "washer": w.name,
+                               "over_mm": p.diameter}),
+                     PartLine(f"split:{p.name}", "split pin", p.split(), 1,
+                              {"diameter_mm": p.split_pin, "pin": p.name})]
+            if washers:
+                parts.append(PartLine(f"washer:{shim.name}", "washer", shim.description(),
+                                      washers, {"inner_diameter_mm": shim.inner,
+                                                "outer_diameter_mm": shim.outer,
+                                                "thickness_mm": shim.thickness,
+                                                "washer": shim.name, "over_mm": p.diameter}))
+            return Fastener("clevis pin", int(layers), float(length), stack_min, stack_max,
+                            washers, pmin, pmax, parts=_merge(parts))
+    return None
+
+
+def _merge(lines) -> tuple:
+    out: dict[str, PartLine] = {}
+    for ln in lines:
+        out[ln.key] = replace(ln, count=out[ln.key].count + ln.count) if ln.key in out else ln
+    return tuple(out.values())
+
+
+def fit_fastener(spec: ScrewSpec, layers: int, thickness: float, tolerance: float) -> Fastener:
+    """The fastener of a joint of ``layers`` sheets of ``thickness +- tolerance`` mm.
+
+    A Chicago screw of the series when a post is long enough: the shortest post that closes on
+    the thickest sheets (``layers x (t + tol)`` plus the allowance), shims under a head taking
+    up the play while it still closes there; past the longest post, a post with screw-on extensions when
+    the series has them; else a clevis pin of the barrel's diameter (:data:`PINS`) with its
+    washer and split pin, shims taking up the play.
 
     Raises
     ------
     FabricationError
-        When even the longest post is too short for the thickest stack.
+        When no fastener of the catalogue holds the stack.
 
     Examples
     --------
-    >>> f = fit_screw(screw_spec(), 7, 3.0, 0.15)     # 7 sheets may be 22.05 mm
-    >>> f.length, f.stack_max, f.washers, round(f.play_max, 2)
-    (25.0, 22.05, 5, 2.55)
+    >>> f = fit_fastener(screw_spec(), 7, 3.0, 0.15)    # 7 sheets may be 22.05 mm
+    >>> f.kind, f.length, f.stack_max, f.washers, round(f.play_max, 2)
+    ('chicago', 25.0, 22.05, 5, 2.55)
+    >>> f = fit_fastener(screw_spec(), 14, 3.0, 0.15)   # 14 sheets may be 44.1 mm
+    >>> f.kind, f.length, f.washers
+    ('clevis pin', 50.0, 4)
+    >>> g = fit_fastener(screw_spec("inch-chicago"), 18, 3.0, 0.15)   # 56.7 mm
+    >>> g.kind, inch_text(g.post), [inch_text(e) for e in g.extensions]
+    ('chicago+extensions', '2 in', ['1/4 in'])
     """
-    stack_min = layers * (thickness - tolerance)
-    stack_max = layers * (thickness + tolerance)
-    length = choose_length(spec, stack_max)
-    washers = int(math.floor((length - stack_max - spec.allowance) / WASHER_THICKNESS + MM_SLACK))
-    washers = max(washers, 0)
-    fill = washers * WASHER_THICKNESS
-    return ScrewFit(layers=int(layers), length=length, stack_min=round(stack_min, 9),
-                    stack_max=round(stack_max, 9), washers=washers,
-                    play_min=round(length - stack_max - fill, 9),
-                    play_max=round(length - stack_min - fill, 9))
+    stack_min, stack_max = _stack(layers, thickness, tolerance)
+    need = stack_max + spec.allowance
+    if need <= spec.lengths[-1] + MM_SLACK:
+        length = choose_length(spec, stack_max)
+        washers, pmin, pmax = _shims(spec, length, stack_min, stack_max)
+        return Fastener("chicago", int(layers), length, stack_min, stack_max, washers, pmin,
+                        pmax, parts=_chicago_parts(spec, length, (), washers), unit=spec.unit)
+    found = _with_extensions(spec, need) if spec.extensions else None
+    if found is not None:
+        post, ext = found
+        length = post + sum(ext)
+        washers, pmin, pmax = _shims(spec, length, stack_min, stack_max)
+        return Fastener("chicago+extensions", int(layers), float(length), stack_min, stack_max,
+                        washers, pmin, pmax, extensions=ext,
+                        parts=_chicago_parts(spec, post, ext, washers), unit=spec.unit)
+    pin = _pin_set(spec, layers, stack_min, stack_max)
+    if pin is not None:
+        return pin
+    longest = spec.lengths[-1] + MAX_EXTENSIONS * max(spec.extensions, default=0.0)
+    raise FabricationError(
+        f"a joint stack of {stack_max:.2f} mm (+{spec.allowance} mm play) is deeper than any "
+        f"{spec.name} fastener of the catalogue holds (posts to {longest:g} mm"
+        + (f", {spec.pin} clevis pins to {PINS[spec.pin].lengths[-1]:g} mm" if spec.pin
+           else "") + "); use thinner sheet, or fewer layers (smaller bar_width or larger "
+        "scale)")
+
+
+def spares(count: int) -> int:
+    """Spare parts to order beside ``count``: a tenth, at least two (small parts get lost).
+
+    Examples
+    --------
+    >>> spares(5), spares(74)
+    (2, 8)
+    """
+    return max(2, int(math.ceil(0.1 * count))) if count else 0
+
+
+def part_lines(fasteners) -> list[PartLine]:
+    """Every part of the given fasteners, one line per kind, in a stable order."""
+    order = {"chicago screw": 0, "extension": 1, "clevis pin": 2, "split pin": 3, "washer": 4}
+    merged = _merge(ln for f in fasteners for ln in f.parts)
+    size = ("post_length_mm", "length_mm", "inner_diameter_mm", "diameter_mm")
+    return sorted(merged, key=lambda ln: (order.get(ln.kind, 9),
+                                          [float(ln.size.get(k, 0.0)) for k in size], ln.key))

@@ -18,11 +18,15 @@ from ..numerics import MM_SLACK
 from ..schema import LaserSection, check_section, section_of
 from .hardware import ScrewSpec, screw_spec
 
-__all__ = ["LaserSettings", "laser_settings", "laser_overrides", "DEFAULT_SCALE", "LASER_KEYS"]
+__all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "DEFAULT_SCALE",
+           "DEFAULT_MAX_LAYERS", "LASER_KEYS"]
 
 #: mm per design unit when neither ``scale`` nor ``size`` is given: the paper's modules (edges
 #: 0.57-2.8 units) become bars of 57-283 mm, comfortably longer than two 4.2 mm holes.
 DEFAULT_SCALE = 100.0
+#: Most stacking layers accepted by default (a policy, not a limit of the hardware: 24 sheets of
+#: 3 mm are 72 mm, which the catalogue's bolts and Chicago screws with extensions still hold).
+DEFAULT_MAX_LAYERS = 24
 
 
 
@@ -65,7 +69,14 @@ class LaserSettings:
     reference_square : str
         ``"engrave"``, ``"cut"`` or ``"none"``: a 100 mm square on the first sheet.
     max_layers : int
-        Refuse designs that need more stacking layers than this.
+        Refuse designs that need more stacking layers than this (a policy: deep stacks are held
+        by the long fasteners of :mod:`fabkit.fab.hardware`).
+    motion_from, motion_to : float or None
+        Drive values where the kit's motion starts and ends, when the kit covers only part of
+        the design's motion (None: the design's start and ``motion.to``).
+    uncompensated : bool
+        Also write every sheet drawn at true size (no kerf applied), for a cutting service that
+        compensates kerf itself.
     """
 
     scale: float = DEFAULT_SCALE
@@ -85,7 +96,10 @@ class LaserSettings:
     labels: str = "outlines"
     label_height: float = 3.5
     reference_square: str = "engrave"
-    max_layers: int = 12
+    max_layers: int = DEFAULT_MAX_LAYERS
+    motion_from: float | None = None
+    motion_to: float | None = None
+    uncompensated: bool = False
 
     def as_dict(self) -> dict:
         d = asdict(self)
@@ -153,7 +167,7 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
     given = check_section("laser", merged).given()
     values: dict = {k: float(v) for k, v in given.items()
                     if k not in ("scale", "size", "screw", "flavour", "labels",
-                                 "reference_square", "max_layers")}
+                                 "reference_square", "max_layers", "uncompensated")}
     if given.get("scale") is not None and given.get("size") is not None:
         raise FabricationError("give either laser scale (mm per design unit) or size (mm), not both")
     if given.get("size") is not None:
@@ -162,7 +176,7 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
         values["scale"] = float(given["size"]) / network_size
     elif given.get("scale") is not None:
         values["scale"] = float(given["scale"])
-    for key in ("flavour", "labels", "reference_square", "max_layers"):
+    for key in ("flavour", "labels", "reference_square", "max_layers", "uncompensated"):
         if given.get(key) is not None:
             values[key] = given[key]
     values["screw"] = screw_spec(merged.get("screw"))
@@ -207,3 +221,63 @@ def _check_consistency(s: LaserSettings) -> None:
         raise FabricationError(
             f"a {s.sheet_width:g} x {s.sheet_height:g} mm sheet (margin {s.margin:g}) cannot hold "
             "the 100 mm reference square; use a larger sheet or reference_square = \"none\"")
+
+
+def kit_design(design, settings: LaserSettings):
+    """The design as the kit moves: from ``motion_from`` to ``motion_to`` when they are set.
+
+    The kit's reference configuration is the design's state at ``motion_from`` (traced along
+    the design's own motion), with the bar lengths unchanged, and its target ``motion_to``.
+    A kit may stop short of a state that no cut kit can follow (an unstable fixed point that
+    magnifies every length error) or start where its bars lie apart (a flat start whose bars
+    lie on one another admits no stacking).
+
+    Parameters
+    ----------
+    design : Design
+    settings : LaserSettings
+
+    Returns
+    -------
+    Design
+        ``design`` itself when neither setting is given.
+
+    Raises
+    ------
+    FabricationError
+        The design has no motion, or ``motion_from`` is not reached along it, or the two do not
+        leave a motion between them.
+    """
+    from dataclasses import replace
+
+    from ..network import Network
+
+    start, to = settings.motion_from, settings.motion_to
+    if start is None and to is None:
+        return design
+    m = design.motion
+    if m.to is None:
+        raise FabricationError("laser motion_from / motion_to need a design with a motion "
+                               "(motion.to)")
+    net, motion = design.network, m
+    if to is not None:
+        motion = replace(motion, to=float(to))
+    d0 = float(net.port_distance(m.drive))
+    if start is not None:
+        start = float(start)
+        if not (start - d0) * (float(motion.to) - start) > 0:
+            raise FabricationError(
+                f"laser motion_from = {start:g} must lie between the start {m.drive} = "
+                f"{d0:.6g} and the kit's target {float(motion.to):.6g}")
+        traj = design.trace(to=start)
+        if not traj.success:
+            raise FabricationError(
+                f"laser motion_from = {start:g}: the design's motion does not reach it from "
+                f"{m.drive} = {d0:.6g} ({traj.message}); give a value between the start and "
+                "motion.to")
+        # the reference configuration moved along the motion; the bars keep their lengths
+        net = Network(traj.positions[-1], net.edges, net.ports, net.labels, net.assembly)
+    elif float(motion.to) == d0:
+        raise FabricationError(f"laser motion_to = {motion.to:g} is where the design starts: "
+                               "the kit would not move")
+    return replace(design, network=net, motion=motion)

@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import FabricationError
 from .bars import bar_outline, hole_radius, outline_radius
 
-__all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "label_outlines",
+__all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "place_like", "label_outlines",
            "REFERENCE_SIZE", "part_area", "utilisation"]
 
 #: Side of the reference square (mm).
@@ -253,8 +253,26 @@ def nest_parts(parts, settings) -> list[Sheet]:
         moved = _moved(part, rotated, shift)
         sheet.parts.append(moved)
         sheet.placements[part.id] = {"x": round(shift[0], 6), "y": round(shift[1], 6),
-                                     "rotated": bool(rotated)}
+                                     "rotated": bool(rotated), "shift": shift}
     return [sheets[k] for k in sorted(sheets)]
+
+
+def place_like(parts, sheets) -> list[Sheet]:
+    """The same nesting with other parts of the same ids (drawn for another kerf): each part
+    is turned and shifted exactly as its namesake was placed on ``sheets``.
+
+    A part drawn for a smaller kerf is smaller, so the placements stay clear of each other.
+    """
+    by_id = {p.id: p for p in parts}
+    out = []
+    for sheet in sheets:
+        new = Sheet(index=sheet.index, width=sheet.width, height=sheet.height,
+                    placements=dict(sheet.placements))
+        for placed in sheet.parts:
+            where = sheet.placements[placed.id]
+            new.parts.append(_moved(by_id[placed.id], where["rotated"], where["shift"]))
+        out.append(new)
+    return out
 
 
 #: Parts are packed in groups of about this many sheets' worth of area: a packer that tries

@@ -52,9 +52,11 @@ _DEFAULT_SCALE = 10.0
 #: 6 mm caps overlap the hole by 1.2 mm and stay inside the bar's round end; 2.4 mm bars (12
 #: layers of 0.2 mm) with 0.4 mm between layers. 40 mm per design unit makes the paper's
 #: modules 60-110 mm across, and their shortest bars (0.57 units) 23 mm between hole centres.
+#: Up to 24 layers (67 mm of pin), as for the laser kit: a deep stack is a taller print, not a
+#: refusal (the NETWORK letters' chain needs 15).
 PIN_DEFAULTS: dict[str, float] = {"scale": 50.0, "bar_width": 7.0, "bar_thickness": 2.4,
                                   "layer_gap": 0.4, "pin_diameter": 3.0, "cap_diameter": 5.0,
-                                  "clearance": 0.5, "max_layers": 12}
+                                  "clearance": 0.5, "max_layers": 24}
 
 #: Keys that apply to one kind of print only.
 _HINGE_KEYS = ("plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",

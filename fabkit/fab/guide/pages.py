@@ -282,9 +282,9 @@ def _module_page(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
                 seq.append(f"B{at[z]}(L{z},p{page.bar_page[at[z]]})")
             else:
                 seq.append(f"B{at[z]}(L{z})")
-        wash = js.washers
-        top = f" + {wash} washer{'s' if wash != 1 else ''} on top" if wash else ""
-        rows.append(f"J{j}: {' / '.join(seq)}  | post {js.screw_length:g} mm{top}")
+        fastener = (js.fastener.describe() if js.fastener is not None
+                    else f"post {js.screw_length:g} mm")
+        rows.append(f"J{j}: {' / '.join(seq)}  | {fastener}")
     head = fig.text(_LEFT / A4[0], 0.375, "Stack at each screw this page closes, bottom to "
                     f"top (S<joint>.<layer> = spacer ring, {s.spacer_diameter:g} mm):",
                     fontsize=8.5, weight="bold", va="top")

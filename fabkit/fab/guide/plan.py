@@ -190,8 +190,8 @@ def screw_part(bom: dict, length: float) -> str:
     for entry in bom.get("screws", []):
         if abs(float(entry.get("post_length_mm", -1)) - float(length)) <= MM_SLACK:
             name = str(entry.get("name", "screw"))
-            return name if f"{length:g}" in name else f"{name}, {length:g} mm post"
-    return f"screw, {length:g} mm post"
+            return name if f"{length:g}" in name else f"{name}, post {length:g} mm"
+    return f"screw, post {length:g} mm"
 
 
 def _washer_part(bom: dict) -> str:
@@ -208,16 +208,28 @@ def _spacer_part(bom: dict) -> str:
             f"{sp.get('thickness_mm', 0):g} mm)")
 
 
+def fastener_part(bom: dict, row: dict) -> str:
+    """The fastener of one BOM joint row as the bill of materials names it: the screw's name
+    and its post (and extensions), or a clevis pin; shim washers are counted apart."""
+    base = re.sub(r" \+ \d+ washers?$", "", str(row.get("fastener") or ""))
+    if not base:
+        return screw_part(bom, float(row["screw_length_mm"]))
+    if row.get("fastener_kind") == "clevis pin":
+        return base
+    name = str(((bom.get("screws") or [{}])[0]).get("name", "Chicago screw"))
+    return f"{name}, {base}"
+
+
 def _hardware(bom: dict, joints) -> list:
     """Part name and count for a set of BOM joint rows."""
-    screws: dict[float, int] = {}
+    fasteners: dict[str, int] = {}
     washers = spacers = 0
     for j in joints:
-        length = float(j["screw_length_mm"])
-        screws[length] = screws.get(length, 0) + 1
+        part = fastener_part(bom, j)
+        fasteners[part] = fasteners.get(part, 0) + 1
         washers += int(j.get("washers", 0))
         spacers += int(j.get("spacers", 0))
-    out = [(screw_part(bom, length), n) for length, n in sorted(screws.items())]
+    out = sorted(fasteners.items())
     if washers:
         out.append((_washer_part(bom), washers))
     if spacers:

@@ -12,9 +12,11 @@ import numpy as np
 
 from ...errors import FabricationError
 from .conflicts import Conflicts, find_conflicts
-from .constants import (_MILP_BARS, _MILP_SECONDS, _MILP_STEP_SECONDS, _MILP_STEPS,
-                        DUAL_BOUND_SLACK, HEAD_LAYERS_SLACK)
+from .constants import (_DEEP_LAYERS, _DEEP_NODES, _DEEP_TOTAL_NODES, _MILP_BARS,
+                        _MILP_SECONDS, _MILP_STEP_SECONDS, _MILP_STEPS, DUAL_BOUND_SLACK,
+                        HEAD_LAYERS_SLACK)
 from .distances import _incidence
+from .propagate import PROPAGATE_BARS, deep_search
 from .sampling import Sweep
 
 # -- layer assignment -----------------------------------------------------------------------
@@ -43,6 +45,9 @@ class JointStack:
         Thin washers that take up play and still let the screw close on the thickest sheets.
     play_range : (float, float)
         Axial play with the washers on the thickest and on the thinnest sheets (mm).
+    fastener : Fastener or None
+        What holds the stack, with the parts to buy (:func:`fabkit.fab.hardware.fit_fastener`):
+        a Chicago screw, one with extensions, or a bolt set for a deep stack.
     """
 
     joint: int
@@ -54,6 +59,7 @@ class JointStack:
     play: float
     washers: int = 0
     play_range: tuple[float, float] = (0.0, 0.0)
+    fastener: object = None
 
     def order(self) -> list[str]:
         """Bottom-to-top description, e.g. ``["bar 3", "spacer", "bar 0"]``."""
@@ -603,6 +609,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         span = sum(int(layer[jb].max() - layer[jb].min()) for jb in joint_bars)
         candidates.append((viol, k, span, strategy, layer))
     viol, k, span, strategy, layer = min(candidates, key=lambda c: c[:3])
+    deep = None
     if viol:
         # The column rules tie layers to their order: search layer numbers directly.
         found = _search_layers(n_bars, conf, joint_bars, head,
@@ -610,6 +617,16 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         if found is not None:
             layer, strategy, viol = found, "backtracking", 0
             k = int(layer.max()) + 1
+        elif n_bars <= PROPAGATE_BARS:
+            # Deep kits (columns standing on one another): the complete search with every rule
+            # propagated, to a count that does not depend on max_layers, so the layers found
+            # and the bound proven are the design's own; the cap is applied afterwards.
+            deep = deep_search(n_bars, conf, joint_bars, head,
+                               range(max(int(clique), 1), _DEEP_LAYERS + 1),
+                               node_limit=_DEEP_NODES, total_limit=_DEEP_TOTAL_NODES)
+            if deep.layer is not None:
+                layer = _shorten_screws(deep.layer, conf, joint_bars, jpos, head)
+                strategy, viol, k = "propagation", 0, int(layer.max()) + 1
     elif k > clique:
         # The colourings stop above the clique bound; the search often reaches it in a fraction
         # of a second, where the exact solver needs its whole time limit to find the same count
@@ -619,7 +636,10 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             layer = _shorten_screws(found, conf, joint_bars, jpos, head)
             strategy, k = "backtracking", int(layer.max()) + 1
     bound, proven = int(clique), (not viol and k == clique)
-    if not proven and n_bars:
+    if deep is not None:  # the complete search proved its own bound: no solver run on top
+        bound = max(bound, deep.bound)
+        proven = not viol and k <= bound
+    if not proven and n_bars and deep is None:
         # Colouring ignores the column rules and the search stops at its budget: ask the exact
         # solver for a stacking with fewer layers; its dual bound is a proven lower bound.
         fewer = s.max_layers if viol else k - 1
@@ -648,13 +668,24 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
         np.fill_diagonal(d0, np.inf)
         i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
+        where = (f"up to {_DEEP_LAYERS} layers" if deep is not None else
+                 f"max_layers = {s.max_layers}")
         if d0.size and d0[i, j] < 2 * column_radius:
             ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
             raise FabricationError(
                 f"joints {ji} and {jj} are {d0[i, j]:.3g} mm apart at the start, closer than "
-                f"two screw heads ({2 * column_radius:g} mm), and no stacking within "
-                f"max_layers = {s.max_layers} separates their screws; merge them in the "
-                "design, or for chains of modules try mirror = \"alternate\"")
+                f"two screw heads ({2 * column_radius:g} mm), and no stacking within {where} "
+                f"separates their screws (at least {bound if deep is None else deep.bound} "
+                "layers needed); merge them in the design, or for chains of modules try "
+                "mirror = \"alternate\"")
+    if viol and deep is not None:
+        fewer = ("fewer are ruled out by complete search" if deep.bound > clique else
+                 "the largest clique of the conflict graph")
+        raise FabricationError(
+            f"no stacking of these bars found with up to {_DEEP_LAYERS} layers; at least "
+            f"{deep.bound} are needed ({fewer}): "
+            + _violation_message(layer, joint_bars, conf, head, edges))
+    if viol:
         if bound > s.max_layers:
             raise FabricationError(
                 f"every stacking of these bars needs at least {bound} layers (proven by exact "
@@ -665,11 +696,15 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             f"exact search (at least {bound} layers are needed): "
             + _violation_message(layer, joint_bars, conf, head, edges))
     if k > s.max_layers:
+        found = (f"{k} layers, proven minimal" if proven else
+                 f"{k} layers found, at least {bound} needed")
         raise FabricationError(
-            f"the bars need {k} stacking layers (more than max_layers = {s.max_layers}); raise "
-            "max_layers, or make room: larger scale or narrower bars")
+            f"the bars need a stack deeper than max_layers = {s.max_layers} ({found}: "
+            f"{k * s.thickness:g} mm of {s.thickness:g} mm sheet); raise max_layers (the "
+            "hardware catalogue holds deep stacks with extension posts or bolts), or make "
+            "room: larger scale or narrower bars")
     stacks = []
-    from ..hardware import fit_screw
+    from ..hardware import fit_fastener
 
     for j, jb in zip(conf.screw_joints.tolist(), joint_bars):
         order = np.argsort(layer[jb], kind="stable")
@@ -678,14 +713,14 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         lo, hi = layers[0], layers[-1]
         spacers = tuple(z for z in range(lo, hi + 1) if z not in layers)
         height = (hi - lo + 1) * s.thickness
-        try:  # the screw must close on the thickest sheets the tolerance allows
-            fit = fit_screw(s.screw, hi - lo + 1, s.thickness, s.thickness_tolerance)
+        try:  # the fastener must close on the thickest sheets the tolerance allows
+            fit = fit_fastener(s.screw, hi - lo + 1, s.thickness, s.thickness_tolerance)
         except FabricationError as exc:
             raise FabricationError(f"joint {j}: {exc}") from None
         stacks.append(JointStack(joint=j, bars=bars, layers=layers, spacers=spacers,
                                  stack_height=height, screw_length=fit.length,
                                  play=fit.length - height, washers=fit.washers,
-                                 play_range=(fit.play_min, fit.play_max)))
+                                 play_range=(fit.play_min, fit.play_max), fastener=fit))
     return Stacking(layer=layer, n_layers=k, joints=tuple(stacks), conflicts=conf,
                     lower_bound=int(bound), strategy=strategy, head_slots=head,
                     stats={"candidates": [(c[3], c[1], c[0]) for c in candidates],

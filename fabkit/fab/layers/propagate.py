@@ -1,0 +1,300 @@
+"""An exact layer search that propagates every stacking rule: deep stacks and their proofs.
+
+The rules of a stacking (see :mod:`fabkit.fab.layers`) for ``K`` layers:
+
+* bars that conflict lie on different layers;
+* a bar that passes a screw column lies outside the column's layers (its span, widened by the
+  head slots above and below: ``keepout``; by nothing: ``keepout_span``);
+* two screw columns that come close have disjoint layer spans, heads included: one stands
+  wholly above the other (``joint_pairs``).
+
+A screw spans only the layers of its own bars, so joints whose columns meet in the plane (two
+joints that coincide, a joint folded onto its neighbour's) are legal when one stack stands on
+top of the other. Such kits are deep, and the greedy colourings break the column rules there.
+
+This search keeps the layers each bar may still take as a bit mask and, on every assignment,
+removes what the rules forbid: the layer from the bar's conflicting neighbours; a column's span
+from the domains of the bars that must avoid it; once a bar that must avoid a column sits at
+``z``, the column's bars to one side of ``z`` (the side its first bar chose); once one column
+of a close pair has a bar, the other column's bars away from it. A domain left with one layer
+is assigned at once, an empty one fails the branch. Bars are chosen by the fewest layers left
+per failure weight (dom/wdeg: bars that have caused failures come first), layers by the
+screw length they add.
+
+The search is complete: when it visits every branch for ``K`` layers without finding a stacking
+it has proven that none exists, whatever the cap on layers. The number of branches it may visit
+is a count, not a time, so a result does not depend on the machine.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from .constants import _DEEP_NODES, _DEEP_TOTAL_NODES
+
+__all__ = ["DeepSearch", "deep_search", "propagate_layers", "PROPAGATE_BARS"]
+
+#: Largest kit searched this way (each branch scans every bar for the one to place next).
+PROPAGATE_BARS = 800
+
+
+@dataclass(frozen=True)
+class DeepSearch:
+    """What the deep search found for a range of layer counts.
+
+    Attributes
+    ----------
+    layer : numpy.ndarray of int or None
+        A stacking meeting every rule with the fewest layers found (None: none found).
+    bound : int
+        Proven lower bound: every count below it was searched completely without a stacking.
+    nodes : int
+        Branches visited in all.
+    tried : tuple of (int, str)
+        Each layer count tried and what came of it: ``"found"``, ``"none"`` (proven) or
+        ``"budget"`` (not decided within the node budget).
+    """
+
+    layer: np.ndarray | None
+    bound: int
+    nodes: int
+    tried: tuple
+
+
+def _popcount(v: int) -> int:
+    return bin(v).count("1")
+
+
+if hasattr(int, "bit_count"):  # Python >= 3.10
+    _popcount = int.bit_count  # noqa: F811
+
+
+class _Rules:
+    """The stacking rules indexed by bar and by joint, for the propagation."""
+
+    def __init__(self, n_bars, conf, joint_bars, head):
+        self.n = int(n_bars)
+        self.head = int(head)
+        screw = [int(j) for j in conf.screw_joints]
+        self.bars_at = {j: [int(b) for b in jb] for j, jb in zip(screw, joint_bars)}
+        self.joints_of = [[] for _ in range(self.n)]
+        for j, bs in self.bars_at.items():
+            for b in bs:
+                self.joints_of[b].append(j)
+        nbrs = [set() for _ in range(self.n)]
+        for a, b in conf.pairs.tolist():
+            nbrs[a].add(b)
+            nbrs[b].add(a)
+        self.nbrs = [sorted(s) for s in nbrs]
+        self.avoid = [[] for _ in range(self.n)]      # bar -> (joint, slack) it must avoid
+        self.avoiders = {j: [] for j in screw}         # joint -> (bar, slack) avoiding it
+        for rows, slack in ((conf.keepout, self.head), (conf.keepout_span, 0)):
+            for b, j in np.asarray(rows).reshape(-1, 2).tolist():
+                self.avoid[b].append((j, slack))
+                self.avoiders[j].append((b, slack))
+        self.partners = {j: [] for j in screw}
+        for i, j in np.asarray(conf.joint_pairs).reshape(-1, 2).tolist():
+            self.partners[i].append(j)
+            self.partners[j].append(i)
+        self.degree = [len(self.nbrs[b]) + len(self.avoid[b])
+                       + sum(len(self.avoiders[j]) + len(self.partners[j])
+                             for j in self.joints_of[b]) for b in range(self.n)]
+
+
+def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=_DEEP_NODES):
+    """A stacking with at most ``layers`` layers meeting every rule, by complete search.
+
+    Parameters
+    ----------
+    n_bars : int
+    conf : Conflicts
+    joint_bars : list of numpy.ndarray
+        Bars at each screw joint, in the order of ``conf.screw_joints``.
+    head : int
+        Layers a screw head takes above and below its stack.
+    layers : int
+        Layer count allowed.
+    node_limit : int
+        Branches the search may visit.
+
+    Returns
+    -------
+    layer : numpy.ndarray of int or None
+    nodes : int
+        Branches visited.
+    exhausted : bool
+        True when no stacking was found and every branch was visited: none exists.
+    """
+    rules = _Rules(n_bars, conf, joint_bars, head)
+    return _search(rules, int(layers), int(node_limit), [1.0] * rules.n)
+
+
+def _search(rules: _Rules, K: int, node_limit: int, weight: list):
+    n, head = rules.n, rules.head
+    if n == 0:
+        return np.zeros(0, dtype=np.int64), 0, False
+    if K <= 0:
+        return None, 0, True
+    full = (1 << K) - 1
+    gap = 2 * head
+    bars_at, joints_of, nbrs = rules.bars_at, rules.joints_of, rules.nbrs
+    avoid, avoiders, partners = rules.avoid, rules.avoiders, rules.partners
+
+    def span(a, b):
+        a, b = max(a, 0), min(b, K - 1)
+        return ((1 << (b - a + 1)) - 1) << a if a <= b else 0
+
+    def narrow(dom, z, bars, mask, touched):
+        for c in bars:
+            if z[c] < 0:
+                dom[c] &= mask
+                touched.append(c)
+
+    def assign(dom, z, lo, hi, bar, value) -> bool:
+        queue = [(bar, value)]
+        while queue:
+            b, v = queue.pop()
+            if z[b] >= 0:
+                if z[b] != v:
+                    return False
+                continue
+            if not (dom[b] >> v) & 1:
+                return False
+            z[b], dom[b] = v, 1 << v
+            touched: list = []
+            for c in nbrs[b]:
+                if z[c] == v:
+                    return False
+            narrow(dom, z, nbrs[b], ~(1 << v), touched)
+            for j, sl in avoid[b]:  # b passes column j: the column stands wholly to one side
+                if lo[j] is not None:
+                    if lo[j] - sl <= v <= hi[j] + sl:
+                        return False
+                    side = span(v + sl + 1, K - 1) if lo[j] > v else span(0, v - sl - 1)
+                else:
+                    side = full & ~span(v - sl, v + sl)
+                narrow(dom, z, bars_at[j], side, touched)
+            for j in joints_of[b]:  # b widens its own columns
+                l2 = v if lo[j] is None else min(lo[j], v)
+                h2 = v if hi[j] is None else max(hi[j], v)
+                lo[j], hi[j] = l2, h2
+                for c, sl in avoiders[j]:
+                    zc = z[c]
+                    if zc < 0:
+                        dom[c] &= ~span(l2 - sl, h2 + sl)
+                        touched.append(c)
+                        continue
+                    if l2 - sl <= zc <= h2 + sl:
+                        return False
+                    side = span(zc + sl + 1, K - 1) if l2 > zc else span(0, zc - sl - 1)
+                    narrow(dom, z, bars_at[j], side, touched)
+                for i in partners[j]:
+                    if lo[i] is None:
+                        narrow(dom, z, bars_at[i], ~span(l2 - gap, h2 + gap), touched)
+                        continue
+                    if not (hi[i] + gap < l2 or h2 + gap < lo[i]):
+                        return False
+                    if hi[i] < l2:   # column i below column j
+                        below, above = span(0, l2 - gap - 1), span(hi[i] + gap + 1, K - 1)
+                        narrow(dom, z, bars_at[i], below, touched)
+                        narrow(dom, z, bars_at[j], above, touched)
+                    else:
+                        narrow(dom, z, bars_at[i], span(h2 + gap + 1, K - 1), touched)
+                        narrow(dom, z, bars_at[j], span(0, lo[i] - gap - 1), touched)
+            for c in touched:
+                d = dom[c]
+                if d == 0:
+                    weight[c] += 1.0
+                    weight[b] += 1.0
+                    return False
+                if z[c] < 0 and d & (d - 1) == 0:
+                    queue.append((c, d.bit_length() - 1))
+        return True
+
+    def added_span(lo, hi, b, v):
+        return sum(0 if lo[j] is None else max(lo[j] - v, v - hi[j], 0) for j in joints_of[b])
+
+    nodes = [0]
+
+    degree = rules.degree
+
+    def solve(dom, z, lo, hi):
+        nodes[0] += 1
+        if nodes[0] > node_limit:
+            return None
+        free = [b for b in range(n) if z[b] < 0]
+        if not free:
+            return list(z)
+        best = min(free, key=lambda b: (_popcount(dom[b]) / weight[b], -degree[b], b))
+        d = dom[best]
+        values = sorted((v for v in range(K) if (d >> v) & 1),
+                        key=lambda v: (added_span(lo, hi, best, v), v))
+        for v in values:
+            d2, z2, lo2, hi2 = dom[:], z[:], lo[:], hi[:]
+            if assign(d2, z2, lo2, hi2, best, v):
+                found = solve(d2, z2, lo2, hi2)
+                if found is not None:
+                    return found
+            if nodes[0] > node_limit:
+                return None
+        return None
+
+    dom = [full] * n
+    z = [-1] * n
+    n_joints = max(bars_at, default=-1) + 1
+    lo = [None] * n_joints   # lowest and highest layer of the bars placed at each joint
+    hi = [None] * n_joints
+    limit = sys.getrecursionlimit()
+    sys.setrecursionlimit(max(limit, n + 200))  # one frame per bar placed
+    try:
+        found = solve(dom, z, lo, hi)
+    finally:
+        sys.setrecursionlimit(limit)
+    if found is not None:
+        return np.array(found, dtype=np.int64), nodes[0], False
+    return None, nodes[0], nodes[0] <= node_limit
+
+
+def deep_search(n_bars, conf, joint_bars, head, counts, *, node_limit=_DEEP_NODES,
+                total_limit=_DEEP_TOTAL_NODES) -> DeepSearch:
+    """The fewest layers among ``counts`` (ascending) for which a stacking exists.
+
+    ``counts[0]`` must itself be a proven lower bound (the largest clique of the conflict
+    graph): it is the bound reported until a count is searched completely. Each count gets up to ``node_limit`` branches (and all counts together
+    ``total_limit``); a count searched completely without a stacking raises the proven bound.
+    Each count starts with fresh failure weights (those learnt on a count with no stacking
+    mislead the search on the next).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fabkit.fab.layers import Conflicts
+    >>> e = np.zeros((0, 2), dtype=np.int64)
+    >>> conf = Conflicts(pairs=np.array([[0, 1], [1, 2], [0, 2]]), kind=np.array([]),
+    ...                  gap=np.zeros(3), sample=np.zeros(3, dtype=np.int64), keepout=e,
+    ...                  joint_pairs=e, screw_joints=np.zeros(0, dtype=np.int64))
+    >>> r = deep_search(3, conf, [], 1, range(1, 5))
+    >>> int(r.layer.max()) + 1, r.bound, [t for t in r.tried]
+    (3, 3, [(1, 'none'), (2, 'none'), (3, 'found')])
+    """
+    rules = _Rules(n_bars, conf, joint_bars, head)
+    bound, used, tried = 0, 0, []
+    counts = list(counts)
+    if counts:
+        bound = counts[0]
+    for k in counts:
+        budget = min(node_limit, total_limit - used)
+        if budget <= 0:
+            break
+        layer, nodes, exhausted = _search(rules, k, budget, [1.0] * rules.n)
+        used += nodes
+        if layer is not None:
+            tried.append((k, "found"))
+            return DeepSearch(layer, bound, used, tuple(tried))
+        tried.append((k, "none" if exhausted else "budget"))
+        if exhausted:  # none with at most k layers, so none with fewer either
+            bound = max(bound, k + 1)
+    return DeepSearch(None, bound, used, tuple(tried))
