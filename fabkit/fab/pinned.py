@@ -276,8 +276,25 @@ def _check_bars(net, s: PrintSettings) -> None:
             f"print.scale to >= {s.scale * need / lengths[k]:.4g} or use smaller pins and caps")
 
 
+#: The last few plans, by everything they depend on: the export and the as-built checks of its
+#: STL and 3MF, in one process, ask for the same plan (a pure function of the design and the
+#: settings), and planning a chain's stacking takes seconds.
+_PLANS: dict = {}
+_PLANS_KEPT = 4
+
+
+def _plan_key(design, s) -> tuple:
+    net, m = design.network, design.motion
+    return (design.name, str(design.path), net.nodes.tobytes(), net.edges.tobytes(),
+            repr(sorted(net.ports.items())), repr((m.drive, m.to, m.method, m.hold, m.options)),
+            s)
+
+
 def pinned_print(design, s: PrintSettings) -> PinnedPrint:
     """Decide layers, pins and pieces of a design's print-in-place linkage (no solids yet).
+
+    The same design and settings give the same plan, computed once per process (the export and
+    its as-built checks share it).
 
     Parameters
     ----------
@@ -298,6 +315,15 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
     BoundsError
         More bars than the work estimate allows (``fabkit --allow-large`` lifts it).
     """
+    key = _plan_key(design, s)
+    if key not in _PLANS:
+        while len(_PLANS) >= _PLANS_KEPT:
+            _PLANS.pop(next(iter(_PLANS)))
+        _PLANS[key] = _plan_print(design, s)
+    return _PLANS[key]
+
+
+def _plan_print(design, s: PrintSettings) -> PinnedPrint:
     from .layers import plan_layers
     from .printers import split_to_fit
 
