@@ -208,6 +208,9 @@ class Projection:
 # Above this many unknowns per configuration, a dense pseudo-inverse (an SVD per step) costs more
 # than sparse LSQR: modules (<= ~30 unknowns) go dense and batched, chains and lattices sparse.
 _DENSE_MAX_UNKNOWNS = 96
+# Up to this many, one rank-revealing QR per configuration (LAPACK gelsy) beats LSQR, whose
+# iterations grow with the condition (the and-gate's 196 unknowns: 1.7 ms against 5.5 ms).
+_QR_MAX_UNKNOWNS = 400
 
 
 def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: float = EDGE_RTOL,
@@ -272,13 +275,14 @@ def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: floa
         ell = np.sqrt(np.einsum("bec,bec->be", d, d))
         return d, ell, ell - lens
 
-    dense = n * dim <= _DENSE_MAX_UNKNOWNS
+    solver = (_dense_steps if n * dim <= _DENSE_MAX_UNKNOWNS
+              else _qr_steps if n * dim <= _QR_MAX_UNKNOWNS else _sparse_steps)
     d, ell, res = residual(x)
     worst = float(np.max(np.abs(res) / lens)) if res.size else 0.0
     it, slow = 0, 0
     while it < max_iter and worst > EPS:
         u = d / np.maximum(ell, np.finfo(np.float64).tiny)[..., None]
-        step = _dense_steps(u, ij, res, n, dim) if dense else _sparse_steps(u, ij, res, n, dim)
+        step = solver(u, ij, res, n, dim)
         x = x - step
         it += 1
         d, ell, res = residual(x)
@@ -306,6 +310,23 @@ def _dense_steps(u, ij, res, n, dim):
     jac = jac.reshape(nb, m, n * dim)
     step = np.einsum("bij,bj->bi", np.linalg.pinv(jac, rcond=1e-13), res)
     return step.reshape(nb, n, dim)
+
+
+def _qr_steps(u, ij, res, n, dim):
+    """Minimum-norm steps by a rank-revealing QR, one configuration at a time (mid-size)."""
+    from scipy.linalg import lstsq
+
+    nb, m = res.shape
+    rows = np.arange(m)
+    out = np.empty((nb, n * dim))
+    jac = np.zeros((m, n, dim))
+    for b in range(nb):
+        jac[:] = 0.0
+        jac[rows, ij[:, 0]] = u[b]
+        jac[rows, ij[:, 1]] -= u[b]
+        out[b] = lstsq(jac.reshape(m, n * dim), res[b], cond=1e-13, lapack_driver="gelsy",
+                       check_finite=False)[0]
+    return out.reshape(nb, n, dim)
 
 
 def _sparse_steps(u, ij, res, n, dim):

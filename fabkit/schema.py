@@ -259,6 +259,7 @@ class MotionSection(Section):
 class _ProjectedOptions(Section):
     step: Optional[float] = Field(None, gt=0)
     max_step: Optional[float] = Field(None, gt=0)
+    max_node_step: Optional[float] = Field(None, gt=0)
     min_step: Optional[float] = Field(None, gt=0)
     tol: Optional[float] = Field(None, gt=0, lt=1)
     max_steps: Optional[int] = Field(None, ge=1)

@@ -115,3 +115,39 @@ def test_projection_stops_early_on_lengths_no_configuration_has():
     lengths = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) * (1 + 1e-3 * np.arange(6))
     proj = project_to_lengths(e, lengths, x, max_iter=40)
     assert not proj.converged and proj.residual > 1e-7 and proj.iterations < 10
+
+
+@pytest.mark.parametrize("copies", [40, 120])  # 82 and 242 nodes: the QR and the sparse solver
+def test_mid_size_and_large_projections_agree_with_each_other(copies, monkeypatch):
+    import fabkit.numerics as numerics
+
+    chain = fabkit.chain(_fourbar(), copies=copies)
+    rng = np.random.default_rng(7)
+    x0 = chain.nodes + 1e-4 * rng.standard_normal(chain.nodes.shape)
+    first = project_to_lengths(chain.edges, chain.edge_lengths, x0)
+    # the same projection with the other solver: minimum-norm steps are unique, so they agree
+    other = 10 ** 6 if chain.nodes.size > numerics._QR_MAX_UNKNOWNS else 0
+    monkeypatch.setattr(numerics, "_QR_MAX_UNKNOWNS", other)
+    second = project_to_lengths(chain.edges, chain.edge_lengths, x0)
+    assert first.converged and second.converged
+    np.testing.assert_allclose(first.positions, second.positions, atol=1e-12)
+
+
+def test_the_qr_steps_are_minimum_norm_where_the_jacobian_is_rank_deficient():
+    # a chain of K4s carries one self-stress per K4: the rows are dependent, and the step is the
+    # least-squares solution of least norm (LSQR's answer from a zero start)
+    from fabkit.numerics import _qr_steps, _sparse_steps
+
+    k4 = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.9, 1.1]])
+    nodes = np.concatenate([k4 + [2.0 * c, 0.0] for c in range(20)])
+    e = np.array([[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]])
+    edges = np.concatenate([e + 4 * c for c in range(20)])
+    rng = np.random.default_rng(3)
+    x = nodes + 1e-3 * rng.standard_normal(nodes.shape)
+    d = x[edges[:, 0]] - x[edges[:, 1]]
+    ell = np.linalg.norm(d, axis=1)
+    res = ell - np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+    u = (d / ell[:, None])[None]
+    qr = _qr_steps(u, edges, res[None], 80, 2)
+    ls = _sparse_steps(u, edges, res[None], 80, 2)
+    np.testing.assert_allclose(qr, ls, atol=1e-10)

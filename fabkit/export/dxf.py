@@ -284,8 +284,9 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
             raise FabricationError(f"ezdxf audit found {len(auditor.errors)} errors in sheet "
                                    f"{sheet.index}: {auditor.errors[0]}")
         # ezdxf adds the CLASS entries of the entity types in use while writing, iterating a
-        # set (order depends on the string hash seed): write once, sort them, write again.
-        doc.write(io.StringIO())
+        # set (order depends on the string hash seed): add them first, sort them, then write.
+        doc.commit_pending_changes()
+        doc.classes.add_required_classes(doc.dxfversion)
         doc.classes.classes = OrderedDict(sorted(doc.classes.classes.items()))
         stream = io.StringIO()
         doc.write(stream)

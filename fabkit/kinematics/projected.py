@@ -342,6 +342,10 @@ class Projected(StepMethod):
         First step in arclength (default 0.1 × median edge length).
     max_step : float
         Largest step (default unlimited); lower it for finer output.
+    max_node_step : float
+        Largest distance any one node moves in a step, to first order (default unlimited): finer
+        output where a few nodes move fast and coarse elsewhere (a collision check's samples),
+        where ``max_step`` would refine the whole path as much as its fastest part needs.
     min_step : float
         Smallest step before giving up (default 1e-10 × median edge length).
     tol : float
@@ -361,6 +365,7 @@ class Projected(StepMethod):
     options = {
         "step": None,
         "max_step": None,
+        "max_node_step": None,
         "min_step": None,
         "tol": 1e-14,
         "max_steps": 20000,
@@ -567,6 +572,7 @@ class Projected(StepMethod):
         scale = self.scale
         self.h = self.opts["step"] or 0.1 * scale
         self.h_max = self.opts["max_step"] or math.inf
+        self.node_step = self.opts["max_node_step"] or math.inf
         self.h_min = self.opts["min_step"] or MIN_STEP_RTOL * scale
         self.max_cos = math.cos(math.radians(self.opts["max_angle"]))
         direction = self.direction()
@@ -691,8 +697,9 @@ class Projected(StepMethod):
         target = p.target
         x = self.positions[-1]
         t, lu, j, tau, f_prev, g_prev = self.state
+        h_node = self.node_step / self._node_speed(x, t) if self.node_step < math.inf else math.inf
         while True:
-            h = self.h = min(self.h, self.h_max)
+            h = self.h = min(self.h, self.h_max, h_node)
             if h < self.h_min:
                 return Stop(Status.FAILED,
                             f"the step size fell below {self.h_min:.1e} at {p.drive_name} = "
@@ -756,6 +763,16 @@ class Projected(StepMethod):
             if self.accepted % GAUGE_CHECK_EVERY == 0:
                 self._follow_quiet_gauge(x_new)
             return Step(x_new)
+
+    def _node_speed(self, xf: np.ndarray, t: np.ndarray) -> float:
+        """Largest node speed along the unit tangent t, as the caller sees it: in the caller's
+        gauge, which the output is refitted to when the tracer holds another part still."""
+        if set(self.gauge) != set(self.problem.gauge):
+            x = xf.reshape(self.n, self.d)
+            t = self._held(self._rigid_fields(x, x.mean(axis=0)), t, self.problem.gauge)
+        v = t.reshape(self.n, self.d)
+        speed = math.sqrt(float(np.max(np.einsum("ij,ij->i", v, v))))
+        return speed if speed > 0 else math.inf
 
     def _reject(self):
         """A refused step: halve it and count it."""

@@ -67,22 +67,29 @@ class Labeller:
 
     def put(self, text: str, candidates, size: float, colour="black", weight="normal") -> bool:
         """Place ``text`` at the first free candidate (data coordinates); True when placed."""
-        from matplotlib.transforms import Bbox
-
-        ax = self.ax
-        where = ax.transData.transform(np.asarray(candidates, dtype=np.float64).reshape(-1, 2))
-        frame = ax.bbox
+        candidates = np.asarray(candidates, dtype=np.float64).reshape(-1, 2)
+        where = self.ax.transData.transform(candidates)
+        fx0, fy0, fx1, fy1 = self.ax.bbox.extents
+        taken = np.asarray(self.boxes, dtype=np.float64).reshape(-1, 4)
         for fs in (size, 0.8 * size, 0.65 * size):
-            x0, y0, x1, y1 = self._extent(text, fs, weight)
-            for (cx, cy), pos in zip(where, candidates):
-                box = Bbox.from_extents(cx + x0, cy + y0, cx + x1, cy + y1)
-                inside = frame.contains(box.x0, box.y0) and frame.contains(box.x1, box.y1)
-                if inside and not any(box.overlaps(b) for b in self.boxes):
-                    self.boxes.append(box)
-                    self.placed.append(self._text(pos[0], pos[1], text, fs, colour, weight))
-                    self.stats["labels"] += 1
-                    self.stats["shrunk"] += fs < size
-                    return True
+            # every candidate's box at once: inside the axes (edges included) and touching no
+            # box placed (closed boxes, as matplotlib's Bbox.overlaps)
+            box = where[:, [0, 1, 0, 1]] + np.asarray(self._extent(text, fs, weight))
+            free = ((box[:, 0] >= fx0) & (box[:, 2] <= fx1)
+                    & (box[:, 1] >= fy0) & (box[:, 3] <= fy1))
+            if taken.size:
+                b, t = box[:, None, :], taken[None, :, :]
+                hit = ((b[..., 0] <= t[..., 2]) & (t[..., 0] <= b[..., 2])
+                       & (b[..., 1] <= t[..., 3]) & (t[..., 1] <= b[..., 3]))
+                free &= ~hit.any(axis=1)
+            if free.any():
+                k = int(np.argmax(free))
+                self.boxes.append(tuple(box[k]))
+                x, y = candidates[k]
+                self.placed.append(self._text(x, y, text, fs, colour, weight))
+                self.stats["labels"] += 1
+                self.stats["shrunk"] += fs < size
+                return True
         self.stats["dropped"] += 1
         return False
 
