@@ -15,6 +15,7 @@ glyph outlines for lasers that ignore text.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -373,14 +374,24 @@ def label_outlines(label: Label) -> list[np.ndarray]:
     Returns
     -------
     list of numpy.ndarray, shape (K, 2)
-        Closed polylines (flattened to 0.01 mm) centred on ``label.insert`` and turned by
-        ``label.angle``.
+        Closed polylines (within 0.02 mm of the glyphs' curves, a tenth of a laser's spot)
+        centred on ``label.insert`` and turned by ``label.angle``.
 
     Raises
     ------
     FabricationError
         When no font is available to draw the glyphs.
     """
+    a = math.radians(label.angle)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    return [pts @ rot.T + np.asarray(label.insert)
+            for pts in _glyph_outlines(label.text, float(label.height))]
+
+
+@functools.lru_cache(maxsize=4096)
+def _glyph_outlines(text: str, height: float) -> tuple:
+    """A text's glyph outlines about the origin (read-only arrays; the sheets' DXF and SVG and
+    every kit of a batch draw the same labels again)."""
     try:
         from ezdxf.addons import text2path
         from ezdxf.enums import TextEntityAlignment
@@ -389,20 +400,22 @@ def label_outlines(label: Label) -> list[np.ndarray]:
         raise FabricationError(f"labels as outlines need ezdxf's text2path: {exc}") from None
     try:
         face = fonts.FontFace(family="DejaVu Sans")
-        paths = text2path.make_paths_from_str(label.text, face, size=label.height,
+        paths = text2path.make_paths_from_str(text, face, size=height,
                                               align=TextEntityAlignment.MIDDLE_CENTER)
     except Exception as exc:  # font lookup errors come in many types
-        raise FabricationError(f"cannot draw label {label.text!r} as outlines ({exc}); use "
+        raise FabricationError(f"cannot draw label {text!r} as outlines ({exc}); use "
                                "labels = \"text\" or \"none\"") from None
-    a = math.radians(label.angle)
-    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
     out = []
     for path in paths:
         for sub in path.sub_paths():
-            pts = np.array([(v.x, v.y) for v in sub.flattening(distance=0.01)], dtype=np.float64)
+            # the distance bounds the error; ezdxf's default of at least 4 segments per curve
+            # would add points no cutter resolves
+            pts = np.array([(v.x, v.y) for v in sub.flattening(distance=0.02, segments=1)],
+                           dtype=np.float64)
             if pts.shape[0] >= 3:
-                out.append(pts @ rot.T + np.asarray(label.insert))
-    return out
+                pts.setflags(write=False)
+                out.append(pts)
+    return tuple(out)
 
 
 def part_area(part: Part) -> float:

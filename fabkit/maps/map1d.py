@@ -478,8 +478,12 @@ class Map1D:
         ok = np.isfinite(x0) & ~np.isnan(lam)
         vals = np.where(ok, lam, np.nan)
         good = vals[ok]
-        return LyapunovResult(mean=float(np.mean(good)) if good.size else float("nan"),
-                              std=float(np.std(good)) if good.size else float("nan"),
+        # an orbit through a super-stable point has exponent -inf (log 0): the mean is -inf and
+        # the spread undefined (nan), without numpy's warning about inf - inf
+        with np.errstate(invalid="ignore"):
+            mean = float(np.mean(good)) if good.size else float("nan")
+            std = float(np.std(good)) if good.size else float("nan")
+        return LyapunovResult(mean=mean, std=std,
                               values=vals, initial=x0, discard=int(discard), average=int(average),
                               escaped=int((~ok).sum()),
                               method="table" if table is not None else "exact",

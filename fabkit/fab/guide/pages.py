@@ -395,7 +395,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
 
-    from ...viz import _mpl, clipped_texts
+    from ...viz import _mpl, checked_png, clipped_texts
 
     plt = _mpl()
     s = plan.settings
@@ -425,13 +425,14 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                     stats[key] += lab.stats[key]
                 stats["dropped_on"] += [k + 1] * lab.stats["dropped"]
             texts.append([t.get_text() for t in fig.findobj(Text) if t.get_text()])
-            if check:
-                stats["clipped"] += [(k + 1, t) for t in clipped_texts(fig)]
             pdf.savefig(fig)
-            if pngs or k == 0:
-                png = io.BytesIO()
-                fig.savefig(png, format="png", dpi=dpi, metadata={"Software": None})
-                images.append(png.getvalue())
-            plt.close(fig)
+            if pngs or k == 0:  # one raster drawing gives the PNG and the clipping check
+                png, clipped = checked_png(fig, dpi=dpi)
+                images.append(png)
+            else:
+                clipped = clipped_texts(fig) if check else []
+                plt.close(fig)
+            if check:
+                stats["clipped"] += [(k + 1, t) for t in clipped]
             stats["pages"] += 1
     return buf.getvalue(), images, texts, stats

@@ -47,7 +47,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import _mpl, clipped_texts, figure_png
+    from ...viz import _mpl, checked_png
 
     plt = _mpl()
     s = plan.settings
@@ -98,8 +98,8 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
                  f"{len(rows)} row{'s' if len(rows) > 1 else ''}, {scale * _DPI:.2g} px per mm"
                  f"{pages_note}", fontsize=11, y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
-    stats["clipped"] = clipped_texts(fig)
-    return figure_png(fig, dpi=_DPI), stats
+    png, stats["clipped"] = checked_png(fig, dpi=_DPI)
+    return png, stats
 
 
 def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
@@ -113,7 +113,7 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     stats : dict
         ``columns``, ``px_per_mm``, ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import _mpl, clipped_texts, figure_png
+    from ...viz import _mpl, checked_png
 
     plt = _mpl()
     s = plan.settings
@@ -176,5 +176,5 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     fig.suptitle(f"{plan.design.name}: the motion test with the stacking layers, to one scale "
                  f"({scale * _DPI:.2g} px per mm)", fontsize=11, y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
-    stats = {"columns": cols, "px_per_mm": scale * _DPI, "clipped": clipped_texts(fig)}
-    return figure_png(fig, dpi=_DPI), stats
+    png, clipped = checked_png(fig, dpi=_DPI)
+    return png, {"columns": cols, "px_per_mm": scale * _DPI, "clipped": clipped}

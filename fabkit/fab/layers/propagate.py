@@ -214,24 +214,39 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
                     queue.append((c, d.bit_length() - 1))
         return True
 
-    def added_span(lo, hi, b, v):
-        return sum(0 if lo[j] is None else max(lo[j] - v, v - hi[j], 0) for j in joints_of[b])
+    def by_added_span(lo, hi, b, d):
+        """The layers left in domain d, by the screw length they add to b's columns, then
+        by height."""
+        c = [0] * K
+        for j in joints_of[b]:
+            lj = lo[j]
+            if lj is not None:
+                hj = hi[j]
+                for v in range(min(lj, K)):
+                    c[v] += lj - v
+                for v in range(hj + 1, K):
+                    c[v] += v - hj
+        return sorted((v for v in range(K) if (d >> v) & 1), key=c.__getitem__)  # stable
 
     nodes = [0]
-
-    degree = rules.degree
+    # the bar to branch on: fewest layers left per failure weight, ties to the higher degree,
+    # then the lower index; scanning in (-degree, index) order and keeping the first strict
+    # minimum gives that choice without building a key per bar
+    scan = sorted(range(n), key=lambda b: (-rules.degree[b], b))
 
     def solve(dom, z, lo, hi):
         nodes[0] += 1
         if nodes[0] > node_limit:
             return None
-        free = [b for b in range(n) if z[b] < 0]
-        if not free:
+        best, least = -1, float("inf")
+        for b in scan:
+            if z[b] < 0:
+                key = _popcount(dom[b]) / weight[b]
+                if key < least:
+                    best, least = b, key
+        if best < 0:
             return list(z)
-        best = min(free, key=lambda b: (_popcount(dom[b]) / weight[b], -degree[b], b))
-        d = dom[best]
-        values = sorted((v for v in range(K) if (d >> v) & 1),
-                        key=lambda v: (added_span(lo, hi, best, v), v))
+        values = by_added_span(lo, hi, best, dom[best])
         for v in values:
             d2, z2, lo2, hi2 = dom[:], z[:], lo[:], hi[:]
             if assign(d2, z2, lo2, hi2, best, v):

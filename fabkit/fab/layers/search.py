@@ -316,8 +316,18 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
                         return False
             return True
 
-        def cost(b, v):
-            return sum(0 if lo[j] is None else max(lo[j] - v, v - hi[j], 0) for j in joints_of[b])
+        def by_cost(b):
+            """Layers 0..k-1 by the screw length they add to b's columns, then by height."""
+            c = [0] * k
+            for j in joints_of[b]:
+                lj = lo[j]
+                if lj is not None:
+                    hj = hi[j]
+                    for v in range(min(lj, k)):
+                        c[v] += lj - v
+                    for v in range(hj + 1, k):
+                        c[v] += v - hj
+            return sorted(range(k), key=c.__getitem__)  # stable: ties stay in layer order
 
         def place(pos):
             if pos == len(order):
@@ -326,7 +336,7 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
             if budget[0] < 0:
                 return False
             b = order[pos]
-            for v in sorted(range(k), key=lambda v: (cost(b, v), v)):
+            for v in by_cost(b):
                 if not ok(b, v):
                     continue
                 saved = [(j, lo[j], hi[j]) for j in joints_of[b]]
