@@ -132,6 +132,21 @@ def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=_DEEP_NO
     return _search(rules, int(layers), int(node_limit), [1.0] * rules.n)
 
 
+def added_span(joints, lo, hi, K: int) -> list:
+    """For each layer 0..K-1, the screw length (in layers) a bar placed there adds to its
+    columns ``joints``, whose placed bars span ``lo[j]..hi[j]`` (None: none placed yet)."""
+    c = [0] * K
+    for j in joints:
+        lj = lo[j]
+        if lj is not None:
+            hj = hi[j]
+            for v in range(min(lj, K)):
+                c[v] += lj - v
+            for v in range(hj + 1, K):
+                c[v] += v - hj
+    return c
+
+
 def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     n, head = rules.n, rules.head
     if n == 0:
@@ -217,15 +232,7 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     def by_added_span(lo, hi, b, d):
         """The layers left in domain d, by the screw length they add to b's columns, then
         by height."""
-        c = [0] * K
-        for j in joints_of[b]:
-            lj = lo[j]
-            if lj is not None:
-                hj = hi[j]
-                for v in range(min(lj, K)):
-                    c[v] += lj - v
-                for v in range(hj + 1, K):
-                    c[v] += v - hj
+        c = added_span(joints_of[b], lo, hi, K)
         return sorted((v for v in range(K) if (d >> v) & 1), key=c.__getitem__)  # stable
 
     nodes = [0]

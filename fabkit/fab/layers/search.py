@@ -16,7 +16,7 @@ from .constants import (_DEEP_LAYERS, _DEEP_NODES, _DEEP_TOTAL_NODES, _MILP_BARS
                         _MILP_SECONDS, _MILP_STEP_SECONDS, _MILP_STEPS, DUAL_BOUND_SLACK,
                         HEAD_LAYERS_SLACK)
 from .distances import _incidence
-from .propagate import PROPAGATE_BARS, deep_search
+from .propagate import PROPAGATE_BARS, added_span, deep_search
 from .sampling import Sweep
 
 # -- layer assignment -----------------------------------------------------------------------
@@ -318,16 +318,7 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
 
         def by_cost(b):
             """Layers 0..k-1 by the screw length they add to b's columns, then by height."""
-            c = [0] * k
-            for j in joints_of[b]:
-                lj = lo[j]
-                if lj is not None:
-                    hj = hi[j]
-                    for v in range(min(lj, k)):
-                        c[v] += lj - v
-                    for v in range(hj + 1, k):
-                        c[v] += v - hj
-            return sorted(range(k), key=c.__getitem__)  # stable: ties stay in layer order
+            return sorted(range(k), key=added_span(joints_of[b], lo, hi, k).__getitem__)
 
         def place(pos):
             if pos == len(order):
