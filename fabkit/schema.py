@@ -177,6 +177,12 @@ class PrintSection(Section):
                                      "over the whole motion (pins)", gt=0, le=50)
     max_layers: Optional[int] = Field(None, ge=1, le=64,
                                       description="most layers of bars accepted (pins)")
+    motion_from: Optional[float] = Field(
+        None, gt=0, description="drive value where the printed linkage's motion starts (a "
+                                "state along the design's motion; default: its start) (pins)")
+    motion_to: Optional[float] = Field(
+        None, gt=0, description="drive value where the printed linkage's motion ends "
+                                "(default: motion.to) (pins)")
 
 
 # --- origami ----------------------------------------------------------------------------------

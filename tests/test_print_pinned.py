@@ -335,3 +335,53 @@ def test_fabkit_export_to_stl_writes_a_print_in_place_linkage(tmp_path, capsys, 
     kinds = sorted({f.rsplit(".", 1)[1] for f in stl["files"]})
     assert kinds == ["3mf", "png", "stl"]
     assert math.isclose(stl["report"]["clearances_mm"]["pin_radial"], 0.3)
+
+
+# --- the part of the motion a printed linkage follows ----------------------------------------
+
+@pytest.mark.parametrize("name, key, value, layers", [
+    ("physical_fourbar_chain", "motion_from", 1.05, 12),  # folded flat at d1 = 1: no stacking
+    ("fixed_point_chain8", "motion_to", 2.9, 6),           # stops before the unstable D2*
+])
+def test_a_printed_linkage_follows_the_window_its_template_sets(tmp_path, capsys, name, key,
+                                                                 value, layers):
+    code = main(["export", name, "--to", "stl", "-o", str(tmp_path), "--tolerance-samples",
+                 "0"])
+    assert code == 0, capsys.readouterr()
+    stl = json.loads((tmp_path / name / "report.json").read_text())["formats"]["stl"]
+    assert stl["status"] == "exported"
+    assert stl["report"]["settings"][key] == value
+    assert stl["report"]["layers"] == layers
+    # the STL and the 3MF are each read back and re-simulated over the same window
+    assert len(stl["checks"]) == 2 and all(c["ok"] for c in stl["checks"])
+    for c in stl["checks"]:
+        motion = _by_name(c)["motion re-simulated"]
+        assert motion["ok"] and motion["value"] < 1e-12
+
+
+def test_the_printed_window_is_the_laser_kits_and_has_the_same_reasons_to_refuse():
+    design = fabkit.load_template("fixed_point_chain8")
+    s = design_print_settings(design, {"print": {"motion_to": 2.9}})
+    plan = pinned_print(design, s)
+    assert plan.sweep.drive[-1] == pytest.approx(2.9, abs=1e-12)
+    # the whole motion (to the unstable D2*) is what the template's window avoids
+    whole = design_print_settings(design, {"print": {"motion_to": design.motion.to}})
+    assert pinned_print(design, whole).sweep.drive[-1] == pytest.approx(design.motion.to)
+    with pytest.raises(FabricationError, match=r"print motion_from = 5 must lie between the "
+                                               r"start d1 = 1\.7320\d+ and the kit's target 2\.9"):
+        pinned_print(design, design_print_settings(design, {"print": {"motion_from": 5.0}}))
+    with pytest.raises(FabricationError, match=r"print\.motion_from: applies to linkage = "
+                                               r"\"pins\" only"):
+        print_settings({"motion_from": 1.1})
+
+
+def test_a_window_the_motion_cannot_reach_fails_the_export_with_its_reason(tmp_path, capsys):
+    code = main(["export", "fixed_point_chain8", "--to", "stl", "-o", str(tmp_path),
+                 "--tolerance-samples", "0", "--set", "print.motion_from=3.5"])
+    out = capsys.readouterr()
+    assert code == 1
+    report = json.loads((tmp_path / "fixed_point_chain8" / "report.json").read_text()) \
+        if (tmp_path / "fixed_point_chain8" / "report.json").exists() else None
+    text = out.out + out.err
+    assert "print motion_from = 3.5 must lie between" in text
+    assert report is None or report["formats"]["stl"]["status"] != "exported"

@@ -213,10 +213,13 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     -------
     dict
     """
-    from ..fab.pinned import pinned_print
+    from ..fab.pinned import pinned_print, printed_design
 
     try:
         plan = _memo(("plan",) + _design_key(design, s), lambda: pinned_print(design, s))
+        # the linkage is judged against the design as it prints: its motion from motion_from
+        # to motion_to, where the template sets them
+        design = _memo(("window",) + _design_key(design, s), lambda: printed_design(design, s))
     except FabkitError as exc:
         report.update(ok=False, checks=[_check("design prints", False, detail=str(exc))])
         return report

@@ -226,11 +226,7 @@ def _check_consistency(s: LaserSettings) -> None:
 def kit_design(design, settings: LaserSettings):
     """The design as the kit moves: from ``motion_from`` to ``motion_to`` when they are set.
 
-    The kit's reference configuration is the design's state at ``motion_from`` (traced along
-    the design's own motion), with the bar lengths unchanged, and its target ``motion_to``.
-    A kit may stop short of a state that no cut kit can follow (an unstable fixed point that
-    magnifies every length error) or start where its bars lie apart (a flat start whose bars
-    lie on one another admits no stacking).
+    See :func:`fabkit.fab.window.motion_window`.
 
     Parameters
     ----------
@@ -245,39 +241,8 @@ def kit_design(design, settings: LaserSettings):
     Raises
     ------
     FabricationError
-        The design has no motion, or ``motion_from`` is not reached along it, or the two do not
-        leave a motion between them.
+        See :func:`fabkit.fab.window.motion_window`.
     """
-    from dataclasses import replace
+    from .window import motion_window
 
-    from ..network import Network
-
-    start, to = settings.motion_from, settings.motion_to
-    if start is None and to is None:
-        return design
-    m = design.motion
-    if m.to is None:
-        raise FabricationError("laser motion_from / motion_to need a design with a motion "
-                               "(motion.to)")
-    net, motion = design.network, m
-    if to is not None:
-        motion = replace(motion, to=float(to))
-    d0 = float(net.port_distance(m.drive))
-    if start is not None:
-        start = float(start)
-        if not (start - d0) * (float(motion.to) - start) > 0:
-            raise FabricationError(
-                f"laser motion_from = {start:g} must lie between the start {m.drive} = "
-                f"{d0:.6g} and the kit's target {float(motion.to):.6g}")
-        traj = design.trace(to=start)
-        if not traj.success:
-            raise FabricationError(
-                f"laser motion_from = {start:g}: the design's motion does not reach it from "
-                f"{m.drive} = {d0:.6g} ({traj.message}); give a value between the start and "
-                "motion.to")
-        # the reference configuration moved along the motion; the bars keep their lengths
-        net = Network(traj.positions[-1], net.edges, net.ports, net.labels, net.assembly)
-    elif float(motion.to) == d0:
-        raise FabricationError(f"laser motion_to = {motion.to:g} is where the design starts: "
-                               "the kit would not move")
-    return replace(design, network=net, motion=motion)
+    return motion_window(design, settings.motion_from, settings.motion_to, "laser")

@@ -35,7 +35,7 @@ import numpy as np
 from ..errors import FabricationError
 from .printing import PrintSettings
 
-__all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "stack_settings", "bar_body",
+__all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "printed_design", "stack_settings", "bar_body",
            "pin_profile", "polygon_area", "circle_polygon"]
 
 #: Sides of the polygons standing for circles (pins, holes, caps, bar ends): a 3 mm pin loses
@@ -250,14 +250,30 @@ class PinnedPrint:
         return float(self.layer[self.pieces[piece]["bars"]].min()) * self.settings.layer_pitch
 
 
+def printed_design(design, s: PrintSettings):
+    """The design as its printed linkage moves (``print.motion_from`` / ``motion_to``).
+
+    Raises
+    ------
+    FabricationError
+        See :func:`fabkit.fab.window.motion_window`.
+    """
+    from .window import motion_window
+
+    return motion_window(design, s.motion_from, s.motion_to, "print")
+
+
 def _sweep(design, s: PrintSettings):
     from .layers import sample_chain, sample_motion
 
     net = design.network
     step = 0.5 * s.clearance
-    sweep = sample_chain(net, design.motion, s.scale, step, width=s.bar_width,
-                         clearance=s.clearance, column_radius=0.5 * s.cap_diameter,
-                         spacer_radius=0.5 * s.cap_diameter, floor_limit=s.clearance)
+    # from a start part way along the motion the module windows would count every module as
+    # sweeping the union of the ranges (see the laser plan): such a linkage is sampled whole
+    sweep = None if s.motion_from is not None else sample_chain(
+        net, design.motion, s.scale, step, width=s.bar_width, clearance=s.clearance,
+        column_radius=0.5 * s.cap_diameter, spacer_radius=0.5 * s.cap_diameter,
+        floor_limit=s.clearance)
     if sweep is None:  # not a chain of modules: sample the whole motion
         sweep = sample_motion(net, design.motion, s.scale, step, floor_limit=s.clearance)
     return sweep
@@ -327,6 +343,7 @@ def _plan_print(design, s: PrintSettings) -> PinnedPrint:
     from .layers import plan_layers
     from .printers import split_to_fit
 
+    design = printed_design(design, s)
     net = design.network
     if net.dim != 2:
         raise FabricationError(f"a printed bar linkage needs a 2D network; {design.name} is "

@@ -62,7 +62,7 @@ PIN_DEFAULTS: dict[str, float] = {"scale": 50.0, "bar_width": 7.0, "bar_thicknes
 _HINGE_KEYS = ("plate_thickness", "hinge_style", "hinge_layers", "hinge_thickness",
                "hinge_width", "hinge_length", "gap", "strain_limit", "rigid_triangles")
 _PIN_KEYS = ("bar_width", "bar_thickness", "layer_gap", "pin_diameter", "pin_clearance",
-             "cap_diameter", "clearance", "max_layers")
+             "cap_diameter", "clearance", "max_layers", "motion_from", "motion_to")
 
 
 
@@ -123,6 +123,10 @@ class PrintSettings:
         Least gap between bars, or a bar and a cap, of one layer over the whole motion.
     max_layers : int
         Most layers of bars accepted.
+    motion_from, motion_to : float or None
+        The part of the design's motion the printed linkage follows (drive values; None: the
+        design's start and its ``motion.to``), as for the laser kit
+        (:func:`fabkit.fab.window.motion_window`).
     """
 
     material: str
@@ -150,6 +154,8 @@ class PrintSettings:
     cap_diameter: float = PIN_DEFAULTS["cap_diameter"]
     clearance: float = PIN_DEFAULTS["clearance"]
     max_layers: int = int(PIN_DEFAULTS["max_layers"])
+    motion_from: float | None = None
+    motion_to: float | None = None
 
     def printer_profile(self):
         """The :class:`~fabkit.fab.printers.Printer` these settings print on."""
@@ -330,6 +336,10 @@ def _whole_layers(value: float, layer: float, key: str, where: str) -> None:
                                f"layers; use {lo * layer:g} or {hi * layer:g}")
 
 
+def _optional(value) -> float | None:
+    return None if value is None else float(value)
+
+
 def _pin_settings(given: dict, where: str) -> PrintSettings:
     """Settings of a print-in-place bar linkage (``linkage = "pins"``), checked together."""
     material = given.get("material", "PLA")
@@ -371,7 +381,9 @@ def _pin_settings(given: dict, where: str) -> PrintSettings:
                       layer_gap=float(values["layer_gap"]), pin_diameter=pin,
                       pin_clearance=float(values["pin_clearance"]), cap_diameter=cap,
                       clearance=float(values["clearance"]),
-                      max_layers=int(values["max_layers"]), **flags)
+                      max_layers=int(values["max_layers"]),
+                      motion_from=_optional(given.get("motion_from")),
+                      motion_to=_optional(given.get("motion_to")), **flags)
     if s.cone_height > s.bar_thickness + MM_SLACK:
         raise FabricationError(
             f"{where}.cap_diameter: the 45-degree cone under a {cap:g} mm collar on a {pin:g} mm "
