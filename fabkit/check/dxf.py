@@ -408,9 +408,9 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
 def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) -> list:
     from ..fab.laser import kit_design, laser_overrides, laser_settings
     from ..fab.layers import JointStack, sample_motion, stacking_gaps
-    from ..kinematics import trace
     from ..network import Network
     from ..rigidity import count_modes
+    from .motion import compare_motion
 
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=design.network.size)
@@ -441,21 +441,11 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
     if m.to is None:
         out.append(_check("module_map", False, None, None, "the design has no motion target"))
         return out
-    ref = design.trace()
-    got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)
-    n = min(ref.n_steps, got.n_steps)
-    worst, worst_port = 0.0, None
-    for port in net.ports:
-        if port == m.drive:
-            continue
-        diff = float(np.abs(ref.distance(port)[:n] - got.distance(port)[:n]).max())
-        if diff >= worst:
-            worst, worst_port = diff, port
-    limit = MAP_RTOL * net.size
-    same_end = ref.n_steps == got.n_steps and str(ref.status) == str(got.status)
-    out.append(_check("module_map", worst <= limit and same_end, worst, limit,
-                      f"largest port-distance difference (design units, at {worst_port}) between "
-                      f"the design's and the rebuilt network's motion; both {got.status}"))
+    cmp = compare_motion(design, built, MAP_RTOL)
+    out.append(_check("module_map", cmp["ok"], cmp["worst"], cmp["limit"],
+                      f"largest port-distance difference (design units, at {cmp['port']}) "
+                      f"between the design's and the rebuilt network's motion; both "
+                      f"{cmp['status']}"))
     out.append(_screws_close(edges, layer, s))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
     # the gap required grows by the excess (the planner widened its clearance the same way)
