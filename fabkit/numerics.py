@@ -211,6 +211,9 @@ _DENSE_MAX_UNKNOWNS = 96
 # Up to this many, one rank-revealing QR per configuration (LAPACK gelsy) beats LSQR, whose
 # iterations grow with the condition (the and-gate's 196 unknowns: 1.7 ms against 5.5 ms).
 _QR_MAX_UNKNOWNS = 400
+# Singular values below this fraction of the largest are taken as zero by the dense and QR
+# steps: dependent rows (a state of self-stress) then give the least-squares step of least norm.
+_STEP_RCOND = 1e-13
 
 
 def project_to_lengths(edges, lengths, x0, *, pairs=(), targets=None, rtol: float = EDGE_RTOL,
@@ -308,7 +311,7 @@ def _dense_steps(u, ij, res, n, dim):
     # Subtract rather than assign: a pair may share a node with an edge row, never with itself.
     jac[:, rows, ij[:, 1]] -= u
     jac = jac.reshape(nb, m, n * dim)
-    step = np.einsum("bij,bj->bi", np.linalg.pinv(jac, rcond=1e-13), res)
+    step = np.einsum("bij,bj->bi", np.linalg.pinv(jac, rcond=_STEP_RCOND), res)
     return step.reshape(nb, n, dim)
 
 
@@ -324,7 +327,7 @@ def _qr_steps(u, ij, res, n, dim):
         jac[:] = 0.0
         jac[rows, ij[:, 0]] = u[b]
         jac[rows, ij[:, 1]] -= u[b]
-        out[b] = lstsq(jac.reshape(m, n * dim), res[b], cond=1e-13, lapack_driver="gelsy",
+        out[b] = lstsq(jac.reshape(m, n * dim), res[b], cond=_STEP_RCOND, lapack_driver="gelsy",
                        check_finite=False)[0]
     return out.reshape(nb, n, dim)
 
