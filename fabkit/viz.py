@@ -74,7 +74,13 @@ def figure_png(fig, dpi: int = 110) -> bytes:
     """Render a figure to PNG bytes (deterministic metadata) and close it."""
     import io
 
+    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+
     plt = _mpl()
+    if isinstance(fig.get_layout_engine(), PlaceHolderLayoutEngine):
+        # ``tight_layout()`` has run and left this placeholder, which would make savefig draw
+        # the whole figure once more before drawing it for the PNG (a third of the time)
+        fig.set_layout_engine(None)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
     plt.close(fig)
@@ -93,7 +99,7 @@ def checked_png(fig, dpi: int = 110) -> tuple[bytes, list]:
 
     plt = _mpl()
     fig.set_dpi(dpi)
-    clipped = clipped_texts(fig)  # draws the canvas at ``dpi``
+    clipped = clipped_texts(fig, render=True)  # draws the canvas at ``dpi``
     buf = io.BytesIO()
     matplotlib.image.imsave(buf, fig.canvas.buffer_rgba(), format="png", origin="upper",
                             dpi=dpi, metadata={"Software": None})
@@ -101,11 +107,19 @@ def checked_png(fig, dpi: int = 110) -> tuple[bytes, list]:
     return buf.getvalue(), clipped
 
 
-def clipped_texts(fig) -> list:
+def clipped_texts(fig, *, render: bool = False) -> list:
     """The visible texts of a figure that do not fit inside it (a title cut off at the edge).
 
     Tick labels count as one text per axis (``"x ticks of <axes title>"``), and only those
     drawn (within the axis' limits).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    render : bool
+        Rasterise the figure on its canvas as well (for a caller that wants its pixels); else
+        only lay it out (legends, titles and aspect placed as a draw places them), which
+        gives the same text boxes for a fraction of the time.
 
     Returns
     -------
@@ -113,7 +127,10 @@ def clipped_texts(fig) -> list:
     """
     from matplotlib.text import Text
 
-    fig.canvas.draw()
+    if render:
+        fig.canvas.draw()
+    else:
+        fig.draw_without_rendering()
     renderer = fig.canvas.get_renderer()
     box = fig.bbox
 

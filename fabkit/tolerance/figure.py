@@ -76,7 +76,7 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
 
     plt = _mpl()
     head = textwrap.wrap(f"{title + ': ' if title else ''}{result.verdict}", TITLE_CHARS)
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2 + 0.16 * len(head)), layout="constrained")
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2 + 0.16 * len(head)))
     _chart(axes[0], result)
     ax = axes[1]
     judged = [(n, j) for n, j in result.judged.items() if n != "order"]
@@ -117,4 +117,6 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         ax.text(0.5, 0.5, "a single part", ha="center", va="center", transform=ax.transAxes)
     ax.set_title("along the chain", fontsize=10)
     fig.suptitle("\n".join(head), fontsize=8)
+    # laid out once here: a constrained layout would lay the figure out again at every draw
+    fig.tight_layout()
     return fig

@@ -58,10 +58,16 @@ class Labeller:
         """The label's box relative to its anchor (display units), with a little margin."""
         key = (text, fs, weight)
         if key not in self._extents:
-            t = self._text(0.0, 0.0, text, fs, "black", weight)
+            from matplotlib.text import Text
+
+            # measured on a bare text, never added to the axes: its box does not include the
+            # white patch behind a placed label, and making that patch costs more than the
+            # measurement
+            t = Text(0.0, 0.0, text, fontsize=fs, ha="center", va="center", weight=weight,
+                     transform=self.ax.transData)
+            t.set_figure(self.ax.figure)
             e = t.get_window_extent(self.renderer).expanded(1.05, 1.1)
             ax0, ay0 = self.ax.transData.transform((0.0, 0.0))
-            t.remove()
             self._extents[key] = (e.x0 - ax0, e.y0 - ay0, e.x1 - ax0, e.y1 - ay0)
         return self._extents[key]
 

@@ -64,14 +64,6 @@ class DeepSearch:
     tried: tuple
 
 
-def _popcount(v: int) -> int:
-    return bin(v).count("1")
-
-
-if hasattr(int, "bit_count"):  # Python >= 3.10
-    _popcount = int.bit_count  # noqa: F811
-
-
 class _Rules:
     """The stacking rules indexed by bar and by joint, for the propagation."""
 
@@ -158,9 +150,13 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     bars_at, joints_of, nbrs = rules.bars_at, rules.joints_of, rules.nbrs
     avoid, avoiders, partners = rules.avoid, rules.avoiders, rules.partners
 
-    def span(a, b):
-        a, b = max(a, 0), min(b, K - 1)
-        return ((1 << (b - a + 1)) - 1) << a if a <= b else 0
+    # Bits of the layers from a upwards (``up[a + o]``) and from 0 up to b (``upto[b + o]``)
+    # for a, b in -o..K-1+o, every bound the rules below take; the layers a..b are
+    # ``up[a + o] & upto[b + o]``. Two list lookups instead of a call on the search's hottest
+    # lines (the rules are checked millions of times in a deep search).
+    o = gap + 2
+    up = [full & ~((1 << max(a, 0)) - 1) if a < K else 0 for a in range(-o, K + o)]
+    upto = [(1 << (min(b, K - 1) + 1)) - 1 if b >= 0 else 0 for b in range(-o, K + o)]
 
     def narrow(dom, z, bars, mask, touched):
         for c in bars:
@@ -184,41 +180,42 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
                 if z[c] == v:
                     return False
             narrow(dom, z, nbrs[b], ~(1 << v), touched)
+            vo = v + o
             for j, sl in avoid[b]:  # b passes column j: the column stands wholly to one side
                 if lo[j] is not None:
                     if lo[j] - sl <= v <= hi[j] + sl:
                         return False
-                    side = span(v + sl + 1, K - 1) if lo[j] > v else span(0, v - sl - 1)
+                    side = up[vo + sl + 1] if lo[j] > v else upto[vo - sl - 1]
                 else:
-                    side = full & ~span(v - sl, v + sl)
+                    side = ~(up[vo - sl] & upto[vo + sl])
                 narrow(dom, z, bars_at[j], side, touched)
             for j in joints_of[b]:  # b widens its own columns
                 l2 = v if lo[j] is None else min(lo[j], v)
                 h2 = v if hi[j] is None else max(hi[j], v)
                 lo[j], hi[j] = l2, h2
+                lo2, ho2 = l2 + o, h2 + o
                 for c, sl in avoiders[j]:
                     zc = z[c]
                     if zc < 0:
-                        dom[c] &= ~span(l2 - sl, h2 + sl)
+                        dom[c] &= ~(up[lo2 - sl] & upto[ho2 + sl])
                         touched.append(c)
                         continue
                     if l2 - sl <= zc <= h2 + sl:
                         return False
-                    side = span(zc + sl + 1, K - 1) if l2 > zc else span(0, zc - sl - 1)
+                    side = up[zc + o + sl + 1] if l2 > zc else upto[zc + o - sl - 1]
                     narrow(dom, z, bars_at[j], side, touched)
                 for i in partners[j]:
                     if lo[i] is None:
-                        narrow(dom, z, bars_at[i], ~span(l2 - gap, h2 + gap), touched)
+                        narrow(dom, z, bars_at[i], ~(up[lo2 - gap] & upto[ho2 + gap]), touched)
                         continue
                     if not (hi[i] + gap < l2 or h2 + gap < lo[i]):
                         return False
                     if hi[i] < l2:   # column i below column j
-                        below, above = span(0, l2 - gap - 1), span(hi[i] + gap + 1, K - 1)
-                        narrow(dom, z, bars_at[i], below, touched)
-                        narrow(dom, z, bars_at[j], above, touched)
+                        narrow(dom, z, bars_at[i], upto[lo2 - gap - 1], touched)
+                        narrow(dom, z, bars_at[j], up[hi[i] + o + gap + 1], touched)
                     else:
-                        narrow(dom, z, bars_at[i], span(h2 + gap + 1, K - 1), touched)
-                        narrow(dom, z, bars_at[j], span(0, lo[i] - gap - 1), touched)
+                        narrow(dom, z, bars_at[i], up[ho2 + gap + 1], touched)
+                        narrow(dom, z, bars_at[j], upto[lo[i] + o - gap - 1], touched)
             for c in touched:
                 d = dom[c]
                 if d == 0:
@@ -248,7 +245,7 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
         best, least = -1, float("inf")
         for b in scan:
             if z[b] < 0:
-                key = _popcount(dom[b]) / weight[b]
+                key = dom[b].bit_count() / weight[b]
                 if key < least:
                     best, least = b, key
         if best < 0:
