@@ -39,7 +39,38 @@ def test_the_map_axes_say_input_and_output_not_inches():
     design = fabkit.load_template(TEMPLATES / "super_stable.toml")
     fig = map_figure(fabkit.module_map(design.network, d_in="d1", d_out="d2"))
     ax = fig.axes[0]
-    assert ax.get_xlabel() == "$d_k$, input of module k (design units)"
-    assert ax.get_ylabel() == "$d_{k+1} = f(d_k)$, its output (design units)"
+    assert ax.get_xlabel() == "dₖ, input of module k (design units)"
+    assert ax.get_ylabel() == "dₖ₊₁ = f(dₖ), its output (design units)"
     assert clipped_texts(fig) == []
+    _mpl().close(fig)
+
+
+def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
+    """The log tick labels of the export's figures say what matplotlib's say (10⁻³, 6×10⁻¹⁶),
+    at the same ticks, without math text."""
+    from matplotlib.ticker import LogFormatterSciNotation
+
+    from fabkit.viz import plain_log_ticks
+
+    plt = _mpl()
+    fig, ax = plt.subplots()
+    ax.semilogy([0, 1], [6e-16, 3e-15])
+    ours = ax.yaxis
+    plain_log_ticks(ours)
+    fig.canvas.draw()
+    theirs = {}
+    for minor, fmt in ((False, LogFormatterSciNotation()),
+                       (True, LogFormatterSciNotation(labelOnlyBase=False))):
+        ticks = ours.get_minorticklocs() if minor else ours.get_majorticklocs()
+        fmt.set_axis(ours)
+        theirs[minor] = fmt.format_ticks(ticks)
+    plain = [t.get_text() for t in ours.get_majorticklabels()]
+    assert not any("$" in t for t in plain + [t.get_text() for t in ours.get_minorticklabels()])
+    as_math = [t.replace("$\\mathdefault{", "").replace("}$", "").replace("\\times", "×")
+               .replace("10^{", "10^").replace("}", "") for t in theirs[False]]
+    sup = str.maketrans("⁰¹²³⁴⁵⁶⁷⁸⁹⁻", "0123456789-")
+    assert [t.replace("−", "-").replace("10", "10^", 1).translate(sup) if "10" in t else t
+            for t in plain] == as_math
+    minor_labels = [t.get_text() for t in ours.get_minorticklabels() if t.get_text()]
+    assert "6×10⁻¹⁶" in minor_labels and len(minor_labels) == sum(bool(t) for t in theirs[True])
     _mpl().close(fig)

@@ -135,8 +135,8 @@ def map_figure(traj, design):
     lo, hi = float(dist.min()), float(dist.max())
     pad = 0.05 * (hi - lo or 1.0)
     ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], ":", color="0.5", lw=1, label="identity")
-    ax.set_xlabel("$d_k$")
-    ax.set_ylabel("$d_{k+1}$")
+    ax.set_xlabel("dₖ")  # plain text: no math text parser
+    ax.set_ylabel("dₖ₊₁")
     ax.set_title(f"{design.name}: map along the chain")
     ax.legend(loc="best", fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")

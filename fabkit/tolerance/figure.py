@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..viz import plain_log_ticks
 from .result import ToleranceResult
 
 __all__ = ["tolerance_figure", "keep_chart"]
@@ -26,6 +27,7 @@ def _chart(ax, result: ToleranceResult) -> None:
                         label=f"{name} alone")
         ax.semilogx(scales, 100 * np.asarray(curves["all"]), "-", lw=2.5, color="k",
                     label="all sources")
+        plain_log_ticks(ax.xaxis)
     ax.axhline(100 * result.spec.min_reached, color="C3", ls="--", lw=1)
     ax.axvline(1.0, color="0.5", ls=":", lw=1)
     value, bound = m.get("value"), m.get("bound")
@@ -93,6 +95,7 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         ax.annotate(text, (0.02, k + 0.3), xycoords=("axes fraction", "data"), fontsize=8)
     ax.axvline(1.0, color="C3", ls="--", lw=1)
     ax.set_xscale("log")
+    plain_log_ticks(ax.xaxis)
     ax.set_yticks([])
     ax.set_ylim(-0.6, max(len(judged), 1) - 0.2)
     ax.set_xlabel("measured / allowed (per build, worst part)")
@@ -108,6 +111,7 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         ax.semilogy(x, np.maximum(p95, LOG_FLOOR), "o-", ms=3, color=f"C{k}",
                     label=f"{name} (95%)")
         ax.axhline(j.limit_mm, color=f"C{k}", ls="--", lw=0.8)
+        plain_log_ticks(ax.yaxis)
         shown = True
     if shown:
         ax.legend(fontsize=8)
