@@ -449,3 +449,23 @@ def test_class_score_counts_as_the_full_score():
     want = _score(perms[:, colours], joint_bars, jpos, keepout, pairs, 1, span)
     assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
     assert want[0].max() > 0  # the rules are exercised
+
+
+@pytest.mark.parametrize("text", ["B12·L3", "J45→p2", "100 mm", "S14.2"])
+def test_label_outlines_set_glyph_by_glyph_match_ezdxf_drawing_the_whole_line(text):
+    """Labels are drawn from glyphs cached one by one; the line they make is the one ezdxf's
+    text2path draws for the whole text, centred (same polylines to 1e-12 mm)."""
+    from ezdxf.addons import text2path
+    from ezdxf.enums import TextEntityAlignment
+    from ezdxf.fonts import fonts
+
+    from fabkit.fab.nest import GLYPH_FLATNESS, Label, label_outlines
+
+    paths = text2path.make_paths_from_str(text, fonts.FontFace(family="DejaVu Sans"), size=3.0,
+                                          align=TextEntityAlignment.MIDDLE_CENTER)
+    whole = [np.array([(v.x, v.y) for v in sub.flattening(distance=GLYPH_FLATNESS, segments=1)])
+             for p in paths for sub in p.sub_paths()]
+    whole = [w + (10.0, 20.0) for w in whole if w.shape[0] >= 3]
+    ours = label_outlines(Label(text, (10.0, 20.0), 3.0, 0.0, "bar 0"))
+    assert [o.shape for o in ours] == [w.shape for w in whole]
+    assert max(float(np.abs(o - w).max()) for o, w in zip(ours, whole)) < 1e-12

@@ -374,7 +374,7 @@ def label_outlines(label: Label) -> list[np.ndarray]:
     Returns
     -------
     list of numpy.ndarray, shape (K, 2)
-        Closed polylines (within 0.02 mm of the glyphs' curves, a tenth of a laser's spot)
+        Closed polylines (within :data:`GLYPH_FLATNESS` of the glyphs' curves)
         centred on ``label.insert`` and turned by ``label.angle``.
 
     Raises
@@ -388,34 +388,70 @@ def label_outlines(label: Label) -> list[np.ndarray]:
             for pts in _glyph_outlines(label.text, float(label.height))]
 
 
+#: Largest distance between a glyph's curve and the polyline that stands for it (mm): a tenth
+#: of a laser's spot.
+GLYPH_FLATNESS = 0.02
+
+
 @functools.lru_cache(maxsize=4096)
 def _glyph_outlines(text: str, height: float) -> tuple:
     """A text's glyph outlines about the origin (read-only arrays; the sheets' DXF and SVG and
-    every kit of a batch draw the same labels again)."""
+    every kit of a batch draw the same labels again).
+
+    Each character is drawn once per height (:func:`_char_outlines`) and set after the one
+    before it by its advance, as ezdxf's text2path sets a line without kerning; the line is
+    centred as its MIDDLE_CENTER alignment centres it (across the glyphs' control points, and
+    half a cap height down).
+    """
+    chars = [_char_outlines(c, height) for c in text]
+    x, lo, hi = 0.0, math.inf, -math.inf
+    offsets = []
+    for outlines, (x0, x1), advance in chars:
+        offsets.append(x)
+        if outlines:
+            lo, hi = min(lo, x + x0), max(hi, x + x1)
+        x += advance
+    if lo > hi:
+        return ()
+    shift = np.array([-0.5 * (lo + hi), -0.5 * height])
+    out = []
+    for (outlines, _, _), dx in zip(chars, offsets):
+        for pts in outlines:
+            placed = pts + (shift + (dx, 0.0))
+            placed.setflags(write=False)
+            out.append(placed)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=1024)
+def _char_outlines(char: str, height: float) -> tuple:
+    """One character's closed outlines, its origin on the baseline at its left (flattened to
+    :data:`GLYPH_FLATNESS`), the x range of its control points and its advance."""
     try:
+        from ezdxf import path as ezpath
         from ezdxf.addons import text2path
-        from ezdxf.enums import TextEntityAlignment
         from ezdxf.fonts import fonts
     except ImportError as exc:  # pragma: no cover - ezdxf is a dependency
         raise FabricationError(f"labels as outlines need ezdxf's text2path: {exc}") from None
     try:
         face = fonts.FontFace(family="DejaVu Sans")
-        paths = text2path.make_paths_from_str(text, face, size=height,
-                                              align=TextEntityAlignment.MIDDLE_CENTER)
+        paths = text2path.make_paths_from_str(char, face, size=height)
+        # the glyph's own advance (the font's text_width_ex counts a lone space as 0 wide)
+        advance = text2path.get_font(face).glyph_cache.get_text_length(char, height)
     except Exception as exc:  # font lookup errors come in many types
-        raise FabricationError(f"cannot draw label {text!r} as outlines ({exc}); use "
-                               "labels = \"text\" or \"none\"") from None
+        raise FabricationError(f"cannot draw label character {char!r} as outlines ({exc}); "
+                               "use labels = \"text\" or \"none\"") from None
     out = []
-    for path in paths:
-        for sub in path.sub_paths():
-            # the distance bounds the error; ezdxf's default of at least 4 segments per curve
-            # would add points no cutter resolves
-            pts = np.array([(v.x, v.y) for v in sub.flattening(distance=0.02, segments=1)],
-                           dtype=np.float64)
-            if pts.shape[0] >= 3:
-                pts.setflags(write=False)
-                out.append(pts)
-    return tuple(out)
+    for sub in paths:
+        # the distance bounds the error; ezdxf's default of at least 4 segments per curve
+        # would add points no cutter resolves
+        pts = np.array([(v.x, v.y) for v in sub.flattening(distance=GLYPH_FLATNESS, segments=1)],
+                       dtype=np.float64)
+        if pts.shape[0] >= 3:
+            out.append(pts)
+    box = ezpath.bbox(paths, fast=True) if paths else None
+    x_range = (box.extmin.x, box.extmax.x) if box is not None and box.has_data else (0.0, 0.0)
+    return tuple(out), x_range, float(advance)
 
 
 def part_area(part: Part) -> float:
