@@ -632,8 +632,19 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     """
     arguments.network("net", net)
     arguments.choice("method", method, ("auto", "structure", "dense", "sparse"))
-    x = net.nodes if positions is None else _checked_positions(positions, net)
+    if positions is not None:
+        return _count_modes(net, _checked_positions(positions, net), rtol, method)
+    # the reference configuration's count is remembered on the (immutable) network: an export
+    # asks for it when it traces, reports and checks the design
+    key = ("count_modes", float(rtol), method)
+    if key not in net._cache:
+        net._cache[key] = _count_modes(net, net.nodes, rtol, method)
+    return net._cache[key]
+
+
+def _count_modes(net: Network, x: np.ndarray, rtol: float, method: str) -> ModeCount:
     n, d = x.shape
+    positions = None if x is net.nodes else x
     cert, why = None, ""
     if method in ("auto", "structure"):
         from .rigidity_structure import Uncertified, certify

@@ -74,8 +74,7 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
                         "ambiguous": m.ambiguous, "note": m.note}
 
             outcome, times, info = run_budgeted(
-                lambda net=net, path=path: count_modes(net, method=path), evaluate, budget,
-                repeats)
+                _cold(net, lambda: count_modes(net, method=path)), evaluate, budget, repeats)
             pt.update(outcome=outcome, times=[float(t) for t in times],
                       time_s=float(np.median(times)) if times else None)
             if isinstance(info, dict):
