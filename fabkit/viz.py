@@ -101,21 +101,37 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     return fig
 
 
-def figure_png(fig, dpi: int = 110) -> bytes:
-    """Render a figure to PNG bytes (deterministic metadata) and close it."""
+#: zlib level of the PNGs: 4 writes them in two thirds of the time of the default 6, and
+#: as opaque RGB they come out smaller than matplotlib's RGBA at 6.
+PNG_COMPRESSION = 4
+
+
+def _canvas_png(fig, dpi: int) -> bytes:
+    """The figure's drawn canvas as PNG bytes: RGB when every pixel is opaque (a figure's
+    white background), else RGBA; no metadata but the resolution."""
     import io
 
-    from matplotlib.layout_engine import PlaceHolderLayoutEngine
+    from PIL import Image
 
-    plt = _mpl()
-    if isinstance(fig.get_layout_engine(), PlaceHolderLayoutEngine):
-        # ``tight_layout()`` has run and left this placeholder, which would make savefig draw
-        # the whole figure once more before drawing it for the PNG (a third of the time)
-        fig.set_layout_engine(None)
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    pixels = rgba[..., :3] if bool((rgba[..., 3] == 255).all()) else rgba
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi, metadata={"Software": None})
-    plt.close(fig)
+    Image.fromarray(np.ascontiguousarray(pixels)).save(
+        buf, format="png", compress_level=PNG_COMPRESSION, dpi=(dpi, dpi))
     return buf.getvalue()
+
+
+def figure_png(fig, dpi: int = 110) -> bytes:
+    """Render a figure to PNG bytes (deterministic metadata) and close it.
+
+    The canvas is drawn once (``savefig`` draws a figure laid out by ``tight_layout`` twice).
+    """
+    plt = _mpl()
+    fig.set_dpi(dpi)
+    fig.canvas.draw()
+    png = _canvas_png(fig, dpi)
+    plt.close(fig)
+    return png
 
 
 def checked_png(fig, dpi: int = 110) -> tuple[bytes, list]:
@@ -124,18 +140,12 @@ def checked_png(fig, dpi: int = 110) -> tuple[bytes, list]:
 
     The check measures the drawing the PNG is made of, so a picture is drawn once, not twice.
     """
-    import io
-
-    import matplotlib.image
-
     plt = _mpl()
     fig.set_dpi(dpi)
     clipped = clipped_texts(fig, render=True)  # draws the canvas at ``dpi``
-    buf = io.BytesIO()
-    matplotlib.image.imsave(buf, fig.canvas.buffer_rgba(), format="png", origin="upper",
-                            dpi=dpi, metadata={"Software": None})
+    png = _canvas_png(fig, dpi)
     plt.close(fig)
-    return buf.getvalue(), clipped
+    return png, clipped
 
 
 def clipped_texts(fig, *, render: bool = False) -> list:
