@@ -499,11 +499,14 @@ class Projected(StepMethod):
 
         return self._newton_on(guess, grad, res)
 
-    def _tangent_from(self, lu, j, orient_like):
-        """Unit tangent and branch test τ from existing factors of A = [J; e_j]."""
-        rhs = np.zeros(self.sys.n_rows)
-        rhs[-1] = 1.0
-        t = lu.solve(rhs)
+    def _tangent_from(self, lu, j, orient_like, raw=None):
+        """Unit tangent and branch test τ from existing factors of A = [J; e_j]; ``raw`` is
+        ``A⁻¹ e_last`` when already solved for."""
+        if raw is None:
+            rhs = np.zeros(self.sys.n_rows)
+            rhs[-1] = 1.0
+            raw = lu.solve(rhs)
+        t = raw
         if not np.isfinite(t).all():
             return None
         t /= np.linalg.norm(t)
@@ -538,26 +541,31 @@ class Projected(StepMethod):
         eps = np.finfo(float).eps
         return 16.0 * eps * max(big, self.scale), 4.0 * eps * big / self.min_length
 
-    def _correct(self, xp, lu, j, cj):
+    def _correct(self, xp, lu, j, cj, first=None):
         """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None.
 
         The residual is evaluated once per iteration and tested before the next solve; the step
-        is refused as soon as the iteration contracts worse than ``contraction``.
+        is refused as soon as the iteration contracts worse than ``contraction``. ``first`` is
+        (residual at xp, first update) when the caller has already solved for them (together
+        with the tangent, see :meth:`_step`).
         """
         dx_floor, res_floor = self._noise(xp)
         tol = max(self.opts["tol"], res_floor)
         kappa = self.opts["contraction"]
         x = xp.copy()
         rhs = np.empty(self.sys.n_rows)  # [edge and gauge residuals; x_j - cj]
-        r = self.sys.residual(x, out=rhs)
+        r = self.sys.residual(x, out=rhs) if first is None else first[0]
         prev = None
         theta_max = 0.0
         for it in range(0, 16):
             if self.sys.rel_from_residual(r) <= tol:
                 return x, it, theta_max
-            rhs[-1] = x[j] - cj
-            dx = lu.solve(rhs)
-            np.negative(dx, out=dx)
+            if it == 0 and first is not None:
+                dx = first[1]
+            else:
+                rhs[-1] = x[j] - cj
+                dx = lu.solve(rhs)
+                np.negative(dx, out=dx)
             if not np.isfinite(dx).all():
                 return None
             x += dx
@@ -747,16 +755,26 @@ class Projected(StepMethod):
             # the previous point's LU, and the same factors then give the new tangent and det sign.
             lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
-            corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
+            if lu_p is None:
+                self._reject()
+                continue
+            # the new tangent and the corrector's first update in one pass over the factors
+            # (A t = e_last, A dx = -F(xp): x_j - xp[j] = 0 in the last row); a step that turns
+            # the tangent too far is refused before the corrector runs
+            both = np.zeros((2, self.sys.n_rows))
+            both[0, -1] = 1.0
+            r0 = self.sys.residual(xp, out=both[1])
+            t_raw, dx0 = lu_p.solve(both)
+            nxt = self._tangent_from(lu_p, j, t, raw=t_raw)
+            if nxt is None or float(nxt[0] @ t) < self.max_cos:
+                self._reject()
+                continue
+            corr = self._correct(xp, lu_p, j, xp[j], first=(r0, np.negative(dx0)))
             if corr is None:
                 self._reject()
                 continue
             x_new, its, theta = corr
             self.counts["newton_iterations"] += its
-            nxt = self._tangent_from(lu_p, j, t)
-            if nxt is None or float(nxt[0] @ t) < self.max_cos:
-                self._reject()
-                continue
             t_new, tau_new = nxt
             j_new = int(np.argmax(np.abs(t_new)))
             f_new = (self._drive(x_new) - target) * direction
