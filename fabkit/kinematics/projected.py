@@ -161,10 +161,10 @@ class _BandLU:
 
     def det_sign(self) -> int:
         if self._det is None:
-            diag = self.lub[self.kl + self.ku]
-            swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size)))
+            diag = self.lub[self.kl + self.ku].copy()  # one strided pass over the band
+            swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size, dtype=self.piv.dtype)))
             negative = int(np.count_nonzero(diag < 0))
-            s = 0 if np.any(diag == 0) else (-1 if negative % 2 else 1)
+            s = 0 if not diag.all() else (-1 if negative % 2 else 1)
             self._det = s * self.perm_sign * (-1 if swaps % 2 else 1)
         return self._det
 
@@ -198,10 +198,12 @@ class _System:
         self.n_rows = e + gcols.size + 1
         if self.n_rows != d * n:
             raise KinematicsError("internal: the bordered system is not square")
-        self._rows = np.repeat(np.arange(e), 2 * d)
-        self._cols = np.concatenate(
-            [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
-        ).ravel()
+        # the edge rows' entries block by block: the x_i-coordinates of every edge, then the
+        # next coordinate, ..., then those of x_j (values x_i - x_j, then x_j - x_i), so that
+        # :meth:`_entries` writes contiguous blocks
+        self._rows = np.tile(np.arange(e), 2 * d)
+        self._cols = np.concatenate([d * self.edges[:, end] + c for end in (0, 1)
+                                     for c in range(d)])
         self._grow = np.arange(e, e + gcols.size)
         self._e0 = np.ascontiguousarray(self.edges[:, 0])
         self._e1 = np.ascontiguousarray(self.edges[:, 1])
@@ -244,7 +246,7 @@ class _System:
         self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
         self._upper_head = np.maximum.accumulate(upper)
         self._upper_tail = np.maximum.accumulate(upper[::-1])[::-1]
-        self._band_base: dict[int, np.ndarray] = {}
+        self._flat_key = self._flat = self._last_insert = None
 
     def regauge(self, gcols: np.ndarray, gvals: np.ndarray) -> None:
         """Hold other coordinates still (as many as before): the gauge rows and the row order
@@ -290,29 +292,47 @@ class _System:
 
     def rel_from_residual(self, r: np.ndarray) -> float:
         """Relative edge residual max |l² - L²| / (2 L²) from a residual vector."""
-        e = self.rest2.size
-        return float(np.max(np.abs(r[:e]) / self.rest2))
+        rel = np.abs(r[:self.rest2.size])
+        rel /= self.rest2
+        return float(rel.max())
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
         diff = self.diff(x)
         return float(np.max(np.abs(np.einsum("ij,ij->i", diff, diff) / self.rest2 - 1.0)) / 2.0)
 
+    def _entries(self, xf: np.ndarray) -> np.ndarray:
+        """Values of the fixed entries (edge and gauge rows), in the order of ``_rows``."""
+        xf = np.ascontiguousarray(xf, dtype=np.float64)
+        e, d = self.rest2.size, self.d
+        fixed = np.empty(e * 2 * d + self.gcols.size)
+        if d == 2:  # as in :meth:`residual`
+            z = xf.view(np.complex128)
+            dz = z.take(self._e0)
+            dz -= z.take(self._e1)
+            parts = dz.view(np.float64)
+            fixed[:e] = parts[0::2]
+            fixed[e:2 * e] = parts[1::2]
+        else:
+            diff = self.diff(xf.reshape(self.n, d))
+            for c in range(d):
+                fixed[c * e:(c + 1) * e] = diff[:, c]
+        np.negative(fixed[:d * e], out=fixed[d * e:2 * d * e])
+        fixed[e * 2 * d:] = 1.0
+        return fixed
+
     def factorize(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray):
         """LU factors of A(x) with the given last row (banded LAPACK where the band is narrow,
         else SuperLU), or None when the matrix is exactly singular."""
-        x = xf.reshape(self.n, self.d)
-        diff = self.diff(x)
-        e, d = diff.shape
         m = self.n_rows
-        fixed = np.empty(e * 2 * d + self.gcols.size)  # values in the order of the entries
-        pairs = fixed[:e * 2 * d].reshape(e, 2 * d)
-        pairs[:, :d] = diff
-        np.negative(diff, out=pairs[:, d:])
-        fixed[e * 2 * d:] = 1.0
+        fixed = self._entries(xf)
         last_cpos = self._colpos[last_cols]
         ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
-        rowperm = np.insert(self._base_order, ins, m - 1)
+        if self._last_insert is not None and self._last_insert[0] == ins:
+            rowperm = self._last_insert[1]
+        else:
+            rowperm = np.insert(self._base_order, ins, m - 1)
+            self._last_insert = (ins, rowperm)
         cut = int(np.searchsorted(self._sorted_bpos, ins))  # entries before / from the new row
         n_fix = self._sorted_bpos.size
         kl = max(0, int((ins - last_cpos).max()),
@@ -323,11 +343,16 @@ class _System:
                  int(self._upper_tail[cut]) - 1 if cut < n_fix else 0)
         if kl + ku <= BAND_LIMIT:
             ldab = 2 * kl + ku + 1
-            base = self._band_base.get(ldab)
-            if base is None:  # flat index in the Fortran-ordered band, before the shift by ins
-                base = self._band_base[ldab] = self._entry_bpos + self._fixed_cpos * (ldab - 1)
-            flat = base + (self._entry_bpos >= ins)
-            flat += kl + ku
+            # successive factorisations mostly hold the same coordinate (same ins and band):
+            # the entries' positions in the band are kept for the next one
+            key = (ldab, ins, kl + ku)
+            if self._flat_key == key:
+                flat = self._flat
+            else:  # flat index in the Fortran-ordered band
+                flat = self._entry_bpos + self._fixed_cpos * (ldab - 1)
+                flat += self._entry_bpos >= ins  # the rows from ins on move down by one
+                flat += kl + ku
+                self._flat_key, self._flat = key, flat
             ab = np.zeros((ldab, m), order="F")
             band = ab.T.reshape(-1)  # a view: the band's columns one after the other
             band[flat] = fixed
