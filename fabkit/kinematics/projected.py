@@ -216,6 +216,7 @@ class _System:
         self._colperm = (d * order[:, None] + np.arange(d)).ravel()
         self._colpos = np.empty(m, dtype=np.int64)
         self._colpos[self._colperm] = np.arange(m)
+        self._colperm_parity = permutation_parity(self._colperm)
         self._order_rows()
 
     def _order_rows(self):
@@ -229,7 +230,7 @@ class _System:
         self._base_order = np.argsort(key, kind="stable")
         self._base_keys = key[self._base_order]
         self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
-        self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
+        self._perm_sign = permutation_parity(self._base_order) * self._colperm_parity
         # Band assembly without re-deriving the fixed entries at every factorisation: inserting
         # the last row at position ins moves the rows at or after it down by one, so an entry's
         # row is its base position plus (base position >= ins), and the band widths follow from
@@ -571,8 +572,8 @@ class Projected(StepMethod):
 
         The residual is evaluated once per iteration and tested before the next solve; the step
         is refused as soon as the iteration contracts worse than ``contraction``. ``first`` is
-        (residual at xp, first update) when the caller has already solved for them (together
-        with the tangent, see :meth:`_step`).
+        (residual r at xp, solution of A y = r) when the caller has already solved for them
+        (together with the tangent, see :meth:`_step`).
         """
         dx_floor, res_floor = self._noise(xp)
         tol = max(self.opts["tol"], res_floor)
@@ -586,16 +587,15 @@ class Projected(StepMethod):
             if self.sys.rel_from_residual(r) <= tol:
                 return x, it, theta_max
             if it == 0 and first is not None:
-                dx = first[1]
+                y = first[1]
             else:
                 rhs[-1] = x[j] - cj
-                dx = lu.solve(rhs)
-                np.negative(dx, out=dx)
-            if not np.isfinite(dx).all():
+                y = lu.solve(rhs)
+            nrm = max(float(y.max()), -float(y.min()))  # NaN or inf here if the solve failed
+            if not math.isfinite(nrm):
                 return None
-            x += dx
+            x -= y  # the update is -y
             r = self.sys.residual(x, out=rhs)
-            nrm = float(np.max(np.abs(dx)))
             if nrm <= dx_floor:  # at round-off: converged if the residual agrees
                 return (x, it + 1, theta_max) if self.sys.rel_from_residual(r) <= tol else None
             if prev is not None:
@@ -784,17 +784,17 @@ class Projected(StepMethod):
                 self._reject()
                 continue
             # the new tangent and the corrector's first update in one pass over the factors
-            # (A t = e_last, A dx = -F(xp): x_j - xp[j] = 0 in the last row); a step that turns
+            # (A t = e_last, A y = F(xp): x_j - xp[j] = 0 in the last row); a step that turns
             # the tangent too far is refused before the corrector runs
             both = np.zeros((2, self.sys.n_rows))
             both[0, -1] = 1.0
             r0 = self.sys.residual(xp, out=both[1])
-            t_raw, dx0 = lu_p.solve(both)
+            t_raw, y0 = lu_p.solve(both)
             nxt = self._tangent_from(lu_p, j, t, raw=t_raw)
             if nxt is None or float(nxt[0] @ t) < self.max_cos:
                 self._reject()
                 continue
-            corr = self._correct(xp, lu_p, j, xp[j], first=(r0, np.negative(dx0)))
+            corr = self._correct(xp, lu_p, j, xp[j], first=(r0, y0))
             if corr is None:
                 self._reject()
                 continue
