@@ -234,15 +234,18 @@ class _System:
         # Band assembly without re-deriving the fixed entries at every factorisation: inserting
         # the last row at position ins moves the rows at or after it down by one, so an entry's
         # row is its base position plus (base position >= ins), and the band widths follow from
-        # prefix and suffix maxima over the entries sorted by base position.
+        # prefix and suffix maxima, over the rows in base order, of each row's reach below and
+        # above the diagonal.
         bpos = np.empty(m - 1, dtype=np.int64)
         bpos[self._base_order] = np.arange(m - 1)
-        entry = bpos[fixed_rows]
-        by = np.argsort(entry, kind="stable")
-        self._entry_bpos = entry
-        self._sorted_bpos = entry[by]
-        lower = (entry - fixed_cpos)[by]
-        upper = (fixed_cpos - entry)[by]
+        self._entry_bpos = bpos[fixed_rows]
+        e, d = self.rest2.size, self.d
+        edge_cpos = fixed_cpos[:2 * d * e].reshape(2 * d, e)  # the entries' block layout
+        gauge_cpos = fixed_cpos[2 * d * e:]
+        first = np.concatenate([edge_cpos.min(axis=0), gauge_cpos])[self._base_order]
+        last = np.concatenate([edge_cpos.max(axis=0), gauge_cpos])[self._base_order]
+        position = np.arange(m - 1)
+        lower, upper = position - first, last - position
         self._lower_head = np.maximum.accumulate(lower)
         self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
         self._upper_head = np.maximum.accumulate(upper)
@@ -334,14 +337,13 @@ class _System:
         else:
             rowperm = np.insert(self._base_order, ins, m - 1)
             self._last_insert = (ins, rowperm)
-        cut = int(np.searchsorted(self._sorted_bpos, ins))  # entries before / from the new row
-        n_fix = self._sorted_bpos.size
+        # rows before the new one keep their position, those from it on move down by one
         kl = max(0, int((ins - last_cpos).max()),
-                 int(self._lower_head[cut - 1]) if cut > 0 else 0,
-                 int(self._lower_tail[cut]) + 1 if cut < n_fix else 0)
+                 int(self._lower_head[ins - 1]) if ins > 0 else 0,
+                 int(self._lower_tail[ins]) + 1 if ins < m - 1 else 0)
         ku = max(0, int((last_cpos - ins).max()),
-                 int(self._upper_head[cut - 1]) if cut > 0 else 0,
-                 int(self._upper_tail[cut]) - 1 if cut < n_fix else 0)
+                 int(self._upper_head[ins - 1]) if ins > 0 else 0,
+                 int(self._upper_tail[ins]) - 1 if ins < m - 1 else 0)
         if kl + ku <= BAND_LIMIT:
             ldab = 2 * kl + ku + 1
             # successive factorisations mostly hold the same coordinate (same ins and band):
