@@ -15,9 +15,11 @@ row moves. No Python-level loop runs over nodes or edges.
 Each step: Euler predictor ``x + h t`` (plus a curvature term from the last two tangents);
 one factorisation of A at the predicted point, reused by every chord-Newton iteration of the
 corrector (the row e_j keeps x_j at its predicted value), by the new tangent and by the branch
-test, so a step costs one factorisation and a few solves. The step is rejected and halved when
-the corrector contracts worse than a ratio of 0.4, fails to converge, or the tangent turns by
-more than 30°; after easy steps h grows. Along the way:
+test, so a step costs one factorisation and a few solves. The new tangent and the corrector's
+first update are one solve with two right-hand sides, and a tangent that turns by more than 30°
+refuses the step before the corrector runs. The step is rejected and halved when the tangent
+turns too far or the corrector contracts worse than a ratio of 0.4 or fails to converge; after
+easy steps h grows. Along the way:
 
 - target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
   equation, so the trace ends exactly on the target value;
@@ -137,7 +139,8 @@ class _BandLU:
 
     def __init__(self, lub, piv, kl, ku, rowperm, colperm, colpos, perm_sign):
         self.lub, self.piv, self.kl, self.ku = lub, piv, kl, ku
-        self.rowperm, self.colperm, self.colpos, self.perm_sign = rowperm, colperm, colpos, perm_sign
+        self.rowperm, self.colperm, self.colpos = rowperm, colperm, colpos
+        self.perm_sign = perm_sign
         self._rowpos = self._det = None
 
     def solve(self, b, trans="N"):
@@ -155,14 +158,15 @@ class _BandLU:
         # the inverse permutation by take rather than a scatter: the permutations cost a few
         # percent of a solve instead of a tenth
         y = b.take(into, axis=-1)
-        _, info = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
-                         overwrite_b=1)
-        return y.take(back, axis=-1)
+        sol, _ = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
+                        overwrite_b=1)
+        return sol.T.take(back, axis=-1)
 
     def det_sign(self) -> int:
         if self._det is None:
             diag = self.lub[self.kl + self.ku].copy()  # one strided pass over the band
-            swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size, dtype=self.piv.dtype)))
+            steps = np.arange(self.piv.size, dtype=self.piv.dtype)
+            swaps = int(np.count_nonzero(self.piv != steps))
             negative = int(np.count_nonzero(diag < 0))
             s = 0 if not diag.all() else (-1 if negative % 2 else 1)
             self._det = s * self.perm_sign * (-1 if swaps % 2 else 1)
