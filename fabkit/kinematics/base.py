@@ -252,6 +252,11 @@ def choose_gauge(net: Network, positions, drive: tuple[int, int]) -> tuple[int, 
     return (i, j, third)
 
 
+#: Nodes per block of configurations moved at once by :func:`align_to_gauge` (a block's
+#: coordinates stay in cache across the d² products and sums).
+ALIGN_BLOCK_NODES = 1 << 14
+
+
 def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     """Move each configuration rigidly so that the gauge nodes best match the reference.
 
@@ -270,15 +275,21 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
     ref = np.asarray(reference, dtype=np.float64)[list(gauge)]
     fit = rigid_fit(x[:, list(gauge)], ref)
     # x @ Rᵀ + t with the sums written out: a batched matmul with an inner size of 2 or 3 is
-    # several times slower (70 ms for 36 configurations of a 30 000-node chain)
+    # several times slower (70 ms for 36 configurations of a 30 000-node chain); a block of
+    # configurations at a time, whose coordinates stay in cache between the sums (17 ms -> 5 ms)
     rot, shift = fit.rotation, fit.shift
     out = np.empty_like(x)
-    for a in range(x.shape[-1]):
-        acc = x[..., 0] * rot[:, None, a, 0]
-        for b in range(1, x.shape[-1]):
-            acc += x[..., b] * rot[:, None, a, b]
-        acc += shift[:, None, a]
-        out[..., a] = acc
+    d = x.shape[-1]
+    step = max(1, ALIGN_BLOCK_NODES // max(1, x.shape[-2]))
+    for lo in range(0, x.shape[0], step):
+        xs, outs = x[lo:lo + step], out[lo:lo + step]
+        r, t = rot[lo:lo + step], shift[lo:lo + step]
+        for a in range(d):
+            acc = xs[..., 0] * r[:, None, a, 0]
+            for b in range(1, d):
+                acc += xs[..., b] * r[:, None, a, b]
+            acc += t[:, None, a]
+            outs[..., a] = acc
     return out
 
 

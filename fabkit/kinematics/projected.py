@@ -15,9 +15,11 @@ row moves. No Python-level loop runs over nodes or edges.
 Each step: Euler predictor ``x + h t`` (plus a curvature term from the last two tangents);
 one factorisation of A at the predicted point, reused by every chord-Newton iteration of the
 corrector (the row e_j keeps x_j at its predicted value), by the new tangent and by the branch
-test, so a step costs one factorisation and a few solves. The step is rejected and halved when
-the corrector contracts worse than a ratio of 0.4, fails to converge, or the tangent turns by
-more than 30°; after easy steps h grows. Along the way:
+test, so a step costs one factorisation and a few solves. The new tangent and the corrector's
+first update are one solve with two right-hand sides, and a tangent that turns by more than 30°
+refuses the step before the corrector runs. The step is rejected and halved when the tangent
+turns too far or the corrector contracts worse than a ratio of 0.4 or fails to converge; after
+easy steps h grows. Along the way:
 
 - target: when the drive crosses the target, a final Newton solve replaces e_j by the drive
   equation, so the trace ends exactly on the target value;
@@ -135,27 +137,40 @@ class _BandLU:
     Interface of SuperLU's factor object as used here: ``solve(b, trans)``, ``det_sign()``.
     """
 
-    def __init__(self, lub, piv, kl, ku, rowperm, colperm, perm_sign):
+    def __init__(self, lub, piv, kl, ku, rowperm, colperm, colpos, perm_sign):
         self.lub, self.piv, self.kl, self.ku = lub, piv, kl, ku
-        self.rowperm, self.colperm, self.perm_sign = rowperm, colperm, perm_sign
+        self.rowperm, self.colperm, self.colpos = rowperm, colperm, colpos
+        self.perm_sign = perm_sign
+        self._rowpos = self._det = None
 
     def solve(self, b, trans="N"):
+        """Solve A x = b (or Aᵀ x = b); b of shape (m,), or (k, m) for k right-hand sides solved
+        in one pass over the factors (the band is read once for all of them)."""
         b = np.asarray(b, dtype=np.float64)
         if trans == "N":  # A x = b  ⇔  A' x[colperm] = b[rowperm]
-            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.rowperm], self.piv)
-            out = np.empty_like(y)
-            out[self.colperm] = y
+            into, back = self.rowperm, self.colpos
         else:  # Aᵀ x = b  ⇔  A'ᵀ x[rowperm] = b[colperm]
-            y, _ = _gbtrs(self.lub, self.kl, self.ku, b[self.colperm], self.piv, trans=1)
-            out = np.empty_like(y)
-            out[self.rowperm] = y
-        return out
+            if self._rowpos is None:
+                self._rowpos = np.empty_like(self.rowperm)
+                self._rowpos[self.rowperm] = np.arange(self.rowperm.size)
+            into, back = self.colperm, self._rowpos
+        # take (a fresh array, which the solve then overwrites) rather than fancy indexing, and
+        # the inverse permutation by take rather than a scatter: the permutations cost a few
+        # percent of a solve instead of a tenth
+        y = b.take(into, axis=-1)
+        sol, _ = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
+                        overwrite_b=1)
+        return sol.T.take(back, axis=-1)
 
     def det_sign(self) -> int:
-        diag = self.lub[self.kl + self.ku]
-        swaps = int(np.count_nonzero(self.piv != np.arange(self.piv.size)))
-        s = int(np.prod(np.sign(diag)))
-        return s * self.perm_sign * (-1 if swaps % 2 else 1)
+        if self._det is None:
+            diag = self.lub[self.kl + self.ku].copy()  # one strided pass over the band
+            steps = np.arange(self.piv.size, dtype=self.piv.dtype)
+            swaps = int(np.count_nonzero(self.piv != steps))
+            negative = int(np.count_nonzero(diag < 0))
+            s = 0 if not diag.all() else (-1 if negative % 2 else 1)
+            self._det = s * self.perm_sign * (-1 if swaps % 2 else 1)
+        return self._det
 
 
 class _SuperLU:
@@ -165,7 +180,8 @@ class _SuperLU:
         self.lu = lu
 
     def solve(self, b, trans="N"):
-        return self.lu.solve(np.asarray(b, dtype=np.float64), trans=trans)
+        b = np.asarray(b, dtype=np.float64)
+        return self.lu.solve(b.T, trans=trans).T
 
     def det_sign(self) -> int:
         diag = self.lu.U.diagonal()
@@ -186,10 +202,12 @@ class _System:
         self.n_rows = e + gcols.size + 1
         if self.n_rows != d * n:
             raise KinematicsError("internal: the bordered system is not square")
-        self._rows = np.repeat(np.arange(e), 2 * d)
-        self._cols = np.concatenate(
-            [d * self.edges[:, [0]] + np.arange(d), d * self.edges[:, [1]] + np.arange(d)], axis=1
-        ).ravel()
+        # the edge rows' entries block by block: the x_i-coordinates of every edge, then the
+        # next coordinate, ..., then those of x_j (values x_i - x_j, then x_j - x_i), so that
+        # :meth:`_entries` writes contiguous blocks
+        self._rows = np.tile(np.arange(e), 2 * d)
+        self._cols = np.concatenate([d * self.edges[:, end] + c for end in (0, 1)
+                                     for c in range(d)])
         self._grow = np.arange(e, e + gcols.size)
         self._e0 = np.ascontiguousarray(self.edges[:, 0])
         self._e1 = np.ascontiguousarray(self.edges[:, 1])
@@ -202,6 +220,7 @@ class _System:
         self._colperm = (d * order[:, None] + np.arange(d)).ravel()
         self._colpos = np.empty(m, dtype=np.int64)
         self._colpos[self._colperm] = np.arange(m)
+        self._colperm_parity = permutation_parity(self._colperm)
         self._order_rows()
 
     def _order_rows(self):
@@ -215,24 +234,27 @@ class _System:
         self._base_order = np.argsort(key, kind="stable")
         self._base_keys = key[self._base_order]
         self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
-        self._perm_sign = permutation_parity(self._base_order) * permutation_parity(self._colperm)
+        self._perm_sign = permutation_parity(self._base_order) * self._colperm_parity
         # Band assembly without re-deriving the fixed entries at every factorisation: inserting
         # the last row at position ins moves the rows at or after it down by one, so an entry's
         # row is its base position plus (base position >= ins), and the band widths follow from
-        # prefix and suffix maxima over the entries sorted by base position.
+        # prefix and suffix maxima, over the rows in base order, of each row's reach below and
+        # above the diagonal.
         bpos = np.empty(m - 1, dtype=np.int64)
         bpos[self._base_order] = np.arange(m - 1)
-        entry = bpos[fixed_rows]
-        by = np.argsort(entry, kind="stable")
-        self._entry_bpos = entry
-        self._sorted_bpos = entry[by]
-        lower = (entry - fixed_cpos)[by]
-        upper = (fixed_cpos - entry)[by]
+        self._entry_bpos = bpos[fixed_rows]
+        e, d = self.rest2.size, self.d
+        edge_cpos = fixed_cpos[:2 * d * e].reshape(2 * d, e)  # the entries' block layout
+        gauge_cpos = fixed_cpos[2 * d * e:]
+        first = np.concatenate([edge_cpos.min(axis=0), gauge_cpos])[self._base_order]
+        last = np.concatenate([edge_cpos.max(axis=0), gauge_cpos])[self._base_order]
+        position = np.arange(m - 1)
+        lower, upper = position - first, last - position
         self._lower_head = np.maximum.accumulate(lower)
         self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
         self._upper_head = np.maximum.accumulate(upper)
         self._upper_tail = np.maximum.accumulate(upper[::-1])[::-1]
-        self._band_base: dict[int, np.ndarray] = {}
+        self._flat_key = self._flat = self._last_insert = None
 
     def regauge(self, gcols: np.ndarray, gvals: np.ndarray) -> None:
         """Hold other coordinates still (as many as before): the gauge rows and the row order
@@ -249,53 +271,95 @@ class _System:
         out -= x.take(self._e1, axis=0)
         return out
 
-    def residual(self, xf: np.ndarray) -> np.ndarray:
-        """Edge and gauge residuals (without the last row), shape (n_rows - 1,)."""
-        x = xf.reshape(self.n, self.d)
-        diff = self.diff(x)
-        fe = 0.5 * (np.einsum("ij,ij->i", diff, diff) - self.rest2)
-        return np.concatenate([fe, xf[self.gcols] - self.gvals])
+    def residual(self, xf: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Edge and gauge residuals (without the last row), shape (n_rows - 1,); written into
+        ``out[:n_rows - 1]`` when ``out`` (shape (n_rows,)) is given, the last entry left to the
+        caller (a right-hand side assembled without a concatenation)."""
+        xf = np.ascontiguousarray(xf, dtype=np.float64)
+        e = self.rest2.size
+        r = np.empty(self.n_rows - 1) if out is None else out[:-1]
+        fe = r[:e]
+        if self.d == 2:
+            # a node as one complex number: one gather per edge end instead of two, and no
+            # einsum (this is evaluated at every Newton iteration)
+            z = xf.view(np.complex128)
+            dz = z.take(self._e0)
+            dz -= z.take(self._e1)
+            parts = dz.view(np.float64)
+            np.multiply(parts[0::2], parts[0::2], out=fe)
+            im = parts[1::2]
+            np.multiply(im, im, out=im)
+            fe += im
+        else:
+            diff = self.diff(xf.reshape(self.n, self.d))
+            np.einsum("ij,ij->i", diff, diff, out=fe)
+        fe -= self.rest2
+        fe *= 0.5
+        np.subtract(xf.take(self.gcols), self.gvals, out=r[e:])
+        return r
 
     def rel_from_residual(self, r: np.ndarray) -> float:
         """Relative edge residual max |l² - L²| / (2 L²) from a residual vector."""
-        e = self.rest2.size
-        return float(np.max(np.abs(r[:e]) / self.rest2))
+        rel = np.abs(r[:self.rest2.size])
+        rel /= self.rest2
+        return float(rel.max())
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
         diff = self.diff(x)
         return float(np.max(np.abs(np.einsum("ij,ij->i", diff, diff) / self.rest2 - 1.0)) / 2.0)
 
+    def _entries(self, xf: np.ndarray) -> np.ndarray:
+        """Values of the fixed entries (edge and gauge rows), in the order of ``_rows``."""
+        xf = np.ascontiguousarray(xf, dtype=np.float64)
+        e, d = self.rest2.size, self.d
+        fixed = np.empty(e * 2 * d + self.gcols.size)
+        if d == 2:  # as in :meth:`residual`
+            z = xf.view(np.complex128)
+            dz = z.take(self._e0)
+            dz -= z.take(self._e1)
+            parts = dz.view(np.float64)
+            fixed[:e] = parts[0::2]
+            fixed[e:2 * e] = parts[1::2]
+        else:
+            diff = self.diff(xf.reshape(self.n, d))
+            for c in range(d):
+                fixed[c * e:(c + 1) * e] = diff[:, c]
+        np.negative(fixed[:d * e], out=fixed[d * e:2 * d * e])
+        fixed[e * 2 * d:] = 1.0
+        return fixed
+
     def factorize(self, xf: np.ndarray, last_cols: np.ndarray, last_vals: np.ndarray):
         """LU factors of A(x) with the given last row (banded LAPACK where the band is narrow,
         else SuperLU), or None when the matrix is exactly singular."""
-        x = xf.reshape(self.n, self.d)
-        diff = self.diff(x)
-        e, d = diff.shape
         m = self.n_rows
-        fixed = np.empty(e * 2 * d + self.gcols.size)  # values in the order of the entries
-        pairs = fixed[:e * 2 * d].reshape(e, 2 * d)
-        pairs[:, :d] = diff
-        np.negative(diff, out=pairs[:, d:])
-        fixed[e * 2 * d:] = 1.0
+        fixed = self._entries(xf)
         last_cpos = self._colpos[last_cols]
         ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
-        rowperm = np.insert(self._base_order, ins, m - 1)
-        cut = int(np.searchsorted(self._sorted_bpos, ins))  # entries before / from the new row
-        n_fix = self._sorted_bpos.size
+        if self._last_insert is not None and self._last_insert[0] == ins:
+            rowperm = self._last_insert[1]
+        else:
+            rowperm = np.insert(self._base_order, ins, m - 1)
+            self._last_insert = (ins, rowperm)
+        # rows before the new one keep their position, those from it on move down by one
         kl = max(0, int((ins - last_cpos).max()),
-                 int(self._lower_head[cut - 1]) if cut > 0 else 0,
-                 int(self._lower_tail[cut]) + 1 if cut < n_fix else 0)
+                 int(self._lower_head[ins - 1]) if ins > 0 else 0,
+                 int(self._lower_tail[ins]) + 1 if ins < m - 1 else 0)
         ku = max(0, int((last_cpos - ins).max()),
-                 int(self._upper_head[cut - 1]) if cut > 0 else 0,
-                 int(self._upper_tail[cut]) - 1 if cut < n_fix else 0)
+                 int(self._upper_head[ins - 1]) if ins > 0 else 0,
+                 int(self._upper_tail[ins]) - 1 if ins < m - 1 else 0)
         if kl + ku <= BAND_LIMIT:
             ldab = 2 * kl + ku + 1
-            base = self._band_base.get(ldab)
-            if base is None:  # flat index in the Fortran-ordered band, before the shift by ins
-                base = self._band_base[ldab] = self._entry_bpos + self._fixed_cpos * (ldab - 1)
-            flat = base + (self._entry_bpos >= ins)
-            flat += kl + ku
+            # successive factorisations mostly hold the same coordinate (same ins and band):
+            # the entries' positions in the band are kept for the next one
+            key = (ldab, ins, kl + ku)
+            if self._flat_key == key:
+                flat = self._flat
+            else:  # flat index in the Fortran-ordered band
+                flat = self._entry_bpos + self._fixed_cpos * (ldab - 1)
+                flat += self._entry_bpos >= ins  # the rows from ins on move down by one
+                flat += kl + ku
+                self._flat_key, self._flat = key, flat
             ab = np.zeros((ldab, m), order="F")
             band = ab.T.reshape(-1)  # a view: the band's columns one after the other
             band[flat] = fixed
@@ -305,7 +369,7 @@ class _System:
                 return None
             # moving the last row from the end to position ins is a cycle of m - ins entries
             sign = self._perm_sign * (-1 if (m - 1 - ins) % 2 else 1)
-            return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, sign)
+            return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, self._colpos, sign)
         rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
         cols = np.concatenate([self._cols, self.gcols, last_cols])
         a = sp.csc_matrix((np.concatenate([fixed, last_vals]), (rows, cols)), shape=(m, m))
@@ -467,11 +531,14 @@ class Projected(StepMethod):
 
         return self._newton_on(guess, grad, res)
 
-    def _tangent_from(self, lu, j, orient_like):
-        """Unit tangent and branch test τ from existing factors of A = [J; e_j]."""
-        rhs = np.zeros(self.sys.n_rows)
-        rhs[-1] = 1.0
-        t = lu.solve(rhs)
+    def _tangent_from(self, lu, j, orient_like, raw=None):
+        """Unit tangent and branch test τ from existing factors of A = [J; e_j]; ``raw`` is
+        ``A⁻¹ e_last`` when already solved for."""
+        if raw is None:
+            rhs = np.zeros(self.sys.n_rows)
+            rhs[-1] = 1.0
+            raw = lu.solve(rhs)
+        t = raw
         if not np.isfinite(t).all():
             return None
         t /= np.linalg.norm(t)
@@ -506,28 +573,35 @@ class Projected(StepMethod):
         eps = np.finfo(float).eps
         return 16.0 * eps * max(big, self.scale), 4.0 * eps * big / self.min_length
 
-    def _correct(self, xp, lu, j, cj):
+    def _correct(self, xp, lu, j, cj, first=None):
         """Chord Newton from xp with x_j held at cj; returns (x, iterations, theta) or None.
 
         The residual is evaluated once per iteration and tested before the next solve; the step
-        is refused as soon as the iteration contracts worse than ``contraction``.
+        is refused as soon as the iteration contracts worse than ``contraction``. ``first`` is
+        (residual r at xp, solution of A y = r) when the caller has already solved for them
+        (together with the tangent, see :meth:`_step`).
         """
         dx_floor, res_floor = self._noise(xp)
         tol = max(self.opts["tol"], res_floor)
         kappa = self.opts["contraction"]
         x = xp.copy()
-        r = self.sys.residual(x)
+        rhs = np.empty(self.sys.n_rows)  # [edge and gauge residuals; x_j - cj]
+        r = self.sys.residual(x, out=rhs) if first is None else first[0]
         prev = None
         theta_max = 0.0
         for it in range(0, 16):
             if self.sys.rel_from_residual(r) <= tol:
                 return x, it, theta_max
-            dx = lu.solve(-np.append(r, x[j] - cj))
-            if not np.isfinite(dx).all():
+            if it == 0 and first is not None:
+                y = first[1]
+            else:
+                rhs[-1] = x[j] - cj
+                y = lu.solve(rhs)
+            nrm = max(float(y.max()), -float(y.min()))  # NaN or inf here if the solve failed
+            if not math.isfinite(nrm):
                 return None
-            x += dx
-            r = self.sys.residual(x)
-            nrm = float(np.max(np.abs(dx)))
+            x -= y  # the update is -y
+            r = self.sys.residual(x, out=rhs)
             if nrm <= dx_floor:  # at round-off: converged if the residual agrees
                 return (x, it + 1, theta_max) if self.sys.rel_from_residual(r) <= tol else None
             if prev is not None:
@@ -712,16 +786,26 @@ class Projected(StepMethod):
             # the previous point's LU, and the same factors then give the new tangent and det sign.
             lu_p = self.sys.factorize(xp, np.array([j]), np.array([1.0]))
             self.n_factor += 1
-            corr = None if lu_p is None else self._correct(xp, lu_p, j, xp[j])
+            if lu_p is None:
+                self._reject()
+                continue
+            # the new tangent and the corrector's first update in one pass over the factors
+            # (A t = e_last, A y = F(xp): x_j - xp[j] = 0 in the last row); a step that turns
+            # the tangent too far is refused before the corrector runs
+            both = np.zeros((2, self.sys.n_rows))
+            both[0, -1] = 1.0
+            r0 = self.sys.residual(xp, out=both[1])
+            t_raw, y0 = lu_p.solve(both)
+            nxt = self._tangent_from(lu_p, j, t, raw=t_raw)
+            if nxt is None or float(nxt[0] @ t) < self.max_cos:
+                self._reject()
+                continue
+            corr = self._correct(xp, lu_p, j, xp[j], first=(r0, y0))
             if corr is None:
                 self._reject()
                 continue
             x_new, its, theta = corr
             self.counts["newton_iterations"] += its
-            nxt = self._tangent_from(lu_p, j, t)
-            if nxt is None or float(nxt[0] @ t) < self.max_cos:
-                self._reject()
-                continue
             t_new, tau_new = nxt
             j_new = int(np.argmax(np.abs(t_new)))
             f_new = (self._drive(x_new) - target) * direction
