@@ -536,6 +536,7 @@ def check_file(path, design=None, settings=None) -> dict:
     FabkitError
         When the file does not exist.
     """
+    import ezdxf
     from ezdxf import recover
 
     path = Path(path)
@@ -544,7 +545,12 @@ def check_file(path, design=None, settings=None) -> dict:
     docs, checks = {}, []
     for p in _sheet_set(path):
         try:
-            doc, auditor = recover.readfile(str(p))
+            # ezdxf's reader takes two thirds of the time of its recover mode on a well-formed
+            # file; a file it refuses is read again by recover, which repairs what it can
+            try:
+                doc = ezdxf.readfile(str(p))
+            except Exception:
+                doc, _ = recover.readfile(str(p))
         except Exception as exc:  # not a DXF at all
             checks.append(_check("readable", False, p.name, None, f"{p.name}: {exc}"))
             continue

@@ -306,13 +306,22 @@ def _search_layers(n_bars, conf, joint_bars, head, layer_counts, node_limit=60_0
                 if lo[j] is not None and lo[j] - sl <= v <= hi[j] + sl:
                     return False
             for j in joints_of[b]:
-                l2 = v if lo[j] is None else min(lo[j], v)
-                h2 = v if hi[j] is None else max(hi[j], v)
+                # the column's span with b in it (conditionals: cheaper than min/max calls on
+                # the search's hottest lines)
+                lj = lo[j]
+                if lj is None:
+                    l2 = h2 = v
+                else:
+                    hj = hi[j]
+                    l2 = v if v < lj else lj
+                    h2 = v if v > hj else hj
                 for c, sl in avoiders[j]:
-                    if z[c] >= 0 and l2 - sl <= z[c] <= h2 + sl:
+                    zc = z[c]
+                    if zc >= 0 and l2 - sl <= zc <= h2 + sl:
                         return False
                 for i in partners[j]:
-                    if lo[i] is not None and l2 - head <= hi[i] + head and lo[i] - head <= h2 + head:
+                    li = lo[i]
+                    if li is not None and l2 - head <= hi[i] + head and li - head <= h2 + head:
                         return False
             return True
 
