@@ -6,7 +6,7 @@ import pytest
 
 import fabkit
 from fabkit.kinematics.base import align_to_gauge
-from fabkit.kinematics.projected import _BandLU, _System, gauge_rows
+from fabkit.kinematics.bordered import _BandLU, _System, gauge_rows
 from fabkit.kinematics.record import edge_errors
 from fabkit.numerics import rigid_fit
 
