@@ -385,3 +385,20 @@ def test_a_window_the_motion_cannot_reach_fails_the_export_with_its_reason(tmp_p
     text = out.out + out.err
     assert "print motion_from = 3.5 must lie between" in text
     assert report is None or report["formats"]["stl"]["status"] != "exported"
+
+
+@pytest.mark.parametrize("name, beds", [("fourbar", 1), ("super_stable_chain", 6)])
+def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
+    """The preview's fixed layout leaves room for every tick label, bed title and the heading
+    (wrapped to the figure's width: on one bed it ran off both edges)."""
+    from fabkit.export.pinned import preview_figure
+    from fabkit.viz import _mpl, clipped_texts
+
+    design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+    plan = pinned_print(design, design_print_settings(design, None))
+    assert plan.beds == beds
+    fig = preview_figure(plan, design.name)
+    assert clipped_texts(fig) == []
+    heading = fig.get_suptitle()
+    assert f"{plan.n_bars} bars" in heading and (beds > 1 or "\n" in heading)
+    _mpl().close(fig)

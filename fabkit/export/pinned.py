@@ -51,10 +51,28 @@ def _placed(vertices, matrix) -> np.ndarray:
     return vertices @ matrix[:3, :3].T + matrix[:3, 3]
 
 
-def _preview_png(plan, title: str) -> bytes:
-    from matplotlib.collections import PolyCollection
+#: Layout of the print preview (inches): each bed's panel, and the room around it for tick
+#: labels (7 pt, up to four digits), the bed's title and the wrapped heading.
+_BED_IN, _LEFT_IN, _RIGHT_IN, _BOTTOM_IN = 4.2, 0.5, 0.15, 0.35
+_WSPACE_IN, _HSPACE_IN, _TITLE_IN, _LINE_IN = 0.5, 0.6, 0.35, 0.17
 
-    from ..viz import _mpl, figure_png
+
+def preview_figure(plan, title: str):
+    """The beds of a print-in-place plan seen from above: bars by layer, printed pins as
+    white caps.
+
+    The layout is fixed in inches (no tight layout: the panels are alike and their tick labels
+    bounded) and the heading is wrapped to the figure's width.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import textwrap
+
+    from matplotlib.collections import PatchCollection, PolyCollection
+
+    from ..viz import _mpl
 
     plt = _mpl()
     s = plan.settings
@@ -62,7 +80,19 @@ def _preview_png(plan, title: str) -> bytes:
     beds = plan.beds
     cols = min(beds, 3)
     rows = -(-beds // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 4.2 * rows + 0.4), squeeze=False)
+    width = _BED_IN * cols
+    heading = textwrap.wrap(
+        f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers (colour = layer), "
+        f"{len(plan.carrier)} printed pins (white caps), {printer.width:g} x {printer.depth:g} mm "
+        "bed", int(width * 72 / (9 * 0.62)))
+    top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
+    height = _BED_IN * rows + top - _TITLE_IN + 0.25
+    fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False)
+    panel_w = (width - _LEFT_IN - _RIGHT_IN - _WSPACE_IN * (cols - 1)) / cols
+    panel_h = (height - top - _BOTTOM_IN - _HSPACE_IN * (rows - 1)) / rows
+    fig.subplots_adjust(left=_LEFT_IN / width, right=1 - _RIGHT_IN / width,
+                        bottom=_BOTTOM_IN / height, top=1 - top / height,
+                        wspace=_WSPACE_IN / panel_w, hspace=_HSPACE_IN / panel_h)
     cmap = plt.get_cmap("viridis", max(int(plan.layer.max()) + 1, 2))
     piece_of = plan.piece_of_bar()
     order = np.argsort(plan.layer, kind="stable")  # upper layers drawn on top
@@ -82,23 +112,26 @@ def _preview_png(plan, title: str) -> bytes:
             colours.append(cmap(int(plan.layer[k])))
         ax.add_collection(PolyCollection(polys, facecolors=colours, edgecolors="k", lw=0.4,
                                          alpha=0.85))
+        caps = []
         for j, k in plan.carrier.items():
             m = plan.placement_matrix(int(piece_of[k]))
             if plan.layout[int(piece_of[k])].bed == b:
                 x, y = plan.positions[j] @ m[:2, :2].T + m[:2, 3]
-                ax.add_patch(plt.Circle((x, y), 0.5 * s.cap_diameter, fc="w", ec="k", lw=0.5))
+                caps.append(plt.Circle((x, y), 0.5 * s.cap_diameter))
+        ax.add_collection(PatchCollection(caps, facecolor="w", edgecolor="k", lw=0.5))
         ax.set_xlim(-5, printer.width + 5)
         ax.set_ylim(-5, printer.depth + 5)
         ax.set_aspect("equal")
         ax.set_title(f"bed {b + 1} of {beds}", fontsize=9)
         ax.tick_params(labelsize=7)
-    fig.suptitle(f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers "
-                 f"(colour = layer), {len(plan.carrier)} printed pins (white caps), "
-                 f"{printer.width:g} x {printer.depth:g} mm bed", fontsize=9)
-    fig.tight_layout()
-    png = figure_png(fig)
-    plt.close(fig)
-    return png
+    fig.suptitle("\n".join(heading), fontsize=9, y=1 - 0.1 / height, va="top")
+    return fig
+
+
+def _preview_png(plan, title: str) -> bytes:
+    from ..viz import figure_png
+
+    return figure_png(preview_figure(plan, title))
 
 
 def _stacks(plan) -> list[dict]:
