@@ -128,12 +128,6 @@ def preview_figure(plan, title: str):
     return fig
 
 
-def _preview_png(plan, title: str) -> bytes:
-    from ..viz import figure_png
-
-    return figure_png(preview_figure(plan, title))
-
-
 def _stacks(plan) -> list[dict]:
     out = []
     s = plan.settings
@@ -224,7 +218,9 @@ def export_pinned(design, s, name: str) -> ExportResult:
         if s.threemf:
             files[mf_names[b]] = _threemf(objects, slicer, design.name)
     if s.preview:
-        files[f"{name}_print.png"] = _preview_png(plan, design.name)
+        from ..viz import figure_png
+
+        files[f"{name}_print.png"] = figure_png(preview_figure(plan, design.name))
     volumes = plan.volumes
     pieces = [{"piece": p + 1, "bed": plan.layout[p].bed + 1, "angle_deg": plan.layout[p].angle,
                "offset_mm": list(plan.layout[p].offset), "size_mm": list(plan.layout[p].size),
