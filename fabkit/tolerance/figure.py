@@ -111,9 +111,9 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         ax.semilogy(x, np.maximum(p95, LOG_FLOOR), "o-", ms=3, color=f"C{k}",
                     label=f"{name} (95%)")
         ax.axhline(j.limit_mm, color=f"C{k}", ls="--", lw=0.8)
-        plain_log_ticks(ax.yaxis)
         shown = True
     if shown:
+        plain_log_ticks(ax.yaxis)
         ax.legend(fontsize=8)
         ax.set_xlabel("module or port, along the chain")
         ax.set_ylabel("mm")
