@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .maps import Map1D
+from .viz import set_margins
 
 __all__ = ["map_figure", "cobweb_figure", "lyapunov_figure", "solution_space_figure"]
 
@@ -54,7 +55,7 @@ def map_figure(fmap: Map1D, *, fixed=None, cycles=None, title: str | None = None
     plt = _plt()
     fixed = fmap.fixed_points() if fixed is None else fixed
     cycles = fmap.cycles(2) if cycles is None else cycles
-    fig, ax = plt.subplots(figsize=(6.2, 6.2), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6.2, 6.2))
     lo_all, hi_all = fmap.domain
     for br, d, f in fmap.curve():
         if br is not None and fmap.branch is not None and br.index == fmap.branch.index:
@@ -70,6 +71,7 @@ def map_figure(fmap: Map1D, *, fixed=None, cycles=None, title: str | None = None
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(title or "map and its whole motion (grey)")
     ax.legend(fontsize=7, loc="best")
+    set_margins(fig, left=0.8, right=0.25, bottom=0.65, top=0.45)
     return fig
 
 

@@ -74,3 +74,70 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
     minor_labels = [t.get_text() for t in ours.get_minorticklabels() if t.get_text()]
     assert "6×10⁻¹⁶" in minor_labels and len(minor_labels) == sum(bool(t) for t in theirs[True])
     _mpl().close(fig)
+
+
+def test_layout_faults_finds_labels_cut_off_and_axes_that_run_into_each_other():
+    from fabkit.viz import _draw_fitted, layout_faults, set_margins
+
+    plt = _mpl()
+    fig, (a, b) = plt.subplots(1, 2, figsize=(6, 3))
+    a.set_title("left")
+    b.set_title("right")
+    for ax in (a, b):
+        ax.plot([0, 1], [1e5, 2e5])
+        ax.set_ylabel("a y label")
+    set_margins(fig, left=0.05, right=0.1, bottom=0.6, top=0.4, gap=0.05)
+    fig.canvas.draw()
+    faults = layout_faults(fig)
+    assert "y ticks of left" in faults          # off the left edge
+    assert "left runs into right" in faults     # the right axes' ticks and label in the gap
+    params = (fig.subplotpars.left, fig.subplotpars.wspace)
+    _draw_fitted(fig)  # the fallback: tight_layout, drawn again
+    assert layout_faults(fig) == []
+    assert fig.subplotpars.left > params[0] and fig.subplotpars.wspace > params[1]
+    # margins that fit are kept as they are
+    fig2, ax = plt.subplots(figsize=(6, 3))
+    ax.plot([0, 1], [0, 1])
+    set_margins(fig2, left=0.6, right=0.2, bottom=0.5, top=0.3)
+    _draw_fitted(fig2)
+    assert layout_faults(fig2) == []
+    assert abs(fig2.subplotpars.left - 0.1) < 1e-12 and abs(fig2.subplotpars.top - 0.9) < 1e-12
+    plt.close(fig)
+    plt.close(fig2)
+
+
+def test_set_margins_gives_the_gaps_in_inches():
+    from fabkit.viz import set_margins
+
+    plt = _mpl()
+    fig, axes = plt.subplots(2, 3, figsize=(10, 6))
+    set_margins(fig, left=0.7, right=0.3, bottom=0.5, top=0.4, gap=0.8)
+    (x0, y0), (x1, y1) = [axes[1, 0].get_position().get_points()[k] for k in (0, 1)]
+    nx0 = axes[1, 1].get_position().x0
+    top = axes[0, 0].get_position().y0
+    assert abs(x0 * 10 - 0.7) < 1e-9 and abs(y0 * 6 - 0.5) < 1e-9
+    assert abs((nx0 - x1) * 10 - 0.8) < 1e-9 and abs((top - y1) * 6 - 0.8) < 1e-9
+    assert abs(axes[0, 2].get_position().x1 * 10 - 9.7) < 1e-9
+    plt.close(fig)
+
+
+def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
+    """The motion, map and tolerance pictures of the export are placed by fixed margins; on
+    designs with long titles, log axes and multi-line verdicts nothing is cut off or overlaps,
+    so figure_png draws each once."""
+    from fabkit.batch.motion import map_figure, traced_motion
+    from fabkit.viz import layout_faults, motion_figure
+
+    plt = _mpl()
+    for name in ("super_stable_chain", "fourbar", "period_two_chain16"):
+        design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+        traj = traced_motion(design, allow_singular_start=True)
+        figs = [motion_figure(traj, title=design.name), map_figure(traj, design)]
+        result = analyse_tolerance(design, tolerance_spec(design, samples=30), trajectory=traj)
+        figs.append(tolerance_figure(result, title=design.name))
+        for fig in figs:
+            assert fig.get_layout_engine() is None
+            fig.set_dpi(110)
+            fig.canvas.draw()
+            assert layout_faults(fig) == [], (name, fig.get_size_inches())
+            plt.close(fig)

@@ -98,7 +98,7 @@ def map_figure(traj, design):
     """
     import numpy as np
 
-    from ..viz import _mpl
+    from ..viz import _mpl, set_margins
 
     ports = _chain_port_names(traj.network)
     if len(ports) < 2:
@@ -140,7 +140,7 @@ def map_figure(traj, design):
     ax.set_title(f"{design.name}: map along the chain")
     ax.legend(loc="best", fontsize=8)
     ax.set_aspect("equal", adjustable="datalim")
-    fig.tight_layout()
+    set_margins(fig, left=0.8, right=0.25, bottom=0.6, top=0.45)
     return fig
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..viz import plain_log_ticks
+from ..viz import plain_log_ticks, set_margins
 from .result import ToleranceResult
 
 __all__ = ["tolerance_figure", "keep_chart"]
@@ -121,6 +121,7 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         ax.text(0.5, 0.5, "a single part", ha="center", va="center", transform=ax.transAxes)
     ax.set_title("along the chain", fontsize=10)
     fig.suptitle("\n".join(head), fontsize=8)
-    # laid out once here: a constrained layout would lay the figure out again at every draw
-    fig.tight_layout()
+    # fixed margins (figure_png checks them on its drawing): a layout engine would lay the
+    # figure out once more; the verdict's lines (8 pt) above the panels' titles
+    set_margins(fig, left=0.75, right=0.2, bottom=0.6, top=0.42 + 0.16 * len(head), gap=0.85)
     return fig
