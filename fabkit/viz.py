@@ -264,7 +264,8 @@ def _faults(fig, renderer, *, overlaps: bool) -> list:
             if title.get_visible() and title.get_text().strip():
                 place[1].append(title.get_window_extent(renderer))
         for axis_name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
-            for tick in [*axis.majorTicks, *axis.minorTicks]:
+            # the ticks findobj lists (it makes them for an axis never drawn, one turned off)
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
                 ticks.update((id(tick.label1), id(tick.label2)))
             if not axis.get_visible():
                 continue
