@@ -128,9 +128,9 @@ def test_stacking_reorders_layers_to_keep_bars_off_screw_heads():
     st = plan_layers(edges, sweep, laser_settings())
     lo, hi = sorted(st.layer[:2])
     assert st.layer[2] < lo - 1 or st.layer[2] > hi + 1
-    # bar 3-4 crosses both others (clique of 3), and the head needs one more layer: the exact
-    # solver proves that no 3-layer stacking exists, so the bound is 4
-    assert st.n_layers == 4 and st.strategy == "backtracking"
+    # bar 3-4 crosses both others (clique of 3), and the head needs one more layer: the
+    # complete search finds that no 3-layer stacking exists, so the bound is 4
+    assert st.n_layers == 4 and st.strategy == "propagation"
     assert st.stats["clique"] == 3 and st.lower_bound == 4 and st.stats["proven_minimal"]
 
 

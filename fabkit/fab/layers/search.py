@@ -622,21 +622,24 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     deep = None
     if viol:
         # The column rules tie layers to their order: search layer numbers directly.
-        found = _search_layers(n_bars, conf, joint_bars, head,
-                               range(max(int(clique), 1), s.max_layers + 1))
-        if found is not None:
-            layer, strategy, viol = found, "backtracking", 0
-            k = int(layer.max()) + 1
-        elif n_bars <= PROPAGATE_BARS:
-            # Deep kits (columns standing on one another): the complete search with every rule
-            # propagated, to a count that does not depend on max_layers, so the layers found
-            # and the bound proven are the design's own; the cap is applied afterwards.
+        if n_bars <= PROPAGATE_BARS:
+            # The complete search with every rule propagated, to a count that does not depend
+            # on max_layers, so the layers found and the bound proven are the design's own (the
+            # cap is applied afterwards). On the bundled kits it finds the same counts as the
+            # backtracking below in a tenth of its time or less, and finds the deep kits
+            # (columns standing on one another) that the backtracking gives up on.
             deep = deep_search(n_bars, conf, joint_bars, head,
                                range(max(int(clique), 1), _DEEP_LAYERS + 1),
                                node_limit=_DEEP_NODES, total_limit=_DEEP_TOTAL_NODES)
             if deep.layer is not None:
                 layer = _shorten_screws(deep.layer, conf, joint_bars, jpos, head)
                 strategy, viol, k = "propagation", 0, int(layer.max()) + 1
+        if viol:  # too many bars for the complete search, or its budget ran out
+            found = _search_layers(n_bars, conf, joint_bars, head,
+                                   range(max(int(clique), 1), s.max_layers + 1))
+            if found is not None:
+                layer, strategy, viol = found, "backtracking", 0
+                k = int(layer.max()) + 1
     elif k > clique:
         # The colourings stop above the clique bound; the search often reaches it in a fraction
         # of a second, where the exact solver needs its whole time limit to find the same count
