@@ -199,3 +199,26 @@ def test_the_motion_test_says_how_the_ports_follow(name, order):
         assert halves[-1] < halves[0]
     else:
         assert np.all(np.diff(halves) >= 0)
+
+
+def test_labeller_counts_overlapping_labels_as_matplotlib_measures_them():
+    """Labels placed never overlap; ``overlaps`` counts the pairs whose drawn boxes meet, as
+    matplotlib's Bbox.overlaps does, when labels are forced on top of each other."""
+    from fabkit.fab.guide.draw import Labeller
+    from fabkit.viz import _mpl
+
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(4, 4))
+    ax.set_xlim(0, 100)
+    ax.set_ylim(0, 100)
+    lab = Labeller(ax)
+    for k in range(12):  # all want the same spot: each is moved to a free candidate
+        assert lab.put(f"B{k}·L{k % 3}", [(50, 50), (50, 20 + 6 * k), (20 + 6 * k, 80)], 8)
+    assert lab.overlaps() == 0 and lab.stats["labels"] == 12
+    for x in (50.0, 51.0, 90.0):  # two on top of the first label's spot, one far away
+        lab.placed.append(lab._text(x, 50.0, "B99·L9", 8, "black", "normal"))
+    boxes = [t.get_window_extent(lab.renderer) for t in lab.placed]
+    pairs = sum(boxes[i].overlaps(boxes[j])
+                for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
+    assert lab.overlaps() == pairs >= 3
+    plt.close(fig)

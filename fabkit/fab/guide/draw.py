@@ -46,6 +46,7 @@ class Labeller:
         self.renderer = ax.figure.canvas.get_renderer()
         self.boxes, self.placed = [], []
         self._extents: dict = {}
+        self._ruler = None  # the text that measures labels
         self.stats = {"labels": 0, "shrunk": 0, "dropped": 0}
 
     def _text(self, x, y, text, fs, colour, weight):
@@ -58,14 +59,19 @@ class Labeller:
         """The label's box relative to its anchor (display units), with a little margin."""
         key = (text, fs, weight)
         if key not in self._extents:
-            from matplotlib.text import Text
+            t = self._ruler
+            if t is None:
+                from matplotlib.text import Text
 
-            # measured on a bare text, never added to the axes: its box does not include the
-            # white patch behind a placed label, and making that patch costs more than the
-            # measurement
-            t = Text(0.0, 0.0, text, fontsize=fs, ha="center", va="center", weight=weight,
-                     transform=self.ax.transData)
-            t.set_figure(self.ax.figure)
+                # measured on one bare text, never added to the axes: its box does not include
+                # the white patch behind a placed label, and making that patch (or a text for
+                # each measurement) costs more than the measurement
+                t = self._ruler = Text(0.0, 0.0, "", ha="center", va="center",
+                                       transform=self.ax.transData)
+                t.set_figure(self.ax.figure)
+            t.set_text(text)
+            t.set_fontsize(fs)
+            t.set_fontweight(weight)
             e = t.get_window_extent(self.renderer).expanded(1.05, 1.1)
             ax0, ay0 = self.ax.transData.transform((0.0, 0.0))
             self._extents[key] = (e.x0 - ax0, e.y0 - ay0, e.x1 - ax0, e.y1 - ay0)
@@ -101,8 +107,13 @@ class Labeller:
 
     def overlaps(self) -> int:
         """Pairs of placed labels whose boxes, measured as drawn, overlap (0)."""
-        b = [t.get_window_extent(self.renderer) for t in self.placed]
-        return sum(b[i].overlaps(b[j]) for i in range(len(b)) for j in range(i + 1, len(b)))
+        b = np.array([t.get_window_extent(self.renderer).extents for t in self.placed],
+                     dtype=np.float64).reshape(-1, 4)
+        i, j = np.triu_indices(b.shape[0], k=1)
+        # closed boxes, as matplotlib's Bbox.overlaps
+        hit = ((b[i, 0] <= b[j, 2]) & (b[j, 0] <= b[i, 2])
+               & (b[i, 1] <= b[j, 3]) & (b[j, 1] <= b[i, 3]))
+        return int(hit.sum())
 
     def mm_per_point(self) -> float:
         """Data units (mm) per typographic point, along x."""
