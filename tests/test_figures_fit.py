@@ -141,3 +141,30 @@ def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
             fig.canvas.draw()
             assert layout_faults(fig) == [], (name, fig.get_size_inches())
             plt.close(fig)
+
+
+def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
+    """A figure on its white background becomes an RGB PNG (a transparent one stays RGBA) with
+    exactly the pixels matplotlib drew, at the resolution asked."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    from fabkit.viz import figure_png, set_margins
+
+    plt = _mpl()
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.plot([0, 1], [0, 1], color="C3")
+    set_margins(fig, left=0.5, right=0.2, bottom=0.4, top=0.2)  # fits: drawn once
+    fig.set_dpi(100)
+    fig.canvas.draw()
+    drawn = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    im = Image.open(io.BytesIO(figure_png(fig, dpi=100)))
+    assert im.mode == "RGB" and im.size == (300, 200)
+    assert round(im.info["dpi"][0]) == 100
+    assert np.array_equal(np.asarray(im), drawn)
+    clear = plt.figure(figsize=(2, 2))
+    clear.patch.set_alpha(0.0)
+    im = Image.open(io.BytesIO(figure_png(clear, dpi=50)))
+    assert im.mode == "RGBA" and im.size == (100, 100) and np.asarray(im)[..., 3].min() == 0
