@@ -222,3 +222,66 @@ def test_labeller_counts_overlapping_labels_as_matplotlib_measures_them():
                 for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
     assert lab.overlaps() == pairs >= 3
     plt.close(fig)
+
+
+def _pdf_words(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_pdfium_reads_every_word_of_the_guide_set_in_the_standard_fonts(chain):
+    """Chrome's PDF engine opens the guide: 15 A4 pages in Helvetica and Courier Bold (named,
+    not embedded), whose text reads back as the pages were drawn (``→`` as ``->``)."""
+    pdfium = pytest.importorskip("pypdfium2")
+    from fabkit.fab.guide.pages import _PDF_PLAIN
+
+    plan, bom, guide = chain
+    assert guide.stats["standard_fonts"] == guide.stats["pages"] == 15
+    pdf = guide.pdf
+    fonts = set(re.findall(rb"/BaseFont /([A-Za-z-]+)", pdf))
+    assert fonts == {b"Helvetica", b"Helvetica-Bold", b"Courier-Bold"}
+    assert b"/FontFile" not in pdf and b"/Type3" not in pdf  # nothing embedded
+    doc = pdfium.PdfDocument(pdf)
+    assert len(doc) == 15
+    for k, page in enumerate(doc):
+        w, h = page.get_size()
+        assert abs(w - 8.27 * 72) < 1 and abs(h - 11.69 * 72) < 1  # A4 points
+        read = _pdf_words(page.get_textpage().get_text_range())
+        for text in guide.texts[k]:
+            for line in text.splitlines():
+                assert _pdf_words(line.translate(_PDF_PLAIN)) in read, (k + 1, line)
+    # a stack as the builder reads it on page 3, and a joint left for page 4
+    page3 = _pdf_words(doc[2].get_textpage().get_text_range())
+    assert re.search(r"J\d+: B\d+\(L\d\) / .* \| post \d+ mm", page3)
+    assert "J2->p4" in page3
+    # rendered, the pages carry ink where the bars and words are
+    pixels = np.asarray(doc[3].render(scale=50 / 72).to_pil().convert("L"))
+    assert (pixels < 128).mean() > 0.005
+
+
+def test_a_page_the_standard_fonts_cannot_write_keeps_embedded_fonts():
+    """A page with a character beyond WinAnsi (a σ in a hardware name) keeps the embedded
+    DejaVu fonts, nothing turned into '?'; the next page goes back to the standard fonts; the
+    texts are left as drawn (for the page's picture)."""
+    pdfium = pytest.importorskip("pypdfium2")
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    from fabkit.fab.guide.pages import _MONO, _save_page
+    from fabkit.viz import _mpl
+
+    plt = _mpl()
+    buf = io.BytesIO()
+    figs = []
+    with PdfPages(buf) as pdf:
+        for words in ("spring σ = 0.4 N/mm", "J5→p4: 2 × washer"):
+            fig = plt.figure(figsize=(4, 2))
+            t = fig.text(0.1, 0.5, words, family=_MONO, fontsize=9)
+            figs.append((_save_page(pdf, fig), t.get_text(), t.get_fontweight()))
+            plt.close(fig)
+    assert figs == [(False, "spring σ = 0.4 N/mm", "normal"), (True, "J5→p4: 2 × washer", "normal")]
+    data = buf.getvalue()
+    assert b"/BaseFont /Courier-Bold" in data and b"DejaVuSansMono" in data
+    doc = pdfium.PdfDocument(data)
+    assert len(doc) == 2
+    assert _pdf_words(doc[1].get_textpage().get_text_range()) == "J5->p4: 2 × washer"
+    pixels = np.asarray(doc[0].render(scale=100 / 72).to_pil().convert("L"))
+    assert (pixels < 128).mean() > 0.001  # the embedded glyphs are drawn

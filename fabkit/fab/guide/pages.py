@@ -32,13 +32,67 @@ __all__ = ["A4", "render_pages"]
 A4 = (8.27, 11.69)
 #: Left margin and usable width of a page (inches).
 _LEFT, _WIDTH = 0.55, 7.17
-_MONO = "DejaVu Sans Mono"
+#: Monospaced text: matplotlib's DejaVu Sans Mono on the page's picture, Courier in the PDF
+#: (see :func:`_save_page`); both 0.6 em a character, so columns line up in either.
+_MONO = "monospace"
+#: Characters of the guide's words that the PDF's standard fonts (WinAnsi encoding) lack, and
+#: what the PDF writes instead.
+_PDF_PLAIN = str.maketrans({"→": "->", "−": "-", "≤": "<=", "≥": ">=", "≈": "~"})
 #: How much of a bar of another page a page shows from the screw that takes it (mm).
 GHOST_STUB_MM = 60.0
 
 
 def _wrap(text: str, width: int) -> str:
     return "\n".join(textwrap.fill(p, width) if p else "" for p in text.split("\n"))
+
+
+def _save_page(pdf, fig) -> bool:
+    """Add a page to the PDF in the standard fonts of PDF readers (Helvetica, Courier) when
+    every text of it can be written in them, else in the embedded DejaVu fonts; True for the
+    former.
+
+    The standard fonts are named, not embedded, and measured from their metric files: a page of
+    the guide is written in a quarter of the time the embedded fonts take (each glyph laid out,
+    traced and subset), and the PDF is smaller. Text the page's picture shows as ``→`` reads
+    ``->`` in the PDF, and monospaced text is set in Courier Bold (plain Courier's hairline
+    strokes fade at 7.5 pt); a page with a character beyond the standard fonts (a design named
+    in another script) keeps the embedded fonts, so nothing is lost.
+    """
+    import logging
+
+    import matplotlib
+    from matplotlib.text import Text
+
+    plain = []
+    for t in fig.findobj(Text):
+        written = t.get_text().translate(_PDF_PLAIN)
+        try:
+            written.encode("cp1252")
+        except UnicodeEncodeError:
+            pdf.savefig(fig)
+            return False
+        plain.append((t, written))
+    changed = []  # (text, its words, its weight), restored after the page is written
+    for t, written in plain:
+        mono = t.get_fontfamily()[0] == _MONO
+        if written != t.get_text() or mono:
+            changed.append((t, t.get_text(), t.get_fontweight()))
+            t.set_text(written)
+            if mono:
+                t.set_fontweight("bold")
+    # the metric files call the regular weight "Medium", which matplotlib reports at each lookup
+    fonts_log = logging.getLogger("matplotlib.font_manager")
+    level = fonts_log.level
+    fonts_log.setLevel(logging.ERROR)
+    try:
+        with matplotlib.rc_context({"pdf.use14corefonts": True}):
+            pdf.savefig(fig)
+    finally:
+        fonts_log.setLevel(level)
+        for t, text, weight in changed:
+            t.set_text(text)
+            t.set_fontweight(weight)
+    return True
 
 
 def _header(fig, title: str, sub: str | None = None):
@@ -390,7 +444,9 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     stats : dict
         ``pages``, ``labels`` placed, ``overlaps`` (pairs of label boxes that overlap, 0),
         ``shrunk``, ``dropped`` (labels with no free place) and ``dropped_on`` (the page of
-        each); with ``check``, ``clipped`` ((page, text) that does not fit on its page).
+        each), ``standard_fonts`` (pages written in the PDF's standard fonts, see
+        :func:`_save_page`); with ``check``, ``clipped`` ((page, text) that does not fit on its
+        page).
     """
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
@@ -403,7 +459,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     x = plan.design.network.nodes * s.scale
     r = 0.5 * s.bar_width
     stats = {"pages": 0, "labels": 0, "overlaps": 0, "shrunk": 0, "dropped": 0, "dropped_on": [],
-             "clipped": []}
+             "clipped": [], "standard_fonts": 0}
     images, texts = [], []
     buf = io.BytesIO()
     drawers = [lambda fig, labs: _overview(fig, gp, plan, x, edges, r, labs),
@@ -425,7 +481,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                     stats[key] += lab.stats[key]
                 stats["dropped_on"] += [k + 1] * lab.stats["dropped"]
             texts.append([t.get_text() for t in fig.findobj(Text) if t.get_text()])
-            pdf.savefig(fig)
+            stats["standard_fonts"] += _save_page(pdf, fig)
             if pngs or k == 0:  # one raster drawing gives the PNG and the clipping check
                 png, clipped = checked_png(fig, dpi=dpi)
                 images.append(png)
