@@ -180,3 +180,24 @@ def test_stored_mesh_check_catches_merging_vertices():
     f5 = np.vstack([f, [[1, 4, 2]]])
     assert not stored_mesh_is_closed(v5, f5)
     assert len(binary_stl(v, f)) == 84 + 50 * 4
+
+
+def test_3mf_vertices_read_back_as_the_same_float32_coordinates(tmp_path):
+    """The 3MF writes nine significant digits: read back, every coordinate is the float32 the
+    mesh was rounded to (as a slicer reads it), bit for bit."""
+    import trimesh
+
+    from fabkit.check.threemf import read_package
+    from fabkit.export.threemf import threemf_package
+
+    rng = np.random.default_rng(7)
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    # awkward coordinates: large and small, negative, many digits
+    v = box.vertices * rng.uniform(0.1, 250.0, 3) + rng.uniform(-300.0, 300.0, 3)
+    v32 = v.astype(np.float32)
+    path = tmp_path / "box.3mf"
+    path.write_bytes(threemf_package(v, box.faces, "box"))
+    mesh = read_package(path)["mesh"]
+    assert mesh.is_watertight and len(mesh.vertices) == 8
+    ours = {tuple(p) for p in np.asarray(mesh.vertices).astype(np.float32).tolist()}
+    assert ours == {tuple(p) for p in v32.tolist()}

@@ -103,7 +103,9 @@ def threemf_package(vertices, faces, name: str = "network", transform=None, *,
         vv, ff, nm, tr = obj[:4]
         v = np.asarray(vv, dtype=np.float32)
         f = np.asarray(ff, dtype=np.int64)
-        vtxt = "".join(f'<vertex x="{a!r}" y="{b!r}" z="{c!r}"/>'
+        # nine significant digits give back every float32 exactly (half the time of Python's
+        # shortest repr of the float64 it widens to, a third less text)
+        vtxt = "".join(f'<vertex x="{a:.9g}" y="{b:.9g}" z="{c:.9g}"/>'
                        for a, b, c in v.astype(float).tolist())
         ftxt = "".join(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>' for a, b, c in f.tolist())
         resources.append(f'<object id="{oid}" type="model" name={quoteattr(nm)}>'
