@@ -152,3 +152,24 @@ def test_any_triangle_network_prints_and_checks(tmp_path):
     assert _by_name(r)["one conformational motion"]["value"] == 1
     assert r["transition"]["status"].startswith("not applicable")
     assert r["as_built"]["joints"] == 1
+
+
+def test_the_pinned_3mf_of_the_slope_one_chain_reads_back_whole(tmp_path):
+    """The 3MF's nine-digit decimals read back as float64 put a bar's mid-height cut where the
+    two triangles beside an edge computed their crossing points one rounding apart; the outline
+    of body 45 fell into two pieces. Crossing points are now computed once per edge: every
+    segment end meets exactly one other, and every check of both files passes."""
+    from fabkit.check.stl import _plane_segments
+    from fabkit.check.threemf import read_package
+
+    design = fabkit.load_template(TEMPLATES / "slope_one_chain.toml")
+    export(design, "stl", tmp_path, print={"preview": False})
+    for suffix in ("3mf", "stl"):
+        report = check_file(tmp_path / f"slope_one_chain_bed1.{suffix}", design=design,
+                            settings={})
+        assert report["ok"], [c for c in report["checks"] if not c["ok"]]
+    mesh = read_package(tmp_path / "slope_one_chain_bed1.3mf")["mesh"]
+    for z in np.linspace(mesh.bounds[0, 2], mesh.bounds[1, 2], 23)[1:-1]:
+        seg = _plane_segments(mesh, float(z))
+        _, counts = np.unique(seg.reshape(-1, 2), axis=0, return_counts=True)
+        assert (counts % 2 == 0).all()  # loops close exactly, bit for bit
