@@ -101,9 +101,8 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     return fig
 
 
-#: zlib level of the PNGs: 1 writes them in 80 % of the time of level 4 (and about half that of
-#: the default 6) for files 7 % larger than at 4; as opaque RGB they are still smaller than
-#: matplotlib's RGBA at 6.
+#: zlib level of the PNGs: 1 writes them in 80 % of the time of level 4 (0.62 against 0.75 s for
+#: the 30 pictures of five bundled designs) for files 7 % larger (6.2 against 5.8 MB).
 PNG_COMPRESSION = 1
 
 
