@@ -109,11 +109,15 @@ class Labeller:
         """Pairs of placed labels whose boxes, measured as drawn, overlap (0)."""
         b = np.array([t.get_window_extent(self.renderer).extents for t in self.placed],
                      dtype=np.float64).reshape(-1, 4)
-        i, j = np.triu_indices(b.shape[0], k=1)
-        # closed boxes, as matplotlib's Bbox.overlaps
-        hit = ((b[i, 0] <= b[j, 2]) & (b[j, 0] <= b[i, 2])
-               & (b[i, 1] <= b[j, 3]) & (b[j, 1] <= b[i, 3]))
-        return int(hit.sum())
+        n, count = b.shape[0], 0
+        for lo in range(0, n, 256):  # a block of rows at a time: memory stays linear in n
+            a = b[lo:lo + 256, None, :]
+            # closed boxes, as matplotlib's Bbox.overlaps
+            hit = ((a[..., 0] <= b[None, :, 2]) & (b[None, :, 0] <= a[..., 2])
+                   & (a[..., 1] <= b[None, :, 3]) & (b[None, :, 1] <= a[..., 3]))
+            rows = np.arange(lo, min(lo + 256, n))[:, None]
+            count += int((hit & (np.arange(n)[None, :] > rows)).sum())  # each pair once
+        return count
 
     def mm_per_point(self) -> float:
         """Data units (mm) per typographic point, along x."""

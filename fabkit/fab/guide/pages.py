@@ -55,8 +55,8 @@ def _save_page(pdf, fig) -> bool:
     the guide is written in a quarter of the time the embedded fonts take (each glyph laid out,
     traced and subset), and the PDF is smaller. Text the page's picture shows as ``→`` reads
     ``->`` in the PDF, and monospaced text is set in Courier Bold (plain Courier's hairline
-    strokes fade at 7.5 pt); a page with a character beyond the standard fonts (a design named
-    in another script) keeps the embedded fonts, so nothing is lost.
+    strokes fade at 7.5 pt); a page with a character beyond the standard fonts (a σ in a
+    hardware catalogue's name) keeps the embedded fonts, so nothing is lost.
     """
     import logging
 
