@@ -79,6 +79,14 @@ DOMAIN_RTOL = 1e-12
 #: near 1e-15, while a near miss of a touching root (a local minimum of |f(d) - d|) stays far above.
 FIXED_POINT_RTOL = 1e-10
 
+#: A node placed from three parents (3D) has no place when the third parent lies within this
+#: (relative to the first two's distance) of the line through them: the parents fix no plane, the
+#: node may turn about that line (a flat state where branches meet, such as the flat origami
+#: sheet), and the place computed there is round-off. At this distance the place is good to
+#: EPS / 1e-7 ≈ 2e-9 relative; a branch that ends on such a state ends this close to it (for the
+#: flat sheet 3e-14 before d1 = √2), far below any fabrication error.
+COLLINEAR_PARENTS_RTOL = 1e-7
+
 #: A positive floor for a divisor or a scale that may be zero (a degenerate network, an empty
 #: sum): far below any length, area or time fabkit meets, so it replaces only an exact zero and
 #: changes no other value.

@@ -16,7 +16,7 @@ import numpy as np
 from ..construction import (ON_AXIS_RTOL, ConstructionPlan, _tiled_chain_plan,  # noqa: F401
                             cached_plan, plan_construction)
 from ..errors import KinematicsError
-from ..numerics import rigid_fit
+from ..numerics import COLLINEAR_PARENTS_RTOL, rigid_fit
 from .base import Mark, Method, Outcome
 from .record import Record, kept_indices
 from .trajectory import EventKind, Status
@@ -189,6 +189,8 @@ def _place_loop_3d(X, margins, base, order, parents, r0s, c0s, r2s, signs, plan,
         i = (ex * w).sum(axis=0)
         ey = w - i * ex
         j = sqrt((ey * ey).sum(axis=0))
+        # parents on one line fix no plane: no place (not a place decided by round-off)
+        j = np.where(j > COLLINEAR_PARENTS_RTOL * dd, j, np.nan)
         ey = ey / j
         ez = np.stack([ex[1] * ey[2] - ex[2] * ey[1], ex[2] * ey[0] - ex[0] * ey[2],
                        ex[0] * ey[1] - ex[1] * ey[0]])

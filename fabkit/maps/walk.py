@@ -10,7 +10,7 @@ from scipy.optimize import brentq
 from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
 from ..network import Network
-from ..numerics import FLAT_RTOL, TINY
+from ..numerics import DOMAIN_RTOL, FLAT_RTOL, TINY
 from .evaluate import _Constructive2D, _ConstructiveGeneral, _pair
 from .map1d import Map1D
 from .results import Branch
@@ -33,9 +33,15 @@ def _evaluator(net, plan, in_pair, out_pair):
 
 
 def _turning_point(ev, signs, inside, outside):
-    """The d_in where the branch with these signs ends, between a valid and an invalid value."""
+    """The d_in where the branch with these signs ends, between a valid and an invalid value.
+
+    The end is where a node's intersection vanishes (its margin crosses zero) or where the node
+    has no place at all (its parents on one line: a flat state where branches meet, margin
+    undefined); an undefined margin counts as -1, so the root search lands on that boundary
+    too."""
     def margin(x):
-        return float(ev(np.array([x]), signs, derivative=False)[2][0])
+        m = float(ev(np.array([x]), signs, derivative=False)[2][0])
+        return m if np.isfinite(m) else -1.0
 
     if margin(outside) >= -FLAT_RTOL:
         return outside
@@ -49,13 +55,31 @@ def _turning_point(ev, signs, inside, outside):
         if margin(t) >= -FLAT_RTOL:
             break
         t += step
+    if margin(t) < -FLAT_RTOL:  # an undefined stretch: back to the last value that evaluates
+        t = inside
     return t
+
+
+def _defined_start(ev, signs, d0, size):
+    """``d0``, or the nearest value to it where the branch has a place, when the reference
+    itself has none (its parents on one line: a flat state where branches meet)."""
+    _, _, m, _ = ev(np.array([d0]), signs, derivative=False)
+    if m[0] >= -FLAT_RTOL:
+        return d0
+    for k in range(48):  # from 1e-15 of the network outwards, both sides
+        for side in (-1.0, 1.0):
+            probe = d0 + side * size * 1e-15 * 2.0 ** k
+            _, _, m, _ = ev(np.array([probe]), signs, derivative=False)
+            if m[0] >= -FLAT_RTOL:
+                return float(probe)
+    return d0
 
 
 def _walk_branch(ev, signs, d0, size, samples):
     """Extent [lo, hi] of the branch with these signs that contains d0, and the step index of
     the node that becomes flat at each end (-1: no end found in range)."""
     ends = []
+    d0 = _defined_start(ev, signs, d0, size)
     for direction in (-1.0, 1.0):
         # geometric search outwards: find the first invalid value
         # fine near d0, coarse far out: up to 4 network sizes away
@@ -244,7 +268,14 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     return Map1D(fun=fun_for(chosen), domain=(chosen.lo, chosen.hi), branches=branches,
                  branch=chosen, source="constructive", name=label, curve_fun=curve_fun,
                  configuration_fun=configuration,
-                 reference=d0 if chosen.lo <= d0 <= chosen.hi else None)
+                 reference=d0 if _on(chosen, d0, size) else None)
+
+
+def _on(br, d, size) -> bool:
+    """d lies on the branch (to round-off of its ends: a reference where the branch has no
+    place, such as a flat sheet where branches meet, lies ~1e-14 past its end)."""
+    slack = DOMAIN_RTOL * max(size, 1.0)
+    return br.lo - slack <= d <= br.hi + slack
 
 
 def _walk_from_end(ev, signs, d_end, size, samples):

@@ -33,6 +33,12 @@ BRANCH_END_BISECTIONS = 16
 #: tabulated; it is smooth along the branch and interpolated between them.
 PROFILE_SAMPLES = 257
 
+#: The profile's first and last samples sit this far (relative to the branch's extent) inside
+#: its ends: at an end itself (a turning point, a flat state where branches meet) the place of
+#: a node hangs on round-off, while the profile is continuous there, so this moves it by at
+#: most ~3e-5 of its range (at a square-root end) and makes it the same on every machine.
+PROFILE_END_INSET = 1e-9
+
 
 def _interp_rows(values, grid, table) -> np.ndarray:
     """Linear interpolation of every column of ``table`` (G, K) at ``values`` (Q,), clamped."""
@@ -187,9 +193,21 @@ class ModuleMaps:
         """:func:`state_profile` of the module's bars along its nominal branch, tabulated."""
         from ..kinematics import place
 
-        grid = np.linspace(domain[0], domain[1], PROFILE_SAMPLES)
+        inset = PROFILE_END_INSET * (domain[1] - domain[0])
+        grid = np.linspace(domain[0] + inset, domain[1] - inset, PROFILE_SAMPLES)
         x, margin, _ = place(module.plan, grid)
-        x = np.where((margin >= 0)[:, None, None], x, module.network.nodes[None])
+        valid = margin >= 0
+        if not valid.any():
+            x = np.broadcast_to(module.network.nodes, x.shape)
+        elif not valid.all():
+            # a sample off this module's branch takes the state of the nearest one on it (never
+            # the rest state: a jump in the profile would move every build near that end)
+            ok = np.flatnonzero(valid)
+            nearest = ok[np.clip(np.searchsorted(ok, np.arange(grid.size)), 0, ok.size - 1)]
+            before = ok[np.clip(np.searchsorted(ok, np.arange(grid.size)) - 1, 0, ok.size - 1)]
+            pick = np.where(np.abs(before - np.arange(grid.size))
+                            <= np.abs(nearest - np.arange(grid.size)), before, nearest)
+            x = x[pick]
         out = state_profile(self.geo, self.process, x, module.nodes, module.edges)
         return grid, np.zeros((grid.size, module.edges.size)) if out is None else out
 

@@ -48,7 +48,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from ..numerics import TINY
+from .canonical import canonical_frame, canonical_order, canonical_scalars, canonical_vectors
 
 __all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "Sheet", "BuildLengths",
            "sample_lengths", "sample_builds", "hinge_shortening", "state_profile",
@@ -188,7 +190,9 @@ def _laser(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.
 def _print(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.ndarray]:
     x = geo.nodes * spec.scale
     m = spec.samples
-    xy = g[:, None, None] * spec.xy_sigma * rng.standard_normal((m,) + x.shape)
+    # each joint's error attached to the design (canonical order and frame): the same builds
+    # for the design renumbered or drawn turned
+    xy = g[:, None, None] * spec.xy_sigma * canonical_vectors(rng, m, x, geo.edges)
     shrink = g * (spec.shrinkage + spec.shrinkage_sigma * rng.standard_normal(m))
     width = g * spec.line_width_sigma * rng.standard_normal(m)
     pos = x[None] + (xy if "xy accuracy" in on else np.zeros_like(xy))
@@ -216,9 +220,9 @@ def _origami(geo: ProcessGeometry, spec, rng, on: set, gain) -> tuple[np.ndarray
     i = geo.edges[:, 0]
     g = gain[:, None, None]
     boundary = geo.boundary if geo.boundary is not None else np.zeros(n, dtype=bool)
-    z = rng.standard_normal((m, n, d))
-    direction = rng.standard_normal((m, n, d))
-    reach = rng.random((m, n))
+    z = canonical_vectors(rng, m, x, geo.edges)
+    direction = canonical_vectors(rng, m, x, geo.edges)
+    reach = canonical_scalars(rng.random((m, n)), geo.edges, n)
     bow = np.abs(rng.standard_normal((m, i.size)))
     sigma = np.where(boundary, spec.cut_sigma if "cut" in on else 0.0,
                      spec.crease_sigma if "crease position" in on else 0.0)
@@ -244,11 +248,16 @@ def _origami_sheets(geo: ProcessGeometry, spec, rng, on: set, gain):
     count = np.zeros(e)
     fold = np.zeros((m, e))
     bow = np.abs(rng.standard_normal((m, e)))
+    # vertex errors attached to each sheet (its own order and in-plane frame), the directions
+    # of the hinge lines' offsets to the design's frame
+    frame3 = canonical_frame(geo.nodes, geo.edges)
     for sh in geo.sheets:
         v = sh.flat.shape[0]
-        z = rng.standard_normal((m, v, 2))
-        direction = rng.standard_normal((m, v, 3))
-        reach = rng.random((m, v))
+        z = canonical_vectors(rng, m, sh.flat, sh.edges)
+        order = canonical_order(sh.edges, v)
+        direction = np.empty((m, v, 3))
+        direction[:, order] = rng.standard_normal((m, v, 3)) @ frame3
+        reach = canonical_scalars(rng.random((m, v)), sh.edges, v)
         sigma = np.where(sh.boundary, spec.cut_sigma if "cut" in on else 0.0,
                          spec.crease_sigma if "crease position" in on else 0.0)
         p = sh.flat * spec.scale
