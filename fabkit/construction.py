@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import ConstructionError, FlatStateError
 from .network import Network
-from .numerics import FLAT_RTOL, TINY
+from .numerics import FLAT_SIDE_SINE, TINY
 
 __all__ = ["ConstructionPlan", "PartialConstruction", "plan_construction",
            "search_construction", "cached_plan", "edge_ids", "EdgeLookup", "SearchGraph"]
@@ -186,7 +186,7 @@ class SearchGraph:
 
 
 def search_construction(x, edges: np.ndarray, lengths: np.ndarray, seed, *, size: float,
-                        allowed=None, partial: bool = False, min_sine: float = FLAT_RTOL,
+                        allowed=None, partial: bool = False, min_sine: float = FLAT_SIDE_SINE,
                         graph: SearchGraph | None = None) -> PartialConstruction:
     """Place nodes one by one from a seed pair, each from its best-conditioned placed neighbours.
 
@@ -486,7 +486,7 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     dpv = x[order] - x[par[:, 0]]
     cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
     norm = np.linalg.norm(dpq, axis=1) * np.linalg.norm(dpv, axis=1)
-    if np.any(np.abs(cross) < FLAT_RTOL * norm):
+    if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
                             signs=np.where(cross > 0, 1.0, -1.0), reference=np.array(x),

@@ -26,11 +26,19 @@ __all__ = [
     "RANK_RTOL",
     "EDGE_RTOL",
     "SLOPE_TOL",
+    "NEUTRAL_SLOPE_TOL",
     "START_RTOL",
     "DOMAIN_RTOL",
     "FIXED_POINT_RTOL",
     "TINY",
     "MM_SLACK",
+    "COLLINEAR_PARENTS_RTOL",
+    "FLAT_SHEET_RTOL",
+    "TARGET_AT_TURN_RTOL",
+    "FLAT_SIDE_SINE",
+    "FRAME_MIN_SINE",
+    "canonical_order",
+    "canonical_frame",
     "RigidFit",
     "rigid_fit",
     "apply_fit",
@@ -63,6 +71,12 @@ EDGE_RTOL = 1e-12
 #: exactly, so a design that misses by more than 1e-6 is a different design.
 SLOPE_TOL = 1e-6
 
+#: A slope within this of ±1 is marginal (neutral). A fixed point of slope +1 is a touching
+#: root of f(d) - d: changing the design by ε moves its slope off 1 by ~√ε (1e-6 for coordinates
+#: changed by 1e-12 of their size, as typing them to 12 digits does) and may split it into two
+#: fixed points that far apart, so the class is read with two decades of room above that.
+NEUTRAL_SLOPE_TOL = 1e-4
+
 #: A start configuration is accepted when its edges match their rest lengths to this relative
 #: error: template coordinates are typed with ~10 significant digits, so 1e-8 admits them and
 #: refuses a start that is visibly off its constraint set.
@@ -82,10 +96,28 @@ FIXED_POINT_RTOL = 1e-10
 #: A node placed from three parents (3D) has no place when the third parent lies within this
 #: (relative to the first two's distance) of the line through them: the parents fix no plane, the
 #: node may turn about that line (a flat state where branches meet, such as the flat origami
-#: sheet), and the place computed there is round-off. At this distance the place is good to
-#: EPS / 1e-7 ≈ 2e-9 relative; a branch that ends on such a state ends this close to it (for the
-#: flat sheet 3e-14 before d1 = √2), far below any fabrication error.
-COLLINEAR_PARENTS_RTOL = 1e-7
+#: sheet), and the place computed there is round-off. Just above it the place is good to
+#: ~EPS / 1e-9 ≈ 2e-7 relative (a chain of sheets keeps its first sheet this close to flat while
+#: its last one unfolds); a branch that ends on such a state ends within an ulp of it.
+COLLINEAR_PARENTS_RTOL = 1e-9
+
+#: A sheet of paper counts as given flat when its nodes lie within this (relative to its size) of
+#: one plane: template coordinates carry ~1e-16 of round-off and are typed to ~10 digits, while a
+#: sheet folded by any visible angle leaves the plane by more than 1e-3.
+FLAT_SHEET_RTOL = 1e-9
+
+#: A target that lies past the end of its branch (a turning point of the drive) by at most this,
+#: relative to the drive's values, is reached within rounding: the motion ends at the turning
+#: point and says so. A design placed at a fold (the super-stable chain driven to D2* + 1e-12)
+#: moves its turning point by ~1e-10 when its coordinates change by 1e-12, far below this, and
+#: 1e-8 of a 100 mm module is 1 nm.
+TARGET_AT_TURN_RTOL = 1e-8
+
+#: A node reads its side of its parents' line (plane) off a reference configuration only when
+#: the sine of its angle to them is at least this: nearer, the reference is a flat state and the
+#: side is not a property of the design (a change of its coordinates by 1e-12 of its size, or
+#: typing them to 10 digits, would pick it), so the branch is chosen by a stated rule instead.
+FLAT_SIDE_SINE = 1e-8
 
 #: A positive floor for a divisor or a scale that may be zero (a degenerate network, an empty
 #: sum): far below any length, area or time fabkit meets, so it replaces only an exact zero and
@@ -355,3 +387,82 @@ def _sparse_steps(u, ij, res, n, dim):
         jac = csr_matrix((vals, (rows, cols)), shape=(m, n * dim))
         out[b] = lsqr(jac, res[b], atol=1e-15, btol=1e-15, iter_lim=20 * n * dim)[0]
     return out.reshape(nb, n, dim)
+
+
+# -- an order and a frame that belong to a design -----------------------------------------
+
+#: A bar sets the next axis of the frame when at least this part of its direction (the sine of
+#: its angle to the axes so far) leaves their span: far from round-off, so the choice of bar
+#: does not hang on the last bits of a nearly parallel one.
+FRAME_MIN_SINE = 0.1
+
+
+def canonical_order(edges, n: int) -> np.ndarray:
+    """Joints in the order they first appear in the bar list, then joints on no bar.
+
+    Parameters
+    ----------
+    edges : array_like of int, shape (E, 2)
+    n : int
+        Number of joints.
+
+    Returns
+    -------
+    numpy.ndarray of int, shape (n,)
+        ``order[k]`` is the joint at canonical position k.
+
+    Examples
+    --------
+    >>> canonical_order([[2, 0], [0, 3]], 5).tolist()
+    [2, 0, 3, 1, 4]
+    """
+    flat = np.asarray(edges, dtype=np.int64).reshape(-1)
+    _, first = np.unique(flat, return_index=True)
+    seen = flat[np.sort(first)]
+    rest = np.setdiff1d(np.arange(n), seen, assume_unique=False)
+    return np.concatenate([seen, rest]).astype(np.int64)
+
+
+def canonical_frame(points, edges) -> np.ndarray:
+    """An orthonormal frame that turns with the design (see the module docstring).
+
+    Parameters
+    ----------
+    points : array_like, shape (N, d)
+    edges : array_like of int, shape (E, 2)
+
+    Returns
+    -------
+    numpy.ndarray, shape (d, d)
+        Rows are the axes; a vector with coordinates ``c`` in the frame is ``c @ frame``.
+        Proper (determinant +1) in 3D; in 2D it follows the design's own turn from its first
+        bar to the next one across it.
+    """
+    x = np.asarray(points, dtype=np.float64)
+    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    d = x.shape[1]
+    vec = x[e[:, 1]] - x[e[:, 0]]
+    norm = np.linalg.norm(vec, axis=1)
+    vec = vec[norm > 0] / norm[norm > 0, None]
+    axes: list[np.ndarray] = []
+    want = d if d == 2 else 2
+    for v in vec:
+        r = v - sum((v @ a) * a for a in axes) if axes else v
+        s = float(np.linalg.norm(r))
+        if not axes or s >= FRAME_MIN_SINE:
+            axes.append(r / max(s, TINY))
+        if len(axes) == want:
+            break
+    if not axes:
+        axes.append(np.eye(d)[0])
+    if len(axes) < want:  # every bar on one line: a fixed perpendicular
+        a = axes[0]
+        k = int(np.argmin(np.abs(a)))
+        if d == 2:
+            axes.append(np.array([-a[1], a[0]]))
+        else:
+            p = np.cross(a, np.eye(3)[k])
+            axes.append(p / np.linalg.norm(p))
+    if d == 3:
+        axes.append(np.cross(axes[0], axes[1]))
+    return np.array(axes)

@@ -194,7 +194,8 @@ class OrigamiSection(Section):
         None, description="one of B/M/V/F/U/C per network edge")
     faces: Optional[list[list[Annotated[int, Field(ge=0)]]]] = Field(
         None, description="faces as node cycles")
-    sheet_size: Optional[float] = _mm("side of the sheet's bounding square (mm)", gt=0)
+    sheet_size: Optional[float] = _mm("largest extent of a sheet's flat pattern, corner to corner (mm)",
+                                      gt=0)
     samples: Optional[int] = Field(None, ge=2, le=MAX_SAMPLES_SETTING,
                                    description="configurations of the simulated folding")
     branch: Optional[Union[Literal["assignment"], Annotated[int, Field(ge=1)]]] = Field(

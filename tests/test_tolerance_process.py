@@ -131,9 +131,10 @@ def test_each_process_speaks_its_own_units_and_error_model(chain10):
     d = printed.as_dict()
     assert d["process"] == "print" and d["scale_mm"] == 4.0
     assert d["model"].startswith("print: xy accuracy σ 0.1 mm")
-    # 2 % of the chain's mean designed port distance at the target, at 4 mm per unit
+    # 2 % of the module size, at 4 mm per unit: the mean of the first module's two port
+    # distances (d1, d2) at the target (every module of the chain is a copy of it)
     at_target = chain10.trace().final
-    pairs = np.array([chain10.network.port(p) for p in printed.ports])
+    pairs = np.array([chain10.network.port(p) for p in ("d1", "d2")])
     mean = np.linalg.norm(at_target[pairs[:, 0]] - at_target[pairs[:, 1]], axis=-1).mean()
     assert d["ports"][0]["limit_mm"] == pytest.approx(0.02 * mean * 4.0)
     assert set(d["errors"]) == {"xy_sigma", "shrinkage", "shrinkage_sigma", "line_width_sigma",

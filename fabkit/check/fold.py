@@ -82,7 +82,8 @@ def model_from_fold(doc: dict, name: str = "fold"):
     if x.shape[1] == 2:
         cp = CreasePattern(x, edges, assignment, faces)
         net, _ = network_from_pattern(cp, ports)
-        size = float(np.ptp(x, axis=0).max()) * scale
+        # the sheet corner to corner, so the model's scale is the file's own
+        size = float(np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=-1)).max()) * scale
         settings["sheet_size"] = size
         return OrigamiModel(name, net, x.shape[0], edges, assignment, faces,
                             (Sheet(cp, np.arange(x.shape[0])),), True, size, settings)

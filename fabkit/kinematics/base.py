@@ -16,6 +16,7 @@ builds the :class:`Problem` once and hands it to the method named in ``METHODS``
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +24,7 @@ import numpy as np
 from .. import arguments
 from ..errors import ArgumentTypeError, KinematicsError
 from ..network import Network
-from ..numerics import START_RTOL, TINY, rigid_fit
+from ..numerics import START_RTOL, TARGET_AT_TURN_RTOL, TINY, rigid_fit
 from .record import Record, edge_errors, keep_rule, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
 
@@ -381,16 +382,19 @@ class Method(ABC):
         p = self.problem
         name = out.method or self.name
         if out.record is not None:  # the method reduced its configurations itself
-            return p.trajectory_of(out.record, name, out.status, out.message, out.marks,
+            traj = p.trajectory_of(out.record, name, out.status, out.message, out.marks,
                                    out.stats)
-        x = np.asarray(out.positions, dtype=np.float64)
-        if not out.aligned:
-            x = align_to_gauge(x, p.start, p.gauge)
-        if p.keep != "all":
-            return p.trajectory_of(record_positions(p, x, out.arclength), name, out.status,
-                                   out.message, out.marks, out.stats)
-        return p.trajectory(x, name, out.status, out.message, out.marks, out.stats,
-                            out.arclength)
+        else:
+            x = np.asarray(out.positions, dtype=np.float64)
+            if not out.aligned:
+                x = align_to_gauge(x, p.start, p.gauge)
+            if p.keep != "all":
+                traj = p.trajectory_of(record_positions(p, x, out.arclength), name, out.status,
+                                       out.message, out.marks, out.stats)
+            else:
+                traj = p.trajectory(x, name, out.status, out.message, out.marks, out.stats,
+                                    out.arclength)
+        return _target_at_turn(traj, p)
 
     # Helpers shared by the methods -------------------------------------------------------------
     def direction(self) -> float:
@@ -400,3 +404,19 @@ class Method(ABC):
     def finished_message(self) -> str:
         p = self.problem
         return f"reached {p.drive_name} = {p.target:.10g}"
+
+
+def _target_at_turn(traj: Trajectory, p) -> Trajectory:
+    """A trace that turns back within rounding of its target has reached it (see
+    :data:`fabkit.numerics.TARGET_AT_TURN_RTOL`): finished, at the turning point, and saying so.
+    Which side of a fold a target 1e-12 past it lies on is a matter of the last bits."""
+    if traj.status is not Status.TURNING_POINT or traj.drive.size == 0:
+        return traj
+    turn = float(traj.drive[-1])
+    short = (p.target - turn) * (1.0 if p.target >= p.start_drive else -1.0)
+    scale = max(abs(p.target), abs(p.start_drive), 1.0)
+    if not 0.0 <= short <= TARGET_AT_TURN_RTOL * scale:
+        return traj
+    message = (f"reached {p.drive_name} = {turn:.10g}, where the motion turns back, within "
+               f"rounding of the target {p.target:.10g} ({short:.1e} short of it)")
+    return dataclasses.replace(traj, status=Status.FINISHED, message=message)

@@ -27,12 +27,27 @@ ROOT_XTOL = 1e-15
 REFERENCE_SEPARATION = 1e-6
 #: Roots closer than this (relative) are one root, the best resolved kept.
 SAME_ROOT = 1e-7
+#: Two neutral fixed points this close (relative) are one touching fixed point (f(d) - d with a
+#: double root) split in two: a change ε of the design splits it by ~√ε, 1e-6 for ε = 1e-12.
+TANGENT_SPLIT = 1e-5
 #: A cycle point that returns within this (relative) after a shorter period has that period.
 SHORTER_PERIOD = 1e-9
 #: The cubic Hermite table of the map is used only when it reproduces f to this (relative to
 #: the domain) and f' to TABLE_SLOPE_RTOL at the interval midpoints; else the exact map is.
 TABLE_VALUE_RTOL = 1e-11
 TABLE_SLOPE_RTOL = 1e-8
+#: A fixed point within this (relative to the domain) of an end of its branch where the motion
+#: turns back lies at that end (a flat state); an end whose image misses it by no more than this
+#: is such a fixed point itself. A design placed exactly there (the flat origami sheet, a chain
+#: of sheets unfolding to flat) moves it off by ~1e-12 when its coordinates change by 1e-12, and
+#: by the square root of that (1e-6) where the end is a flat state that branches cross, far
+#: below this; 1e-4 of a 100 mm module is 10 µm, far below any fabrication error.
+END_FIXED_POINT_RTOL = 1e-4
+#: The slope of a fixed point at an end is the limit from inside: f' at these distances from the
+#: end (relative to the domain), extrapolated linearly to it; at the end itself the place of a
+#: node, and so f', hangs on round-off. A slope that grows like 1/√h between them (a vertical
+#: tangent: |f'| at least doubles from the first to the second) is infinite.
+END_SLOPE_STEPS = (1e-4, 1e-5)
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,7 +244,7 @@ class Map1D:
                     roots.append(x)
         if ref is not None:  # exact; a touching root found next to it is the same point
             roots = [r for r in roots if abs(r - ref.value) > REFERENCE_SEPARATION * scale] + [ref.value]
-        found = self._dedupe_fixed(roots, scale)
+        found = self._at_ends(self._dedupe_fixed(roots, scale), scale)
         # f(d) = d on a whole stretch (a degenerate, partly identical branch): keep the ends of
         # each run of roots spaced like the grid
         step = 2.5 * (grid[1] - grid[0])
@@ -244,6 +259,51 @@ class Map1D:
                 out.extend([run[0], run[-1]] if len(run) > 1 else run)
             found = out
         return found
+
+    def _turning_ends(self) -> list[tuple[float, float]]:
+        """The domain's ends where the motion turns back, each with the side (+1 or -1) of the
+        branch as seen from it."""
+        if self.branch is None:
+            return []
+        lo, hi = self.domain
+        out = []
+        for end, side, what in ((lo, 1.0, self.branch.ends[0]), (hi, -1.0, self.branch.ends[1])):
+            if str(what).startswith("turning point"):
+                out.append((float(end), side))
+        return out
+
+    def _end_slope(self, end: float, side: float) -> float:
+        """The limit of f' at a turning end from inside the branch (:data:`END_SLOPE_STEPS`)."""
+        width = self.domain[1] - self.domain[0]
+        h1, h2 = (s * width for s in END_SLOPE_STEPS)
+        _, d = self._values(np.array([end + side * h1, end + side * h2]), derivative=True)
+        s1, s2 = float(d[0]), float(d[1])
+        if not (np.isfinite(s1) and np.isfinite(s2)):
+            return float("inf")
+        if abs(s2) >= 2.0 * abs(s1):  # grows like 1/sqrt(h): a vertical tangent
+            return float("inf")
+        return (s2 * h1 - s1 * h2) / (h1 - h2)
+
+    def _at_ends(self, found: list[FixedPoint], scale: float) -> list[FixedPoint]:
+        """Fixed points at a turning end of the branch (see :data:`END_FIXED_POINT_RTOL`):
+        marked, with their slope as the limit from inside; an end whose image misses it by no
+        more than that tolerance added as one."""
+        tol = END_FIXED_POINT_RTOL * scale
+        out = list(found)
+        for end, side in self._turning_ends():
+            near = [k for k, p in enumerate(out) if abs(p.value - end) <= tol]
+            slope = self._end_slope(end, side)
+            if near:
+                for k in near:
+                    out[k] = dataclasses.replace(out[k], slope=slope, kind=classify_slope(slope),
+                                                 at_end=True)
+                continue
+            f, _ = self._values(np.array([end]))
+            miss = abs(float(f[0]) - end)
+            if miss <= tol:
+                out.append(FixedPoint(value=end, slope=slope, kind=classify_slope(slope),
+                                      residual=miss, at_end=True))
+        return sorted(out, key=lambda p: p.value)
 
     def _touching_root(self, a, b):
         from scipy.optimize import minimize_scalar
@@ -261,13 +321,21 @@ class Map1D:
         return FixedPoint(value=float(x), slope=s, kind=kind, residual=abs(float(f) - float(x)))
 
     def _dedupe_fixed(self, roots, scale):
-        """Keep true roots (residual <= 1e-10), one per cluster (the best resolved)."""
+        """Keep true roots (residual <= 1e-10), one per cluster (the best resolved); two
+        neutral roots within :data:`TANGENT_SPLIT` are one touching fixed point, split by
+        round-off (or a change of the design far below any that matters): kept as one, midway."""
         cands = [p for p in (self._fixed(x) for x in sorted(roots)) if p.residual <= FIXED_POINT_RTOL * scale]
         out: list[FixedPoint] = []
         for p in cands:
             if out and abs(p.value - out[-1].value) <= SAME_ROOT * scale:
                 if p.residual < out[-1].residual:
                     out[-1] = p
+                continue
+            if out and abs(p.value - out[-1].value) <= TANGENT_SPLIT * scale \
+                    and p.kind == out[-1].kind == "neutral":
+                mid = self._fixed(0.5 * (p.value + out[-1].value))
+                out[-1] = dataclasses.replace(mid, residual=max(mid.residual, p.residual,
+                                                                 out[-1].residual))
                 continue
             out.append(p)
         return out

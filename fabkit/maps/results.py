@@ -6,15 +6,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numerics import SLOPE_TOL
+from ..numerics import NEUTRAL_SLOPE_TOL, SLOPE_TOL
 
 
 def classify_slope(slope: float, tol: float = SLOPE_TOL) -> str:
     """Stability class of a fixed point or cycle from its slope (multiplier).
 
     Returns one of ``"super-stable"`` (|s| < tol), ``"stable"`` (|s| < 1), ``"neutral"``
-    (|s| = 1 within tol), ``"unstable"`` (|s| > 1), ``"super-unstable"`` (|s| > 1/tol, or an
-    infinite slope at a turning point of d_in).
+    (|s| = 1 within :data:`~fabkit.numerics.NEUTRAL_SLOPE_TOL`), ``"unstable"`` (|s| > 1),
+    ``"super-unstable"`` (|s| > 1/tol, or an infinite slope at a turning point of d_in).
 
     Examples
     --------
@@ -24,7 +24,7 @@ def classify_slope(slope: float, tol: float = SLOPE_TOL) -> str:
     a = abs(float(slope))
     if a < tol:
         return "super-stable"
-    if abs(a - 1.0) <= tol:
+    if abs(a - 1.0) <= max(tol, NEUTRAL_SLOPE_TOL):
         return "neutral"
     if a < 1.0:
         return "stable"
@@ -47,16 +47,21 @@ class FixedPoint:
         See :func:`classify_slope`.
     residual : float
         |f(D*) - D*|.
+    at_end : bool
+        D* lies at an end of its branch, where the motion turns back (a flat state): within
+        :data:`fabkit.maps.map1d.END_FIXED_POINT_RTOL` of it, or the end itself when its image
+        misses it by no more than that. Its slope is then the limit from inside the branch.
     """
 
     value: float
     slope: float
     kind: str
     residual: float = 0.0
+    at_end: bool = False
 
     def as_dict(self) -> dict:
         return {"value": self.value, "slope": self.slope, "kind": self.kind,
-                "residual": self.residual}
+                "residual": self.residual, "at_end": self.at_end}
 
 
 @dataclass(frozen=True)

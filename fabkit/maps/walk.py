@@ -66,9 +66,9 @@ def _defined_start(ev, signs, d0, size):
     _, _, m, _ = ev(np.array([d0]), signs, derivative=False)
     if m[0] >= -FLAT_RTOL:
         return d0
-    for k in range(48):  # from 1e-15 of the network outwards, both sides
+    for k in range(48):  # from round-off outwards, both sides
         for side in (-1.0, 1.0):
-            probe = d0 + side * size * 1e-15 * 2.0 ** k
+            probe = d0 + side * size * ROOT_XTOL * 2.0 ** k
             _, _, m, _ = ev(np.array([probe]), signs, derivative=False)
             if m[0] >= -FLAT_RTOL:
                 return float(probe)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import FabkitError, KinematicsError, TemplateError
+from ..kinematics.trajectory import EventKind
 from ..numerics import EDGE_RTOL, project_to_lengths
 from .behaviour import infer_behaviour
 from .criteria import judge_modules, judge_ports, judge_shape, profile_order
@@ -216,6 +217,13 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     if not trajectory.success:
         raise TemplateError(path, "motion.to", f"the designed motion does not reach the target: "
                                                f"{trajectory.message}")
+    requested = float(m.to)
+    if trajectory.events and trajectory.events[-1].kind is EventKind.TURNING_POINT \
+            and float(trajectory.drive[-1]) != requested:
+        # the target lies within rounding past a turning point (the trace says so): the design
+        # is judged where its motion ends, as every copy of it that rounds the other way is
+        m = replace(m, to=float(trajectory.drive[-1]))
+        design = replace(design, motion=m)
     problem = make_problem(net, m.drive, m.to, hold=m.hold)
     ports = _chain_ports(net)
     pairs = np.array([net.port(p) for p in ports])
@@ -226,8 +234,13 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     plan = _find_plan(problem, trajectory)
     if plan is None:
         spec = replace(spec, samples=min(spec.samples, PROJECTED_SAMPLES_CAP))
+    # the module size: the mean port distance at the target, of the first module's two ports in
+    # a chain (every module is a copy of it). A chain's far modules may sit where they hang on
+    # the last bits (the super-stable chain driven into its collapse): their ports would make
+    # the limit a matter of round-off
     target_x = place(plan, [m.to])[0][0] if plan is not None else trajectory.final
-    at_target = np.linalg.norm(target_x[pairs[:, 0]] - target_x[pairs[:, 1]], axis=-1)
+    sized = pairs[chain_cols[:2]] if n_chain >= 2 else pairs
+    at_target = np.linalg.norm(target_x[sized[:, 0]] - target_x[sized[:, 1]], axis=-1)
     size_mm = float(np.mean(at_target)) * spec.scale
     limit_mm = spec.limit if spec.limit is not None else spec.limit_fraction * size_mm
     behaviour = infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs, limit_mm)
@@ -295,7 +308,8 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
                                          else PROJECTED_SOURCE_SAMPLES) if attribute else 0}
     verdict = _verdict(spec, behaviour, main.judged, frac, flagged, margin, bound,
                        source_margins, horizon, ports)
-    extra = {"drive": m.drive, "target": float(m.to), "module_size_mm": size_mm,
+    extra = {"drive": m.drive, "target": float(m.to), "requested_target": requested,
+             "module_size_mm": size_mm,
              "end_drive": behaviour.end_drive, "end_at": behaviour.end_at}
     if observed is not None:
         extra["observed_order"] = observed

@@ -49,10 +49,6 @@ INTENTS = ("auto", "target", "lock", "state", "shape")
 #: moves past that is another).
 STATE_FRACTION = 0.25
 
-#: A fixed point this close to the end of its branch (relative to the domain) lies at the
-#: turning point itself (a flat state): the motion locks there.
-AT_TURNING_RTOL = 1e-6
-
 #: The nominal profile counts as monotone along the chain when no module is ahead of its left
 #: neighbour by more than this fraction of the travel (round-off of the exact placement).
 MONOTONE_SLACK = 1e-6
@@ -345,13 +341,11 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
             grid = np.clip(np.linspace(lo_d, hi_d, 65), *fmap.domain)
             dev = np.abs(fmap(grid) - grid)
             near_identity = bool(np.all(dev <= limit)) and hi_d > lo_d
-            domain_scale = max(abs(fmap.domain[0]), abs(fmap.domain[1]), 1.0)
             fixed = [] if near_identity else fmap.fixed_points()
 
             def crystal(fp, role):
                 ends = [e for e in fmap.domain if abs(e - fp.value) <= state_tol]
-                turning = bool(ends) and min(abs(e - fp.value) for e in ends) \
-                    <= AT_TURNING_RTOL * domain_scale
+                turning = bool(fp.at_end)  # the map's rule: within a stated tolerance of it
                 near = min(ends, key=lambda e: abs(e - fp.value)) if ends else None
                 return Crystal(fp.value, fp.slope, fp.kind, role, turning,
                                None if near is None else float(near))

@@ -19,86 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..numerics import TINY
+from ..numerics import canonical_frame, canonical_order
 
-__all__ = ["canonical_order", "canonical_frame", "canonical_vectors", "canonical_scalars",
-           "FRAME_MIN_SINE"]
-
-#: A bar sets the next axis of the frame when at least this part of its direction (the sine of
-#: its angle to the axes so far) leaves their span: far from round-off, so the choice of bar
-#: does not hang on the last bits of a nearly parallel one.
-FRAME_MIN_SINE = 0.1
-
-
-def canonical_order(edges, n: int) -> np.ndarray:
-    """Joints in the order they first appear in the bar list, then joints on no bar.
-
-    Parameters
-    ----------
-    edges : array_like of int, shape (E, 2)
-    n : int
-        Number of joints.
-
-    Returns
-    -------
-    numpy.ndarray of int, shape (n,)
-        ``order[k]`` is the joint at canonical position k.
-
-    Examples
-    --------
-    >>> canonical_order([[2, 0], [0, 3]], 5).tolist()
-    [2, 0, 3, 1, 4]
-    """
-    flat = np.asarray(edges, dtype=np.int64).reshape(-1)
-    _, first = np.unique(flat, return_index=True)
-    seen = flat[np.sort(first)]
-    rest = np.setdiff1d(np.arange(n), seen, assume_unique=False)
-    return np.concatenate([seen, rest]).astype(np.int64)
-
-
-def canonical_frame(points, edges) -> np.ndarray:
-    """An orthonormal frame that turns with the design (see the module docstring).
-
-    Parameters
-    ----------
-    points : array_like, shape (N, d)
-    edges : array_like of int, shape (E, 2)
-
-    Returns
-    -------
-    numpy.ndarray, shape (d, d)
-        Rows are the axes; a vector with coordinates ``c`` in the frame is ``c @ frame``.
-        Proper (determinant +1) in 3D; in 2D it follows the design's own turn from its first
-        bar to the next one across it.
-    """
-    x = np.asarray(points, dtype=np.float64)
-    e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
-    d = x.shape[1]
-    vec = x[e[:, 1]] - x[e[:, 0]]
-    norm = np.linalg.norm(vec, axis=1)
-    vec = vec[norm > 0] / norm[norm > 0, None]
-    axes: list[np.ndarray] = []
-    want = d if d == 2 else 2
-    for v in vec:
-        r = v - sum((v @ a) * a for a in axes) if axes else v
-        s = float(np.linalg.norm(r))
-        if not axes or s >= FRAME_MIN_SINE:
-            axes.append(r / max(s, TINY))
-        if len(axes) == want:
-            break
-    if not axes:
-        axes.append(np.eye(d)[0])
-    if len(axes) < want:  # every bar on one line: a fixed perpendicular
-        a = axes[0]
-        k = int(np.argmin(np.abs(a)))
-        if d == 2:
-            axes.append(np.array([-a[1], a[0]]))
-        else:
-            p = np.cross(a, np.eye(3)[k])
-            axes.append(p / np.linalg.norm(p))
-    if d == 3:
-        axes.append(np.cross(axes[0], axes[1]))
-    return np.array(axes)
+__all__ = ["canonical_vectors", "canonical_scalars"]
 
 
 def canonical_vectors(rng, m: int, points, edges) -> np.ndarray:

@@ -19,7 +19,7 @@ from .pattern import (
     network_from_pattern,
     planar_faces,
 )
-from ...numerics import TINY
+from ...numerics import FLAT_SHEET_RTOL, TINY, canonical_frame
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
 
@@ -69,7 +69,7 @@ class OrigamiModel:
     flat_start : bool
         The network's reference configuration is the flat sheet (a bifurcation).
     sheet_size : float
-        Larger side of one sheet's flat bounding box, mm.
+        Largest extent of one sheet's flat pattern, corner to corner (its diameter), mm.
     settings : dict
         The validated [fabrication.origami] table (with defaults).
     """
@@ -87,15 +87,29 @@ class OrigamiModel:
 
     @property
     def scale(self) -> float:
-        """mm per design unit."""
-        ext = max(float(np.ptp(s.pattern.vertices, axis=0).max()) for s in self.sheets)
-        return self.sheet_size / ext
+        """mm per design unit: ``sheet_size`` over the largest sheet's extent corner to corner
+        (its flat pattern's diameter, the same however the sheet is drawn or turned)."""
+        return self.sheet_size / max(_diameter(s.pattern.vertices) for s in self.sheets)
 
     def pattern(self) -> CreasePattern:
         """The flat pattern of a single-sheet design."""
         if len(self.sheets) != 1:
             raise FabricationError(f"{self.name} has {len(self.sheets)} sheets: use the layout")
         return self.sheets[0].pattern
+
+
+def _diameter(points) -> float:
+    """Largest distance between two of the points (on their convex hull when there are many)."""
+    p = np.asarray(points, dtype=np.float64)
+    if p.shape[0] > 64:
+        from scipy.spatial import ConvexHull, QhullError
+
+        try:
+            p = p[ConvexHull(p).vertices]
+        except QhullError:  # all on one line
+            pass
+    diff = p[:, None, :] - p[None, :, :]
+    return float(np.sqrt((diff * diff).sum(axis=-1)).max())
 
 
 def _where(design) -> str:
@@ -121,16 +135,21 @@ def _table(design, overrides) -> dict:
     return out
 
 
-def _flat_coords(x: np.ndarray, tol: float = 1e-12):
-    """2D coordinates of a planar node set (in its own plane), or None when it is not planar."""
+def _flat_coords(x: np.ndarray, edges=None, tol: float = FLAT_SHEET_RTOL):
+    """2D coordinates of a planar node set (in its own plane), or None when it is not planar.
+
+    A sheet drawn in the xy plane keeps its coordinates and orientation; any other plane gets
+    the frame of its own bars (:func:`fabkit.numerics.canonical_frame`: x along the first bar),
+    so the pattern does not turn with the last bits of an eigenvector."""
     c = x - x.mean(axis=0)
-    u, s, vt = np.linalg.svd(c, full_matrices=False)
-    scale = max(float(s[0]), TINY)
-    if s[2] > tol * scale:
+    size = max(float(np.ptp(x, axis=0).max()), TINY)
+    normal = np.linalg.svd(c, full_matrices=False)[2][2]
+    if np.abs(c @ normal).max() > tol * size:
         return None
-    if np.ptp(x[:, 2]) <= tol * scale:
+    if np.ptp(x[:, 2]) <= tol * size:
         return x[:, :2].copy()  # already in the xy plane: keep its coordinates and orientation
-    return c @ vt[:2].T
+    frame = canonical_frame(x, edges if edges is not None else np.array([[0, 1]]))
+    return c @ frame[:2].T
 
 
 def origami_model(design, overrides=None) -> OrigamiModel:
@@ -167,7 +186,7 @@ def origami_model(design, overrides=None) -> OrigamiModel:
     if not isinstance(assignment, list) or len(assignment) != net.n_edges:
         raise _err(where, "assignment", f"must list one of {'/'.join(ASSIGNMENTS)} for each of "
                                         f"the {net.n_edges} network edges")
-    flat = _flat_coords(net.nodes)
+    flat = _flat_coords(net.nodes, net.edges)
     if flat is None:
         raise FabricationError(f"{where}: the network of a single sheet must be given flat "
                                "(all nodes in one plane)")
