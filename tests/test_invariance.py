@@ -179,3 +179,25 @@ def test_the_sheet_verdict_is_the_same_under_the_haswell_and_skylakex_kernels(tm
     skylake = _verdict_under("SkylakeX", tmp_path)
     assert haswell == skylake
     assert not haswell["flagged"]
+
+
+# --- thresholds with a stated tolerance ------------------------------------------------------
+
+@pytest.mark.parametrize("nudge", [-1e-12, 0.0, 1e-12])
+def test_bars_exactly_the_clearance_apart_do_not_conflict_on_any_machine(nudge):
+    """Two bars drawn exactly the clearance apart meet it: round-off (or a nanometre of
+    drawing) does not put them on different layers; a micrometre closer does."""
+    from fabkit.fab.layers import find_conflicts
+
+    width, clearance = 14.0, 1.0
+    apart = width + clearance + nudge * 100.0
+    x = np.array([[[0.0, 0.0], [100.0, 0.0], [0.0, apart], [100.0, apart]]])
+    edges = [[0, 1], [2, 3]]
+    c = find_conflicts(edges, x, width=width, clearance=clearance, column_radius=0.0,
+                       screw_joints=[])
+    assert c.pairs.shape[0] == 0
+    x[0, 2:, 1] -= 1e-3
+    c = find_conflicts(edges, x, width=width, clearance=clearance, column_radius=0.0,
+                       screw_joints=[])
+    assert c.pairs.tolist() == [[0, 1]]
+    assert c.gap[0] == pytest.approx(clearance - 1e-3, abs=1e-9)

@@ -234,12 +234,12 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     plan = _find_plan(problem, trajectory)
     if plan is None:
         spec = replace(spec, samples=min(spec.samples, PROJECTED_SAMPLES_CAP))
-    # the module size: the mean port distance at the target, of the first module's two ports in
-    # a chain (every module is a copy of it). A chain's far modules may sit where they hang on
-    # the last bits (the super-stable chain driven into its collapse): their ports would make
-    # the limit a matter of round-off
+    # the module size: the mean port distance at the target; in a chain of modules, of the
+    # first module's two ports (every module is a copy of it). A chain's far modules may sit
+    # where they hang on the last bits (the super-stable chain driven into its collapse): their
+    # ports would make the limit a matter of round-off
     target_x = place(plan, [m.to])[0][0] if plan is not None else trajectory.final
-    sized = pairs[chain_cols[:2]] if n_chain >= 2 else pairs
+    sized = pairs[chain_cols[:2]] if n_chain >= 3 else pairs
     at_target = np.linalg.norm(target_x[sized[:, 0]] - target_x[sized[:, 1]], axis=-1)
     size_mm = float(np.mean(at_target)) * spec.scale
     limit_mm = spec.limit if spec.limit is not None else spec.limit_fraction * size_mm

@@ -216,7 +216,7 @@ def _origami(geo: ProcessGeometry, spec, rng, on: set, gain) -> tuple[np.ndarray
     if geo.sheets:
         return _origami_sheets(geo, spec, rng, on, gain)
     x = geo.nodes * spec.scale
-    m, (n, d) = spec.samples, x.shape
+    m, n = spec.samples, x.shape[0]
     i = geo.edges[:, 0]
     g = gain[:, None, None]
     boundary = geo.boundary if geo.boundary is not None else np.zeros(n, dtype=bool)

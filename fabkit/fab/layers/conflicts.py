@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...numerics import MM_SLACK
 from .distances import (_bar_bar, _box_pairs, _incidence, _joint_pairs, _pruned_min,
                         _share_joint, point_segment_distance)
 
@@ -42,6 +43,13 @@ class Conflicts:
     joint_pairs: np.ndarray
     screw_joints: np.ndarray
     keepout_span: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+
+
+def closer_than(gap, clearance: float):
+    """Gaps below the clearance by more than round-off (:data:`~fabkit.numerics.MM_SLACK`): a
+    gap that meets it to within a nanometre (two bars drawn exactly the clearance apart) is
+    kept, on every machine, instead of being decided by the last bits of its sampling."""
+    return np.asarray(gap) < clearance - MM_SLACK
 
 
 def find_conflicts(edges, positions, *, width: float, clearance: float,
@@ -92,7 +100,7 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     else:
         seg_gap, where = np.zeros(0), np.zeros(0, dtype=np.int64)
     gap = seg_gap - width
-    close = gap < clearance
+    close = closer_than(gap, clearance)
     pairs = np.concatenate([np.stack([ja, jb], 1), np.stack([fa[close], fb[close]], 1)]).reshape(-1, 2)
     kind = np.array(["joint"] * ja.size + ["sweep"] * int(close.sum()), dtype=object)
     gaps = np.concatenate([np.full(ja.size, np.nan), gap[close]])
@@ -111,9 +119,9 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]),
             x, 0.5 * width + r_col + clearance, bb, jj)
-        near = d - 0.5 * width - column_radius < clearance
+        near = closer_than(d - 0.5 * width - column_radius, clearance)
         keepout = np.stack([bb[near], jj[near]], 1)
-        span = ~near & (d - 0.5 * width - r_col < clearance)
+        span = ~near & closer_than(d - 0.5 * width - r_col, clearance)
         keepout_span = np.stack([bb[span], jj[span]], 1)
     else:
         keepout = keepout_span = np.zeros((0, 2), dtype=np.int64)
@@ -125,7 +133,7 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
         d, _ = _pruned_min(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
             x, 2.0 * r_col + clearance, ia, ib)
-        near = d - 2.0 * r_col < clearance
+        near = closer_than(d - 2.0 * r_col, clearance)
         joint_pairs = np.stack([ia[near], ib[near]], 1).reshape(-1, 2)
     else:
         joint_pairs = np.zeros((0, 2), dtype=np.int64)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import FabricationError
-from .conflicts import Conflicts, find_conflicts
+from .conflicts import Conflicts, closer_than, find_conflicts
 from .constants import _MAX_SAMPLES, STEP_RTOL
 from .distances import _bar_bar, _min_over_samples, _node_steps, point_segment_distance
 
@@ -390,7 +390,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
         pb.append(g2.ravel())
     pa, pb = np.concatenate(pa), np.concatenate(pb)
     d, _ = _min_over_samples(_bar_bar(edges), x, pa, pb)
-    close = d - width < clearance
+    close = closer_than(d - width, clearance)
     pairs = np.stack([pa[close], pb[close]], 1)
     is_screw = np.zeros(x.shape[1], dtype=bool)
     is_screw[screw_joints] = True
@@ -407,7 +407,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
         d, _ = _min_over_samples(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]), x, bj, jj)
-        near = d - 0.5 * width - column_radius < clearance
+        near = closer_than(d - 0.5 * width - column_radius, clearance)
         keep = np.stack([bj[near], jj[near]], 1)
     ja, jb = [], []
     for a, b in sorted(cand):
@@ -421,7 +421,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
     if ja.size:
         d, _ = _min_over_samples(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)), x, ja, jb)
-        near = d - 2.0 * column_radius < clearance
+        near = closer_than(d - 2.0 * column_radius, clearance)
         jp = np.stack([ja[near], jb[near]], 1)
     return pairs.astype(np.int64), keep.astype(np.int64), jp.astype(np.int64)
 
