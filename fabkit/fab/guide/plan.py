@@ -267,15 +267,17 @@ def screw_part(bom: dict, length: float) -> str:
     """The name of the screw with post ``length`` as the bill of materials names it."""
     for entry in bom.get("screws", []):
         if abs(float(entry.get("post_length_mm", -1)) - float(length)) <= MM_SLACK:
-            name = str(entry.get("name", "screw"))
-            return name if f"{length:g}" in name else f"{name}, post {length:g} mm"
+            name = str(entry.get("description") or entry.get("name", "screw"))
+            return f"{name}, post {length:g} mm"
     return f"screw, post {length:g} mm"
 
 
-def _washer_part(bom: dict) -> str:
+def _washer_part(bom: dict, name: str | None = None) -> str:
+    """A shim or washer as the bill of materials names it (the thickest kind by default)."""
     w = bom.get("washers") or {}
-    if w.get("name"):
-        return str(w["name"])
+    name = name or w.get("name")
+    if name:
+        return f"shim ring {name}" if str(name).startswith("DIN 988") else str(name)
     return (f"washer {w.get('inner_diameter_mm', 0):g} mm hole, {w.get('thickness_mm', 0):g} mm"
             " thick")
 
@@ -289,27 +291,40 @@ def _spacer_part(bom: dict) -> str:
 def fastener_part(bom: dict, row: dict) -> str:
     """The fastener of one BOM joint row as the bill of materials names it: the screw's name
     and its post (and extensions), or a clevis pin; shim washers are counted apart."""
-    base = re.sub(r" \+ \d+ washers?$", "", str(row.get("fastener") or ""))
+    base = re.sub(r" \+ [\d x.+ ]+ mm shims$| \+ \d+ washers?$", "",
+                  str(row.get("fastener") or ""))
     if not base:
         return screw_part(bom, float(row["screw_length_mm"]))
     if row.get("fastener_kind") == "clevis pin":
         return base
-    name = str(((bom.get("screws") or [{}])[0]).get("name", "Chicago screw"))
+    screw = (bom.get("screws") or [{}])[0]
+    name = str(screw.get("description") or screw.get("name", "Chicago screw"))
     return f"{name}, {base}"
+
+
+def _natural(text: str) -> tuple:
+    """Sort key reading the numbers in a text as numbers ("post 7 mm" before "post 10 mm")."""
+    return tuple((0, float(p), "") if re.fullmatch(r"\d+(\.\d+)?", p) else (1, 0.0, p)
+                 for p in re.split(r"(\d+(?:\.\d+)?)", text) if p)
 
 
 def _hardware(bom: dict, joints) -> list:
     """Part name and count for a set of BOM joint rows."""
     fasteners: dict[str, int] = {}
-    washers = spacers = 0
+    shims: dict[str, int] = {}
+    spacers = 0
     for j in joints:
         part = fastener_part(bom, j)
         fasteners[part] = fasteners.get(part, 0) + 1
-        washers += int(j.get("washers", 0))
+        kinds = j.get("shims")
+        if kinds is None and j.get("washers"):  # a bill of materials without shim kinds
+            kinds = [[None, 0, int(j["washers"])]]
+        for name, _, n in kinds or []:
+            key = _washer_part(bom, name)
+            shims[key] = shims.get(key, 0) + int(n)
         spacers += int(j.get("spacers", 0))
-    out = sorted(fasteners.items())
-    if washers:
-        out.append((_washer_part(bom), washers))
+    out = sorted(fasteners.items(), key=lambda kv: _natural(kv[0]))
+    out += [(name, n) for name, n in shims.items() if n]
     if spacers:
         out.append((_spacer_part(bom), spacers))
     return out
@@ -323,15 +338,16 @@ def sheet_advice(bom: dict) -> str:
     wt = float(w.get("thickness_mm", 0.5) or 0.5)
     name = _washer_part(bom)
     deepest = max((len(j.get("bottom_to_top", [])) for j in bom.get("joints", [])), default=1)
-    grow = deepest * 0.1
-    return (f"The posts and washers are counted for {t:g} mm sheet: a stack of n layers is "
-            f"n × {t:g} mm, and the washers leave at most "
-            f"{float(bom.get('axial_play_max_mm', 0.5)):g} mm of play on it. Measure your sheet "
-            f"with calipers. Every 0.1 mm a sheet is thicker makes a stack of n layers n × 0.1 "
-            f"mm taller (your deepest stack, {deepest} layers, {grow:.1f} mm): take one washer "
-            f"({name}, {wt:g} mm) off for every {wt:g} mm a stack grows; on thinner sheet put "
-            f"one more on for every {wt:g} mm it shrinks (the spares are in the order). The "
-            f"posts close on sheets up to {t + tol:g} mm.")
+    play = float((bom.get("axial_play") or {}).get("nominal_max_mm", 0.5))
+    return (f"The posts and shims are counted for {t:g} mm sheet: a stack of n layers is "
+            f"n × {t:g} mm, and the shims leave at most {play:.1f} mm of play on it. Measure "
+            "your sheet with calipers. Every 0.1 mm a sheet is thicker makes a stack of n "
+            f"layers n × 0.1 mm taller (your deepest stack, {deepest} layers, "
+            f"{0.1 * deepest:.1f} mm): take one {wt:g} mm shim ({name}) off for every {wt:g} "
+            f"mm a stack grows; on thinner sheet put one more on for every {wt:g} mm it "
+            f"shrinks (the spares are in the order). The posts close on sheets up to "
+            f"{t + tol:g} mm; for thicker sheet, export again with laser.thickness set to "
+            "what you measured.")
 
 
 def _totals(bom: dict) -> list:
@@ -344,7 +360,9 @@ def _totals(bom: dict) -> list:
     out.append(("bars (cut from the sheets)", len(bom.get("bars", []))))
     out += [(screw_part(bom, s["post_length_mm"]), int(s["count"])) for s in bom.get("screws", [])]
     w = bom.get("washers") or {}
-    if w.get("count"):
+    if w.get("kinds"):
+        out += [(_washer_part(bom, k["name"]), int(k["count"])) for k in w["kinds"]]
+    elif w.get("count"):
         out.append((_washer_part(bom), int(w["count"])))
     sp = bom.get("spacer_rings") or {}
     if sp.get("count"):
