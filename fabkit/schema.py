@@ -160,6 +160,8 @@ class PrintSection(Section):
     bed: Optional[Annotated[list[Annotated[float, Field(gt=0)]],
                             Field(min_length=2, max_length=2)]] = Field(
         None, description="a custom bed, width and depth (mm)")
+    bed_margin: Optional[float] = _mm("kept free along every edge of the bed for the slicer's "
+                                      "skirt, brim and support (default 10)", ge=0, le=100)
     # print-in-place bar linkages (linkage = "pins")
     bar_width: Optional[float] = _mm("width of every printed bar (pins)", gt=0, le=100)
     bar_thickness: Optional[float] = _mm("height of every printed bar, whole layers (pins)",
