@@ -210,6 +210,9 @@ class OrigamiSection(Section):
     step_off: Optional[float] = Field(None, gt=0, le=0.1, description="step off the flat "
                                                                       "state (fraction)")
     relay: Optional[str] = Field(None, description="port that takes over the drive")
+    medium: Optional[str] = Field(None, description="page the sheets of a chain are laid out "
+                                                    "on: A4 (default), A3, Letter, Legal or "
+                                                    "WIDTHxHEIGHT in mm")
     perforation_dash: Optional[float] = _mm("cut-ready sheet: length of each perforation cut "
                                             "along a crease (mm)", gt=0)
     perforation_gap: Optional[float] = _mm("cut-ready sheet: paper left between two cuts (mm)",
