@@ -170,31 +170,41 @@ def coupon_sheet(settings) -> Sheet:
     size = REFERENCE_SIZE
     r_out = outline_radius(s.bar_width, s.kerf)
     ring = 0.5 * (s.spacer_diameter + s.kerf)
-    plate = _ladder_plate(s, _MARGIN, _MARGIN, size - 2 * _MARGIN, labels)
-    top = size - _MARGIN - r_out
+    # the ladder's fingers need their width and a gap each
+    width = max(size - 2 * _MARGIN, LADDER_STEPS * (s.bar_width + max(ladder(s)[1]) + 3.0))
+    plate = _ladder_plate(s, _MARGIN, _MARGIN, width, labels)
+    top = max(size - _MARGIN - r_out, plate.bbox[3] + 2.0 + 3 * r_out + 3.0)
     parts = [_pair(s, _MARGIN + r_out, top - n * (2 * r_out + 3.0), n, labels) for n in range(2)]
-    cx, cy = size - _MARGIN - ring, top - r_out - 1.5
+    cx = max(_MARGIN + width - ring, parts[0].bbox[2] + 3.0 + ring)
+    cy = top - r_out - 1.5
     parts.append(Part(id="CR", kind="spacer", outline=None, ring=ring,
                       holes=np.array([[cx, cy]]), hole_radius=hole_radius(
                           s.screw.hole_diameter, s.kerf), labels=[],
                       bbox=(cx - ring, cy - ring, cx + ring, cy + ring),
                       meta={"joint": 0, "layer": 2}))
     parts.append(plate)
-    lowest = min(p.bbox[1] for p in parts[:3])
-    if lowest < plate.bbox[3] + 2.0 or cx - ring < parts[0].bbox[2] + 2.0:
-        raise ValueError("the coupon's parts do not fit inside its 100 mm square")  # a bug
+    right = max(p.bbox[2] for p in parts) + _MARGIN
+    high = max(p.bbox[3] for p in parts) + _MARGIN
+    # the scale reference: a 100 mm square around the parts (2 mm clear of its lines), or
+    # beside them when a wide kit's parts do not fit inside it
+    inside = right - _MARGIN <= size - 2.0 and high - _MARGIN <= size - 2.0
+    x0 = 0.0 if inside else right
     if s.reference_square != "none":
         square = np.array([[0.0, 0.0, 0.0], [size, 0.0, 0.0], [size, size, 0.0],
                            [0.0, size, 0.0]])
         if s.reference_square == "cut":
             h = 0.5 * s.kerf
             square[:, :2] = square[:, :2] * ((size + 2 * h) / size) - h
-        lo, hi = float(square[:, :2].min()), float(square[:, :2].max())
+        square[:, 0] += x0
+        lo = (float(square[:, 0].min()), float(square[:, 1].min()))
+        hi = (float(square[:, 0].max()), float(square[:, 1].max()))
         parts.append(Part(id="REF", kind="reference", outline=square, ring=None,
                           holes=np.zeros((0, 2)), hole_radius=0.0, labels=[],
-                          bbox=(lo, lo, hi, hi), meta={"size": size},
+                          bbox=(lo[0], lo[1], hi[0], hi[1]), meta={"size": size},
                           engrave_outline=s.reference_square == "engrave"))
-    return Sheet(index=1, width=size, height=size, parts=parts)
+    w_sheet = size if inside else x0 + size
+    return Sheet(index=1, width=round(float(w_sheet), 3),
+                 height=round(float(max(size, high)), 3), parts=parts)
 
 
 def coupon_text(settings, design_name: str) -> str:
