@@ -82,8 +82,8 @@ def test_bar_too_short_and_overlapping_holes():
     assert "raise scale to >= 13.86 mm per design unit" in text and "\n" not in text
     with pytest.raises(FabricationError, match="holes of bar 0 .* overlap"):
         bar_set([3.0], [[0, 1]], s)
-    bars = bar_set([8.7, 50.0], [[0, 1], [1, 2]], s)   # exactly the minimum is allowed
-    assert np.array_equal(bars.lengths, [8.7, 50.0])
+    bars = bar_set([9.7, 50.0], [[0, 1], [1, 2]], s)   # exactly the minimum is allowed
+    assert np.array_equal(bars.lengths, [9.7, 50.0])
 
 
 def _fourbar_with(laser_lines: str):
