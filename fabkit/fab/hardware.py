@@ -20,8 +20,9 @@ ordered as it stands.
   and below every screw (bars sweep over the joints of a deep kit). A bolt with a lock nut
   and spacers would hold the stack too, but its thread and nut stand 10-20 mm proud of it.
 * **Axial play**: the post closes on the thickest sheets the tolerance allows; shim rings
-  (DIN 988, made to slide on a shaft of their inner diameter: 0.5 mm, and one 0.2 mm where it
-  helps) under the head take up the rest on the nominal sheet, to at most
+  (DIN 988, made to slide on a shaft of their inner diameter: 0.5 mm, and a 0.2 mm one where
+  the play would be more than half a millimetre) under the head take up the rest on the
+  nominal sheet, to at most
   :data:`MAX_AXIAL_PLAY`. On thicker sheet some come off (:attr:`Fastener.play_min` is the
   play then), on thinner sheet the spares go on.
 * **Washers** are chosen by inner diameter: a flat washer over a barrel or a pin clears it
@@ -53,6 +54,9 @@ WASHER_THICKNESS = 0.5
 #: Most axial play a joint's shims leave on sheet of the nominal thickness (mm): the bars turn
 #: freely and the stack does not rattle.
 MAX_AXIAL_PLAY = 0.5
+#: The play a thin shim is added above (mm): a tenth inside the limit, so round-off of the
+#: sheet's nominal thickness never tips a joint over it.
+_PLAY_TARGET = MAX_AXIAL_PLAY - 0.1
 #: A washer over a barrel or a shank must clear it by at least this much (mm): the barrel's
 #: tolerance is negative, a washer's hole positive, and a tight fit binds the turning bar.
 WASHER_CLEARANCE = 0.2
@@ -455,14 +459,21 @@ def _stack(layers, thickness, tolerance):
 
 
 def _fill(spec, room: float) -> tuple:
-    """Shims (count of each kind of :meth:`ScrewSpec.shim_set`, thickest first) that fill
-    most of ``room`` mm without passing it: as many of the thickest as fit, then of each
-    thinner one."""
-    counts, left = [], room
-    for w in spec.shim_set():
-        n = max(int(math.floor(left / w.thickness + MM_SLACK)), 0)
-        counts.append(n)
-        left -= n * w.thickness
+    """Shims (count of each kind of :meth:`ScrewSpec.shim_set`, thickest first) for ``room``
+    mm less the allowance: as many of the thickest as fit, then a thinner one only while the
+    play left is more than 0.4 mm, a tenth inside :data:`MAX_AXIAL_PLAY` (fewest small
+    parts)."""
+    kinds = spec.shim_set()
+    counts = [0] * len(kinds)
+    if not kinds:
+        return ()
+    counts[0] = max(int(math.floor(room / kinds[0].thickness + MM_SLACK)), 0)
+    left = room - counts[0] * kinds[0].thickness
+    for i, w in enumerate(kinds[1:], 1):
+        while left + spec.allowance > _PLAY_TARGET + MM_SLACK and \
+                w.thickness <= left + MM_SLACK:
+            counts[i] += 1
+            left -= w.thickness
     return tuple(counts)
 
 
@@ -661,8 +672,8 @@ def fit_fastener(spec: ScrewSpec, layers: int, thickness: float, tolerance: floa
     the thickest sheets (``layers x (t + tol)`` plus the allowance); past the longest post, a
     post with screw-on extensions when the series has them; else a clevis pin of the barrel's
     diameter (:data:`PINS`) with its washer and split pin. Shims under the head take up the
-    play on the nominal sheet to the allowance plus less than the thinnest shim (at most
-    :data:`MAX_AXIAL_PLAY`); on the thickest sheets the ones that no longer fit come off.
+    play on the nominal sheet to at most :data:`MAX_AXIAL_PLAY` (0.5 mm ones, and a thin
+    one where that is not enough); on the thickest sheets the ones that no longer fit come off.
 
     Raises
     ------
@@ -673,9 +684,9 @@ def fit_fastener(spec: ScrewSpec, layers: int, thickness: float, tolerance: floa
     --------
     >>> f = fit_fastener(screw_spec(), 7, 3.0, 0.15)    # 7 sheets may be 22.05 mm
     >>> f.kind, f.length, f.stack_max, f.describe()
-    ('chicago', 25.0, 22.05, 'post 25 mm + 7 x 0.5 + 2 x 0.2 mm shims')
+    ('chicago', 25.0, 22.05, 'post 25 mm + 7 x 0.5 + 1 x 0.2 mm shims')
     >>> round(f.play_nominal, 2), round(f.play_min, 2), round(f.play_max, 2)
-    (0.1, 0.25, 1.15)
+    (0.3, 0.25, 1.35)
     >>> f = fit_fastener(screw_spec(), 17, 3.0, 0.15)   # 17 sheets may be 53.55 mm
     >>> f.kind, f.length
     ('clevis pin', 60.0)
