@@ -56,7 +56,7 @@ def test_pages_overview_method_modules_and_motion_test(chain):
                          rf"loose for p{p.number + 1}$", one, flags=re.M)
     two = _text(guide, 2)
     assert "how to build" in two and "up from below" in two
-    assert "washers the page lists: on top, under the screw head" in two
+    assert "shims the page lists: on top, under the screw head" in two
     assert "A LONG CHAIN, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
     for k, im in enumerate(guide.images):  # A4 at 100 dpi
         assert im[:8] == b"\x89PNG\r\n\x1a\n"

@@ -99,7 +99,8 @@ def preview_figure(plan, title: str):
     heading = textwrap.wrap(
         f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers (colour = layer), "
         f"{len(plan.carrier)} printed pins (white caps), {printer.width:g} x {printer.depth:g} mm "
-        "bed", int(width * 72 / (9 * 0.62)))
+        f"bed, {printer.margin:g} mm kept free along its edges (dashed)",
+        int(width * 72 / (9 * 0.62)))
     top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
     height = _BED_IN * rows + top - _TITLE_IN + 0.25
     fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False)
@@ -117,6 +118,10 @@ def preview_figure(plan, title: str):
             continue
         ax.add_patch(plt.Rectangle((0, 0), printer.width, printer.depth, fill=False, lw=0.8,
                                    ec="0.5"))
+        # the margin kept free for the slicer's skirt, brim and support
+        m = printer.margin
+        ax.add_patch(plt.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
+                                   fill=False, lw=0.6, ec="0.6", ls="--"))
         polys, colours = [], []
         for k in order:
             p = int(piece_of[k])

@@ -183,7 +183,7 @@ def _stack_diagram(ax, plan):
                               "head down"),
              *[((k + 0.5) * t, 1.6 if k == 2 else 3.0, text)
                for k, (text, _) in enumerate(parts)],
-             (top + washer, 1.3, "washers the page lists: on top, under the screw head"),
+             (top + washer, 1.3, "shims the page lists: on top, under the screw head"),
              (screw + head / 2, 2.2, "screw: in from above, into the post; snug, not tight")]
     ys = [notes[0][0]]
     for y, _, _ in notes[1:]:

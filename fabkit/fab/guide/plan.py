@@ -565,7 +565,7 @@ def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: s
          "Stand the post (the barrel) upright, head down. Thread the parts in the order the "
          "page lists them, bottom first: bars by layer, and a spacer ring (S<joint>.<layer>, "
          f"{settings.spacer_diameter:g} mm, cut from the sheet) where the screw passes a layer "
-         "with no bar. Put the washers the page lists on top, then screw the screw in from "
+         "with no bar. Put the shims the page lists on top, then screw the screw in from "
          "above until it is snug: the bars must still turn freely."),
         ("YOUR SHEET", sheet_text),
         ("A LONG CHAIN, PAGE BY PAGE" if len(pages) > 1 else "ORDER", order),
