@@ -110,17 +110,21 @@ def test_hardware_per_page_adds_up_to_the_bill_of_materials(chain):
         for name, n in p.hardware:
             assert re.search(rf"^\s*{n} × {re.escape(name)}$", text, flags=re.M)
     for s in bom["screws"]:
-        name = next(k for k in per_name if k.startswith(s["name"]) and
-                    f"{s['post_length_mm']:g} mm" in k)
+        name = next(k for k in per_name if k.startswith(s["description"]) and
+                    k.endswith(f"post {s['post_length_mm']:g} mm"))
         assert per_name[name] == s["count"]
     assert sum(s["count"] for s in bom["screws"]) == 74
-    washers = per_name[bom["washers"]["name"]]  # the washer as the bill of materials names it
+    # the shim rings as the bill of materials names them, every kind
+    kinds = {k["name"]: k["count"] for k in bom["washers"]["kinds"]}
+    assert kinds == {"DIN 988 5x10x0.5": 204, "DIN 988 5x10x0.2": 74}
+    for name, n in kinds.items():
+        assert per_name[f"shim ring {name}"] == n
+    assert bom["washers"]["count"] == 278
     rings = next(v for k, v in per_name.items() if k.startswith("spacer ring"))
-    assert washers == bom["washers"]["count"] == 101
     assert rings == bom["spacer_rings"]["count"] == 44
     # and the overview lists the same totals
     one = _text(guide, 1)
-    assert re.search(rf"^\s*101 × {re.escape(bom['washers']['name'])}$", one, flags=re.M)
+    assert re.search(r"^\s*204 × shim ring DIN 988 5x10x0\.5$", one, flags=re.M)
     assert re.search(r"^\s*144 × bars", one, flags=re.M)
 
 
@@ -427,3 +431,32 @@ def test_flow_cuts_blocks_into_pages_that_hold_them():
     assert tuple(got) == rows  # every row once, in order
     heads = [b.title for page in pages for b in page if b.head == "Stacks"]
     assert heads[0] == "Stacks" and all(h == "Stacks (continued)" for h in heads[1:])
+
+
+@pytest.mark.slow
+def test_the_laser_kit_of_a_long_designed_chain_has_its_guide(tmp_path):
+    """A 10.4 m sine drawn as a CSV, made a chain of about 200 modules by `fabkit design
+    --curve`, exported as a laser kit: its guide used to fail in row_axes (a negative width)
+    when the motion test's table of every port left no room for its pictures."""
+    from fabkit.cli import main
+    from fabkit.export import export
+
+    x = np.linspace(0.0, 8700.0, 2000)
+    np.savetxt(tmp_path / "sine.csv", np.c_[x, 300.0 * np.sin(2 * np.pi * x / 2000.0)],
+               delimiter=",", fmt="%.4f")
+    assert main(["design", "--curve", str(tmp_path / "sine.csv"), "-o",
+                 str(tmp_path / "design")]) == 0
+    design = fabkit.load_template(tmp_path / "design" / "sine.toml")
+    modules = len(design.network.ports) - 1
+    assert modules >= 200
+    paths, report = export(design, "dxf", tmp_path / "kit")
+    guide = (tmp_path / "kit" / "laser_guide.pdf").read_bytes()
+    pdfium = pytest.importorskip("pypdfium2")
+    doc = pdfium.PdfDocument(guide)
+    text = "\n".join(page.get_textpage().get_text_range() for page in doc)
+    # every port's row of the motion test, and its pictures on a page of their own or below
+    assert len(re.findall(r"(?m)^\s*d\d+:\s+[\d.]+ ", text)) == modules + 1
+    assert "motion test, pictures" in text or "(start):" in text
+    # every joint's stack once
+    joints = {int(m) for m in re.findall(r"(?m)^J(\d+): ", text)}
+    assert joints == {int(j["joint"]) for j in report["joints"]}

@@ -231,7 +231,7 @@ def coupon_text(settings, design_name: str) -> str:
         f"each drawn for another kerf, {kerfs[0]:g} to {kerfs[-1]:g} mm (engraved K<kerf> "
         "under each).", "",
         "| check | expect | if not |", "|---|---|---|",
-        f"| the 100 mm square (ruler or calipers, both sides) | 100.0 mm | the scale is off: "
+        "| the 100 mm square (ruler or calipers, both sides) | 100.0 mm | the scale is off: "
         "check the units the laser program imported (mm) |",
         f"| bar width of C0 (calipers across a bar) | {w:.2f} mm | the finger of the plate that "
         f"measures {w:.2f} mm names the kerf: set `laser.kerf` to its K (or kerf + "
