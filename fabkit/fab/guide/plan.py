@@ -595,7 +595,11 @@ def motion_words(m: MotionTest, barrel: float) -> str:
              "together": "all together",
              "mixed": "not in order along the chain (see the table)",
              "none": "not at all: only the pushed part moves"}[m.order]
-    moved = ", ".join(p[0] for p in fol) or "none"
+    names = [p[0] for p in fol]
+    # a long chain's list is shortened: the table below gives every port
+    moved = (", ".join(names) if len(names) <= 12 else
+             ", ".join(names[:5]) + f", ... ({len(names) - 7} more) ..., " + ", ".join(names[-2:]))
+    moved = moved or "none"
     opening = {np.sign(p[2] - p[1]) for p in fol} - {0.0}
     if len(opening) > 1:
         order += "; some open while others close"
