@@ -201,7 +201,9 @@ def test_counts(exported):
     assert fc["printed_pins"] == 10 - 6
     ch = exported["super_stable_chain8"][3]
     assert ch["bars"] == 48 and len(ch["printer"]["pieces"]) == 2
-    assert ch["printer"]["join"] and "M3 bolt" in ch["printer"]["join"]
+    assert ch["printer"]["join"] and "bolt" in ch["printer"]["join"]
+    assert {b["standard"] for b in ch["print_bom"]["buy"]} == {"ISO 4762", "ISO 7089",
+                                                               "ISO 10511"}
 
 
 def test_threemf_carries_the_bars_as_parts_and_the_settings(exported):
@@ -211,9 +213,12 @@ def test_threemf_carries_the_bars_as_parts_and_the_settings(exported):
     assert pkg["project"]["filament_type"] == "PLA"
     assert pkg["project"]["layer_height"] == "0.2"
     assert pkg["project"]["first_layer_height"] == "0.2"
-    assert pkg["per_object"] == [{"layer_height": "0.2", "perimeters": "4",
+    assert pkg["per_object"] == [{"layer_height": "0.2", "brim_width": "0", "perimeters": "4",
                                   "support_material": "1",
                                   "support_material_buildplate_only": "1"}]
+    # and in the project part too, so PrusaSlicer's G-code header shows what was applied
+    assert {k: pkg["project"][k] for k in pkg["per_object"][0]} == pkg["per_object"][0]
+    assert (pkg["project"]["skirts"], pkg["project"]["skirt_distance"]) == ("1", "3")
     # the project settings hold nothing of the printer, bed or nozzle
     assert not {"bed_shape", "nozzle_diameter", "printer_model"} & set(pkg["project"])
     assert report["slicer"]["material"] == "PLA"

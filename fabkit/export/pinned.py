@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 from . import ExportResult
 
 __all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED", "print_bom",
@@ -162,7 +163,7 @@ def print_bom(plan) -> dict:
     s = plan.settings
     per_joint, totals = {}, {}
     # bolted, the bars lie on one another: a layer with no bar takes a bar's thickness
-    fill = _WASHER[2] * math.ceil(s.bar_thickness / _WASHER[2] - 1e-9)
+    fill = _WASHER[2] * math.ceil(s.bar_thickness / _WASHER[2] - MM_SLACK)
     for st in plan.stacking.joints:
         j = int(st.joint)
         if j in plan.carrier:
@@ -170,7 +171,7 @@ def print_bom(plan) -> dict:
         n_bars, empty = len(st.bars), len(st.spacers)
         stack = n_bars * s.bar_thickness + empty * fill + 2 * _WASHER[2]
         need = stack + _NUT + 1.0  # a thread's turn or two past the nut
-        length = next((v for v in BOLT_LENGTHS if v >= need - 1e-9), None)
+        length = next((v for v in BOLT_LENGTHS if v >= need - MM_SLACK), None)
         if length is None:
             raise FabricationError(f"joint {j}: a stack of {stack:.1f} mm needs an M3 bolt longer "
                                    f"than {BOLT_LENGTHS[-1]:g} mm; print it whole (a larger "

@@ -36,7 +36,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..numerics import TINY
+from ..numerics import MM_SLACK, TINY
 from . import ExportResult
 
 FORMAT = "svg"
@@ -65,6 +65,9 @@ _MARGIN = 10.0  # mm around each sheet
 _FONT = 3.5  # mm: legend text
 _LINE = 5.0  # mm between legend lines
 _CORNER_CHAR = 2.4  # mm: width of a character of a 4 mm corner label, at most
+#: A turned sheet's box is smaller only by more than this fraction of its area (round-off of
+#: the turn is not a better fit).
+AREA_RTOL = 1e-9
 #: Thread holes of the joins: diameter, and distance in from the corner (mm): the hole ends
 #: before the perforations begin (3 mm from the corner) and keeps about 1 mm of paper to the
 #: edges of a square corner.
@@ -472,9 +475,9 @@ def upright(model):
             c, s_ = np.cos(-ang), np.sin(-ang)
             turned = v @ np.array([[c, s_], [-s_, c]])
             area = float(np.prod(np.ptp(turned, axis=0)))
-            if best is None or area < best[0] - 1e-12:
+            if best is None or area < best[0] - AREA_RTOL * area:
                 best = (area, turned)
-        if best is not None and best[0] < float(np.prod(np.ptp(v, axis=0))) - 1e-9:
+        if best is not None and best[0] < (1.0 - AREA_RTOL) * float(np.prod(np.ptp(v, axis=0))):
             pat = replace(pat, vertices=best[1])
         sheets.append(replace(sh, pattern=pat))
     # the same mm per design unit: sheet_size is the larger side of the turned sheets' boxes
@@ -569,7 +572,7 @@ def _render_pages(model, targets, geom, table, facts):
                 if a in numbers[k]:
                     body.append(f'<circle cx="{_fmt(x)}" cy="{_fmt(y)}" r="1.2" '
                                 'fill="#000000"/>')
-                elif abs(y - top) > 1e-6 and abs(y - low) > 1e-6:
+                elif abs(y - top) > MM_SLACK and abs(y - low) > MM_SLACK:
                     continue  # an inner vertex (P) is named by the legend's creases
                 # labels above the top corners and below the bottom ones, centred on them
                 ly = y - 3.0 if abs(y - top) <= abs(y - low) else y + 5.5
