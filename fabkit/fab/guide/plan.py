@@ -681,6 +681,7 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     -------
     GuidePlan
     """
+    from ...errors import FabricationError
     from .flow import flow
 
     net = plan.design.network
@@ -726,6 +727,9 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
         if counts == (n_over, n_method, n_group):
             break
         n_over, n_method, n_group = counts
+    else:  # pragma: no cover - numbers a digit longer move at most a few lines, once
+        raise FabricationError(f"the pages of {plan.design.name}'s guide did not settle: "
+                               "their numbers kept moving lines between pages")
     sheets: list = []
 
     def add(kind, blocks, first, page=None, pictures=False):
