@@ -761,6 +761,8 @@ def _print_section(report: dict, files: dict, ident: str = "print") -> str:
             body.append(f"<p>{_esc(pr['note'])}</p>")
         if pr.get("join"):
             body.append(f"<p>Join: {_esc(pr['join'])}</p>")
+        if pr.get("stl"):
+            body.append(f"<p>The STL files: {_esc(pr['stl'])}.</p>")
     pics = [n for n in sorted(files) if n.endswith("_print.png")]
     body.append("".join(_img(n, files[n], "printed part") for n in pics))
     return f"<section id={ident}><h2>Printed part</h2>" + "".join(body) + "</section>"
@@ -779,7 +781,20 @@ def _print_bom(report: dict, ident: str = "bom") -> str:
                f"<tr><td>printed pins</td><td>{stl.get('printed_pins')}</td></tr>"
                if stl.get("linkage") == "pins" else
                f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
-               f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table></section>")
+               f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table>"
+            + _print_buy(stl) + "</section>")
+
+
+def _print_buy(stl: dict) -> str:
+    """The parts a print needs that are not printed (bolts where it is cut), with their size
+    and count."""
+    buy = (stl.get("print_bom") or {}).get("buy") or []
+    if not buy:
+        return ""
+    rows = "".join(f"<tr><td>{_esc(b['part'])}</td><td>{_esc(b['standard'])}</td>"
+                   f"<td>{_esc(b['size'])}</td><td>{b['count']}</td></tr>" for b in buy)
+    return ("<table><tr><th>to buy (not printed)</th><th>standard</th><th>size</th>"
+            f"<th>count</th></tr>{rows}</table>")
 
 
 def _process_sections(proc: str, report: dict, files: dict, primary: bool) -> str:

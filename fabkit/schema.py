@@ -160,6 +160,8 @@ class PrintSection(Section):
     bed: Optional[Annotated[list[Annotated[float, Field(gt=0)]],
                             Field(min_length=2, max_length=2)]] = Field(
         None, description="a custom bed, width and depth (mm)")
+    bed_margin: Optional[float] = _mm("kept free along every edge of the bed for the slicer's "
+                                      "skirt, brim and support (default 10)", ge=0, le=100)
     # print-in-place bar linkages (linkage = "pins")
     bar_width: Optional[float] = _mm("width of every printed bar (pins)", gt=0, le=100)
     bar_thickness: Optional[float] = _mm("height of every printed bar, whole layers (pins)",
@@ -209,6 +211,9 @@ class OrigamiSection(Section):
     step_off: Optional[float] = Field(None, gt=0, le=0.1, description="step off the flat "
                                                                       "state (fraction)")
     relay: Optional[str] = Field(None, description="port that takes over the drive")
+    medium: Optional[str] = Field(None, description="page the sheets of a chain are laid out "
+                                                    "on: A4 (default), A3, Letter, Legal or "
+                                                    "WIDTHxHEIGHT in mm")
     perforation_dash: Optional[float] = _mm("cut-ready sheet: length of each perforation cut "
                                             "along a crease (mm)", gt=0)
     perforation_gap: Optional[float] = _mm("cut-ready sheet: paper left between two cuts (mm)",

@@ -108,9 +108,9 @@ def test_dxf_structure_read_back_with_ezdxf(exported, key):
     assert len(outlines) == net.n_edges
     for pl in outlines:
         assert pl.closed and [round(p[0], 12) for p in pl.get_points("b")] == [0.0, 1.0, 0.0, 1.0]
-    # hole radius as drawn: 4.2 mm shrunk by half the kerf
+    # hole radius as drawn: 5.2 mm shrunk by half the kerf
     radii = {round(h.dxf.radius, 9) for h in holes}
-    assert radii == {round(0.5 * (4.2 - kerf), 9)}
+    assert radii == {round(0.5 * (5.2 - kerf), 9)}
     # rebuild bar lengths from hole centres (pairs tagged by part) and compare with the design
     by_part = {}
     for h in holes:
@@ -152,7 +152,9 @@ def test_expected_layers_and_screws(exported):
             assert j["stack_mm"] == pytest.approx(3.0 * len(j["bottom_to_top"]))
             assert j["spacers"] == j["bottom_to_top"].count("spacer")
     md = (exported["super_stable"][1] / "laser_bom.md").read_text()
-    assert "## Screws" in md and "M3-chicago" in md
+    # the screw table names the series as sold, never "M4-chicago chicago"
+    assert "## Screws" in md and "| Chicago screw (sex bolt) M4, barrel 5 mm, head 10 mm |" in md
+    assert "chicago chicago" not in md and "Series: Chicago screws (book screws" in md
     # the wording follows the typed proof: three layers meet the clique bound
     assert layers["super_stable"]["proven_minimal"] is True
     assert "3 layers (proven minimal)." in md

@@ -9,14 +9,16 @@ import math
 from dataclasses import fields
 
 import ezdxf
+import numpy as np
 import pytest
 
 import fabkit
 from fabkit.check.dxf import check_documents
 from fabkit.errors import FabricationError
 from fabkit.export.dxf import export_design
-from fabkit.fab.hardware import (CATALOGUE, MAX_EXTENSIONS, PINS, WASHER_CLEARANCE, WASHERS,
-                                 ScrewSpec, choose_washer, fit_fastener, inch_text, screw_spec)
+from fabkit.fab.hardware import (CATALOGUE, DEFAULT_SCREW, MAX_AXIAL_PLAY, MAX_EXTENSIONS, PINS,
+                                 WASHER_CLEARANCE, WASHERS, ScrewSpec, choose_washer,
+                                 fit_fastener, inch_text, screw_spec)
 from fabkit.schema import ScrewSection
 
 from conftest import TEMPLATES
@@ -32,14 +34,37 @@ def test_the_declared_screw_setting_names_fields_of_the_catalogue():
         # the running hole clears the barrel, the head covers the hole
         assert spec.barrel_diameter < spec.hole_diameter < spec.head_diameter
         assert spec.pin is None or PINS[spec.pin].diameter == spec.barrel_diameter
+        # every entry names the product family a buyer searches for
+        assert spec.family and spec.thread in spec.family
+
+
+def test_the_default_screw_is_the_widely_sold_m4_book_screw_and_inch_kits_take_3_16():
+    spec = screw_spec()
+    assert DEFAULT_SCREW == "M4-chicago" and spec is CATALOGUE["M4-chicago"]
+    assert (spec.thread, spec.barrel_diameter, spec.head_diameter) == ("M4", 5.0, 10.0)
+    assert "5 mm barrel" in spec.family and "M4" in spec.family
+    inch = screw_spec("inch-chicago")
+    assert inch_text(inch.barrel_diameter) == "3/16 in" and "3/16 in barrel" in inch.family
+    # through the settings, as --set laser.screw=inch-chicago gives it
+    from fabkit.fab.laser import laser_settings
+
+    s = laser_settings({}, {"screw": "inch-chicago"})
+    assert s.screw is inch and s.bar_width == 14.0    # 5.0 mm hole + 2 x 4.5 mm web
+    d = laser_settings({}, {})
+    assert d.screw is spec and d.bar_width == 14.5 and d.spacer_diameter == pytest.approx(14.2)
 
 
 @pytest.mark.parametrize("name", sorted(CATALOGUE))
 def test_washers_go_over_the_barrel_they_are_listed_for(name):
     spec = CATALOGUE[name]
-    shim = spec.shim()
-    assert shim.inner >= spec.barrel_diameter + WASHER_CLEARANCE
-    assert shim.outer > spec.hole_diameter  # it covers the hole it lies on
+    for shim in spec.shim_set():
+        # a shim ring (DIN 988) is made to slide on a shaft of its inner diameter; a flat
+        # washer clears the shaft
+        assert shim.inner >= spec.barrel_diameter + (0.0 if shim.shim else WASHER_CLEARANCE)
+        assert shim.outer > spec.hole_diameter  # it covers the hole it lies on
+        assert shim.outer <= spec.head_diameter  # and stays under the head
+    # the thinnest shim bounds the play the shims leave
+    assert spec.shim_set()[-1].thickness + spec.allowance <= MAX_AXIAL_PLAY
     if spec.pin:
         pin = PINS[spec.pin]
         assert WASHERS[pin.washer].inner >= pin.diameter + WASHER_CLEARANCE
@@ -62,38 +87,52 @@ def test_inch_sizes_read_as_a_shop_lists_them():
     assert spec.post(spec.lengths[2]) == ("Chicago screw (sex bolt) #8-32, barrel 3/16 in "
                                           "(4.76 mm), head 3/8 in (9.53 mm), post length "
                                           "1/4 in, aluminium")
-    assert spec.shim().name == "SAE #10" and spec.shim().inner == pytest.approx(5.5626)
+    assert spec.shim().name == "shim 3/16 x 3/8 x 0.020 in"
+    assert spec.shim().inner == pytest.approx(4.9276) and spec.shim().outer == \
+        pytest.approx(spec.head_diameter)
 
 
-@pytest.mark.parametrize("layers", [2, 7, 9])
-def test_a_post_of_the_series_closes_a_shallow_stack(layers):
-    f = fit_fastener(screw_spec(), layers, 3.0, 0.15)
-    assert f.kind == "chicago" and f.length in CATALOGUE["M3-chicago"].lengths
-    thickest = layers * 3.15
-    assert f.length >= thickest + 0.1 - 1e-9
-    assert f.play_min == pytest.approx(f.length - thickest - 0.5 * f.washers)
-    assert 0 <= f.play_min < 0.5 + 0.1 + 1e-9   # shims take up all but one washer of play
-    assert f.play_max == pytest.approx(f.play_min + 2 * 0.15 * layers)
+@pytest.mark.parametrize("layers", [1, 2, 3, 4, 5, 6, 7, 9, 12, 15])
+@pytest.mark.parametrize("thickness", [3.0, 2.85, 3.175])
+def test_posts_close_on_the_thickest_sheet_and_shims_leave_half_a_mm_on_the_nominal(
+        layers, thickness):
+    spec = screw_spec()
+    f = fit_fastener(spec, layers, thickness, 0.15)
+    assert f.kind == "chicago" and f.length in spec.lengths
+    nominal, thickest, thinnest = (layers * t for t in (thickness, thickness + 0.15,
+                                                        thickness - 0.15))
+    assert f.length >= thickest + spec.allowance - 1e-9     # closes on the thickest sheets
+    fill = sum(t * n for _, t, n in f.shims)
+    assert f.washers == sum(n for _, _, n in f.shims)
+    assert f.play_nominal == pytest.approx(f.length - nominal - fill)
+    assert spec.allowance - 1e-9 <= f.play_nominal <= MAX_AXIAL_PLAY - 0.1 + 1e-9
+    # a thin shim only where the thick ones leave more than 0.4 mm: few small parts
+    assert [n for _, _, n in f.shims][1] <= 1
+    # on the thickest sheets some shims come off and it still closes; on the thinnest, the
+    # nominal shims leave the play that grows with the layers
+    assert spec.allowance - 1e-9 <= f.play_min <= MAX_AXIAL_PLAY + 0.5
+    assert f.play_max == pytest.approx(f.length - thinnest - fill)
 
 
-@pytest.mark.parametrize("layers, length, washers", [(10, 40.0, 9), (13, 45.0, 0),
-                                                      (14, 50.0, 4), (18, 65.0, 9)])
+@pytest.mark.parametrize("layers, length, washers", [(16, 55.0, 5), (17, 60.0, 9),
+                                                      (18, 65.0, 13)])
 def test_deep_metric_stacks_take_a_clevis_pin(layers, length, washers):
     f = fit_fastener(screw_spec(), layers, 3.0, 0.15)
-    pin = PINS["4-pin"]
+    pin = PINS["5-pin"]
     assert (f.kind, f.length, f.washers) == ("clevis pin", length, washers)
-    # room between the head and the split pin: the stack on the thickest sheets, the pin's
-    # washer, the allowance, and the shims
+    # room between the head and the split pin: the stack on the nominal sheets, the pin's
+    # washer, the shims and the play left
     room = pin.clamp(length) - WASHERS[pin.washer].thickness
-    assert room - layers * 3.15 - 0.5 * washers == pytest.approx(f.play_min)
-    assert 0 <= f.play_min and f.closes
+    fill = sum(t * n for _, t, n in f.shims)
+    assert room - layers * 3.0 - fill == pytest.approx(f.play_nominal)
+    assert f.play_nominal <= MAX_AXIAL_PLAY and 0 <= f.play_min and f.closes
     kinds: dict = {}
     for p in f.parts:
         kinds[p.kind] = kinds.get(p.kind, 0) + p.count
-    # the pin's ISO 7089 washer under the split pin, and the DIN 433 shims
+    # the pin's ISO 7089 washer under the split pin, and the DIN 988 shims
     assert kinds == {"clevis pin": 1, "washer": 1 + washers, "split pin": 1}
     descriptions = [p.description for p in f.parts]
-    assert f"clevis pin ISO 2341 B 4 x {length:g} (with split-pin hole), head 6 mm, steel, " \
+    assert f"clevis pin ISO 2341 B 5 x {length:g} (with split-pin hole), head 8 mm, steel, " \
            "zinc-plated" in descriptions
 
 
@@ -103,8 +142,8 @@ def test_deep_inch_stacks_take_screw_on_extensions():
     assert f.kind == "chicago+extensions"
     assert inch_text(f.post) == "2 in" and [inch_text(e) for e in f.extensions] == ["1/2 in"]
     assert f.length >= 20 * 3.15 + spec.allowance
-    assert f.describe() == "post 2 in + extensions 1/2 in" + (
-        f" + {f.washers} washers" if f.washers else "")
+    assert f.describe().startswith("post 2 in + extensions 1/2 in")
+    assert f.play_nominal <= MAX_AXIAL_PLAY
     with pytest.raises(FabricationError, match="deeper than any inch-chicago fastener"):
         fit_fastener(spec, 41, 3.0, 0.15)  # 129 mm: more than 2 in + 3 x 1 in (127 mm)
     assert MAX_EXTENSIONS == 3
@@ -123,19 +162,26 @@ def test_every_kit_has_a_coupon_drawn_as_its_parts(fourbar_kit):
     doc = ezdxf.read(io.StringIO(result.files["laser_coupon.dxf"].decode("ascii")))
     head = dict(doc.header.custom_vars)
     assert head["FABKIT_COUPON"] == "laser_coupon" and head["FABKIT_KERF"] == "0.2"
-    circles = sorted(round(e.dxf.radius, 6) for e in doc.modelspace().query("CIRCLE"))
-    # four holes drawn 4.2 - 0.2 mm, the ring drawn 13.2 + 0.2 mm
-    assert circles == [2.0, 2.0, 2.0, 2.0, 2.0, 6.7]
-    outlines = doc.modelspace().query("LWPOLYLINE[layer=='CUT']")
-    assert len(outlines) == 2
-    for e in outlines:
+    msp = doc.modelspace()
+    tagged = {}
+    for e in msp.query("CIRCLE"):
+        tagged.setdefault(e.get_xdata("FABKIT")[0].value, []).append(round(e.dxf.radius, 6))
+    # the kit's pair: four holes drawn 5.2 - 0.2 mm; the ring drawn 14.2 + 0.2 mm
+    assert sorted(tagged["C0"] + tagged["C1"]) == [2.5] * 4 and tagged["CR"] == [2.5, 7.2]
+    # the ladder: five holes of 5.0 ... 5.4 mm as cut, 0.1 mm apart
+    cut = sorted(round(2 * r + 0.2, 6) for r in tagged["CL"])
+    assert cut == [5.0, 5.1, 5.2, 5.3, 5.4]
+    bars = [e for e in msp.query("LWPOLYLINE[layer=='CUT']")
+            if e.get_xdata("FABKIT")[0].value in ("C0", "C1")]
+    assert len(bars) == 2
+    for e in bars:
         ys = [p[1] for p in e.get_points("xy")]
-        assert max(ys) - min(ys) == pytest.approx(14.2)    # 14 mm bar + the kerf
+        assert max(ys) - min(ys) == pytest.approx(14.7)    # 14.5 mm bar + the kerf
     text = result.files["laser_coupon.md"].decode()
-    assert "| bar width (calipers across a bar) | 14.00 mm | set `laser.kerf`" in text
+    assert "| bar width of C0 (calipers across a bar) | 14.50 mm |" in text
     assert "laser.screw.hole_diameter" in text and "do not let the laser program" in text
     svg = result.files["laser_coupon.svg"].decode()
-    assert svg.count("<circle") == 6 and 'mm="0.2" applied="true"' in svg
+    assert svg.count("<circle") == 11 and 'mm="0.2" applied="true"' in svg
     check = check_documents({"laser_coupon.dxf": result.files["laser_coupon.dxf"].decode()},
                             design=design, settings={"laser": {"kerf": 0.2}})
     names = {c["name"]: c for c in check["checks"]}
@@ -148,6 +194,61 @@ def test_every_kit_has_a_coupon_drawn_as_its_parts(fourbar_kit):
         "same_as_kit"]["value"]
 
 
+@pytest.mark.parametrize("labels", ["outlines", "text"])
+def test_the_coupon_measures_kerf_hole_and_scale_in_one_cut(labels):
+    """Engravings stand 1 mm or more from every hole (as cut); the ladder's fingers, drawn
+    for kerfs 0.05 mm apart, measure the kit's width after their own kerf; the 100 mm square
+    is engraved around the coupon; the pair's play is the kit's designed play."""
+    from shapely.geometry import Point, Polygon
+
+    from fabkit.fab.coupon import LABEL_CLEARANCE, coupon_sheet, coupon_text, ladder
+    from fabkit.fab.laser import laser_settings
+
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    result = export_design(design, {"laser": {"labels": labels}})
+    doc = ezdxf.read(io.StringIO(result.files["laser_coupon.dxf"].decode("ascii")))
+    msp = doc.modelspace()
+    kerf = float(dict(doc.header.custom_vars)["FABKIT_KERF"])
+    holes = [(Point(e.dxf.center.x, e.dxf.center.y), e.dxf.radius + 0.5 * kerf)
+             for e in msp.query("CIRCLE[layer=='CUT_INNER']")]
+    assert len(holes) == 10  # four of the pair, the ring's, five of the ladder
+    engraved = []
+    if labels == "outlines":
+        for e in msp.query("LWPOLYLINE[layer=='ENGRAVE']"):
+            engraved += [Point(p) for p in e.get_points("xy")]
+    else:
+        from ezdxf.addons import text2path
+
+        for e in msp.query("TEXT[layer=='ENGRAVE']"):
+            for path in text2path.make_paths_from_entity(e):
+                engraved += [Point(v.x, v.y) for v in path.flattening(0.05)]
+    assert len(engraved) > 100
+    gap = min(pt.distance(c) - r for pt in engraved for c, r in holes)
+    assert gap >= LABEL_CLEARANCE
+    # the fingers: widths drawn w + K for each K, so the one burnt by K measures w
+    s = laser_settings({}, {})
+    sheet = coupon_sheet(s)
+    plate = next(p for p in sheet.parts if p.id == "CL")
+    poly = Polygon(plate.outline[:, :2])
+    _, kerfs = ladder(s)
+    top = plate.outline[:, 1].max()
+    tip = poly.intersection(Polygon([(0, top - 1), (200, top - 1), (200, top + 1),
+                                     (0, top + 1)]))
+    widths = sorted(round(g.bounds[2] - g.bounds[0], 6) for g in tip.geoms)
+    assert widths == sorted(round(s.bar_width + k, 6) for k in kerfs)
+    assert len(kerfs) >= 5 and np.allclose(np.diff(kerfs), 0.05)
+    # the scale reference: a 100 mm square engraved on the coupon, every part inside it
+    ref = next(p for p in sheet.parts if p.id == "REF")
+    assert np.ptp(ref.outline[:, 0]) == 100.0 == np.ptp(ref.outline[:, 1])
+    assert ref.engrave_outline
+    for p in sheet.parts:
+        assert 0 <= p.bbox[0] and p.bbox[2] <= 100 and 0 <= p.bbox[1] and p.bbox[3] <= 100
+    # what it asks of the pair is what the kit is designed for
+    text = coupon_text(s, "fourbar")
+    assert "at most 0.5 mm" in text and "no axial rattle" not in text
+    assert "post 7 mm + 1 x 0.5 + 1 x 0.2 mm shims" in text
+
+
 def test_the_uncompensated_variant_is_drawn_at_true_size(fourbar_kit):
     design, result = fourbar_kit
     kit = ezdxf.read(io.StringIO(result.files["laser_sheet1.dxf"].decode("ascii")))
@@ -158,7 +259,7 @@ def test_the_uncompensated_variant_is_drawn_at_true_size(fourbar_kit):
         dict(raw.header.custom_vars)["FABKIT_KERF_NOTE"]
     r_kit = sorted(e.dxf.radius for e in kit.modelspace().query("CIRCLE"))
     r_raw = sorted(e.dxf.radius for e in raw.modelspace().query("CIRCLE"))
-    assert r_raw == pytest.approx([2.1] * 8) and r_kit == pytest.approx([2.0] * 8)
+    assert r_raw == pytest.approx([2.6] * 8) and r_kit == pytest.approx([2.5] * 8)
     # every hole where the compensated sheet has it
     c_kit = sorted(tuple(round(v, 9) for v in e.dxf.center)[:2]
                    for e in kit.modelspace().query("CIRCLE"))

@@ -89,8 +89,14 @@ def test_screws_close_on_the_thickest_sheets(chain24):
         thickest = n * (t + tol)
         assert j["screw_length_mm"] >= thickest + 0.1 - 1e-9
         p_thick, p_thin = j["play_with_washers_mm"]
-        assert p_thick >= 0 and p_thin == pytest.approx(p_thick + 2 * n * tol)
-        assert j["screw_length_mm"] - thickest - j["washers"] * 0.5 == pytest.approx(p_thick)
+        fill = sum(t * k for _, t, k in j["shims"])
+        assert j["washers"] == sum(k for _, _, k in j["shims"])
+        # the shims leave at most 0.5 mm on the nominal sheet; on the thickest some come off
+        # and the post still closes; on the thinnest the nominal shims leave more
+        assert j["play_nominal_mm"] == pytest.approx(j["screw_length_mm"] - n * t - fill)
+        assert 0.1 - 1e-9 <= j["play_nominal_mm"] <= 0.4 + 1e-9
+        assert 0 <= p_thick <= 1.0 and p_thin == pytest.approx(j["play_nominal_mm"] + n * tol)
+    assert bom["axial_play"]["nominal_max_mm"] <= bom["axial_play"]["limit_mm"] == 0.5
     spacers = bom["spacer_rings"]
     assert (spacers["outer_diameter_mm"] - spacers["hole_diameter_mm"]) / 2 >= 4.5 - 1e-9
 
@@ -210,7 +216,7 @@ def test_chain_sampling_does_not_grow_with_the_chain(tmp_path):
 # -- parts as sold ----------------------------------------------------------------------------
 
 def test_every_bom_part_of_the_chain_is_a_catalogue_part(chain24):
-    from fabkit.fab.hardware import CATALOGUE, PINS, WASHER_CLEARANCE, WASHERS, spares
+    from fabkit.fab.hardware import CATALOGUE, PINS, WASHERS, spares
 
     _, result = chain24
     bom = json.loads(result.files["laser_bom.json"])
@@ -223,19 +229,23 @@ def test_every_bom_part_of_the_chain_is_a_catalogue_part(chain24):
         if h["kind"] == "chicago screw":
             # a post length the series is sold in, named with barrel, head, length, material
             assert h["post_length_mm"] in screw.lengths
-            assert h["barrel_diameter_mm"] == screw.barrel_diameter == 4.0
-            assert h["head_diameter_mm"] == screw.head_diameter == 8.5
+            assert h["barrel_diameter_mm"] == screw.barrel_diameter == 5.0
+            assert h["head_diameter_mm"] == screw.head_diameter == 10.0
             assert h["description"] == (
-                f"Chicago screw (sex bolt) M3, barrel 4 mm, head 8.5 mm, post length "
+                f"Chicago screw (sex bolt) M4, barrel 5 mm, head 10 mm, post length "
                 f"{h['post_length_mm']:g} mm, stainless steel A2")
+            assert h["family"] == screw.family and "M4 x 5 mm barrel" in h["family"]
             used[h["post_length_mm"]] = h["count"]
         else:
             w = WASHERS[h["washer"]]
             assert (h["inner_diameter_mm"], h["outer_diameter_mm"], h["thickness_mm"]) == \
-                (w.inner, w.outer, w.thickness) == (4.3, 8.0, 0.5)
-            # over the 4.0 mm barrel with clearance: not the M3 washer's 3.2 mm hole
-            assert h["inner_diameter_mm"] >= h["over_mm"] + WASHER_CLEARANCE == 4.2
-            assert h["count"] == bom["washers"]["count"] == sum(j["washers"] for j in bom["joints"])
+                (w.inner, w.outer, w.thickness) in ((5.0, 10.0, 0.5), (5.0, 10.0, 0.2))
+            # DIN 988 shim rings: made to slide on the 5 mm barrel, no wider than the head
+            assert w.shim and h["inner_diameter_mm"] >= h["over_mm"] == 5.0
+            assert h["family"] == "DIN 988"
+            kinds = {k["name"]: k["count"] for k in bom["washers"]["kinds"]}
+            assert h["count"] == kinds[w.name] == sum(
+                n for j in bom["joints"] for name, _, n in j["shims"] if name == w.name)
     # every joint's screw is on the list, counted once
     assert sum(used.values()) == len(bom["joints"]) == 74
     for j in bom["joints"]:

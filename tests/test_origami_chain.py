@@ -101,18 +101,50 @@ def test_assignment_matches_the_folded_sheets(design):
 
 
 def test_layout_svg_marks_every_join(design, tmp_path):
+    """Twelve sheets of 70.7 mm on A4 pages (four a page), every corner labelled with its
+    join, the join method and the joins of each page in its legend."""
     _, report = export(design, "svg", tmp_path)
-    root = ET.parse(tmp_path / "origami_chain12_layout.svg").getroot()
-    # creases are direct children (what Origami Simulator reads); the legend is a group
-    assert {g.get("id") for g in root.findall(f"{SVG}g")} == {"fold-angles", "legend"}
-    lines = root.findall(f"{SVG}line")
-    texts = [t.text for t in root.findall(f"{SVG}text")]
-    assert len(lines) == 12 * 8 and sum(t.startswith("sheet ") for t in texts) == 12
-    # sheet 2: A on sheet 1's B; B on sheet 1's C and sheet 3's A; C on 1D, 3B, 4A; P free
+    assert report["pages"] == 3 and report["sheets_per_page"] == [4, 4, 4]
+    assert report["medium"] == "A4 (210 x 297 mm)"
+    assert report["layout_files"] == ["origami_chain12_layout.svg",
+                                      "origami_chain12_layout_p2.svg",
+                                      "origami_chain12_layout_p3.svg"]
+    texts, lines = [], 0
+    for name in report["layout_files"]:
+        root = ET.parse(tmp_path / name).getroot()
+        assert (root.get("width"), root.get("height")) == ("210mm", "297mm")
+        # creases are direct children (what Origami Simulator reads); the rest in groups
+        assert {g.get("id") for g in root.findall(f"{SVG}g")} == {
+            "fold-angles", "legend", "join-holes", "join-legend"}
+        lines += len(root.findall(f"{SVG}line"))
+        texts += [t.text for t in root.iter(f"{SVG}text")]
+        for ln in root.findall(f"{SVG}line"):  # every crease on the page
+            for k in ("x1", "x2"):
+                assert 0 <= float(ln.get(k)) <= 210
+            for k in ("y1", "y2"):
+                assert 0 <= float(ln.get(k)) <= 297
+    assert lines == 12 * 8 and sum(t.startswith("sheet ") for t in texts) == 12
+    # sheet 2's corners: A at join 1 (with sheet 1's B), B at 2, C at 3, D at 4
     i = texts.index("sheet 2")
-    assert texts[i + 1:i + 6] == ["A=1B", "B=1C,3A", "C=1D,3B,4A", "D=3C,4B,5A", "P"]
-    assert texts[texts.index("sheet 12") + 1] == "A=9D,10C,11B"
+    assert sorted(texts[i + 1:i + 5]) == ["A·1", "B·2", "C·3", "D·4"]
+    words = " ".join(texts)
+    assert "pass a thread through their 1.2 mm holes" in words
+    assert "·3 = 1D + 2C + 3B + 4A" in words
+    joins = {j["join"]: j["corners"] for j in report["joins"]}
+    assert joins[1] == ["1B", "2A"] and joins[3] == ["1D", "2C", "3B", "4A"]
     assert report["sheets"] == 12
+
+
+def test_the_medium_is_a_setting(design, tmp_path):
+    _, report = export(design, "svg", tmp_path, origami={"medium": "305x1000"})
+    assert report["pages"] == 1 and report["medium"] == "305 x 1000 mm (305 x 1000 mm)"
+    _, letter = export(design, "svg", tmp_path / "l", origami={"medium": "Letter"})
+    assert letter["medium_mm"] == [215.9, 279.4] and letter["pages"] >= 3
+    with pytest.raises(fabkit.FabricationError, match="not a medium; give A4"):
+        export(design, "svg", tmp_path / "x", origami={"medium": "napkin"})
+    assert not (tmp_path / "x").exists() or list((tmp_path / "x").iterdir()) == []
+    with pytest.raises(fabkit.FabricationError, match="choose a larger one"):
+        export(design, "svg", tmp_path / "y", origami={"medium": "60x60"})
 
 
 def test_chain_fold_file_round_trip(design, tmp_path):
@@ -132,8 +164,9 @@ def test_cp_refuses_a_chain(design, tmp_path):
 
 
 def test_layout_opacity_is_the_folded_crystal(design, tmp_path):
-    export(design, "svg", tmp_path)
-    root = ET.parse(tmp_path / "origami_chain12_layout.svg").getroot()
+    _, report = export(design, "svg", tmp_path)
     ops = sorted({round(float(x.get("stroke-opacity")), 4)
-                  for x in root.findall(f"{SVG}line") if x.get("stroke") != "#000000"})
+                  for name in report["layout_files"]
+                  for x in ET.parse(tmp_path / name).getroot().findall(f"{SVG}line")
+                  if x.get("stroke") != "#000000"})
     assert ops == [0.7281, 0.919]  # |131.06| / 180 and |165.42| / 180 on every sheet

@@ -146,15 +146,52 @@ def test_dash_gap_and_stop_are_settings_and_short_creases_are_named(design, tmp_
 
 
 def test_a_chain_of_sheets_is_cut_sheet_by_sheet(tmp_path):
+    """The twelve sheets on pages of A4 (the default medium), each page's cut file the same
+    sheets at the same places as its layout, and a thread hole at every joined corner, clear
+    of the perforations and inside its sheet."""
+    from shapely.geometry import Point, Polygon
+
     chain = fabkit.load_template(TEMPLATES / "origami_chain12.toml")
     report = _write(chain, tmp_path)
-    root = ET.parse(tmp_path / "origami_chain12_cut.svg").getroot()
-    d = _layers(root)["outline"].find(f"{SVG}path").get("d")
-    assert d.count("M") == d.count("Z") == 12
+    assert report["cut_files"][0] == "origami_chain12_cut.svg" == report["cut_file"]
     assert report["cut"]["cuts"]["outline"] == 12
     assert report["cut"]["closest_cut_to_a_vertex_mm"] >= 3.0
-    # the same sheets as the layout, at the same places
-    layout = _creases(tmp_path, "origami_chain12_layout.svg")
-    corners = np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", d)]).reshape(-1, 2)
-    edges = np.concatenate(layout["#000000"])
-    assert all(np.min(np.linalg.norm(edges - c, axis=1)) < 1e-3 for c in corners)
+    outlines = holes = 0
+    for layout_name, cut_name in zip(report["layout_files"], report["cut_files"]):
+        root = ET.parse(tmp_path / cut_name).getroot()
+        # every page is A4, portrait
+        assert (root.get("width"), root.get("height")) == ("210mm", "297mm")
+        layers = _layers(root)
+        d = layers["outline"].find(f"{SVG}path").get("d")
+        assert d.count("M") == d.count("Z")
+        outlines += d.count("Z")
+        # the same sheets as the layout, at the same places
+        layout = _creases(tmp_path, layout_name)
+        corners = np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", d)]).reshape(-1, 2)
+        edges = np.concatenate(layout["#000000"])
+        assert all(np.min(np.linalg.norm(edges - c, axis=1)) < 1e-3 for c in corners)
+        assert corners.min() >= 0 and corners[:, 0].max() <= 210 and corners[:, 1].max() <= 297
+        sheets = [Polygon(np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", part)])
+                          .reshape(-1, 2)) for part in d.split("Z") if part.strip()]
+        perf = np.concatenate([_cuts(layers[k].find(f"{SVG}path").get("d"))
+                               for k in ("valley-perforations", "mountain-perforations")])
+        for c in layers["join-holes"].findall(f"{SVG}circle"):
+            holes += 1
+            centre, r = Point(float(c.get("cx")), float(c.get("cy"))), float(c.get("r"))
+            assert r == pytest.approx(0.6)
+            # inside a sheet, at least 0.9 mm of paper to its edge
+            assert any(sh.contains(centre) and sh.exterior.distance(centre) - r >= 0.9
+                       for sh in sheets)
+            # and no perforation cuts into it
+            gap = min(Point(a).distance(centre) if np.allclose(a, b) else
+                      _seg_point(a, b, centre) for a, b in perf)
+            assert gap > r
+    assert outlines == 12
+    # 23 joins of 2-4 corners each (sheet 1 corner B and sheet 2 corner A, ...)
+    assert holes == sum(len(j["corners"]) for j in report["joins"]) == 46
+
+
+def _seg_point(a, b, p) -> float:
+    from shapely.geometry import LineString
+
+    return LineString([a, b]).distance(p)

@@ -201,7 +201,9 @@ def test_counts(exported):
     assert fc["printed_pins"] == 10 - 6
     ch = exported["super_stable_chain8"][3]
     assert ch["bars"] == 48 and len(ch["printer"]["pieces"]) == 2
-    assert ch["printer"]["join"] and "M3 bolt" in ch["printer"]["join"]
+    assert ch["printer"]["join"] and "bolt" in ch["printer"]["join"]
+    assert {b["standard"] for b in ch["print_bom"]["buy"]} == {"ISO 4762", "ISO 7089",
+                                                               "ISO 10511"}
 
 
 def test_threemf_carries_the_bars_as_parts_and_the_settings(exported):
@@ -211,9 +213,12 @@ def test_threemf_carries_the_bars_as_parts_and_the_settings(exported):
     assert pkg["project"]["filament_type"] == "PLA"
     assert pkg["project"]["layer_height"] == "0.2"
     assert pkg["project"]["first_layer_height"] == "0.2"
-    assert pkg["per_object"] == [{"layer_height": "0.2", "perimeters": "4",
+    assert pkg["per_object"] == [{"layer_height": "0.2", "brim_width": "0", "perimeters": "4",
                                   "support_material": "1",
                                   "support_material_buildplate_only": "1"}]
+    # and in the project part too, so PrusaSlicer's G-code header shows what was applied
+    assert {k: pkg["project"][k] for k in pkg["per_object"][0]} == pkg["per_object"][0]
+    assert (pkg["project"]["skirts"], pkg["project"]["skirt_distance"]) == ("1", "3")
     # the project settings hold nothing of the printer, bed or nozzle
     assert not {"bed_shape", "nozzle_diameter", "printer_model"} & set(pkg["project"])
     assert report["slicer"]["material"] == "PLA"
@@ -402,3 +407,41 @@ def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     heading = fig.get_suptitle()
     assert f"{plan.n_bars} bars" in heading and (beds > 1 or "\n" in heading)
     _mpl().close(fig)
+
+
+def test_a_print_cut_into_pieces_lists_every_part_it_does_not_print(tmp_path):
+    """fourbar_chain prints four of its joints as pins and is cut at six: the print's bill of
+    materials lists the bolt, washers and lock nut of each of those six with size and count,
+    the texts name no part that is neither printed nor listed, and the bare STL is reported as
+    geometry only."""
+    import re
+
+    from fabkit.export import export
+
+    design = fabkit.load_template(TEMPLATES / "fourbar_chain.toml")
+    _, report = export(design, "stl", tmp_path, print={"preview": False})
+    bom = report["print_bom"]
+    cut = set(report["cut_joints"])
+    assert len(cut) == 6 and report["printed_pins"] == 4
+    assert set(bom["joints"]) == cut
+    stacks = {j["joint"]: j for j in report["joints"]}
+    for j, parts in bom["joints"].items():
+        kinds = {p["standard"]: p for p in parts}
+        assert set(kinds) == {"ISO 4762", "ISO 7089", "ISO 10511"}
+        length = float(re.fullmatch(r"M3 x (\d+) mm", kinds["ISO 4762"]["size"]).group(1))
+        st = stacks[j]
+        s = report["settings"]
+        stack = len(st["bars"]) * s["bar_thickness"] + kinds["ISO 7089"]["count"] * 0.5
+        assert length >= stack + 4.0  # the washers, the stack, the nut and a turn of thread
+        assert kinds["ISO 7089"]["count"] >= 2 and kinds["ISO 4762"]["count"] == 1
+    totals = {b["standard"]: b["count"] for b in bom["buy"]}
+    assert totals["ISO 4762"] == totals["ISO 10511"] == 6
+    assert totals["ISO 7089"] == sum(p["count"] for parts in bom["joints"].values()
+                                     for p in parts if p["standard"] == "ISO 7089")
+    words = report["printer"]["join"] + " ".join(j["pin"] for j in report["joints"])
+    assert "joints[]" not in words and "spacer" not in words
+    assert report["printer"]["stl"].startswith("geometry only: use the 3MF")
+    # a print that is whole buys nothing
+    _, whole = export(fabkit.load_template(TEMPLATES / "super_stable.toml"), "stl",
+                      tmp_path / "whole", print={"preview": False})
+    assert whole["print_bom"]["buy"] == [] and whole["printer"]["join"] is None

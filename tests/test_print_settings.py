@@ -59,7 +59,7 @@ def test_gap_zero_or_negative_refused(gap):
     ({"material": "ABS"}, r"material: must be one of 'PLA', 'PETG' or 'TPU', got 'ABS'"),
     ({"hinge_style": "film"}, r"hinge_style: must be one of 'neck' or 'bridge', got 'film'"),
     ({"kerf": 0.1}, r"fabrication\.print\.kerf: unknown key; known: bar_thickness, bar_width, "
-                    r"bed, cap_diameter, clearance, gap,"),
+                    r"bed, bed_margin, cap_diameter, clearance, gap,"),
     ({"scale": "big"}, r"scale: must be a number, got 'big'"),
     ({"scale": 0}, r"scale: must be > 0, got 0"),
     ({"hinge_style": "bridge", "hinge_layers": 15}, r"is not thinner than the 3 mm plates"),

@@ -100,7 +100,7 @@ def test_the_chain_slices_on_the_default_profile_from_both_files(files, tmp_path
     folder, report = files["printed_planar_chain10"]
     assert report["printer"]["printer"]["bed_mm"] == [200.0, 200.0]
     assert not report["printer"]["fits_as_designed"]  # 207 mm long as designed ...
-    for suffix in (".stl", ".3mf"):  # ... turned by 28 degrees in both files, it fits
+    for suffix in (".stl", ".3mf"):  # ... turned by 34 degrees in both files, it fits
         gcode = tmp_path / f"chain{suffix}.gcode"
         code, out = _run(["--export-gcode", "--output", str(gcode),
                           str(folder / f"printed_planar_chain10{suffix}")], tmp_path)
@@ -189,3 +189,89 @@ def test_split_pieces_slice_on_a_small_bed(tmp_path):
                           "--output", str(tmp_path / f"{name}.gcode"), str(tmp_path / name)],
                          tmp_path)
         assert code == 0 and "Slicing result exported" in out, out
+
+
+# -- every move on the bed ---------------------------------------------------------------------
+
+def _moves_off_bed(text: str, width: float, depth: float) -> tuple:
+    """(extent of every G0/G1 move in x and y, moves outside the bed): absolute moves (G90),
+    the extruder's position followed through moves that give x or y alone."""
+    x = y = None
+    xs, ys, off = [], [], []
+    for line in text.splitlines():
+        if not line.startswith(("G0 ", "G1 ")):
+            continue
+        mx = re.search(r"\bX(-?[\d.]+)", line)
+        my = re.search(r"\bY(-?[\d.]+)", line)
+        if mx:
+            x = float(mx.group(1))
+        if my:
+            y = float(my.group(1))
+        if (mx or my) and x is not None and y is not None:
+            xs.append(x)
+            ys.append(y)
+            if not (0.0 <= x <= width and 0.0 <= y <= depth):
+                off.append(line)
+    return (min(xs), max(xs), min(ys), max(ys)), off
+
+
+def _slice_on_its_bed(path, report, tmp_path):
+    bed = report["printer"]["printer"]["bed_mm"]
+    w, d = bed
+    gcode = tmp_path / f"{path.name}.gcode"
+    code, out = _run(["--export-gcode", "--bed-shape", f"0x0,{w:g}x0,{w:g}x{d:g},0x{d:g}",
+                      "--output", str(gcode), str(path)], tmp_path)
+    assert code == 0 and "Slicing result exported" in out, out
+    text = gcode.read_text()
+    extent, off = _moves_off_bed(text, w, d)
+    assert not off, (path.name, extent, off[:3])
+    margin = report["printer"]["printer"]["margin_mm"]
+    return text, extent, margin
+
+
+@pytest.mark.parametrize("name", ["printed_planar_chain10", "fourbar_chain"])
+def test_every_move_of_a_print_lies_on_the_bed(name, tmp_path_factory):
+    """The skirt, the support and every part of both files stay on the bed: parts keep the
+    printer's margin (10 mm) and the 3MF asks for a skirt 3 mm out, no brim; the bare STL's
+    default skirt (6 mm out) stays inside the margin too. The G-code header shows the settings
+    the 3MF applied (perimeters, support), not the defaults."""
+    design = fabkit.load_template(TEMPLATES / f"{name}.toml")
+    folder = tmp_path_factory.mktemp(name)
+    paths, report = export(design, "stl", folder, print={"preview": False})
+    tmp = tmp_path_factory.mktemp(f"{name}_gcode")
+    assert report["printer"]["printer"]["margin_mm"] == 10.0
+    for path in paths:
+        if path.suffix not in (".stl", ".3mf"):
+            continue
+        text, (x0, x1, y0, y1), margin = _slice_on_its_bed(path, report, tmp)
+        if path.suffix == ".3mf":
+            cfg = _gcode_config(text)
+            assert (cfg["skirts"], cfg["skirt_distance"], cfg["brim_width"]) == ("1", "3", "0")
+            if report.get("linkage") == "pins":
+                assert (cfg["perimeters"], cfg["support_material"]) == ("4", "1")
+                assert cfg["support_material_buildplate_only"] == "1"
+    if report.get("linkage") == "pins":
+        assert "geometry only: use the 3MF" in report["printer"]["stl"]
+
+
+@pytest.mark.slow
+def test_every_bundled_print_slices_with_every_move_on_the_bed(tmp_path_factory):
+    """Every bundled design that exports a print (STL and 3MF beds, on its printer's bed)."""
+    from fabkit.errors import FabricationError
+    from fabkit.templates import bundled_names
+
+    sliced = 0
+    for name in bundled_names():
+        design = fabkit.load_template(name)
+        if "stl" in (design.fabrication.get("skip") or {}):
+            continue
+        folder = tmp_path_factory.mktemp(name)
+        try:
+            paths, report = export(design, "stl", folder, print={"preview": False})
+        except FabricationError:
+            continue  # a design that is not printable says so elsewhere
+        for path in paths:
+            if path.suffix in (".stl", ".3mf"):
+                _slice_on_its_bed(path, report, tmp_path_factory.mktemp(f"{name}_g"))
+                sliced += 1
+    assert sliced >= 10

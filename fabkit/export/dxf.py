@@ -252,7 +252,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
                 tag(e, part)
 
         for part in sheet.parts:  # engraving first: the parts are still held by the sheet
-            if part.kind == "reference":
+            if part.kind == "reference" and not part.meta.get("cut"):
                 closed_outline(part.outline, "REFERENCE", part)
             for label in part.labels:
                 if s.labels == "outlines":
@@ -264,8 +264,9 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
                                      dxfattribs={"layer": "ENGRAVE"})
                     t.set_placement(label.insert, align=TextEntityAlignment.MIDDLE_CENTER)
         for part in sheet.parts:  # inner contours before outer ones
-            for c in part.holes:
-                e = msp.add_circle(tuple(map(float, c)), part.hole_radius,
+            radii = part.meta.get("hole_radii") or [part.hole_radius] * len(part.holes)
+            for c, radius in zip(part.holes, radii):
+                e = msp.add_circle(tuple(map(float, c)), float(radius),
                                    dxfattribs={"layer": "CUT_INNER"})
                 tag(e, part)
         for part in sheet.parts:
@@ -273,7 +274,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
                 e = msp.add_circle(tuple(map(float, part.holes[0])), part.ring,
                                    dxfattribs={"layer": "CUT"})
                 tag(e, part)
-            elif part.kind != "reference":
+            elif part.kind != "reference" or part.meta.get("cut"):
                 closed_outline(part.outline, "CUT", part)
         boxes = np.array([p.bbox for p in sheet.parts]) if sheet.parts else np.zeros((1, 4))
         # ezdxf writes $EXTMIN/$EXTMAX from the model space layout's extents
@@ -312,7 +313,7 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
     """Parts, sheets and hardware to buy, screws by length, spacer rings and the stack at
     every joint (JSON-able). Every piece of hardware is named as a shop lists it
     (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
-    from ..fab.hardware import part_lines, spares
+    from ..fab.hardware import MAX_AXIAL_PLAY, part_family, part_lines, spares
     from ..fab.nest import utilisation
 
     s, st, bars = plan.settings, plan.stacking, plan.bars
@@ -324,9 +325,15 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
         kinds[key] = kinds.get(key, 0) + 1
     n_spacers = sum(len(js.spacers) for js in st.joints)
     shim = s.screw.shim()
+    shim_kinds = {w.name: w for w in s.screw.shim_set()}
+    shim_counts: dict[str, int] = {}
+    for f in fasteners:
+        for name, _, n in f.shims:
+            shim_counts[name] = shim_counts.get(name, 0) + int(n)
     lines = part_lines(fasteners)
     n_sheets = len(plan.sheets)
     motion = plan.design.motion
+    nominal = [f.play_nominal for f in fasteners]
     return {
         "design": plan.design.name,
         "scale_mm_per_unit": s.scale,
@@ -339,6 +346,7 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
                            "note": f"the kit fills {n_sheets} sheet(s); one more for the test "
                                    "coupon and a recut"},
                 "hardware": [{"key": ln.key, "kind": ln.kind, "description": ln.description,
+                              "family": part_family(ln, s.screw),
                               "count": ln.count, "spares": spares(ln.count),
                               "order": ln.count + spares(ln.count), **ln.size}
                              for ln in lines]},
@@ -355,14 +363,29 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
                    "method": st.strategy, "head_slots": st.head_slots,
                    "depth_mm": round(st.n_layers * s.thickness, 6)},
         "screws": [{"name": s.screw.name, "kind": kind, "post_length_mm": post,
-                    "extensions_mm": list(ext), "count": count}
+                    "extensions_mm": list(ext), "count": count,
+                    "description": (s.screw.series() if kind != "clevis pin" else
+                                    f"clevis pin ISO 2341 B {s.screw.barrel_diameter:g} mm"),
+                    "family": s.screw.family if kind != "clevis pin" else "ISO 2341 B"}
                    for (kind, post, ext), count in sorted(kinds.items())],
+        "axial_play": {"nominal_max_mm": round(max(nominal, default=0.0), 6),
+                       "nominal_min_mm": round(min(nominal, default=0.0), 6),
+                       "limit_mm": MAX_AXIAL_PLAY,
+                       "note": f"with the shims listed, on {s.thickness:g} mm sheet"},
         "washers": {"count": sum(js.washers for js in st.joints), "name": shim.name,
                     "thickness_mm": shim.thickness, "inner_diameter_mm": shim.inner,
                     "outer_diameter_mm": shim.outer, "over_mm": s.screw.barrel_diameter,
-                    "note": f"shims over the {s.screw.barrel_diameter:g} mm barrel; screws close "
-                            f"on sheets up to {s.thickness + s.thickness_tolerance:g} mm; "
-                            "measure the sheet and drop washers where the stack is thicker"},
+                    "kinds": [{"name": name, "count": n, "thickness_mm": shim_kinds[name].thickness
+                               if name in shim_kinds else None,
+                               "description": shim_kinds[name].description()
+                               if name in shim_kinds else name}
+                              for name, n in shim_counts.items() if n],
+                    "note": f"shims over the {s.screw.barrel_diameter:g} mm barrel, counted for "
+                            f"{s.thickness:g} mm sheet (axial play at most "
+                            f"{MAX_AXIAL_PLAY:g} mm); the posts close on sheets up to "
+                            f"{s.thickness + s.thickness_tolerance:g} mm: measure the sheet, "
+                            "take shims off where a stack is thicker, add spares where it is "
+                            "thinner"},
         "spacer_rings": {"count": n_spacers, "outer_diameter_mm": s.spacer_diameter,
                          "hole_diameter_mm": s.screw.hole_diameter, "thickness_mm": s.thickness,
                          "note": "cut from the same sheet"},
@@ -371,6 +394,8 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
                     "play_mm": round(js.play, 6), "spacers": len(js.spacers),
                     "washers": js.washers, "fastener": js.fastener.describe(),
                     "fastener_kind": js.fastener.kind,
+                    "shims": [[name, t, n] for name, t, n in js.fastener.shims if n],
+                    "play_nominal_mm": round(js.fastener.play_nominal, 6),
                     "play_with_washers_mm": [round(v, 6) for v in js.play_range]}
                    for js in st.joints],
         "motion": {"method": plan.sweep.method, "status": plan.sweep.status,
@@ -413,8 +438,10 @@ def bom_markdown(bom: dict) -> str:
               "|---|---|---|---|"]
     for sc in bom["screws"]:
         ext = " + ".join(f"{v:.4g}" for v in sc["extensions_mm"]) or "-"
-        lines.append(f"| {sc['name']} {sc['kind']} | {sc['post_length_mm']:.4g} | {ext} | "
+        lines.append(f"| {sc['description']} | {sc['post_length_mm']:.4g} | {ext} | "
                      f"{sc['count']} |")
+    if bom["screws"]:
+        lines += ["", f"Series: {bom['screws'][0]['family']}."]
     sp = bom["spacer_rings"]
     lines += ["", f"Spacer rings: {sp['count']} (outer {sp['outer_diameter_mm']:g} mm, hole "
               f"{sp['hole_diameter_mm']:g} mm, {sp['thickness_mm']:g} mm thick, {sp['note']}).",
@@ -424,15 +451,16 @@ def bom_markdown(bom: dict) -> str:
         lines.append(f"| {b['id']} | {b['joints'][0]}-{b['joints'][1]} | {b['layer']} | "
                      f"{b['length_mm']:.3f} | {b['sheet']} |")
     lines += ["", "## Stack at each joint (bottom to top)", "",
-              "| joint | stack | fastener | play thick-thin sheets (mm) |",
-              "|---|---|---|---|"]
+              "| joint | stack | fastener | play nominal sheet (mm) | play thick-thin sheets (mm) |",
+              "|---|---|---|---|---|"]
     for j in bom["joints"]:
         p0, p1 = j["play_with_washers_mm"]
         lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | {j['fastener']} | "
-                     f"{p0:.2f}-{p1:.2f} |")
+                     f"{j['play_nominal_mm']:.2f} | {p0:.2f}-{p1:.2f} |")
     wa = bom["washers"]
-    lines += ["", f"Washers: {wa['count']} x {wa['name']} ({wa['inner_diameter_mm']:g} mm ID x "
-              f"{wa['outer_diameter_mm']:g} mm OD x {wa['thickness_mm']:g} mm); {wa['note']}."]
+    kinds = "; ".join(f"{k['count']} x {k['description']}" for k in wa.get("kinds", [])) or \
+        f"{wa['count']} x {wa['name']}"
+    lines += ["", f"Shims: {kinds}; {wa['note']}."]
     mo = bom["motion"]
     lines += ["", f"Motion: {mo['drive']} from {mo['from']:.6g} to {mo['to']:.6g} (design "
               "units); " + mo["guarantee"] + ".", ""]

@@ -91,8 +91,9 @@ def sheet_svg(sheet, settings) -> bytes:
             if glyphs:
                 engrave.append(f'<path id="label-{part.id}" d="{" ".join(glyphs)}" '
                                f'fill="{ENGRAVE}" fill-rule="evenodd" stroke="none"/>')
-        for c in part.holes:
-            inner.append(f'<circle cx="{_f(c[0])}" cy="{_f(H - c[1])}" r="{_f(part.hole_radius)}" '
+        radii = part.meta.get("hole_radii") or [part.hole_radius] * len(part.holes)
+        for c, radius in zip(part.holes, radii):
+            inner.append(f'<circle cx="{_f(c[0])}" cy="{_f(H - c[1])}" r="{_f(radius)}" '
                          f'fill="none" stroke="{INNER}" stroke-width="{_STROKE}"/>')
         if part.ring is not None:
             c = part.holes[0]

@@ -18,18 +18,34 @@ back, finds the bars, pins and holes, rebuilds the joints and re-simulates the m
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..errors import FabricationError
+from ..numerics import MM_SLACK
 from . import ExportResult
 
-__all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED"]
+__all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED", "print_bom",
+           "BOLT_LENGTHS", "STL_NOTE"]
 
 JOIN_PINNED = ("the pieces meet at the joints of the port named joined_at, where every bar has a "
                "plain hole: lay the later piece on the earlier one so that those holes line up, "
-               "bars in the order of their layers (joints[].layers), fill each empty layer with "
-               "a {pitch:g} mm spacer and push an M3 bolt through each stack, held by a lock nut "
-               "left loose enough for the bars to turn")
+               "then close each such joint with the parts the print's bill of materials lists for "
+               "it (bolt, washers, lock nut): the bars in the order of their layers, bottom "
+               "first, {fill:g} mm of washers in each layer with no bar, the lock nut left loose "
+               "enough for the bars to turn")
+#: ISO 4762 M3 socket head cap screw lengths as sold (mm).
+BOLT_LENGTHS = (6.0, 8.0, 10.0, 12.0, 14.0, 16.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 50.0,
+                55.0, 60.0, 65.0, 70.0, 80.0, 90.0, 100.0)
+#: ISO 7089 M3 washer (mm): 3.2 mm hole, 7 mm outside, 0.5 mm thick.
+_WASHER = (3.2, 7.0, 0.5)
+#: ISO 10511 M3 lock nut (nylon insert) height (mm).
+_NUT = 4.0
+#: What a bare STL is: the 3MF carries the settings the print needs.
+STL_NOTE = ("geometry only: use the 3MF, which carries the settings this print needs (layer "
+            "height, perimeters, supports from the bed only, material, a skirt inside the bed's "
+            "margin); an STL sliced with a slicer's defaults prints the upper bars into air")
 
 
 def bed_file_names(name: str, beds: int, suffix: str) -> list[str]:
@@ -84,7 +100,8 @@ def preview_figure(plan, title: str):
     heading = textwrap.wrap(
         f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers (colour = layer), "
         f"{len(plan.carrier)} printed pins (white caps), {printer.width:g} x {printer.depth:g} mm "
-        "bed", int(width * 72 / (9 * 0.62)))
+        f"bed, {printer.margin:g} mm kept free along its edges (dashed)",
+        int(width * 72 / (9 * 0.62)))
     top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
     height = _BED_IN * rows + top - _TITLE_IN + 0.25
     fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False)
@@ -102,6 +119,10 @@ def preview_figure(plan, title: str):
             continue
         ax.add_patch(plt.Rectangle((0, 0), printer.width, printer.depth, fill=False, lw=0.8,
                                    ec="0.5"))
+        # the margin kept free for the slicer's skirt, brim and support
+        m = printer.margin
+        ax.add_patch(plt.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
+                                   fill=False, lw=0.6, ec="0.6", ls="--"))
         polys, colours = [], []
         for k in order:
             p = int(piece_of[k])
@@ -128,6 +149,53 @@ def preview_figure(plan, title: str):
     return fig
 
 
+def print_bom(plan) -> dict:
+    """Every part of a print-in-place linkage that is not printed, with its size and count:
+    at each joint the print is cut at, an M3 bolt through the stack (bars and washers for
+    the layers without a bar), a washer under its head and under its lock nut.
+
+    Returns
+    -------
+    dict
+        ``buy``: list of {"part", "standard", "size", "count"}; ``joints``: joint -> the
+        parts it takes; ``printed``: what is printed (bars and pins), counted.
+    """
+    s = plan.settings
+    per_joint, totals = {}, {}
+    # bolted, the bars lie on one another: a layer with no bar takes a bar's thickness
+    fill = _WASHER[2] * math.ceil(s.bar_thickness / _WASHER[2] - MM_SLACK)
+    for st in plan.stacking.joints:
+        j = int(st.joint)
+        if j in plan.carrier:
+            continue
+        n_bars, empty = len(st.bars), len(st.spacers)
+        stack = n_bars * s.bar_thickness + empty * fill + 2 * _WASHER[2]
+        need = stack + _NUT + 1.0  # a thread's turn or two past the nut
+        length = next((v for v in BOLT_LENGTHS if v >= need - MM_SLACK), None)
+        if length is None:
+            raise FabricationError(f"joint {j}: a stack of {stack:.1f} mm needs an M3 bolt longer "
+                                   f"than {BOLT_LENGTHS[-1]:g} mm; print it whole (a larger "
+                                   "printer) or with fewer layers")
+        washers = 2 + int(round(empty * fill / _WASHER[2]))
+        parts = [(f"socket head cap screw M3 x {length:g}", "ISO 4762", f"M3 x {length:g} mm", 1),
+                 ("washer M3", "ISO 7089", f"{_WASHER[0]:g} x {_WASHER[1]:g} x {_WASHER[2]:g} mm",
+                  washers),
+                 ("lock nut M3 (nylon insert)", "ISO 10511", "M3", 1)]
+        per_joint[j] = [{"part": p, "standard": std, "size": size, "count": n}
+                        for p, std, size, n in parts]
+        for p, std, size, n in parts:
+            key = (p, std, size)
+            totals[key] = totals.get(key, 0) + n
+    buy = [{"part": p, "standard": std, "size": size, "count": n}
+           for (p, std, size), n in sorted(totals.items(), key=lambda kv: (kv[0][1], kv[0][0]))]
+    return {"buy": buy, "joints": per_joint, "washers_per_empty_layer": int(round(
+        fill / _WASHER[2])) if per_joint else 0,
+            "printed": {"bars": plan.n_bars, "pins": len(plan.carrier)},
+            "note": ("nothing to buy: every joint is a printed pin" if not buy else
+                     f"{len(per_joint)} joints where the print is cut are bolted: "
+                     f"{sum(b['count'] for b in buy if b['standard'] == 'ISO 4762')} bolts")}
+
+
 def _stacks(plan) -> list[dict]:
     out = []
     s = plan.settings
@@ -137,7 +205,8 @@ def _stacks(plan) -> list[dict]:
         out.append({"joint": j, "bars": list(st.bars), "layers": list(st.layers),
                     "collars": list(st.spacers) if pinned else [],
                     "spacers": [] if pinned else list(st.spacers),
-                    "pin": "printed" if pinned else "M3 bolt (the print is cut here)",
+                    "pin": "printed" if pinned else "M3 bolt (the print is cut here; see "
+                                                    "print_bom)",
                     "carrier": plan.carrier.get(j),
                     "pin_length_mm": (round(plan.pin_stack(j)[-1][1]
                                             - plan.z(plan.carrier[j]) - s.bar_thickness, 6)
@@ -228,6 +297,7 @@ def export_pinned(design, s, name: str) -> ExportResult:
                "joined_at": piece["joined_at"] or None} for p, piece in enumerate(plan.pieces)]
     printer = s.printer_profile()
     split = len(plan.pieces) > 1
+    bom = print_bom(plan)
     report = {
         "linkage": "pins",
         "settings": s.as_dict(),
@@ -247,8 +317,11 @@ def export_pinned(design, s, name: str) -> ExportResult:
         "body_volumes_mm3": [float(v) for v in volumes],
         "mesh": {"triangles": int(triangles), "bodies": plan.n_bars},
         "printer": {"printer": printer.as_dict(), "beds": beds, "pieces": pieces,
-                    "join": JOIN_PINNED.format(pitch=s.layer_pitch) if split else None,
-                    "files": sorted(n for n in files if n.endswith((".stl", ".3mf")))},
+                    "join": JOIN_PINNED.format(fill=bom["washers_per_empty_layer"] * 0.5)
+                    if split else None,
+                    "files": sorted(n for n in files if n.endswith((".stl", ".3mf"))),
+                    "stl": STL_NOTE if s.threemf else None},
+        "print_bom": bom,
         "slicer": slicer.as_dict() if s.threemf else None,
         "warnings": [],
         "files": sorted(files),

@@ -188,7 +188,7 @@ def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]
     printer = s.printer_profile()
     xy = np.asarray(verts)[:, :2]
     w, h = np.ptp(xy, axis=0)
-    margin = 5.0
+    margin = printer.margin  # the skirt, brim and support print there
     fits = bool(w <= printer.width - 2 * margin and h <= printer.depth - 2 * margin)
     pieces, geos, layout = hinge_layout(design, s, geo)
     meshes = [(verts, faces)] if len(pieces) == 1 else [_piece_solid(g) for g in geos]

@@ -17,11 +17,17 @@ of every crease by name), a dimension along the sheet's longest side and each cr
 beside it.
 
 A design of several sheets (a chain) gets a printable layout instead: every sheet drawn
-separately in a grid, its corners labelled with the corners of the neighbouring sheets they are
-joined to (``B=1A`` on sheet 2: corner B is glued onto corner A of sheet 1).
+separately, nested in a grid on pages of the medium (``origami.medium``: A4 by default, Letter,
+or a laser's bed or a cutter's width in mm, :mod:`fabkit.fab.creases.media`), as many pages as
+it takes (``NAME_layout.svg``, ``NAME_layout_p2.svg``, ...; the cut files alike). Every join
+(the corners of neighbouring sheets that meet) has a number: a corner is labelled with its
+name and its join (``C·4``), a 1.5 mm thread hole is drawn (and cut) 3 mm in from it, and each
+page's legend says how to join (a thread through the holes of the corners of one number,
+knotted loosely, so that they still turn) and lists its joins (``·4 = 2C + 3B + 4A``).
 
 Settings (``[fabrication.origami]``, overridable as ``origami.<key>``): ``sheet_size`` (mm, the
-larger side of one sheet's flat bounding box, default 150), ``samples``, ``branch``, ``sign``.
+larger side of one sheet's flat bounding box, default 150), ``samples``, ``branch``, ``sign``,
+``medium``.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from ..numerics import TINY
+from ..numerics import MM_SLACK, TINY
 from . import ExportResult
 
 FORMAT = "svg"
@@ -59,6 +65,18 @@ _MARGIN = 10.0  # mm around each sheet
 _FONT = 3.5  # mm: legend text
 _LINE = 5.0  # mm between legend lines
 _CORNER_CHAR = 2.4  # mm: width of a character of a 4 mm corner label, at most
+#: A turned sheet's box is smaller only by more than this fraction of its area (round-off of
+#: the turn is not a better fit).
+AREA_RTOL = 1e-9
+#: Thread holes of the joins: diameter, and distance in from the corner (mm): the hole ends
+#: before the perforations begin (3 mm from the corner) and keeps about 1 mm of paper to the
+#: edges of a square corner.
+JOIN_HOLE = 1.2
+JOIN_INSET = 2.2
+#: Room above and below a sheet for its corner labels (mm), and for its title below.
+_LABEL_ROOM, _TITLE_ROOM = 7.0, 9.0
+#: Mean width of a character of the legend (mm, at :data:`_FONT`), for wrapping.
+_LEGEND_CHAR = 0.55 * 3.5
 
 
 #: Why the format does not apply, when :func:`applies` says so (reported by ``--to svg``).
@@ -299,25 +317,6 @@ def sheet_targets(model, fold) -> list[np.ndarray]:
     return out
 
 
-def join_marks(model) -> list[dict]:
-    """For every sheet, the corners shared with other sheets: {local vertex: ["1A", ...]}."""
-    owners: dict[int, list[tuple[int, int]]] = {}
-    for k, sh in enumerate(model.sheets):
-        for a, g in enumerate(sh.nodes.tolist()):
-            owners.setdefault(int(g), []).append((k, a))
-    marks = []
-    for k, sh in enumerate(model.sheets):
-        labels = sh.pattern.labels or tuple(str(i) for i in range(sh.pattern.n_vertices))
-        here = {}
-        for a, g in enumerate(sh.nodes.tolist()):
-            others = [f"{j + 1}{(model.sheets[j].pattern.labels or labels)[b]}"
-                      for j, b in owners[int(g)] if j != k]
-            if others:
-                here[a] = others
-        marks.append(here)
-    return marks
-
-
 def realised_model(model, fold):
     """The model with every sheet's assignment as the simulated folding realises it
     (:func:`fabkit.fab.creases.folded_assignment`), so that files never contradict their fold
@@ -338,34 +337,174 @@ def realised_model(model, fold):
     return replace(model, sheets=tuple(sheets))
 
 
-def grid(model, label_chars: int = 0):
-    """Where each sheet of a layout goes.
+def join_numbers(model) -> tuple[list, list]:
+    """Number the joins of a chain: every network node that two or more sheets share.
 
     Returns
     -------
-    (width, height, offsets)
-        The document's size (mm) and the (dx, dy) of each sheet's bounding box; columns leave
-        room for corner labels of ``label_chars`` characters on both sides of each sheet.
+    numbers : list of dict
+        Per sheet, {local vertex: join number (1, 2, ...)}.
+    joins : list of list of (int, str)
+        Per join (in number order), its corners as (sheet number, corner name).
     """
-    n = len(model.sheets)
-    cols = int(np.ceil(np.sqrt(n)))
-    rows = int(np.ceil(n / cols))
-    room = 2 * _MARGIN + max(0.0, label_chars * _CORNER_CHAR + 6.0 - _MARGIN)
-    cell_w, cell_h = model.sheet_size + 2 * room, model.sheet_size + 4 * _MARGIN
-    offsets = [(c * cell_w + room, r * cell_h + 2 * _MARGIN)
-               for r, c in (divmod(k, cols) for k in range(n))]
-    return cols * cell_w + 2 * _MARGIN, rows * cell_h + 2 * _MARGIN, offsets
+    owners: dict[int, list[tuple[int, int]]] = {}
+    for k, sh in enumerate(model.sheets):
+        for a, g in enumerate(sh.nodes.tolist()):
+            owners.setdefault(int(g), []).append((k, a))
+    numbers: list[dict] = [{} for _ in model.sheets]
+    joins: list = []
+    for k, sh in enumerate(model.sheets):  # numbered in the order the sheets meet them
+        for a, g in enumerate(sh.nodes.tolist()):
+            corners = owners[int(g)]
+            if len(corners) < 2 or a in numbers[k]:
+                continue
+            joins.append([])
+            for j, b in corners:
+                numbers[j][b] = len(joins)
+                labels = model.sheets[j].pattern.labels or tuple(
+                    str(i) for i in range(model.sheets[j].pattern.n_vertices))
+                joins[-1].append((j + 1, labels[b]))
+    return numbers, joins
 
 
-def _corner_text(pattern, marks, a) -> str:
+def _corner_text(pattern, numbers, a) -> str:
     labels = pattern.labels or tuple(str(i) for i in range(pattern.n_vertices))
-    return labels[a] + ("=" + ",".join(marks[a]) if a in marks else "")
+    return labels[a] + (f"·{numbers[a]}" if a in numbers else "")
 
 
-def _corner_chars(model, marks) -> int:
-    """Longest corner label of a layout (characters)."""
-    return max(len(_corner_text(sh.pattern, marks[k], a)) for k, sh in enumerate(model.sheets)
-               for a in range(sh.pattern.n_vertices))
+def _wrap(text: str, width_mm: float) -> list:
+    import textwrap
+
+    return textwrap.wrap(text, max(20, int(width_mm / _LEGEND_CHAR)))
+
+
+def _join_legend(x0, y0, width, joins) -> tuple[list, float]:
+    """How to join, and the joins of a page (a group); returns (svg, height)."""
+    how = (f"JOINS: the corners that carry the same number (·1, ·2, ...) are joined. Lay them "
+           f"on one another as their labels say (C·4 on one sheet goes on every other corner "
+           f"·4), pass a thread through their {JOIN_HOLE:g} mm holes ({JOIN_INSET:g} mm in from "
+           "the corner) and knot it loosely on both sides: the corners must still turn against "
+           "each other, so do not glue them. Corner labels: C·4 = corner C of this sheet, at "
+           "join 4.")
+    listed = "Joins on this page: " + "; ".join(
+        f"·{n} = " + " + ".join(f"{k}{c}" for k, c in corners) for n, corners in joins) + "."
+    out, y = ['<g id="join-legend">'], y0 + _FONT
+    for line in _wrap(how, width) + _wrap(listed, width):
+        out.append(f'<text x="{_fmt(x0)}" y="{_fmt(y)}" font-size="{_FONT}" '
+                   f'font-family="sans-serif">{escape(line)}</text>')
+        y += _LINE
+    out.append("</g>")
+    return out, y - y0
+
+
+def _cell(model, numbers) -> tuple[float, float, float]:
+    """Width and height of the cell a sheet takes on a page (mm), and the room left and right
+    of it for the corner labels (centred on the corners, above and below them)."""
+    w, h = np.ptp(model.sheets[0].pattern.vertices, axis=0) * model.scale
+    chars = max(len(_corner_text(sh.pattern, numbers[k], a))
+                for k, sh in enumerate(model.sheets) for a in range(sh.pattern.n_vertices))
+    side = 0.5 * chars * _CORNER_CHAR + 2.0
+    return float(w + 2 * side), float(h + 2 * _LABEL_ROOM + _TITLE_ROOM), side
+
+
+def _page_joins(joins, idx) -> list:
+    """The joins (number, corners) that touch the sheets ``idx`` (0-based)."""
+    return [(j, corners) for j, corners in enumerate(joins, 1)
+            if any(k - 1 in idx for k, _ in corners)]
+
+
+def pages(model, media, legend_height: float) -> list:
+    """The sheets of a chain nested on pages of ``media``, rows of cells under one another,
+    the legend (``legend_height`` mm, and the page's joins) below them.
+
+    Returns
+    -------
+    list of (list of int, list of (float, float))
+        Per page, the sheets on it and the (dx, dy) of each sheet's bounding box (mm).
+
+    Raises
+    ------
+    FabricationError
+        A sheet (with its labels, and the legend) does not fit the medium.
+    """
+    from ..errors import FabricationError
+
+    numbers, joins = join_numbers(model)
+    cw, ch, side = _cell(model, numbers)
+    width = media.width - 2 * _MARGIN
+    cols = int(width // cw)
+    n = len(model.sheets)
+    laid = None
+    for rows in range(int(media.height // ch), 0, -1) if cols >= 1 else []:
+        per = cols * rows
+        chunks = [list(range(f, min(f + per, n))) for f in range(0, n, per)]
+        joins_h = max(_join_legend(0.0, 0.0, width, _page_joins(joins, c))[1] for c in chunks)
+        if rows * ch + legend_height + joins_h + 3 * _MARGIN <= media.height:
+            laid = (rows, chunks)
+            break
+    if laid is None:
+        raise FabricationError(
+            f"a sheet of {cw - 2 * side:.1f} mm, with its corner labels and the legend, needs a "
+            f"page of at least {cw + 2 * _MARGIN:.0f} x "
+            f"{ch + legend_height + 3 * _MARGIN:.0f} mm; the medium is {media.text()}: choose "
+            "a larger one (origami.medium = A3, or WIDTHxHEIGHT in mm) or a smaller "
+            "origami.sheet_size")
+    left = _MARGIN + 0.5 * (width - cols * cw)  # the grid centred across the page
+    return [(idx, [(left + c * cw + side, _MARGIN + r * ch + _LABEL_ROOM)
+                   for r, c in (divmod(i, cols) for i in range(len(idx)))])
+            for idx in laid[1]]
+
+
+def upright(model):
+    """The model with every sheet turned in its plane so that its flat outline's bounding box
+    is the smallest (a square sheet drawn as a diamond is turned square to the page): the
+    sheets nest far tighter, and the drawing is the same sheet."""
+    from dataclasses import replace
+
+    from ..fab.creases.perforation import outline_loops
+
+    sheets = []
+    for sh in model.sheets:
+        pat = sh.pattern
+        v = np.asarray(pat.vertices, dtype=np.float64)
+        loop = max(outline_loops(pat.edges, np.isin(pat.assignment, ["B", "C"])), key=len)
+        ring = v[loop]
+        sides = np.roll(ring, -1, axis=0) - ring
+        best = None
+        for ang in np.arctan2(sides[:, 1], sides[:, 0]):
+            c, s_ = np.cos(-ang), np.sin(-ang)
+            turned = v @ np.array([[c, s_], [-s_, c]])
+            area = float(np.prod(np.ptp(turned, axis=0)))
+            if best is None or area < best[0] - AREA_RTOL * area:
+                best = (area, turned)
+        if best is not None and best[0] < (1.0 - AREA_RTOL) * float(np.prod(np.ptp(v, axis=0))):
+            pat = replace(pat, vertices=best[1])
+        sheets.append(replace(sh, pattern=pat))
+    # the same mm per design unit: sheet_size is the larger side of the turned sheets' boxes
+    ext = max(float(np.ptp(sh.pattern.vertices, axis=0).max()) for sh in sheets)
+    return replace(model, sheets=tuple(sheets), sheet_size=model.scale * ext)
+
+
+def page_names(name: str, n: int, kind: str) -> list:
+    """``NAME_layout.svg`` for page 1, ``NAME_layout_p2.svg`` ... (``kind``: layout, cut)."""
+    return [f"{name}_{kind}.svg" if k == 0 else f"{name}_{kind}_p{k + 1}.svg" for k in range(n)]
+
+
+def join_holes(pattern, numbers, p) -> list:
+    """Centres (drawing mm) of the thread holes of a sheet's joined corners: on the bisector
+    of the corner, :data:`JOIN_INSET` in from it."""
+    from ..fab.creases.perforation import outline_loops
+
+    loop = max(outline_loops(pattern.edges, np.isin(pattern.assignment, ["B", "C"])), key=len)
+    at = {v: (loop[i - 1], loop[(i + 1) % len(loop)]) for i, v in enumerate(loop)}
+    out = []
+    for a in sorted(numbers):
+        if a not in at:
+            continue  # a joined vertex inside the sheet: no corner to hold
+        u = [(p[b] - p[a]) / max(float(np.linalg.norm(p[b] - p[a])), TINY) for b in at[a]]
+        ray = u[0] + u[1]
+        out.append(p[a] + ray / max(float(np.linalg.norm(ray)), TINY) * JOIN_INSET)
+    return out
 
 
 def render(model, fold) -> tuple[bytes, dict]:
@@ -397,43 +536,70 @@ def render(model, fold) -> tuple[bytes, dict]:
                          f"{model.name}: crease pattern, {sheet_text(geom)}")
         return data, {"sheets": 1, "lines": n_lines, "width_mm": float(width),
                       "height_mm": float(h + 3 * _MARGIN + lh), **facts}
-    marks = join_marks(model)
+    return _render_pages(model, targets, geom, table, facts)
+
+
+def _render_pages(model, targets, geom, table, facts):
+    """The layout of a chain's sheets: one SVG per page of the medium."""
+    from ..fab.creases.media import medium
+
+    model = upright(model)
+    media = medium(model.settings.get("medium"))
+    numbers, joins = join_numbers(model)
     n = len(model.sheets)
-    width, bottom, offsets = grid(model, _corner_chars(model, marks))
-    body, n_lines, angles = [], 0, []
-    for k, sh in enumerate(model.sheets):
-        pat = sh.pattern
-        dx, dy = offsets[k]
-        lines = _lines(pat, targets[k], scale, dx, dy)
-        n_lines += len(lines)
-        body += lines
-        p = _place(pat, scale, dx, dy)
-        angles += _angle_labels(pat, targets[k], p, 2.5)
-        centre = pat.vertices.mean(axis=0)
-        lo, top = pat.vertices.min(axis=0), pat.vertices[:, 1].max()
-        c = (dx + (centre[0] - lo[0]) * scale, dy + (top - centre[1]) * scale)
-        body.append(f'<text x="{_fmt(c[0])}" y="{_fmt(c[1] + 12)}" font-size="6" '
-                    f'text-anchor="middle" fill="#000000">sheet {k + 1}</text>')
-        for a, q in enumerate(pat.vertices):
-            x, y = p[a]
-            # put the mark outside the sheet, along the ray from its centre
-            ray = q - centre
-            nrm = np.linalg.norm(ray)
-            ox, oy = (ray / nrm * 6.0) if nrm > 0 else (0.0, 0.0)
-            text = _corner_text(pat, marks[k], a)
-            if a in marks[k]:
-                body.append(f'<circle cx="{_fmt(x)}" cy="{_fmt(y)}" r="1.5" fill="#000000"/>')
-            side = ray[0] / nrm if nrm > 0 else 0.0  # right of the centre: text to the right
-            anchor = "start" if side > 0.5 else ("end" if side < -0.5 else "middle")
-            body.append(f'<text x="{_fmt(x + ox)}" y="{_fmt(y - oy + 2)}" font-size="4" '
-                        f'text-anchor="{anchor}" fill="#000000">{escape(text)}</text>')
-    legend, lh = _legend(2 * _MARGIN, bottom, width - 4 * _MARGIN, geom, table, n)
-    body += ['<g id="fold-angles">', *angles, "</g>"] + legend
-    height = bottom + _MARGIN + lh
-    data = _document(width, height, body, f"{model.name}: layout of {n} sheets, each "
-                                          f"{sheet_text(geom)}")
-    return data, {"sheets": n, "lines": n_lines, "joins": marks, "width_mm": float(width),
-                  "height_mm": float(height), **facts}
+    width = media.width - 2 * _MARGIN
+    _, lh = _legend(0.0, 0.0, width, geom, table, n)
+    laid = pages(model, media, lh)
+    scale = model.scale
+    docs, n_lines = [], 0
+    for page, (idx, offsets) in enumerate(laid):
+        body, angles, holes = [], [], []
+        bottom = 0.0
+        for k, (dx, dy) in zip(idx, offsets):
+            pat = model.sheets[k].pattern
+            lines = _lines(pat, targets[k], scale, dx, dy)
+            n_lines += len(lines)
+            body += lines
+            p = _place(pat, scale, dx, dy)
+            angles += _angle_labels(pat, targets[k], p, 2.5)
+            centre = p.mean(axis=0)
+            top, low = float(p[:, 1].min()), float(p[:, 1].max())
+            bottom = max(bottom, low + _LABEL_ROOM + _TITLE_ROOM)
+            body.append(f'<text x="{_fmt(centre[0])}" y="{_fmt(low + _LABEL_ROOM + 4.5)}" '
+                        f'font-size="5" text-anchor="middle" fill="#000000">sheet {k + 1}</text>')
+            for a in range(pat.n_vertices):
+                x, y = p[a]
+                if a in numbers[k]:
+                    body.append(f'<circle cx="{_fmt(x)}" cy="{_fmt(y)}" r="1.2" '
+                                'fill="#000000"/>')
+                elif abs(y - top) > MM_SLACK and abs(y - low) > MM_SLACK:
+                    continue  # an inner vertex (P) is named by the legend's creases
+                # labels above the top corners and below the bottom ones, centred on them
+                ly = y - 3.0 if abs(y - top) <= abs(y - low) else y + 5.5
+                body.append(f'<text x="{_fmt(x)}" y="{_fmt(ly)}" font-size="4" '
+                            'font-family="sans-serif" text-anchor="middle" fill="#000000">'
+                            f'{escape(_corner_text(pat, numbers[k], a))}</text>')
+            holes += [f'<circle cx="{_fmt(c[0])}" cy="{_fmt(c[1])}" r="{_fmt(0.5 * JOIN_HOLE)}" '
+                      'fill="none" stroke="#000000" stroke-width="0.2"/>'
+                      for c in join_holes(pat, numbers[k], p)]
+        mine = _page_joins(joins, idx)
+        y0 = bottom + 0.5 * _MARGIN
+        legend, lh_page = _legend(_MARGIN, y0, width, geom, table, n)
+        jlegend, _ = _join_legend(_MARGIN, y0 + lh_page, width, mine)
+        body += ['<g id="join-holes">', *holes, "</g>", '<g id="fold-angles">', *angles,
+                 "</g>"] + legend + jlegend
+        docs.append(_document(media.width, media.height, body,
+                              f"{model.name}: layout of {n} sheets, each {sheet_text(geom)}, "
+                              f"page {page + 1} of {len(laid)} ({media.text()}, print at "
+                              "100 %)"))
+    return docs, {"sheets": n, "lines": n_lines, "pages": len(laid), "medium": media.text(),
+                  "medium_mm": [media.width, media.height],
+                  "sheets_per_page": [len(i) for i, _ in laid],
+                  "joins": [{"join": j, "corners": [f"{k}{c}" for k, c in corners]}
+                            for j, corners in enumerate(joins, 1)],
+                  "join_method": f"thread through {JOIN_HOLE:g} mm holes {JOIN_INSET:g} mm in "
+                                 "from the joined corners, knotted loosely",
+                  "width_mm": float(media.width), "height_mm": float(media.height), **facts}
 
 
 def export_design(design, settings: dict) -> ExportResult:
@@ -452,16 +618,54 @@ def export_design(design, settings: dict) -> ExportResult:
     model = origami_model(design, (settings or {}).get("origami"))
     fold = fold_model(model, design.motion.drive, design.motion.to)
     data, report = render(model, fold)
-    name = f"{design.name}.svg" if len(model.sheets) == 1 else f"{design.name}_layout.svg"
+    perf = Perforation.from_settings(model.settings)
+    realised = realised_model(model, fold)
     if len(model.sheets) == 1:
+        name = f"{design.name}.svg"
         w, h = np.ptp(model.sheets[0].pattern.vertices, axis=0) * model.scale
-        offsets, size = [(_MARGIN, _MARGIN)], (w + 2 * _MARGIN, h + 2 * _MARGIN)
+        cut, cut_report = cut_svg(realised, perf, [(_MARGIN, _MARGIN)],
+                                  (w + 2 * _MARGIN, h + 2 * _MARGIN))
+        cut_name = f"{design.name}_cut.svg"
+        files = {name: data, cut_name: cut}
     else:
-        w, h, offsets = grid(model, _corner_chars(model, join_marks(model)))
-        size = (w, h)
-    cut, cut_report = cut_svg(realised_model(model, fold),
-                              Perforation.from_settings(model.settings), offsets, size)
-    cut_name = f"{design.name}_cut.svg"
+        from dataclasses import replace
+
+        from ..fab.creases.media import medium
+
+        media = medium(model.settings.get("medium"))
+        realised = upright(realised)
+        turned = upright(model)
+        numbers, _ = join_numbers(turned)
+        geom = sheet_geometry(turned.sheets[0].pattern, turned.scale)
+        table = crease_table(turned, sheet_targets(turned, fold))
+        width = media.width - 2 * _MARGIN
+        _, lh = _legend(0.0, 0.0, width, geom, table, len(model.sheets))
+        laid = pages(turned, media, lh)
+        names = page_names(design.name, len(laid), "layout")
+        cut_names = page_names(design.name, len(laid), "cut")
+        files, cut_report = dict(zip(names, data)), None
+        for (idx, offsets), cut_name in zip(laid, cut_names):
+            sub = replace(realised, sheets=tuple(realised.sheets[k] for k in idx))
+            holes = [join_holes(realised.sheets[k].pattern, numbers[k],
+                                _place(realised.sheets[k].pattern, turned.scale, dx, dy))
+                     for k, (dx, dy) in zip(idx, offsets)]
+            cut, rep = cut_svg(sub, perf, offsets, (media.width, media.height),
+                               holes=holes, hole=JOIN_HOLE)
+            files[cut_name] = cut
+            cut_report = rep if cut_report is None else _merge_cut(cut_report, rep)
+        name, cut_name = names[0], cut_names[0]
+        report.update(layout_files=names, cut_files=cut_names)
     report.update(format=FORMAT, sheet_size_mm=model.sheet_size, file=name, cut_file=cut_name,
                   cut=cut_report)
-    return ExportResult(files={name: data, cut_name: cut}, report=report)
+    return ExportResult(files=files, report=report)
+
+
+def _merge_cut(a: dict, b: dict) -> dict:
+    """The cut report of two pages as one."""
+    out = dict(a)
+    out["cuts"] = {k: a["cuts"].get(k, 0) + b["cuts"].get(k, 0) for k in {*a["cuts"], *b["cuts"]}}
+    out["short_creases"] = a["short_creases"] + b["short_creases"]
+    vals = [v for v in (a["closest_cut_to_a_vertex_mm"], b["closest_cut_to_a_vertex_mm"])
+            if v is not None]
+    out["closest_cut_to_a_vertex_mm"] = min(vals) if vals else None
+    return out

@@ -7,6 +7,8 @@ Inkscape read as separate operations), in cutting order:
 * ``valley-perforations`` (#0000ff) and ``mountain-perforations`` (#ff0000): each crease as
   perforation cuts (:mod:`fabkit.fab.creases.perforation`) that stop short of every vertex, so
   each fold type can get its own power or be scored from its own side;
+* ``join-holes`` (#000000): the thread holes at the corners a chain's sheets are joined by
+  (circles), cut before the outline;
 * ``outline`` (#000000): the sheet's edge as closed paths, cut last so the sheet stays in place
   while its creases are cut.
 
@@ -25,7 +27,7 @@ __all__ = ["LAYERS", "cut_svg"]
 
 #: Layer id → stroke colour, in cutting order.
 LAYERS = {"valley-perforations": "#0000ff", "mountain-perforations": "#ff0000",
-          "outline": "#000000"}
+          "join-holes": "#000000", "outline": "#000000"}
 _STROKE = 0.1  # mm
 
 
@@ -38,7 +40,7 @@ def _to_drawing(points, lo, top, dx, dy):
     return np.stack([dx + p[..., 0] - lo[0], dy + top - p[..., 1]], axis=-1)
 
 
-def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
+def cut_svg(model, perf, offsets, size, *, holes=None, hole: float = 0.0) -> tuple[bytes, dict]:
     """The cut-ready SVG of every sheet of an origami model.
 
     Parameters
@@ -50,6 +52,10 @@ def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
         Where each sheet's bounding box goes (mm), as in the crease pattern.
     size : (float, float)
         Width and height of the document (mm).
+    holes : list of list of (float, float), optional
+        Per sheet, the centres of its thread holes (drawing mm).
+    hole : float
+        Their diameter (mm).
 
     Returns
     -------
@@ -65,7 +71,7 @@ def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
     paths = {k: [] for k in LAYERS}
     counts = {k: 0 for k in LAYERS}
     short, closest = [], np.inf
-    for sh, (dx, dy) in zip(model.sheets, offsets):
+    for i, (sh, (dx, dy)) in enumerate(zip(model.sheets, offsets)):
         pat = sh.pattern
         v = np.asarray(pat.vertices, dtype=np.float64) * scale
         lo, top = v.min(axis=0), v[:, 1].max()
@@ -79,6 +85,12 @@ def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
             paths[layer] += [f"M {_f(a[0])} {_f(a[1])} L {_f(b[0])} {_f(b[1])}" for a, b in d]
             if segs.shape[0]:
                 closest = min(closest, _closest(v, segs))
+        for c in (holes[i] if holes else []):
+            counts["join-holes"] += 1
+            paths["join-holes"].append(f'<circle cx="{_f(c[0])}" cy="{_f(c[1])}" '
+                                       f'r="{_f(0.5 * hole)}" fill="none" '
+                                       f'stroke="{LAYERS["join-holes"]}" '
+                                       f'stroke-width="{_STROKE}"/>')
         for loop in cuts.outline:
             d = _to_drawing(loop, lo, top, dx, dy)
             counts["outline"] += 1
@@ -88,12 +100,15 @@ def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
                                     "mm gap)",
              "mountain-perforations": f"mountain perforations ({perf.dash:g} mm cut, "
                                       f"{perf.gap:g} mm gap)",
+             "join-holes": f"thread holes of the joins ({hole:g} mm)",
              "outline": "outline (cut through, last)"}
     W, H = size
     desc = (f"Cut-ready sheet: creases as perforations, {perf.dash:g} mm cuts with {perf.gap:g} mm "
             f"of paper between them, stopping at least {perf.stop:g} mm short of every vertex so "
             "the sheet holds together; the outline as a cut. Layers in cutting order: valley "
-            "perforations (blue), mountain perforations (red), outline (black). Give each layer "
+            "perforations (blue), mountain perforations (red), "
+            + ("thread holes of the joins (black), " if holes else "")
+            + "outline (black). Give each layer "
             "its own power, or score the valleys on this side and the mountains from the back "
             "(turn the sheet over left to right and mirror that layer). 1 unit = 1 mm.")
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
@@ -102,9 +117,13 @@ def cut_svg(model, perf, offsets, size) -> tuple[bytes, dict]:
            f'height="{_f(H)}mm" viewBox="0 0 {_f(W)} {_f(H)}">',
            f"<title>{escape(model.name)}: cut-ready sheet</title>", f"<desc>{escape(desc)}</desc>"]
     for layer, colour in LAYERS.items():
+        if layer == "join-holes" and not paths[layer]:
+            continue  # a single sheet has no joins
         out.append(f'<g id="{layer}" inkscape:groupmode="layer" '
                    f'inkscape:label="{escape(names[layer])}">')
-        if paths[layer]:
+        if layer == "join-holes":
+            out += paths[layer]
+        elif paths[layer]:
             out.append(f'<path d="{" ".join(paths[layer])}" fill="none" stroke="{colour}" '
                        f'stroke-width="{_STROKE}"/>')
         out.append("</g>")

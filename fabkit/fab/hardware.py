@@ -4,13 +4,14 @@ One catalogue chooses the fastener of every joint of a laser kit and names each 
 shop lists it (series, barrel, post length, material), so that the bill of materials can be
 ordered as it stands.
 
-* **Chicago screws** (sex bolts, binding posts): a barrel with a female thread, a screw with a
-  male one; the barrel is the pin the bars turn on, and vendors name a screw by its post
-  (barrel) length, not by its diameter ("1/4 in" is a length). Metric sets for laser-cut
-  linkages (M3 thread, 4.0 mm barrel, 8.5 mm heads, posts 4-16 mm in 1 mm steps then 18-30
-  mm) and the inch "standard" binding post (#8-32 thread, 3/16 in barrel, 3/8 in heads, posts
-  1/8-2 in, aluminium) with its screw-on extensions (1/4-1 in) are listed as hardware and
-  bookbinding suppliers commonly list them.
+* **Chicago screws** (sex bolts, binding posts, book screws): a barrel with a female thread, a
+  screw with a male one; the barrel is the pin the bars turn on, and vendors name a screw by
+  its post (barrel) length, not by its diameter ("1/4 in" is a length). The default is the
+  metric book screw sold most widely, M4 thread on a 5 mm barrel with 10 mm heads; inch kits
+  take the US binding post (#8-32 thread, 3/16 in barrel, 3/8 in heads, posts 1/8-2 in,
+  aluminium) with its screw-on extensions (1/4-1 in). Smaller (M3, 4 mm barrel) and larger
+  (M5, 6 mm) metric series are listed too. Each entry names the product family it follows
+  (:attr:`ScrewSpec.family`).
 * **Deep stacks** (more sheets than the longest post holds): inch posts take up to
   :data:`MAX_EXTENSIONS` screw-on extensions, which keep the heads of the post; a metric joint
   gets a clevis pin of the barrel's diameter (ISO 2341 B: the bars turn on its plain shank),
@@ -18,9 +19,15 @@ ordered as it stands.
   stack than a Chicago screw's head and its shims, which is what the stacking reserves above
   and below every screw (bars sweep over the joints of a deep kit). A bolt with a lock nut
   and spacers would hold the stack too, but its thread and nut stand 10-20 mm proud of it.
-* **Washers** are chosen by inner diameter: a shim under a Chicago screw's head goes over the
-  barrel, so its hole must clear it (an M3 washer's 3.2 mm hole does not go over a 4.0 mm
-  barrel; a DIN 433 M4 washer, 4.3 mm, does).
+* **Axial play**: the post closes on the thickest sheets the tolerance allows; shim rings
+  (DIN 988, made to slide on a shaft of their inner diameter: 0.5 mm, and a 0.2 mm one where
+  the play would be more than half a millimetre) under the head take up the rest on the
+  nominal sheet, to at most
+  :data:`MAX_AXIAL_PLAY`. On thicker sheet some come off (:attr:`Fastener.play_min` is the
+  play then), on thinner sheet the spares go on.
+* **Washers** are chosen by inner diameter: a flat washer over a barrel or a pin clears it
+  (an M3 washer's 3.2 mm hole does not go over a 4.0 mm barrel; a DIN 433 M4 washer, 4.3 mm,
+  does).
 
 Sizes are typical catalogue values; parts differ between makers by a few tenths of a
 millimetre, so measure what you bought and override the entry (``laser.screw`` as a table).
@@ -38,12 +45,18 @@ from ..numerics import MM_SLACK
 from ..schema import ScrewSection, check_table
 
 __all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length",
-           "WASHER_THICKNESS", "WASHER_CLEARANCE", "Washer", "WASHERS",
+           "WASHER_THICKNESS", "WASHER_CLEARANCE", "Washer", "WASHERS", "MAX_AXIAL_PLAY",
            "choose_washer", "PinSpec", "PINS", "Fastener", "fit_fastener", "PartLine",
-           "part_lines", "spares", "inch_text", "MM_PER_INCH", "MAX_EXTENSIONS"]
+           "part_lines", "part_family", "spares", "inch_text", "MM_PER_INCH", "MAX_EXTENSIONS"]
 
 #: Thickness of the thin washers (shims) the metric entries take up axial play with (mm).
 WASHER_THICKNESS = 0.5
+#: Most axial play a joint's shims leave on sheet of the nominal thickness (mm): the bars turn
+#: freely and the stack does not rattle.
+MAX_AXIAL_PLAY = 0.5
+#: The play a thin shim is added above (mm): a tenth inside the limit, so round-off of the
+#: sheet's nominal thickness never tips a joint over it.
+_PLAY_TARGET = MAX_AXIAL_PLAY - 0.1
 #: A washer over a barrel or a shank must clear it by at least this much (mm): the barrel's
 #: tolerance is negative, a washer's hole positive, and a tight fit binds the turning bar.
 WASHER_CLEARANCE = 0.2
@@ -78,11 +91,14 @@ class Washer:
     Attributes
     ----------
     name : str
-        Catalogue key, e.g. ``"DIN 433 M4"``.
+        Catalogue key, e.g. ``"DIN 433 M4"``; it starts with the standard the washer follows.
     inner, outer, thickness : float
     material : str
     unit : str
         ``"mm"`` or ``"in"`` (how the shop states its sizes).
+    shim : bool
+        A shim ring (DIN 988), made to slide on a shaft of its inner diameter, rather than a
+        flat washer with a clearance hole.
     """
 
     name: str
@@ -91,8 +107,15 @@ class Washer:
     thickness: float
     material: str = "stainless steel A2"
     unit: str = "mm"
+    shim: bool = False
 
     def description(self) -> str:
+        if self.shim and self.unit == "in":
+            return (f"precision {self.name} ({self.inner:.2f} x {self.outer:.2f} x "
+                    f"{self.thickness:.2f} mm), {self.material}")
+        if self.shim:
+            return (f"shim ring {self.name} ({self.inner:g} mm ID x {self.outer:g} mm OD x "
+                    f"{self.thickness:g} mm), {self.material}")
         if self.unit == "in":
             return (f"flat washer {self.name}: {self.inner / MM_PER_INCH:.3f} in ID x "
                     f"{self.outer / MM_PER_INCH:.3f} in OD x {self.thickness / MM_PER_INCH:.3f} "
@@ -115,6 +138,11 @@ WASHERS: dict[str, Washer] = {w.name: w for w in (
     Washer("ISO 7089 M6", 6.4, 12.0, 1.6),
     Washer("SAE #10", *_inch("0.219", "0.5", "0.049"), material="steel, zinc-plated",
            unit="in"),
+    *(Washer(f"DIN 988 {d:g}x{o:g}x{t:g}", d, o, t, material="spring steel", shim=True)
+      for d, o in ((4.0, 8.0), (5.0, 10.0), (6.0, 12.0)) for t in (0.5, 0.2)),
+    # precision shim washers for a 3/16 in shaft, 3/8 in outside (under a 3/8 in head)
+    *(Washer(f"shim 3/16 x 3/8 x {t} in", *_inch("0.194", "0.375", t), material="steel",
+             unit="in", shim=True) for t in ("0.020", "0.008")),
 )}
 
 
@@ -134,7 +162,7 @@ def choose_washer(shaft: float, *, outer_max: float | None = None, family: str =
     'DIN 433 M4'
     """
     fits = [w for w in WASHERS.values()
-            if w.inner >= shaft + WASHER_CLEARANCE - MM_SLACK and w.unit == unit
+            if not w.shim and w.inner >= shaft + WASHER_CLEARANCE - MM_SLACK and w.unit == unit
             and (unit == "in" or w.name.startswith(family))
             and (outer_max is None or w.outer <= outer_max + MM_SLACK)]
     if not fits:
@@ -227,6 +255,11 @@ class ScrewSpec:
         extensions reach.
     washer : str or None
         Key of the shim washer (:data:`WASHERS`); None: the thinnest that clears the barrel.
+    family : str
+        The standard or product family the entry follows, as a buyer searches for it.
+    shims : tuple of str
+        Keys of the shim rings (:data:`WASHERS`) that take up axial play, thickest first;
+        empty: ``washer`` alone.
     """
 
     name: str
@@ -242,9 +275,12 @@ class ScrewSpec:
     extensions: tuple[float, ...] = ()
     pin: str | None = None
     washer: str | None = None
+    family: str = ""
+    shims: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
-        return {f.name: (list(getattr(self, f.name)) if f.name in ("lengths", "extensions")
+        return {f.name: (list(getattr(self, f.name)) if f.name in ("lengths", "extensions",
+                                                                   "shims")
                          else getattr(self, f.name)) for f in fields(self)}
 
     def length_text(self, mm: float) -> str:
@@ -256,9 +292,7 @@ class ScrewSpec:
 
     def post(self, length: float) -> str:
         """The screw of one post length as a shop lists it."""
-        return (f"Chicago screw (sex bolt) {self.thread or self.name}, barrel "
-                f"{self.size_text(self.barrel_diameter)}, head "
-                f"{self.size_text(self.head_diameter)}, post length {self.length_text(length)}"
+        return (f"{self.series()}, post length {self.length_text(length)}"
                 + (f", {self.material}" if self.material else ""))
 
     def extension(self, length: float) -> str:
@@ -266,32 +300,65 @@ class ScrewSpec:
                 f"{self.length_text(length)}" + (f", {self.material}" if self.material else ""))
 
     def shim(self) -> Washer:
-        """The washer that takes up axial play under a head: it goes over the barrel."""
+        """The (thickest) washer that takes up axial play under a head: it goes over the
+        barrel."""
+        return self.shim_set()[0]
+
+    def shim_set(self) -> list:
+        """The washers that take up axial play, thickest first."""
+        if self.shims:
+            return [WASHERS[k] for k in self.shims]
         if self.washer is not None:
-            return WASHERS[self.washer]
-        return choose_washer(self.barrel_diameter, unit=self.unit)
+            return [WASHERS[self.washer]]
+        return [choose_washer(self.barrel_diameter, unit=self.unit)]
+
+    def series(self) -> str:
+        """The screw as a shop lists the series (no length): ``"Chicago screw (sex bolt) M4,
+        barrel 5 mm, head 10 mm"``."""
+        return (f"Chicago screw (sex bolt) {self.thread or self.name}, barrel "
+                f"{self.size_text(self.barrel_diameter)}, head "
+                f"{self.size_text(self.head_diameter)}")
 
 
 _METRIC_LENGTHS = tuple(float(v) for v in [*range(4, 17), 18, 20, 22, 25, 28, 30])
+#: Metric book screws, 5 mm barrel: the post lengths bookbinding and hardware suppliers list.
+_BOOK_LENGTHS = tuple(float(v) for v in [*range(4, 11), 12, 13, 15, 18, 20, 22, 25, 30, 35, 40,
+                                         45, 50])
 #: Inch binding posts: lengths 1/8-2 in and their screw-on extensions (aluminium).
 _INCH_LENGTHS = _inch("1/8", "3/16", "1/4", "5/16", "3/8", "7/16", "1/2", "5/8", "3/4", "7/8",
                       "1", "5/4", "3/2", "7/4", "2")
 _INCH_EXTENSIONS = _inch("1/4", "1/2", "3/4", "1")
 
+
+def _shim_keys(d: float) -> tuple:
+    return tuple(f"DIN 988 {d:g}x{2 * d:g}x{t:g}" for t in (0.5, 0.2))
+
+
 #: Built-in entries; a template may override any field of one of them.
 CATALOGUE: dict[str, ScrewSpec] = {
-    "M3-chicago": ScrewSpec("M3-chicago", 4.0, 4.2, 8.5, 1.9, _METRIC_LENGTHS, thread="M3",
-                            material="stainless steel A2", pin="4-pin"),
-    "M4-chicago": ScrewSpec("M4-chicago", 5.0, 5.2, 10.0, 2.0, _METRIC_LENGTHS[1:], thread="M4",
-                            material="stainless steel A2", pin="5-pin"),
-    "M5-chicago": ScrewSpec("M5-chicago", 6.0, 6.2, 12.0, 2.5, _METRIC_LENGTHS[2:], thread="M5",
-                            material="stainless steel A2", pin="6-pin"),
-    "inch-chicago": ScrewSpec("inch-chicago", *_inch("3/16"), 5.0, *_inch("3/8", "1/16"),
-                              _INCH_LENGTHS, thread="#8-32", material="aluminium", unit="in",
-                              extensions=_INCH_EXTENSIONS),
+    "M4-chicago": ScrewSpec(
+        "M4-chicago", 5.0, 5.2, 10.0, 2.0, _BOOK_LENGTHS, thread="M4",
+        material="stainless steel A2", pin="5-pin", shims=_shim_keys(5.0),
+        family="Chicago screws (book screws, sex bolts) M4 x 5 mm barrel: the metric series "
+               "bookbinding and hardware suppliers sell"),
+    "M3-chicago": ScrewSpec(
+        "M3-chicago", 4.0, 4.2, 8.5, 1.9, _METRIC_LENGTHS, thread="M3",
+        material="stainless steel A2", pin="4-pin", shims=_shim_keys(4.0),
+        family="Chicago screws (sex bolts) M3 x 4 mm barrel, a smaller metric series"),
+    "M5-chicago": ScrewSpec(
+        "M5-chicago", 6.0, 6.2, 12.0, 2.5, _METRIC_LENGTHS[2:], thread="M5",
+        material="stainless steel A2", pin="6-pin", shims=_shim_keys(6.0),
+        family="Chicago screws (sex bolts) M5 x 6 mm barrel, a larger metric series"),
+    "inch-chicago": ScrewSpec(
+        "inch-chicago", *_inch("3/16"), 5.0, *_inch("3/8", "1/16"), _INCH_LENGTHS,
+        thread="#8-32", material="aluminium", unit="in", extensions=_INCH_EXTENSIONS,
+        shims=("shim 3/16 x 3/8 x 0.020 in", "shim 3/16 x 3/8 x 0.008 in"),
+        family="binding posts (Chicago screws) #8-32 UNC x 3/16 in barrel with screw-on "
+               "extensions: the US series"),
 }
 
-DEFAULT_SCREW = "M3-chicago"
+#: The default: the metric book screw sold most widely (5 mm barrel, M4).
+DEFAULT_SCREW = "M4-chicago"
 
 _FIELDS = {f.name for f in fields(ScrewSpec)}
 #: What a screw of one's own must give (the rest have defaults).
@@ -304,7 +371,7 @@ def screw_spec(entry=None) -> ScrewSpec:
     Parameters
     ----------
     entry : str, dict or None
-        ``"M3-chicago"``; or ``{"name": "M3-chicago", "hole_diameter": 4.3, ...}`` (fields not
+        ``"M4-chicago"``; or ``{"name": "M3-chicago", "hole_diameter": 4.3, ...}`` (fields not
         given come from the named entry, the default when no name is given).
 
     Returns
@@ -318,8 +385,8 @@ def screw_spec(entry=None) -> ScrewSpec:
 
     Examples
     --------
-    >>> screw_spec({"hole_diameter": 4.3}).hole_diameter
-    4.3
+    >>> screw_spec({"hole_diameter": 5.3}).hole_diameter
+    5.3
     """
     if entry is None:
         return CATALOGUE[DEFAULT_SCREW]
@@ -344,8 +411,9 @@ def screw_spec(entry=None) -> ScrewSpec:
         values = {k: (tuple(sorted(float(x) for x in v)) if k == "lengths" else
                       (v if k == "name" else float(v))) for k, v in given.items()}
         if name is not None and name not in CATALOGUE:
-            # sizes of one's own: no series, extensions or pins of a catalogue entry
-            values.update(thread="", material="", unit="mm", extensions=(), pin=None)
+            # sizes of one's own: no series, extensions, pins or shims of a catalogue entry
+            values.update(thread="", material="", unit="mm", extensions=(), pin=None,
+                          shims=(), family="a screw of your own")
         spec = replace(base, **values)
     else:
         raise FabricationError(f"screw must be a catalogue name or a table, got {entry!r}")
@@ -372,6 +440,8 @@ def choose_length(spec: ScrewSpec, stack: float) -> float:
     --------
     >>> choose_length(screw_spec(), 6.0)
     7.0
+    >>> choose_length(screw_spec(), 10.5)
+    12.0
     """
     need = stack + spec.allowance
     for length in spec.lengths:
@@ -384,14 +454,50 @@ def choose_length(spec: ScrewSpec, stack: float) -> float:
 
 
 def _stack(layers, thickness, tolerance):
-    return round(layers * (thickness - tolerance), 9), round(layers * (thickness + tolerance), 9)
+    return (round(layers * (thickness - tolerance), 9), round(layers * thickness, 9),
+            round(layers * (thickness + tolerance), 9))
 
 
-def _shims(spec, length, stack_min, stack_max):
-    t = spec.shim().thickness
-    washers = max(int(math.floor((length - stack_max - spec.allowance) / t + MM_SLACK)), 0)
-    fill = washers * t
-    return washers, round(length - stack_max - fill, 9), round(length - stack_min - fill, 9)
+def _fill(spec, room: float) -> tuple:
+    """Shims (count of each kind of :meth:`ScrewSpec.shim_set`, thickest first) for ``room``
+    mm less the allowance: as many of the thickest as fit, then a thinner one only while the
+    play left is more than 0.4 mm, a tenth inside :data:`MAX_AXIAL_PLAY` (fewest small
+    parts)."""
+    kinds = spec.shim_set()
+    counts = [0] * len(kinds)
+    if not kinds:
+        return ()
+    counts[0] = max(int(math.floor(room / kinds[0].thickness + MM_SLACK)), 0)
+    left = room - counts[0] * kinds[0].thickness
+    for i, w in enumerate(kinds[1:], 1):
+        while left + spec.allowance > _PLAY_TARGET + MM_SLACK and \
+                w.thickness <= left + MM_SLACK:
+            counts[i] += 1
+            left -= w.thickness
+    return tuple(counts)
+
+
+def _take_off(spec, counts: tuple, room: float) -> tuple:
+    """The shims of ``counts`` to keep where only ``room`` mm is left (the most that fit)."""
+    kinds = spec.shim_set()
+    best, best_fill = tuple(0 for _ in counts), 0.0
+    for keep in itertools.product(*(range(n + 1) for n in counts)):
+        fill = sum(k * w.thickness for k, w in zip(keep, kinds))
+        if best_fill < fill <= room + MM_SLACK:
+            best, best_fill = keep, fill
+    return best
+
+
+def _shims(spec, length, stack_min, stack_nominal, stack_max):
+    """Shims for the nominal sheet, and the play on the thickest (some taken off), nominal
+    and thinnest sheets."""
+    kinds = spec.shim_set()
+    counts = _fill(spec, length - stack_nominal - spec.allowance)
+    fill = sum(n * w.thickness for n, w in zip(counts, kinds))
+    thick = _take_off(spec, counts, length - stack_max - spec.allowance)
+    fill_thick = sum(n * w.thickness for n, w in zip(thick, kinds))
+    return (counts, round(length - stack_max - fill_thick, 9),
+            round(length - stack_nominal - fill, 9), round(length - stack_min - fill, 9))
 
 
 # -- the fastener of one joint ----------------------------------------------------------------
@@ -436,12 +542,18 @@ class Fastener:
     stack_min, stack_max : float
         Stack height on the thinnest and thickest sheets (mm).
     washers : int
-        Shim washers taking up the axial play.
+        Shim washers taking up the axial play on the nominal sheet (all kinds).
     play_min, play_max : float
-        Axial play with the shims on the thickest and thinnest sheets (mm).
+        Axial play on the thickest sheets (with the shims that still fit there) and on the
+        thinnest (with the nominal sheet's shims), mm.
     extensions : tuple of float
     parts : tuple of PartLine
         What to buy for this joint.
+    play_nominal : float
+        Axial play with the shims on the nominal sheet (at most :data:`MAX_AXIAL_PLAY` where
+        the series has its shims).
+    shims : tuple of (str, float, int)
+        The shims on the nominal sheet: washer key, thickness (mm), count.
     """
 
     kind: str
@@ -455,6 +567,8 @@ class Fastener:
     extensions: tuple = ()
     parts: tuple = ()
     unit: str = "mm"
+    play_nominal: float = 0.0
+    shims: tuple = ()
 
     @property
     def closes(self) -> bool:
@@ -466,8 +580,9 @@ class Fastener:
         return self.length - sum(self.extensions)
 
     def describe(self) -> str:
-        """One line for the guide and the BOM: ``"post 25 mm + 5 washers"``."""
-        shims = f" + {self.washers} washers" if self.washers else ""
+        """One line for the guide and the BOM: ``"post 25 mm + 7 x 0.5 + 1 x 0.2 mm shims"``."""
+        shims = (" + " + " + ".join(f"{n} x {t:g}" for _, t, n in self.shims if n) + " mm shims"
+                 if self.washers else "")
         if self.kind == "clevis pin":
             return f"clevis pin {self.length:g} mm, washer, split pin{shims}"
         size = inch_text if self.unit == "in" else (lambda v: f"{v:g} mm")
@@ -475,7 +590,18 @@ class Fastener:
         return f"post {size(self.post)}" + (f" + extensions {ext}" if ext else "") + shims
 
 
-def _chicago_parts(spec: ScrewSpec, post: float, extensions, washers: int) -> tuple:
+def _shim_lines(spec: ScrewSpec, counts, over: float) -> list:
+    return [PartLine(f"washer:{w.name}", "washer", w.description(), n,
+                     {"inner_diameter_mm": w.inner, "outer_diameter_mm": w.outer,
+                      "thickness_mm": w.thickness, "washer": w.name, "over_mm": over})
+            for w, n in zip(spec.shim_set(), counts) if n]
+
+
+def _shim_record(spec: ScrewSpec, counts) -> tuple:
+    return tuple((w.name, w.thickness, int(n)) for w, n in zip(spec.shim_set(), counts))
+
+
+def _chicago_parts(spec: ScrewSpec, post: float, extensions, counts) -> tuple:
     lines = [PartLine(f"chicago:{spec.name}:{post:g}", "chicago screw", spec.post(post), 1,
                       {"post_length_mm": post, "barrel_diameter_mm": spec.barrel_diameter,
                        "head_diameter_mm": spec.head_diameter, "screw": spec.name})]
@@ -483,12 +609,7 @@ def _chicago_parts(spec: ScrewSpec, post: float, extensions, washers: int) -> tu
         lines.append(PartLine(f"extension:{spec.name}:{e:g}", "extension", spec.extension(e), 1,
                               {"length_mm": e, "barrel_diameter_mm": spec.barrel_diameter,
                                "screw": spec.name}))
-    if washers:
-        w = spec.shim()
-        lines.append(PartLine(f"washer:{w.name}", "washer", w.description(), washers,
-                              {"inner_diameter_mm": w.inner, "outer_diameter_mm": w.outer,
-                               "thickness_mm": w.thickness, "washer": w.name,
-                               "over_mm": spec.barrel_diameter}))
+    lines += _shim_lines(spec, counts, spec.barrel_diameter)
     return tuple(lines)
 
 
@@ -509,7 +630,8 @@ def _with_extensions(spec: ScrewSpec, need: float):
     return None
 
 
-def _pin_set(spec: ScrewSpec, layers, stack_min, stack_max) -> Fastener | None:
+def _pin_set(spec: ScrewSpec, layers, stack_min, stack_nominal,
+             stack_max) -> Fastener | None:
     """The shortest clevis pin whose room between head and split pin holds the stack, its
     washer and the allowance on the thickest sheets; shims take up the rest."""
     if spec.pin is None:
@@ -519,8 +641,7 @@ def _pin_set(spec: ScrewSpec, layers, stack_min, stack_max) -> Fastener | None:
     for length in p.lengths:
         room = p.clamp(length) - w.thickness
         if room >= stack_max + spec.allowance - MM_SLACK:
-            washers, pmin, pmax = _shims(spec, room, stack_min, stack_max)
-            shim = spec.shim()
+            counts, pmin, pnom, pmax = _shims(spec, room, stack_min, stack_nominal, stack_max)
             parts = [PartLine(f"pin:{p.name}:{length:g}", "clevis pin", p.pin(length), 1,
                               {"length_mm": length, "diameter_mm": p.diameter,
                                "pin": p.name}),
@@ -529,15 +650,11 @@ def _pin_set(spec: ScrewSpec, layers, stack_min, stack_max) -> Fastener | None:
                                "thickness_mm": w.thickness, "washer": w.name,
                                "over_mm": p.diameter}),
                      PartLine(f"split:{p.name}", "split pin", p.split(), 1,
-                              {"diameter_mm": p.split_pin, "pin": p.name})]
-            if washers:
-                parts.append(PartLine(f"washer:{shim.name}", "washer", shim.description(),
-                                      washers, {"inner_diameter_mm": shim.inner,
-                                                "outer_diameter_mm": shim.outer,
-                                                "thickness_mm": shim.thickness,
-                                                "washer": shim.name, "over_mm": p.diameter}))
+                              {"diameter_mm": p.split_pin, "pin": p.name}),
+                     *_shim_lines(spec, counts, p.diameter)]
             return Fastener("clevis pin", int(layers), float(length), stack_min, stack_max,
-                            washers, pmin, pmax, parts=_merge(parts))
+                            int(sum(counts)), pmin, pmax, parts=_merge(parts),
+                            play_nominal=pnom, shims=_shim_record(spec, counts))
     return None
 
 
@@ -552,10 +669,11 @@ def fit_fastener(spec: ScrewSpec, layers: int, thickness: float, tolerance: floa
     """The fastener of a joint of ``layers`` sheets of ``thickness +- tolerance`` mm.
 
     A Chicago screw of the series when a post is long enough: the shortest post that closes on
-    the thickest sheets (``layers x (t + tol)`` plus the allowance), shims under a head taking
-    up the play while it still closes there; past the longest post, a post with screw-on extensions when
-    the series has them; else a clevis pin of the barrel's diameter (:data:`PINS`) with its
-    washer and split pin, shims taking up the play.
+    the thickest sheets (``layers x (t + tol)`` plus the allowance); past the longest post, a
+    post with screw-on extensions when the series has them; else a clevis pin of the barrel's
+    diameter (:data:`PINS`) with its washer and split pin. Shims under the head take up the
+    play on the nominal sheet to at most :data:`MAX_AXIAL_PLAY` (0.5 mm ones, and a thin
+    one where that is not enough); on the thickest sheets the ones that no longer fit come off.
 
     Raises
     ------
@@ -565,31 +683,35 @@ def fit_fastener(spec: ScrewSpec, layers: int, thickness: float, tolerance: floa
     Examples
     --------
     >>> f = fit_fastener(screw_spec(), 7, 3.0, 0.15)    # 7 sheets may be 22.05 mm
-    >>> f.kind, f.length, f.stack_max, f.washers, round(f.play_max, 2)
-    ('chicago', 25.0, 22.05, 5, 2.55)
-    >>> f = fit_fastener(screw_spec(), 14, 3.0, 0.15)   # 14 sheets may be 44.1 mm
-    >>> f.kind, f.length, f.washers
-    ('clevis pin', 50.0, 4)
+    >>> f.kind, f.length, f.stack_max, f.describe()
+    ('chicago', 25.0, 22.05, 'post 25 mm + 7 x 0.5 + 1 x 0.2 mm shims')
+    >>> round(f.play_nominal, 2), round(f.play_min, 2), round(f.play_max, 2)
+    (0.3, 0.25, 1.35)
+    >>> f = fit_fastener(screw_spec(), 17, 3.0, 0.15)   # 17 sheets may be 53.55 mm
+    >>> f.kind, f.length
+    ('clevis pin', 60.0)
     >>> g = fit_fastener(screw_spec("inch-chicago"), 18, 3.0, 0.15)   # 56.7 mm
     >>> g.kind, inch_text(g.post), [inch_text(e) for e in g.extensions]
     ('chicago+extensions', '2 in', ['1/4 in'])
     """
-    stack_min, stack_max = _stack(layers, thickness, tolerance)
+    stack_min, stack_nominal, stack_max = _stack(layers, thickness, tolerance)
     need = stack_max + spec.allowance
     if need <= spec.lengths[-1] + MM_SLACK:
         length = choose_length(spec, stack_max)
-        washers, pmin, pmax = _shims(spec, length, stack_min, stack_max)
-        return Fastener("chicago", int(layers), length, stack_min, stack_max, washers, pmin,
-                        pmax, parts=_chicago_parts(spec, length, (), washers), unit=spec.unit)
+        counts, pmin, pnom, pmax = _shims(spec, length, stack_min, stack_nominal, stack_max)
+        return Fastener("chicago", int(layers), length, stack_min, stack_max, int(sum(counts)),
+                        pmin, pmax, parts=_chicago_parts(spec, length, (), counts),
+                        unit=spec.unit, play_nominal=pnom, shims=_shim_record(spec, counts))
     found = _with_extensions(spec, need) if spec.extensions else None
     if found is not None:
         post, ext = found
         length = post + sum(ext)
-        washers, pmin, pmax = _shims(spec, length, stack_min, stack_max)
+        counts, pmin, pnom, pmax = _shims(spec, length, stack_min, stack_nominal, stack_max)
         return Fastener("chicago+extensions", int(layers), float(length), stack_min, stack_max,
-                        washers, pmin, pmax, extensions=ext,
-                        parts=_chicago_parts(spec, post, ext, washers), unit=spec.unit)
-    pin = _pin_set(spec, layers, stack_min, stack_max)
+                        int(sum(counts)), pmin, pmax, extensions=ext,
+                        parts=_chicago_parts(spec, post, ext, counts), unit=spec.unit,
+                        play_nominal=pnom, shims=_shim_record(spec, counts))
+    pin = _pin_set(spec, layers, stack_min, stack_nominal, stack_max)
     if pin is not None:
         return pin
     longest = spec.lengths[-1] + MAX_EXTENSIONS * max(spec.extensions, default=0.0)
@@ -619,3 +741,15 @@ def part_lines(fasteners) -> list[PartLine]:
     size = ("post_length_mm", "length_mm", "inner_diameter_mm", "diameter_mm")
     return sorted(merged, key=lambda ln: (order.get(ln.kind, 9),
                                           [float(ln.size.get(k, 0.0)) for k in size], ln.key))
+
+
+def part_family(line: PartLine, spec: ScrewSpec) -> str:
+    """The standard or product family a part line follows (what a buyer searches for)."""
+    if line.kind in ("chicago screw", "extension"):
+        return spec.family
+    if line.kind == "clevis pin":
+        return "ISO 2341 B"
+    if line.kind == "split pin":
+        return "ISO 1234"
+    name = str(line.size.get("washer", ""))
+    return " ".join(name.split()[:2]) if name[:3] in ("DIN", "ISO") else name

@@ -11,6 +11,7 @@ unit) or ``size`` (mm: the largest extent of the network's reference configurati
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 from ..errors import FabricationError
@@ -24,6 +25,8 @@ __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "
 #: mm per design unit when neither ``scale`` nor ``size`` is given: the paper's modules (edges
 #: 0.57-2.8 units) become bars of 57-283 mm, comfortably longer than two 4.2 mm holes.
 DEFAULT_SCALE = 100.0
+#: Narrowest default bar (mm): a bar of the paper's kits.
+_MIN_BAR_WIDTH = 14.0
 #: Most stacking layers accepted by default (a policy, not a limit of the hardware: 24 sheets of
 #: 3 mm are 72 mm, which the catalogue's bolts and Chicago screws with extensions still hold).
 DEFAULT_MAX_LAYERS = 24
@@ -39,12 +42,14 @@ class LaserSettings:
     scale : float
         mm per design unit.
     bar_width : float
-        Width of every bar (its round ends have radius ``bar_width / 2``).
+        Width of every bar (its round ends have radius ``bar_width / 2``; default: the
+        screw's hole plus twice the minimum web, to the half millimetre above, at least 14 mm:
+        14.5 mm for the default 5 mm barrel).
     thickness : float
         Measured sheet thickness: the layer pitch and the basis of screw lengths.
     thickness_tolerance : float
         How far one sheet may differ from ``thickness`` (mm): screws are chosen to close on
-        the thickest stack, with thin washers listed where the play is large.
+        the thickest stack, with shims taking up the play on the nominal sheet.
     kerf : float
         Width of the laser's cut; outlines grow and holes shrink by ``kerf / 2`` (0 when the
         cutting service compensates itself).
@@ -80,7 +85,7 @@ class LaserSettings:
     """
 
     scale: float = DEFAULT_SCALE
-    bar_width: float = 14.0
+    bar_width: float = 14.5
     thickness: float = 3.0
     thickness_tolerance: float = 0.15
     kerf: float = 0.15
@@ -91,7 +96,7 @@ class LaserSettings:
     spacing: float = 3.0
     margin: float = 5.0
     screw: ScrewSpec = field(default_factory=screw_spec)
-    spacer_diameter: float = 13.2
+    spacer_diameter: float = 14.2
     flavour: str = "lwpolyline"
     labels: str = "outlines"
     label_height: float = 3.5
@@ -182,6 +187,9 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
     values["screw"] = screw_spec(merged.get("screw"))
     thickness = values.get("thickness", LaserSettings.thickness)
     values.setdefault("min_web", 1.5 * thickness)
+    # bars wide enough for the screw's hole and the minimum web on both sides
+    values.setdefault("bar_width", max(_MIN_BAR_WIDTH, math.ceil(
+        2.0 * (values["screw"].hole_diameter + 2 * values["min_web"]) - MM_SLACK) / 2.0))
     # spacer rings keep the bars' minimum web around their hole, and cover a screw head
     values.setdefault("spacer_diameter", max(values["screw"].head_diameter,
                                              values["screw"].hole_diameter + 2 * values["min_web"]))

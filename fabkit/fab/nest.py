@@ -71,7 +71,9 @@ class Part:
     labels : list of Label
     bbox : (xmin, ymin, xmax, ymax)
     meta : dict
-        ``bar``, ``joints``, ``layer`` for bars; ``joint``, ``layer`` for spacers.
+        ``bar``, ``joints``, ``layer`` for bars; ``joint``, ``layer`` for spacers. A reference
+        part may carry ``cut`` (True: its outline is cut, not engraved on the REFERENCE
+        layer) and ``hole_radii`` (a drawn radius per hole, in place of ``hole_radius``).
     """
 
     id: str
@@ -151,8 +153,9 @@ def make_parts(bars, stacking, settings) -> list[Part]:
         for z in js.spacers:
             labels = []
             if settings.labels != "none":
-                # "<joint>.<layer>" engraved in the web above the hole, as wide as fits there
-                text = f"{js.joint}.{z}"
+                # "S<joint>.<layer>" engraved in the web above the hole, as wide as fits there:
+                # the name the guide and the bill of materials give the ring
+                text = f"S{js.joint}.{z}"
                 y = r_hole + 0.5 * web
                 half = math.sqrt(max(ring ** 2 - (y + 0.25 * web) ** 2, 0.0))
                 h = min(0.5 * web, 2 * half / (_CHAR_WIDTH * len(text)), settings.label_height)

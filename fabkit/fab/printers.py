@@ -5,6 +5,11 @@ A small catalogue of common printers' beds (:data:`PRINTERS`). The default is ``
 most printers in use. ``[fabrication.print] printer = "mk4"`` (or ``--set print.printer=mk4``)
 chooses another; ``bed = [W, H]`` gives any other bed in mm.
 
+Every profile keeps a margin free along the bed's edges (:attr:`Printer.margin`, 10 mm a side
+unless ``bed_margin`` says otherwise): the slicer's skirt, brim and the support around the parts
+print there, never past the bed (the 3MF asks for a skirt and support that stay inside it,
+:mod:`fabkit.fab.slicer`).
+
 :func:`bed_layout` turns the outlines of the pieces to print into a placement on beds:
 
 1. **orient**: each piece is turned about the vertical axis to the angle (every degree, and
@@ -25,7 +30,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -35,8 +40,11 @@ from ..numerics import MM_SLACK
 __all__ = ["Printer", "PRINTERS", "DEFAULT_PRINTER", "GENERIC_PIN_CLEARANCE", "printer_profile", "Placement",
            "bed_layout", "best_orientation", "chain_pieces", "split_to_fit", "BED_MARGIN"]
 
-#: Distance (mm) kept from the bed's edges.
-BED_MARGIN = 5.0
+#: Distance (mm) kept free along every edge of a bed by default: the slicer's skirt (one loop
+#: 3 mm from the parts, as the 3MF asks), the support around the parts and the first layer's
+#: squish all stay on the bed (PrusaSlicer's own skirt, 6 mm out, ran 1.1 mm past the bed of
+#: parts placed 5 mm from its edges).
+BED_MARGIN = 10.0
 
 
 #: Radial clearance (mm) of a printed pin in its hole when the printer is not known: the 0.3 mm
@@ -51,7 +59,8 @@ class Printer:
     ``pin_clearance`` is the gap (mm) between a printed pin and the hole it turns in that comes
     free after printing on this class of machine (makers' clearance tests with a 0.4 mm nozzle:
     0.2 mm on enclosed, calibrated machines, 0.35 mm on a stock bed-slinger); when the joints of
-    a first print bind or rattle, set ``pin_clearance`` for your machine.
+    a first print bind or rattle, set ``pin_clearance`` for your machine. ``margin`` is kept
+    free along every edge of the bed (mm) for the slicer's skirt, brim and support.
     """
 
     name: str
@@ -60,10 +69,12 @@ class Printer:
     height: float | None
     description: str
     pin_clearance: float = GENERIC_PIN_CLEARANCE
+    margin: float = BED_MARGIN
 
     def as_dict(self) -> dict:
         return {"name": self.name, "bed_mm": [self.width, self.depth], "height_mm": self.height,
-                "description": self.description, "pin_clearance_mm": self.pin_clearance}
+                "description": self.description, "pin_clearance_mm": self.pin_clearance,
+                "margin_mm": self.margin}
 
 
 #: Beds of common printers (makers' data sheets), smallest first.
@@ -81,7 +92,8 @@ PRINTERS: dict[str, Printer] = {p.name: p for p in (
 DEFAULT_PRINTER = "generic"
 
 
-def printer_profile(name=None, bed=None, where: str = "fabrication.print") -> Printer:
+def printer_profile(name=None, bed=None, where: str = "fabrication.print",
+                    margin: float | None = None) -> Printer:
     """A printer from the catalogue, or a custom bed.
 
     Parameters
@@ -92,6 +104,9 @@ def printer_profile(name=None, bed=None, where: str = "fabrication.print") -> Pr
         A custom bed, width and depth in mm (overrides ``name``).
     where : str
         Key path for messages.
+    margin : float, optional
+        Distance kept free along the bed's edges (mm; default the profile's,
+        :data:`BED_MARGIN`).
 
     Returns
     -------
@@ -113,13 +128,22 @@ def printer_profile(name=None, bed=None, where: str = "fabrication.print") -> Pr
             and v > 0 for v in bed)
         if not ok:
             raise FabricationError(f"{where}.bed: must be [width, depth] in mm, got {bed!r}")
-        return Printer("custom", float(bed[0]), float(bed[1]), None,
-                       f"custom bed ({bed[0]:g} x {bed[1]:g} mm)")
-    key = DEFAULT_PRINTER if name is None else name
-    if not isinstance(key, str) or key.lower() not in PRINTERS:
-        raise FabricationError(f"{where}.printer: unknown printer {name!r}; valid: "
-                               f"{', '.join(PRINTERS)} (or give bed = [width, depth] in mm)")
-    return PRINTERS[key.lower()]
+        printer = Printer("custom", float(bed[0]), float(bed[1]), None,
+                          f"custom bed ({bed[0]:g} x {bed[1]:g} mm)")
+    else:
+        key = DEFAULT_PRINTER if name is None else name
+        if not isinstance(key, str) or key.lower() not in PRINTERS:
+            raise FabricationError(f"{where}.printer: unknown printer {name!r}; valid: "
+                                   f"{', '.join(PRINTERS)} (or give bed = [width, depth] in mm)")
+        printer = PRINTERS[key.lower()]
+    if margin is not None:
+        if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0
+                and 2 * margin < min(printer.width, printer.depth)):
+            raise FabricationError(f"{where}.bed_margin: must be at least 0 and leave room on "
+                                   f"the {printer.width:g} x {printer.depth:g} mm bed, got "
+                                   f"{margin!r}")
+        printer = replace(printer, margin=float(margin))
+    return printer
 
 
 def _hull(points) -> np.ndarray:
@@ -201,7 +225,7 @@ def _min_size(points) -> tuple[float, float]:
     return best
 
 
-def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
+def bed_layout(outlines, printer: Printer, *, margin: float | None = None,
                spacing: float = 5.0) -> list[Placement]:
     """Orient each piece and arrange the pieces in rows on as few beds as needed.
 
@@ -210,8 +234,8 @@ def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
     outlines : list of array_like, shape (n_i, 2)
         Each piece's outline points (mm), in its own frame.
     printer : Printer
-    margin : float
-        Distance kept from the bed's edges (mm).
+    margin : float, optional
+        Distance kept from the bed's edges (mm; default the printer's :attr:`Printer.margin`).
     spacing : float
         Gap between pieces (mm).
 
@@ -225,6 +249,7 @@ def bed_layout(outlines, printer: Printer, *, margin: float = 5.0,
     FabricationError
         A piece that fits the bed in no orientation; the message gives the bed it needs.
     """
+    margin = printer.margin if margin is None else float(margin)
     W, H = printer.width - 2 * margin, printer.depth - 2 * margin
     oriented = []
     for k, pts in enumerate(outlines):
@@ -332,7 +357,7 @@ def chain_pieces(net, n_pieces: int) -> list[tuple[np.ndarray, str]]:
             for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def split_to_fit(net, outline, printer: Printer, *, margin: float = BED_MARGIN):
+def split_to_fit(net, outline, printer: Printer, *, margin: float | None = None):
     """The whole network on the bed, or else a chain cut into the fewest runs of modules that fit.
 
     Parameters
@@ -342,7 +367,8 @@ def split_to_fit(net, outline, printer: Printer, *, margin: float = BED_MARGIN):
         ``outline(nodes) -> (k, 2)`` points (mm) bounding the print of those nodes, in its own
         frame.
     printer : Printer
-    margin : float
+    margin : float, optional
+        Distance kept from the bed's edges (default the printer's).
 
     Returns
     -------

@@ -145,6 +145,7 @@ class PrintSettings:
     threemf: bool = True
     printer: str = "generic"
     bed: tuple | None = None
+    bed_margin: float | None = None
     linkage: str = "hinges"
     bar_width: float = PIN_DEFAULTS["bar_width"]
     bar_thickness: float = PIN_DEFAULTS["bar_thickness"]
@@ -161,7 +162,7 @@ class PrintSettings:
         """The :class:`~fabkit.fab.printers.Printer` these settings print on."""
         from .printers import printer_profile
 
-        return printer_profile(self.printer, self.bed)
+        return printer_profile(self.printer, self.bed, margin=self.bed_margin)
 
     @property
     def hinge_thickness(self) -> float:
@@ -322,9 +323,11 @@ def _printer_flags(given: dict, where: str) -> tuple[dict, object]:
     from .printers import DEFAULT_PRINTER, printer_profile
 
     bed = given.get("bed")
-    printer = printer_profile(given.get("printer", DEFAULT_PRINTER), bed, where)
+    printer = printer_profile(given.get("printer", DEFAULT_PRINTER), bed, where,
+                              margin=given.get("bed_margin"))
     return {"printer": printer.name if bed is None else "custom",
             "bed": None if bed is None else (printer.width, printer.depth),
+            "bed_margin": given.get("bed_margin"),
             "preview": given.get("preview", True), "threemf": given.get("threemf", True)}, printer
 
 

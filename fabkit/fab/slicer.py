@@ -9,10 +9,14 @@ PrusaSlicer reads two kinds of settings from a 3MF (2.5, ``src/libslic3r/Format/
   and by "Open as project" in the window, which fills every setting the file leaves out with
   PrusaSlicer's defaults. Material and first layer height exist only there.
 
-So the design's needs go per object wherever PrusaSlicer allows; the project part carries the
-material (and the first layer, so that the printed heights fall on whole layers). Printer, bed
-shape and nozzle are never written: they stay the user's (the report says so, and how to keep
-them when opening the file in the window).
+So the design's needs go per object wherever PrusaSlicer allows, and into the project part as
+well: PrusaSlicer's G-code header lists the project's settings only, so a setting that lives
+per object alone is applied while the header says the default (``perimeters = 3``,
+``support_material = 0``); written in both, the header shows what was applied. The project
+part also carries the material, the first layer (so that the printed heights fall on whole
+layers) and a skirt that stays inside the bed's free margin (one loop, 3 mm out, no brim).
+Printer, bed shape and nozzle are never written: they stay the user's (the report says so, and
+how to keep them when opening the file in the window).
 
 :func:`slicer_settings` gives both parts with the reason for every key; the 3MF writer
 (:func:`fabkit.export.stl.threemf_package`) writes them.
@@ -22,7 +26,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["SlicerSettings", "slicer_settings", "FILAMENTS", "LEFT_TO_USER"]
+__all__ = ["SlicerSettings", "slicer_settings", "FILAMENTS", "LEFT_TO_USER", "SKIRT_DISTANCE"]
+
+#: Distance of the skirt from the parts (mm): well inside the bed's free margin.
+SKIRT_DISTANCE = 3.0
 
 #: Filament settings per material (PrusaSlicer keys): its name for the material, and the middle
 #: of the nozzle and bed temperature ranges filament makers print on their spools (check yours).
@@ -123,10 +130,20 @@ def slicer_settings(s) -> SlicerSettings:
         "first_layer_height": "the first layer as tall as the others, so that the layer "
                               "boundaries fall where the design's heights change",
     }
-    project = {"layer_height": layer, "first_layer_height": layer, **material}
+    margin = s.printer_profile().margin
+    project = {"layer_height": layer, "first_layer_height": layer, **material,
+               "skirts": 1, "skirt_distance": SKIRT_DISTANCE, "skirt_height": 1,
+               "brim_width": 0}
     for key in material:
         reasons[key] = f"the material, {s.material}"
-    per_object = {"layer_height": layer}
+    reasons.update(
+        skirts=f"one skirt loop, {SKIRT_DISTANCE:g} mm from the parts: inside the {margin:g} mm "
+               "kept free along the bed's edges (PrusaSlicer's default skirt, 6 mm out, ran "
+               "past the bed of parts placed 5 mm from its edges)",
+        skirt_distance="see skirts", skirt_height="see skirts",
+        brim_width="no brim: the parts are flat and wide on the bed, and a brim would take "
+                   "the bed's margin")
+    per_object = {"layer_height": layer, "brim_width": 0}
     notes = []
     if s.linkage == "pins":
         per_object.update(perimeters=4, support_material=1, support_material_buildplate_only=1)
@@ -148,6 +165,8 @@ def slicer_settings(s) -> SlicerSettings:
                      "the hinge (PrusaSlicer 2.5, 0.4 mm nozzle): the filament runs the length of "
                      "the hinge, the way it bends best; no perimeter setting changes that, so "
                      "none is written")
+    # the G-code header lists the project's settings: what an object needs is written there too
+    project.update(per_object)
     why = _WHY_MATERIAL[(s.linkage, s.material)].format(limit=s.strain_limit)
     return SlicerSettings(material=s.material, material_reason=why, project=project,
                           per_object=per_object, reasons=reasons, notes=tuple(notes))

@@ -16,10 +16,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .pages import A4, render_pages
-from .plan import MODULES_PER_PAGE, GuidePage, GuidePlan, MotionTest, guide_plan, page_groups
+from .plan import (MODULES_PER_PAGE, GuidePage, GuidePlan, MotionTest, Sheet, guide_plan,
+                   page_groups)
 from .pictures import assembly_picture, motion_picture
 
-__all__ = ["Guide", "guide_pages", "guide_plan", "GuidePlan", "GuidePage", "MotionTest", "A4",
+__all__ = ["Guide", "guide_pages", "guide_plan", "GuidePlan", "GuidePage", "Sheet", "MotionTest", "A4",
            "MODULES_PER_PAGE", "page_groups", "assembly_picture", "motion_picture"]
 
 
@@ -37,7 +38,7 @@ class Guide:
         The text on each page.
     plan : GuidePlan
     stats : dict
-        ``pages``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``.
+        ``pages``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``, ``smallest_pt``.
     """
 
     pdf: bytes

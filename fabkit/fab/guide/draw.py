@@ -38,10 +38,14 @@ class Labeller:
     ----------
     ax : matplotlib.axes.Axes
         Its view limits and aspect must be final.
+    min_size : float
+        No label is shrunk below this size (points); one that finds no free place at it is
+        left out and counted.
     """
 
-    def __init__(self, ax):
+    def __init__(self, ax, min_size: float = 0.0):
         self.ax = ax
+        self.min_size = float(min_size)
         ax.apply_aspect()
         self.renderer = ax.figure.canvas.get_renderer()
         self.boxes, self.placed = [], []
@@ -83,7 +87,9 @@ class Labeller:
         where = self.ax.transData.transform(candidates)
         fx0, fy0, fx1, fy1 = self.ax.bbox.extents
         taken = np.asarray(self.boxes, dtype=np.float64).reshape(-1, 4)
-        for fs in (size, 0.8 * size, 0.65 * size):
+        sizes = sorted({max(f * size, min(self.min_size, size)) for f in (1.0, 0.8, 0.65)},
+                       reverse=True)
+        for fs in sizes:
             # every candidate's box at once: inside the axes (edges included) and touching no
             # box placed (closed boxes, as matplotlib's Bbox.overlaps)
             box = where[:, [0, 1, 0, 1]] + np.asarray(self._extent(text, fs, weight))
@@ -241,7 +247,15 @@ def row_axes(fig, extents, scale: float, left_in: float, top_in: float, gap_in: 
     Returns
     -------
     list of (Axes, Axes or None)
+
+    Raises
+    ------
+    ValueError
+        ``scale`` is not positive (no room for the rows).
     """
+    if not scale > 0:
+        # a page with no room left for its rows (the caller must give them a page of their own)
+        raise ValueError(f"rows need a positive scale, got {scale!r} inches per mm")
     W, H = fig.get_size_inches()
     axes, y = [], top_in
     for x0, y0, x1, y1 in extents:

@@ -13,6 +13,11 @@
    hardware for this page.
 4. **Motion test**: which two joints to push, from what distance to what, what every port
    should read, and pictures of the collapse on its way.
+
+Lists longer than a page continue on the pages that follow (:mod:`.flow`, decided with the
+page numbers in :func:`.plan.guide_plan`); every line is a text of its own at the pitch the
+plan counted, never smaller than :data:`.flow.MIN_PT`. The PDF embeds its fonts (DejaVu, as
+TrueType subsets), so every reader draws the words as they were measured.
 """
 
 from __future__ import annotations
@@ -24,20 +29,19 @@ import numpy as np
 
 from .draw import (Labeller, best_rows, draw_bars, extent, label_bars, label_joints,
                    layer_colour, page_brackets, row_axes)
-from .plan import MEASURABLE_MM, GuidePlan, frame_caption
+from .flow import MIN_PT, STYLES, column_lines
+from .plan import ROOM_PT, GuidePlan, _mods, bar_name, frame_caption
 
-__all__ = ["A4", "render_pages"]
+__all__ = ["A4", "render_pages", "BOTTOM_IN"]
 
 #: A4 portrait, inches (matplotlib's unit).
 A4 = (8.27, 11.69)
 #: Left margin and usable width of a page (inches).
 _LEFT, _WIDTH = 0.55, 7.17
-#: Monospaced text: matplotlib's DejaVu Sans Mono on the page's picture, Courier in the PDF
-#: (see :func:`_save_page`); both 0.6 em a character, so columns line up in either.
+#: Monospaced text (DejaVu Sans Mono, embedded in the PDF), so columns line up.
 _MONO = "monospace"
-#: Characters of the guide's words that the PDF's standard fonts (WinAnsi encoding) lack, and
-#: what the PDF writes instead.
-_PDF_PLAIN = str.maketrans({"→": "->", "−": "-", "≤": "<=", "≥": ">=", "≈": "~"})
+#: Bottom margin of a page (inches): no text is set below it.
+BOTTOM_IN = 0.45
 #: How much of a bar of another page a page shows from the screw that takes it (mm).
 GHOST_STUB_MM = 60.0
 
@@ -46,53 +50,33 @@ def _wrap(text: str, width: int) -> str:
     return "\n".join(textwrap.fill(p, width) if p else "" for p in text.split("\n"))
 
 
-def _save_page(pdf, fig) -> bool:
-    """Add a page to the PDF in the standard fonts of PDF readers (Helvetica, Courier) when
-    every text of it can be written in them, else in the embedded DejaVu fonts; True for the
-    former.
+def _text_top(kind: str) -> float:
+    """Where the text of a page of ``kind`` begins (inches from the top): the room the plan
+    counted above the bottom margin."""
+    return A4[1] - BOTTOM_IN - ROOM_PT[kind] / 72.0
 
-    The standard fonts are named, not embedded, and measured from their metric files: a page of
-    the guide is written in a quarter of the time the embedded fonts take (each glyph laid out,
-    traced and subset), and the PDF is smaller. Text the page's picture shows as ``→`` reads
-    ``->`` in the PDF, and monospaced text is set in Courier Bold (plain Courier's hairline
-    strokes fade at 7.5 pt); a page with a character beyond the standard fonts (a σ in a
-    hardware catalogue's name) keeps the embedded fonts, so nothing is lost.
-    """
-    import logging
 
-    import matplotlib
-    from matplotlib.text import Text
-
-    plain = []
-    for t in fig.findobj(Text):
-        written = t.get_text().translate(_PDF_PLAIN)
-        try:
-            written.encode("cp1252")
-        except UnicodeEncodeError:
-            pdf.savefig(fig)
-            return False
-        plain.append((t, written))
-    changed = []  # (text, its words, its weight), restored after the page is written
-    for t, written in plain:
-        mono = t.get_fontfamily()[0] == _MONO
-        if written != t.get_text() or mono:
-            changed.append((t, t.get_text(), t.get_fontweight()))
-            t.set_text(written)
-            if mono:
-                t.set_fontweight("bold")
-    # the metric files call the regular weight "Medium", which matplotlib reports at each lookup
-    fonts_log = logging.getLogger("matplotlib.font_manager")
-    level = fonts_log.level
-    fonts_log.setLevel(logging.ERROR)
-    try:
-        with matplotlib.rc_context({"pdf.use14corefonts": True}):
-            pdf.savefig(fig)
-    finally:
-        fonts_log.setLevel(level)
-        for t, text, weight in changed:
-            t.set_text(text)
-            t.set_fontweight(weight)
-    return True
+def _draw_blocks(fig, blocks, top_in: float) -> float:
+    """Set blocks from ``top_in`` (inches from the top) down, each line a text of its own at
+    its style's pitch; returns where the text ends (inches from the top)."""
+    H = A4[1]
+    y = top_in
+    for block in blocks:
+        if block.title is not None:
+            size, pitch, _, _ = STYLES["head"]
+            fig.text(_LEFT / A4[0], 1 - y / H, block.title, fontsize=size, weight="bold",
+                     va="top")
+            y += size * pitch / 72.0
+        size, pitch, _, mono = STYLES[block.style]
+        cols = column_lines(block)
+        width = _WIDTH / len(cols) if cols else _WIDTH
+        for c, lines in enumerate(cols):
+            for k, line in enumerate(lines):
+                if line:
+                    fig.text((_LEFT + c * width) / A4[0], 1 - (y + k * size * pitch / 72.0) / H,
+                             line, fontsize=size, va="top", family=_MONO if mono else None)
+        y += max((len(c) for c in cols), default=0) * size * pitch / 72.0 + 6.0 / 72.0
+    return y
 
 
 def _header(fig, title: str, sub: str | None = None):
@@ -105,19 +89,6 @@ def _page_extent(x, edges, bars, r):
     return extent(x[edges[np.asarray(bars)]], 3 * r)
 
 
-def _mods(page) -> str:
-    if not page.modules:
-        return "the whole network"
-    a, b = page.modules[0], page.modules[-1]
-    return f"modules {a}-{b}" if b > a else f"module {a}"
-
-
-def _bottom(fig, artist) -> float:
-    """Figure fraction just below a drawn text."""
-    box = artist.get_window_extent(fig.canvas.get_renderer())
-    return box.y0 / fig.bbox.height - 0.012
-
-
 def _page_spans(x, edges, pages, idx):
     out = []
     for i in idx:
@@ -126,30 +97,46 @@ def _page_spans(x, edges, pages, idx):
     return out
 
 
-def _overview(fig, gp: GuidePlan, plan, x, edges, r, labellers):
+def _title(gp: GuidePlan, sheet) -> str:
+    what = {"overview": "overview", "method": "how to build", "motion": "motion test",
+            "pictures": "motion test, pictures"}
+    if sheet.kind == "module":
+        text = f"{gp.name}: page {sheet.number} of {gp.n_pages}, {_mods(sheet.page)}"
+    else:
+        text = f"{gp.name}: page {sheet.number} of {gp.n_pages}: {what[sheet.kind]}"
+    if not sheet.first:
+        text += f" (continued from page {sheet.number - 1})"
+    return text
+
+
+def _overview(fig, gp: GuidePlan, sheet, plan, x, edges, r, labellers):
     layers = plan.stacking.layer
-    n = gp.n_pages
+    pages = gp.pages
     size = (f"Built size {gp.size_mm[0]:.0f} × {gp.size_mm[1]:.0f} mm (bars and screw heads) "
             f"at the start; the motion test needs {gp.motion_size_mm[0]:.0f} × "
             f"{gp.motion_size_mm[1]:.0f} mm. ")
-    if len(gp.pages) > 1:
+    if len(pages) > 1:
+        where = ("The brackets name the page of this guide that draws each part (p<page>)"
+                 if all(p.modules for p in pages) else
+                 "p<page> marks the page of this guide that draws each part")
         size += (f"Build on a flat table at least {gp.size_mm[0] + 100:.0f} mm long, or in "
-                 "sections (page 2). The brackets name the page of this guide that draws each "
-                 "part (p<page>); red rings mark the screws two pages share: the later page "
-                 "closes them.")
+                 f"sections (page 2). {where}; red rings mark the screws two pages share: the "
+                 "later page closes them.")
     else:
-        size += f"Page {gp.pages[0].number} draws every bar and lists every screw."
-    _header(fig, f"{gp.name}: assembly guide, page 1 of {n}: overview", size)
-    pages = gp.pages
+        size += f"Page {pages[0].number} draws every bar and lists every screw."
+    _header(fig, _title(gp, sheet), size)
     open_j = sorted({j for p in pages for j in p.open_joints})
 
     def row_ext(idx):
         bars = np.concatenate([np.asarray(pages[i].bars) for i in idx])
         return _page_extent(x, edges, bars, r)
 
-    band = 0.42 if len(pages) > 1 else 0.0
-    rows, ext, scale = best_rows(len(pages), row_ext, _WIDTH, 4.6, 0.15, max_scale=1 / 25.4,
-                                 band_in=band)
+    chain = len(pages) > 1 and all(p.modules for p in pages)
+    band = 0.42 if chain else 0.0
+    # the drawing keeps above where the plan's text begins
+    height = _text_top("overview") - 1.25 - 0.2
+    rows, ext, scale = best_rows(len(pages), row_ext, _WIDTH, height, 0.15,
+                                 max_scale=1 / 25.4, band_in=band)
     placed = row_axes(fig, ext, scale, _LEFT, 1.25, 0.15, _WIDTH, band_in=band)
     for row, (ax, strip) in zip(rows, placed):
         bars = np.concatenate([np.asarray(pages[i].bars) for i in row])
@@ -158,30 +145,15 @@ def _overview(fig, gp: GuidePlan, plan, x, edges, r, labellers):
         ax.plot(x[js, 0], x[js, 1], "o", ms=7, mfc="none", mec="#d00000", mew=1.3, zorder=6)
         if strip is not None:
             page_brackets(strip, _page_spans(x, edges, pages, row))
+        elif len(pages) > 1:  # parts of a network: each page's name amid its bars
+            for i in row:
+                c = x[edges[np.asarray(pages[i].bars)]].reshape(-1, 2).mean(axis=0)
+                ax.text(c[0], c[1], f"p{pages[i].number}", ha="center", va="center",
+                        fontsize=9, weight="bold", zorder=8,
+                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="0.3", lw=0.6))
         for side in ax.spines.values():
             side.set_color("0.8")
-    y = placed[-1][0].get_position().y0 - 0.02
-    joins = []
-    for p in pages:
-        later = {}
-        for j, q in sorted(p.open_joints.items()):
-            later.setdefault(q, []).append(f"J{j}")
-        how = "; ".join(f"leaves {', '.join(v)} loose for p{q}" for q, v in sorted(later.items()))
-        joins.append(f"p{p.number}: {_mods(p)}" + (f"; {how}" if how else ""))
-    head = fig.text(_LEFT / A4[0], y, "How the pages join" if len(pages) > 1 else "Pages",
-                    fontsize=9.5, weight="bold", va="top")
-    y = _bottom(fig, head)
-    ncol = 2 if len(joins) > 8 else 1
-    per = int(np.ceil(len(joins) / ncol))
-    fs = 7.5 if per <= 16 else max(5.0, 7.5 * 16 / per)
-    cols = [fig.text(_LEFT / A4[0] + 0.46 * c, y, "\n".join(joins[c * per:(c + 1) * per]),
-                     fontsize=fs, va="top", family=_MONO) for c in range(ncol)]
-    y = min(_bottom(fig, t) for t in cols) - 0.01
-    head = fig.text(_LEFT / A4[0], y, "Kit contents (as laser_bom.md lists them)",
-                    fontsize=9.5, weight="bold", va="top")
-    rows_t = [f"{n:>4} × {name}" for name, n in gp.totals]
-    fig.text(_LEFT / A4[0], _bottom(fig, head), "\n".join(rows_t), fontsize=7.5, va="top",
-             family=_MONO)
+    _draw_blocks(fig, sheet.blocks, _text_top("overview"))
 
 
 def _stack_diagram(ax, plan):
@@ -211,7 +183,7 @@ def _stack_diagram(ax, plan):
                               "head down"),
              *[((k + 0.5) * t, 1.6 if k == 2 else 3.0, text)
                for k, (text, _) in enumerate(parts)],
-             (top + washer, 1.3, "washers the page lists: on top, under the screw head"),
+             (top + washer, 1.3, "shims the page lists: on top, under the screw head"),
              (screw + head / 2, 2.2, "screw: in from above, into the post; snug, not tight")]
     ys = [notes[0][0]]
     for y, _, _ in notes[1:]:
@@ -228,62 +200,19 @@ def _stack_diagram(ax, plan):
     ax.axis("off")
 
 
-def _method(fig, gp: GuidePlan, plan):
-    s = plan.settings
-    _header(fig, f"{gp.name}: page 2 of {gp.n_pages}: how to build")
-    ax = fig.add_axes([_LEFT / A4[0], 0.66, _WIDTH / A4[0], 0.29])
-    _stack_diagram(ax, plan)
-    first, last = gp.pages[0].number, gp.pages[-1].number
-    motion = f" Page {gp.n_pages} is the motion test." if gp.motion is not None else ""
-    if len(gp.pages) > 1:
-        order = (f"Work from page {first} to page {last}, left to right. Each page closes the "
-                 "screws it lists. A joint marked '→p<k>' belongs to a later page: leave the "
-                 "bars that reach it loose (do not thread them) until page k, which draws them "
-                 "hatched and threads them into its stack. Keep the finished part flat on the "
-                 "table and slide it along as the chain grows; support any part that hangs over "
-                 "the edge. Do not lift the chain by one end: the modules fold.")
-    else:
-        order = (f"Page {first} draws every bar and lists every screw: lay the bars out as "
-                 "drawn, then close the screws one by one.")
-    text = (
-        "BEFORE YOU START\n"
-        "Cut the sheets; check that the 100 mm reference square measures 100 mm. Peel the "
-        "protective film. Every bar is engraved B<bar>·L<layer>: sort the bars by the page "
-        "that draws them, and within a page by layer.\n\n"
-        "EVERY SCREW\n"
-        "Stand the post (the barrel) upright, head down. Thread the parts in the order the "
-        "page lists them, bottom first: bars by layer, and a spacer ring (S<joint>.<layer>, "
-        f"{s.spacer_diameter:g} mm, cut from the sheet) where the screw passes a layer with no "
-        "bar. Put the washers the page lists on top, then screw the screw in from above until "
-        "it is snug: the bars must still turn freely. Measure your sheet: on sheets thicker "
-        "than nominal, drop washers where the screw does not reach.\n\n"
-        f"{'A LONG CHAIN, PAGE BY PAGE' if len(gp.pages) > 1 else 'ORDER'}\n{order}\n\n"
-        "CHECK AS YOU GO\n"
-        "After each page, the part built should move freely by hand without forcing; a bar "
-        "that rubs is usually a screw that is too tight or a bar on the wrong layer (check "
-        f"its engraved L<layer>).{motion}")
-    body = fig.text(_LEFT / A4[0], 0.64, _wrap(text, 112), fontsize=8, va="top",
-                    linespacing=1.35)
-    pages = [f"p{p.number}: {_mods(p)}, {len(p.bars)} bars, {len(p.closes)} screws"
-             for p in gp.pages]
-    ncol = 2 if len(pages) > 10 else 1
-    per = int(np.ceil(len(pages) / ncol))
-    head = fig.text(_LEFT / A4[0], _bottom(fig, body) - 0.01, "Pages", fontsize=9.5,
-                    weight="bold", va="top")
-    for c in range(ncol):
-        fig.text(_LEFT / A4[0] + 0.46 * c, _bottom(fig, head),
-                 "\n".join(pages[c * per:(c + 1) * per]), fontsize=7.5, va="top", family=_MONO)
+def _method(fig, gp: GuidePlan, sheet, plan):
+    _header(fig, _title(gp, sheet))
+    if sheet.first:
+        ax = fig.add_axes([_LEFT / A4[0], 0.66, _WIDTH / A4[0], 0.29])
+        _stack_diagram(ax, plan)
+    _draw_blocks(fig, sheet.blocks, _text_top("method" if sheet.first else "continued"))
 
 
-def _module_page(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
-    st, s = plan.stacking, plan.settings
+def _module_drawing(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
+    st = plan.stacking
     layers = st.layer
     by_joint = {js.joint: js for js in st.joints}
     own = np.asarray(page.bars)
-    _header(fig, f"{gp.name}: page {page.number} of {gp.n_pages}, {_mods(page)}",
-            "Bars coloured by layer (0 = bottom), labelled B<bar>·L<layer>; J<joint> = screw. "
-            "Hatched bars belong to the page named on them (p<k>): this page threads them. "
-            "'→p<k>': that screw is closed on page k; leave its bars loose here.")
     ax = fig.add_axes([_LEFT / A4[0], 0.42, _WIDTH / A4[0], 0.50])
     draw_bars(ax, x, edges, page.ghosts, layers, r, ghost=True)
     draw_bars(ax, x, edges, own, layers, r)
@@ -307,14 +236,14 @@ def _module_page(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
     ax.set_aspect("equal")
     ax.set_xticks([])
     ax.set_yticks([])
-    lab = Labeller(ax)
+    lab = Labeller(ax, min_size=MIN_PT)
     texts = [f"J{j}" if j not in page.open_joints else f"J{j}→p{page.open_joints[j]}"
              for j in joints]
     label_joints(lab, x, joints, texts, 8, {j: "#c00000" for j in page.open_joints},
                  {j: "bold" for j in page.open_joints})
-    label_bars(lab, x, edges, own, [f"B{k}·L{int(layers[k])}" for k in own], r)
+    label_bars(lab, x, edges, own, [bar_name(k, int(layers[k])) for k in own], r)
     label_bars(lab, x, edges, page.ghosts,
-               [f"B{k}·L{int(layers[k])} p{page.bar_page[k]}" for k in page.ghosts], r,
+               [f"{bar_name(k, int(layers[k]))} p{page.bar_page[k]}" for k in page.ghosts], r,
                colour="#444444", near=near)
     labellers.append(lab)
     from matplotlib.patches import Rectangle
@@ -324,89 +253,28 @@ def _module_page(fig, gp: GuidePlan, page, plan, x, edges, r, labellers):
                for z in present]
     ax.legend(handles, [f"layer {z}" for z in present], fontsize=7, ncol=min(len(present), 8),
               loc="upper center", bbox_to_anchor=(0.5, -0.005), frameon=False)
-    rows = []
-    for j in page.closes:
-        js = by_joint[j]
-        at = dict(zip(js.layers, js.bars))
-        seq = []
-        for z in range(min(js.layers), max(js.layers) + 1):
-            if z not in at:
-                seq.append(f"S{j}.{z}")
-            elif page.bar_page.get(at[z], page.number) != page.number:
-                seq.append(f"B{at[z]}(L{z},p{page.bar_page[at[z]]})")
-            else:
-                seq.append(f"B{at[z]}(L{z})")
-        fastener = (js.fastener.describe() if js.fastener is not None
-                    else f"post {js.screw_length:g} mm")
-        rows.append(f"J{j}: {' / '.join(seq)}  | {fastener}")
-    head = fig.text(_LEFT / A4[0], 0.375, "Stack at each screw this page closes, bottom to "
-                    f"top (S<joint>.<layer> = spacer ring, {s.spacer_diameter:g} mm):",
-                    fontsize=8.5, weight="bold", va="top")
-    fs = 7 if len(rows) <= 22 else max(4.5, 7 * 22 / len(rows))
-    body = "\n".join(rows)
-    if page.open_joints:
-        later = ", ".join(f"J{j}→p{q}" for j, q in sorted(page.open_joints.items()))
-        body += f"\n\nLeft loose on this page (closed later): {later}"
-    stack = fig.text(_LEFT / A4[0], _bottom(fig, head), body, fontsize=fs, va="top",
-                     family=_MONO)
-    head = fig.text(_LEFT / A4[0], _bottom(fig, stack) - 0.01, "Hardware for this page:",
-                    fontsize=8.5, weight="bold", va="top")
-    fig.text(_LEFT / A4[0], _bottom(fig, head),
-             "\n".join(f"{n:>4} × {name}" for name, n in page.hardware), fontsize=7.5,
-             va="top", family=_MONO)
 
 
-def _motion_page(fig, gp: GuidePlan, plan, edges, r):
+def _module_page(fig, gp: GuidePlan, sheet, plan, x, edges, r, labellers):
+    page = sheet.page
+    if sheet.first:
+        _header(fig, _title(gp, sheet),
+                "Bars coloured by layer (0 = bottom), labelled as engraved, B<bar> L<layer>; "
+                "J<joint> = screw; S<joint>.<layer> = spacer ring "
+                f"({plan.settings.spacer_diameter:g} mm, cut from the sheet). Hatched bars "
+                "belong to the page named on them (p<k>): this page threads them. '→p<k>': that "
+                "screw is closed on page k; leave its bars loose here.")
+        _module_drawing(fig, gp, page, plan, x, edges, r, labellers)
+        _draw_blocks(fig, sheet.blocks, _text_top("module"))
+    else:
+        _header(fig, _title(gp, sheet))
+        _draw_blocks(fig, sheet.blocks, _text_top("continued"))
+
+
+def _motion_pictures(fig, gp: GuidePlan, plan, edges, r, top_in: float):
+    """The motion test's moments, one row each, from ``top_in`` to the bottom margin."""
     m = gp.motion
-    s = plan.settings
-    name = m.drive
     a, b = m.joints
-    push = "Push" if m.end_mm < m.start_mm else "Pull"
-    together = "together" if m.end_mm < m.start_mm else "apart"
-    fol = m.followers
-    order = {"forward": f"one after another, starting next to {name} and travelling away "
-                        "from it",
-             "backward": f"one after another, starting at the far end and travelling towards "
-                         f"{name}",
-             "together": "all together",
-             "mixed": "not in order along the chain (see the table)",
-             "none": "not at all: only the pushed part moves"}[m.order]
-    moved = ", ".join(p[0] for p in fol) or "none"
-    opening = {np.sign(p[2] - p[1]) for p in fol} - {0.0}
-    if len(opening) > 1:
-        order += "; some open while others close"
-    text = (f"{push} joints J{a} and J{b} {together}: their centre-to-centre distance {name} "
-            f"goes from {m.start_mm:.1f} mm to {m.end_mm:.1f} mm. Measure it between the "
-            f"screw posts: the gap between the posts plus {s.screw.barrel_diameter:g} mm (the "
-            f"post diameter). Hold J{a} in place and move J{b} along the line J{a}-J{b}.\n\n"
-            "What you should see: "
-            + (f"the ports that follow move {order}. " if len(fol) > 1 else "")
-            + f"{len(fol)} of the {len(m.ports) - 1} other ports make at least half of their "
-            f"change ({moved}); the table gives where each starts and ends. The pictures below "
-            "show the kit on its way, to one scale, with the pushed pair in red.")
-    if len(m.frames) > 2 and m.order in ("forward", "backward") and len(fol) > 1:
-        away = abs(m.drive_mm[m.frames[len(m.frames) // 2]] - m.end_mm)
-        if away < MEASURABLE_MM:
-            text += (f" Half of them move while {name} is within {MEASURABLE_MM:g} mm of "
-                     f"{m.end_mm:.1f} mm, closer than you can measure: push steadily to the end "
-                     "and watch the collapse run along the chain as you arrive.")
-        else:
-            text += (f" Half of them have moved once {name} is within {away:.2f} mm of its end:"
-                     " go slowly there.")
-    _header(fig, f"{gp.name}: page {gp.n_pages} of {gp.n_pages}: motion test")
-    body = fig.text(_LEFT / A4[0], 0.945, _wrap(text, 118), fontsize=8.3, va="top",
-                    linespacing=1.35)
-    rows = [f"{p[0]:>4}: {p[1]:7.1f} → {p[2]:7.1f} mm" + (" (pushed)" if p[0] == name else "")
-            for p in m.ports]
-    ncol = 1 if len(rows) <= 9 else (2 if len(rows) <= 20 else 3)
-    per = int(np.ceil(len(rows) / ncol))
-    head = fig.text(_LEFT / A4[0], _bottom(fig, body) - 0.005,
-                    "Every port, start → end (centre to centre)", fontsize=9, weight="bold",
-                    va="top")
-    y = _bottom(fig, head)
-    cols = [fig.text(_LEFT / A4[0] + 0.31 * c, y, "\n".join(rows[c * per:(c + 1) * per]),
-                     fontsize=7.2, va="top", family=_MONO) for c in range(ncol)]
-    top_in = (1 - min(_bottom(fig, t) for t in cols)) * A4[1] + 0.25
     frames = list(m.frames)
     pts = m.positions
     used = np.unique(edges)
@@ -414,7 +282,7 @@ def _motion_page(fig, gp: GuidePlan, plan, edges, r):
     x0, x1 = min(e[0] for e in ext), max(e[2] for e in ext)
     ext = [(x0, e[1], x1, e[3]) for e in ext]  # one x range: the held joint stays in place
     title = 0.22
-    height = A4[1] - top_in - 0.45 - title * len(frames)
+    height = A4[1] - top_in - BOTTOM_IN - title * len(frames)
     h = sum(e[3] - e[1] for e in ext)
     scale = min(_WIDTH / (x1 - x0), height / h, 1 / 25.4)
     placed = row_axes(fig, ext, scale, _LEFT, top_in + title, title + 0.02, _WIDTH)
@@ -428,6 +296,14 @@ def _motion_page(fig, gp: GuidePlan, plan, edges, r):
             side.set_color("0.8")
 
 
+def _motion_page(fig, gp: GuidePlan, sheet, plan, edges, r):
+    _header(fig, _title(gp, sheet))
+    top = _text_top("motion" if sheet.first else "continued")
+    end = _draw_blocks(fig, sheet.blocks, top) if sheet.blocks else top
+    if sheet.pictures:
+        _motion_pictures(fig, gp, plan, edges, r, end + 0.1)
+
+
 def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                  check: bool = False):
     """Draw the pages of a guide plan.
@@ -437,6 +313,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     Returns
     -------
     pdf : bytes
+        Fonts embedded (TrueType subsets of DejaVu).
     images : list of bytes
         PNG of every page when ``pngs`` (else of the first page only).
     texts : list of list of str
@@ -444,10 +321,10 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     stats : dict
         ``pages``, ``labels`` placed, ``overlaps`` (pairs of label boxes that overlap, 0),
         ``shrunk``, ``dropped`` (labels with no free place) and ``dropped_on`` (the page of
-        each), ``standard_fonts`` (pages written in the PDF's standard fonts, see
-        :func:`_save_page`); with ``check``, ``clipped`` ((page, text) that does not fit on its
-        page).
+        each), ``smallest_pt`` (the smallest text set on any page); with ``check``,
+        ``clipped`` ((page, text) that does not fit on its page).
     """
+    import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
 
@@ -459,29 +336,40 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     x = plan.design.network.nodes * s.scale
     r = 0.5 * s.bar_width
     stats = {"pages": 0, "labels": 0, "overlaps": 0, "shrunk": 0, "dropped": 0, "dropped_on": [],
-             "clipped": [], "standard_fonts": 0}
+             "clipped": [], "smallest_pt": float("inf")}
     images, texts = [], []
     buf = io.BytesIO()
-    drawers = [lambda fig, labs: _overview(fig, gp, plan, x, edges, r, labs),
-               lambda fig, labs: _method(fig, gp, plan)]
-    for page in gp.pages:
-        drawers.append(lambda fig, labs, page=page: _module_page(fig, gp, page, plan, x, edges,
-                                                                 r, labs))
-    if gp.motion is not None:
-        drawers.append(lambda fig, labs: _motion_page(fig, gp, plan, edges, r))
-    with PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
-                                 "Producer": "fabkit"}) as pdf:
-        for k, draw in enumerate(drawers):
+
+    def drawer(sheet):
+        if sheet.kind == "overview":
+            if sheet.first:
+                return lambda fig, labs: _overview(fig, gp, sheet, plan, x, edges, r, labs)
+            return lambda fig, labs: (_header(fig, _title(gp, sheet)),
+                                      _draw_blocks(fig, sheet.blocks, _text_top("continued")))
+        if sheet.kind == "method":
+            return lambda fig, labs: _method(fig, gp, sheet, plan)
+        if sheet.kind == "module":
+            return lambda fig, labs: _module_page(fig, gp, sheet, plan, x, edges, r, labs)
+        return lambda fig, labs: _motion_page(fig, gp, sheet, plan, edges, r)
+
+    # TrueType (Type 42) subsets: every reader draws the glyphs measured here (a reader that
+    # substitutes a font for an unembedded one sets "S tand" for "Stand")
+    with matplotlib.rc_context({"pdf.fonttype": 42}), \
+            PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
+                                    "Producer": "fabkit"}) as pdf:
+        for k, sheet in enumerate(gp.sheets):
             fig = plt.figure(figsize=A4)
             labellers: list = []
-            draw(fig, labellers)
+            drawer(sheet)(fig, labellers)
             for lab in labellers:
                 stats["overlaps"] += lab.overlaps()
                 for key in ("labels", "shrunk", "dropped"):
                     stats[key] += lab.stats[key]
                 stats["dropped_on"] += [k + 1] * lab.stats["dropped"]
-            texts.append([t.get_text() for t in fig.findobj(Text) if t.get_text()])
-            stats["standard_fonts"] += _save_page(pdf, fig)
+            shown = [t for t in fig.findobj(Text) if t.get_text() and t.get_visible()]
+            texts.append([t.get_text() for t in shown])
+            stats["smallest_pt"] = min([stats["smallest_pt"], *(t.get_fontsize() for t in shown)])
+            pdf.savefig(fig)
             if pngs or k == 0:  # one raster drawing gives the PNG and the clipping check
                 png, clipped = checked_png(fig, dpi=dpi)
                 images.append(png)

@@ -12,7 +12,7 @@ import numpy as np
 
 from .draw import (Labeller, best_rows, draw_bars, extent, label_bars, label_joints,
                    layer_colour, page_brackets, row_axes)
-from .plan import GuidePlan, frame_caption
+from .plan import GuidePlan, bar_name, frame_caption
 
 __all__ = ["assembly_picture", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
 
@@ -89,7 +89,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
             side.set_visible(False)
         lab = Labeller(ax)
         label_joints(lab, x, joints, [f"J{j}" for j in joints], 8)
-        label_bars(lab, x, edges, bars, [f"B{k}·L{int(layers[k])}" for k in bars], r)
+        label_bars(lab, x, edges, bars, [bar_name(k, int(layers[k])) for k in bars], r)
         stats["overlaps"] += lab.overlaps()
         for key in ("labels", "shrunk", "dropped"):
             stats[key] += lab.stats[key]

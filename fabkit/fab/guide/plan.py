@@ -20,8 +20,10 @@ import numpy as np
 
 from ...numerics import MM_SLACK
 
-__all__ = ["MODULES_PER_PAGE", "GuidePlan", "GuidePage", "MotionTest", "guide_plan",
-           "screw_part", "page_groups", "frame_caption", "MEASURABLE_MM"]
+__all__ = ["MODULES_PER_PAGE", "GuidePlan", "GuidePage", "MotionTest", "Sheet", "guide_plan",
+           "screw_part", "page_groups", "frame_caption", "MEASURABLE_MM", "bar_name",
+           "stack_row", "ROOM_PT", "PICTURES_MIN_PT", "motion_sheets",
+           "motion_words", "sheet_advice"]
 
 #: Modules of a chain drawn on one page (two modules of the paper's chain are about 175 mm
 #: wide: true size on A4).
@@ -42,6 +44,20 @@ GEOMETRIC_END = 1e-12
 AGREE_RTOL = 1e-6
 #: Below this distance (mm) a maker cannot tell where the drive is (a caliper's resolution).
 MEASURABLE_MM = 0.01
+#: Height (points) for the text of each kind of page, from where its text begins (below the
+#: overview's drawing, the method's screw diagram, a module page's drawing; below the title of
+#: a page that continues one) to the bottom margin (0.45 in); :mod:`.pages` draws to these.
+ROOM_PT = {"overview": 370.0, "method": 506.0, "module": 283.0, "motion": 763.0,
+           "continued": 750.0}
+#: Size of a module page's drawing (points: the page's width by half its height).
+DRAWING_PT = (7.17 * 72.0, 0.5 * 11.69 * 72.0)
+#: A page's drawing keeps at least this many points per mm: at 1.0 every 7 pt label of the
+#: and-gate's parts finds a free place beside its bar (at 0.6, the whole gate on one page,
+#: 124 of them found none).
+MIN_PT_PER_MM = 1.0
+#: The motion test's pictures need at least this height (points) below its text, else they
+#: get a page of their own.
+PICTURES_MIN_PT = 300.0
 
 
 @dataclass(frozen=True)
@@ -66,6 +82,8 @@ class GuidePage:
         Bar → its page, for this page's bars and ghosts.
     hardware : list of (str, int)
         Part name and count for the joints this page closes.
+    part : (int, int)
+        Which part of a network that is not a chain this page draws, of how many.
     """
 
     number: int
@@ -76,6 +94,36 @@ class GuidePage:
     open_joints: dict
     bar_page: dict
     hardware: list
+    part: tuple = (1, 1)
+
+
+@dataclass(frozen=True)
+class Sheet:
+    """One page of the PDF.
+
+    Attributes
+    ----------
+    number : int
+    kind : str
+        ``"overview"``, ``"method"``, ``"module"``, ``"motion"`` or ``"pictures"`` (the motion
+        test's pictures on a page of their own).
+    blocks : tuple of Block
+        The text the page sets (:mod:`.flow`).
+    first : bool
+        The first page of its kind (or of its module page); False for a page that continues
+        the lists of the one before.
+    page : GuidePage or None
+        The module page it belongs to.
+    pictures : bool
+        The motion test's pictures are drawn on this page.
+    """
+
+    number: int
+    kind: str
+    blocks: tuple
+    first: bool = True
+    page: GuidePage | None = None
+    pictures: bool = False
 
 
 @dataclass(frozen=True)
@@ -146,6 +194,8 @@ class GuidePlan:
     totals : list of (str, int)
         Every part of the kit and how many (from the bill of materials).
     motion : MotionTest or None
+    sheets : list of Sheet
+        Every page of the PDF in order, with the text each sets.
     """
 
     name: str
@@ -156,21 +206,29 @@ class GuidePlan:
     motion_size_mm: tuple
     totals: list
     motion: MotionTest | None
+    sheets: list = field(default_factory=list)
 
     @property
     def n_pages(self) -> int:
-        """Pages in the PDF: overview, method, module pages and the motion test."""
-        return self.first_module_page - 1 + len(self.pages) + (self.motion is not None)
+        """Pages in the PDF: overview, method, module pages and the motion test, each with the
+        pages that continue its lists."""
+        return len(self.sheets)
 
 
-def page_groups(network, per_page: int = MODULES_PER_PAGE) -> list:
+def page_groups(network, per_page: int = MODULES_PER_PAGE, *, scale: float | None = None,
+                radius: float = 0.0) -> list:
     """Bar index groups, one per page, and the modules of each.
+
+    A chain's modules go ``per_page`` to a page. A network that is not a chain is one page
+    when its drawing keeps at least :data:`MIN_PT_PER_MM` on the page (with ``scale``, mm per
+    design unit, and ``radius``, half the bar width, given); else it is cut in two across its
+    longer side, again and again, until every part does (a part of the network per page).
 
     Returns
     -------
     list of (numpy.ndarray, tuple of int)
-        Bars and 1-based module numbers of each page; one group of every bar (no modules)
-        when the network is not a chain.
+        Bars and 1-based module numbers of each page (no modules for a network that is not a
+        chain).
     """
     layout = network.assembly
     n_e = network.n_edges
@@ -182,22 +240,44 @@ def page_groups(network, per_page: int = MODULES_PER_PAGE) -> list:
             return [(np.arange(offsets[c], offsets[min(c + per_page, k)]),
                      tuple(range(c + 1, min(c + per_page, k) + 1)))
                     for c in range(0, k, per_page)]
-    return [(np.arange(n_e), ())]
+    if scale is None:
+        return [(np.arange(n_e), ())]
+    x = np.asarray(network.nodes, dtype=np.float64) * float(scale)
+    edges = np.asarray(network.edges)
+    mid = 0.5 * (x[edges[:, 0]] + x[edges[:, 1]])
+
+    def legible(bars) -> bool:
+        p = x[edges[bars]].reshape(-1, 2)
+        span = p.max(axis=0) - p.min(axis=0) + 6 * radius
+        return min(DRAWING_PT[0] / span[0], DRAWING_PT[1] / span[1]) >= MIN_PT_PER_MM
+
+    def cut(bars) -> list:
+        if len(bars) <= 2 or legible(bars):
+            return [bars]
+        p = mid[bars]
+        axis = int(np.argmax(np.ptp(p, axis=0)))
+        order = bars[np.argsort(p[:, axis], kind="stable")]
+        half = len(order) // 2
+        return cut(np.sort(order[:half])) + cut(np.sort(order[half:]))
+
+    return [(g, ()) for g in cut(np.arange(n_e))]
 
 
 def screw_part(bom: dict, length: float) -> str:
     """The name of the screw with post ``length`` as the bill of materials names it."""
     for entry in bom.get("screws", []):
         if abs(float(entry.get("post_length_mm", -1)) - float(length)) <= MM_SLACK:
-            name = str(entry.get("name", "screw"))
-            return name if f"{length:g}" in name else f"{name}, post {length:g} mm"
+            name = str(entry.get("description") or entry.get("name", "screw"))
+            return f"{name}, post {length:g} mm"
     return f"screw, post {length:g} mm"
 
 
-def _washer_part(bom: dict) -> str:
+def _washer_part(bom: dict, name: str | None = None) -> str:
+    """A shim or washer as the bill of materials names it (the thickest kind by default)."""
     w = bom.get("washers") or {}
-    if w.get("name"):
-        return str(w["name"])
+    name = name or w.get("name")
+    if name:
+        return f"shim ring {name}" if str(name).startswith("DIN 988") else str(name)
     return (f"washer {w.get('inner_diameter_mm', 0):g} mm hole, {w.get('thickness_mm', 0):g} mm"
             " thick")
 
@@ -211,30 +291,63 @@ def _spacer_part(bom: dict) -> str:
 def fastener_part(bom: dict, row: dict) -> str:
     """The fastener of one BOM joint row as the bill of materials names it: the screw's name
     and its post (and extensions), or a clevis pin; shim washers are counted apart."""
-    base = re.sub(r" \+ \d+ washers?$", "", str(row.get("fastener") or ""))
+    base = re.sub(r" \+ [\d x.+ ]+ mm shims$| \+ \d+ washers?$", "",
+                  str(row.get("fastener") or ""))
     if not base:
         return screw_part(bom, float(row["screw_length_mm"]))
     if row.get("fastener_kind") == "clevis pin":
         return base
-    name = str(((bom.get("screws") or [{}])[0]).get("name", "Chicago screw"))
+    screw = (bom.get("screws") or [{}])[0]
+    name = str(screw.get("description") or screw.get("name", "Chicago screw"))
     return f"{name}, {base}"
+
+
+def _natural(text: str) -> tuple:
+    """Sort key reading the numbers in a text as numbers ("post 7 mm" before "post 10 mm")."""
+    return tuple((0, float(p), "") if re.fullmatch(r"\d+(\.\d+)?", p) else (1, 0.0, p)
+                 for p in re.split(r"(\d+(?:\.\d+)?)", text) if p)
 
 
 def _hardware(bom: dict, joints) -> list:
     """Part name and count for a set of BOM joint rows."""
     fasteners: dict[str, int] = {}
-    washers = spacers = 0
+    shims: dict[str, int] = {}
+    spacers = 0
     for j in joints:
         part = fastener_part(bom, j)
         fasteners[part] = fasteners.get(part, 0) + 1
-        washers += int(j.get("washers", 0))
+        kinds = j.get("shims")
+        if kinds is None and j.get("washers"):  # a bill of materials without shim kinds
+            kinds = [[None, 0, int(j["washers"])]]
+        for name, _, n in kinds or []:
+            key = _washer_part(bom, name)
+            shims[key] = shims.get(key, 0) + int(n)
         spacers += int(j.get("spacers", 0))
-    out = sorted(fasteners.items())
-    if washers:
-        out.append((_washer_part(bom), washers))
+    out = sorted(fasteners.items(), key=lambda kv: _natural(kv[0]))
+    out += [(name, n) for name, n in shims.items() if n]
     if spacers:
         out.append((_spacer_part(bom), spacers))
     return out
+
+
+def sheet_advice(bom: dict) -> str:
+    """What to change for sheet thinner or thicker than the kit was planned for."""
+    st = bom.get("settings") or {}
+    t, tol = float(st.get("thickness", 3.0)), float(st.get("thickness_tolerance", 0.0))
+    w = bom.get("washers") or {}
+    wt = float(w.get("thickness_mm", 0.5) or 0.5)
+    name = _washer_part(bom)
+    deepest = max((len(j.get("bottom_to_top", [])) for j in bom.get("joints", [])), default=1)
+    play = float((bom.get("axial_play") or {}).get("nominal_max_mm", 0.5))
+    return (f"The posts and shims are counted for {t:g} mm sheet: a stack of n layers is "
+            f"n × {t:g} mm, and the shims leave at most {play:.1f} mm of play on it. Measure "
+            "your sheet with calipers. Every 0.1 mm a sheet is thicker makes a stack of n "
+            f"layers n × 0.1 mm taller (your deepest stack, {deepest} layers, "
+            f"{0.1 * deepest:.1f} mm): take one {wt:g} mm shim ({name}) off for every {wt:g} "
+            f"mm a stack grows; on thinner sheet put one more on for every {wt:g} mm it "
+            f"shrinks (the spares are in the order). The posts close on sheets up to "
+            f"{t + tol:g} mm; for thicker sheet, export again with laser.thickness set to "
+            "what you measured.")
 
 
 def _totals(bom: dict) -> list:
@@ -247,7 +360,9 @@ def _totals(bom: dict) -> list:
     out.append(("bars (cut from the sheets)", len(bom.get("bars", []))))
     out += [(screw_part(bom, s["post_length_mm"]), int(s["count"])) for s in bom.get("screws", [])]
     w = bom.get("washers") or {}
-    if w.get("count"):
+    if w.get("kinds"):
+        out += [(_washer_part(bom, k["name"]), int(k["count"])) for k in w["kinds"]]
+    elif w.get("count"):
         out.append((_washer_part(bom), int(w["count"])))
     sp = bom.get("spacer_rings") or {}
     if sp.get("count"):
@@ -360,8 +475,200 @@ def _size(x: np.ndarray, edges: np.ndarray, margin: float) -> tuple:
     return float(span[0]), float(span[1])
 
 
+def bar_name(bar: int, layer: int) -> str:
+    """A bar as it is engraved (the start of its engraving ``B<bar> L<layer> J<i>-<j>``)."""
+    return f"B{bar} L{layer}"
+
+
+def stack_row(js, page: GuidePage, fastener: str) -> str:
+    """One screw's stack, bottom to top, as a builder reads it on the page that closes it:
+    ``J2: B15 L0 / B5 L1 (p3) / S2.2 / B10 L3 | post 25 mm + 2 washers``."""
+    at = dict(zip(js.layers, js.bars))
+    seq = []
+    for z in range(min(js.layers), max(js.layers) + 1):
+        if z not in at:
+            seq.append(f"S{js.joint}.{z}")
+        elif page.bar_page.get(at[z], page.number) != page.number:
+            seq.append(f"{bar_name(at[z], z)} (p{page.bar_page[at[z]]})")
+        else:
+            seq.append(bar_name(at[z], z))
+    return f"J{js.joint}: {' / '.join(seq)}  | {fastener}"
+
+
+def _mods(page: GuidePage) -> str:
+    if not page.modules:
+        return ("the whole network" if page.part[1] <= 1 else
+                f"part {page.part[0]} of {page.part[1]} of the network")
+    a, b = page.modules[0], page.modules[-1]
+    return f"modules {a}-{b}" if b > a else f"module {a}"
+
+
+def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
+    from .flow import Block
+
+    rows = []
+    for j in page.closes:
+        js = stacks[j]
+        fastener = (js.fastener.describe() if js.fastener is not None
+                    else f"post {js.screw_length:g} mm")
+        rows.append(stack_row(js, page, fastener))
+    blocks = [Block("Stacks of the screws this page closes, bottom to top", tuple(rows))]
+    if page.open_joints:
+        later = ", ".join(f"J{j}→p{q}" for j, q in sorted(page.open_joints.items()))
+        blocks.append(Block(None, (f"Left loose on this page (closed later): {later}",),
+                            style="body"))
+    blocks.append(Block("Hardware for this page:",
+                        tuple(f"{n:>4} × {name}" for name, n in page.hardware)))
+    return blocks
+
+
+def _overview_blocks(pages: list, totals: list) -> list:
+    from .flow import Block
+
+    joins = []
+    for p in pages:
+        later: dict = {}
+        for j, q in sorted(p.open_joints.items()):
+            later.setdefault(q, []).append(f"J{j}")
+        how = "; ".join(f"leaves {', '.join(v)} loose for p{q}" for q, v in sorted(later.items()))
+        joins.append(f"p{p.number}: {_mods(p)}" + (f"; {how}" if how else ""))
+    return [Block("How the pages join" if len(pages) > 1 else "Pages", tuple(joins),
+                  columns=2 if len(joins) > 8 else 1),
+            Block("Kit contents (as laser_bom.md lists them)",
+                  tuple(f"{n:>4} × {name}" for name, n in totals))]
+
+
+def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: str) -> list:
+    from .flow import Block
+
+    first, last = pages[0].number, pages[-1].number
+    if len(pages) > 1:
+        order = (f"Work from page {first} to page {last}, left to right. Each page closes the "
+                 "screws it lists (a page with more screws than fit continues on the next). A "
+                 "joint marked '→p<k>' belongs to a later page: leave the bars that reach it "
+                 "loose (do not thread them) until page k, which draws them hatched and threads "
+                 "them into its stack. Keep the finished part flat on the table and slide it "
+                 "along as the chain grows; support any part that hangs over the edge. Do not "
+                 "lift the chain by one end: the modules fold.")
+    else:
+        order = (f"Page {first} draws every bar and lists every screw: lay the bars out as "
+                 "drawn, then close the screws one by one.")
+    motion = f" Page {motion_page} is the motion test." if motion_page else ""
+    sections = [
+        ("BEFORE YOU START",
+         "Cut the test coupon first (laser_coupon.md). Cut the sheets; check that the 100 mm "
+         "reference square measures 100 mm. Peel the protective film. Every bar is engraved "
+         "B<bar> L<layer> J<joint>-<joint> (short bars B<bar> L<layer>), every spacer ring "
+         "S<joint>.<layer>: sort the bars by the page that draws them, and within a page by "
+         "layer."),
+        ("EVERY SCREW",
+         "Stand the post (the barrel) upright, head down. Thread the parts in the order the "
+         "page lists them, bottom first: bars by layer, and a spacer ring (S<joint>.<layer>, "
+         f"{settings.spacer_diameter:g} mm, cut from the sheet) where the screw passes a layer "
+         "with no bar. Put the shims the page lists on top, then screw the screw in from "
+         "above until it is snug: the bars must still turn freely."),
+        ("YOUR SHEET", sheet_text),
+        ("A LONG CHAIN, PAGE BY PAGE" if len(pages) > 1 else "ORDER", order),
+        ("CHECK AS YOU GO",
+         "After each page, the part built should move freely by hand without forcing; a bar "
+         "that rubs is usually a screw that is too tight or a bar on the wrong layer (check "
+         f"its engraved L<layer>).{motion}"),
+    ]
+    blocks = [Block(head, (text,), style="body") for head, text in sections]
+    rows = [f"p{p.number}: {_mods(p)}, {len(p.bars)} bars, {len(p.closes)} screws"
+            for p in pages]
+    blocks.append(Block("Pages", tuple(rows), columns=2 if len(rows) > 10 else 1))
+    return blocks
+
+
+def motion_words(m: MotionTest, barrel: float) -> str:
+    """What the motion test asks of the maker and what to expect, in words."""
+    name = m.drive
+    a, b = m.joints
+    push = "Push" if m.end_mm < m.start_mm else "Pull"
+    together = "together" if m.end_mm < m.start_mm else "apart"
+    fol = m.followers
+    order = {"forward": f"one after another, starting next to {name} and travelling away "
+                        "from it",
+             "backward": f"one after another, starting at the far end and travelling towards "
+                         f"{name}",
+             "together": "all together",
+             "mixed": "not in order along the chain (see the table)",
+             "none": "not at all: only the pushed part moves"}[m.order]
+    names = [p[0] for p in fol]
+    # a long chain's list is shortened: the table below gives every port
+    moved = (", ".join(names) if len(names) <= 12 else
+             ", ".join(names[:5]) + f", ... ({len(names) - 7} more) ..., " + ", ".join(names[-2:]))
+    moved = moved or "none"
+    opening = {np.sign(p[2] - p[1]) for p in fol} - {0.0}
+    if len(opening) > 1:
+        order += "; some open while others close"
+    text = (f"{push} joints J{a} and J{b} {together}: their centre-to-centre distance {name} "
+            f"goes from {m.start_mm:.1f} mm to {m.end_mm:.1f} mm. Measure it between the "
+            f"screw posts: the gap between the posts plus {barrel:g} mm (the post diameter). "
+            f"Hold J{a} in place and move J{b} along the line J{a}-J{b}. What you should see: "
+            + (f"the ports that follow move {order}. " if len(fol) > 1 else "")
+            + f"{len(fol)} of the {len(m.ports) - 1} other ports make at least half of their "
+            f"change ({moved}); the table gives where each starts and ends. The pictures "
+            "show the kit on its way, to one scale, with the pushed pair in red.")
+    if len(m.frames) > 2 and m.order in ("forward", "backward") and len(fol) > 1:
+        away = abs(m.drive_mm[m.frames[len(m.frames) // 2]] - m.end_mm)
+        if away < MEASURABLE_MM:
+            text += (f" Half of them move while {name} is within {MEASURABLE_MM:g} mm of "
+                     f"{m.end_mm:.1f} mm, closer than you can measure: push steadily to the end "
+                     "and watch the collapse run along the chain as you arrive.")
+        else:
+            text += (f" Half of them have moved once {name} is within {away:.2f} mm of its end:"
+                     " go slowly there.")
+    return text
+
+
+def _motion_blocks(m: MotionTest, barrel: float) -> list:
+    from .flow import Block
+
+    rows = [f"{p[0]:>4}: {p[1]:7.1f} → {p[2]:7.1f} mm" + (" (pushed)" if p[0] == m.drive else "")
+            for p in m.ports]
+    return [Block(None, (motion_words(m, barrel),), style="body"),
+            Block("Every port, start → end (centre to centre)", tuple(rows),
+                  columns=1 if len(rows) <= 9 else (2 if len(rows) <= 20 else 3))]
+
+
+def motion_sheets(m: MotionTest, barrel: float, number: int) -> list:
+    """The pages of the motion test from page ``number`` on: its words and the table of every
+    port (continued as long as it runs), then its pictures below the table when at least
+    :data:`PICTURES_MIN_PT` is left there, else on a page of their own.
+
+    Parameters
+    ----------
+    m : MotionTest
+    barrel : float
+        The post's diameter (mm), to measure the drive between the posts.
+    number : int
+        Page number of the test's first page.
+
+    Returns
+    -------
+    list of Sheet
+    """
+    from .flow import block_height, flow
+
+    parts = flow(_motion_blocks(m, barrel), ROOM_PT["motion"], ROOM_PT["continued"])
+    room = ROOM_PT["motion"] if len(parts) == 1 else ROOM_PT["continued"]
+    own = room - sum(block_height(b) for b in parts[-1]) < PICTURES_MIN_PT
+    out = [Sheet(number + k, "motion", tuple(b), k == 0,
+                 pictures=not own and k == len(parts) - 1) for k, b in enumerate(parts)]
+    if own:
+        out.append(Sheet(number + len(parts), "pictures", (), False, pictures=True))
+    return out
+
+
 def guide_plan(plan, bom: dict) -> GuidePlan:
     """Decide the pages of a laser kit's assembly guide.
+
+    Every list is cut into pages where it runs out of room (:func:`.flow.flow`), so the
+    page numbers (a page's own, and those the pages give each other) are decided here,
+    before anything is drawn: they are settled by laying the pages out again until they no
+    longer change (a number's digits may move a line to the next page).
 
     Parameters
     ----------
@@ -374,33 +681,71 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     -------
     GuidePlan
     """
+    from ...errors import FabricationError
+    from .flow import flow
+
     net = plan.design.network
-    edges = np.asarray(plan.bars.edges)
-    groups = page_groups(net)
-    first = 3  # page 1: overview, page 2: how to build
-    page_of_bar = np.empty(edges.shape[0], dtype=np.int64)
-    for k, (bars, _) in enumerate(groups):
-        page_of_bar[bars] = first + k
-    stacks = {js.joint: js for js in plan.stacking.joints}
-    closing = {j: int(max(page_of_bar[b] for b in js.bars)) for j, js in stacks.items()}
-    bom_joint = {int(j["joint"]): j for j in bom.get("joints", [])}
-    pages = []
-    for k, (bars, modules) in enumerate(groups):
-        number = first + k
-        joints = sorted({int(j) for j in edges[bars].ravel() if int(j) in stacks})
-        closes = tuple(j for j in joints if closing[j] == number)
-        ghosts = tuple(sorted({int(b) for j in closes for b in stacks[j].bars
-                               if page_of_bar[b] != number}))
-        open_joints = {j: closing[j] for j in joints if closing[j] != number}
-        bar_page = {int(b): number for b in bars}
-        bar_page.update({b: int(page_of_bar[b]) for b in ghosts})
-        hardware = _hardware(bom, [bom_joint[j] for j in closes if j in bom_joint])
-        pages.append(GuidePage(number, modules, tuple(int(b) for b in bars), closes, ghosts,
-                               open_joints, bar_page, hardware))
     s = plan.settings
+    edges = np.asarray(plan.bars.edges)
+    groups = page_groups(net, scale=s.scale, radius=0.5 * s.bar_width)
+    stacks = {js.joint: js for js in plan.stacking.joints}
+    bom_joint = {int(j["joint"]): j for j in bom.get("joints", [])}
+    totals = _totals(bom)
+    motion = _motion_test(plan)
+    sheet_text = sheet_advice(bom)
+    # pages each part takes: start from one each and lay out until the numbers settle
+    n_over, n_method, n_group = 1, 1, [1] * len(groups)
+    for _ in range(8):
+        first = 1 + n_over + n_method
+        starts = np.concatenate([[first], first + np.cumsum(n_group)]).astype(int)
+        page_of_bar = np.empty(edges.shape[0], dtype=np.int64)
+        for k, (bars, _) in enumerate(groups):
+            page_of_bar[bars] = starts[k]
+        closing = {j: int(max(page_of_bar[b] for b in js.bars)) for j, js in stacks.items()}
+        pages = []
+        for k, (bars, modules) in enumerate(groups):
+            number = int(starts[k])
+            joints = sorted({int(j) for j in edges[bars].ravel() if int(j) in stacks})
+            closes = tuple(j for j in joints if closing[j] == number)
+            ghosts = tuple(sorted({int(b) for j in closes for b in stacks[j].bars
+                                   if page_of_bar[b] != number}))
+            open_joints = {j: closing[j] for j in joints if closing[j] != number}
+            bar_page = {int(b): number for b in bars}
+            bar_page.update({b: int(page_of_bar[b]) for b in ghosts})
+            hardware = _hardware(bom, [bom_joint[j] for j in closes if j in bom_joint])
+            pages.append(GuidePage(number, modules, tuple(int(b) for b in bars), closes,
+                                   ghosts, open_joints, bar_page, hardware,
+                                   (k + 1, len(groups))))
+        motion_page = int(starts[-1]) if motion is not None else None
+        laid = {"overview": flow(_overview_blocks(pages, totals), ROOM_PT["overview"],
+                                 ROOM_PT["continued"]),
+                "method": flow(_method_blocks(pages, s, motion_page, sheet_text),
+                               ROOM_PT["method"], ROOM_PT["continued"]),
+                "module": [flow(_module_blocks(p, stacks, s), ROOM_PT["module"],
+                                ROOM_PT["continued"]) for p in pages]}
+        counts = (len(laid["overview"]), len(laid["method"]), [len(m) for m in laid["module"]])
+        if counts == (n_over, n_method, n_group):
+            break
+        n_over, n_method, n_group = counts
+    else:  # pragma: no cover - numbers a digit longer move at most a few lines, once
+        raise FabricationError(f"the pages of {plan.design.name}'s guide did not settle: "
+                               "their numbers kept moving lines between pages")
+    sheets: list = []
+
+    def add(kind, blocks, first, page=None, pictures=False):
+        sheets.append(Sheet(len(sheets) + 1, kind, tuple(blocks), first, page, pictures))
+
+    for kind in ("overview", "method"):
+        for k, b in enumerate(laid[kind]):
+            add(kind, b, k == 0)
+    for p, parts in zip(pages, laid["module"]):
+        for k, b in enumerate(parts):
+            add("module", b, k == 0, p)
+    if motion is not None:
+        sheets += motion_sheets(motion, s.screw.barrel_diameter, len(sheets) + 1)
     margin = 0.5 * max(s.bar_width, s.screw.head_diameter)
     x0 = net.nodes * s.scale
-    motion = _motion_test(plan)
     moving = motion.positions if motion is not None else x0
-    return GuidePlan(plan.design.name, pages, first, closing, _size(x0, edges, margin),
-                     _size(moving, edges, margin), _totals(bom), motion)
+    return GuidePlan(plan.design.name, pages, int(starts[0]), closing,
+                     _size(x0, edges, margin), _size(moving, edges, margin), totals, motion,
+                     sheets)
