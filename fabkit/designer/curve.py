@@ -204,7 +204,7 @@ def chain_plan(module_size: float) -> dict:
     --------
     >>> p = chain_plan(50.0)
     >>> round(p["scale"], 2), p["lowest_apex_deg"], p["turn_deg"]
-    (77.27, 51.0, 32.0)
+    (77.33, 51.0, 32.0)
     """
     p = _plan(module_size)
     return {"module_size": module_size, "scale": p.scale, "min_joint": p.min_joint,

@@ -33,6 +33,8 @@ COARSE = 10
 #: fraction of the radius from the fitted circle (RMS), over at least ``MIN_ARC_DEG``.
 ARC_RTOL = 0.01
 MIN_ARC_DEG = 5.0
+#: A curve whose ends are this close (fraction of its size) is closed: it has no chord.
+CLOSED_RTOL = 0.01
 
 
 def arclength(points) -> np.ndarray:
@@ -258,8 +260,9 @@ def turning(points) -> float:
 
 
 def describe_curve(points) -> dict:
-    """What describes a curve's proportions: its length, chord, size (bounding-box diagonal),
-    total turn, and, only when it is a circular arc (points within ``ARC_RTOL`` of the radius
+    """What describes a curve's proportions: its length, size (bounding-box diagonal), total
+    turn, its chord unless it is closed (ends within ``CLOSED_RTOL`` of its size), and, only
+    when it is a circular arc (points within ``ARC_RTOL`` of the radius
     from a circle, over at least ``MIN_ARC_DEG``), that circle's radius and sweep.
 
     Examples
@@ -268,8 +271,13 @@ def describe_curve(points) -> dict:
     ['chord', 'length', 'size', 'turn_deg']
     """
     p = np.asarray(points, dtype=np.float64)
-    out = {"length": float(arclength(p)[-1]), "chord": float(np.linalg.norm(p[-1] - p[0])),
-           "size": curve_size(p), "turn_deg": math.degrees(turning(p))}
+    out = {"length": float(arclength(p)[-1]), "size": curve_size(p),
+           "turn_deg": math.degrees(turning(p))}
+    chord = float(np.linalg.norm(p[-1] - p[0]))
+    if chord > CLOSED_RTOL * out["size"]:
+        out["chord"] = chord
+    else:
+        out["closed"] = True
     if len(p) >= 3:
         r, _, sweep, residual = circle_fit(p)
         if (math.isfinite(r) and r > 0 and residual <= ARC_RTOL * r

@@ -237,9 +237,10 @@ def fit_lines(errors: dict, props: dict) -> list[str]:
     if "nodes_mean" in errors:
         out.append(f"designed nodes (the zigzag of the ports): {errors['nodes_mean']:.3f} mm "
                    f"from the curve on average ({100 * errors['nodes_mean_fraction']:.2g} %)")
+    chord = (f"chord {c['chord']:.2f} / {ch.get('chord', 0.0):.2f} mm" if "chord" in c
+             else "closed")
     out.append(f"length: curve {c['length']:.2f} mm, chain centre line {ch['length']:.2f} mm; "
-               f"chord {c['chord']:.2f} / {ch['chord']:.2f} mm; turn {c['turn_deg']:.1f} / "
-               f"{ch['turn_deg']:.1f} deg")
+               f"{chord}; turn {c['turn_deg']:.1f} / {ch['turn_deg']:.1f} deg")
     if "circle_radius" in c and "circle_radius" in ch:
         out.append(f"fitted circle: curve r = {c['circle_radius']:.2f} mm over "
                    f"{c['circle_sweep_deg']:.2f} deg, chain r = {ch['circle_radius']:.2f} mm "
