@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import DesignError
+from ..errors import DesignError, FabkitError
 from ..network import Network
 from .curvature import APEX_RANGE_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG, design_curvature_type, \
     lowest_apex
@@ -91,6 +91,8 @@ TURN_SHARE = 0.8
 #: enlargement of the drawing sought.
 SIZE_FACTORS = (0.9, 0.8, 0.7, 0.6, 0.5)
 MAX_CURVE_SCALE = 1000.0
+#: A suggestion must fit within this share of the tolerances.
+SUGGEST_SHARE = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -401,15 +403,17 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
              end_tolerance: float, progress, stop) -> str | None:
     """The nearest wish that builds: a smaller module size, else the smallest enlargement of
     the drawing at this module size. Each is computed in the zigzag model first (cheap), and
-    the first that fits there is designed in full (the suggestion is one that was built)."""
+    the first that fits there within ``SUGGEST_SHARE`` of the tolerances (a suggestion is not
+    a knife edge) is designed in full: the suggestion is one that was built."""
     def builds(c, m) -> bool:
         _say(progress, f"trying --module-size {m:g}" + ("" if c is curve else
                                                         f" with the drawing {c.length / curve.length:.4g}x larger"))
         try:
-            design_curve_chain(c, module_size=m, types=types, beam=beam, tolerance=tolerance,
-                               end_tolerance=end_tolerance, progress=None, _suggest=False,
-                               _stop=stop)
-        except WishError:
+            design_curve_chain(c, module_size=m, types=types, beam=beam,
+                               tolerance=SUGGEST_SHARE * tolerance,
+                               end_tolerance=SUGGEST_SHARE * end_tolerance, progress=None,
+                               _suggest=False, _stop=stop)
+        except FabkitError:
             return False
         return True
 
@@ -420,13 +424,20 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
         if plan.low is None:
             return False
         model = _model(c, plan, types, beam, stop)
-        return model is not None and model.fits(tolerance, end_tolerance)
+        return model is not None and model.fits(SUGGEST_SHARE * tolerance,
+                                                SUGGEST_SHARE * end_tolerance)
 
     smallest = smallest_module_size()
     for f in SIZE_FACTORS:
         m = float(f"{module_size * f:.3g}")
         if m < smallest:
             break
+        # smaller modules are offered only where they follow the curve's turns (they turn
+        # less sharply themselves: their joints leave fewer apex angles); corners and turns
+        # too sharp for any of them are for an enlargement
+        p = _plan(m)
+        if p.low is None or math.degrees(needed_turn(curve.points, m)) > TURN_SHARE * p.turn_deg:
+            continue
         _say(progress, f"modelling --module-size {m:g}")
         if model_fits(curve, m) and builds(curve, m):
             return f"--module-size {m:g}"
