@@ -9,9 +9,12 @@ The curve (mm) and the module size (mm per module along the curve) fix everythin
    ``APEX_RANGE_DEG`` (small modules leave fewer, and so turn less sharply);
 2. :func:`~fabkit.designer.sequence.track` chooses every module's final apex angle on a grid
    of one degree over that range: the zigzag of the chain follows the curve end to end, turning
-   as fast as its apex angles allow where the curve turns faster (a corner is cut);
+   as fast as its apex angles allow where the curve turns faster (a corner is cut), and
+   :func:`~fabkit.designer.sequence.refine` lets every angle take any value in the range
+   (least squares on the distances to the curve; with one module more and one fewer too);
 3. the angles are binned into a few module types (:func:`~fabkit.designer.sequence.bin_apexes`,
-   as few as keep the fit, or ``types``) and the chain tracked again with the types only;
+   as few as keep the fit, or ``types``), each module takes the type that reproduces the
+   refined chain, and the types' angles are refitted to the curve;
 4. one curvature module is designed per type (:func:`design_curvature_type`), its joints kept
    ``MIN_JOINT_MM`` apart at the kit's scale;
 5. the chain is built from the written module templates, traced to its final state

@@ -250,13 +250,24 @@ def circle_fit(points) -> tuple[float, np.ndarray, float, float]:
 
 
 def turning(points) -> float:
-    """Total signed turn (radians) of a polyline's direction, first segment to last."""
+    """Total signed turn (radians) of the curve a polyline samples, end to end: the turns
+    between its segments, plus half the first and half the last for the stretches from the
+    ends to the middle of the first and last segment (a chain's centre line, a point per
+    module, would otherwise miss a module's worth of an arc's turn).
+
+    Examples
+    --------
+    >>> t = np.linspace(0, np.pi, 17)
+    >>> round(float(np.degrees(turning(np.column_stack([np.cos(t), np.sin(t)])))), 6)
+    180.0
+    """
     d = np.diff(np.asarray(points, dtype=np.float64), axis=0)
     d = d[np.linalg.norm(d, axis=1) > 0]
     if len(d) < 2:
         return 0.0
     cross = d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0]
-    return float(np.sum(np.arctan2(cross, np.sum(d[:-1] * d[1:], axis=1))))
+    turns = np.arctan2(cross, np.sum(d[:-1] * d[1:], axis=1))
+    return float(np.sum(turns) + 0.5 * (turns[0] + turns[-1]))
 
 
 def describe_curve(points) -> dict:

@@ -8,20 +8,26 @@ turns by half the difference of neighbouring apex angles. So the apex angles set
 a chain advances and how fast it turns: the widest spread of apex angles sets the sharpest turn
 (a chain turns by at most the spread per two modules).
 
-:func:`track` follows a curve with a beam search over the apex angles on offer. Every partial
-chain carries its progress along the curve: the arclength of the closest curve point, sought
-among the points a little behind to a few modules ahead of the last one (a chain may cut a
-corner it cannot turn, and never jumps to another pass of a curve that crosses itself). A
-partial chain costs the squared distance of its centre-line points to the curve, its heading
-error times its step (squared), a lag (moving without progress) and, to break ties on straight
-stretches, a small pull toward the reference apex angle; it is finished when its progress
-reaches the curve's end, where its distance to the end is added. Neighbours must average
-``MIN_PAIR_APEX_DEG`` (laser kits, :mod:`fabkit.designer.curvature`).
+* :func:`track` follows a curve with a beam search over the apex angles on offer. Every partial
+  chain carries its progress along the curve: the arclength of the closest curve point, sought
+  among the points a little behind to a few modules ahead of the last one (a chain may cut a
+  corner it cannot turn, and never jumps to another pass of a curve that crosses itself). It
+  costs the squared distance of its centre-line points to the curve, its heading error toward
+  the curve ``LOOKAHEAD`` steps ahead times its step (squared), a lag (moving without progress)
+  and, to break ties on straight stretches, a small pull toward the reference apex angle; it is
+  finished when its progress reaches the curve's end, where its distance to the end is added.
+  Turns faster than the chain can make are followed along :func:`rounded`.
+* :func:`refine` then lets every apex angle take any value in the range: least squares on the
+  distances of the centre line to the curve, with the exact Jacobian of the zigzag
+  (:func:`centre_of`), the end held to the curve's end.
+* :func:`bin_apexes` bins the angles into a few types (the authors' curvature designs round
+  their modules' bases into bins the same way), :func:`follow` gives each module the type that
+  reproduces the refined chain point by point, and :func:`refit_bins` refits the types' angles
+  to the curve with every module's type held.
 
-:func:`bin_apexes` bins the apex angles of a chain into a few types (the authors' curvature
-designs round their modules' bases into bins the same way): a one-dimensional k-means whose
-outer bins keep the extreme angles, so the binned chain keeps its sharpest turn; the chain is
-then tracked again with the binned types only.
+Neighbours must average ``MIN_PAIR_APEX_DEG`` throughout (laser kits,
+:mod:`fabkit.designer.curvature`): the searches forbid other pairs, the least squares penalise
+them from just inside the rule.
 """
 
 from __future__ import annotations
@@ -214,8 +220,6 @@ def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = 
     behind = int(math.ceil(BEHIND * SAMPLES_PER_STEP))
     ahead = int(math.ceil(AHEAD * SAMPLES_PER_STEP))
     offsets = np.arange(-behind, ahead + 1)
-    tangents = np.diff(curve, axis=0)
-    tangents /= np.maximum(np.linalg.norm(tangents, axis=1, keepdims=True), 1e-300)
     chord = point_at(target, arclength(target), min(0.5 * ref_step, length)) - target[0]
     heading0 = math.atan2(chord[1], chord[0])
     allowed = np.array([[neighbours_ok(math.degrees(a), math.degrees(b)) for b in apex]
