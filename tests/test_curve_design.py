@@ -223,3 +223,18 @@ def test_a_hundred_module_curve():
     assert abs(result.report["modules"] - length / 50.0) <= 0.05 * length / 50.0
     assert result.report["modules"] >= 100
     assert result.errors["rms"] < 5.0 and result.errors["max"] < 20.0
+
+
+def test_a_one_mm_curve_is_a_refusal_like_any_other(tmp_path, capsys):
+    src = tmp_path / "one.csv"
+    src.write_text("x,y\n0,0\n1,0\n")
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "the curve (1 mm) is shorter than two modules" in line
+    assert "even the smallest modules (15.3 mm) need a curve of at least 30.6 mm" in line
+    assert line.endswith("nearest feasible: --curve-scale 100 (the drawing 100x larger)")
+    assert not (tmp_path / "o").exists()
+    code, out, err = run_cli(["design", "--curve", src, "--curve-scale", "100", "-o",
+                              tmp_path / "o"], capsys)
+    assert code == 0, err

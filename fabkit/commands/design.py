@@ -168,7 +168,7 @@ def _run_module(args, name, out, figure_png) -> int:
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
     cycle = parse_cycle(args.cycle) if args.cycle is not None else None
-    result = design_map(wishes, cycle, name=name, progress=_progress)
+    result = design_map(wishes, cycle, name=name, progress=_progress, sample_builds=laser_builds)
     report = result.report
     files = {
         f"{name}.toml": result.template.encode(),
@@ -195,9 +195,39 @@ def _run_module(args, name, out, figure_png) -> int:
           f"{worst['value']:.6g}) to the nearest fold")
     for line in margin_lines(b["branch_margins"], report["map"]):
         print(f"  {line}")
-    print(f"  {builds_line(report['builds'])}")
+    if report["builds"] is not None:
+        print(f"  {builds_line(report['builds'])}")
     print(f"  export: fabkit export {out / (name + '.toml')} --to dxf")
     return 0
+
+
+def laser_builds(design):
+    """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
+    model (bar length, kerf, hole play, sheet thickness) at the scale the kit of this template
+    is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.designer.design_map` judges
+    its wishes and suggestions against (``sample_builds``).
+
+    Returns
+    -------
+    lengths : numpy.ndarray, shape (M, E)
+        Design units, in the order of the design's edges.
+    scale : float
+        mm per design unit.
+    model : str
+        The errors in words.
+    """
+    import numpy as np
+
+    from ..designer.robustness import BUILDS
+    from ..tolerance import model_summary, tolerance_spec
+    from ..tolerance.processes import ProcessGeometry, sample_lengths
+
+    spec = tolerance_spec(design, process="laser", samples=BUILDS, seed=0)
+    net = design.network
+    lengths = np.linalg.norm(net.nodes[net.edges[:, 0]] - net.nodes[net.edges[:, 1]], axis=1)
+    geo = ProcessGeometry(nodes=net.nodes, edges=net.edges, lengths=lengths)
+    built = sample_lengths(geo, spec, np.random.default_rng(spec.seed))
+    return built, float(spec.scale), model_summary(spec)
 
 
 def _progress(text: str) -> None:
@@ -245,8 +275,11 @@ def _run_curve(args, name, out, figure_png) -> int:
           f"{100 * report['tolerance']['end_fraction']:g} %)")
     for line in fit_lines(e, result.proportions):
         print(f"  {line}")
-    print("  types (final apex, count): " + ", ".join(
-        f"{t['final_apex_deg']:.1f} deg x{t['count']}" for t in report["types"]))
+    print("  types (final apex, count; rigidity margin, branch margin to the nearer fold): "
+          + ", ".join(f"{t['final_apex_deg']:.1f} deg x{t['count']} "
+                      f"({t['margins']['rigidity']:.3f}, "
+                      f"{100 * t['margins']['branch_margin_fraction']:.3g} %)"
+                      for t in report["types"]))
     if curve.strokes > 1:
         print(f"  the file holds {curve.strokes} strokes; the longest was followed")
     print(f"  laser kit: fabkit export {out / (name + '.toml')} --to dxf")

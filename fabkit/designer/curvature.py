@@ -92,7 +92,9 @@ class CurvatureType:
         ``inside`` (least barycentric margin of the variable nodes in their triangle along the
         motion), ``separation`` (least distance between the variable nodes), ``rigidity``,
         ``bar_clearance`` (least joint-to-bar distance), ``joints`` (least distance between
-        any two joints), ``bar_length_ratio``.
+        any two joints), ``bar_length_ratio``, ``branch_margin`` (design units) and
+        ``branch_margin_fraction`` (of the state): the distance of D1* and D2* to the nearer
+        fold of the branch, ``branch`` (its d1 range).
     score : float
         min(inside, separation / 2, 2 x bar clearance), scaled down where the rigidity margin
         is below 0.2: what the choice of the variable nodes maximises.
@@ -250,9 +252,16 @@ def design_curvature_type(apex_deg: float, min_joint: float = 0.0) -> CurvatureT
             continue
         if not (fmap.domain[0] <= 1.0 and LEG_RATIO <= fmap.domain[1]):
             continue
+        # the distance of its two states to the folds of the branch (every state of the
+        # motion is a fixed point of this identity map; a build whose fold moves past D1* or
+        # D2* cannot start straight or reach its shape)
+        lo, hi = fmap.domain
+        fold = min((1.0 - lo) / 1.0, (hi - LEG_RATIO) / LEG_RATIO)
+        margins = {**s.margins[i], "branch_margin": float(min(1.0 - lo, hi - LEG_RATIO)),
+                   "branch_margin_fraction": float(fold), "branch": [float(lo), float(hi)]}
         return CurvatureType(apex=math.radians(apex_deg), network=net, designed=s.x0,
                              final=s.x1, variable=s.variable[i], bottom=float(s.bottom[i]),
-                             score=float(score[i]), margins=dict(s.margins[i]))
+                             score=float(score[i]), margins=margins)
     room = f" and its joints {min_joint:.3g} apart" if min_joint > 0 else ""
     raise DesignError(f"no curvature module with final apex {apex_deg:g} deg keeps its "
                       f"variable nodes inside its triangle{room} (buildable range "

@@ -96,6 +96,8 @@ SIZE_FACTORS = (0.9, 0.8, 0.7, 0.6, 0.5)
 MAX_CURVE_SCALE = 1000.0
 #: A suggestion must fit within this share of the tolerances.
 SUGGEST_SHARE = 0.5
+#: Enlargements tried, each 1.2 times the last, from the one computed.
+SCALE_TRIES = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -439,7 +441,8 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
         # less sharply themselves: their joints leave fewer apex angles); corners and turns
         # too sharp for any of them are for an enlargement
         p = _plan(m)
-        if p.low is None or math.degrees(needed_turn(curve.points, m)) > TURN_SHARE * p.turn_deg:
+        if (curve.length < 2 * m or p.low is None
+                or math.degrees(needed_turn(curve.points, m)) > TURN_SHARE * p.turn_deg):
             continue
         _say(progress, f"modelling --module-size {m:g}")
         if model_fits(curve, m) and builds(curve, m):
@@ -460,8 +463,11 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
         start = hi
     else:  # a corner: no enlargement makes it a curve; cut it, relatively smaller
         start = 1.25
-    factor = _round_up(start)
-    while factor <= MAX_CURVE_SCALE:
+    # and the curve at least two modules long
+    factor = _round_up(max(start, 2.0 * module_size / curve.length))
+    for _ in range(SCALE_TRIES):
+        if factor > MAX_CURVE_SCALE:
+            break
         c = scaled(curve, factor)
         if c.length / module_size > MAX_MODULES:
             return None
@@ -551,9 +557,12 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
                               f"from {smallest:g} mm to {curve.length / 2:.4g} mm (half the "
                               "curve) build", suggest())
     if curve.length < 2 * module_size:
+        fit = (f"module sizes from {smallest:g} mm to {curve.length / 2:.4g} mm (half the "
+               "curve) fit it" if curve.length >= 2 * smallest else
+               f"even the smallest modules ({smallest:g} mm) need a curve of at least "
+               f"{2 * smallest:g} mm")
         raise WishError(wish, f"the curve ({curve.length:.4g} mm) is shorter than two modules; "
-                              f"module sizes from {smallest:g} mm to {curve.length / 2:.4g} mm "
-                              "(half the curve) fit it", suggest())
+                              f"{fit}", suggest())
     if curve.length / module_size > MAX_MODULES:
         raise WishError(wish, f"the curve ({curve.length:.0f} mm) needs more than {MAX_MODULES} "
                               f"modules of {module_size:g} mm; module sizes from "

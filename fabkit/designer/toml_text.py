@@ -194,7 +194,11 @@ def curvature_template(name: str, ctype) -> str:
         "never sweep",
         f"# over each other): margin {m['inside']:.3f}, variable nodes at least "
         f"{m['separation']:.3f} apart, rigidity margin {m['rigidity']:.3f}, "
-        f"bar-length ratio {m['bar_length_ratio']:.2f}.",
+        f"bar-length ratio {m['bar_length_ratio']:.2f},",
+        f"# branch margin {m['branch_margin']:.4g} ({100 * m['branch_margin_fraction']:.3g} % of "
+        f"the state) from D1* = 1 or D2* = {LEG_RATIO:g} to the nearer fold (the branch runs "
+        f"from d1 = {m['branch'][0]:.6g} to {m['branch'][1]:.6g}; every state between is a "
+        "fixed point).",
         f"name = {toml_string(name)}",
         f"description = {toml_string(f'curvature module, final apex {apex:.4g} deg')}",
         "",

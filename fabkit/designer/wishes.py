@@ -205,16 +205,26 @@ def parse_cycle(text: str) -> tuple[float, float]:
                                           f"as decimals ({exc})") from None
 
 
+def _number(value, what: str) -> float:
+    """A number given in Python: a string is read as a decimal only (as on the command line)."""
+    try:
+        return parse_decimal(value) if isinstance(value, str) else float(value)
+    except (TypeError, ValueError) as exc:
+        raise WishError(what, f"must be a number ({exc})") from None
+
+
 def _fp(value) -> FixedPointWish:
     if isinstance(value, FixedPointWish):
         return value
     if isinstance(value, str):
         return parse_fixed_point(value)
+    what = f"fixed point {value!r}"
     if isinstance(value, (tuple, list)):
         if len(value) != 2:
-            raise WishError(f"fixed point {value!r}", "must be D or (D, slope)")
-        return FixedPointWish(float(value[0]), None if value[1] is None else float(value[1]))
-    return FixedPointWish(float(value))
+            raise WishError(what, "must be D or (D, slope)")
+        return FixedPointWish(_number(value[0], what),
+                              None if value[1] is None else _number(value[1], what))
+    return FixedPointWish(_number(value, what))
 
 
 def _close(a: float, b: float, rtol: float) -> bool:
@@ -268,7 +278,12 @@ def check_wish(fixed_points=(), cycle=None) -> MapWish:
     if isinstance(cycle, str):
         cycle = parse_cycle(cycle)
     if cycle is not None:
-        cycle = (float(cycle[0]), float(cycle[1]))
+        what = f"cycle {cycle!r}"
+        try:
+            a, b = cycle
+        except (TypeError, ValueError):
+            raise WishError(what, "must be two values (A, B)") from None
+        cycle = (_number(a, what), _number(b, what))
     asked = MapWish(tuple(fps), cycle).options()
     if not fps and cycle is None:
         raise WishError("design", "give at least one --fixed-point D[:SLOPE] or a --cycle A,B")
