@@ -29,6 +29,7 @@ import numpy as np
 from ..design import displacement_space
 from ..errors import DesignError, FabkitError
 from ..network import Network
+from ..numerics import TINY
 from .geometry import (MODULE_EDGES, bar_clearance, bar_lengths, branch_signs, inside_margin,
                        joint_separation, module_motion, module_positions, rigidity_margin,
                        triangle)
@@ -72,6 +73,8 @@ APEX_RTOL = 1e-9
 CLEARANCE_WEIGHT = 2.0
 #: Configurations sampled along the motion for the margins.
 SAMPLES = 25
+#: Slack (degrees) that keeps the top of a grid of apex angles on it despite round-off.
+GRID_SLACK_DEG = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,7 +157,7 @@ def _screen(apex_deg: float) -> _Screened:
     joints = joint_separation(xs).min(axis=1)
     rig = rigidity_margin(xs.reshape(-1, 5, 2)).reshape(len(pts), SAMPLES).min(axis=1)
     lengths = bar_lengths(nodes)
-    ratio = lengths.max(axis=1) / np.maximum(lengths.min(axis=1), 1e-300)
+    ratio = lengths.max(axis=1) / np.maximum(lengths.min(axis=1), TINY)
     ok = (on_branch & (inside >= MIN_INSIDE) & (rig >= MIN_RIGIDITY) & (ratio <= MAX_BAR_RATIO))
     score = np.minimum(np.minimum(inside, 0.5 * sep), CLEARANCE_WEIGHT * clear) \
         * np.minimum(1.0, rig / 0.2)
@@ -189,7 +192,7 @@ def lowest_apex(min_joint: float, step: float = 1.0) -> float | None:
     designs, not one per angle.
     """
     lo, hi = APEX_RANGE_DEG
-    grid = np.arange(lo, hi + 1e-9, step)
+    grid = np.arange(lo, hi + GRID_SLACK_DEG, step)
     if joint_room(float(grid[-1])) < min_joint:
         return None
     a, b = 0, len(grid) - 1          # room(grid[b]) >= min_joint

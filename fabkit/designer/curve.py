@@ -41,8 +41,8 @@ import numpy as np
 
 from ..errors import DesignError, FabkitError
 from ..network import Network
-from .curvature import APEX_RANGE_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG, design_curvature_type, \
-    lowest_apex
+from .curvature import (APEX_RANGE_DEG, GRID_SLACK_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG,
+                        design_curvature_type, lowest_apex)
 from .curve_files import Curve
 from .fit import describe_curve, fit_to_curve, polyline_distance
 from .sequence import (BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline,
@@ -98,6 +98,10 @@ MAX_CURVE_SCALE = 1000.0
 SUGGEST_SHARE = 0.5
 #: Enlargements tried, each 1.2 times the last, from the one computed.
 SCALE_TRIES = 12
+#: A bin that holds no module still counts this much when bins are merged (its own angle).
+EMPTY_BIN_WEIGHT = 1e-12
+#: Round-off forgiven when a scale is rounded up to two digits (2.2 stays 2.2).
+ROUND_SLACK = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,7 +197,7 @@ class _Plan:
     @property
     def apexes(self) -> np.ndarray:
         hi = APEX_RANGE_DEG[1]
-        return np.arange(hi, self.low - 1e-9, -APEX_STEP_DEG)[::-1]
+        return np.arange(hi, self.low - GRID_SLACK_DEG, -APEX_STEP_DEG)[::-1]
 
     @property
     def turn_deg(self) -> float:
@@ -386,7 +390,7 @@ def _merged(bins: np.ndarray, types: np.ndarray):
     for g, members in enumerate(groups):
         label[members] = g
         counts = np.array([np.sum(types == m) for m in members], dtype=float)
-        new[g] = float(np.average(bins[members], weights=counts + 1e-12))
+        new[g] = float(np.average(bins[members], weights=counts + EMPTY_BIN_WEIGHT))
     return new, label[types]
 
 
@@ -481,7 +485,7 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
 def _round_up(x: float) -> float:
     """``x`` rounded up to two significant digits (a scale a maker types)."""
     e = math.floor(math.log10(x)) - 1
-    return math.ceil(x / 10 ** e - 1e-9) * 10 ** e if x > 0 else x
+    return math.ceil(x / 10 ** e - ROUND_SLACK) * 10 ** e if x > 0 else x
 
 
 def _check_arguments(curve, module_size, types) -> Curve:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numerics import apply_fit, rigid_fit
+from ..numerics import TINY, apply_fit, rigid_fit
 
 __all__ = ["CurveFit", "fit_to_curve", "arclength", "point_at", "polyline_distance",
            "curve_size", "describe_curve", "circle_fit", "turning"]
@@ -35,6 +35,9 @@ ARC_RTOL = 0.01
 MIN_ARC_DEG = 5.0
 #: A curve whose ends are this close (fraction of its size) is closed: it has no chord.
 CLOSED_RTOL = 0.01
+#: The closest points have settled when none moves by more than this (relative to the curve's
+#: length) in a round.
+SETTLED_RTOL = 1e-9
 
 
 def arclength(points) -> np.ndarray:
@@ -61,7 +64,7 @@ def _project(points, curve, s_nodes, near, window):
     a, b = curve[idx], curve[idx + 1]
     ab = b - a
     p = points[:, None, :]
-    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), 1e-300),
+    t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1), TINY),
                 0.0, 1.0)
     q = a + t[..., None] * ab
     d = np.linalg.norm(p - q, axis=-1)
@@ -95,7 +98,7 @@ def polyline_distance(points, polyline) -> np.ndarray:
         a_i = np.clip(a_i, 0, len(line) - 2)
         a, b = line[a_i], line[a_i + 1]
         ab = b - a
-        t = np.clip(np.sum((p - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-300),
+        t = np.clip(np.sum((p - a) * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), TINY),
                     0.0, 1.0)
         best = np.minimum(best, np.linalg.norm(p - a - t[:, None] * ab, axis=1))
     return best
@@ -140,7 +143,7 @@ def _coarse(curve: np.ndarray, chain: np.ndarray) -> np.ndarray:
     the closest points are sought on while fitting; the errors are measured on the curve."""
     s = arclength(curve)
     step = float(arclength(chain)[-1]) / max(len(chain) - 1, 1) / COARSE
-    n = int(min(len(curve), max(2, math.ceil(s[-1] / max(step, 1e-300)) + 1)))
+    n = int(min(len(curve), max(2, math.ceil(s[-1] / max(step, TINY)) + 1)))
     if n >= len(curve):
         return curve
     return point_at(curve, s, np.linspace(0.0, s[-1], n))
@@ -179,7 +182,7 @@ def fit_to_curve(points, curve, *, rounds: int = ICP_ROUNDS) -> CurveFit:
     s_curve = arclength(crv)
     s_chain = arclength(src)
     length = float(s_curve[-1])
-    near = np.clip(s_chain * (length / max(float(s_chain[-1]), 1e-300)), 0.0, length)
+    near = np.clip(s_chain * (length / max(float(s_chain[-1]), TINY)), 0.0, length)
     ends = np.r_[np.zeros(END_WEIGHT, dtype=int), np.full(END_WEIGHT, len(src) - 1)]
     end_targets = np.r_[np.repeat(crv[:1], END_WEIGHT, axis=0), np.repeat(crv[-1:], END_WEIGHT,
                                                                           axis=0)]
@@ -190,7 +193,7 @@ def fit_to_curve(points, curve, *, rounds: int = ICP_ROUNDS) -> CurveFit:
         move = rigid_fit(np.r_[src, src[ends]], np.r_[dst, end_targets], handedness="proper")
         moved = apply_fit(move, src)
         _, near_new, dst = _project(moved, crv, s_curve, near, window)
-        if np.allclose(near_new, near, atol=1e-9 * length, rtol=0.0):
+        if np.allclose(near_new, near, atol=SETTLED_RTOL * length, rtol=0.0):
             break
         near = near_new
     moved = apply_fit(move, src)
@@ -238,7 +241,7 @@ def circle_fit(points) -> tuple[float, np.ndarray, float, float]:
     r = math.sqrt(max(sol[2] + c @ c, 0.0))
     for _ in range(20):
         d = p - c
-        dist = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        dist = np.maximum(np.linalg.norm(d, axis=1), TINY)
         J = np.column_stack([-d / dist[:, None], -np.ones(len(p))])
         step = np.linalg.lstsq(J, -(dist - r), rcond=None)[0]
         if not np.all(np.isfinite(step)):

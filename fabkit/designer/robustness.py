@@ -40,6 +40,8 @@ BUILDS = 200
 GRID = 1601
 #: The drive is sampled this far (fraction) beyond the wished states.
 REACH = 0.1
+#: Relative step of the central difference for the design's own slope (its map is exact).
+SLOPE_STEP = 1e-6
 
 
 @dataclass(frozen=True)
@@ -180,7 +182,7 @@ def _design_map(x: np.ndarray, d: np.ndarray) -> np.ndarray:
 
 
 def _design_slope(x: np.ndarray, d: float) -> float:
-    h = 1e-6 * d
+    h = SLOPE_STEP * d
     f = _design_map(x, np.array([d - h, d + h]))
     return float((f[1] - f[0]) / (2 * h))
 

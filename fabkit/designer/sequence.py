@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import TINY
 from .curvature import MIN_PAIR_APEX_DEG
 from .fit import arclength, point_at
 
@@ -72,6 +73,8 @@ PAIR_WEIGHT = 100.0
 PAIR_MARGIN_DEG = 0.05
 #: Bins: k-means rounds.
 KMEANS_ROUNDS = 50
+#: A turn within this (relative) of the limit keeps to it (round-off of the limiter).
+RATE_RTOL = 1e-9
 
 
 def neighbours_ok(apex_a_deg: float, apex_b_deg: float) -> bool:
@@ -169,7 +172,7 @@ def rounded(target, max_curvature: float, spacing: float) -> np.ndarray:
     if np.max(np.abs(np.diff(theta))) <= rate:
         return np.asarray(target, dtype=np.float64)
     th = _limited(theta, 2.0 * rate)
-    if np.max(np.abs(np.diff(th))) > rate * (1.0 + 1e-9):
+    if np.max(np.abs(np.diff(th))) > rate * (1.0 + RATE_RTOL):
         th = _limited(th, rate)
     out = curve[0] + np.vstack([[0.0, 0.0], np.cumsum(step * np.column_stack([np.cos(th),
                                                                               np.sin(th)]),
@@ -257,7 +260,7 @@ def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = 
         ab = (curve[idx + 1] - curve[idx])[:, None]
         p = m_new[:, :, None, :]
         t = np.clip(np.sum((p - a) * ab, axis=-1) / np.maximum(np.sum(ab * ab, axis=-1),
-                                                                 1e-300), 0.0, 1.0)
+                                                                 TINY), 0.0, 1.0)
         d2 = np.sum((p - a - t[..., None] * ab) ** 2, axis=-1)                     # (B,T,W)
         j = np.argmin(d2, axis=-1)
         dist2 = np.take_along_axis(d2, j[..., None], axis=-1)[..., 0]
