@@ -97,8 +97,9 @@ def curve_design_figure(result, title: str | None = None):
     draw_network(ax, result.network, result.final, color="C0", lw=0.8, nodes=False)
     ax.plot(*result.centerline.T, "-", color="C3", lw=1, label="chain's centre line")
     e = result.errors
-    ax.set_title(f"final state over the curve (mm): fit error rms {e['rms']:.2f}, "
-                 f"max {e['max']:.2f}, end {e['end']:.2f}", fontsize=9)
+    ax.set_title(f"traced final state over the curve (mm)\nmean distance {e['mean']:.2f} mm "
+                 f"({100 * e['mean_fraction']:.2g} % of its size), max {e['max']:.2f} mm, "
+                 f"ends {e['start']:.2f} / {e['end']:.2f} mm", fontsize=9)
     ax.legend(fontsize=8, loc="best")
     ax.set_aspect("equal")
     fig.suptitle(title or "fabkit design --curve", fontsize=10)

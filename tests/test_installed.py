@@ -94,7 +94,8 @@ def deps(tmp_path_factory) -> Path:
 def _bundled_files() -> set[str]:
     top = {p.name for p in (ROOT / "templates").glob("*.toml")}
     sweeps = {f"sweeps/{p.name}" for p in (ROOT / "templates" / "sweeps").glob("*.toml")}
-    return top | sweeps
+    curves = {f"curves/{p.name}" for p in (ROOT / "templates" / "curves").glob("*.csv")}
+    return top | sweeps | curves
 
 
 def test_pyproject_lists_every_package():
@@ -103,6 +104,7 @@ def test_pyproject_lists_every_package():
     config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     found = {".".join(p.parent.relative_to(ROOT).parts) for p in (ROOT / "fabkit").rglob("__init__.py")}
     assert set(config["packages"]) == found | {"fabkit.bundled_templates",
+                                               "fabkit.bundled_templates.curves",
                                                "fabkit.bundled_templates.sweeps"}
     assert config["package-dir"] == {"fabkit.bundled_templates": "templates"}
 
@@ -118,7 +120,7 @@ def test_the_build_is_clean_and_ships_everything(dist):
     data = {f"fabkit/bundled_templates/{n}" for n in _bundled_files()}
     shipped = {n for n in names if ".dist-info/" not in n}
     assert shipped == code | data | {"fabkit/py.typed", "fabkit/bundled_templates/__init__.py"}
-    assert len(data) == 32
+    assert len(data) == 36  # 30 templates, 2 sweeps, 4 curves
     headers = dict(line.split(": ", 1) for line in metadata.split("\n\n")[0].splitlines()
                    if ": " in line)
     assert headers["Version"] == fabkit.__version__  # the version lives in fabkit/__init__.py

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import re
 from pathlib import Path
@@ -23,21 +24,67 @@ MAX_CURVE_BYTES = 16 * 2**20
 #: Output names: a plain file stem, so every file stays inside -o.
 
 
+class _Once(argparse.Action):
+    """An option that may be given once: a second one is refused (one line, exit status 2)
+    rather than silently replacing the first."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        seen = f"_given_{self.dest}"
+        if getattr(namespace, seen, None) is not None:
+            raise argparse.ArgumentError(
+                self, f"given twice ({getattr(namespace, seen)} and {values}): give it once")
+        setattr(namespace, seen, values)
+        setattr(namespace, self.dest, values)
+
+
+def _decimal(option: str, *, positive: bool = True):
+    """argparse type: a decimal number as typed (see :func:`fabkit.designer.parse_decimal`)."""
+    def convert(text):
+        from ..designer import parse_decimal
+
+        try:
+            value = parse_decimal(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        if positive and value <= 0:
+            raise argparse.ArgumentTypeError(f"must be positive, got {text}")
+        return value
+
+    convert.__name__ = option
+    return convert
+
+
+def _whole(text):
+    if not re.fullmatch(r"\d+", str(text)):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number")
+    return int(text)
+
+
+#: Options that only apply to a curve, and their defaults.
+CURVE_OPTIONS = {"module_size": 50.0, "curve_scale": 1.0, "types": None}
+
+
 def add_arguments(p):
     p.add_argument("--fixed-point", action="append", default=[], metavar="D[:SLOPE]",
-                   help="a fixed point D of the map, with its slope (repeatable, up to two)")
-    p.add_argument("--cycle", default=None, metavar="A,B", help="a 2-cycle f(A) = B, f(B) = A")
-    p.add_argument("--curve", default=None, metavar="FILE",
-                   help="design a chain whose final state follows this curve (.svg or .csv, mm)")
-    p.add_argument("--module-size", type=float, default=50.0, metavar="MM",
-                   help="--curve: the chain's pitch along the curve in mm (default 50)")
-    p.add_argument("--curve-scale", type=float, default=1.0, metavar="F",
-                   help="--curve: draw the curve F times larger (default 1)")
-    p.add_argument("--types", type=int, default=3,
-                   help="--curve: number of module types, odd (default 3)")
-    p.add_argument("--name", default=None,
+                   help="a fixed point D of the map, with its slope (repeatable, up to two; "
+                        "decimal numbers, D from 0.05 to 20 design units)")
+    p.add_argument("--cycle", action=_Once, default=None, metavar="A,B",
+                   help="a 2-cycle f(A) = B, f(B) = A")
+    p.add_argument("--curve", action=_Once, default=None, metavar="FILE",
+                   help="design a chain whose final state follows this curve (.svg or .csv, mm; "
+                        "a bare name such as quadrifolium.csv is also looked up among the "
+                        "bundled curves)")
+    p.add_argument("--module-size", action=_Once, type=_decimal("--module-size"), default=None,
+                   metavar="MM", help="--curve: mm per module along the curve (default 50)")
+    p.add_argument("--curve-scale", action=_Once, type=_decimal("--curve-scale"), default=None,
+                   metavar="F", help="--curve: draw the curve F times larger (default 1)")
+    p.add_argument("--types", action=_Once, type=_whole, default=None,
+                   help="--curve: number of module types, 1 to 15 (default: as few as keep "
+                        "the fit)")
+    p.add_argument("--name", action=_Once, default=None,
                    help="stem of the files written (default: module, or the curve file's stem)")
-    p.add_argument("-o", "--out", default="out/design", help="output folder (default out/design)")
+    p.add_argument("-o", "--out", action=_Once, default="out/design",
+                   help="output folder (default out/design)")
 
 
 def _name(args) -> str:
@@ -63,10 +110,22 @@ def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
     return write_all(out, files)
 
 
+def _curve_path(path: str) -> Path:
+    """The curve file: a path, or a bare name of a bundled curve (``quadrifolium.csv``) when
+    no file of that name is here."""
+    p = Path(path)
+    if p.exists() or p.name != str(path):
+        return p
+    from ..templates import bundled_folder
+
+    bundled = bundled_folder() / "curves" / p.name
+    return bundled if bundled.is_file() else p
+
+
 def _read_curve_file(path: str):
     from ..designer import read_curve
 
-    p = Path(path)
+    p = _curve_path(path)
     if not p.is_file():
         raise InputFileError(p, "no such curve file (give an .svg or a .csv)"
                              if not p.exists() else "not a regular file")
@@ -74,12 +133,11 @@ def _read_curve_file(path: str):
     if size > MAX_CURVE_BYTES:
         raise InputFileError(p, f"{size:,} bytes is over the limit of {MAX_CURVE_BYTES:,} for a "
                                 "curve file")
-    return read_curve(p.read_bytes(), str(p))
+    return read_curve(p.read_bytes(), str(path))
 
 
 def run(args) -> int:
     from ..viz import figure_png
-    from . import check_number
 
     name = _name(args)
     out = Path(args.out)
@@ -87,9 +145,15 @@ def run(args) -> int:
         if args.fixed_point or args.cycle:
             raise UsageError("--curve", "designs a chain from a curve; give it without "
                                         "--fixed-point and --cycle")
-        check_number("--module-size", args.module_size)
-        check_number("--curve-scale", args.curve_scale)
+        for key, default in CURVE_OPTIONS.items():
+            if getattr(args, key) is None:
+                setattr(args, key, default)
         return _run_curve(args, name, out, figure_png)
+    given = [k for k in CURVE_OPTIONS if getattr(args, k) is not None]
+    if given:
+        option = "--" + given[0].replace("_", "-")
+        raise UsageError(option, "applies to --curve only (a module from map wishes has no "
+                                 "module size, curve scale or types)")
     if not args.fixed_point and args.cycle is None:
         raise UsageError("", "give --fixed-point D[:SLOPE] (up to two) and/or --cycle A,B, or "
                              "--curve FILE")
@@ -98,12 +162,13 @@ def run(args) -> int:
 
 def _run_module(args, name, out, figure_png) -> int:
     from ..designer import design_map, parse_cycle, parse_fixed_point
+    from ..designer.toml_text import builds_line, margin_lines
     from ..designplots import module_design_figure
     from ..maps import classify_slope
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
     cycle = parse_cycle(args.cycle) if args.cycle is not None else None
-    result = design_map(wishes, cycle, name=name)
+    result = design_map(wishes, cycle, name=name, progress=_progress, sample_builds=laser_builds)
     report = result.report
     files = {
         f"{name}.toml": result.template.encode(),
@@ -122,29 +187,75 @@ def _run_module(args, name, out, figure_png) -> int:
         c = met["cycle"]
         print(f"  2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residual "
               f"{max(c['residuals']):.1e}, multiplier {c['multiplier']:.6g}")
-    extra = report["extra_fixed_points"]
-    print("  other fixed points on the branch: "
-          + (", ".join(f"{v:.6g}" for v in extra) if extra else "none"))
     b = report["buildability"]
+    worst = min(b["branch_margins"], key=lambda m: m["fraction"])
     print(f"  buildability: bar-length ratio {b['bar_length_ratio']:.2f}, joints at least "
-          f"{b['joint_separation']:.3f} apart, rigidity margin {b['rigidity_margin']:.3f}")
+          f"{b['joint_separation']:.3f} apart, rigidity margin {b['rigidity_margin']:.3f}, "
+          f"branch margin {worst['margin']:.4g} ({100 * worst['fraction']:.3g} % of "
+          f"{worst['value']:.6g}) to the nearest fold")
+    for line in margin_lines(b["branch_margins"], report["map"]):
+        print(f"  {line}")
+    if report["builds"] is not None:
+        print(f"  {builds_line(report['builds'])}")
     print(f"  export: fabkit export {out / (name + '.toml')} --to dxf")
     return 0
+
+
+def laser_builds(design):
+    """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
+    model (bar length, kerf, hole play, sheet thickness) at the scale the kit of this template
+    is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.designer.design_map` judges
+    its wishes and suggestions against (``sample_builds``).
+
+    Returns
+    -------
+    lengths : numpy.ndarray, shape (M, E)
+        Design units, in the order of the design's edges.
+    scale : float
+        mm per design unit.
+    model : str
+        The errors in words.
+    """
+    import numpy as np
+
+    from ..designer.robustness import BUILDS
+    from ..tolerance import model_summary, tolerance_spec
+    from ..tolerance.processes import ProcessGeometry, sample_lengths
+
+    spec = tolerance_spec(design, process="laser", samples=BUILDS, seed=0)
+    net = design.network
+    lengths = np.linalg.norm(net.nodes[net.edges[:, 0]] - net.nodes[net.edges[:, 1]], axis=1)
+    geo = ProcessGeometry(nodes=net.nodes, edges=net.edges, lengths=lengths)
+    built = sample_lengths(geo, spec, np.random.default_rng(spec.seed))
+    return built, float(spec.scale), model_summary(spec)
+
+
+def _progress(text: str) -> None:
+    """A long search says what it is doing (stdout: a refusal's one line stays alone on
+    stderr)."""
+    print(f"  ... {text}", flush=True)
 
 
 def _run_curve(args, name, out, figure_png) -> int:
     import numpy as np
 
     from ..designer import design_curve_chain
+    from ..designer.curve import MAX_MODULES, scaled
+    from ..designer.toml_text import fit_lines
     from ..designplots import curve_design_figure
-
-    from ..designer.curve import scaled
 
     curve = _read_curve_file(args.curve)
     if args.curve_scale != 1.0:
+        lo = 2 * args.module_size / curve.length
+        hi = MAX_MODULES * args.module_size / curve.length
+        if not lo <= args.curve_scale <= hi:
+            raise UsageError("--curve-scale", f"{args.curve_scale:g} makes the curve "
+                             f"{curve.length * args.curve_scale:.4g} mm long; with modules of "
+                             f"{args.module_size:g} mm it must be from 2 to {MAX_MODULES} "
+                             f"modules long: scales from {lo:.3g} to {hi:.3g}")
         curve = scaled(curve, args.curve_scale)
     result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
-                                name=name)
+                                name=name, progress=_progress)
     report = result.report
     rows = "\n".join(f"{x:.6f},{y:.6f}" for x, y in np.asarray(result.centerline))
     files = {f: t.encode() for f, t in result.templates.items()}
@@ -153,17 +264,22 @@ def _run_curve(args, name, out, figure_png) -> int:
                                        + rows + "\n").encode()
     files[f"{name}.png"] = figure_png(curve_design_figure(result), dpi=100)
     write_files(out, files)
-    e, pr = result.errors, result.proportions
+    e = result.errors
     print(f"{name}: {report['modules']} modules ({len(result.types)} types) following a "
           f"{curve.length:.1f} mm curve ({curve.source}), module size {args.module_size:g} mm, "
           f"scale {result.scale:.4g} mm/unit in {report['seconds']:.2f} s "
           f"-> {out / (name + '.toml')}")
-    print(f"  fit error of the traced final state: rms {e['rms']:.3f} mm, max {e['max']:.3f} mm, "
-          f"end {e['end']:.3f} mm")
-    c, ch = pr["curve"], pr["chain"]
-    print(f"  proportions (curve / chain): length {c['length']:.1f} / {ch['length']:.1f} mm, "
-          f"fitted circle r {c['circle_radius']:.1f} / {ch['circle_radius']:.1f} mm over "
-          f"{c['circle_sweep_deg']:.1f} / {ch['circle_sweep_deg']:.1f} deg")
+    print(f"  traced final state on the curve: mean {100 * e['mean_fraction']:.2g} % of its "
+          f"size, ends {100 * e['start_fraction']:.2g} % / {100 * e['end_fraction']:.2g} % "
+          f"(accepted: {100 * report['tolerance']['mean_fraction']:g} %, ends "
+          f"{100 * report['tolerance']['end_fraction']:g} %)")
+    for line in fit_lines(e, result.proportions):
+        print(f"  {line}")
+    print("  types (final apex, count; rigidity margin, branch margin to the nearer fold): "
+          + ", ".join(f"{t['final_apex_deg']:.1f} deg x{t['count']} "
+                      f"({t['margins']['rigidity']:.3f}, "
+                      f"{100 * t['margins']['branch_margin_fraction']:.3g} %)"
+                      for t in report["types"]))
     if curve.strokes > 1:
         print(f"  the file holds {curve.strokes} strokes; the longest was followed")
     print(f"  laser kit: fabkit export {out / (name + '.toml')} --to dxf")

@@ -12,8 +12,9 @@ its final state and compared with the curve.
 from .curve import CurveDesign, design_curve_chain
 from .curve_files import Curve, read_curve
 from .module import MapDesign, design_map
-from .wishes import FixedPointWish, MapWish, WishError, check_wish, parse_cycle, parse_fixed_point
+from .wishes import (FixedPointWish, MapWish, WishError, check_wish, parse_cycle, parse_decimal,
+                     parse_fixed_point)
 
 __all__ = ["design_map", "MapDesign", "design_curve_chain", "CurveDesign", "read_curve", "Curve",
            "WishError", "FixedPointWish", "MapWish", "check_wish", "parse_fixed_point",
-           "parse_cycle"]
+           "parse_cycle", "parse_decimal"]

@@ -221,3 +221,68 @@ def branch_signs(x: np.ndarray) -> np.ndarray:
     c = x[..., BRANCH_TRIANGLES[:, 2], :]
     u, w = b - a, c - a
     return np.sign(u[..., 0] * w[..., 1] - u[..., 1] * w[..., 0])
+
+
+def _intersect(a, b, ra, rb, sign):
+    """The point c with |c - a| = ra, |c - b| = rb on the side ``sign`` of a → b (the sign of
+    the cross product (b - a) × (c - a)); NaN where the circles do not meet. Broadcasts."""
+    ab = b - a
+    d = np.linalg.norm(ab, axis=-1)
+    e = ab / np.maximum(d, TINY)[..., None]
+    n = np.stack([-e[..., 1], e[..., 0]], axis=-1)
+    x = (d * d + ra * ra - rb * rb) / np.maximum(2.0 * d, TINY)
+    h2 = ra * ra - x * x
+    h = np.sqrt(np.where(h2 >= 0.0, h2, np.nan))
+    return a + x[..., None] * e + (sign * h)[..., None] * n
+
+
+def module_motion(lengths, signs, d1) -> np.ndarray:
+    """Configurations of 5-node modules (bars ``MODULE_EDGES``) at the drive values ``d1``,
+    placed by circle intersections on the branch given by ``signs`` (vectorised over modules
+    and drive values: the constructive model of :mod:`fabkit.kinematics`, for many candidate or
+    built modules at once).
+
+    Node 0 sits at the origin and node 1 at (d1, 0); nodes 3 and 4 follow from nodes 0 and 1,
+    node 2 from nodes 3 and 4, each on the side of its construction triangle that ``signs``
+    gives (see :func:`branch_signs`).
+
+    Parameters
+    ----------
+    lengths : array_like, shape (P, 6)
+        Bar lengths in the order of ``MODULE_EDGES``.
+    signs : array_like, shape (P, 3)
+        Orientation of each of ``BRANCH_TRIANGLES`` on the branch.
+    d1 : array_like, shape (S,) or (P, S)
+        Drive values |x0 - x1|.
+
+    Returns
+    -------
+    numpy.ndarray, shape (P, S, 5, 2)
+        NaN where a node cannot be placed: the drive value lies beyond a turning point of
+        the branch.
+
+    Examples
+    --------
+    >>> x = triangle(1.0, 1.0, np.radians(110.0))
+    >>> var = np.array([[-0.2, 0.05], [0.2, 0.05]])
+    >>> nodes = module_positions(x, var)
+    >>> xs = module_motion(bar_lengths(nodes)[None], branch_signs(nodes)[None], [1.0])
+    >>> bool(np.allclose(bar_lengths(xs[0, 0]), bar_lengths(nodes)))
+    True
+    """
+    L = np.asarray(lengths, dtype=np.float64)
+    sg = np.asarray(signs, dtype=np.float64)
+    t = np.asarray(d1, dtype=np.float64)
+    if t.ndim == 1:
+        t = np.broadcast_to(t, (L.shape[0], t.size))
+    p, s = t.shape
+    out = np.full((p, s, 5, 2), np.nan)
+    out[:, :, 0] = 0.0
+    out[:, :, 1, 0] = t
+    out[:, :, 1, 1] = 0.0
+    a, b = out[:, :, 0], out[:, :, 1]
+    col = lambda k: L[:, k][:, None]  # noqa: E731
+    out[:, :, 3] = _intersect(a, b, col(0), col(1), sg[:, 0][:, None])
+    out[:, :, 4] = _intersect(a, b, col(3), col(4), sg[:, 1][:, None])
+    out[:, :, 2] = _intersect(out[:, :, 3], out[:, :, 4], col(2), col(5), sg[:, 2][:, None])
+    return out

@@ -22,6 +22,7 @@ the wish and says why; :func:`fabkit.designer.design_map` adds the nearest wish 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,8 @@ import numpy as np
 from ..errors import DesignError
 
 __all__ = ["WishError", "FixedPointWish", "MapWish", "parse_fixed_point", "parse_cycle",
-           "check_wish", "MAX_REACH", "MAX_SLOPE", "MIN_GAP", "CYCLE_MIN_GAP"]
+           "parse_decimal", "check_wish", "MAX_REACH", "MAX_SLOPE", "MIN_GAP", "CYCLE_MIN_GAP",
+           "WISH_RANGE"]
 
 #: Two wished distances closer than this (relative) are one point.
 SAME_POINT_RTOL = 1e-9
@@ -46,6 +48,19 @@ CYCLE_MIN_GAP = 0.05
 #: proportion (measured: ratios 0.4 to 2.5 build for slopes free, 0, -0.5 and 2, and cycles up
 #: to 2.5; the search checks each case).
 MAX_REACH = 2.5
+#: Wished distances (fixed points, a cycle's values) are accepted in this range of design
+#: units. A kit is cut at 100 mm per design unit unless its template says otherwise, so the
+#: range is 5 mm to 2 m: below it a module's joints (at least 0.12 of its size apart, the
+#: designer's rule) come closer than 0.6 mm, about the least gap a 3D printer keeps open between
+#: parts (fabkit's print gaps are 0.4-0.5 mm), and above it a module outgrows any laser sheet or
+#: printer bed (a 600 mm sheet holds bars of 2.5 units). Within it the designer's absolute
+#: floors (joint room, rigidity, tolerances of 1e-9) mean what they say; the paper's modules
+#: lie at 0.57-2.9 units. Numbers far outside (1e160, 1e308) would overflow in the squares of
+#: the construction.
+WISH_RANGE = (0.05, 20.0)
+#: A decimal number as typed: digits with an optional point and exponent (no ``1_5``, ``inf``,
+#: ``nan``, hexadecimal or spaces inside).
+DECIMAL = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 #: The largest |slope| designed: steeper slopes put the variable nodes next to the designed
 #: ones (a nearly flat module); 10 is already a chain that amplifies errors 10x per module.
 MAX_SLOPE = 10.0
@@ -119,13 +134,41 @@ class MapWish:
         return " ".join(parts)
 
 
+def parse_decimal(text: str) -> float:
+    """A decimal number as typed (``1.5``, ``-2``, ``.5``, ``1e-3``), and nothing else:
+    Python's ``float`` would also take ``1_5`` (as 15), ``inf``, ``nan`` and spaces.
+
+    Raises
+    ------
+    ValueError
+        Not a decimal number, or one too large for a float (``1e400``).
+
+    Examples
+    --------
+    >>> parse_decimal("1.5e-1")
+    0.15
+    >>> parse_decimal("1_5")
+    Traceback (most recent call last):
+    ...
+    ValueError: '1_5' is not a decimal number (digits, an optional point and exponent)
+    """
+    raw = str(text)
+    if not DECIMAL.fullmatch(raw):
+        raise ValueError(f"{raw!r} is not a decimal number (digits, an optional point and "
+                         "exponent)")
+    value = float(raw)
+    if not math.isfinite(value):
+        raise ValueError(f"{raw!r} is too large for a number")
+    return value
+
+
 def parse_fixed_point(text: str) -> FixedPointWish:
-    """``"D"`` or ``"D:SLOPE"`` → :class:`FixedPointWish`.
+    """``"D"`` or ``"D:SLOPE"`` → :class:`FixedPointWish` (decimal numbers only).
 
     Raises
     ------
     WishError
-        Not numbers.
+        Not decimal numbers.
 
     Examples
     --------
@@ -135,11 +178,11 @@ def parse_fixed_point(text: str) -> FixedPointWish:
     raw = str(text).strip()
     head, sep, tail = raw.partition(":")
     try:
-        value = float(head)
-        slope = float(tail) if sep else None
-    except ValueError:
-        raise WishError(f"--fixed-point {raw}", "must be D or D:SLOPE with numbers, e.g. "
-                                                "1.6 or 1.6:0") from None
+        value = parse_decimal(head)
+        slope = parse_decimal(tail) if sep else None
+    except ValueError as exc:
+        raise WishError(f"--fixed-point {raw}", f"must be D or D:SLOPE with numbers, e.g. 1.6 "
+                                                f"or 1.6:0, written as decimals ({exc})") from None
     return FixedPointWish(value, slope)
 
 
@@ -155,10 +198,19 @@ def parse_cycle(text: str) -> tuple[float, float]:
     parts = raw.split(",")
     try:
         if len(parts) != 2:
-            raise ValueError
-        return float(parts[0]), float(parts[1])
-    except ValueError:
-        raise WishError(f"--cycle {raw}", "must be two numbers A,B, e.g. 1.3,2.0") from None
+            raise ValueError("not two numbers")
+        return parse_decimal(parts[0].strip()), parse_decimal(parts[1].strip())
+    except ValueError as exc:
+        raise WishError(f"--cycle {raw}", f"must be two numbers A,B, e.g. 1.3,2.0, written "
+                                          f"as decimals ({exc})") from None
+
+
+def _number(value, what: str) -> float:
+    """A number given in Python: a string is read as a decimal only (as on the command line)."""
+    try:
+        return parse_decimal(value) if isinstance(value, str) else float(value)
+    except (TypeError, ValueError) as exc:
+        raise WishError(what, f"must be a number ({exc})") from None
 
 
 def _fp(value) -> FixedPointWish:
@@ -166,11 +218,13 @@ def _fp(value) -> FixedPointWish:
         return value
     if isinstance(value, str):
         return parse_fixed_point(value)
+    what = f"fixed point {value!r}"
     if isinstance(value, (tuple, list)):
         if len(value) != 2:
-            raise WishError(f"fixed point {value!r}", "must be D or (D, slope)")
-        return FixedPointWish(float(value[0]), None if value[1] is None else float(value[1]))
-    return FixedPointWish(float(value))
+            raise WishError(what, "must be D or (D, slope)")
+        return FixedPointWish(_number(value[0], what),
+                              None if value[1] is None else _number(value[1], what))
+    return FixedPointWish(_number(value, what))
 
 
 def _close(a: float, b: float, rtol: float) -> bool:
@@ -224,14 +278,22 @@ def check_wish(fixed_points=(), cycle=None) -> MapWish:
     if isinstance(cycle, str):
         cycle = parse_cycle(cycle)
     if cycle is not None:
-        cycle = (float(cycle[0]), float(cycle[1]))
+        what = f"cycle {cycle!r}"
+        try:
+            a, b = cycle
+        except (TypeError, ValueError):
+            raise WishError(what, "must be two values (A, B)") from None
+        cycle = (_number(a, what), _number(b, what))
     asked = MapWish(tuple(fps), cycle).options()
     if not fps and cycle is None:
         raise WishError("design", "give at least one --fixed-point D[:SLOPE] or a --cycle A,B")
+    lo_w, hi_w = WISH_RANGE
     for p in fps:
         if not math.isfinite(p.value) or p.value <= 0:
             raise WishError(p.option(), "a fixed point is a distance between two joints: it must "
                                         "be a positive number")
+        if not lo_w <= p.value <= hi_w:
+            raise WishError(p.option(), _out_of_range("the fixed point", p.value))
         if p.slope is not None and not math.isfinite(p.slope):
             raise WishError(p.option(), "the slope must be a finite number")
     for p in fps:
@@ -277,8 +339,9 @@ def check_wish(fixed_points=(), cycle=None) -> MapWish:
                                         MapWish((b, FixedPointWish(a.value)), None)])
         if _close(a.value, b.value, MIN_GAP):
             up = b.value >= a.value
-            steps = [float(f"{a.value * ((1 + g) if up else 1 / (1 + g)):.4g}")
-                     for g in (1.01 * MIN_GAP, 1.2 * MIN_GAP, 1.5 * MIN_GAP, 2 * MIN_GAP)]
+            steps = [float(f"{a.value * ((1 + g) if up else 1 - g):.4g}")
+                     for g in (1.01 * MIN_GAP, 1.2 * MIN_GAP, 1.5 * MIN_GAP, 2 * MIN_GAP,
+                               2.5 * MIN_GAP, 3 * MIN_GAP, 4 * MIN_GAP)]
             raise WishError(asked, f"the fixed points differ by less than {MIN_GAP:.0%}: the map "
                                    "would have to bend too sharply between them",
                             candidates=[MapWish((a, FixedPointWish(v)), None) for v in steps])
@@ -293,11 +356,23 @@ def check_wish(fixed_points=(), cycle=None) -> MapWish:
     return MapWish(tuple(fps), cycle)
 
 
+def _out_of_range(what: str, value: float) -> str:
+    lo, hi = WISH_RANGE
+    side = "below" if value < lo else "above"
+    return (f"{what} {_num(value)} is {side} the range of a module's distances, {lo:g} to "
+            f"{hi:g} design units (5 mm to 2 m at the kit's default 100 mm per unit: "
+            + ("joints closer than a printable gap" if value < lo else
+               "bars longer than a laser sheet or printer bed") + ")")
+
+
 def _check_cycle(fps, cycle, asked) -> None:
     lo, hi = sorted(cycle)
     if not (math.isfinite(lo) and math.isfinite(hi)) or lo <= 0:
         raise WishError(asked, "the cycle's values are distances between joints: they must be "
                                "positive numbers")
+    for v in (lo, hi):
+        if not WISH_RANGE[0] <= v <= WISH_RANGE[1]:
+            raise WishError(asked, _out_of_range("the cycle's value", v))
     if _close(lo, hi, CYCLE_MIN_GAP):
         raise WishError(asked, f"a 2-cycle needs two distinct values (these differ by less than "
                                f"{CYCLE_MIN_GAP:.0%}); one value repeating is a fixed point",

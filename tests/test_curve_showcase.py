@@ -1,0 +1,221 @@
+"""The showcase curves of docs/design.md (bundled in templates/curves): a quadrifolium, an S of
+two arcs, an L with a right-angled corner and a spiral of 1.5 turns. Each designs (or is refused
+with a suggestion that then designs); the written chain is loaded, traced to its final state and
+fitted onto its curve here, with this test's own fit (a rigid motion that minimises the mean
+squared distance to the curve, found by scipy from a Kabsch start): its centre line must lie
+within 1 % of the curve's size (bounding-box diagonal) on average, its ends within 2 %, its
+length within one module of the curve's, turning the way the drawing turns."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+from scipy.spatial import cKDTree
+
+import fabkit
+from fabkit.cli import main
+from fabkit.letters import chain_centerline
+from fabkit.templates import bundled_folder
+
+CURVES = bundled_folder() / "curves"
+
+
+def read_csv(path):
+    rows = [ln.split(",") for ln in path.read_text().splitlines()
+            if ln and not ln.startswith(("#", "x"))]
+    return np.array(rows, dtype=float)
+
+
+def dense(curve, step=0.25):
+    """The curve resampled every ``step`` mm (for nearest-point distances)."""
+    s = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+    t = np.arange(0, s[-1] + step, step).clip(max=s[-1])
+    return np.column_stack([np.interp(t, s, curve[:, 0]), np.interp(t, s, curve[:, 1])])
+
+
+def moved(points, p):
+    c, s = math.cos(p[0]), math.sin(p[0])
+    return points @ np.array([[c, -s], [s, c]]).T + p[1:]
+
+
+def own_fit(points, curve):
+    """The rigid motion (no mirror) that brings the points closest to the curve: Kabsch on the
+    points at equal arclength, then Nelder-Mead on the mean squared distance, the chain's two
+    ends counting as two more points whose target is the curve's ends (a chain covers its
+    curve end to end, it does not slide along it)."""
+    tree = cKDTree(dense(curve))
+    s_c = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    s_k = np.concatenate([[0], np.cumsum(np.linalg.norm(np.diff(curve, axis=0), axis=1))])
+    ref = np.column_stack([np.interp(s_c * s_k[-1] / s_c[-1], s_k, curve[:, 0]),
+                           np.interp(s_c * s_k[-1] / s_c[-1], s_k, curve[:, 1])])
+    a, b = points - points.mean(0), ref - ref.mean(0)
+    u, _, vt = np.linalg.svd(a.T @ b)
+    rot = (u @ vt).T
+    if np.linalg.det(rot) < 0:
+        u[:, -1] *= -1
+        rot = (u @ vt).T
+    t0 = ref.mean(0) - points.mean(0) @ rot.T
+    p0 = np.array([math.atan2(rot[1, 0], rot[0, 0]), *t0])
+
+    def cost(p):
+        m = moved(points, p)
+        ends = np.sum((m[[0, -1]] - curve[[0, -1]]) ** 2)
+        return float((np.sum(tree.query(m)[0] ** 2) + ends) / (len(m) + 2))
+
+    p = minimize(cost, p0, method="Nelder-Mead",
+                 options={"xatol": 1e-6, "fatol": 1e-9, "maxiter": 4000}).x
+    return moved(points, p), tree
+
+
+def turn(points):
+    d = np.diff(points, axis=0)
+    return float(np.sum(np.arctan2(d[:-1, 0] * d[1:, 1] - d[:-1, 1] * d[1:, 0],
+                                   np.sum(d[:-1] * d[1:], axis=1))))
+
+
+def design(tmp_path, name, *extra):
+    """``fabkit design --curve NAME.csv`` (a bundled curve, by its bare name), following the
+    suggestion once when refused. Returns the output folder and the options that built."""
+    out = tmp_path / name
+    args = ["design", "--curve", f"{name}.csv", *extra, "-o", str(out)]
+    code = main(args)
+    return out, code
+
+
+def check_chain(out, name, curve):
+    """Load the written chain, trace it to its final state, fit it here; the figures."""
+    d = fabkit.load_template(out / f"{name}.toml")
+    scale = d.fabrication["laser"]["scale"]
+    traj = fabkit.trace(d.network, "d1", to=d.motion.to, method="constructive", samples=2)
+    assert str(traj.status) == "finished" and traj.max_edge_error < 1e-9
+    k = len(d.raw["chain"]["modules"])
+    centre = chain_centerline(d.network, traj.positions[-1], k) * scale
+    fitted, tree = own_fit(centre, curve)
+    size = float(np.linalg.norm(np.ptp(curve, axis=0)))
+    dist = tree.query(fitted)[0]
+    report = json.loads((out / f"{name}_fit.json").read_text())
+    return {"mean": dist.mean() / size, "start": np.linalg.norm(fitted[0] - curve[0]) / size,
+            "end": np.linalg.norm(fitted[-1] - curve[-1]) / size, "centre": fitted,
+            "length": float(np.linalg.norm(np.diff(centre, axis=0), axis=1).sum()),
+            "modules": k, "report": report}
+
+
+def assert_follows(fit, curve, module_size, corner_cut=0.0):
+    assert fit["mean"] <= 0.01
+    assert fit["start"] <= 0.02 and fit["end"] <= 0.02
+    length = float(np.linalg.norm(np.diff(curve, axis=0), axis=1).sum())
+    # within one module of the curve (less what a corner's cut takes off)
+    assert -module_size - corner_cut <= fit["length"] - length <= module_size
+    # the program's own figures agree with this test's fit
+    e = fit["report"]["fit_error_fraction_of_size"]
+    assert e["mean"] <= 0.01 and abs(e["mean"] - fit["mean"]) <= 0.002
+
+
+def test_s_curve_of_two_arcs_end_to_end(tmp_path, capsys):
+    curve = read_csv(CURVES / "s_curve.csv")
+    out, code = design(tmp_path, "s_curve")
+    stdout = capsys.readouterr().out
+    assert code == 0
+    fit = check_chain(out, "s_curve", curve)
+    assert_follows(fit, curve, 50.0)
+    assert fit["end"] <= 0.005 and fit["mean"] <= 0.002
+    assert abs(fit["modules"] - 785.4 / 50) <= 1
+    # right first, then left, as drawn
+    c = fit["centre"]
+    half = len(c) // 2
+    assert turn(c[:half + 1]) < -0.5 and turn(c[half:]) > 0.5
+    # the headline carries the ends; no circle is fitted to an S
+    head = [ln for ln in stdout.splitlines() if "traced final state on the curve" in ln][0]
+    assert "ends" in head
+    assert "fitted circle" not in stdout
+    assert "circle_radius" not in fit["report"]["proportions"]["curve"]
+
+
+def test_l_with_a_right_angle_is_cut_within_the_tolerance(tmp_path, capsys):
+    curve = read_csv(CURVES / "l_corner.csv")
+    out, code = design(tmp_path, "l_corner")
+    capsys.readouterr()
+    assert code == 0
+    fit = check_chain(out, "l_corner", curve)
+    # the chain turns 90 deg over about 6 modules (at most 32 deg per two): it cuts the corner
+    # along a round of radius r ~ 150 mm, which is shorter than the legs by (2 - pi / 2) r
+    assert_follows(fit, curve, 50.0, corner_cut=(2 - math.pi / 2) * 150.0)
+    assert 80.0 <= math.degrees(turn(fit["centre"])) <= 100.0  # south, then east: 90 deg left
+
+
+def test_spiral_turns_the_way_it_is_drawn(tmp_path, capsys):
+    # at 50 mm the spiral's inner turn (r = 100 mm: 57 deg per two modules) is too sharp, and
+    # smaller modules turn less sharply themselves; the refusal's suggestion
+    # (test_spiral_refused_with_a_suggestion_that_builds) is the drawing 2.2 times larger
+    curve = read_csv(CURVES / "spiral.csv") * 2.2
+    out, code = design(tmp_path, "spiral", "--curve-scale", "2.2")
+    capsys.readouterr()
+    assert code == 0
+    fit = check_chain(out, "spiral", curve)
+    assert_follows(fit, curve, 50.0)
+    assert fit["mean"] <= 0.002
+    # anticlockwise outward, 1.5 turns: the chain winds the same way
+    drawn = math.degrees(turn(curve))
+    chain = math.degrees(turn(fit["centre"]))
+    assert drawn > 540 and abs(chain - drawn) <= 15.0
+
+
+def test_quadrifolium_at_the_suggested_scale(tmp_path, capsys):
+    curve = read_csv(CURVES / "quadrifolium.csv") * 70
+    out, code = design(tmp_path, "quadrifolium", "--curve-scale", "70")
+    stdout = capsys.readouterr().out
+    assert code == 0
+    fit = check_chain(out, "quadrifolium", curve)
+    assert_follows(fit, curve, 50.0)
+    assert fit["mean"] <= 0.002
+    assert 1000 <= math.degrees(turn(fit["centre"])) <= 1100  # four petals: three turns
+    proportions = fit["report"]["proportions"]["curve"]
+    assert proportions["closed"] and "chord" not in proportions
+    assert "closed" in stdout and "fitted circle" not in stdout
+
+
+@pytest.mark.slow
+def test_quadrifolium_refused_with_a_scale_that_builds(tmp_path, capsys):
+    out, code = design(tmp_path, "quadrifolium")
+    err = capsys.readouterr().err
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "nearest feasible: --curve-scale 70" in line
+    test_quadrifolium_at_the_suggested_scale(tmp_path, capsys)
+
+
+@pytest.mark.slow
+def test_spiral_refused_with_a_suggestion_that_builds(tmp_path, capsys):
+    out, code = design(tmp_path, "spiral")
+    err = capsys.readouterr().err
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert line.endswith("nearest feasible: --curve-scale 2.2 (the drawing 2.2x larger)")
+    assert not out.exists()
+
+
+def test_fit_summary_says_only_what_fits_the_curve(tmp_path, capsys):
+    # a sine: no circle; an arc: its circle; a straight line: no circle
+    x = np.linspace(0.0, 1600.0, 801)
+    shapes = {"sine": np.column_stack([x, 150.0 * np.sin(2 * np.pi * x / 800.0)]),
+              "line": np.column_stack([np.linspace(0, 600, 7), np.zeros(7)]),
+              "arc": np.column_stack([400 * np.cos(np.linspace(0, 1, 300)),
+                                      400 * np.sin(np.linspace(0, 1, 300))])}
+    for name, pts in shapes.items():
+        src = tmp_path / f"{name}.csv"
+        src.write_text("x,y\n" + "\n".join(f"{a:.6f},{b:.6f}" for a, b in pts) + "\n")
+        assert main(["design", "--curve", str(src), "-o", str(tmp_path / name)]) == 0, name
+        stdout = capsys.readouterr().out
+        report = json.loads((tmp_path / name / f"{name}_fit.json").read_text())
+        curve = report["proportions"]["curve"]
+        if name == "arc":
+            assert abs(curve["circle_radius"] - 400.0) < 0.5
+            assert abs(curve["circle_sweep_deg"] - math.degrees(1.0)) < 0.5
+            assert "fitted circle: curve r = 400.00 mm" in stdout
+        else:
+            assert "circle_radius" not in curve and "fitted circle" not in stdout
+        assert report["fit_error_fraction_of_size"]["mean"] <= 0.01
