@@ -81,6 +81,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         except UnsafeNameError as exc:  # a Design made in code, not read from a template
             raise TemplateError(path, "name", f"{design.name!r} {exc.reason}") from None
         check_replaceable(folder)
+        _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
         files, fmts, facts = build_outputs(design, formats, settings, tolerance_samples,
                                            exporters, previews, stage=stage,
                                            allow_large=allow_large)
