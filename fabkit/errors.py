@@ -421,6 +421,8 @@ def internal_error_line(exc: BaseException) -> str:
     import traceback
     from pathlib import Path
 
+    if isinstance(getattr(exc, "internal_line", None), str):  # made where it happened (a child)
+        return exc.internal_line
     frames = traceback.extract_tb(exc.__traceback__)
     where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
     text = " ".join(str(exc).split())[:200]

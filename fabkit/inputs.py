@@ -78,10 +78,16 @@ def read_regular(path, limit: int, *, what: str = "bytes",
         size = os.fstat(fd).st_size
         if size > limit and not large:
             raise BoundsError(str(path), what, size, limit, override)
-        try:
-            data = fh.read(-1 if large else limit + 1)  # the file may grow meanwhile
+        cap = float("inf") if large else limit + 1
+        try:  # the size it has now, and what it grows by meanwhile, up to the bound
+            parts = [fh.read(int(min(size + 1, cap)))]
+            total = len(parts[0])
+            while total > size and total < cap and parts[-1]:
+                parts.append(fh.read(int(min(2**24, cap - total))))
+                total += len(parts[-1])
         except OSError as exc:
             raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+        data = parts[0] if len(parts) == 1 else b"".join(parts)
     if len(data) > limit and not large:
         raise BoundsError(str(path), what, len(data), limit, override)
     return data

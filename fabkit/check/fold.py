@@ -156,6 +156,9 @@ def check_file(path, design=None, settings=None) -> dict:
     from ..fab.creases import flat_foldability, fold_model, origami_model
     from ..rigidity import count_modes
 
+    from . import require_files
+
+    require_files([path])  # the check is held to the work its size allows
     doc = read_fold(path)
     checks = []
     problems = structure_problems(doc)

@@ -254,9 +254,9 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     checks.append(_check(
         "bars read back", not bad and max(off_layer, thick, wide) <= MEASURE_TOL_MM,
         value=round(max(off_layer, thick, wide), 9), limit=MEASURE_TOL_MM,
-        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max()) + 1} layers of "
-                                      f"{pitch:g} mm; largest error of height, thickness and "
-                                      f"width (mm)"))
+        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
+                                      f"layers of {pitch:g} mm; largest error of height, "
+                                      f"thickness and width (mm)"))
     if bad or len(bodies) != plan.n_bars:
         report.update(ok=False, checks=checks)
         return report

@@ -46,6 +46,7 @@ def run(args) -> int:
     from ..check import check_file
     from ..errors import FabkitError
     from ..report import jsonable
+    from ..stoppable import run_stoppable
     from ..templates import load_template, with_settings
     from .export import parse_settings
 
@@ -57,7 +58,11 @@ def run(args) -> int:
         path = Path(name)
         if not path.is_file():
             raise FabkitError(f"{path}: no such file")
-        report = check_file(path, design=design, settings=settings)
+        if args.debug:  # in this process, for the traceback
+            report = check_file(path, design=design, settings=settings)
+        else:  # where SIGINT/SIGTERM stop it at once, held to its work estimate
+            report = run_stoppable(check_file, path, design=design, settings=settings,
+                                   what=str(path))
         failed += not report.get("ok")
         if args.json:
             out[str(path)] = report
