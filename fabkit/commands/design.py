@@ -65,16 +65,40 @@ def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
 
 def _read_curve_file(path: str):
     from ..designer import read_curve
+    from ..errors import BoundsError
+    from ..inputs import read_regular
+    from ..workload import require
 
     p = Path(path)
-    if not p.is_file():
-        raise InputFileError(p, "no such curve file (give an .svg or a .csv)"
-                             if not p.exists() else "not a regular file")
-    size = p.stat().st_size
-    if size > MAX_CURVE_BYTES:
-        raise InputFileError(p, f"{size:,} bytes is over the limit of {MAX_CURVE_BYTES:,} for a "
-                                "curve file")
-    return read_curve(p.read_bytes(), str(p))
+    if not p.exists():
+        raise InputFileError(p, "no such curve file (give an .svg or a .csv)")
+    try:  # a FIFO or a device is refused, never waited on
+        data = read_regular(p, MAX_CURVE_BYTES, what="bytes for a curve file")
+    except BoundsError as exc:
+        raise InputFileError(p, f"{exc.value:,} bytes is over the limit of {MAX_CURVE_BYTES:,} "
+                                "for a curve file") from None
+    if p.suffix.lower() == ".svg":
+        require(f"{p}", ("SVG byte", len(data)), option=True)
+    return read_curve(data, str(p))
+
+
+def _check_curve_size(curve, module_size: float) -> None:
+    """The drawing, at its scale, is within reach of a chain: finite, and at most
+    :data:`fabkit.templates.MAX_MODULES` modules long (before any design work)."""
+    import numpy as np
+
+    from ..templates import MAX_MODULES, allow_large
+
+    if not np.isfinite(curve.points).all() or not np.isfinite(curve.length):
+        raise UsageError("--curve-scale", "makes the curve's coordinates overflow; give a "
+                                          "smaller factor")
+    modules = curve.length / module_size
+    if modules > MAX_MODULES and not allow_large():
+        count = f"{modules:,.0f}" if modules < 1e9 else f"{modules:.3g}"
+        raise UsageError("--module-size", f"the curve of {curve.length:.6g} mm makes {count} "
+                                          f"modules of {module_size:g} mm, over the limit of "
+                                          f"{MAX_MODULES:,} modules; give a larger module size "
+                                          "or a smaller --curve-scale")
 
 
 def run(args) -> int:
@@ -142,7 +166,9 @@ def _run_curve(args, name, out, figure_png) -> int:
 
     curve = _read_curve_file(args.curve)
     if args.curve_scale != 1.0:
-        curve = scaled(curve, args.curve_scale)
+        with np.errstate(over="ignore", invalid="ignore"):
+            curve = scaled(curve, args.curve_scale)
+    _check_curve_size(curve, args.module_size)
     result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
                                 name=name)
     report = result.report
