@@ -376,6 +376,14 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
             check_method_options(method, options)
         except SettingsError as exc:
             raise ctx.error(exc.key, exc.reason) from None
+        samples = options.get("samples")
+        if isinstance(samples, int) and not isinstance(samples, bool):
+            from .workload import require
+
+            # a sampled trace holds every sample's configuration: samples x nodes
+            require(f"{ctx.path}: motion.options.samples",
+                    ("trace configuration node", samples * net.n_nodes),
+                    ("stored value", samples))
     return Motion(drive=drive, to=to, method=method, hold=tuple(hold), options=dict(options))
 
 
