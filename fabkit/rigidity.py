@@ -513,6 +513,14 @@ def _checked_positions(positions, net: Network) -> np.ndarray:
                                               f"node), got {x.shape}")
     if not np.isfinite(x).all():
         raise ArgumentValueError("positions", "holds non-finite coordinates")
+    if net.n_edges:
+        lengths = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
+        scale = float(np.abs(x).max())
+        short = np.flatnonzero(lengths <= 1e-12 * max(scale, 1e-300))
+        if short.size:  # an edge of no length has no direction: no rigidity matrix row
+            a, b = (int(v) for v in net.edges[short[0]])
+            raise ArgumentValueError("positions", f"puts nodes {a} and {b} of edge {int(short[0])} "
+                                                  "at one point; every edge needs a length")
     return x
 
 

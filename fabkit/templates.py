@@ -263,6 +263,8 @@ class TemplateContext:
     def load(self, relative: str, key: str) -> "Design":
         """Load another template named relative to this one (for chains and sequences); a bare
         name not found next to this one is a bundled template (see :func:`resolve_template`)."""
+        if not relative.strip():  # else it would name the folder this template is in
+            raise self.error(key, "is empty: name a template file (e.g. \"fourbar.toml\")")
         target = resolve_template(relative, base=self.path.parent).resolve()
         if str(target) in self.stack:
             raise self.error(key, f"template {relative!r} refers back to itself")
@@ -435,7 +437,7 @@ def _design_name(ctx, raw, path: Path) -> str:
     A ``name`` set in the template is checked as written; without one, the file's stem is used
     with every character that cannot be in a folder name replaced by ``_``.
     """
-    from .errors import UnsafeNameError
+    from .errors import UnsafeNameError, brief
     from .outputs import check_name
 
     if "name" in raw:
@@ -448,7 +450,7 @@ def _design_name(ctx, raw, path: Path) -> str:
         return check_name(name, "the name")
     except UnsafeNameError as exc:
         fix = "" if key else " (it comes from the file name; rename the file or set name = ...)"
-        raise ctx.error(key, f"{name!r} {exc.reason}{fix}") from None
+        raise ctx.error(key, f"{brief(name)} {exc.reason}{fix}") from None
 
 
 def parse_template(text: str, path: Path | str = "<string>", _stack=(),
@@ -535,6 +537,11 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
 
         raise ArgumentTypeError("path", f"must be a file path or a bundled template's name, "
                                         f"got {type(path).__name__}")
+    if "\x00" in os.fspath(path):
+        from .errors import ArgumentValueError
+
+        raise ArgumentValueError("path", f"holds a NUL character, which no file name has: "
+                                         f"{os.fspath(path)[:80]!r}")
     name, path = path, resolve_template(path)
     try:
         st = os.stat(path)

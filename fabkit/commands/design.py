@@ -42,13 +42,13 @@ def add_arguments(p):
 
 def _name(args) -> str:
     if args.name is not None:
-        from ..errors import UnsafeNameError
+        from ..errors import UnsafeNameError, brief
         from ..outputs import check_name
 
         try:  # the one guard: a name never leaves -o
             return check_name(args.name, "--name")
         except UnsafeNameError as exc:
-            raise UsageError("--name", f"{args.name!r} {exc.reason}") from None
+            raise UsageError("--name", f"{brief(args.name)} {exc.reason}") from None
     if args.curve:
         stem = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(args.curve).stem).lstrip("._-")
         return (stem or "curve")[:80]
