@@ -41,6 +41,8 @@ from ..numerics import MM_SLACK, project_to_lengths
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
 
 FORMAT = "dxf"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("laser",)
 SUFFIXES = (".dxf",)
 #: Largest difference allowed between a read-back length and the design (mm).
 LENGTH_TOL = 1e-6

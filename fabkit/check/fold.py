@@ -27,6 +27,8 @@ from ..errors import FabkitError, FabricationError
 from ..numerics import FLAT_RTOL
 
 FORMAT = "fold"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("origami",)
 SUFFIXES = (".fold",)
 
 #: Largest difference of a port distance between the file and the re-folded network.

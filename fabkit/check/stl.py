@@ -35,6 +35,8 @@ __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_meshes", "check_mesh", "sl
            "module_fixed_points", "sequential_transition", "as_built_tolerance", "VOLUME_RTOL"]
 
 FORMAT = "stl"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("print",)
 SUFFIXES = (".stl",)
 
 #: Relative tolerance between the mesh's volume and the analytic volume.

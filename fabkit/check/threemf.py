@@ -25,6 +25,8 @@ from ..errors import FabricationError
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "read_package"]
 
 FORMAT = "3mf"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("print",)
 SUFFIXES = (".3mf",)
 
 _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}

@@ -51,6 +51,13 @@ def run(args) -> int:
     from .export import parse_settings
 
     settings = parse_settings(args.settings)
+    if settings:  # a section no check of these files reads would be accepted without effect
+        from ..check import checker_for
+        from ..schema import refuse_unused
+
+        reads = {"motion"}.union(*(getattr(checker_for(f), "READS", ()) for f in args.files))
+        refuse_unused(settings, reads, f"the checks of these files read "
+                                       f"{', '.join(sorted(reads - {'motion'}))} settings only")
     design = with_settings(load_template(args.design), settings) if args.design else None
     failed = 0
     out = {}
