@@ -108,6 +108,8 @@ def curve_from_svg(data: bytes, name: str = "curve.svg") -> Curve:
     except Exception as exc:  # svgelements raises the XML parser's own errors
         raise FabkitError(f"{name}: not a readable SVG file ({type(exc).__name__}: "
                           f"{' '.join(str(exc).split())[:120]})") from None
+    if not isinstance(doc, se.SVG):  # XML whose root is not <svg>
+        raise FabkitError(f"{name}: not an SVG document (its root element is not <svg>)")
     subpaths = []
     for element in doc.elements():
         if not isinstance(element, se.Shape):
