@@ -150,44 +150,66 @@ def run_stoppable(func, *args, what: str, **kwargs):
         An unexpected exception of ``func``: one line saying where (as the command line shows
         internal errors).
     """
-    import multiprocessing
+    if not hasattr(os, "fork"):
+        return func(*args, **kwargs)  # pragma: no cover - no fork here: in this process
+    from multiprocessing.connection import Connection, wait
 
-    if sys.platform == "win32" or "fork" not in multiprocessing.get_all_start_methods():
-        return func(*args, **kwargs)  # pragma: no cover - no fork: in this process
-    ctx = multiprocessing.get_context("fork")
-    receive, send = ctx.Pipe(duplex=False)
-    child = ctx.Process(target=_child_main, args=(send, os.getpid(), func, args, kwargs),
-                        daemon=True, name="fabkit-step")
-    child.start()
-    send.close()
-    from multiprocessing.connection import wait
-
-    limits = None
+    parent = os.getpid()
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into the caller's code
+        try:
+            os.close(read_end)
+            _child_main(Connection(write_end, readable=False), parent, func, args, kwargs)
+        finally:
+            os._exit(0)
+    os.close(write_end)
+    receive = Connection(read_end, writable=False)
+    ended = _pidfd(pid)
+    limits, message, status = None, None, None
     try:
-        message = None
-        while message is None:
-            ready = wait([receive, child.sentinel])
+        while message is None and status is None:
+            ready = wait([receive] + ([ended] if ended is not None else []),
+                         timeout=None if ended is not None else 0.2)
             if receive in ready:
                 try:
                     message = receive.recv()
-                except EOFError:  # the child died before it could say anything
-                    child.join()
+                except EOFError:  # it ended without a word
+                    status = os.waitpid(pid, 0)[1]
                     break
                 if message[0] == "limits":
                     limits, message = message[1], None
-            elif not child.is_alive():
+            elif ended is not None and ended in ready:
                 if receive.poll():
-                    continue
-                break
-        child.join()
+                    continue  # what it sent before it ended counts
+                status = os.waitpid(pid, 0)[1]
+            elif ended is None:
+                done, code = os.waitpid(pid, os.WNOHANG)
+                if done:
+                    status = code
+                    if receive.poll():  # what it sent before it ended counts
+                        message = receive.recv()
+                        while message[0] == "limits" and receive.poll():
+                            limits, message = message[1], receive.recv()
+                        if message[0] == "limits":
+                            limits, message = message[1], None
+        if status is None:
+            status = os.waitpid(pid, 0)[1]
     except BaseException:
-        child.kill()
-        child.join()
+        # a signal (or any error here): the child ends at once; the kernel frees its memory
+        # while this process goes on, and a thread reaps it
+        os.kill(pid, signal.SIGKILL)
+        import threading
+
+        threading.Thread(target=_reap, args=(pid,), daemon=True).start()
         raise
     finally:
         receive.close()
+        if ended is not None:
+            os.close(ended)
+    exitcode = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
     if message is None:
-        raise _died(what, child.exitcode, limits)
+        raise _died(what, exitcode, limits)
     kind, payload = message
     if kind == "ok":
         return payload
@@ -200,6 +222,21 @@ def run_stoppable(func, *args, what: str, **kwargs):
         raise StepLimitError(what, f"needed more memory than its size allows ({payload}); "
                                    "fabkit --allow-large lifts the limit")
     raise _ChildInternalError(payload)
+
+
+def _pidfd(pid: int):
+    """A descriptor that becomes readable when process ``pid`` ends (Linux), else None."""
+    try:
+        return os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        return None
+
+
+def _reap(pid: int) -> None:
+    try:
+        os.waitpid(pid, 0)
+    except ChildProcessError:
+        pass
 
 
 def _died(what: str, exitcode, limits) -> StepLimitError:
