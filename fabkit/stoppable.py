@@ -248,9 +248,9 @@ def _died(what: str, exitcode, limits) -> StepLimitError:
         estimate, allowed = limits
         return StepLimitError(what, f"ran past the {describe_seconds(allowed)} of CPU time "
                                     f"allowed for work estimated at {estimate}, and was "
-                                    "stopped: the file costs far more than its size says "
-                                    "(overlapping copies of one body?); fabkit --allow-large "
-                                    "lifts the limit")
+                                    "stopped: it costs far more than its counts say (such as "
+                                    "thousands of coincident copies of one body); fabkit "
+                                    "--allow-large lifts the limit")
     how = (f"signal {signal.Signals(-exitcode).name}" if exitcode and exitcode < 0
            else f"exit code {exitcode}")
     return StepLimitError(what, f"its process died ({how}) before it finished")

@@ -25,6 +25,7 @@ import fabkit.check.threemf  # noqa: F401
 from fabkit.check import check_file
 from fabkit.cli import main
 from fabkit.designer import read_curve
+from fabkit.designer.curve_files import svg_work
 from fabkit.errors import FabkitError
 from fabkit.stoppable import StepLimitError, keep_to, run_stoppable
 from fabkit.workload import require
@@ -181,7 +182,7 @@ SVG_MUTATIONS = [_svg_transform, _svg_command, _svg_units, _svg_viewbox, _svg_en
 def _read_svg_as_design_does(data: bytes):
     """What ``fabkit design --curve`` does with the file's bytes: the estimate, then the read;
     the curve it returns must be finite."""
-    keep_to(require("mutant.svg", ("SVG byte", len(data)), option=True))
+    keep_to(require("mutant.svg", *svg_work(data), option=True))
     curve = read_curve(data, "mutant.svg")
     assert np.isfinite(curve.points).all() and np.isfinite(curve.length)
     return len(curve.points)

@@ -435,6 +435,18 @@ def test_long_segments_are_sampled_within_one_budget(monkeypatch):
     assert sum(sampled) <= 9 * 5000 + cf.MAX_TOTAL_SAMPLES + 5000
 
 
+def test_closed_subpaths_without_a_move_are_counted_before_parsing(tmp_path, capsys):
+    # every Z makes svgelements walk back to the last M: 40 000 pieces with no M between them
+    # cost their product (a fuzzed drawing of 12 MB ran past 5 min of CPU before this count)
+    piece = " l 10 0 l 0 10 z"
+    src = tmp_path / "closed.svg"
+    src.write_text(SVG.format(f'<path d="M 0 0{piece * 40_000}" stroke="black"/>'))
+    rc = main(["design", "--curve", str(src), "-o", str(tmp_path / "out")])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert f"{src}: about" in line and "SVG close scans" in line and "over the limit" in line
+
+
 def test_a_drawing_of_a_million_segments_is_refused_by_its_estimate(tmp_path, monkeypatch,
                                                                     capsys):
     import fabkit.workload as workload

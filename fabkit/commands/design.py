@@ -78,7 +78,9 @@ def _read_curve_file(path: str):
         raise InputFileError(p, f"{exc.value:,} bytes is over the limit of {MAX_CURVE_BYTES:,} "
                                 "for a curve file") from None
     if p.suffix.lower() == ".svg":
-        require(f"{p}", ("SVG byte", len(data)), option=True)
+        from ..designer.curve_files import svg_work
+
+        require(f"{p}", *svg_work(data), option=True)
     return read_curve(data, str(p))
 
 

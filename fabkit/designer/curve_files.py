@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import FabkitError
 
 __all__ = ["Curve", "CurveFileError", "read_curve", "curve_from_svg", "curve_from_csv",
-           "MM_PER_PX"]
+           "svg_work", "MM_PER_PX"]
 
 #: CSS pixels per inch (the SVG user unit when a document gives no other) and mm per pixel.
 PX_PER_INCH = 96.0
@@ -84,6 +84,26 @@ def _approximate_length(seg) -> float:
     """A curved segment's length to within a few per cent: its polyline through 9 points."""
     with np.errstate(over="ignore", invalid="ignore"):
         return _polyline_length(_points(seg, np.linspace(0.0, 1.0, 9)))
+
+
+def svg_work(data: bytes) -> tuple:
+    """The work of reading an SVG drawing, as counts of :data:`fabkit.workload.UNITS`, counted
+    on its bytes before it is parsed.
+
+    Besides its bytes: svgelements finds the start of a subpath for every close command (``Z``)
+    by walking back to the last move (``M``), so a path of many segments and many ``Z`` without
+    a move between them costs their product. Counted here as, for every piece of a path
+    between two moves, its ``Z`` times its numbers (a bound on its segments).
+    """
+    import re
+
+    scans = 0
+    for d in re.findall(rb"\sd\s*=\s*(?:\"([^\"]*)\"|'([^']*)')", data):
+        for piece in re.split(rb"[Mm]", d[0] or d[1]):
+            closes = piece.count(b"z") + piece.count(b"Z")
+            if closes:
+                scans += closes * len(re.findall(rb"[0-9.]+", piece))
+    return (("SVG byte", len(data)), ("SVG close scan", scans))
 
 
 def curve_from_svg(data: bytes, name: str = "curve.svg") -> Curve:
