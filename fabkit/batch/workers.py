@@ -369,7 +369,9 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                         w.proc.kill()  # a broken pipe: this worker can no longer report
                     bury(w)
     except BaseException:
-        pool.stop()
+        # half a second to unwind: a worker inside a C call never does, and the staging
+        # folders are removed below whatever the workers did
+        pool.stop(grace=0.5)
         # a worker killed between two writes leaves its staging folder: remove those of the
         # designs in flight, and put back an old folder caught between the two renames
         for i in pending:
