@@ -24,7 +24,7 @@ import threadpoolctl
 from . import arguments
 from .errors import ArgumentTypeError, ArgumentValueError, ConstructionError, ResourceError
 from .network import Network
-from .numerics import RANK_RTOL
+from .numerics import EDGE_RTOL, RANK_RTOL, TINY
 
 __all__ = [
     "rigidity_matrix",
@@ -515,9 +515,9 @@ def _checked_positions(positions, net: Network) -> np.ndarray:
         raise ArgumentValueError("positions", "holds non-finite coordinates")
     if net.n_edges:
         lengths = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
-        scale = float(np.abs(x).max())
-        short = np.flatnonzero(lengths <= 1e-12 * max(scale, 1e-300))
-        if short.size:  # an edge of no length has no direction: no rigidity matrix row
+        # an edge within round-off of no length has no direction: no rigidity matrix row
+        short = np.flatnonzero(lengths <= EDGE_RTOL * max(float(np.abs(x).max()), TINY))
+        if short.size:
             a, b = (int(v) for v in net.edges[short[0]])
             raise ArgumentValueError("positions", f"puts nodes {a} and {b} of edge {int(short[0])} "
                                                   "at one point; every edge needs a length")

@@ -172,7 +172,7 @@ def _svg_repeat_path(text: str, rng: random.Random) -> str:
         return text
     body = m.group(1)
     return text.replace(body, body + (" " + body.replace("M", "L").replace("m", "l"))
-                        * rng.choice([10, 100, 2000]), 1)
+                        * rng.choice([10, 100, 400]), 1)
 
 
 SVG_MUTATIONS = [_svg_transform, _svg_command, _svg_units, _svg_viewbox, _svg_entity,
