@@ -194,7 +194,20 @@ def _restore_signal_handlers(previous: dict) -> None:
 
 def entry() -> None:
     """Console-script entry point."""
-    sys.exit(main())
+    code = main()
+    if code >= 128:
+        # ended by a signal: every clean-up ran on the way out of main (temporary files,
+        # staging folders, worker and check processes); end now, not after the interpreter's
+        # teardown of numpy, scipy, trimesh and shapely (half a second on a busy machine)
+        import os
+
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(code)
+    sys.exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

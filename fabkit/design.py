@@ -419,8 +419,13 @@ def _fit_space(kind, designed, target) -> SolutionSpace:
     s = proto.scale
     rng = np.random.default_rng(12345)
     pts = c + s * rng.uniform(-2.0, 2.0, size=(6 * (d + 1) ** 2, d))
-    vals = proto.condition(pts)
-    M = _monomials((pts - c) / s)
+    with np.errstate(all="ignore"):
+        vals = proto.condition(pts)
+        M = _monomials((pts - c) / s)
+    if not (np.isfinite(vals).all() and np.isfinite(M).all()):
+        # before LAPACK, which would print to the terminal and fail on what overflowed
+        raise DesignError(f"the {kind} specification overflows floating point (designed nodes "
+                          f"of size {s:.3g}): give positions and targets of ordinary size")
     coef, *_ = np.linalg.lstsq(M, vals, rcond=None)
     Qn = _q_from_coeffs(coef, d)        # in normalised coordinates y = (x - c) / s
     T = np.eye(d + 1)

@@ -36,6 +36,7 @@ __all__ = [
     "UnavailableError",
     "Interrupted",
     "internal_error_line",
+    "brief",
 ]
 
 
@@ -316,6 +317,23 @@ class WriteError(OutputError):
         self.reason = reason
 
 
+def brief(value, limit: int = 60) -> str:
+    """``repr(value)`` for a message, cut to about ``limit`` characters with the full length
+    said: a 100 000-character name must not fill the terminal.
+
+    Examples
+    --------
+    >>> brief("x" * 100_000)
+    "'xxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxxx'... (100000 characters)"
+    """
+    text = repr(value)
+    if len(text) <= limit + 2:
+        return text
+    if isinstance(value, str):
+        return f"{value[:limit]!r}... ({len(value)} characters)"
+    return text[:limit] + "..."
+
+
 class UnsafeNameError(OutputError, ValueError):
     """A name that fabkit would write under an output folder is not safe there: it would leave
     the folder (``..``, a separator, an absolute path), is empty, holds a control character or
@@ -336,7 +354,7 @@ class UnsafeNameError(OutputError, ValueError):
     def __init__(self, what: str, name, reason: str):
         self.what = what
         self.name = name
-        FabkitError.__init__(self, f"{what} {name!r} {reason}")
+        FabkitError.__init__(self, f"{what} {brief(name)} {reason}")
         self.path = str(name)
         self.reason = reason
 
@@ -421,6 +439,8 @@ def internal_error_line(exc: BaseException) -> str:
     import traceback
     from pathlib import Path
 
+    if isinstance(getattr(exc, "internal_line", None), str):  # made where it happened (a child)
+        return exc.internal_line
     frames = traceback.extract_tb(exc.__traceback__)
     where = f" at {Path(frames[-1].filename).name}:{frames[-1].lineno}" if frames else ""
     text = " ".join(str(exc).split())[:200]

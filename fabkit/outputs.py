@@ -13,21 +13,28 @@ command and API function that writes therefore goes through this module:
   beside its target first, and only when all of them are complete are they renamed into place.
   A failure (a full disk included) removes the temporary files and names the file it could not
   write; nothing half-written is left.
+- :func:`own_entry` and :func:`open_own_file` give the hidden entries fabkit keeps at the top of
+  an output folder (the lock file, a design's staging and backup folders): never a symbolic
+  link (followed or moved into place), never a FIFO or a device (opening one blocks), always a
+  regular file or a folder of its own.
 
 The batch engine (``fabkit export``) adds a staging folder swapped in whole on top of this.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import re
+import stat
 import tempfile
 from pathlib import Path
 
 from .errors import OutputError, UnsafeNameError, WriteError
+from .inputs import file_kind
 
 __all__ = ["NAME_PATTERN", "MAX_NAME_LENGTH", "RESERVED_NAMES", "check_name", "output_folder",
-           "inside", "write_files", "write_atomic"]
+           "inside", "own_entry", "open_own_file", "write_files", "write_atomic"]
 
 #: What a name fabkit writes may look like: letters, digits and ``_ . + -``, starting with a
 #: letter or digit (so never ``.``, ``..`` or a hidden file, and never an option like ``-x``).
@@ -196,6 +203,84 @@ def _refuse_escape(root: Path, path: Path) -> None:
             if target != base and base not in target.parents:
                 raise OutputError(probe, f"is a symbolic link to {target}, outside the output "
                                          f"folder {root}; fabkit does not write through it")
+
+
+#: What the hidden entries fabkit keeps in an output folder look like: ``.fabkit.lock``,
+#: ``.<design>.staging``, ``.<design>.old``.
+_OWN_PATTERN = re.compile(r"^\.[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+def own_entry(folder, name: str, kind: str = "folder") -> Path:
+    """``folder / name`` for a hidden entry that fabkit itself keeps there, checked.
+
+    The entry may be missing (fabkit creates it); when it exists it must be what fabkit would
+    have made: a ``kind`` (``"folder"`` or ``"file"``) and never a symbolic link, wherever the
+    link points (fabkit moves, removes and locks these entries, and a link would carry that
+    onto its target). ``folder`` itself is checked as :func:`inside` checks a path.
+
+    Raises
+    ------
+    UnsafeNameError
+        ``name`` is not a hidden name of the form fabkit uses.
+    OutputError
+        The entry is a symbolic link, or not a ``kind``; the message names it.
+    """
+    if not isinstance(name, str) or not _OWN_PATTERN.match(name) or len(name) > 255:
+        raise UnsafeNameError("entry name", name, "is not a name fabkit keeps in an output "
+                                                  "folder")
+    path = Path(folder) / name
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path
+    except OSError as exc:
+        raise OutputError(path, f"cannot be examined: {exc.strerror or exc}") from None
+    if stat.S_ISLNK(st.st_mode):
+        raise OutputError(path, "is a symbolic link where fabkit keeps its own "
+                                f"{kind}; fabkit does not follow it: remove it")
+    want = stat.S_ISDIR if kind == "folder" else stat.S_ISREG
+    if not want(st.st_mode):
+        raise OutputError(path, f"is {file_kind(st.st_mode)} where fabkit keeps its own "
+                                f"{kind}; remove it")
+    return path
+
+
+def open_own_file(path) -> int:
+    """Open (creating it) a file fabkit keeps and updates in place, such as a lock file.
+
+    Opened without following a symbolic link and without blocking on a FIFO, then refused
+    unless it is a regular file: nothing outside the output folder is truncated or written,
+    and no special file is waited on.
+
+    Returns
+    -------
+    int
+        The file descriptor (read and write).
+
+    Raises
+    ------
+    OutputError
+        A link, a FIFO, a device or a folder at ``path``, or a file that cannot be opened.
+    """
+    path = Path(path)
+    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP or path.is_symlink():
+            raise OutputError(path, "is a symbolic link where fabkit keeps its own file; "
+                                    "fabkit does not follow it: remove it") from None
+        if exc.errno in (errno.ENXIO, errno.EISDIR):  # a FIFO without reader, a folder
+            mode = os.lstat(path).st_mode
+            raise OutputError(path, f"is {file_kind(mode)} where fabkit keeps its own file; "
+                                    "remove it") from None
+        raise OutputError(path, f"cannot be opened: {exc.strerror or exc}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise OutputError(path, f"is {file_kind(mode)} where fabkit keeps its own file; "
+                                "remove it")
+    return fd
 
 
 def write_atomic(path, data: bytes) -> Path:

@@ -24,7 +24,7 @@ import threadpoolctl
 from . import arguments
 from .errors import ArgumentTypeError, ArgumentValueError, ConstructionError, ResourceError
 from .network import Network
-from .numerics import RANK_RTOL
+from .numerics import EDGE_RTOL, RANK_RTOL, TINY
 
 __all__ = [
     "rigidity_matrix",
@@ -513,6 +513,14 @@ def _checked_positions(positions, net: Network) -> np.ndarray:
                                               f"node), got {x.shape}")
     if not np.isfinite(x).all():
         raise ArgumentValueError("positions", "holds non-finite coordinates")
+    if net.n_edges:
+        lengths = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
+        # an edge within round-off of no length has no direction: no rigidity matrix row
+        short = np.flatnonzero(lengths <= EDGE_RTOL * max(float(np.abs(x).max()), TINY))
+        if short.size:
+            a, b = (int(v) for v in net.edges[short[0]])
+            raise ArgumentValueError("positions", f"puts nodes {a} and {b} of edge {int(short[0])} "
+                                                  "at one point; every edge needs a length")
     return x
 
 

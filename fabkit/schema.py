@@ -36,7 +36,7 @@ from .errors import SettingsError
 __all__ = ["Section", "LaserSection", "ScrewSection", "PrintSection", "OrigamiSection",
            "ToleranceSection", "MotionSection", "FABRICATION_SECTIONS", "OVERRIDE_SECTIONS",
            "METHOD_OPTIONS", "check_section", "check_table", "check_fabrication", "section_of",
-           "check_settings", "check_method_options", "describe_keys",
+           "check_settings", "check_method_options", "describe_keys", "refuse_unused",
            "describe_validation_error", "LASER_FLAVOURS", "LASER_LABELS", "REFERENCE_SQUARES",
            "MATERIAL_NAMES", "HINGE_STYLES", "PRINT_LINKAGES", "ORIGAMI_SPACINGS"]
 
@@ -398,6 +398,37 @@ def check_settings(settings, where: str = "", sections: dict | None = None) -> d
             raise SettingsError(full, f"unknown section; known: {', '.join(sorted(known))}")
         check_table(known[key], value, full)
     return settings
+
+
+def refuse_unused(settings, used, why: str) -> None:
+    """Refuse settings that nothing in this run reads, so that none is accepted without effect.
+
+    The one rule for every command that takes ``--set``: a section that no stage of the run
+    reads (``print`` when only DXF is made, ``laser`` for a design analysed as origami) is
+    refused in one line (exit status 2), as a key of another process is.
+
+    Parameters
+    ----------
+    settings : dict
+        Overrides nested by section.
+    used : collection of str
+        The sections the run reads.
+    why : str
+        What the run reads, for the message (``"this export makes dxf, which reads laser"``).
+
+    Raises
+    ------
+    UsageError
+    """
+    from .errors import UsageError
+
+    for section, table in (settings or {}).items():
+        if section in used:
+            continue
+        keys = ", ".join(f"{section}.{k}" for k in table) if isinstance(table, dict) and table \
+            else section
+        raise UsageError("--set", f"{keys}: {section} settings have no effect here: {why}; "
+                                  "remove them")
 
 
 def section_of(settings, name: str) -> dict:

@@ -99,6 +99,7 @@ def _check_sizes(ctx, builder_key: str, section: dict, raw: dict) -> None:
             _bound(ctx, "tessellation.shape", "modules", shape[0] * shape[1], MAX_MODULES)
     elif builder_key == "network" and isinstance(section.get("nodes"), list):
         _bound(ctx, "network.nodes", "nodes", len(section["nodes"]), MAX_NODES)
+        ctx.count_nodes("network.nodes", len(section["nodes"]))
     motion = raw.get("motion")
     options = motion.get("options") if isinstance(motion, dict) else None
     if isinstance(options, dict):
@@ -187,15 +188,27 @@ class Design:
         return trace(self.network, drive=m.drive, to=to, method=method, hold=m.hold, **opts)
 
 
+class _Loading:
+    """One template read with every template it refers to, however deep: each file is read
+    once (a file named by many spellings, ``./x.toml`` and ``././x.toml``, is one file), and
+    the nodes of every network built on the way count together against the work estimate."""
+
+    def __init__(self):
+        self.loaded: dict[str, "Design"] = {}
+        self.nodes = 0
+
+
 class TemplateContext:
     """What a builder gets besides its section: the file, key paths, typed getters, errors."""
 
-    def __init__(self, path: Path | str, raw: dict, stack: tuple[str, ...] = ()):
+    def __init__(self, path: Path | str, raw: dict, stack: tuple[str, ...] = (),
+                 loading: _Loading | None = None):
         self.path = Path(path)
         self.raw = raw
         self.stack = stack
         self.meta: dict = {}
         self.references: dict = {}
+        self.loading = loading if loading is not None else _Loading()
 
     # errors and typed access ----------------------------------------------------------------
     def error(self, key: str, reason: str) -> TemplateError:
@@ -228,10 +241,18 @@ class TemplateContext:
         """Refuse, before building it, a network of ``modules`` modules and ``nodes`` nodes
         in all (counted through every level of nesting: a chain of chains multiplies) that is
         over :data:`MAX_MODULES` or over the bounds of :func:`fabkit.workload.require`."""
+        _bound(self, key, "modules (after every level of nesting)", modules, MAX_MODULES)
+        self.count_nodes(key, nodes)
+
+    def count_nodes(self, key: str, nodes: int) -> None:
+        """Add the nodes of a network about to be built to those of every network built for
+        the same template (its references included), and refuse the total past the bounds of
+        :func:`fabkit.workload.require` before building."""
         from .workload import require
 
-        _bound(self, key, "modules (after every level of nesting)", modules, MAX_MODULES)
-        require(f"{self.path}: {key}", ("node", nodes))
+        total = self.loading.nodes + int(nodes)
+        require(f"{self.path}: {key}", ("node", total))
+        self.loading.nodes = total
 
     def check_keys(self, table: dict, where: str, allowed) -> None:
         unknown = sorted(set(table) - set(allowed))
@@ -242,13 +263,19 @@ class TemplateContext:
     def load(self, relative: str, key: str) -> "Design":
         """Load another template named relative to this one (for chains and sequences); a bare
         name not found next to this one is a bundled template (see :func:`resolve_template`)."""
+        if not relative.strip():  # else it would name the folder this template is in
+            raise self.error(key, "is empty: name a template file (e.g. \"fourbar.toml\")")
         target = resolve_template(relative, base=self.path.parent).resolve()
         if str(target) in self.stack:
             raise self.error(key, f"template {relative!r} refers back to itself")
         if not target.exists():
             also = ", nor a bundled template of that name" if is_template_name(relative) else ""
             raise self.error(key, f"no template file {relative!r} next to this one{also}")
-        design = load_template(target, _stack=self.stack + (str(self.path.resolve()),))
+        design = self.loading.loaded.get(str(target))
+        if design is None:  # read once, however many times and spellings name it
+            design = load_template(target, _stack=self.stack + (str(self.path.resolve()),),
+                                   _loading=self.loading)
+            self.loading.loaded[str(target)] = design
         self.references.setdefault(key, design)
         return design
 
@@ -351,6 +378,14 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
             check_method_options(method, options)
         except SettingsError as exc:
             raise ctx.error(exc.key, exc.reason) from None
+        samples = options.get("samples")
+        if isinstance(samples, int) and not isinstance(samples, bool):
+            from .workload import require
+
+            # a sampled trace holds every sample's configuration: samples x nodes
+            require(f"{ctx.path}: motion.options.samples",
+                    ("trace configuration node", samples * net.n_nodes),
+                    ("stored value", samples))
     return Motion(drive=drive, to=to, method=method, hold=tuple(hold), options=dict(options))
 
 
@@ -402,7 +437,7 @@ def _design_name(ctx, raw, path: Path) -> str:
     A ``name`` set in the template is checked as written; without one, the file's stem is used
     with every character that cannot be in a folder name replaced by ``_``.
     """
-    from .errors import UnsafeNameError
+    from .errors import UnsafeNameError, brief
     from .outputs import check_name
 
     if "name" in raw:
@@ -415,10 +450,11 @@ def _design_name(ctx, raw, path: Path) -> str:
         return check_name(name, "the name")
     except UnsafeNameError as exc:
         fix = "" if key else " (it comes from the file name; rename the file or set name = ...)"
-        raise ctx.error(key, f"{name!r} {exc.reason}{fix}") from None
+        raise ctx.error(key, f"{brief(name)} {exc.reason}{fix}") from None
 
 
-def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Design:
+def parse_template(text: str, path: Path | str = "<string>", _stack=(),
+                   _loading: _Loading | None = None) -> Design:
     """Parse template text (see the module docstring). ``path`` is used in messages and to
     resolve relative references."""
     path = Path(path)
@@ -429,7 +465,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
     except RecursionError:  # the parser recurses once per level of [[[...]]] or {a={b=...}}
         raise TemplateError(path, "", "not a template: arrays or tables nested too deeply "
                                       "for TOML to parse") from None
-    ctx = TemplateContext(path, raw, tuple(_stack))
+    ctx = TemplateContext(path, raw, tuple(_stack), _loading)
     present = [k for k in BUILDERS if k in raw]
     if not present:
         raise ctx.error("", f"no section that builds the network; give one of: "
@@ -467,7 +503,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=()) -> Desig
                   fabrication=fabrication, raw=raw, meta=ctx.meta, references=ctx.references)
 
 
-def load_template(path, *, _stack=()) -> Design:
+def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Design:
     """Read and validate a template file.
 
     Parameters
@@ -501,6 +537,11 @@ def load_template(path, *, _stack=()) -> Design:
 
         raise ArgumentTypeError("path", f"must be a file path or a bundled template's name, "
                                         f"got {type(path).__name__}")
+    if "\x00" in os.fspath(path):
+        from .errors import ArgumentValueError
+
+        raise ArgumentValueError("path", f"holds a NUL character, which no file name has: "
+                                         f"{os.fspath(path)[:80]!r}")
     name, path = path, resolve_template(path)
     try:
         st = os.stat(path)
@@ -537,7 +578,7 @@ def load_template(path, *, _stack=()) -> Design:
         text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise TemplateError(path, "", "not a text file (not UTF-8): a template is TOML text") from None
-    return parse_template(text, path, _stack)
+    return parse_template(text, path, _stack, _loading)
 
 
 #: The package whose data files are the bundled templates. In the repo they live in ``templates/``

@@ -481,6 +481,28 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
     (lambda n: __import__("fabkit.export").export.export(
         fabkit.load_template("fourbar"), ["dxf"], "/nonexistent"), FabkitError,
      "unknown export format ['dxf']"),
+    (lambda n: fabkit.count_modes(n, np.zeros((4, 2))), ValueError,
+     "positions puts nodes 0 and 2 of edge 0 at one point; every edge needs a length"),
+    (lambda n: fabkit.trace(n, to=2.5, method="bogus"), ValueError,
+     "method 'bogus' is unknown; valid methods: auto, constructive, projected"),
+    (lambda n: fabkit.trace(n, to=2.5, bogus=1), TypeError,
+     "bogus is an unknown option of every method"),
+    (lambda n: fabkit.trace(n, to=2.5, method="projected", bogus=1), TypeError,
+     "bogus is an unknown option of method 'projected'"),
+    (lambda n: fabkit.trace(n, to=2.5, samples=10**9), ValueError,
+     "samples must be <= 1000000, got 1000000000"),
+    (lambda n: fabkit.trace(n, to=2.5, method="projected", max_step=float("nan")), ValueError,
+     "max_step must be a finite number, got nan"),
+    (lambda n: fabkit.trace(n, to=2.5, method="constructive", samples=2.5), TypeError,
+     "samples must be a whole number, got 2.5"),
+    (lambda n: fabkit.load_template("a\x00b"), ValueError,
+     "path holds a NUL character, which no file name has"),
+    (lambda n: fabkit.design_map([1e300]), FabkitError, "--fixed-point 1e+300: "),
+    (lambda n: __import__("fabkit.export").export.export(None, "dxf", "/nonexistent"),
+     TypeError, "design must be a fabkit Design (fabkit.load_template), got NoneType"),
+    (lambda n: __import__("fabkit.export").export.export(fabkit.load_template("fourbar"),
+                                                         "dxf", 5),
+     FabkitError, "outdir: must be a folder path, got int"),
 ])
 def test_public_functions_name_the_wrong_argument(call, kind, words):
     four = fabkit.load_template("fourbar").network
@@ -499,3 +521,102 @@ def test_error_classes_of_arguments_and_settings():
     with pytest.raises(TemplateError):
         fabkit.load_template(ROOT / "tests" / "bad_templates" / "name_not_a_folder.toml")
 
+
+
+def test_no_lapack_line_reaches_the_terminal(capfd):
+    with pytest.raises(FabkitError):
+        fabkit.design_map([1e300])
+    assert "DLASCL" not in capfd.readouterr().err  # LAPACK never saw the overflowing numbers
+
+
+# --- round two: silent settings, messages ----------------------------------------------------
+
+def test_a_pin_clearance_no_printer_keeps_is_refused(tmp_path, capsys):
+    rc = main(["export", "super_stable", "--to", "stl", "--set", "print.pin_clearance=0.000001",
+               "-o", str(tmp_path / "out"), "--tolerance-samples", "0", "--no-previews", "-q"])
+    cap = capsys.readouterr()
+    assert rc == 1
+    assert "print.pin_clearance: a 1e-06 mm gap between pin and hole is below what an extruded " \
+           "wall keeps (about 0.05 mm): the pin prints fused to its hole" in one_line(cap.err)
+    assert files_under(tmp_path / "out") == []
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["export", "fourbar", "--to", "dxf", "--set", "print.scale=5"],
+     "--set: print.scale: print settings have no effect here: this export (dxf; tolerance "
+     "analysis as laser) reads laser, tolerance settings only; remove them"),
+    (["export", "fourbar", "--to", "dxf", "--set", "origami.faces=[[0,1,2,99]]"],
+     "--set: origami.faces: origami settings have no effect here"),
+    (["export", "fourbar", "--to", "dxf", "--set", "print.bed=[1e308,1e308]"],
+     "--set: print.bed: print settings have no effect here"),
+    (["export", "origami_sheet", "--set", "laser.kerf=0.5"],
+     "--set: laser.kerf: laser settings have no effect here: this export (cp, fold, svg; "
+     "tolerance analysis as origami) reads origami, tolerance settings only"),
+    (["export", "fourbar", "--to", "dxf", "--tolerance-samples", "0", "--set",
+      "tolerance.samples=5"], "--set: tolerance.samples: tolerance settings have no effect"),
+    (["export", "fourbar", "--to", "dxf", "--set", "tolerance.xy_sigma=0.1"],
+     "--set: tolerance.xy_sigma: is a print error; the designs here are analysed as laser (set "
+     "tolerance.process = \"print\" to change that)"),
+    (["tolerance", "fourbar", "--samples", "5", "--set", "print.scale=5"],
+     "fourbar.toml: --set: print.scale: print settings have no effect here: fourbar is "
+     "analysed as laser (set tolerance.process = \"print\" to change that); remove them"),
+    (["tolerance", "fourbar", "--samples", "5", "--set", "tolerance.xy_sigma=0.1"],
+     "fourbar.toml: --set: tolerance.xy_sigma: is a print error; fourbar is analysed as laser "
+     "(set tolerance.process = \"print\" to change that)"),
+])
+def test_settings_no_stage_reads_are_refused_the_same_way(argv, words, tmp_path, capsys):
+    out = tmp_path / "out"
+    rc = main([*argv, "-o", str(out)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    assert words in line, line
+    assert files_under(out) == []
+
+
+def test_check_refuses_settings_its_files_do_not_read(exported, capsys):
+    sheet = str(exported / "fourbar" / "laser_sheet1.dxf")
+    rc = main(["check", sheet, "--design", "fourbar", "--set", "print.scale=5"])
+    assert rc == 2
+    assert "--set: print.scale: print settings have no effect here: the checks of these files " \
+           "read laser settings only" in one_line(capsys.readouterr().err)
+
+
+def test_settings_that_some_design_reads_are_kept(tmp_path, capsys):
+    # laser.kerf reaches fourbar's sheets; the origami sheet in the same run ignores it
+    rc = main(["export", "fourbar", "origami_sheet", "--set", "laser.kerf=0.2", "-o",
+               str(tmp_path), "--tolerance-samples", "0", "--no-previews", "-q"])
+    assert rc == 0, capsys.readouterr().err
+    report = json.loads((tmp_path / "fourbar" / "report.json").read_text())
+    assert report["formats"]["dxf"]["status"] == "exported"
+
+
+def test_a_projected_trace_with_a_nan_step_never_starts():
+    four = fabkit.load_template("fourbar").network
+    with pytest.raises(ArgumentError) as info:
+        fabkit.trace(four, to=2.5, method="projected", max_step=float("nan"))
+    assert info.value.argument == "max_step"
+
+
+@pytest.mark.parametrize("body, words", [
+    ('[chain]\nmodule = ""\ncopies = 3\n',
+     "t.toml: chain.module: is empty: name a template file"),
+    ('[chain]\nmodules = ["fourbar", ""]\n',
+     "t.toml: chain.modules[1]: is empty: name a template file"),
+])
+def test_an_empty_reference_names_its_chain_and_key(body, words, tmp_path, capsys):
+    path = write(tmp_path, "t.toml", body)
+    assert main(["info", str(path)]) == 1
+    assert words in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("argv", [
+    lambda t, o: ["info", str(t)],
+    lambda t, o: ["simulate", str(t), "-o", str(o)],
+    lambda t, o: ["design", "--fixed-point", "1.6:0", "--name", "y" * 100_000, "-o", str(o)],
+])
+def test_a_name_of_100000_characters_is_not_echoed_whole(argv, tmp_path, capsys):
+    t = write(tmp_path, "t.toml", f'name = "{"x" * 100_000}"\n' + FOURBAR_NET)
+    rc = main(argv(t, tmp_path / "out"))
+    line = one_line(capsys.readouterr().err)
+    assert rc in (1, 2)
+    assert len(line) < 400 and "... (100000 characters)" in line

@@ -19,6 +19,8 @@ ROOT = Path(__file__).resolve().parents[1] / "fabkit"
 LAYERS = {
     "errors": 0,
     "outputs": 0,
+    "stoppable": 0,
+    "inputs": 0,
     "workload": 0,
     "schema": 0,
     "arguments": 1,

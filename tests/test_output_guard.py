@@ -205,3 +205,118 @@ def test_a_full_disk_leaves_nothing_and_names_the_file(argv, tmp_path):
     assert "cannot write: File too large; nothing of this output was written" in lines[0]
     assert lines[0].split(": ")[2].startswith(str(out))  # the file it could not write
     assert not out.exists()  # not even the folders it would have created
+
+
+# --- fabkit's own entries in an output folder: the lock, staging and backup folders ----------
+
+EXPORT = ["export", "fourbar", "--to", "dxf", "--tolerance-samples", "0", "--no-previews", "-q"]
+
+
+@pytest.mark.parametrize("case", ["link to a file outside", "dangling link", "fifo"])
+def test_a_lock_file_that_is_no_file_of_ours_is_refused(case, tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    victim = outside / "victim"
+    if case == "link to a file outside":
+        victim.write_text("SECRET\n")
+        (out / ".fabkit.lock").symlink_to(victim)
+    elif case == "dangling link":
+        (out / ".fabkit.lock").symlink_to(victim)
+    else:
+        os.mkfifo(out / ".fabkit.lock")
+    before = snapshot(tmp_path)
+    rc = main([*EXPORT, "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and len(err) == 1, err
+    assert f"{out / '.fabkit.lock'}: is a " in err[0]
+    assert ("symbolic link" in err[0]) == (case != "fifo")
+    assert ("FIFO" in err[0]) == (case == "fifo")
+    assert snapshot(tmp_path) == before  # the target untouched, the link left in place
+    if case == "link to a file outside":
+        assert victim.read_text() == "SECRET\n"
+    else:
+        assert not victim.exists()
+
+
+@pytest.mark.parametrize("entry", [".fourbar.old", ".fourbar.staging"])
+def test_a_staging_or_backup_folder_that_is_a_link_is_refused(entry, tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (outside / "mine.txt").write_text("not fabkit's\n")
+    (out / entry).symlink_to(outside)
+    before = snapshot(tmp_path)
+    rc = main([*EXPORT, "-o", str(out)])
+    cap = capsys.readouterr()
+    assert rc == 1
+    line = cap.err.strip()
+    assert line == (f"fabkit: error: {out / entry}: is a symbolic link where fabkit keeps its "
+                    "own folder; fabkit does not follow it: remove it"), cap.err
+    assert snapshot(tmp_path) == before  # no out/fourbar, no hard link to the outside file
+    assert not (out / "fourbar").exists()
+
+
+def test_carrying_files_over_skips_special_files_and_keeps_links_as_links(tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    assert main([*EXPORT, "-o", str(out)]) == 0
+    outside.mkdir()
+    (outside / "target.txt").write_text("outside\n")
+    folder = out / "fourbar"
+    os.mkfifo(folder / "pipe")
+    (folder / "link").symlink_to(outside / "target.txt")
+    (folder / "notes.txt").write_text("mine\n")
+    assert main([*EXPORT, "-o", str(out)]) == 0, capsys.readouterr().err
+    assert (folder / "notes.txt").read_text() == "mine\n"
+    assert (folder / "link").is_symlink()  # carried as the link, never its target's content
+    assert not (folder / "pipe").exists()  # a FIFO is no command's output: not carried
+    assert (outside / "target.txt").read_text() == "outside\n"
+    assert sorted(p.name for p in outside.iterdir()) == ["target.txt"]
+
+
+def test_sweep_chunks_never_go_through_a_link_out_of_the_folder(tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (out / "chunks").symlink_to(outside)
+    rc = main(["sweep", "chaotic", "--vary", "nodes[4].x=-0.4:-0.3:2", "--measure",
+               "fixed_points", "--jobs", "1", "--no-plots", "-o", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1
+    assert err == (f"fabkit: error: {out / 'chunks'}: is a symbolic link to {outside}, outside "
+                   f"the output folder {out}; fabkit does not write through it")
+    assert list(outside.iterdir()) == []
+
+
+def test_bench_output_never_goes_through_a_link_and_is_refused_before_work(tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    out.mkdir()
+    outside.mkdir()
+    (out / "bench").symlink_to(outside)
+    rc = main(["bench", "--quick", "--sizes", "10", "--parts", "workprecision", "--budget", "1",
+               "-o", str(out)])
+    cap = capsys.readouterr()
+    assert rc == 1
+    assert "bench: is a symbolic link to" in cap.err and "outside the output folder" in cap.err
+    assert cap.out == ""  # refused before the first measurement
+    assert list(outside.iterdir()) == []
+
+
+def test_open_own_file_refuses_links_and_fifos(tmp_path):
+    from fabkit.outputs import open_own_file, own_entry
+
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "link").symlink_to(tmp_path / "nowhere")
+    for name, words in (("fifo", r"is a FIFO \(named pipe\)"), ("link", "is a symbolic link")):
+        with pytest.raises(OutputError, match=words):
+            open_own_file(tmp_path / name)
+    assert not (tmp_path / "nowhere").exists()
+    fd = open_own_file(tmp_path / "lock")
+    os.close(fd)
+    assert (tmp_path / "lock").is_file()
+    (tmp_path / ".d.old").symlink_to(tmp_path)
+    with pytest.raises(OutputError, match="is a symbolic link where fabkit keeps its own folder"):
+        own_entry(tmp_path, ".d.old")
+    with pytest.raises(UnsafeNameError):
+        own_entry(tmp_path, "../.d.old")
+    assert own_entry(tmp_path, ".d.staging") == tmp_path / ".d.staging"

@@ -121,6 +121,40 @@ def summary_table(results) -> str:
     return "\n".join(lines)
 
 
+def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_samples) -> None:
+    """Refuse, before any work, ``--set`` sections that no design of this export reads: those
+    of processes whose formats are not made (``print`` with ``--to dxf``) and whose tolerance
+    analysis does not run (:func:`fabkit.schema.refuse_unused`)."""
+    from ..errors import UsageError
+    from ..schema import refuse_unused
+    from ..tolerance import design_process, key_process
+    from .formats import choose_formats
+
+    if not settings:
+        return
+    used, made, analysed = {"motion"}, set(), set()
+    tol = settings.get("tolerance") if isinstance(settings.get("tolerance"), dict) else {}
+    for design in designs:
+        chosen, _ = choose_formats(design, formats, exporters)
+        for fmt, module in chosen:
+            made.add(fmt)
+            used.update((fmt, *getattr(module, "READS", ())))
+        if tolerance_samples != 0:
+            analysed.add(tol.get("process") or design_process(design))
+    used.update(analysed | ({"tolerance"} if analysed else set()))
+    what = ", ".join(sorted(made)) or "no file"
+    if analysed:
+        what += f"; tolerance analysis as {'/'.join(sorted(analysed))}"
+    refuse_unused(settings, used, f"this export ({what}) reads "
+                                  f"{', '.join(sorted(used - {'motion'} - made))} settings only")
+    for key in tol:
+        owner = key_process(key)
+        if owner is not None and owner not in analysed:
+            raise UsageError("--set", f"tolerance.{key}: is a {owner} error; the designs here "
+                                      f"are analysed as {'/'.join(sorted(analysed))} (set "
+                                      f"tolerance.process = \"{owner}\" to change that)")
+
+
 def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, check=True,
                 tolerance_samples=None, progress=None, isolate=True, exporters=None,
                 previews=True, debug=False, wait=False, allow_large=False,
@@ -210,10 +244,10 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
         if progress:
             progress.finished(res)
 
-    cost = {}
+    cost, designs = {}, {}
     for i, p in enumerate(paths):
         try:
-            design = load_template(p)
+            design = designs[i] = load_template(p)
             name = design.name
             cost[i] = design.network.n_edges
         except FabkitError as exc:
@@ -231,6 +265,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
         todo.append(i)
     if not todo:
         return results  # type: ignore[return-value]
+    _refuse_unused_settings(settings, [designs[i] for i in todo], formats, exporters,
+                            tolerance_samples)
     outdir = prepare_outdir(outdir)
     kwargs = dict(check=check, tolerance_samples=tolerance_samples, exporters=exporters,
                   previews=previews, debug=debug, allow_large=allow_large)

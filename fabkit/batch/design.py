@@ -52,7 +52,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     from ..export import write_atomic, write_outputs
-    from ..errors import UnsafeNameError
+    from ..errors import UnsafeNameError, brief
     from ..outputs import inside
     from ..report import report_json, report_markdown
     from ..report_html import write_design_report
@@ -79,8 +79,9 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         try:
             folder = inside(outdir, design.name)  # before the work, not after it
         except UnsafeNameError as exc:  # a Design made in code, not read from a template
-            raise TemplateError(path, "name", f"{design.name!r} {exc.reason}") from None
+            raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
         check_replaceable(folder)
+        _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
         files, fmts, facts = build_outputs(design, formats, settings, tolerance_samples,
                                            exporters, previews, stage=stage,
                                            allow_large=allow_large)

@@ -30,8 +30,12 @@ LOCK_NAME = ".fabkit.lock"
 # --- folders ---------------------------------------------------------------------------------
 
 def _staging_names(outdir: Path, name: str) -> tuple[Path, Path]:
+    """The staging and backup folders of design ``name``: missing, or folders of their own,
+    never a symbolic link (:func:`fabkit.outputs.own_entry` refuses one in one line)."""
+    from ..outputs import own_entry
+
     # fixed names (no random part): paths that checkers quote stay the same from run to run
-    return outdir / f".{name}.staging", outdir / f".{name}.old"
+    return (own_entry(outdir, f".{name}.staging"), own_entry(outdir, f".{name}.old"))
 
 
 def check_replaceable(folder: Path) -> None:
@@ -45,12 +49,14 @@ def check_replaceable(folder: Path) -> None:
 def recover_folder(outdir: Path, name: str) -> None:
     """Undo what a run killed between its two renames left: the old folder put back when the
     new one never arrived, and the staging and old folders removed."""
-    folder = outdir / name
+    from ..outputs import inside
+
+    folder = inside(outdir, name)
     stage, old = _staging_names(outdir, name)
-    if old.is_dir() and not folder.exists():
+    if old.is_dir() and not os.path.lexists(folder):
         os.replace(old, folder)
     for leftover in (stage, old):
-        if leftover.is_dir():
+        if leftover.is_dir() and not leftover.is_symlink():
             shutil.rmtree(leftover)
 
 
@@ -79,18 +85,24 @@ def carry_over(folder: Path, stage: Path) -> list[str]:
     """Hard-link (or copy) into ``stage`` what another command wrote into ``folder``: every
     entry the previous export did not write and the new one does not write either. Returns the
     names carried over."""
-    if not folder.is_dir():
+    import stat
+
+    if folder.is_symlink() or not folder.is_dir():  # a link is never followed, nor moved in
         return []
     mine = _export_manifest(folder) or set()
     kept = []
     for entry in sorted(folder.iterdir()):
-        if entry.name in mine or entry.name.startswith(".") or (stage / entry.name).exists():
+        if entry.name in mine or entry.name.startswith(".") or os.path.lexists(
+                stage / entry.name):
             continue
         target = stage / entry.name
-        if entry.is_dir() and not entry.is_symlink():
+        mode = entry.lstat().st_mode
+        if stat.S_ISDIR(mode):
             shutil.copytree(entry, target, symlinks=True, copy_function=_link_or_copy)
-        else:
+        elif stat.S_ISREG(mode) or stat.S_ISLNK(mode):  # a link is carried as the link itself
             _link_or_copy(entry, target)
+        else:
+            continue  # a FIFO, a socket, a device: no fabkit command writes one
         kept.append(entry.name)
     return kept
 
@@ -106,8 +118,9 @@ def _link_or_copy(src, dst):
 def swap_in(stage: Path, folder: Path) -> None:
     """Replace ``folder`` by the complete ``stage`` folder with two renames; a reader sees the
     old export or the new one, never a mix."""
-    if folder.exists():
+    if os.path.lexists(folder):
         _, old = _staging_names(folder.parent, folder.name)
+        check_replaceable(folder)
         os.replace(folder, old)
         os.replace(stage, folder)
         shutil.rmtree(old)
@@ -139,9 +152,11 @@ class OutputLock:
     def __enter__(self):
         import fcntl
 
+        from ..outputs import open_own_file
+
         path = self.outdir / LOCK_NAME
         while True:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = open_own_file(path)  # never through a link, never blocked on a FIFO
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -154,7 +169,7 @@ class OutputLock:
             # the holder before us may have removed the file after we opened it: lock the file
             # that is at the path now
             try:
-                same = os.fstat(fd).st_ino == os.stat(path).st_ino
+                same = os.fstat(fd).st_ino == os.lstat(path).st_ino
             except FileNotFoundError:
                 same = False
             if not same:
@@ -167,8 +182,10 @@ class OutputLock:
 
     def __exit__(self, *exc):
         if self.fd is not None:
-            try:
-                os.unlink(self.outdir / LOCK_NAME)
+            path = self.outdir / LOCK_NAME
+            try:  # only the file this lock holds: not a link or a file put there since
+                if os.lstat(path).st_ino == os.fstat(self.fd).st_ino:
+                    os.unlink(path)
             except FileNotFoundError:
                 pass
             os.close(self.fd)  # closing drops the flock

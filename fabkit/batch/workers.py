@@ -8,7 +8,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..errors import (Interrupted)
+from ..errors import (Interrupted, OutputError)
 from .design import export_one
 from .folders import _safe, recover_folder, swap_in
 from .results import DesignResult, Outcome
@@ -302,11 +302,15 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                 if res.staged:
                     try:
                         swap_in(Path(res.staged), Path(res.folder))
-                    except OSError as exc:
-                        recover_folder(outdir, names[i])
+                    except (OSError, OutputError) as exc:
+                        try:
+                            recover_folder(outdir, names[i])
+                        except (OSError, OutputError):
+                            pass  # the guard's refusal is the error reported
                         res.outcome, res.folder, res.files = Outcome.FAILED, "", 0
+                        why = exc.strerror if isinstance(exc, OSError) else exc.reason
                         res.error = (f"{args[i][0]}: cannot write the export to {outdir}: "
-                                     f"{exc.strerror or exc}")
+                                     f"{why or exc}")
                         res.error_code = "output"
                     res.staged = ""
                 w.task, w.since = None, None
@@ -327,7 +331,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
             if _safe(names[i]):
                 try:  # its staging folder, whatever it holds
                     recover_folder(outdir, names[i])
-                except OSError:  # pragma: no cover - the next run removes it
+                except (OSError, OutputError):  # pragma: no cover - the next run removes it
                     pass
             error = (f"{args[i][0]}: {w.stuck}; nothing of {names[i]} was written" if w.stuck
                      else _died_message(args[i][0], names[i], w.proc.exitcode))
@@ -365,14 +369,16 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                         w.proc.kill()  # a broken pipe: this worker can no longer report
                     bury(w)
     except BaseException:
-        pool.stop()
+        # half a second to unwind: a worker inside a C call never does, and the staging
+        # folders are removed below whatever the workers did
+        pool.stop(grace=0.5)
         # a worker killed between two writes leaves its staging folder: remove those of the
         # designs in flight, and put back an old folder caught between the two renames
         for i in pending:
             if _safe(names[i]):
                 try:
                     recover_folder(outdir, names[i])
-                except OSError:
+                except (OSError, OutputError):
                     pass
         raise
     finally:

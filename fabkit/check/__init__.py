@@ -12,7 +12,8 @@ from pathlib import Path
 
 from ..errors import FabkitError
 
-__all__ = ["CHECKERS", "checker_for", "check_file"]
+__all__ = ["CHECKERS", "checker_for", "check_file", "read_set", "require_files",
+           "require_checked"]
 
 #: Format name → module implementing its as-built check.
 CHECKERS: dict[str, str] = {
@@ -65,5 +66,65 @@ def check_file(path, design=None, settings=None) -> dict:
         raise InputFileError(path, exc.strerror or str(exc)) from None
     if not stat.S_ISREG(st.st_mode):
         raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)")
-    require(f"{path}", ("file byte", st.st_size))
+    require(f"{path}", ("file byte", st.st_size))  # refused before the checker is loaded
     return module.check_file(path, design=design, settings=settings)
+
+
+def require_checked(where: str, *parts):
+    """Estimate the work of a check from counts read in the file, refuse it past the bounds,
+    and hold the check to it (:func:`fabkit.stoppable.keep_to`); returns the estimate."""
+    from ..stoppable import keep_to
+    from ..workload import require
+
+    est = require(where, *parts)
+    keep_to(est)
+    return est
+
+
+def require_files(paths) -> None:
+    """Estimate reading the files of one export back together (the beds of a print, the
+    sheets of a kit) by their total size, before any of them is read: a sibling far larger
+    than the file named is counted too.
+
+    Raises
+    ------
+    InputFileError
+        A file that is not a regular file (a FIFO, a device, a folder), or missing.
+    BoundsError
+        Their total size is past the bounds.
+    """
+    import os
+    import stat
+
+    from ..errors import InputFileError
+    from ..inputs import file_kind
+
+    total = 0
+    for p in paths:
+        try:
+            st = os.stat(p)
+        except OSError as exc:
+            raise InputFileError(p, f"cannot read: {exc.strerror or exc}") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise InputFileError(p, f"is {file_kind(st.st_mode)}, not a regular file: refused")
+        total += st.st_size
+    paths = [Path(p) for p in paths]
+    where = str(paths[0]) if len(paths) == 1 else (
+        f"{paths[0]} with the files of its export beside it "
+        f"({', '.join(p.name for p in paths[1:4])}{', ...' if len(paths) > 4 else ''})")
+    require_checked(where, ("file byte", total))
+
+
+def read_set(paths) -> dict:
+    """The bytes of the files of one export, path -> bytes, after :func:`require_files`.
+
+    Raises
+    ------
+    InputFileError, BoundsError
+        As :func:`require_files`.
+    """
+    from ..inputs import read_regular
+    from ..workload import MAX_BYTES
+
+    require_files(paths)
+    return {p: read_regular(p, MAX_BYTES) for p in paths}

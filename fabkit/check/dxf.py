@@ -41,6 +41,8 @@ from ..numerics import MM_SLACK, project_to_lengths
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
 
 FORMAT = "dxf"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("laser",)
 SUFFIXES = (".dxf",)
 #: Largest difference allowed between a read-back length and the design (mm).
 LENGTH_TOL = 1e-6
@@ -219,15 +221,28 @@ def _check_groups(docs: dict, design, settings) -> dict:
     return out
 
 
+def _audit(doc) -> tuple[int, str]:
+    """(errors, why) of ezdxf's audit of a sheet. The audit follows block references by
+    recursion: blocks nested thousands deep (fabkit writes no block) exhaust it, which is an
+    error of the file, said as such."""
+    try:
+        return len(doc.audit().errors), ""
+    except RecursionError:
+        return 1, ("block references nested too deeply to audit (fabkit's sheets hold no "
+                   "block)")
+
+
 def _check_docs(docs: dict, design, settings) -> dict:
     checks = []
     sheets = {name: read_sheet(doc) for name, doc in docs.items()}
     units = {name: sh["insunits"] for name, sh in sheets.items()}
     checks.append(_check("units", all(u == 4 for u in units.values()),
                          sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
-    n_err = {name: len(doc.audit().errors) for name, doc in docs.items()}
+    audits = {name: _audit(doc) for name, doc in docs.items()}
+    n_err = {name: n for name, (n, _) in audits.items()}
+    why = "; ".join(f"{name}: {w}" for name, (_, w) in audits.items() if w)
     checks.append(_check("audit", not any(n_err.values()), sum(n_err.values()), 0,
-                         "errors found by ezdxf's audit"))
+                         why or "errors found by ezdxf's audit"))
     used = set().union(*(sh["layers"] for sh in sheets.values())) if sheets else set()
     checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
                          "layers that carry entities"))
@@ -542,8 +557,12 @@ def check_file(path, design=None, settings=None) -> dict:
     path = Path(path)
     if not path.is_file():
         raise FabkitError(f"{path}: no such file")
+    from . import require_files
+
+    sheets = _sheet_set(path)
+    require_files(sheets)  # every sibling sheet counted before any is read
     docs, checks = {}, []
-    for p in _sheet_set(path):
+    for p in sheets:
         try:
             # ezdxf's reader takes two thirds of the time of its recover mode on a well-formed
             # file; a file it refuses is read again by recover, which repairs what it can
@@ -551,10 +570,13 @@ def check_file(path, design=None, settings=None) -> dict:
                 doc = ezdxf.readfile(str(p))
             except Exception:
                 doc, _ = recover.readfile(str(p))
+        except MemoryError:
+            raise
         except Exception as exc:  # not a DXF at all
-            checks.append(_check("readable", False, p.name, None, f"{p.name}: {exc}"))
+            checks.append(_check("readable", False, p.name, None,
+                                 f"{p.name}: {str(exc) or type(exc).__name__}"))
             continue
         docs[p.name] = doc
     if checks:
-        return {"ok": False, "checks": checks, "files": [str(p) for p in _sheet_set(path)]}
+        return {"ok": False, "checks": checks, "files": [str(p) for p in sheets]}
     return _check_docs(docs, design, settings)

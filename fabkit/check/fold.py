@@ -27,6 +27,8 @@ from ..errors import FabkitError, FabricationError
 from ..numerics import FLAT_RTOL
 
 FORMAT = "fold"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("origami",)
 SUFFIXES = (".fold",)
 
 #: Largest difference of a port distance between the file and the re-folded network.
@@ -157,6 +159,9 @@ def check_file(path, design=None, settings=None) -> dict:
     from ..fab.creases import flat_foldability, fold_model, origami_model
     from ..rigidity import count_modes
 
+    from . import require_files
+
+    require_files([path])  # the check is held to the work its size allows
     doc = read_fold(path)
     checks = []
     problems = structure_problems(doc)

@@ -254,9 +254,9 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     checks.append(_check(
         "bars read back", not bad and max(off_layer, thick, wide) <= MEASURE_TOL_MM,
         value=round(max(off_layer, thick, wide), 9), limit=MEASURE_TOL_MM,
-        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max()) + 1} layers of "
-                                      f"{pitch:g} mm; largest error of height, thickness and "
-                                      f"width (mm)"))
+        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
+                                      f"layers of {pitch:g} mm; largest error of height, "
+                                      f"thickness and width (mm)"))
     if bad or len(bodies) != plan.n_bars:
         report.update(ok=False, checks=checks)
         return report
@@ -293,10 +293,13 @@ def check_pinned(meshes, names, design, s, report) -> dict:
                                 f"{len(joints)} joints from {len(feats)} holes and pins; "
                                 f"{len(pin_of)} printed pins, {len(unpinned)} joints without "
                                 "one (cut between pieces)"))
-    checks.append(_check("pin clearance", clear >= s.pin_clearance - MEASURE_TOL_MM,
+    # a gap of zero or less is a pin fused to its hole, whatever tolerance the measure has
+    checks.append(_check("pin clearance", clear >= s.pin_clearance - MEASURE_TOL_MM and clear > 0,
                          value=None if math.isinf(clear) else round(clear, 6),
                          limit=s.pin_clearance,
-                         detail="smallest radial gap (mm) between a pin and a hole around it"))
+                         detail="smallest radial gap (mm) between a pin and a hole around it"
+                                + ("; none: the pin touches or overlaps its hole" if clear <= 0
+                                   else "")))
     need_hold = 0.5 * s.nozzle_width
     checks.append(_check("caps hold the bars", hold >= need_hold,
                          value=None if math.isinf(hold) else round(hold, 6), limit=need_hold,

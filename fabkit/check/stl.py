@@ -23,7 +23,6 @@ it (see :func:`sequential_transition`).
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 
@@ -36,6 +35,8 @@ __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_meshes", "check_mesh", "sl
            "module_fixed_points", "sequential_transition", "as_built_tolerance", "VOLUME_RTOL"]
 
 FORMAT = "stl"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("print",)
 SUFFIXES = (".stl",)
 
 #: Relative tolerance between the mesh's volume and the analytic volume.
@@ -86,15 +87,20 @@ _BINARY_TRIANGLE = np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")
 MAX_COORDINATE_MM = 1e5
 
 
-def _load(path):
+def stl_triangles(data: bytes, path) -> int:
+    """How many triangles an STL file's bytes hold, counted before they are read as a mesh
+    (binary: the header's count, which :func:`_stl_kind` checked against the size; ASCII: its
+    ``facet`` lines)."""
+    if _stl_kind(data, path) == "binary":
+        return int.from_bytes(data[80:84], "little")
+    return data.count(b"facet")
+
+
+def _load(data: bytes, path):
     import io
 
     import trimesh
 
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
-        raise FabricationError(f"{path}: cannot be read: {exc.strerror}") from None
     if _stl_kind(data, path) == "binary":
         # trimesh drops non-finite triangles while it processes; a file that holds them is
         # corrupt, and is said to be so
@@ -595,11 +601,15 @@ def check_file(path, design=None, settings=None) -> dict:
     FabricationError
         A file cannot be read as an STL mesh.
     """
+    from . import read_set, require_checked
     from .beds import bed_set
 
     paths = bed_set(path)
-    meshes = [_load(p) for p in paths]
-    pinned = all(PINNED_HEADER in p.read_bytes()[:80] for p in paths)
+    data = read_set(paths)
+    require_checked(f"{path}", ("placed triangle",
+                                sum(stl_triangles(d, p) for p, d in data.items())))
+    meshes = [_load(d, p) for p, d in data.items()]
+    pinned = all(PINNED_HEADER in d[:80] for d in data.values())
     if design is not None:  # an STL is centred on its bed's centre: back onto the bed
         from ..export.stl import stl_origin
         from ..fab.printing import design_print_settings

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 import zipfile
+import zlib
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -24,6 +25,8 @@ from ..errors import FabricationError
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "read_package"]
 
 FORMAT = "3mf"
+#: The sections of ``--set`` this check reads (any other has no effect on it).
+READS = ("print",)
 SUFFIXES = (".3mf",)
 
 _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
@@ -55,8 +58,162 @@ def _parse_config(text: str) -> dict:
     return out
 
 
-def read_package(path) -> dict:
+def _inflate(z, path, names) -> dict:
+    """The XML parts ``names`` of the package, inflated (each held by the reader to the size
+    the ZIP directory declares, which the caller has estimated)."""
+    out = {}
+    for n in names:
+        try:
+            out[n] = z.read(n)
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, OSError,
+                EOFError, ValueError, zlib.error) as exc:
+            raise FabricationError(f"{path}: {n} cannot be inflated: {exc}") from None
+    return out
+
+
+def _numbers(values: list, path, where, *, integer: bool = False) -> np.ndarray:
+    """Attribute texts as numbers: finite floats, or indices (whole numbers from 0 that fit
+    an int64); FabricationError naming the first one that is not (``where(k)`` says where
+    the k-th value is)."""
+    def good(t) -> bool:
+        if integer:
+            return isinstance(t, str) and t.isdigit() and len(t) < 19
+        try:
+            return bool(np.isfinite(float(t)))
+        except (ValueError, TypeError, OverflowError):
+            return False
+
+    try:
+        if integer:
+            if all(map(good, values)):
+                return np.array([int(t) for t in values], dtype=np.int64)
+        else:
+            arr = np.array(values, dtype=np.float64)
+            if np.isfinite(arr).all():
+                return arr
+    except (ValueError, TypeError, OverflowError):
+        pass
+    k = next(k for k, t in enumerate(values) if not good(t))
+    kind = "an index (a whole number from 0)" if integer else "a finite number"
+    got = "is missing" if values[k] is None else f"got {values[k]!r}"
+    raise FabricationError(f"{path}: {where(k)}: must be {kind}, {got}")
+
+
+def _parse_package(path, data: bytes) -> dict:
+    """The package's parts, parsed and checked, nothing placed yet: ``meshes`` (object id ->
+    vertices mm, faces, name), ``items`` (object id, 12-number transform or None), ``xml``
+    (the inflated parts by name), ``lower`` (lower-case name -> name), ``scale``."""
+    from . import require_checked
+
+    try:
+        z = zipfile.ZipFile(io.BytesIO(data))
+        infos = {i.filename: i for i in z.infolist()}
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError, OSError) as exc:
+        raise FabricationError(f"{path}: not a 3MF package: {exc}") from None
+    model_name = next((n for n in infos if n.lower().startswith("3d/")
+                       and n.lower().endswith(".model")), None)
+    if model_name is None:
+        raise FabricationError(f"{path}: holds no 3D model (3D/*.model)")
+    lower = {n.lower(): n for n in infos}
+    wanted = [model_name] + [lower[k] for k in ("metadata/slic3r_pe.config",
+                                                "metadata/slic3r_pe_model.config") if k in lower]
+    # a few kB of ZIP may inflate to gigabytes: the declared sizes are estimated first
+    require_checked(f"{path}: inflated XML",
+                    ("XML byte", sum(infos[n].file_size for n in wanted)))
+    xml = _inflate(z, path, wanted)
+    root = _xml(xml[model_name], f"{path}: {model_name}")
+    unit = root.get("unit", "millimeter")
+    if unit not in _UNITS:
+        raise FabricationError(f"{path}: unknown unit {unit!r}")
+    scale = _UNITS[unit]
+    meshes = {}
+    for obj in root.iterfind("m:resources/m:object", _NS):
+        oid = obj.get("id")
+        what = f"object {oid!r}"
+        verts = obj.findall("m:mesh/m:vertices/m:vertex", _NS)
+        tris = obj.findall("m:mesh/m:triangles/m:triangle", _NS)
+        v = _numbers([e.get(a) for e in verts for a in "xyz"], path,
+                     lambda k: f"{what} vertex {k // 3} {'xyz'[k % 3]}").reshape(-1, 3) * scale
+        f = _numbers([e.get(a) for e in tris for a in ("v1", "v2", "v3")], path,
+                     lambda k: f"{what} triangle {k // 3} v{k % 3 + 1}",
+                     integer=True).reshape(-1, 3)
+        if f.size and f.max() >= len(v):
+            raise FabricationError(f"{path}: {what} has triangle indices out of range (up to "
+                                   f"{int(f.max())}, {len(v)} vertices)")
+        meshes[oid] = (v, f, obj.get("name", ""))
+    items = []
+    for k, item in enumerate(root.iterfind("m:build/m:item", _NS)):
+        oid = item.get("objectid")
+        if oid not in meshes:
+            raise FabricationError(f"{path}: a build item names object {oid!r}, which is not there")
+        t = item.get("transform")
+        matrix = None
+        if t is not None:
+            words = t.split()
+            if len(words) != 12:
+                raise FabricationError(f"{path}: build item {k} transform of {len(words)} "
+                                       "numbers, not 12")
+            matrix = _numbers(words, path, lambda j: f"build item {k} transform[{j}]")
+        items.append((oid, matrix))
+    if not items:
+        raise FabricationError(f"{path}: no build items")
+    return {"meshes": meshes, "items": items, "xml": xml, "lower": lower, "scale": scale}
+
+
+def _placed_triangles(parsed: dict) -> int:
+    """Triangles once every build item has placed its object (one object, many items: many
+    copies)."""
+    return sum(len(parsed["meshes"][oid][1]) for oid, _ in parsed["items"])
+
+
+def _place(path, parsed: dict) -> dict:
+    """The parsed package as :func:`read_package` returns it: every build item placed."""
+    import trimesh
+
+    from .stl import MAX_COORDINATE_MM
+
+    meshes, scale, lower, xml = parsed["meshes"], parsed["scale"], parsed["lower"], parsed["xml"]
+    placed = []
+    for k, (oid, matrix) in enumerate(parsed["items"]):
+        v, f, _ = meshes[oid]
+        if matrix is not None:
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = v @ matrix[:9].reshape(3, 3) + matrix[9:] * scale  # rows act on rows
+        if len(v) and not (np.isfinite(v).all() and np.abs(v).max() <= MAX_COORDINATE_MM):
+            raise FabricationError(f"{path}: build item {k} places object {oid!r} beyond "
+                                   f"{MAX_COORDINATE_MM:g} mm (a corrupt file)")
+        placed.append(trimesh.Trimesh(v, f, process=True))
+    if not any(len(m.faces) for m in placed):
+        raise FabricationError(f"{path}: holds no triangles")
+    project, per_object = {}, []
+    if "metadata/slic3r_pe.config" in lower:
+        project = _parse_config(xml[lower["metadata/slic3r_pe.config"]].decode("utf-8",
+                                                                                "replace"))
+    parts = {}
+    if "metadata/slic3r_pe_model.config" in lower:
+        cfg = _xml(xml[lower["metadata/slic3r_pe_model.config"]], f"{path}: model config")
+        for obj in cfg.iterfind("object"):
+            per_object.append({m.get("key"): m.get("value") for m in obj.iterfind("metadata")
+                               if m.get("type") == "object" and m.get("key") != "name"})
+            parts[obj.get("id")] = len(obj.findall("volume"))
+    return {"mesh": trimesh.util.concatenate(placed),
+            "objects": [{"name": nm, "parts": parts.get(oid, 1)}
+                        for oid, (_, _, nm) in meshes.items()],
+            "project": project, "per_object": per_object}
+
+
+def read_package(path, data: bytes | None = None) -> dict:
     """A 3MF's placed meshes and PrusaSlicer settings.
+
+    Sizes hidden in the package are estimated before the work they cause: the inflated XML
+    before it is inflated, the placed triangles (each build item places its object's
+    triangles once more) before any mesh is built.
+
+    Parameters
+    ----------
+    path : path
+    data : bytes, optional
+        The file's bytes, when already read.
 
     Returns
     -------
@@ -68,73 +225,23 @@ def read_package(path) -> dict:
     Raises
     ------
     FabricationError
-        Not a ZIP, no model part, malformed XML, an unknown unit, indices out of range.
+        Not a ZIP, no model part, malformed XML, an unknown unit, a value that is not a
+        number, indices out of range, vertices beyond any printer.
+    BoundsError
+        Inflated XML or placed triangles past the bounds.
     """
-    import trimesh
+    from . import require_checked
 
     path = Path(path)
-    try:
-        z = zipfile.ZipFile(io.BytesIO(path.read_bytes()))
-        names = z.namelist()
-    except (OSError, zipfile.BadZipFile) as exc:
-        raise FabricationError(f"{path}: not a 3MF package: {exc}") from None
-    model_name = next((n for n in names if n.lower().startswith("3d/")
-                       and n.lower().endswith(".model")), None)
-    if model_name is None:
-        raise FabricationError(f"{path}: holds no 3D model (3D/*.model)")
-    root = _xml(z.read(model_name), f"{path}: {model_name}")
-    unit = root.get("unit", "millimeter")
-    if unit not in _UNITS:
-        raise FabricationError(f"{path}: unknown unit {unit!r}")
-    scale = _UNITS[unit]
-    meshes = {}
-    for obj in root.iterfind("m:resources/m:object", _NS):
-        vs = [(float(v.get("x")), float(v.get("y")), float(v.get("z")))
-              for v in obj.iterfind("m:mesh/m:vertices/m:vertex", _NS)]
-        ts = [(int(t.get("v1")), int(t.get("v2")), int(t.get("v3")))
-              for t in obj.iterfind("m:mesh/m:triangles/m:triangle", _NS)]
-        v = np.asarray(vs, dtype=np.float64).reshape(-1, 3) * scale
-        f = np.asarray(ts, dtype=np.int64).reshape(-1, 3)
-        if f.size and (f.min() < 0 or f.max() >= len(v)):
-            raise FabricationError(f"{path}: object {obj.get('id')} has triangle indices out of "
-                                   "range")
-        if not np.isfinite(v).all():
-            raise FabricationError(f"{path}: object {obj.get('id')} has vertices that are not "
-                                   "finite")
-        meshes[obj.get("id")] = (v, f, obj.get("name", ""))
-    placed = []
-    for item in root.iterfind("m:build/m:item", _NS):
-        oid = item.get("objectid")
-        if oid not in meshes:
-            raise FabricationError(f"{path}: a build item names object {oid!r}, which is not there")
-        v, f, _ = meshes[oid]
-        t = item.get("transform")
-        if t:
-            vals = np.array([float(x) for x in t.split()])
-            if vals.size != 12:
-                raise FabricationError(f"{path}: build item transform of {vals.size} numbers, "
-                                       "not 12")
-            rot = vals[:9].reshape(3, 3)  # rows act on row vectors
-            v = v @ rot + vals[9:] * scale
-        placed.append(trimesh.Trimesh(v, f, process=True))
-    if not placed:
-        raise FabricationError(f"{path}: no build items")
-    project, per_object = {}, []
-    lower = {n.lower(): n for n in names}
-    if "metadata/slic3r_pe.config" in lower:
-        project = _parse_config(z.read(lower["metadata/slic3r_pe.config"]).decode("utf-8",
-                                                                                 "replace"))
-    parts = {}
-    if "metadata/slic3r_pe_model.config" in lower:
-        cfg = _xml(z.read(lower["metadata/slic3r_pe_model.config"]), f"{path}: model config")
-        for obj in cfg.iterfind("object"):
-            per_object.append({m.get("key"): m.get("value") for m in obj.iterfind("metadata")
-                               if m.get("type") == "object" and m.get("key") != "name"})
-            parts[obj.get("id")] = len(obj.findall("volume"))
-    return {"mesh": trimesh.util.concatenate(placed),
-            "objects": [{"name": nm, "parts": parts.get(oid, 1)}
-                        for oid, (_, _, nm) in meshes.items()],
-            "project": project, "per_object": per_object}
+    if data is None:
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            raise FabricationError(f"{path}: not a 3MF package: {exc.strerror}") from None
+    parsed = _parse_package(path, data)
+    require_checked(f"{path}: {len(parsed['items'])} build items",
+                    ("placed triangle", _placed_triangles(parsed)))
+    return _place(path, parsed)
 
 
 def _settings_check(packages, names, design, settings) -> dict:
@@ -191,8 +298,14 @@ def check_file(path, design=None, settings=None) -> dict:
     from .beds import bed_set
     from .stl import check_meshes
 
+    from . import read_set, require_checked
+
     paths = bed_set(path)
-    packages = [read_package(p) for p in paths]
+    parsed = {p: _parse_package(p, data) for p, data in read_set(paths).items()}
+    # every bed's build items place their objects: all of them counted before any is placed
+    require_checked(f"{path}: {sum(len(q['items']) for q in parsed.values())} build items",
+                    ("placed triangle", sum(map(_placed_triangles, parsed.values()))))
+    packages = [_place(p, q) for p, q in parsed.items()]
     names = [p.name for p in paths]
     pinned = all(any(o["parts"] > 1 for o in pkg["objects"]) for pkg in packages)
     report = check_meshes([pkg["mesh"] for pkg in packages], names, design, settings,

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import sys
 import time
-from pathlib import Path
 
 NAME = "bench"
 HELP = "speed against accuracy: work-precision and scaling charts, stability study"
@@ -153,7 +152,7 @@ def run(args) -> int:
     from ..bench.workprecision import (FULL_SETTINGS, QUICK_SETTINGS, lyapunov_protocol,
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
-    from ..outputs import write_files
+    from ..outputs import inside, write_files
     from . import check_number
     from ..viz import figure_png
 
@@ -173,7 +172,8 @@ def run(args) -> int:
     if not any(s.method == "rk4-nullspace" and s.options.get("step") == rk4_step
                for s in settings):
         rk4_step = next(s.options["step"] for s in settings if s.method == "rk4-nullspace")
-    outdir = Path(args.out) / "bench"
+    # checked before the work and again when writing: never through a link out of -o
+    outdir = inside(args.out, "bench")
     t_start = time.perf_counter()
     doc = {"command": "fabkit bench" + (" --quick" if args.quick else ""), "mode": mode,
            "parts": parts, "sizes": list(sizes), "budget_s": budget, "machine": machine_info()}
@@ -259,7 +259,7 @@ def run(args) -> int:
     # everything measured and rendered: only now write
     files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
                                      allow_nan=False).encode()
-    write_files(outdir, files)
+    write_files(args.out, {f"bench/{name}": data for name, data in files.items()})
 
     print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_s']:.0f} s)")
     for s in scal.values():

@@ -46,10 +46,18 @@ def run(args) -> int:
     from ..check import check_file
     from ..errors import FabkitError
     from ..report import jsonable
+    from ..stoppable import run_stoppable
     from ..templates import load_template, with_settings
     from .export import parse_settings
 
     settings = parse_settings(args.settings)
+    if settings:  # a section no check of these files reads would be accepted without effect
+        from ..check import checker_for
+        from ..schema import refuse_unused
+
+        reads = {"motion"}.union(*(getattr(checker_for(f), "READS", ()) for f in args.files))
+        refuse_unused(settings, reads, f"the checks of these files read "
+                                       f"{', '.join(sorted(reads - {'motion'}))} settings only")
     design = with_settings(load_template(args.design), settings) if args.design else None
     failed = 0
     out = {}
@@ -57,7 +65,11 @@ def run(args) -> int:
         path = Path(name)
         if not path.is_file():
             raise FabkitError(f"{path}: no such file")
-        report = check_file(path, design=design, settings=settings)
+        if args.debug:  # in this process, for the traceback
+            report = check_file(path, design=design, settings=settings)
+        else:  # where SIGINT/SIGTERM stop it at once, held to its work estimate
+            report = run_stoppable(check_file, path, design=design, settings=settings,
+                                   what=str(path))
         failed += not report.get("ok")
         if args.json:
             out[str(path)] = report

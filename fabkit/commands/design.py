@@ -89,13 +89,13 @@ def add_arguments(p):
 
 def _name(args) -> str:
     if args.name is not None:
-        from ..errors import UnsafeNameError
+        from ..errors import UnsafeNameError, brief
         from ..outputs import check_name
 
         try:  # the one guard: a name never leaves -o
             return check_name(args.name, "--name")
         except UnsafeNameError as exc:
-            raise UsageError("--name", f"{args.name!r} {exc.reason}") from None
+            raise UsageError("--name", f"{brief(args.name)} {exc.reason}") from None
     if args.curve:
         stem = re.sub(r"[^A-Za-z0-9_.-]", "_", Path(args.curve).stem).lstrip("._-")
         return (stem or "curve")[:80]
@@ -124,16 +124,42 @@ def _curve_path(path: str) -> Path:
 
 def _read_curve_file(path: str):
     from ..designer import read_curve
+    from ..errors import BoundsError
+    from ..inputs import read_regular
+    from ..workload import require
 
     p = _curve_path(path)
-    if not p.is_file():
-        raise InputFileError(p, "no such curve file (give an .svg or a .csv)"
-                             if not p.exists() else "not a regular file")
-    size = p.stat().st_size
-    if size > MAX_CURVE_BYTES:
-        raise InputFileError(p, f"{size:,} bytes is over the limit of {MAX_CURVE_BYTES:,} for a "
-                                "curve file")
-    return read_curve(p.read_bytes(), str(path))
+    if not p.exists():
+        raise InputFileError(p, "no such curve file (give an .svg or a .csv)")
+    try:  # a FIFO or a device is refused, never waited on
+        data = read_regular(p, MAX_CURVE_BYTES, what="bytes for a curve file")
+    except BoundsError as exc:
+        raise InputFileError(p, f"{exc.value:,} bytes is over the limit of {MAX_CURVE_BYTES:,} "
+                                "for a curve file") from None
+    if p.suffix.lower() == ".svg":
+        from ..designer.curve_files import svg_work
+
+        require(f"{p}", *svg_work(data), option=True)
+    return read_curve(data, str(path))
+
+
+def _check_curve_size(curve, module_size: float) -> None:
+    """The drawing, at its scale, is within reach of a chain: finite, and at most
+    :data:`fabkit.templates.MAX_MODULES` modules long (before any design work)."""
+    import numpy as np
+
+    from ..templates import MAX_MODULES, allow_large
+
+    if not np.isfinite(curve.points).all() or not np.isfinite(curve.length):
+        raise UsageError("--curve-scale", "makes the curve's coordinates overflow; give a "
+                                          "smaller factor")
+    modules = curve.length / module_size
+    if modules > MAX_MODULES and not allow_large():
+        count = f"{modules:,.0f}" if modules < 1e9 else f"{modules:.3g}"
+        raise UsageError("--module-size", f"the curve of {curve.length:.6g} mm makes {count} "
+                                          f"modules of {module_size:g} mm, over the limit of "
+                                          f"{MAX_MODULES:,} modules; give a larger module size "
+                                          "or a smaller --curve-scale")
 
 
 def run(args) -> int:
@@ -253,7 +279,9 @@ def _run_curve(args, name, out, figure_png) -> int:
                              f"{curve.length * args.curve_scale:.4g} mm long; with modules of "
                              f"{args.module_size:g} mm it must be from 2 to {MAX_MODULES} "
                              f"modules long: scales from {lo:.3g} to {hi:.3g}")
-        curve = scaled(curve, args.curve_scale)
+        with np.errstate(over="ignore", invalid="ignore"):
+            curve = scaled(curve, args.curve_scale)
+    _check_curve_size(curve, args.module_size)
     result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
                                 name=name, progress=_progress)
     report = result.report

@@ -105,7 +105,8 @@ def run(args) -> int:
     from ..errors import FabkitError
     from ..report import report_json
     from ..templates import load_template, with_settings
-    from ..tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
+    from ..tolerance import (analyse_tolerance, design_process, refuse_foreign,
+                             tolerance_figure, tolerance_spec)
     from ..viz import figure_png
     from ..outputs import inside, write_files
     from . import each_template
@@ -126,6 +127,8 @@ def run(args) -> int:
 
     def one(path) -> bool:
         design = with_settings(load_template(path), settings)
+        # --set of another process has no effect here: refused as a key of another process is
+        refuse_foreign(settings, design_process(design), design.name)
         folder = inside(Path(args.out), design.name)  # before the work
         traj = traced_motion(design)
         if traj is None:

@@ -123,8 +123,20 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     ------
     SettingsError
         An unknown section or key, or a value of the wrong type or out of range.
+    ArgumentTypeError
+        ``design`` is not a Design.
+    OutputError
+        ``outdir`` is not a folder path, or cannot be created or written.
     """
+    from ..errors import ArgumentTypeError
+    from ..outputs import output_folder
+    from ..templates import Design
+
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
+    if not isinstance(design, Design):
+        raise ArgumentTypeError("design", "must be a fabkit Design (fabkit.load_template), got "
+                                          f"{type(design).__name__}")
     module = get_exporter(fmt)
+    outdir = output_folder(outdir, "outdir")  # a folder path that can be written, before work
     result: ExportResult = module.export_design(design, settings)
     return write_outputs(result.files, outdir), result.report

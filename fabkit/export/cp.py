@@ -12,6 +12,8 @@ from ..errors import FabricationError
 from . import ExportResult
 
 FORMAT = "cp"
+#: The sections of ``--set`` this format reads (any other has no effect on it).
+READS = ("origami",)
 
 #: ORIPA line type of each assignment.
 TYPES = {"B": 1, "C": 1, "M": 2, "V": 3}

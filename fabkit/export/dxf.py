@@ -41,6 +41,8 @@ __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "she
            "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
+#: The sections of ``--set`` this format reads (any other has no effect on it).
+READS = ("laser",)
 
 #: DXF layers and their ACI colours (red outer cut, blue inner cut, black/white engrave, and
 #: the 100 mm reference square on a layer of its own, green, to cut, engrave or leave off).

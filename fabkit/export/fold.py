@@ -25,6 +25,8 @@ from .. import __version__
 from . import ExportResult
 
 FORMAT = "fold"
+#: The sections of ``--set`` this format reads (any other has no effect on it).
+READS = ("origami",)
 
 
 #: Why the format does not apply, when :func:`applies` says so (reported by ``--to fold``).

@@ -41,6 +41,8 @@ __all__ = ["FORMAT", "applies", "export_design", "binary_stl", "threemf_package"
            "stored_mesh_is_closed", "hinge_layout", "piece_network", "stl_origin"]
 
 FORMAT = "stl"
+#: The sections of ``--set`` this format reads (any other has no effect on it).
+READS = ("print",)
 
 _STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attr", "<u2")])
 

@@ -40,6 +40,8 @@ from ..numerics import MM_SLACK, TINY
 from . import ExportResult
 
 FORMAT = "svg"
+#: The sections of ``--set`` this format reads (any other has no effect on it).
+READS = ("origami",)
 
 #: Outline sides equal (and corners right) to this fraction of the longest side make a square.
 SHAPE_RTOL = 1e-9

@@ -66,6 +66,10 @@ _PIN_KEYS = ("bar_width", "bar_thickness", "layer_gap", "pin_diameter", "pin_cle
 
 
 
+#: Least radial clearance of a printed pin in its hole (mm): an extruded wall is placed to about
+#: 0.05 mm, so a smaller gap prints fused (printers need 0.3-0.4 mm for bodies to part).
+MIN_PIN_CLEARANCE = 0.05
+
 #: A thickness is a whole number of print layers when it is within this fraction of a layer of
 #: one (typed values such as 0.6 mm / 0.2 mm carry round-off only).
 WHOLE_LAYERS_RTOL = 1e-6
@@ -357,6 +361,12 @@ def _pin_settings(given: dict, where: str) -> PrintSettings:
         _whole_layers(float(values[key]), layer, key, where)
     pin, cap, width = (float(values[k]) for k in ("pin_diameter", "cap_diameter", "bar_width"))
     hole = pin + 2.0 * values["pin_clearance"]
+    if values["pin_clearance"] < MIN_PIN_CLEARANCE - MM_SLACK:
+        raise FabricationError(f"{where}.pin_clearance: a {values['pin_clearance']:g} mm gap "
+                               "between pin and hole is below what an extruded wall keeps "
+                               f"(about {MIN_PIN_CLEARANCE:g} mm): the pin prints fused to its "
+                               f"hole; use >= {MIN_PIN_CLEARANCE:g} mm (0.3-0.4 mm parts "
+                               "reliably)")
     if pin < 3.0 * nozzle - MM_SLACK:
         raise FabricationError(f"{where}.pin_diameter: a {pin:g} mm pin is less than three "
                                f"{nozzle:g} mm nozzle widths and prints as a blob, not a round "

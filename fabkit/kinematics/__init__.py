@@ -12,9 +12,10 @@ predictor-corrector on the constraint set, any network with one motion) and ``"r
 
 from __future__ import annotations
 
-from ..errors import ConstructionError, KinematicsError
+from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError, KinematicsError
 from ..network import Network
-from .base import Mark, Method, Outcome, Problem, align_to_gauge, choose_gauge, make_problem
+from .base import (Mark, Method, Outcome, Problem, align_to_gauge, check_option, choose_gauge,
+                   make_problem)
 from .stepping import Step, StepMethod, Stop
 from .branching import BranchSwitch, analyze_bifurcation, fold_through
 from .constructive import ConstructionPlan, Constructive, cached_plan, place, plan_construction
@@ -135,7 +136,11 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
         known = set().union(*(c.options for c in METHODS.values()))
         unknown = sorted(set(options) - known)
         if unknown:
-            raise TypeError(f"unknown option(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
+            raise ArgumentTypeError(unknown[0], f"is an unknown option of every method "
+                                                f"(unknown option(s): {', '.join(unknown)}); "
+                                                f"valid: {', '.join(sorted(known))}")
+        for name, value in options.items():  # checked even when the chosen method drops it
+            check_option("auto", name, value)
         try:
             plan = cached_plan(problem.work, problem.drive, problem.start)
         except ConstructionError:
@@ -150,5 +155,18 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
             cls = METHODS[method]
         except (KeyError, TypeError):
             valid = ", ".join(["auto", *METHODS])
-            raise ValueError(f"unknown method {method!r}; valid methods: {valid}") from None
+            raise ArgumentValueError("method", f"{method!r:.60} is unknown; valid methods: "
+                                               f"{valid} (or a Method subclass)") from None
+    if "samples" in options and cls.options.get("samples") is not None:
+        check_option(cls.name, "samples", options["samples"])
+        _require_samples(net, int(options["samples"]))
     return cls(problem, **options).run()
+
+
+def _require_samples(net: Network, samples: int) -> None:
+    """A sampled trace holds every sample's configuration while it computes: refused, before
+    it starts, past the bounds of :func:`fabkit.workload.require`."""
+    from ..workload import require
+
+    require(f"trace: samples = {samples:,} on {net.n_nodes:,} nodes",
+            ("trace configuration node", samples * net.n_nodes), ("stored value", samples))

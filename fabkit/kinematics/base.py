@@ -29,7 +29,7 @@ from .record import Record, edge_errors, keep_rule, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
 
 __all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
-           "align_to_gauge"]
+           "align_to_gauge", "check_option"]
 
 #: A gauge triangle (3D) must span at least this area, and a third gauge node lie this far off
 #: the gauge edge, relative to the network's size (squared for the area): else the nodes are
@@ -350,6 +350,29 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
                    target=target, gauge=gauge, keep=keep, requested=requested)
 
 
+def check_option(method: str, name: str, value) -> None:
+    """Refuse an option of a built-in method that its declared schema
+    (:data:`fabkit.schema.METHOD_OPTIONS`) does not allow, before any work, with an
+    :class:`~fabkit.errors.ArgumentError` naming it (a NaN ``max_step`` once ended a trace
+    after three samples); NumPy scalars count as the Python numbers they hold. Options of a
+    method of one's own, and undeclared ones (``plan``), are the method's to check."""
+    from ..errors import ArgumentValueError, SettingsError
+    from ..schema import check_method_options
+
+    plain = value.item() if isinstance(value, np.generic) else value
+    try:
+        check_method_options(method, {name: plain}, where="options")
+    except SettingsError as exc:
+        if "unknown option" in exc.reason:
+            return  # not declared: the method's own
+        # a value of the wrong kind (text, a bool, 2.5 for a count) is a TypeError, as in
+        # fabkit.arguments; a number out of range a ValueError
+        number = isinstance(plain, (int, float)) and not isinstance(plain, bool)
+        wrong_kind = not number or (isinstance(plain, float) and "whole number" in exc.reason)
+        raise (ArgumentTypeError if wrong_kind else ArgumentValueError)(name, exc.reason) \
+            from None
+
+
 class Method(ABC):
     """Base class of tracing methods.
 
@@ -365,9 +388,11 @@ class Method(ABC):
         unknown = sorted(set(options) - set(self.options))
         if unknown:
             valid = ", ".join(sorted(self.options)) or "none"
-            raise TypeError(
-                f"method {self.name!r} got unknown option(s) {', '.join(unknown)}; valid: {valid}"
-            )
+            raise ArgumentTypeError(unknown[0], f"is an unknown option of method {self.name!r} "
+                                                f"(unknown option(s): {', '.join(unknown)}); "
+                                                f"valid: {valid}")
+        for name, value in options.items():
+            check_option(self.name, name, value)
         self.problem = problem
         self.opts = {**self.options, **options}
 

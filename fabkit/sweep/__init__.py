@@ -94,6 +94,8 @@ def _axes_from(vary) -> tuple:
 POINT_TIMEOUT = 600.0
 #: How often the parent looks at the running chunks (seconds).
 HANG_POLL = 0.5
+#: Largest ``chunks/spec.json`` read back (fabkit writes a few kB).
+MAX_SPEC_BYTES = 16 * 2**20
 
 def _measures_from(measure) -> tuple:
     if measure is None:
@@ -186,9 +188,19 @@ def read_sweep_file(path) -> SweepFile | None:
         import tomllib
     else:  # pragma: no cover - Python 3.10
         import tomli as tomllib
+    from ..errors import BoundsError, InputFileError
+    from ..inputs import read_regular
+    from ..templates import MAX_FILE_BYTES
+
     path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    try:  # a FIFO or a device given as the template is refused here, never waited on
+        raw = tomllib.loads(read_regular(path, MAX_FILE_BYTES).decode("utf-8"))
+    except InputFileError as exc:
+        if exc.reason == "no such file" or not os.path.exists(path):
+            return None  # a bundled template's name: the template loader resolves it
+        raise
+    except BoundsError:
+        raise
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
         return None  # not ours: the template loader reports it properly
     sec = raw.get("sweep")
@@ -227,14 +239,16 @@ def read_sweep_file(path) -> SweepFile | None:
 
 
 def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    from ..outputs import output_folder
+    from ..inputs import read_regular
+    from ..outputs import inside, output_folder
 
     output_folder(outdir)
-    marker = outdir / _CHUNKS / _SPEC
-    if marker.exists():
-        try:
-            old = json.loads(marker.read_text()).get("fingerprint")
-        except (OSError, ValueError):
+    # chunks/ and its spec: never through a link out of the folder (refused before any work)
+    marker = inside(outdir, _CHUNKS, _SPEC, replace_last=True)
+    if os.path.lexists(marker):
+        try:  # a FIFO or a device there is refused, never waited on
+            old = json.loads(read_regular(marker, MAX_SPEC_BYTES)).get("fingerprint")
+        except (ValueError, AttributeError):
             old = None
         if old != spec.fingerprint():
             raise FabkitError(f"{outdir} holds the chunks of a different sweep (another template, "
@@ -355,11 +369,12 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     damaged: list = []
     folder = None
     if out is not None:
-        folder = out / _CHUNKS
-        from ..outputs import write_atomic
+        from ..outputs import inside, write_files
 
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
-        write_atomic(folder / _SPEC, json.dumps(marker, indent=1, default=_jsonable).encode())
+        write_files(out, {f"{_CHUNKS}/{_SPEC}": json.dumps(marker, indent=1,
+                                                          default=_jsonable).encode()})
+        folder = inside(out, _CHUNKS)
         done, damaged = _read_chunks(folder, spec)
     todo = [i for i in range(spec.size) if i not in done]
     if client is not None:
@@ -381,7 +396,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     def arrived(chunk):
         records = chunk["records"]
         if folder is not None:
-            _write_chunk(folder, records)
+            _write_chunk(out, records)
         for r in records:
             done[r["index"]] = r
         cpu[0] += chunk["cpu"]

@@ -16,6 +16,8 @@ from typing import Annotated, Literal, Optional, Sequence
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from ..errors import FabkitError, InputFileError
+from ..inputs import read_regular
 from .model import Axis, Protocol, Status, SweepSpec, _jsonable
 from .point import evaluate_point
 
@@ -80,12 +82,18 @@ def _chunks(indices: list, size: int) -> list:
     return [indices[k:k + size] for k in range(0, len(indices), size)]
 
 
-def _write_chunk(folder: Path, records: list) -> Path:
-    from ..outputs import write_atomic
+#: Largest chunk file read back when a sweep resumes (a larger one is set aside and its points
+#: computed again): 32 points of a few kB each are what fabkit writes.
+MAX_CHUNK_BYTES = 256 * 2**20
+
+
+def _write_chunk(out: Path, records: list) -> Path:
+    """Write a chunk of records to ``out/chunks/`` through the output guard."""
+    from ..outputs import write_files
 
     first, last = records[0]["index"], records[-1]["index"]
     text = json.dumps(records, default=_jsonable, allow_nan=False)
-    return write_atomic(folder / f"chunk-{first:07d}-{last:07d}.json", text.encode())
+    return write_files(out, {f"chunks/chunk-{first:07d}-{last:07d}.json": text.encode()})[0]
 
 
 def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
@@ -106,7 +114,8 @@ def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
     for f in sorted(folder.glob("chunk-*.json")):
         why = None
         try:
-            records = json.loads(f.read_text(encoding="utf-8"))
+            # a FIFO or a device under a chunk's name is set aside, never waited on
+            records = json.loads(read_regular(f, MAX_CHUNK_BYTES).decode("utf-8"))
             if not isinstance(records, list) or not records:
                 raise ValueError("not a list of records")
             for rec in records:
@@ -125,8 +134,8 @@ def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
             why = describe_validation_error(exc, SweepRecord)
         except json.JSONDecodeError as exc:
             why = f"not JSON: {exc}"
-        except (OSError, UnicodeDecodeError, ValueError) as exc:
-            why = str(exc)
+        except (OSError, UnicodeDecodeError, ValueError, FabkitError) as exc:
+            why = exc.reason if isinstance(exc, InputFileError) else str(exc)
         if why is not None:
             f.rename(f.with_name(f.name + ".damaged"))
             damaged.append((f.name, why))

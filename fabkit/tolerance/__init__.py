@@ -48,8 +48,9 @@ from .horizon import lyapunov_estimate
 from .processes import PROCESSES, SOURCES
 from .result import ToleranceResult
 from .spec import (TOLERANCE_KEYS, ToleranceSpec, design_process, model_summary, perturbed_lengths,
-                   tolerance_spec)
+                   key_process, refuse_foreign, tolerance_spec)
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
            "perturbed_lengths", "lyapunov_estimate", "tolerance_figure", "TOLERANCE_KEYS",
-           "PROCESSES", "SOURCES", "design_process", "model_summary", "keep_chart"]
+           "PROCESSES", "SOURCES", "design_process", "model_summary", "keep_chart",
+           "refuse_foreign", "key_process"]

@@ -95,6 +95,47 @@ _OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k 
 _OWNER["thickness"] = "laser"
 
 
+def key_process(key: str) -> str | None:
+    """The process a tolerance key belongs to (``"xy_sigma"`` → ``"print"``), or None for a
+    key of every process (``samples``, ``seed``, ``scale``)."""
+    return _OWNER.get(key)
+
+
+def refuse_foreign(settings, process: str, name: str) -> None:
+    """Refuse ``--set`` settings a tolerance analysis of ``process`` does not read: another
+    process's section (``print`` under laser) or a tolerance key of another process
+    (``tolerance.xy_sigma`` under laser), in the one way of :func:`fabkit.schema.refuse_unused`.
+
+    Parameters
+    ----------
+    settings : dict
+        Overrides nested by section (``--set``).
+    process : str
+        The process the design is analysed as.
+    name : str
+        The design's name, for the message.
+
+    Raises
+    ------
+    UsageError
+    """
+    from ..errors import UsageError
+    from ..schema import refuse_unused
+
+    tol = (settings or {}).get("tolerance")
+    if isinstance(tol, dict) and tol.get("process") in PROCESSES:
+        process = tol["process"]
+    for key in (tol or {}) if isinstance(tol, dict) else ():
+        if _OWNER.get(key, process) != process:
+            raise UsageError("--set", f"tolerance.{key}: is a {_OWNER[key]} error; {name} is "
+                                      f"analysed as {process} (set tolerance.process = "
+                                      f"\"{_OWNER[key]}\" to change that)")
+    others = [s for s in (settings or {}) if s in PROCESSES and s != process]
+    refuse_unused(settings, {"motion", "tolerance", process},
+                  f"{name} is analysed as {process} (set tolerance.process = "
+                  f"\"{others[0] if others else process}\" to change that)")
+
+
 def design_process(design) -> str:
     """The process a design is built by: its ``[fabrication.tolerance] process``, else the first
     of its origami / print / laser tables, else origami for 3D networks and laser for planar."""
