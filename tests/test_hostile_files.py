@@ -406,8 +406,8 @@ def test_a_curve_of_astronomic_coordinates_is_one_line_exit_2(case, tmp_path, ca
 def test_a_curve_scaled_past_any_chain_is_refused_before_design(tmp_path, capsys):
     src = tmp_path / "c.csv"
     src.write_text("x,y\n0,0\n100,0\n")
-    for scale, words in (("1e300", "--module-size: the curve of 1e+302 mm makes 2e+300 modules "
-                                   "of 50 mm, over the limit of 20,000 modules"),
+    for scale, words in (("1e300", "--curve-scale: 1e+300 makes the curve 1e+302 mm long; with "
+                                   "modules of 50 mm it must be from 2 to 2000 modules long"),
                          ("1e308", "--curve-scale: makes the curve's coordinates overflow")):
         rc = main(["design", "--curve", str(src), "--curve-scale", scale, "-o",
                    str(tmp_path / "out")])

@@ -274,6 +274,9 @@ def _run_curve(args, name, out, figure_png) -> int:
     if args.curve_scale != 1.0:
         lo = 2 * args.module_size / curve.length
         hi = MAX_MODULES * args.module_size / curve.length
+        if not np.isfinite(curve.length * args.curve_scale):
+            raise UsageError("--curve-scale", "makes the curve's coordinates overflow; give a "
+                                              "smaller factor")
         if not lo <= args.curve_scale <= hi:
             raise UsageError("--curve-scale", f"{args.curve_scale:g} makes the curve "
                              f"{curve.length * args.curve_scale:.4g} mm long; with modules of "
