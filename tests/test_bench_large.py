@@ -29,6 +29,23 @@ def test_dense_count_is_skipped_by_its_estimate():
     assert dense[1]["outcome"] == SKIPPED and dense[1]["estimate_s"] > 1e-4
 
 
+def test_dense_skip_does_not_depend_on_the_machine(monkeypatch):
+    # a machine so busy that every count takes 5 s: which points run is decided by their work
+    real = large.run_budgeted
+
+    def busy(fn, evaluate, budget, repeats):
+        outcome, times, info = real(fn, evaluate, budget, repeats)
+        return outcome, [5.0] * len(times), info
+
+    monkeypatch.setattr(large, "run_budgeted", busy)
+    pts = large.count_modes_scaling([10, 100], budget=30, repeats=1)
+    dense = [p for p in pts if p["path"] == "dense"]
+    assert [p["outcome"] for p in dense] == ["ok", "ok"]
+    assert dense[1]["estimate_s"] == large.dense_svd_seconds(600, 604)
+    # 1000 modules: 4·6004·6000² − 4·6000³/3 flops, minutes at any plausible rate
+    assert large.dense_svd_seconds(6000, 6004) > 100
+
+
 def test_chain_and_lattice_points_carry_errors_and_floors():
     chains = large.fourbar_chain_points([20], budget=30, repeats=1)
     assert {p["method"] for p in chains} == {"constructive", "projected"}
