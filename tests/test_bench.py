@@ -236,6 +236,25 @@ def test_cli_workprecision_part_writes_charts_and_json(tmp_path):
     assert doc["machine"]["cpu_count"] >= 1
 
 
+def test_the_quick_bench_states_one_time_everywhere(capsys):
+    import re
+    from pathlib import Path
+
+    from fabkit.commands import bench
+
+    figure = re.search(r"--quick finishes in about (\d+ s) ", bench.DESCRIPTION).group(1)
+    try:
+        main(["bench", "--help"])
+    except SystemExit:
+        pass
+    helped = " ".join(capsys.readouterr().out.split())
+    assert f"(about {figure} on a quiet 2-core machine)" in helped
+    root = Path(__file__).resolve().parents[1]
+    assert f"`--quick` about {figure})" in (root / "README.md").read_text()
+    assert re.search(rf"fabkit bench --quick +# .*\(about {figure}\)",
+                     (root / "docs" / "bench.md").read_text())
+
+
 # -- targets -------------------------------------------------------------------------------------
 def _pt(method, k, t, edge, dlast=0.0, status="finished"):
     return {"method": method, "label": f"{method} (x)", "modules": k, "nodes": 3 * k + 2,

@@ -1,6 +1,7 @@
 """The large-network part of the bench: mode counting and projected on chains and a lattice."""
 
 import json
+import re
 
 import pytest
 
@@ -94,13 +95,17 @@ def test_large_targets_judge_the_figures():
     assert not any(g["met"] for g in goals.values())
 
 
-def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch):
+def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch, capsys):
     from fabkit.commands import bench
 
     small = {"modes": (10, 100), "chains": (10,), "lattice": (3,)}
     monkeypatch.setitem(bench.MODES, "quick", {**bench.MODES["quick"], "large": small})
     rc = main(["bench", "--quick", "--parts", "large", "-o", str(tmp_path)])
     assert rc == 0
+    printed = capsys.readouterr().out
+    # what was not measured is not said to be missed
+    assert re.search(r"target +count_modes_10000 +not measured: ", printed), printed
+    assert re.search(r"target +count_modes_exponent +not measured: ", printed), printed
     out = tmp_path / "bench"
     assert sorted(p.name for p in out.iterdir()) == ["bench.json", "large_networks.png"]
     assert (out / "large_networks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
