@@ -23,8 +23,8 @@ HEARTBEAT = 1.0
 SILENCE = 120.0
 #: A new worker must say its first word within this many seconds (or the silence limit, when
 #: that is longer). Until then it is starting, not silent: a fresh interpreter importing numpy,
-#: scipy and fabkit takes 1-2 s on a quiet 2-core machine and 3-5 s beside four busy processes,
-#: more than a short silence limit.
+#: scipy and fabkit takes about a second on a quiet 2-core machine and several beside four busy
+#: processes, more than a short silence limit.
 STARTUP = 120.0
 #: Default time limit of one design in a worker process (``--timeout``); the work estimate
 #: refuses designs expected to take more than half of it.
