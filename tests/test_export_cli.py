@@ -620,7 +620,7 @@ def _alive(pid: int) -> bool:
     # a zombie is dead for our purpose: it runs no code and writes nothing
     try:
         return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
-    except (FileNotFoundError, IndexError):
+    except (OSError, IndexError):  # reaped between the two looks (ProcessLookupError, ENOENT)
         return False
 
 
