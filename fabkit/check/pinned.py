@@ -40,10 +40,8 @@ import numpy as np
 
 from ..errors import FabkitError
 
-__all__ = ["check_pinned", "read_bar", "VOLUME_RTOL", "NODE_TOL_MM", "LENGTH_TOL_MM"]
+__all__ = ["check_pinned", "read_bar", "NODE_TOL_MM", "LENGTH_TOL_MM"]
 
-#: Relative tolerance between the bodies' volume and the exact volume of bars and pins.
-VOLUME_RTOL = 1e-6
 #: Largest distance (mm) between a rebuilt joint and the design's node.
 NODE_TOL_MM = 1e-2
 #: Largest difference (mm) between a read-back bar length and the design's: STL and 3MF store

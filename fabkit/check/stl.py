@@ -6,10 +6,12 @@ print-in-place bar linkage (``linkage = "pins"``) is checked by :mod:`fabkit.che
 triangle-hinge network as follows (a print split into pieces piece by piece, against each
 piece's own network, without the transition).
 
-Solid checks: the mesh is watertight, consistently wound, exactly one body, with a volume equal to
-the analytic volume of plates plus hinges (relative 1e-6), and no feature thinner than the nozzle
+Solid checks: the mesh is watertight, consistently wound, exactly one body, and no feature thinner
+than the nozzle
 (in the plane: every piece of a cross-section survives an opening by a disc of the nozzle's
 width; across the layers: every slab of the solid is a whole number of layers, at least one).
+The as-built check does not compare the volume with the writer's analytic volume (that would
+recompute the writer's geometry); :func:`check_mesh` does when given one (``fabkit bench``).
 
 As-built linkage: the linkage is rebuilt from the solid alone (with the print settings' gap and
 scale): a cross-section above the hinges shows the plates; each plate's three sides (its edges
