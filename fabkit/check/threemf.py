@@ -29,6 +29,10 @@ FORMAT = "3mf"
 READS = ("print",)
 SUFFIXES = (".3mf",)
 
+#: A layer height read back from the slicer settings within this of the template's is the
+#: template's (mm): the writer prints them as short decimals, far coarser than this.
+LAYER_MATCH_MM = 1e-9
+
 _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
 #: Units a 3MF may declare, in millimetres.
 _UNITS = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8,
@@ -269,7 +273,7 @@ def _settings_check(packages, names, design, settings) -> dict:
 
     def compare(where, got, key):
         value = _number(got)
-        if value is None or abs(value - layer) > 1e-9:
+        if value is None or abs(value - layer) > LAYER_MATCH_MM:
             wrong.append(f"{where} {key} = {got!r}, not the template's {layer:g} mm")
 
     for name, pkg in zip(names, packages):
