@@ -11,6 +11,7 @@ import io
 import numpy as np
 
 from .errors import FabkitError
+from .viz import figure_kit
 
 __all__ = ["motion_gif", "collapse_profile", "collapse_order", "sequence_figure",
            "junction_figure"]
@@ -71,10 +72,6 @@ def motion_gif(traj, *, frames: int = 40, fps: float = 12.0, size=(6.0, 4.0), dp
         raise FabkitError(f"`frames` must be at least 2, got {frames}")
     if not fps > 0:
         raise FabkitError(f"`fps` must be positive, got {fps}")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
     from PIL import Image
 
@@ -85,7 +82,7 @@ def motion_gif(traj, *, frames: int = 40, fps: float = 12.0, size=(6.0, 4.0), dp
     lo, hi = pos.reshape(-1, 2).min(axis=0), pos.reshape(-1, 2).max(axis=0)
     pad = 0.05 * float(max(hi - lo)) + AXIS_PAD
     edges = traj.network.edges
-    fig, ax = plt.subplots(figsize=size)
+    fig, ax = figure_kit.subplots(figsize=size)
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_aspect("equal")
@@ -96,16 +93,13 @@ def motion_gif(traj, *, frames: int = 40, fps: float = 12.0, size=(6.0, 4.0), dp
     (drive_line,) = ax.plot(*pos[0][[a, b]].T, "--", color="C3", lw=1.0)
     label = ax.set_title("")
     images = []
-    try:
-        for i in idx:
-            lines.set_segments(pos[i][edges])
-            drive_line.set_data(*pos[i][[a, b]].T)
-            label.set_text(f"{title + ': ' if title else ''}drive = {traj.drive[i]:.6g}")
-            fig.canvas.draw()
-            rgba = np.asarray(fig.canvas.buffer_rgba())
-            images.append(Image.fromarray(rgba[:, :, :3].copy()).convert("P", palette=Image.ADAPTIVE))
-    finally:
-        plt.close(fig)
+    for i in idx:
+        lines.set_segments(pos[i][edges])
+        drive_line.set_data(*pos[i][[a, b]].T)
+        label.set_text(f"{title + ': ' if title else ''}drive = {traj.drive[i]:.6g}")
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        images.append(Image.fromarray(rgba[:, :, :3].copy()).convert("P", palette=Image.ADAPTIVE))
     buf = io.BytesIO()
     images[0].save(buf, format="GIF", save_all=True, append_images=images[1:],
                    duration=int(round(1000.0 / fps)), loop=0)
@@ -187,10 +181,6 @@ def sequence_figure(profile, x=None, *, xlabel: str = "step", title: str = "coll
         Left: the heat map with the moment each module passes half of its collapse marked;
         right: that moment against the module index.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     p = np.asarray(profile, dtype=np.float64)
     k, s = p.shape
@@ -199,7 +189,8 @@ def sequence_figure(profile, x=None, *, xlabel: str = "step", title: str = "coll
         raise FabkitError(f"`x` must have {s} entries, got {xs.shape}")
     labels = list(module_labels) if module_labels is not None else [f"d{i + 1}" for i in range(k)]
     when = collapse_order(p)
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.5), gridspec_kw={"width_ratios": [3, 1]})
+    fig, (ax, ax2) = figure_kit.subplots(1, 2, figsize=(11, 4.5),
+                                         gridspec_kw={"width_ratios": [3, 1]})
     order = np.argsort(xs)
     mesh = ax.pcolormesh(xs[order], np.arange(k), p[:, order], shading="nearest", cmap="Blues",
                          vmin=0, vmax=1)
@@ -237,14 +228,10 @@ def junction_figure(fraction, displacement, *, threshold: float = 1e-12,
     -------
     matplotlib.figure.Figure
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     f = np.asarray(fraction, dtype=np.float64)
     disp = np.maximum(np.abs(np.asarray(displacement, dtype=np.float64)), LOG_FLOOR)
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    fig, ax = figure_kit.subplots(figsize=(6.5, 4.2))
     ax.semilogy(f, disp, ".-", color="C0", ms=3)
     ax.axhline(threshold, color="C3", lw=0.8, ls="--", label=f"{threshold:g}")
     ax.set_xlabel("collapsed fraction of the branch")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .numerics import apply_fit, rigid_fit
-from .viz import _mpl, draw_network
+from .viz import draw_network, figure_kit
 
 __all__ = ["module_design_figure", "curve_design_figure"]
 
@@ -22,9 +22,8 @@ def module_design_figure(result, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _mpl()
     fmap, wish, net = result.map, result.wish, result.network
-    fig, (ax, mx) = plt.subplots(1, 2, figsize=(11, 5.2))
+    fig, (ax, mx) = figure_kit.subplots(1, 2, figsize=(11, 5.2))
     states = [p.value for p in wish.fixed_points]
     if wish.cycle is not None:
         states = list(wish.cycle) + states
@@ -86,9 +85,9 @@ def curve_design_figure(result, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _mpl()
     pts = result.curve.points
-    fig, (top, ax) = plt.subplots(2, 1, figsize=(8, 9), gridspec_kw={"height_ratios": [1, 3]})
+    fig, (top, ax) = figure_kit.subplots(2, 1, figsize=(8, 9),
+                                         gridspec_kw={"height_ratios": [1, 3]})
     start = result.network.nodes * result.scale
     draw_network(top, result.network, start, color="C0", lw=0.8, nodes=False)
     top.set_title(f"initial state: straight ({len(result.names)} modules)")

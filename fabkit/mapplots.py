@@ -7,22 +7,13 @@ from __future__ import annotations
 import numpy as np
 
 from .maps import Map1D
-from .viz import set_margins
+from .viz import figure_kit, set_margins
 
 __all__ = ["map_figure", "cobweb_figure", "lyapunov_figure", "solution_space_figure"]
 
 # marker fill by stability: stable points filled, unstable hollow
 _FILLED = {"stable": True, "super-stable": True, "neutral": True, "unstable": False,
            "super-unstable": False}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _mark_points(ax, fmap: Map1D, fixed, cycles):
@@ -52,10 +43,9 @@ def map_figure(fmap: Map1D, *, fixed=None, cycles=None, title: str | None = None
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
     fixed = fmap.fixed_points() if fixed is None else fixed
     cycles = fmap.cycles(2) if cycles is None else cycles
-    fig, ax = plt.subplots(figsize=(6.2, 6.2))
+    fig, ax = figure_kit.subplots(figsize=(6.2, 6.2))
     lo_all, hi_all = fmap.domain
     for br, d, f in fmap.curve():
         if br is not None and fmap.branch is not None and br.index == fmap.branch.index:
@@ -93,12 +83,11 @@ def cobweb_figure(fmap: Map1D, d1_values, steps: int = 16, *, title: str | None 
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6.2, 6.2), layout="constrained")
+    fig, ax = figure_kit.subplots(figsize=(6.2, 6.2), layout="constrained")
     g = np.linspace(*fmap.domain, 800)
     ax.plot(g, fmap._values(g)[0], "-", color="k", lw=1.5, label=fmap.name)
     ax.plot(fmap.domain, fmap.domain, "--", color="0.5", lw=1)
-    cmap = plt.get_cmap("Blues")
+    cmap = figure_kit.get_cmap("Blues")
     vals = list(np.atleast_1d(d1_values))
     for n, d1 in enumerate(vals):
         color = cmap(0.9 - 0.6 * n / max(len(vals) - 1, 1))
@@ -129,8 +118,7 @@ def lyapunov_figure(result, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4), layout="constrained")
+    fig, (ax1, ax2) = figure_kit.subplots(1, 2, figsize=(10, 4), layout="constrained")
     ok = np.isfinite(result.values)
     ax1.plot(result.initial[ok], result.values[ok], ".", ms=2)
     ax1.axhline(result.mean, color="C3", lw=1)
@@ -158,8 +146,7 @@ def solution_space_figure(spaces, *, variable=None, extent: float | None = None,
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 6), layout="constrained")
+    fig, ax = figure_kit.subplots(figsize=(6, 6), layout="constrained")
     first = spaces[0]
     c = first.designed.mean(axis=0)
     R = extent or 3.0 * first.scale

@@ -5,20 +5,71 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["draw_network", "motion_figure", "figure_png", "checked_png", "clipped_texts",
-           "layout_faults", "set_margins", "plain_log_ticks"]
+           "layout_faults", "set_margins", "plain_log_ticks", "figure_kit"]
 
 
 #: Floor of edge errors drawn on a log scale (an exact zero has no logarithm).
 LOG_FLOOR = 1e-17
 
 
-def _mpl():
-    import matplotlib
+class Figures:
+    """pyplot's figure-making calls, on :class:`matplotlib.figure.Figure` objects of their own.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    fabkit renders its pictures to bytes: each figure gets its own Agg canvas, and neither
+    pyplot's list of open figures nor the session's backend is touched, so a notebook's or an
+    application's matplotlib stays as its user set it (``matplotlib.use`` is never called).
+    A figure is freed when its caller drops it; there is nothing to close.
+    """
 
-    return plt
+    @staticmethod
+    def figure(**kwargs):
+        """A new figure on its own Agg canvas (keywords as :class:`matplotlib.figure.Figure`)."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(**kwargs)
+        FigureCanvasAgg(fig)
+        return fig
+
+    def subplots(self, nrows: int = 1, ncols: int = 1, *, sharex=False, sharey=False,
+                 squeeze: bool = True, width_ratios=None, height_ratios=None, subplot_kw=None,
+                 gridspec_kw=None, **fig_kw):
+        """A figure and its grid of axes, as :func:`matplotlib.pyplot.subplots` returns them."""
+        fig = self.figure(**fig_kw)
+        axes = fig.subplots(nrows, ncols, sharex=sharex, sharey=sharey, squeeze=squeeze,
+                            width_ratios=width_ratios, height_ratios=height_ratios,
+                            subplot_kw=subplot_kw, gridspec_kw=gridspec_kw)
+        return fig, axes
+
+    @staticmethod
+    def get_cmap(name: str, lut: int | None = None):
+        """A registered colormap, resampled to ``lut`` colours when given."""
+        import matplotlib
+
+        cmap = matplotlib.colormaps[name]
+        return cmap.resampled(lut) if lut is not None else cmap
+
+    @property
+    def Line2D(self):  # noqa: N802 - the matplotlib class, by its own name
+        from matplotlib.lines import Line2D
+
+        return Line2D
+
+    @property
+    def Rectangle(self):  # noqa: N802
+        from matplotlib.patches import Rectangle
+
+        return Rectangle
+
+    @property
+    def Circle(self):  # noqa: N802
+        from matplotlib.patches import Circle
+
+        return Circle
+
+
+#: The figure factory every fabkit picture is made with (see :class:`Figures`).
+figure_kit = Figures()
 
 
 _SUPERSCRIPT = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
@@ -75,11 +126,11 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _mpl()
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [2, 1]})
+    fig, (ax, ax2) = figure_kit.subplots(1, 2, figsize=(11, 4.8),
+                                         gridspec_kw={"width_ratios": [2, 1]})
     s = traj.n_steps
     idx = sorted(set(np.linspace(0, s - 1, max(frames, 2)).round().astype(int).tolist()))
-    cmap = plt.get_cmap("Blues")
+    cmap = figure_kit.get_cmap("Blues")
     for k, i in enumerate(idx):
         shade = 0.9 - 0.6 * k / max(len(idx) - 1, 1)
         draw_network(ax, traj.network, traj.positions[i], color=cmap(shade),
@@ -123,19 +174,16 @@ def _canvas_png(fig, dpi: int) -> bytes:
 
 
 def figure_png(fig, dpi: int = 110) -> bytes:
-    """Render a figure to PNG bytes (deterministic metadata) and close it.
+    """Render a figure to PNG bytes (deterministic metadata).
 
     The canvas is drawn once (``savefig`` draws a figure laid out by ``tight_layout`` twice). A
     figure placed by :func:`set_margins` (no layout engine) is checked on that drawing and laid
     out by ``tight_layout`` and drawn again only when :func:`layout_faults` finds a text cut off
     or running into another axes.
     """
-    plt = _mpl()
     fig.set_dpi(dpi)
     _draw_fitted(fig)
-    png = _canvas_png(fig, dpi)
-    plt.close(fig)
-    return png
+    return _canvas_png(fig, dpi)
 
 
 def _draw_fitted(fig) -> None:
@@ -158,7 +206,7 @@ def set_margins(fig, *, left: float, right: float, bottom: float, top: float,
     Parameters
     ----------
     fig : matplotlib.figure.Figure
-        Its axes on one grid (``plt.subplots``); twin axes share their parent's place.
+        Its axes on one grid (``figure_kit.subplots``); twin axes share their parent's place.
     left, right, bottom, top : float
         Inches from each edge of the figure to the outer axes.
     gap : float
@@ -177,16 +225,13 @@ def set_margins(fig, *, left: float, right: float, bottom: float, top: float,
 
 def checked_png(fig, dpi: int = 110) -> tuple[bytes, list]:
     """Render a figure once: its PNG bytes (as :func:`figure_png`) and its
-    :func:`clipped_texts`; closes it.
+    :func:`clipped_texts`.
 
     The check measures the drawing the PNG is made of, so a picture is drawn once, not twice.
     """
-    plt = _mpl()
     fig.set_dpi(dpi)
     clipped = clipped_texts(fig, render=True)  # draws the canvas at ``dpi``
-    png = _canvas_png(fig, dpi)
-    plt.close(fig)
-    return png, clipped
+    return _canvas_png(fig, dpi), clipped
 
 
 def clipped_texts(fig, *, render: bool = False) -> list:

@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import fabkit
 from fabkit.tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
-from fabkit.viz import _mpl, clipped_texts
+from fabkit.viz import clipped_texts, figure_kit
 
 from conftest import TEMPLATES
 
 
 def test_clipped_texts_finds_a_title_cut_off_at_the_edge():
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(4, 3))
+    fig, ax = figure_kit.subplots(figsize=(4, 3))
     ax.set_title("fits")
     assert clipped_texts(fig) == []
     fig.text(0.9, 0.5, "runs off the right edge")
@@ -20,7 +19,6 @@ def test_clipped_texts_finds_a_title_cut_off_at_the_edge():
     # (the axis with its label counts once as its ticks, and the label once as itself)
     long = "a label much too long for a figure four inches wide, so it is cut off"
     assert clipped_texts(fig) == ["x ticks of fits", long, "runs off the right edge"]
-    plt.close(fig)
 
 
 def test_the_tolerance_picture_keeps_a_long_verdict_inside():
@@ -30,7 +28,6 @@ def test_the_tolerance_picture_keeps_a_long_verdict_inside():
     fig = tolerance_figure(result, title=design.name)
     assert clipped_texts(fig) == []
     assert fig._suptitle.get_text().count("\n") >= 2
-    _mpl().close(fig)
 
 
 def test_the_map_axes_say_input_and_output_not_inches():
@@ -42,7 +39,6 @@ def test_the_map_axes_say_input_and_output_not_inches():
     assert ax.get_xlabel() == "dₖ, input of module k (design units)"
     assert ax.get_ylabel() == "dₖ₊₁ = f(dₖ), its output (design units)"
     assert clipped_texts(fig) == []
-    _mpl().close(fig)
 
 
 def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
@@ -52,8 +48,7 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
 
     from fabkit.viz import plain_log_ticks
 
-    plt = _mpl()
-    fig, ax = plt.subplots()
+    fig, ax = figure_kit.subplots()
     ax.semilogy([0, 1], [6e-16, 3e-15])
     ours = ax.yaxis
     plain_log_ticks(ours)
@@ -73,14 +68,12 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
             for t in plain] == as_math
     minor_labels = [t.get_text() for t in ours.get_minorticklabels() if t.get_text()]
     assert "6×10⁻¹⁶" in minor_labels and len(minor_labels) == sum(bool(t) for t in theirs[True])
-    _mpl().close(fig)
 
 
 def test_layout_faults_finds_labels_cut_off_and_axes_that_run_into_each_other():
     from fabkit.viz import _draw_fitted, layout_faults, set_margins
 
-    plt = _mpl()
-    fig, (a, b) = plt.subplots(1, 2, figsize=(6, 3))
+    fig, (a, b) = figure_kit.subplots(1, 2, figsize=(6, 3))
     a.set_title("left")
     b.set_title("right")
     for ax in (a, b):
@@ -96,21 +89,18 @@ def test_layout_faults_finds_labels_cut_off_and_axes_that_run_into_each_other():
     assert layout_faults(fig) == []
     assert fig.subplotpars.left > params[0] and fig.subplotpars.wspace > params[1]
     # margins that fit are kept as they are
-    fig2, ax = plt.subplots(figsize=(6, 3))
+    fig2, ax = figure_kit.subplots(figsize=(6, 3))
     ax.plot([0, 1], [0, 1])
     set_margins(fig2, left=0.6, right=0.2, bottom=0.5, top=0.3)
     _draw_fitted(fig2)
     assert layout_faults(fig2) == []
     assert abs(fig2.subplotpars.left - 0.1) < 1e-12 and abs(fig2.subplotpars.top - 0.9) < 1e-12
-    plt.close(fig)
-    plt.close(fig2)
 
 
 def test_set_margins_gives_the_gaps_in_inches():
     from fabkit.viz import set_margins
 
-    plt = _mpl()
-    fig, axes = plt.subplots(2, 3, figsize=(10, 6))
+    fig, axes = figure_kit.subplots(2, 3, figsize=(10, 6))
     set_margins(fig, left=0.7, right=0.3, bottom=0.5, top=0.4, gap=0.8)
     (x0, y0), (x1, y1) = [axes[1, 0].get_position().get_points()[k] for k in (0, 1)]
     nx0 = axes[1, 1].get_position().x0
@@ -118,7 +108,6 @@ def test_set_margins_gives_the_gaps_in_inches():
     assert abs(x0 * 10 - 0.7) < 1e-9 and abs(y0 * 6 - 0.5) < 1e-9
     assert abs((nx0 - x1) * 10 - 0.8) < 1e-9 and abs((top - y1) * 6 - 0.8) < 1e-9
     assert abs(axes[0, 2].get_position().x1 * 10 - 9.7) < 1e-9
-    plt.close(fig)
 
 
 def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
@@ -128,7 +117,6 @@ def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
     from fabkit.batch.motion import map_figure, traced_motion
     from fabkit.viz import layout_faults, motion_figure
 
-    plt = _mpl()
     for name in ("super_stable_chain", "fourbar", "period_two_chain16"):
         design = fabkit.load_template(TEMPLATES / f"{name}.toml")
         traj = traced_motion(design, allow_singular_start=True)
@@ -140,7 +128,6 @@ def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
             fig.set_dpi(110)
             fig.canvas.draw()
             assert layout_faults(fig) == [], (name, fig.get_size_inches())
-            plt.close(fig)
 
 
 def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
@@ -153,8 +140,7 @@ def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
 
     from fabkit.viz import figure_png, set_margins
 
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(3, 2))
+    fig, ax = figure_kit.subplots(figsize=(3, 2))
     ax.plot([0, 1], [0, 1], color="C3")
     set_margins(fig, left=0.5, right=0.2, bottom=0.4, top=0.2)  # fits: drawn once
     fig.set_dpi(100)
@@ -164,7 +150,7 @@ def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
     assert im.mode == "RGB" and im.size == (300, 200)
     assert round(im.info["dpi"][0]) == 100
     assert np.array_equal(np.asarray(im), drawn)
-    clear = plt.figure(figsize=(2, 2))
+    clear = figure_kit.figure(figsize=(2, 2))
     clear.patch.set_alpha(0.0)
     im = Image.open(io.BytesIO(figure_png(clear, dpi=50)))
     assert im.mode == "RGBA" and im.size == (100, 100) and np.asarray(im)[..., 3].min() == 0

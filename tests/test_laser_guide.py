@@ -210,10 +210,9 @@ def test_labeller_counts_overlapping_labels_as_matplotlib_measures_them():
     """Labels placed never overlap; ``overlaps`` counts the pairs whose drawn boxes meet, as
     matplotlib's Bbox.overlaps does, when labels are forced on top of each other."""
     from fabkit.fab.guide.draw import Labeller
-    from fabkit.viz import _mpl
+    from fabkit.viz import figure_kit
 
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(4, 4))
+    fig, ax = figure_kit.subplots(figsize=(4, 4))
     ax.set_xlim(0, 100)
     ax.set_ylim(0, 100)
     lab = Labeller(ax)
@@ -226,7 +225,6 @@ def test_labeller_counts_overlapping_labels_as_matplotlib_measures_them():
     pairs = sum(boxes[i].overlaps(boxes[j])
                 for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
     assert lab.overlaps() == pairs >= 3
-    plt.close(fig)
 
 
 def _pdf_words(text: str) -> str:
@@ -408,12 +406,11 @@ def test_a_long_motion_table_continues_and_its_pictures_get_a_page(chain):
     assert len(rows) == 210
     # the old layout: the pictures in what was left below three columns of 70 rows
     from fabkit.fab.guide.draw import row_axes
-    from fabkit.viz import _mpl
+    from fabkit.viz import figure_kit
 
-    fig = _mpl().figure(figsize=(8.27, 11.69))
+    fig = figure_kit.figure(figsize=(8.27, 11.69))
     with pytest.raises(ValueError, match="positive scale"):
         row_axes(fig, [(0, 0, 100, 50)], -0.004, 0.55, 11.0, 0.2, 7.17)
-    _mpl().close(fig)
 
 
 def test_flow_cuts_blocks_into_pages_that_hold_them():

@@ -398,7 +398,7 @@ def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     """The preview's fixed layout leaves room for every tick label, bed title and the heading
     (wrapped to the figure's width: on one bed it ran off both edges)."""
     from fabkit.export.pinned import preview_figure
-    from fabkit.viz import _mpl, clipped_texts
+    from fabkit.viz import clipped_texts
 
     design = fabkit.load_template(TEMPLATES / f"{name}.toml")
     plan = pinned_print(design, design_print_settings(design, None))
@@ -407,7 +407,6 @@ def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     assert clipped_texts(fig) == []
     heading = fig.get_suptitle()
     assert f"{plan.n_bars} bars" in heading and (beds > 1 or "\n" in heading)
-    _mpl().close(fig)
 
 
 def test_a_print_cut_into_pieces_lists_every_part_it_does_not_print(tmp_path):

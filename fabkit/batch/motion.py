@@ -98,7 +98,7 @@ def map_figure(traj, design):
     """
     import numpy as np
 
-    from ..viz import _mpl, set_margins
+    from ..viz import set_margins, figure_kit
 
     ports = _chain_port_names(traj.network)
     if len(ports) < 2:
@@ -118,8 +118,7 @@ def map_figure(traj, design):
                     label="traced motion")
             ax.legend(fontsize=7, loc="best")
             return fig
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(5.6, 5.4))
+    fig, ax = figure_kit.subplots(figsize=(5.6, 5.4))
     if len(ports) == 2:
         ax.plot(dist[:, 0], dist[:, 1], "-", color="C3", lw=2, label="d2 = f(d1), traced")
     else:

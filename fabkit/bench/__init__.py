@@ -21,7 +21,7 @@ import numpy as np
 from ..network import Network
 
 __all__ = ["paper_module", "ModuleMap", "machine_info", "single_thread_blas",
-           "finite", "pyplot"]
+           "finite"]
 
 def paper_module(name: str, nodes=None) -> Network:
     """One of the paper's modules, as its bundled template builds it (ports ``d1`` and ``d2``).
@@ -170,13 +170,3 @@ def finite(doc):
     if isinstance(doc, (float, np.floating)) and not np.isfinite(doc):
         return None
     return doc
-
-
-def pyplot():
-    """matplotlib's pyplot on the non-interactive Agg backend (figures are rendered to bytes)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt

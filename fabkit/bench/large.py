@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..viz import figure_kit
 from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
 
@@ -239,10 +240,8 @@ def large_figure(modes, chains, lattice_pts):
     configuration of ``projected`` on 4-bar chains and on the 2D lattice (``constructive`` on the
     chains for reference), with fitted exponents."""
     from ..rigidity import SPARSE_FROM
-    from . import pyplot
 
-    plt = pyplot()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.2))
+    fig, (ax1, ax2) = figure_kit.subplots(1, 2, figsize=(13, 5.2))
 
     def draw(ax, rows, key, style, color, label):
         rows = [p for p in rows if p["outcome"] == "ok" and p.get(key) is not None

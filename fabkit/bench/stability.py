@@ -21,6 +21,7 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
+from ..viz import figure_kit
 from . import ModuleMap, paper_module
 
 __all__ = [
@@ -671,14 +672,12 @@ def failure_figure(study: dict, horizon: dict | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from . import pyplot
 
-    plt = pyplot()
     cases = study["cases"]
     n = len(cases) + (1 if horizon else 0)
     cols = 3
     rows = int(math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.6 * rows), squeeze=False)
+    fig, axes = figure_kit.subplots(rows, cols, figsize=(5.2 * cols, 3.6 * rows), squeeze=False)
     flat_axes = axes.ravel()
     floor = LOG_FLOOR
     for ax, c in zip(flat_axes, cases):

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..viz import figure_kit
 from . import ModuleMap, paper_module, single_thread_blas
 
 __all__ = [
@@ -743,10 +744,8 @@ def work_precision_figure(points, *, floor: float = 1e-17):
     -------
     matplotlib.figure.Figure
     """
-    from . import pyplot
 
-    plt = pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+    fig, axes = figure_kit.subplots(1, 2, figsize=(13, 5.2))
     sizes = sorted({p["modules"] for p in points})
     mark = {k: _MARKERS[i % len(_MARKERS)] for i, k in enumerate(sizes)}
     keys = [("max_edge_error", "largest relative edge-length error"),
@@ -773,11 +772,11 @@ def work_precision_figure(points, *, floor: float = 1e-17):
         ax.set_xlabel("wall time, s (median of repeats, one BLAS thread)")
         ax.set_ylabel(label)
         ax.grid(True, which="major", alpha=0.3)
-    handles = [plt.Line2D([], [], color=_COLORS.get(m, "k"), lw=2, label=m)
+    handles = [figure_kit.Line2D([], [], color=_COLORS.get(m, "k"), lw=2, label=m)
                for m in dict.fromkeys(p["method"] for p in points)]
-    handles += [plt.Line2D([], [], color="0.3", ls="", marker=mark[k], label=f"{k} modules")
+    handles += [figure_kit.Line2D([], [], color="0.3", ls="", marker=mark[k], label=f"{k} modules")
                 for k in sizes]
-    handles.append(plt.Line2D([], [], color="0.3", ls="", marker="x", mew=2,
+    handles.append(figure_kit.Line2D([], [], color="0.3", ls="", marker="x", mew=2,
                               label="stopped at / skipped over budget (at the budget, top)"))
     axes[1].legend(handles=handles, fontsize=7, loc="upper left")
     axes[1].set_title("map: fabkit.maps iteration against the bench's own placement map; "
@@ -795,10 +794,8 @@ def scaling_figure(scal: dict, points=None, dense=None):
     of ``rk4-nullspace`` timed at several sizes); drawn as the cost of one RK4 step (five
     evaluations: four stages and the check at the new point), where whole runs are over budget.
     """
-    from . import pyplot
 
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 5))
+    fig, ax = figure_kit.subplots(figsize=(7, 5))
     for method, s in scal.items():
         if not s["nodes"]:
             continue

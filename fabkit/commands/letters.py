@@ -86,14 +86,9 @@ def simulate_letter(fit, modules_by_name, final):
 
 def word_figure(word, fits, sims):
     """Initial (straight) and final states of every letter's chain, side by side."""
-    import matplotlib
+    from ..viz import draw_network, figure_kit
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from ..viz import draw_network
-
-    fig, (top, ax) = plt.subplots(2, 1, figsize=(2.4 * len(word) + 1, 8.5),
+    fig, (top, ax) = figure_kit.subplots(2, 1, figsize=(2.4 * len(word) + 1, 8.5),
                                   gridspec_kw={"height_ratios": [1.3, 3]})
     x0 = 0.0
     for letter, fit, sim in zip(word, fits, sims):

@@ -88,9 +88,8 @@ def preview_figure(plan, title: str):
 
     from matplotlib.collections import PatchCollection, PolyCollection
 
-    from ..viz import _mpl
+    from ..viz import figure_kit
 
-    plt = _mpl()
     s = plan.settings
     printer = s.printer_profile()
     beds = plan.beds
@@ -104,24 +103,24 @@ def preview_figure(plan, title: str):
         int(width * 72 / (9 * 0.62)))
     top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
     height = _BED_IN * rows + top - _TITLE_IN + 0.25
-    fig, axes = plt.subplots(rows, cols, figsize=(width, height), squeeze=False)
+    fig, axes = figure_kit.subplots(rows, cols, figsize=(width, height), squeeze=False)
     panel_w = (width - _LEFT_IN - _RIGHT_IN - _WSPACE_IN * (cols - 1)) / cols
     panel_h = (height - top - _BOTTOM_IN - _HSPACE_IN * (rows - 1)) / rows
     fig.subplots_adjust(left=_LEFT_IN / width, right=1 - _RIGHT_IN / width,
                         bottom=_BOTTOM_IN / height, top=1 - top / height,
                         wspace=_WSPACE_IN / panel_w, hspace=_HSPACE_IN / panel_h)
-    cmap = plt.get_cmap("viridis", max(int(plan.layer.max()) + 1, 2))
+    cmap = figure_kit.get_cmap("viridis", max(int(plan.layer.max()) + 1, 2))
     piece_of = plan.piece_of_bar()
     order = np.argsort(plan.layer, kind="stable")  # upper layers drawn on top
     for b, ax in enumerate(axes.ravel()):
         if b >= beds:
             ax.axis("off")
             continue
-        ax.add_patch(plt.Rectangle((0, 0), printer.width, printer.depth, fill=False, lw=0.8,
+        ax.add_patch(figure_kit.Rectangle((0, 0), printer.width, printer.depth, fill=False, lw=0.8,
                                    ec="0.5"))
         # the margin kept free for the slicer's skirt, brim and support
         m = printer.margin
-        ax.add_patch(plt.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
+        ax.add_patch(figure_kit.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
                                    fill=False, lw=0.6, ec="0.6", ls="--"))
         polys, colours = [], []
         for k in order:
@@ -138,7 +137,7 @@ def preview_figure(plan, title: str):
             m = plan.placement_matrix(int(piece_of[k]))
             if plan.layout[int(piece_of[k])].bed == b:
                 x, y = plan.positions[j] @ m[:2, :2].T + m[:2, 3]
-                caps.append(plt.Circle((x, y), 0.5 * s.cap_diameter))
+                caps.append(figure_kit.Circle((x, y), 0.5 * s.cap_diameter))
         ax.add_collection(PatchCollection(caps, facecolor="w", edgecolor="k", lw=0.5))
         ax.set_xlim(-5, printer.width + 5)
         ax.set_ylim(-5, printer.depth + 5)

@@ -259,15 +259,14 @@ def stored_mesh_is_closed(vertices, faces) -> bool:
 
 
 def _preview_png(geo, title: str) -> bytes:
-    from ..viz import _mpl, figure_png
+    from ..viz import figure_png, figure_kit
 
-    plt = _mpl()
     from matplotlib.collections import PolyCollection
 
     w, h, _ = geo.size
     width = min(12.0, max(6.0, 2.0 + w / 12.0))
     height = min(8.0, max(3.0, 1.0 + width * h / max(w, MM_SLACK)))
-    fig, ax = plt.subplots(figsize=(width, height))
+    fig, ax = figure_kit.subplots(figsize=(width, height))
     ax.add_collection(PolyCollection(geo.plates, facecolor="0.75", edgecolor="0.25", lw=0.5))
     pieces = list(geo.arms) + list(geo.hubs)
     ax.add_collection(PolyCollection(pieces, facecolor="C1", edgecolor="none", alpha=0.9))
@@ -281,7 +280,6 @@ def _preview_png(geo, title: str) -> bytes:
                  f"{s.material}), {w:.1f} x {h:.1f} x {s.plate_thickness:g} mm", fontsize=9)
     fig.tight_layout()
     png = figure_png(fig)
-    plt.close(fig)
     return png
 
 

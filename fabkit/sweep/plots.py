@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..viz import figure_kit
+
 __all__ = ["figures", "bifurcation_figure", "heatmap_figure", "STATUS_STYLE"]
 
 #: Marker, colour and legend text of every status other than ``ok``.
@@ -34,12 +36,6 @@ def figures(result) -> dict:
             out["heatmap_status.png"] = heatmap_figure(result, None)
         return out
     return {}
-
-
-def _plt():
-    from ..viz import _mpl
-
-    return _mpl()
 
 
 def _template_value(result, key):
@@ -69,16 +65,15 @@ def bifurcation_figure(result, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
     key = result.spec.axes[0].key
     x = np.array(result.spec.axes[0].values)
     recs = result.records
     has_ly = "lyapunov" in result.spec.measures
     if has_ly:
-        fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11.5, 7.5), sharex=True,
+        fig, (ax, ax2) = figure_kit.subplots(2, 1, figsize=(11.5, 7.5), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 1.3]})
     else:
-        fig, ax = plt.subplots(figsize=(11.5, 5.5))
+        fig, ax = figure_kit.subplots(figsize=(11.5, 5.5))
         ax2 = None
     # attractor: every value the settled orbits visit
     xs, ys = [], []
@@ -209,14 +204,13 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    plt = _plt()
     from matplotlib.colors import ListedColormap, TwoSlopeNorm
     from matplotlib.patches import Patch
 
     ax_, ay = result.spec.axes  # the first key along x
     xv, yv = np.array(ax_.values), np.array(ay.values)
     shape = result.spec.shape
-    fig, ax = plt.subplots(figsize=(7.5, 6))
+    fig, ax = figure_kit.subplots(figsize=(7.5, 6))
 
     def edges(v):
         if v.size == 1:
@@ -238,7 +232,7 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
         if column in _DISCRETE and finite.size:
             # whole numbers (periods, counts): one colour per value found
             levels = np.unique(finite)
-            cmap = ListedColormap(plt.get_cmap("viridis")(np.linspace(0, 1, levels.size)))
+            cmap = ListedColormap(figure_kit.get_cmap("viridis")(np.linspace(0, 1, levels.size)))
             idx = np.where(np.isfinite(z), np.searchsorted(levels, np.nan_to_num(z)), np.nan)
             mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(idx),
                                  cmap=cmap.with_extremes(bad=bad), shading="flat",
@@ -249,10 +243,10 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
             bar.ax.set_yticklabels([names.get(int(v), f"{int(v)}") for v in levels])
         else:
             kw = {}
-            cmap = plt.get_cmap("viridis")
+            cmap = figure_kit.get_cmap("viridis")
             if column == "lyapunov" and finite.size and finite.min() < 0 < finite.max():
                 # λ = 0 is white: chaos red, cycles blue, each side on its own scale
-                cmap = plt.get_cmap("RdBu_r")
+                cmap = figure_kit.get_cmap("RdBu_r")
                 kw = dict(norm=TwoSlopeNorm(0.0, float(finite.min()), float(finite.max())))
             mesh = ax.pcolormesh(X, Y, np.ma.masked_invalid(z), cmap=cmap.with_extremes(bad=bad),
                                  shading="flat", **kw)
@@ -269,7 +263,7 @@ def heatmap_figure(result, column: str | None, title: str | None = None):
         x0, y0 = _template_value(result, ax_.key), _template_value(result, ay.key)
         if xv.min() <= x0 <= xv.max() and yv.min() <= y0 <= yv.max():
             ax.plot([x0], [y0], "*", ms=14, mfc="w", mec="k", zorder=5)
-            handles.append(plt.Line2D([], [], ls="", marker="*", ms=10, mfc="w", mec="k",
+            handles.append(figure_kit.Line2D([], [], ls="", marker="*", ms=10, mfc="w", mec="k",
                                       label=f"{_template_name(result)} (the template)"))
     except (KeyError, ValueError):
         pass

@@ -53,10 +53,9 @@ def keep_chart(result: ToleranceResult, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from ..viz import _mpl
+    from ..viz import figure_kit
 
-    plt = _mpl()
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig, ax = figure_kit.subplots(figsize=(6.4, 4.2))
     _chart(ax, result)
     if title:
         ax.set_title(title, fontsize=10)
@@ -72,13 +71,12 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from ..viz import _mpl
+    from ..viz import figure_kit
 
     import textwrap
 
-    plt = _mpl()
     head = textwrap.wrap(f"{title + ': ' if title else ''}{result.verdict}", TITLE_CHARS)
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.2 + 0.16 * len(head)))
+    fig, axes = figure_kit.subplots(1, 3, figsize=(14, 4.2 + 0.16 * len(head)))
     _chart(axes[0], result)
     ax = axes[1]
     judged = [(n, j) for n, j in result.judged.items() if n != "order"]

@@ -328,9 +328,8 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
 
-    from ...viz import _mpl, checked_png, clipped_texts
+    from ...viz import checked_png, clipped_texts, figure_kit
 
-    plt = _mpl()
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     x = plan.design.network.nodes * s.scale
@@ -358,7 +357,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
                                     "Producer": "fabkit"}) as pdf:
         for k, sheet in enumerate(gp.sheets):
-            fig = plt.figure(figsize=A4)
+            fig = figure_kit.figure(figsize=A4)
             labellers: list = []
             drawer(sheet)(fig, labellers)
             for lab in labellers:
@@ -375,7 +374,6 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                 images.append(png)
             else:
                 clipped = clipped_texts(fig) if check else []
-                plt.close(fig)
             if check:
                 stats["clipped"] += [(k + 1, t) for t in clipped]
             stats["pages"] += 1

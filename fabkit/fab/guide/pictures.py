@@ -47,9 +47,8 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import _mpl, checked_png
+    from ...viz import checked_png, figure_kit
 
-    plt = _mpl()
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     x = plan.design.network.nodes * s.scale
@@ -69,7 +68,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
                                  band_in=band)
     height = (_TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1)
               + band * len(ext) + _BOTTOM)
-    fig = plt.figure(figsize=(PICTURE_WIDTH, height))
+    fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
     stats = {"rows": len(rows), "px_per_mm": scale * _DPI, "labels": 0, "overlaps": 0,
              "shrunk": 0, "dropped": 0}
     placed = row_axes(fig, ext, scale, _MARGIN, _TOP, _GAP, width, band_in=band)
@@ -113,9 +112,8 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     stats : dict
         ``columns``, ``px_per_mm``, ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import _mpl, checked_png
+    from ...viz import checked_png, figure_kit
 
-    plt = _mpl()
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     r = 0.5 * s.bar_width
@@ -142,7 +140,7 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ext = [(x0, e[1], x1, e[3]) for e in ext]  # one x range: the held joint stays put
         scale = min(width / (x1 - x0), MAX_PX_PER_MM / _DPI)
         height = _TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1) + _BOTTOM
-        fig = plt.figure(figsize=(PICTURE_WIDTH, height))
+        fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
         axes = [ax for ax, _ in row_axes(fig, ext, scale, _MARGIN, _TOP, _GAP, width)]
     else:
         y0, y1 = min(e[1] for e in ext), max(e[3] for e in ext)
@@ -150,7 +148,7 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         scale = min((width - _GAP * (cols - 1)) / (cols * (x1 - x0)), MAX_PX_PER_MM / _DPI)
         w, h = (x1 - x0) * scale, (y1 - y0) * scale
         height = _TOP + rows * h + _GAP * (rows - 1) + _BOTTOM
-        fig = plt.figure(figsize=(PICTURE_WIDTH, height))
+        fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
         axes = []
         for k in range(len(frames)):
             row, col = divmod(k, cols)
