@@ -7,7 +7,7 @@ import numpy as np
 __all__ = ["compare_motion"]
 
 
-def compare_motion(design, built, rtol: float) -> dict:
+def compare_motion(design, built, rtol: float, reference=None) -> dict:
     """Trace ``built`` as the design's ``[motion]`` says and compare its ports with the design's.
 
     Parameters
@@ -18,6 +18,9 @@ def compare_motion(design, built, rtol: float) -> dict:
         The rebuilt network, numbered and with ports as the design's.
     rtol : float
         Largest port-distance difference accepted, relative to the network's size.
+    reference : Trajectory, optional
+        The design's motion, traced once by the pipeline (:class:`fabkit.motion.TracedMotion`);
+        traced here when not given.
 
     Returns
     -------
@@ -29,7 +32,7 @@ def compare_motion(design, built, rtol: float) -> dict:
     from ..kinematics import trace
 
     net, m = design.network, design.motion
-    ref = design.trace()
+    ref = reference if reference is not None else design.trace()
     got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)
     n = min(ref.n_steps, got.n_steps)
     worst, port = 0.0, None

@@ -195,7 +195,7 @@ def _gap_probe(carrier, centre, z, s) -> float:
     return reach
 
 
-def check_pinned(meshes, names, design, s, report) -> dict:
+def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
     """The as-built check of a print-in-place linkage (see the module docstring).
 
     Parameters
@@ -208,6 +208,9 @@ def check_pinned(meshes, names, design, s, report) -> dict:
         ``linkage = "pins"``.
     report : dict
         Filled in and returned, with ``ok`` and ``checks``.
+    motion : TracedMotion, optional
+        The design's motion traced once by the pipeline (its window, and the trace the rebuilt
+        linkage's motion is compared with); traced here when not given.
 
     Returns
     -------
@@ -216,10 +219,13 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     from ..fab.pinned import pinned_print, printed_design
 
     try:
-        plan = _memo(("plan",) + _design_key(design, s), lambda: pinned_print(design, s))
+        plan = _memo(("plan",) + _design_key(design, s), lambda: pinned_print(design, s, motion))
         # the linkage is judged against the design as it prints: its motion from motion_from
-        # to motion_to, where the template sets them
-        design = _memo(("window",) + _design_key(design, s), lambda: printed_design(design, s))
+        # to motion_to, where the template sets them (the pipeline's window, traced once)
+        kit = None if motion is None else motion.window_motion(s.motion_from, s.motion_to,
+                                                               "print")
+        design = kit.design if kit is not None else _memo(
+            ("window",) + _design_key(design, s), lambda: printed_design(design, s))
     except FabkitError as exc:
         report.update(ok=False, checks=[_check("design prints", False, detail=str(exc))])
         return report
@@ -323,11 +329,12 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     key = ("motion",) + _design_key(design, s) + (
         x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
     try:
-        motion, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
-                                                         measured))
+        reference = None if kit is None else kit.trajectory
+        moved, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
+                                                        measured, reference))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
-        motion, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
-    checks += motion
+        moved, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
+    checks += moved
     report.update(facts)
     report.update(ok=all(c["ok"] for c in checks), checks=checks)
     return report
@@ -438,7 +445,7 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
     return np.ascontiguousarray(x_mm)
 
 
-def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
+def _motion_checks(design, layer, x_mm, s, measured, reference=None) -> tuple[list[dict], dict]:
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts."""
     from ..fab.layers import JointStack, sample_motion, stacking_gaps
@@ -458,7 +465,7 @@ def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
                       f"conformational motions of the rebuilt network ({modes.self_stress} states "
                       "of self-stress)"))
     m = design.motion
-    cmp = compare_motion(design, built, MAP_RTOL)
+    cmp = compare_motion(design, built, MAP_RTOL, reference)
     out.append(_check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
                       f"largest port-distance difference (design units, at {cmp['port']}) "
                       f"between the design's motion and the rebuilt network's; the rebuilt one "
