@@ -256,15 +256,19 @@ def _motion_markdown(report) -> list[str]:
            f"edge error {_fmt(float(traj.max_edge_error))}.", ""]
     names = list(traj.network.ports)
     ends = {} if motion.ends is None else {pe.port: pe for pe in motion.ends.ports}
+    at_lock = motion.ends is not None and motion.ends.judged_at == "lock"
     rows = []
     for n in names:
         row = [n, float(traj.distance(n)[0]), float(traj.distance(n)[-1])]
         if ends:
             pe = ends.get(n)
-            row += [None, None] if pe is None else [pe.designed, "yes" if pe.reached else
-                                                    f"no ({pe.motion})"]
+            row += [None] if pe is None else [pe.designed]
+            if at_lock:  # judged where the motion, continued past the target, locks
+                row += [None] if pe is None else [pe.end]
+            row += [None] if pe is None else ["yes" if pe.reached else f"no ({pe.motion})"]
         rows.append(row)
-    head = ["port", "start", "end"] + (["designed end", "reached"] if ends else [])
+    head = ["port", "start", "end"] + (
+        ["designed end"] + (["where it locks"] if at_lock else []) + ["reached"] if ends else [])
     out += _table(head, rows)
     out.append("")
     if motion.ends is not None:

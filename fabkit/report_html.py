@@ -644,7 +644,8 @@ def _lead_section(report, files: dict) -> str:
             parts.append(f"<p>Printed in place: {_esc(r['bars'])} bars in "
                          f"{_esc(r['layers'])} layers on {_esc(r['printed_pins'])} "
                          f"printed pins ({_esc(st['material'])}), {_fmt(st['scale'])} mm a "
-                         f"design unit, {_fmt(st['clearance'])} mm pin clearance.</p>")
+                         f"design unit, {_fmt(st['pin_clearance'])} mm pin clearance, "
+                         f"{_fmt(st['clearance'])} mm between bars.</p>")
         else:
             parts.append(f"<p>{_esc(r['plates'])} plates joined by "
                          f"{_esc(r['hinges'])} hinges ({_esc(st['hinge_style'])}, "

@@ -35,12 +35,7 @@ import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError, TemplateError
 
-__all__ = ["PortEnd", "MotionEnds", "judge_ends", "stated_ends", "MOVED_FRACTION"]
-
-#: A port whose distance never strays from its start by more than this fraction of the state
-#: tolerance did not move.
-MOVED_FRACTION = 0.01
-
+__all__ = ["PortEnd", "MotionEnds", "judge_ends", "stated_ends"]
 
 @dataclass(frozen=True)
 class PortEnd:
@@ -56,8 +51,9 @@ class PortEnd:
     reached : bool
         ``end`` lies within the state tolerance of ``designed``.
     motion : str
-        What it did: ``"reached"``, ``"stayed"`` (never left its start), ``"turned back"`` (moved
-        and came back to its start), ``"short"`` (ended elsewhere).
+        What it did: ``"reached"``; ``"stayed"`` (never farther from its start than the state
+        tolerance); ``"turned back"`` (went out, then came back by more than it); ``"short"``
+        (went one way and ended elsewhere).
     extreme : float
         The distance farthest from its start that it reached on the way.
     """
@@ -251,15 +247,15 @@ def judge_ends(design, trajectory) -> MotionEnds | None:
         ok = abs(e - want) <= tol
         if ok:
             how = "reached"
-        elif abs(extreme - s) <= MOVED_FRACTION * tol:
+        elif abs(extreme - s) <= tol:  # never farther from its start than a state's reach
             how = "stayed"
-        elif abs(e - s) <= tol:
+        elif abs(e - extreme) > tol:  # went out, then came back by more than that
             how = "turned back"
         else:
             how = "short"
         ports.append(PortEnd(p, s, e, float(want), bool(ok), how, extreme))
     missed = tuple(pe.port for pe in ports if not pe.reached)
-    reason = _reason(design, trajectory, ports, start, tol) if missed else ""
+    reason = _reason(design, trajectory, ports, start, final, tol) if missed else ""
     return MotionEnds(source, basis, tuple(ports), float(tol), judged_at, reason, missed)
 
 
@@ -281,7 +277,7 @@ def _first_module_map(design, trajectory):
         return None
 
 
-def _reason(design, trajectory, ports, hist, tol) -> str:
+def _reason(design, trajectory, ports, hist, final, tol) -> str:
     """One sentence: which ports missed their end, what they did, and why (read from the
     trace, and from the map of the module that stopped them when it is at hand)."""
     missed = [pe for pe in ports if not pe.reached]
@@ -290,9 +286,7 @@ def _reason(design, trajectory, ports, hist, tol) -> str:
         groups.setdefault(pe.motion, []).append(pe.port)
     words = {"stayed": "never left their start" if len(groups.get("stayed", [])) > 1
              else "never left its start",
-             "turned back": "moved and came back to their start"
-             if len(groups.get("turned back", [])) > 1 else "moved and came back to its start",
-             "short": "ended away from it"}
+             "turned back": "turned back on the way", "short": "ended away from it"}
     what = "; ".join(f"{_ranges(v)} {words[k]}" for k, v in groups.items())
     mods = _modules_of([pe.port for pe in missed])
     head = (f"{_ranges([pe.port for pe in missed])}"
@@ -300,11 +294,11 @@ def _reason(design, trajectory, ports, hist, tol) -> str:
             if len(missed) > 1 else
             f"{missed[0].port}" + (f" ({mods})" if mods else "")
             + " did not reach its designed end")
-    why = _cause(design, trajectory, ports, hist, tol)
+    why = _cause(design, trajectory, ports, hist, final, tol)
     return f"{head}: {what}" + (f"; {why}" if why else "")
 
 
-def _cause(design, trajectory, ports, hist, tol) -> str:
+def _cause(design, trajectory, ports, hist, final, tol) -> str:
     """Why the first port of the chain that missed its end did: its input went on while it
     turned back (a turning point of its module's map) or did not move; and whether its
     designed end lies on another branch of that map."""
@@ -332,18 +326,19 @@ def _cause(design, trajectory, ports, hist, tol) -> str:
         why = (f"{first.port} turned back at {first.extreme:.6g} while {up} went on "
                f"(at {up} = {at:.6g}): a turning point of {module}'s map")
     elif first.motion == "stayed" and moving.any():
-        why = (f"{first.port} did not move while {up} went from {float(h_in[0]):.6g} to "
-               f"{float(h_in[-1]):.6g}: {module} holds it on the branch traced")
+        why = (f"{first.port} stayed within {tol:.3g} of its start while {up} went from "
+               f"{float(h_in[0]):.6g} to {float(h_in[-1]):.6g}: {module} holds it on the branch "
+               "traced")
     else:
         why = (f"{first.port} ended at {first.end:.6g}, {abs(first.end - first.designed):.3g} "
                f"from its designed {first.designed:.6g}")
-    branch = _other_branch(design, trajectory, first, up, tol)
+    branch = _other_branch(design, trajectory, first, up, final, tol)
     return why + (f"; {branch}" if branch else "")
 
 
-def _other_branch(design, trajectory, first, up, tol) -> str:
+def _other_branch(design, trajectory, first, up, final, tol) -> str:
     """Whether the designed end of ``first`` lies on the branch of its module's map that the
-    motion takes: the map at the input's designed end (or its end) against it."""
+    motion takes: the map where the input ended (as judged) against it."""
     from ..maps import module_map
     from ..tolerance.modules import chain_modules
 
@@ -359,8 +354,8 @@ def _other_branch(design, trajectory, first, up, tol) -> str:
         fmap = module_map(modules[k].network, "in", "out")
     except (ConstructionError, DesignError, KinematicsError, FabkitError):
         return ""
-    stated = stated_ends(design) or {}
-    want_in = stated.get(up, float(trajectory.distance(up)[-1]))
+    # where the input ended as judged (at the target, or where the motion locks past it)
+    want_in = final.get(up, float(trajectory.distance(up)[-1]))
     lo, hi = fmap.domain
     grid = np.linspace(lo, hi, 801)
     values = fmap(grid)
