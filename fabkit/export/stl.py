@@ -32,7 +32,7 @@ import re
 
 import numpy as np
 
-from ..errors import FabkitError, FabricationError
+from ..errors import FabricationError
 from . import ExportResult
 from ..numerics import MM_SLACK
 from .threemf import threemf_package
