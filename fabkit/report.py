@@ -2,11 +2,11 @@
 
 Both are pure functions of their input: no clock, no host name, no absolute path, keys sorted and
 floats printed by ``repr``, so that the same design exported twice gives byte-identical reports.
-:mod:`fabkit.batch` assembles the report dict from its typed results (``outcome`` is a
-:class:`fabkit.batch.Outcome` value, each format's ``status`` a :class:`fabkit.batch.FormatStatus`
-value); this module only turns it into bytes. The keys of report.json are listed in
-docs/batch.md; readers should test ``outcome`` (and may fall back to ``ok`` for reports of
-``report_version`` 1).
+report.md is rendered from the typed results of the export (:class:`fabkit.batch.stages.
+DesignReport`: the verdict, the traced motion, each format's result and checks, the tolerance
+analysis), never from another report read back; report.json is the same results as data. The
+keys of report.json are listed in docs/batch.md; readers should test ``outcome`` (and may fall
+back to ``ok`` for reports of ``report_version`` 1).
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["jsonable", "report_json", "report_markdown", "file_digest", "design_facts"]
+__all__ = ["jsonable", "report_json", "report_markdown", "tolerance_markdown", "file_digest",
+           "design_facts", "MADE_FOR"]
 
 
 def jsonable(value):
@@ -105,26 +106,29 @@ def _table(header, rows) -> list[str]:
     return lines
 
 
-def _tolerance_markdown(tol) -> list[str]:
+def tolerance_markdown(result) -> list[str]:
     """The tolerance section of report.md: the process's own error model, what the design is
-    for, each criterion, the verdict and its margin."""
+    for, each criterion, the verdict and its margin.
+
+    Parameters
+    ----------
+    result : ToleranceResult or None
+        The analysis (typed, in memory).
+
+    Returns
+    -------
+    list of str
+        Markdown lines (none without a result).
+    """
     from .tolerance.margin import margin_text
 
-    if not tol:
+    if result is None:
         return []
+    tol = jsonable(result.as_dict())
     out = ["## Tolerance", ""]
-    if tol.get("error"):
-        return out + [f"Not analysed: {tol['error']}", ""]
-    if tol.get("model"):
-        out += [f"Monte Carlo, {tol.get('samples')} builds; error model of the process: "
-                f"{tol['model']}.", ""]
-    else:  # a report written before the error models were per process
-        out += [f"Monte Carlo, {tol.get('samples')} builds: bar-length error σ "
-                f"{_fmt(tol.get('length_sigma_mm'))} mm, hole clearance "
-                f"{_fmt(tol.get('hole_clearance_mm'))} mm, sheet "
-                f"{_fmt(tol.get('thickness_mm'))} ± {_fmt(tol.get('thickness_sigma_mm'))} mm "
-                f"(scale {_fmt(tol.get('scale_mm'))} mm per unit).", ""]
-    out += [f"**{tol.get('verdict', '')}**", ""]
+    out += [f"Monte Carlo, {tol['samples']} builds; error model of the process: "
+            f"{tol['model']}.", ""]
+    out += [f"**{tol['verdict']}**", ""]
     b = tol.get("behaviour") or {}
     if b:
         how = "stated in the template" if b.get("intent", "auto") != "auto" else \
@@ -179,102 +183,140 @@ def _tolerance_markdown(tol) -> list[str]:
     return out
 
 
-def report_markdown(report: dict) -> bytes:
-    """``report.md`` bytes: the design, its motion, each format with its checks, tolerance, and
+#: How each process is named in a report's lead: what it is made for.
+MADE_FOR = {"laser": "laser-cut acrylic (Chicago screws)", "origami": "folded paper (origami)",
+            "print": "a 3D print"}
+
+
+def report_markdown(report) -> bytes:
+    """``report.md`` bytes, rendered from the typed results of one design's export: its verdict
+    first, then the design, its motion, each format with its checks, the tolerance analysis and
     the preview images (relative links, so the folder can be moved).
 
     Parameters
     ----------
-    report : dict
-        As assembled by the export command: keys ``design``, ``motion``, ``formats``,
-        ``tolerance``, ``previews``, ``ok``, ``errors`` (all optional but ``design``).
+    report : fabkit.batch.stages.DesignReport
 
     Returns
     -------
     bytes
     """
-    r = jsonable(report)
-    d = r.get("design", {})
-    out = [f"# {d.get('name', 'design')}", ""]
+    d = jsonable(report.facts)
+    verdict = report.verdict
+    word = "flagged by design" if verdict.level.value == "by design" else verdict.level.value
+    out = [f"# {d['name']}", "", f"**{word}**: {verdict.text}", ""]
     if d.get("description"):
         out += [d["description"], ""]
-    outcome = r.get("outcome") or ("ok" if r.get("ok") else "failed")
-    status = "ok" if outcome == "ok" else outcome.upper()
-    out += [f"- status: **{status}**",
-            f"- template: `{d.get('template', '')}`"
-            + (f" (sha256 {d['template_sha256'][:12]})" if d.get("template_sha256") else ""),
-            ]
+    made = [f for f, v in report.formats.items() if v.status.produced]
+    outcome = report.outcome.value
+    out += [f"- export: **{'ok' if outcome == 'ok' else outcome.upper()}**"
+            + (f"; made for {MADE_FOR[report.process]}" if made else "; no files to build"),
+            f"- template: `{d['template']}`"
+            + (f" (sha256 {d['template_sha256'][:12]})" if d.get("template_sha256") else "")]
     if d.get("figure"):
         out.append(f"- paper figure: {d['figure']}")
-    if "modes" in d:
-        m = d["modes"]
-        out.append(f"- network: {d.get('dim')}D, {d.get('nodes')} nodes, {d.get('edges')} edges; "
-                   f"modes {m['total']} = {m['rigid']} rigid + {m['conformational']} "
-                   f"conformational; {m['self_stress']} self-stress")
-    out.append(f"- fabkit {r.get('fabkit_version', '')}")
-    for err in r.get("errors", []):
+    m = d["modes"]
+    out.append(f"- network: {d['dim']}D, {d['nodes']} nodes, {d['edges']} edges; "
+               f"modes {m['total']} = {m['rigid']} rigid + {m['conformational']} "
+               f"conformational; {m['self_stress']} self-stress")
+    import fabkit
+
+    out.append(f"- fabkit {fabkit.__version__}")
+    for err in report.errors:
         out.append(f"- error: {err}")
     out.append("")
-
-    mo = r.get("motion")
-    if mo and mo.get("status") == "singular start":
-        out += ["## Motion", "",
-                f"The template's motion cannot leave its singular start by itself "
-                f"({mo.get('message', '')}). Exported by "
-                f"{', '.join(mo.get('resolved_by', []))}, which choose the branch themselves "
-                "(see their checks).", ""]
-    elif mo:
-        out += ["## Motion", "",
-                f"{mo.get('drive')} from {_fmt(mo.get('start'))} to {_fmt(mo.get('to'))} by "
-                f"`{mo.get('method')}`: {mo.get('status')} ({mo.get('message', '')}); "
-                f"{mo.get('steps')} configurations, largest relative edge error "
-                f"{_fmt(mo.get('max_edge_error'))}.", ""]
-        fin = mo.get("final_distances") or {}
-        if fin:
-            out += _table(["port", "start", "end"],
-                          [(k, (mo.get("start_distances") or {}).get(k), v)
-                           for k, v in fin.items()])
-            out.append("")
-
-    fmts = r.get("formats") or {}
-    skipped = {k: v for k, v in fmts.items() if v.get("status") in ("not available",
-                                                                     "does not apply",
-                                                                     "skipped by the template")}
-    made = {k: v for k, v in fmts.items() if k not in skipped}
-    if fmts:
-        out += ["## Files", ""]
-        if skipped:
-            out += ["Not exported: " + ", ".join(
-                f"{k} ({v['status']}" + (f": {v['detail']}" if v.get("detail") else "") + ")"
-                for k, v in sorted(skipped.items())) + ".", ""]
-        for name in sorted(made):
-            f = made[name]
-            out.append(f"### {name}: {f.get('status', '')}")
-            out.append("")
-            for fn in f.get("files", []):
-                out.append(f"- [`{fn}`]({fn})")
-            for chk in f.get("checks", []):
-                rows = [(c.get("name"), "ok" if c.get("ok") else "FAIL", c.get("value"),
-                         c.get("limit"), c.get("detail", "")) for c in chk.get("checks", [])]
-                read = ", ".join(f"`{f}`" for f in chk.get("files") or []
-                                 if isinstance(f, str) and f != chk.get("file"))
-                out += ["", f"As-built check of `{chk.get('file')}`"
-                            + (f" (with {read})" if read else "") + ": "
-                            f"{'ok' if chk.get('ok') else 'FAILED'}"
-                            + (f" ({chk['error']})" if chk.get("error") else "")
-                            + (" — computed by the exporter from the same bytes as those written"
-                               if chk.get("source") == "exporter" else ""), ""]
-                if rows:
-                    out += _table(["check", "result", "value", "limit", "detail"], rows)
-            if f.get("error"):
-                out.append(f"- error: {f['error']}")
-            out.append("")
-
-    out += _tolerance_markdown(r.get("tolerance"))
-
-    pics = r.get("previews") or []
+    out += _motion_markdown(report)
+    out += _formats_markdown(report)
+    out += tolerance_markdown(report.tolerance)
+    pics = report.artefacts.previews
     if pics:
         out += ["## Previews", ""]
         for p in pics:
             out += [f"![{Path(p).stem}]({p})", ""]
     return ("\n".join(out).rstrip() + "\n").encode("utf-8")
+
+
+def _motion_markdown(report) -> list[str]:
+    from .motion import MotionStatus
+
+    motion = report.motion
+    if motion is None or motion.status is MotionStatus.NO_TARGET:
+        return []
+    if motion.status is MotionStatus.SINGULAR_START:
+        resolved = sorted(f for f, v in report.formats.items() if v.status.produced)
+        return ["## Motion", "",
+                f"The template's motion cannot leave its singular start by itself "
+                f"({motion.error.reason}). Exported by {', '.join(resolved)}, which choose the "
+                "branch themselves (see their checks).", ""]
+    traj = motion.trajectory
+    drive = motion.design.motion.drive
+    out = ["## Motion", "",
+           f"{drive} from {_fmt(float(traj.drive[0]))} to {_fmt(float(traj.target))} by "
+           f"`{traj.method}`: {motion.line()}; {traj.n_steps} configurations, largest relative "
+           f"edge error {_fmt(float(traj.max_edge_error))}.", ""]
+    names = list(traj.network.ports)
+    ends = {} if motion.ends is None else {pe.port: pe for pe in motion.ends.ports}
+    at_lock = motion.ends is not None and motion.ends.judged_at == "lock"
+    rows = []
+    for n in names:
+        row = [n, float(traj.distance(n)[0]), float(traj.distance(n)[-1])]
+        if ends:
+            pe = ends.get(n)
+            row += [None] if pe is None else [pe.designed]
+            if at_lock:  # judged where the motion, continued past the target, locks
+                row += [None] if pe is None else [pe.end]
+            row += [None] if pe is None else ["yes" if pe.reached else f"no ({pe.motion})"]
+        rows.append(row)
+    head = ["port", "start", "end"] + (
+        ["designed end"] + (["where it locks"] if at_lock else []) + ["reached"] if ends else [])
+    out += _table(head, rows)
+    out.append("")
+    if motion.ends is not None:
+        out += [f"Designed ends {motion.ends.basis}; judged at the "
+                f"{motion.ends.judged_at}, within {_fmt(motion.ends.tolerance)} (a quarter of "
+                "the first module's travel).", ""]
+    return out
+
+
+def _formats_markdown(report) -> list[str]:
+    fmts = report.formats
+    quiet = ("not available", "does not apply", "skipped by the template")
+    skipped = {k: v for k, v in fmts.items() if v.status.value in quiet}
+    made = {k: v for k, v in fmts.items() if k not in skipped}
+    if not fmts:
+        return []
+    out = ["## Files", ""]
+    if skipped:
+        out += ["Not exported: " + ", ".join(
+            f"{k} ({v.status}" + (f": {v.detail}" if v.detail else "") + ")"
+            for k, v in sorted(skipped.items())) + ".", ""]
+    for name in sorted(made):
+        f = made[name]
+        out.append(f"### {name}: {f.status}")
+        if f.status.produced:
+            out.append(f"Made by the {_process_of(name)} process.")
+        elif f.detail:
+            out.append(f"- {f.detail}")
+        out.append("")
+        for fn in f.files:
+            out.append(f"- [`{fn}`]({fn})")
+        for chk in f.checks:
+            c = jsonable(chk.as_dict())
+            rows = [(x.get("name"), "ok" if x.get("ok") else "FAIL", x.get("value"),
+                     x.get("limit"), x.get("detail", "")) for x in c["checks"]]
+            read = ", ".join(f"`{Path(str(x)).name}`" for x in c.get("files") or []
+                             if Path(str(x)).name != chk.file)
+            out += ["", f"As-built check of `{chk.file}`"
+                        + (f" (with {read})" if read else "") + ": "
+                        f"{'ok' if chk.ok else 'FAILED'}"
+                        + (f" ({chk.error})" if chk.error else ""), ""]
+            if rows:
+                out += _table(["check", "result", "value", "limit", "detail"], rows)
+        out.append("")
+    return out
+
+
+def _process_of(fmt: str) -> str:
+    from .tolerance import PROCESS_FORMATS
+
+    return next((p for p, fs in PROCESS_FORMATS.items() if fmt in fs), "its own")

@@ -1,15 +1,18 @@
 """Self-contained HTML reports: ``report.html`` per design and ``index.html`` for a batch.
 
-A design's page is rendered from its folder (``report.json`` and the files next to it) and, when
-given, the design itself, whose traced motion becomes a scrubbable drawing: drag the slider (or
+A design's page is rendered from the typed results of its export
+(:class:`fabkit.batch.stages.DesignReport`: the verdict, the traced motion, each format's result
+and checks, the tolerance analysis, the files in memory), never from a report read back; its
+traced motion becomes a scrubbable drawing: drag the slider (or
 press play) and watch the network move, its bars coloured by laser layer, by crease assignment
 (mountain red, valley blue, boundary black) or grey for a print, with the ports drawn dashed. The
 page also shows the map and cobweb, the laser layers over the motion, the crease pattern, the
 printed part and its bed layout, the bill of materials, the tolerance analysis and every check's
 verdict. Pictures are inlined (data URIs, inline SVG): the page needs no network and no other file.
 
-``index.html`` lists every design of a batch with its own moving picture (the frames embedded in
-each ``report.html``), its verdicts and a link to its page.
+``index.html`` lists every design of a batch with its own moving picture, its verdict and a link to
+its page, from the :class:`fabkit.batch.stages.IndexCard` each export hands back (designs
+exported into the folder by earlier runs are linked by name).
 """
 
 from __future__ import annotations
@@ -18,13 +21,16 @@ import base64
 import html
 import json
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["design_html", "index_html", "write_design_report", "write_index", "motion_frames",
-           "keep_chart_svg", "design_process", "describe_file", "not_exported", "image_size",
-           "PROCESSES", "FILE_ROLES"]
+from .report import MADE_FOR
+
+__all__ = ["design_html", "index_html", "index_card", "write_index", "motion_frames",
+           "keep_chart_svg", "describe_file", "not_exported", "image_size", "PROCESSES",
+           "FILE_ROLES", "LEVEL_CLASS", "IndexCard"]
 
 #: Most frames of a motion kept in a page (evenly spaced along the trace).
 MAX_FRAMES = 61
@@ -50,7 +56,9 @@ section{background:#fff;border:1px solid #ddd;border-radius:6px;padding:12px 16p
 h2{font-size:18px;margin:4px 0 10px}table{border-collapse:collapse;margin:6px 0;font-size:13px}
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#f0f0f0}.ok{color:#1b5e20;font-weight:600}.bad{color:#b71c1c;font-weight:600}
-.warn{color:#e65100}.lead{border-left:5px solid #263238}.lead p{margin:4px 0}
+.warn{color:#e65100}.note{color:#5d4037;font-weight:600}.lead{border-left:5px solid #263238}
+.lead p{margin:4px 0}.verdict{border-left:5px solid #1b5e20}.verdict.FLAG,.verdict.FAIL{
+border-left-color:#b71c1c}.verdict.by-design{border-left-color:#8d6e63}
 .nowrap{white-space:nowrap}
 .scroll{overflow-x:auto;max-width:100%}.pic{margin:8px 0}.pic img{max-width:none;display:block;
 border:1px solid #eee}figcaption{font-size:13px;color:#555}
@@ -158,13 +166,13 @@ def _project(x: np.ndarray) -> np.ndarray:
     return np.stack([rx, -(ry * np.sin(el) + x[..., 2] * np.cos(el))], axis=-1)
 
 
-def _edge_colours(design, report: dict) -> tuple[list, list]:
+def _edge_colours(design, formats: dict) -> tuple[list, list]:
     """Colour of every edge and the legend (label, colour)."""
     net = design.network
     colours = ["#607d8b"] * net.n_edges
     legend = []
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    bars = (((report.get("formats") or {}).get("dxf") or {}).get("report") or {}).get("bars")
+    bars = _exporter(formats, "dxf").get("bars")
     assignment = (fab.get("origami") or {}).get("assignment") \
         if isinstance(fab.get("origami"), dict) else None
     if isinstance(assignment, list) and len(assignment) == net.n_edges:
@@ -176,8 +184,8 @@ def _edge_colours(design, report: dict) -> tuple[list, list]:
         lookup = {tuple(sorted(map(int, e))): k for k, e in enumerate(net.edges.tolist())}
         layers = set()
         for bar in bars:
-            k = lookup.get(tuple(sorted(int(j) for j in bar.get("joints", [])[:2])))
-            if k is not None and bar.get("layer") is not None:
+            k = lookup.get(tuple(sorted(int(j) for j in bar["joints"][:2])))
+            if k is not None and bar["layer"] is not None:
                 colours[k] = _LAYER_COLOURS[int(bar["layer"]) % len(_LAYER_COLOURS)]
                 layers.add(int(bar["layer"]))
         legend = [(f"laser layer {k}", _LAYER_COLOURS[k % len(_LAYER_COLOURS)])
@@ -207,16 +215,17 @@ def _faces(design) -> tuple[list, str]:
     return [], ""
 
 
-def motion_frames(design, trajectory=None, report: dict | None = None) -> dict | None:
+def motion_frames(design, trajectory, formats: dict | None = None) -> dict | None:
     """The motion as drawing data: frames of projected node positions, edges, ports, colours.
 
     Parameters
     ----------
     design : Design
-    trajectory : Trajectory, optional
-        Traced when not given (None when the design has no motion or it cannot be traced).
-    report : dict, optional
-        The design's report (laser layers colour the bars).
+    trajectory : Trajectory or None
+        The design's traced motion (the pipeline's Motion stage); None: no drawing (a report
+        never traces).
+    formats : dict of str to FormatResult, optional
+        The export's formats (a laser kit's layers colour the bars).
 
     Returns
     -------
@@ -225,15 +234,8 @@ def motion_frames(design, trajectory=None, report: dict | None = None) -> dict |
         ``colours``, ``legend``, ``faces`` (node cycles drawn filled: a print's plates, an
         origami sheet's panels), ``fill``, ``viewbox``, ``drive``.
     """
-    from .errors import FabkitError
-
     if trajectory is None:
-        if design.motion.to is None:
-            return None
-        try:
-            trajectory = design.trace()
-        except FabkitError:
-            return None
+        return None
     pos = np.asarray(trajectory.positions, dtype=np.float64)
     if pos.ndim != 3 or pos.shape[0] < 2:
         return None
@@ -252,7 +254,7 @@ def motion_frames(design, trajectory=None, report: dict | None = None) -> dict |
         values = np.linalg.norm(pos[keep, a] - pos[keep, b], axis=-1)
     except Exception:  # a drive given as a node pair that is not a port: show the frame number
         values = np.arange(len(keep), dtype=float)
-    colours, legend = _edge_colours(design, report or {})
+    colours, legend = _edge_colours(design, formats or {})
     faces, fill = _faces(design)
     ports = [[p, int(i), int(j)] for p, (i, j) in sorted(net.ports.items())]
     w, h = (hi - lo) * scale
@@ -298,73 +300,102 @@ def _img(name: str, data: bytes, alt: str, caption: str | None = None) -> str:
             "</figure>")
 
 
-def _markdown(text: str, fold_rows: int | None = None) -> str:
-    """The small Markdown of fabkit's own files (headings, tables, paragraphs) as HTML; a table
-    longer than ``fold_rows`` rows is folded under its heading (``<details>``)."""
-    out, table = [], []
-    heading = [""]
-
-    def flush():
-        if table:
-            rows = [r for r in table if not re.fullmatch(r"\|?[\s:|-]+\|?", r)]
-            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
-            body = "".join("<tr>" + "".join(f"<{'th' if k == 0 else 'td'}>{_esc(c)}"
-                                             f"</{'th' if k == 0 else 'td'}>" for c in row)
-                           + "</tr>" for k, row in enumerate(cells))
-            html_table = f'<div class="scroll"><table>{body}</table></div>'
-            if fold_rows is not None and len(cells) - 1 > fold_rows:
-                html_table = (f"<details><summary>{_esc(heading[0] or 'table')}: "
-                              f"{len(cells) - 1} rows</summary>{html_table}</details>")
-            out.append(html_table)
-            table.clear()
-
-    for line in text.splitlines():
-        if line.startswith("|"):
-            table.append(line)
-            continue
-        flush()
-        m = re.match(r"(#+)\s+(.*)", line)
-        if m:
-            level = min(len(m.group(1)) + 2, 6)
-            heading[0] = m.group(2)
-            out.append(f"<h{level}>{_esc(m.group(2))}</h{level}>")
-        elif line.strip():
-            out.append(f"<p>{_esc(line)}</p>")
-    flush()
+def _blocks_html(blocks, fold_rows: int | None = None) -> str:
+    """Blocks of text and tables (:func:`fabkit.export.dxf.bom_blocks`) as HTML; a table longer
+    than ``fold_rows`` rows is folded under its heading (``<details>``)."""
+    out, heading = [], ""
+    for block in blocks:
+        kind = block[0]
+        if kind == "table":
+            _, header, rows = block
+            body = ("<tr>" + "".join(f"<th>{_esc(c)}</th>" for c in header) + "</tr>"
+                    + "".join("<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in row) + "</tr>"
+                              for row in rows))
+            table = f'<div class="scroll"><table>{body}</table></div>'
+            if fold_rows is not None and len(rows) > fold_rows:
+                table = (f"<details><summary>{_esc(heading or 'table')}: {len(rows)} rows"
+                         f"</summary>{table}</details>")
+            out.append(table)
+        elif kind in ("title", "heading"):
+            heading = block[1]
+            level = 3 if kind == "title" else 4
+            out.append(f"<h{level}>{_esc(block[1])}</h{level}>")
+        elif kind == "strong":
+            out.append(f"<p><b>{_esc(block[1])}</b></p>")
+        elif kind == "item":
+            out.append(f"<ul><li>{_esc(block[1])}</li></ul>")
+        else:
+            out.append(f"<p>{_esc(block[1])}</p>")
     return "\n".join(out)
 
 
-def _verdict(ok) -> str:
+#: The CSS class a verdict level is shown with: green ok, brown "by design" (said in words, not
+#: alarmed), red FLAG and FAIL.
+LEVEL_CLASS = {"ok": "ok", "by design": "note", "FLAG": "bad", "FAIL": "bad"}
+
+#: The processes a design can be made for and the formats of each (one table, with the
+#: tolerance analysis: :data:`fabkit.tolerance.PROCESS_FORMATS`).
+PROCESSES = {"print": ("stl",), "origami": ("svg", "fold", "cp"), "laser": ("dxf",)}
+
+
+def _exporter(formats: dict, fmt: str) -> dict:
+    """The exporter's report of a format that wrote files (``{}`` when it wrote none)."""
+    f = formats.get(fmt)
+    return f.report if f is not None and f.status.produced else {}
+
+
+def _pass(ok) -> str:
     return '<span class="ok">pass</span>' if ok else '<span class="bad">FAIL</span>'
 
 
-def _checks_section(report: dict) -> str:
+def _level(level) -> str:
+    """A verdict level as a word in its colour."""
+    word = "flagged by design" if str(level) == "by design" else str(level)
+    return f'<span class="{LEVEL_CLASS[str(level)]}">{_esc(word)}</span>'
+
+
+def _verdict_section(report) -> str:
+    v = report.verdict
+    cls = {"ok": "ok", "by design": "by-design"}.get(str(v.level), str(v.level))
+    rows = "".join(f"<li>{_level(f.level)} {_esc(f.about)}: {_esc(f.text)}</li>"
+                   for f in v.findings[1:])
+    return (f'<section id=verdict class="verdict {cls}"><h2>Verdict: {_level(v.level)}</h2>'
+            f"<p>{_esc(v.text)}</p>" + (f"<ul>{rows}</ul>" if rows else "")
+            + "</section>")
+
+
+def _checks_section(report) -> str:
     rows = []
-    for fmt, f in sorted((report.get("formats") or {}).items()):
-        status = f.get("status", "")
-        rows.append(f"<tr><th colspan=5>{_esc(fmt)}: {_esc(status)}"
-                    + (f" – {_esc(f['detail'])}" if f.get("detail") else "") + "</th></tr>")
-        for res in f.get("checks") or []:
-            if res.get("error"):
-                rows.append(f"<tr><td>{_esc(res.get('file', ''))}</td><td>{_verdict(False)}</td>"
-                            f"<td colspan=3>{_esc(res['error'])}</td></tr>")
-            for c in res.get("checks") or []:
-                rows.append(f"<tr><td>{_esc(res.get('file', ''))}: {_esc(c.get('name'))}</td>"
-                            f"<td>{_verdict(c.get('ok'))}</td><td>{_esc(_fmt(c.get('value')))}"
+    for fmt, f in sorted(report.formats.items()):
+        rows.append(f"<tr><th colspan=5>{_esc(fmt)}: {_esc(f.status)}"
+                    + (f" – {_esc(f.detail)}" if f.detail else "") + "</th></tr>")
+        for res in f.checks:
+            if res.error:
+                rows.append(f"<tr><td>{_esc(res.file)}</td><td>{_pass(False)}</td>"
+                            f"<td colspan=3>{_esc(res.error)}</td></tr>")
+            for c in res.checks:
+                rows.append(f"<tr><td>{_esc(res.file)}: {_esc(c['name'])}</td>"
+                            f"<td>{_pass(c['ok'])}</td><td>{_esc(_fmt(c.get('value')))}"
                             f"</td><td>{_esc(_fmt(c.get('limit')))}</td>"
                             f"<td>{_esc(c.get('detail', ''))}</td></tr>")
-        for w in ((f.get("report") or {}).get("warnings") or []):
+        for w in (f.report.get("warnings") or [] if f.status.produced else []):
             rows.append(f'<tr><td colspan=5 class="warn">warning: {_esc(w)}</td></tr>')
-    tol = report.get("tolerance")
-    if tol and tol.get("verdict"):
+    tol = report.tolerance
+    if tol is not None:
+        level = "by design" if tol.flagged and tol.behaviour is not None and \
+            tol.behaviour.chaos is not None else ("FLAG" if tol.flagged else "ok")
         rows.append(f"<tr><th colspan=5>tolerance</th></tr><tr><td>as built</td>"
-                    f"<td>{_verdict(not tol.get('flagged'))}</td>"
-                    f"<td colspan=3>{_esc(tol['verdict'])}</td></tr>")
-    for e in report.get("errors") or []:
+                    f"<td>{_level(level)}</td><td colspan=3>{_esc(tol.verdict)}</td></tr>")
+    motion = report.motion
+    if motion is not None and motion.ends is not None:
+        rows.append(f"<tr><th colspan=5>motion</th></tr><tr><td>designed ends</td>"
+                    f"<td>{_pass(motion.ends.reached)}</td>"
+                    f"<td colspan=3>{_esc(motion.ends.reason or motion.ends.basis)}</td></tr>")
+    for e in report.errors:
         rows.append(f'<tr><td colspan=5 class="bad">{_esc(e)}</td></tr>')
     if not rows:
         return ""
-    return ("<section id=checks><h2>Verdicts</h2><div class=\"scroll\"><table><tr><th>check</th>"
+    return ("<section id=checks><h2>Checks</h2><div class=\"scroll\"><table><tr><th>check</th>"
             "<th>result</th><th>value</th><th>limit</th><th>detail</th></tr>" + "".join(rows)
             + "</table></div></section>")
 
@@ -441,31 +472,32 @@ def keep_chart_svg(tol: dict) -> str:
     return "".join(parts)
 
 
-def _tolerance_section(report: dict, files: dict) -> str:
-    tol = report.get("tolerance")
-    if not tol:
+def _tolerance_section(report, files: dict) -> str:
+    from .report import jsonable
+
+    if report.tolerance is None:
         return ""
-    if tol.get("error"):
-        return f"<section id=tolerance><h2>Tolerance</h2><p>Not analysed: {_esc(tol['error'])}" \
-               "</p></section>"
-    parts = [f"<p>{_esc(tol.get('model', ''))}; {tol.get('samples')} simulated builds.</p>",
-             f"<p class=\"{'bad' if tol.get('flagged') else 'ok'}\">{_esc(tol.get('verdict'))}"
-             "</p>"]
-    b = tol.get("behaviour") or {}
+    tol = jsonable(report.tolerance.as_dict())
+    chaos = report.tolerance.flagged and (tol["behaviour"] or {}).get("chaos") is not None
+    cls = "note" if chaos else ("bad" if tol["flagged"] else "ok")
+    parts = [f"<p>Judged as {_esc(MADE_FOR[tol['process']])}: {_esc(tol['model'])}; "
+             f"{tol['samples']} simulated builds.</p>",
+             f"<p class=\"{cls}\">{_esc(tol['verdict'])}</p>"]
+    b = tol["behaviour"] or {}
     if b:
-        how = "stated in the template" if b.get("intent", "auto") != "auto" else \
+        how = "stated in the template" if b["intent"] != "auto" else \
             "inferred from its map and motion"
         bits = [f"{c['role']} crystal D* = {_fmt(c['value'])} ({c['kind']})"
-                for c in b.get("crystals", [])]
-        if b.get("order"):
+                for c in b["crystals"]]
+        if b["order"]:
             bits.append(f"the front runs {b['order']}")
-        bits.append(f"judged at the end by its {b.get('end')} ({b.get('end_at')})")
+        bits.append(f"judged at the end by its {b['end']} ({b['end_at']})")
         parts.append(f"<p>What the design is for ({how}): {_esc('; '.join(bits))}.</p>")
     rows = "".join(
         f"<tr><td>{_esc(c['criterion'])}</td><td>{100 * c['kept_fraction']:.1f}%</td>"
         f"<td>{_fmt(c['p95_mm']) if c['criterion'] != 'order' else '–'}</td>"
         f"<td>{_fmt(c['limit_mm']) if c['criterion'] != 'order' else '–'}</td>"
-        f"<td>{c['missing']}</td></tr>" for c in tol.get("criteria", []))
+        f"<td>{c['missing']}</td></tr>" for c in tol["criteria"])
     if rows:
         parts.append("<div class=\"scroll\"><table><tr><th>criterion</th><th>builds that keep "
                      "it</th><th>95% of builds (mm)</th><th>allowed (mm)</th><th>no such state"
@@ -474,36 +506,29 @@ def _tolerance_section(report: dict, files: dict) -> str:
     if chart:
         from .tolerance.margin import margin_text
 
-        src = tol.get("source_margins") or {}
         alone = ", ".join(f"{_esc(n)} {_esc(margin_text(v['value'], v['bound']))}"
-                          for n, v in src.items())
-        parts.append(f"<p>Margin {_esc(margin_text(tol['margin'], tol.get('margin_bound')))}"
+                          for n, v in tol["source_margins"].items())
+        parts.append(f"<p>Margin {_esc(margin_text(tol['margin'], tol['margin_bound']))}"
                      ": every error of the process may grow by this factor and the verdict stays "
                      "the same" + (f"; each source alone: {alone}" if alone else "") + ".</p>"
                      f'<div class="inline-svg scroll">{chart}</div>')
-    if tol.get("ports_judged", True):
+    if tol["ports_judged"]:
         rows = "".join(f"<tr><td>{_esc(p['port'])}</td><td>{_fmt(p['nominal'])}</td>"
                        f"<td>{_fmt(p['mean'])}</td><td>{_fmt(p['p95_abs_error_mm'])}</td>"
-                       f"<td>{_fmt(p['limit_mm'])}</td></tr>" for p in tol.get("ports", []))
+                       f"<td>{_fmt(p['limit_mm'])}</td></tr>" for p in tol["ports"])
         if rows:
             parts.append("<div class=\"scroll\"><table><tr><th>port</th><th>designed</th>"
                          "<th>built (mean)</th><th>95% error (mm)</th><th>limit (mm)</th></tr>"
                          + rows + "</table></div>")
-    hz = tol.get("horizon")
+    hz = tol["horizon"]
     if hz:
         parts.append(f"<p>Lyapunov exponent λ = {_fmt(hz.get('lyapunov'))} per module "
                      f"({_esc(hz.get('source'))}): {_esc(hz.get('detail'))}.</p>")
     name = "preview_tolerance.png"
     if name in files:
-        pic = _img(name, files[name], "tolerance")
-        parts.append(pic)
+        parts.append(_img(name, files[name], "tolerance"))
     return "<section id=tolerance><h2>Tolerance</h2>" + "".join(parts) + "</section>"
 
-
-#: The processes a design can be made for, the formats of each, and how to say it.
-PROCESSES = {"print": ("stl",), "origami": ("svg", "fold", "cp"), "laser": ("dxf",)}
-_MADE_FOR = {"laser": "laser-cut acrylic (Chicago screws)", "origami": "folded paper (origami)",
-             "print": "a 3D print"}
 
 #: What each file of a design folder is, by name (first match).
 FILE_ROLES = (
@@ -541,39 +566,24 @@ def describe_file(name: str) -> str:
     return ""
 
 
-def design_process(report: dict, design=None) -> str | None:
-    """The process a design was made for: the one its tolerance analysis judges it by
-    (:func:`fabkit.tolerance.design_process`: its template's tables, else origami for 3D and
-    laser for planar networks), as the design or its report says; else the first of origami,
-    laser and print whose files were written (every planar bar design also gets a
-    print-in-place linkage, which does not make it a print); None when there is neither."""
-    if design is not None:
-        from .tolerance import design_process as made_for
-
-        return made_for(design)
-    judged = (report.get("tolerance") or {}).get("process")
-    if judged in PROCESSES:
-        return judged
-    for proc in ("origami", "laser", "print"):
-        if _exported(report, proc):
-            return proc
-    return None
+def _exported(report, proc: str) -> bool:
+    return any(report.formats[f].status.produced for f in PROCESSES[proc]
+               if f in report.formats)
 
 
-def _exported(report: dict, proc: str) -> bool:
-    formats = report.get("formats") or {}
-    return any((formats.get(f) or {}).get("status") == "exported" for f in PROCESSES[proc])
+def not_exported(formats: dict) -> list:
+    """Why each format that was tried wrote nothing: ``["dxf: skipped by the template – …"]``.
 
-
-def not_exported(report: dict) -> list:
-    """Why each format that was tried wrote nothing: ``["dxf: skipped by the template – …"]``."""
+    Parameters
+    ----------
+    formats : dict of str to FormatResult
+    """
     out, never = [], []
-    for fmt, f in sorted((report.get("formats") or {}).items()):
-        if f.get("status") == "does not apply":
+    for fmt, f in sorted(formats.items()):
+        if f.status.value == "does not apply":
             never.append(f"{fmt}: does not apply")  # said only when nothing else explains it
-        elif f.get("status") != "exported":
-            out.append(f"{fmt}: {f.get('status', '')}" + (f" – {f['detail']}" if f.get("detail")
-                                                          else ""))
+        elif not f.status.produced:
+            out.append(f"{fmt}: {f.status}" + (f" – {f.detail}" if f.detail else ""))
     return out or never
 
 
@@ -585,37 +595,34 @@ def _size(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 1e6 else (f"{n / 1e3:.0f} kB" if n >= 1e3 else f"{n} B")
 
 
-def _pdf_pages(data: bytes) -> int:
-    return len(re.findall(rb"/Type\s*/Page\b", data))
-
-
-def _lead_section(report: dict, files: dict, process: str | None) -> str:
-    formats = report.get("formats") or {}
-    why = not_exported(report)
-    if process is None or not _exported(report, process):
-        what = _MADE_FOR.get(process, "no process")
-        reasons = "; ".join(why) or (report.get("error") or "no export format applies to it")
-        return (f'<section id=made-for class=lead><h2>Made for {_esc(what)}: no files</h2>'
-                f'<p class="warn">Nothing to build was written: {_esc(reasons)}.</p></section>')
+def _lead_section(report, files: dict) -> str:
+    process = report.process
+    formats = report.formats
+    why = not_exported(formats)
+    if not _exported(report, process):
+        reasons = "; ".join(why) or "no export format applies to it"
+        return (f'<section id=made-for class=lead><h2>Made for {_esc(MADE_FOR[process])}: no '
+                f'files</h2><p class="warn">Nothing to build was written: {_esc(reasons)}.</p>'
+                "</section>")
     parts = []
     if process == "laser":
-        b = (formats.get("dxf") or {}).get("report") or {}
-        st = b.get("settings") or {}
-        sheets = b.get("sheets") or []
+        b = _exporter(formats, "dxf")
+        st = b["settings"]
+        sheets = b["sheets"]
         sizes = sorted({f"{s['size_mm'][0]:g} × {s['size_mm'][1]:g} mm" for s in sheets})
-        screws = sum(s.get("count", 0) for s in b.get("screws", []))
+        screws = sum(s["count"] for s in b["screws"])
         parts.append(f"<p>{len(sheets)} sheet{'s' if len(sheets) != 1 else ''} of "
-                     f"{_esc(', '.join(sizes))}, {_fmt(st.get('thickness'))} mm acrylic; "
-                     f"{len(b.get('bars', []))} bars in {_esc((b.get('layers') or {}).get('count'))}"
-                     f" layers; {screws} screws, {(b.get('washers') or {}).get('count', 0)} "
-                     f"washers, {(b.get('spacer_rings') or {}).get('count', 0)} spacer rings "
-                     "(see the bill of materials).</p>")
+                     f"{_esc(', '.join(sizes))}, {_fmt(st['thickness'])} mm acrylic, "
+                     f"{_fmt(b['scale_mm_per_unit'])} mm a design unit; {len(b['bars'])} bars "
+                     f"in {_esc(b['layers']['count'])} layers; {screws} screws, "
+                     f"{b['washers']['count']} washers, {b['spacer_rings']['count']} spacer "
+                     "rings (see the bill of materials).</p>")
         if "laser_guide.pdf" in files:
             parts.append(f"<p><b>Start here:</b> {_link('laser_guide.pdf')}, the assembly guide "
-                         f"({_pdf_pages(files['laser_guide.pdf'])} A4 pages: overview, how to "
-                         "build, a page per two modules, the motion test).</p>")
+                         f"({b['guide_pages']} A4 pages: overview, how to build, a page per two "
+                         "modules, the motion test).</p>")
     elif process == "origami":
-        r = (formats.get("svg") or {}).get("report") or {}
+        r = _exporter(formats, "svg")
         sheet = r.get("sheet") or {}
         if sheet.get("shape") == "square":
             paper = (f"a square of side {sheet['side_mm']:.2f} mm ({sheet['across_mm']:.2f} mm "
@@ -630,30 +637,31 @@ def _lead_section(report: dict, files: dict, process: str | None) -> str:
                          + (f", or cut {_link(r['cut_file'])} on a laser or vinyl cutter"
                             if r.get("cut_file") else "") + ".</p>")
     else:
-        r = (formats.get("stl") or {}).get("report") or {}
-        st = r.get("settings") or {}
+        r = _exporter(formats, "stl")
+        st = r["settings"]
         size = " × ".join(_fmt(v) for v in r.get("size_mm") or [])
-        if r.get("linkage") == "pins":
-            parts.append(f"<p>Printed in place: {_esc(r.get('bars'))} bars in "
-                         f"{_esc(r.get('layers'))} layers on {_esc(r.get('printed_pins'))} "
-                         f"printed pins ({_esc(st.get('material'))}).</p>")
+        if r["linkage"] == "pins":
+            parts.append(f"<p>Printed in place: {_esc(r['bars'])} bars in "
+                         f"{_esc(r['layers'])} layers on {_esc(r['printed_pins'])} "
+                         f"printed pins ({_esc(st['material'])}), {_fmt(st['scale'])} mm a "
+                         f"design unit, {_fmt(st['pin_clearance'])} mm pin clearance, "
+                         f"{_fmt(st['clearance'])} mm between bars.</p>")
         else:
-            parts.append(f"<p>{_esc(r.get('plates'))} plates joined by "
-                         f"{_esc(r.get('hinges'))} hinges ({_esc(st.get('hinge_style'))}, "
-                         f"{_esc(st.get('material'))}), {_esc(size)} mm.</p>")
-        written = (formats.get("stl") or {}).get("files", [])
-        prints = sorted((n for n in written if n.endswith((".3mf", ".stl"))),
+            parts.append(f"<p>{_esc(r['plates'])} plates joined by "
+                         f"{_esc(r['hinges'])} hinges ({_esc(st['hinge_style'])}, "
+                         f"{_esc(st['material'])}), {_esc(size)} mm.</p>")
+        prints = sorted((n for n in formats["stl"].files if n.endswith((".3mf", ".stl"))),
                         key=lambda n: (not n.endswith(".3mf"), n))
         if prints:
             parts.append("<p><b>Start here:</b> " + ", ".join(_link(n) for n in prints) + ".</p>")
     others = [p for p in PROCESSES if p != process and _exported(report, p)]
     if others:
         parts.append("<p>Also exported: " + ", ".join(
-            f'<a href="#also-{p}">{_esc(_MADE_FOR[p])}</a>' for p in others) + " (folded below)."
+            f'<a href="#also-{p}">{_esc(MADE_FOR[p])}</a>' for p in others) + " (folded below)."
                      "</p>")
     if why:
         parts.append(f"<p class=\"warn\">Not written: {_esc('; '.join(why))}.</p>")
-    return (f"<section id=made-for class=lead><h2>Made for {_esc(_MADE_FOR[process])}</h2>"
+    return (f"<section id=made-for class=lead><h2>Made for {_esc(MADE_FOR[process])}</h2>"
             + "".join(parts) + "</section>")
 
 
@@ -673,7 +681,7 @@ def _files_section(listing: dict, process: str | None) -> str:
             "</th></tr>" + rows + "</table></div></section>")
 
 
-def _laser_section(report: dict, files: dict, ident: str = "laser") -> str:
+def _laser_section(files: dict, ident: str = "laser") -> str:
     pics = [n for n in ("laser_assembly.png", "laser_layers_motion.png",
                         "laser_guide_page1.png") if n in files]
     pics += [n for n in sorted(files) if n.startswith("laser_") and n.endswith(".png")
@@ -686,18 +694,20 @@ def _laser_section(report: dict, files: dict, ident: str = "laser") -> str:
     return f"<section id={ident}><h2>Laser-cut kit</h2>{body}</section>"
 
 
-def _laser_bom(files: dict, ident: str = "bom") -> str:
-    if "laser_bom.md" not in files:
+def _laser_bom(report, ident: str = "bom") -> str:
+    from .export.dxf import bom_blocks
+
+    bom = _exporter(report.formats, "dxf")
+    if not bom:
         return ""
     return (f"<section id={ident}><h2>Bill of materials</h2>"
-            + _markdown(files["laser_bom.md"].decode("utf-8"), FOLD_ROWS) + "</section>")
+            + _blocks_html(bom_blocks(bom), FOLD_ROWS) + "</section>")
 
 
-def _origami_section(report: dict, files: dict, ident: str = "origami") -> str:
-    formats = report.get("formats") or {}
-    r = (formats.get("svg") or {}).get("report") or {}
-    svgs = [n for n in (formats.get("svg") or {}).get("files", [])
-            if n.endswith(".svg") and not n.endswith("_cut.svg") and n in files]
+def _origami_section(report, files: dict, ident: str = "origami") -> str:
+    r = _exporter(report.formats, "svg")
+    svgs = [n for n in report.formats["svg"].files
+            if n.endswith(".svg") and not n.endswith("_cut.svg") and n in files] if r else []
     body = "".join(_img(n, files[n], "crease pattern", f"{n}: {describe_file(n)}")
                    for n in svgs)
     creases = r.get("creases") or []
@@ -719,8 +729,8 @@ def _origami_section(report: dict, files: dict, ident: str = "origami") -> str:
             + body + "</section>")
 
 
-def _origami_bom(report: dict, ident: str = "bom") -> str:
-    svg = ((report.get("formats") or {}).get("svg") or {}).get("report")
+def _origami_bom(report, ident: str = "bom") -> str:
+    svg = _exporter(report.formats, "svg")
     if not svg:
         return ""
     sheet = svg.get("sheet") or {}
@@ -731,24 +741,21 @@ def _origami_bom(report: dict, ident: str = "bom") -> str:
             f"<td>{_fmt(svg.get('sheets', 1))}</td></tr></table></section>")
 
 
-def _print_section(report: dict, files: dict, ident: str = "print") -> str:
-    formats = report.get("formats") or {}
-    stl = formats.get("stl")
-    if not (stl and stl.get("status") == "exported"):
+def _print_section(report, files: dict, ident: str = "print") -> str:
+    r = _exporter(report.formats, "stl")
+    if not r:
         return ""
-    r = stl.get("report") or {}
     pr = r.get("printer") or {}
     body = []
-    if r.get("linkage") == "pins":
-        s = r.get("settings") or {}
-        body.append(f"<p>Printed in place: {r.get('bars')} bars in {r.get('layers')} layers "
-                    f"on {r.get('printed_pins')} printed pins ({_esc(s.get('material'))}), "
-                    f"{_fmt(r.get('height_mm'))} mm tall, {_fmt(r.get('volume_mm3'))} mm³.</p>")
-    elif r:
-        s = r.get("settings") or {}
-        body.append(f"<p>{r.get('plates')} plates, {r.get('hinges')} hinges "
-                    f"({_esc(s.get('hinge_style'))}, {_esc(s.get('material'))}), "
-                    f"{_esc(_fmt(r.get('size_mm')))} mm, {_fmt(r.get('volume_mm3'))} mm³.</p>")
+    s = r["settings"]
+    if r["linkage"] == "pins":
+        body.append(f"<p>Printed in place: {r['bars']} bars in {r['layers']} layers "
+                    f"on {r['printed_pins']} printed pins ({_esc(s['material'])}), "
+                    f"{_fmt(r['height_mm'])} mm tall, {_fmt(r['volume_mm3'])} mm³.</p>")
+    else:
+        body.append(f"<p>{r['plates']} plates, {r['hinges']} hinges "
+                    f"({_esc(s['hinge_style'])}, {_esc(s['material'])}), "
+                    f"{_esc(_fmt(r['size_mm']))} mm, {_fmt(r['volume_mm3'])} mm³.</p>")
     if pr:
         bed = pr.get("printer") or {}
         layout = "; ".join(f"piece {p['piece']} on bed {p['bed']} turned "
@@ -768,20 +775,20 @@ def _print_section(report: dict, files: dict, ident: str = "print") -> str:
     return f"<section id={ident}><h2>Printed part</h2>" + "".join(body) + "</section>"
 
 
-def _print_bom(report: dict, ident: str = "bom") -> str:
-    stl = ((report.get("formats") or {}).get("stl") or {}).get("report")
+def _print_bom(report, ident: str = "bom") -> str:
+    stl = _exporter(report.formats, "stl")
     if not stl:
         return ""
-    s = stl.get("settings") or {}
+    s = stl["settings"]
     return (f"<section id={ident}><h2>Bill of materials</h2>"
             "<table><tr><th>printed part</th><th>quantity</th></tr>"
-            f"<tr><td>{_esc(s.get('material'))} filament</td>"
+            f"<tr><td>{_esc(s['material'])} filament</td>"
             f"<td>{_fmt((stl.get('volume_mm3') or 0) / 1000.0)} cm³</td></tr>"
-            + (f"<tr><td>printed bars</td><td>{stl.get('bars')}</td></tr>"
-               f"<tr><td>printed pins</td><td>{stl.get('printed_pins')}</td></tr>"
-               if stl.get("linkage") == "pins" else
-               f"<tr><td>plates</td><td>{stl.get('plates')}</td></tr>"
-               f"<tr><td>hinges</td><td>{stl.get('hinges')}</td></tr>") + "</table>"
+            + (f"<tr><td>printed bars</td><td>{stl['bars']}</td></tr>"
+               f"<tr><td>printed pins</td><td>{stl['printed_pins']}</td></tr>"
+               if stl["linkage"] == "pins" else
+               f"<tr><td>plates</td><td>{stl['plates']}</td></tr>"
+               f"<tr><td>hinges</td><td>{stl['hinges']}</td></tr>") + "</table>"
             + _print_buy(stl) + "</section>")
 
 
@@ -797,73 +804,74 @@ def _print_buy(stl: dict) -> str:
             f"<th>count</th></tr>{rows}</table>")
 
 
-def _process_sections(proc: str, report: dict, files: dict, primary: bool) -> str:
+def _process_sections(proc: str, report, files: dict, primary: bool) -> str:
     """A process's pictures and bill of materials: open when the design was made for it,
     folded under "Also exported" otherwise."""
     if not _exported(report, proc):
         return ""
     suffix = "" if primary else f"-{proc}"
     if proc == "laser":
-        body = _laser_section(report, files, "laser") + _laser_bom(files, "bom" + suffix)
+        body = _laser_section(files, "laser") + _laser_bom(report, "bom" + suffix)
     elif proc == "origami":
         body = _origami_section(report, files, "origami") + _origami_bom(report, "bom" + suffix)
     else:
         body = _print_section(report, files, "print") + _print_bom(report, "bom" + suffix)
     if primary:
         return body
-    return (f'<details id="also-{proc}"><summary>Also exported: {_esc(_MADE_FOR[proc])}'
+    return (f'<details id="also-{proc}"><summary>Also exported: {_esc(MADE_FOR[proc])}'
             f"</summary>{body}</details>")
 
 
-def design_html(report: dict, files: dict, design=None, trajectory=None,
-                listing: dict | None = None) -> bytes:
-    """A design's ``report.html``.
+def _frames(report) -> dict | None:
+    motion = report.motion
+    traj = motion.trajectory if motion is not None and motion.traced else None
+    return motion_frames(report.design, traj, report.formats)
 
-    It opens with the process the design was made for (what to buy, which file to start from)
-    and a link to every file written for it; then the motion, that process's pictures and bill
-    of materials, the map, any other process's files folded, the tolerance and the verdicts.
+
+def design_html(report, files: dict, listing: dict, frames: dict | None = None) -> bytes:
+    """A design's ``report.html``, rendered from the typed results of its export.
+
+    It opens with the verdict (the worst of the checks, the motion and the tolerance analysis),
+    then the process the design was made for (what to buy, which file to start from) and a link
+    to every file written for it; then the motion, that process's pictures and bill of
+    materials, the map, any other process's files folded, the tolerance and every check.
     Pictures show at their own size (a wide one scrolls sideways in its box).
 
     Parameters
     ----------
-    report : dict
-        The design's report.json content.
+    report : fabkit.batch.stages.DesignReport
     files : dict of str to bytes
-        The files of its folder that the page shows or reads (pictures are inlined from here).
-    design : Design, optional
-        For the scrubbable motion (none without it) and the process it was made for.
-    trajectory : Trajectory, optional
-        Its traced motion (traced from ``design`` when not given).
-    listing : dict of str to int, optional
-        Every file of the folder and its size in bytes, for the links (default: the names in
-        ``report["files"]``).
+        The files of the folder in memory (pictures are inlined from here).
+    listing : dict of str to int
+        Every file of the folder and its size in bytes, for the links.
+    frames : dict, optional
+        The motion as drawing data (:func:`motion_frames`; made here when not given).
 
     Returns
     -------
     bytes
         UTF-8 HTML that loads nothing from outside itself.
     """
-    d = report.get("design") or {}
-    name = d.get("name") or (design.name if design is not None else "design")
-    ok = report.get("ok")
-    head = (f"<header><h1>{_esc(name)} "
-            + ("" if ok is None else _verdict(ok).replace('class="ok"', 'style="color:#a5d6a7"')
-               .replace('class="bad"', 'style="color:#ef9a9a"'))
-            + f"</h1><p>{_esc(d.get('description', ''))}"
+    d = report.facts
+    name = d["name"]
+    v = report.verdict
+    badge = {"ok": "#a5d6a7", "by design": "#d7ccc8"}.get(str(v.level), "#ef9a9a")
+    word = "flagged by design" if str(v.level) == "by design" else str(v.level)
+    head = (f"<header><h1>{_esc(name)} <span style=\"color:{badge}\">{_esc(word)}</span>"
+            f"</h1><p>{_esc(d.get('description', ''))}"
             + (f" · {_esc(d['figure'])}" if d.get("figure") else "")
-            + f" · fabkit {_esc(report.get('fabkit_version', ''))}</p></header>")
-    if listing is None:
-        listing = {n: len(files.get(n, b"")) for n in report.get("files", [])}
-    process = design_process(report, design)
-    body = [_lead_section(report, files, process), _files_section(listing, process)]
-    data = motion_frames(design, trajectory, report) if design is not None else None
-    m = report.get("motion") or {}
+            + f" · fabkit {_esc(_version())}</p></header>")
+    body = [_verdict_section(report), _lead_section(report, files),
+            _files_section(listing, report.process)]
+    data = frames if frames is not None else _frames(report)
+    motion = report.motion
+    line = motion.line() if motion is not None and motion.status.value != "no target" else ""
     if data is not None:
         legend = "".join(f'<span><i style="background:{c}"></i>{_esc(t)}</span>'
                          for t, c in data["legend"])
         body.append(
             "<section id=motion class=motion><h2>Motion</h2>"
-            f"<p>{_esc(m.get('message', ''))}</p>"
+            f"<p>{_esc(line)}</p>"
             f'<div class="controls"><button data-play="{_MOTION_TAG}">play</button>'
             f'<input type="range" min="0" max="{len(data["frames"]) - 1}" value="0" step="1" '
             f'id="frame" data-for="{_MOTION_TAG}" aria-label="motion frame">'
@@ -871,17 +879,15 @@ def design_html(report: dict, files: dict, design=None, trajectory=None,
             + _motion_svg(data, _MOTION_TAG, width=2.5)
             + f'<p class="legend">{legend}<span><i style="background:#888"></i>ports (dashed)'
               "</span></p></section>")
-    elif m:
-        body.append(f"<section id=motion><h2>Motion</h2><p>{_esc(m.get('message', ''))}</p>"
-                    "</section>")
-    if process is not None:
-        body.append(_process_sections(process, report, files, True))
+    elif line:
+        body.append(f"<section id=motion><h2>Motion</h2><p>{_esc(line)}</p></section>")
+    body.append(_process_sections(report.process, report, files, True))
     pics = [n for n in ("preview_motion.png", "preview_map.png") if n in files]
     if pics:
         body.append("<section id=map><h2>Map and cobweb</h2>"
                     + "".join(_img(n, files[n], n) for n in pics) + "</section>")
     for proc in PROCESSES:
-        if proc != process:
+        if proc != report.process:
             body.append(_process_sections(proc, report, files, False))
     body.append(_tolerance_section(report, files))
     body.append(_checks_section(report))
@@ -892,108 +898,141 @@ def design_html(report: dict, files: dict, design=None, trajectory=None,
     return page.encode("utf-8")
 
 
-def _folder_files(folder: Path) -> tuple[dict, dict]:
-    """The files a page shows or reads (pictures, Markdown, JSON, the guide PDF), and the size
-    of every file of the folder."""
-    paths = [p for p in sorted(folder.iterdir()) if p.is_file() and not p.name.startswith(".")]
-    shown = {p.name: p.read_bytes() for p in paths
-             if p.suffix.lower() in (".png", ".svg", ".md", ".json", ".pdf")}
-    return shown, {p.name: p.stat().st_size for p in paths}
+def _version() -> str:
+    import fabkit
+
+    return fabkit.__version__
 
 
-def write_design_report(folder, design=None, trajectory=None) -> Path:
-    """Render ``folder/report.html`` from ``folder/report.json`` and the files beside it.
+@dataclass(frozen=True)
+class IndexCard:
+    """A design's card in index.html, made from its typed report in the process that exported
+    it and handed back with its result (the index reads no page back).
+
+    Attributes
+    ----------
+    folder : str
+        The design's folder name (its page is ``folder/report.html``).
+    name, description : str
+    level : str
+        The verdict's level (:class:`fabkit.batch.stages.Level` value).
+    text : str
+        The verdict's finding in words, shown beside the level.
+    process : str or None
+    formats : tuple of str
+        Formats written.
+    checked : int
+        Files read back by the as-built checks.
+    why_not : str
+        Why nothing (or nothing of its own process) was written, ``""`` otherwise.
+    frames : dict or None
+        The motion as drawing data (:func:`fabkit.report_html.motion_frames`).
+    """
+
+    folder: str
+    name: str
+    description: str
+    level: str
+    text: str
+    process: str | None
+    formats: tuple
+    checked: int
+    why_not: str = ""
+    frames: dict | None = None
+
+
+def index_card(report, folder: str, frames: dict | None = None):
+    """A design's card in index.html, from its typed report (see :class:`IndexCard`).
+
+    Parameters
+    ----------
+    report : fabkit.batch.stages.DesignReport
+    folder : str
+        The design's folder name.
+    frames : dict, optional
+        The motion as drawing data (made here when not given).
 
     Returns
     -------
-    pathlib.Path
-        The page written (through a temporary file and a rename).
+    fabkit.batch.stages.IndexCard
     """
-    from .export import write_atomic
-
-    folder = Path(folder)
-    report = json.loads((folder / "report.json").read_text(encoding="utf-8"))
-    shown, listing = _folder_files(folder)
-    page = design_html(report, shown, design, trajectory, listing)
-    write_atomic(folder / "report.html", page)
-    return folder / "report.html"
-
-
-def _embedded_motion(page: str) -> dict | None:
-    m = re.search(r'<script type="application/json" id="' + _MOTION_TAG + r'">(.*?)</script>',
-                  page, flags=re.S)
-    return json.loads(m.group(1).replace("<\\/", "</")) if m else None
+    made = tuple(sorted(f for f, v in report.formats.items() if v.status.produced))
+    why = ""
+    if not made:
+        why = "; ".join(not_exported(report.formats)) or "no export format applies to it"
+    elif not _exported(report, report.process):
+        why = "; ".join(w for w in not_exported(report.formats)
+                        if w.split(":")[0] in PROCESSES[report.process])
+    data = frames if frames is not None else _frames(report)
+    return IndexCard(folder, report.facts["name"], report.facts.get("description", ""),
+                     str(report.verdict.level), report.verdict.text, report.process, made,
+                     len(report.checks.results), why, data)
 
 
-def index_html(entries) -> bytes:
+def index_html(cards, earlier=()) -> bytes:
     """``index.html`` of a batch.
 
     Parameters
     ----------
-    entries : iterable of (str, dict, str or None)
-        Per design: its folder name, its report.json content (or a dict with ``error``), and
-        its report.html text (its motion is animated here).
+    cards : iterable of IndexCard
+        The designs of this export, in order.
+    earlier : iterable of str
+        Folders of designs exported into the same output by earlier runs (linked by name: no
+        page is read back).
 
     Returns
     -------
     bytes
     """
-    cards = []
-    for k, (folder, report, page) in enumerate(entries):
-        d = report.get("design") or {}
-        name = d.get("name") or folder
-        motion = _embedded_motion(page) if page else None
-        pic = _motion_svg(motion, f"m{k}", autoplay=True) if motion else "<p>(no motion)</p>"
-        ok = report.get("ok")
-        tol = report.get("tolerance") or {}
-        formats = ", ".join(f for f, v in sorted((report.get("formats") or {}).items())
-                            if v.get("status") == "exported")
-        checked = sum(len(v.get("checks") or []) for v in (report.get("formats") or {}).values())
-        lines = [f"<p>{_esc(d.get('description', ''))}</p>"]
-        if report.get("error"):
-            lines.append(f'<p class="bad">{_esc(report["error"])}</p>')
-        process = design_process(report)
-        if formats:
-            lines.append(f"<p>made for {_esc(_MADE_FOR[process])} · formats: {_esc(formats)}"
-                         "</p>" if process else f"<p>formats: {_esc(formats)}</p>")
-            lines.append(f"<p>checks: {_verdict(bool(ok)) if checked else 'none run'}"
-                         + (f" ({checked} file{'s' if checked != 1 else ''} read back)"
-                            if checked else "") + "</p>")
+    out = []
+    for k, c in enumerate(cards):
+        pic = _motion_svg(c.frames, f"m{k}", autoplay=True) if c.frames else "<p>(no motion)</p>"
+        lines = [f"<p>{_esc(c.description)}</p>"]
+        if c.level != "error":
+            lines.insert(0, f'<p class="verdict-line">{_level(c.level)}: {_esc(c.text)}</p>')
         else:
-            why = "; ".join(not_exported(report)) or "no export format applies to it"
-            lines.append(f'<p class="warn">No files to build: {_esc(why)}</p>')
-        if formats and process and not _exported(report, process):
-            # files of another process were written, none of the one it was made for: say why
-            why = "; ".join(w for w in not_exported(report)
-                            if w.split(":")[0] in PROCESSES[process])
-            lines.append(f'<p class="warn">No {_esc(process)} files: {_esc(why)}</p>')
-        if tol.get("verdict"):
-            lines.append(f"<p class=\"{'warn' if tol.get('flagged') else 'ok'}\">tolerance: "
-                         f"{_esc(tol['verdict'])}</p>")
-        link = f'<a href="{_esc(folder)}/report.html">{_esc(name)}</a>' if page else _esc(name)
-        cards.append(f'<div class="card"><h3>{link}</h3>{pic}{"".join(lines)}</div>')
+            lines.append(f'<p class="bad">{_esc(c.text)}</p>')
+        if c.formats:
+            lines.append(f"<p>made for {_esc(MADE_FOR[c.process])} · formats: "
+                         f"{_esc(', '.join(c.formats))}" + (
+                             f" · {c.checked} file{'s' if c.checked != 1 else ''} read back"
+                             if c.checked else " · no as-built check ran") + "</p>")
+            if c.why_not:
+                lines.append(f'<p class="warn">No {_esc(c.process)} files: {_esc(c.why_not)}'
+                             "</p>")
+        elif c.level != "error":
+            lines.append(f'<p class="warn">No files to build: {_esc(c.why_not)}</p>')
+        link = (f'<a href="{_esc(c.folder)}/report.html">{_esc(c.name)}</a>' if c.folder
+                else _esc(c.name))
+        out.append(f'<div class="card"><h3>{link}</h3>{pic}{"".join(lines)}</div>')
+    older = list(earlier)
+    more = ("<section><h2>Exported earlier into this folder</h2><p>"
+            + ", ".join(f'<a href="{_esc(f)}/report.html">{_esc(f)}</a>' for f in older)
+            + "</p></section>") if older else ""
     page = ("<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>fabkit batch</title><style>{_CSS}</style></head><body><header><h1>fabkit "
-            f"batch: {len(cards)} designs</h1><p>Each picture moves through the design's "
+            f"batch: {len(out)} designs</h1><p>Each picture moves through the design's "
             "motion; open a design for its slider, files, checks and tolerance.</p></header>"
-            f'<main><div class="grid">{"".join(cards)}</div></main><script>{_JS}</script>'
+            f'<main><div class="grid">{"".join(out)}</div>{more}</main><script>{_JS}</script>'
             "</body></html>")
     return page.encode("utf-8")
 
 
-def write_index(outdir) -> Path:
-    """Render ``outdir/index.html`` from every ``outdir/*/report.json`` (and report.html)."""
+def write_index(outdir, cards) -> Path:
+    """Write ``outdir/index.html`` from the cards of this export; the other design folders
+    of the output (exported by earlier runs) are linked by name.
+
+    Returns
+    -------
+    pathlib.Path
+    """
     from .export import write_atomic
 
     outdir = Path(outdir)
-    entries = []
-    for folder in sorted(p for p in outdir.iterdir() if p.is_dir() and not p.name.startswith(".")):
-        rj = folder / "report.json"
-        if not rj.is_file():
-            continue
-        report = json.loads(rj.read_text(encoding="utf-8"))
-        page = (folder / "report.html").read_text(encoding="utf-8") \
-            if (folder / "report.html").is_file() else None
-        entries.append((folder.name, report, page))
-    write_atomic(outdir / "index.html", index_html(entries))
+    cards = list(cards)
+    mine = {c.folder for c in cards}
+    earlier = sorted(p.name for p in outdir.iterdir()
+                     if p.is_dir() and not p.name.startswith(".") and p.name not in mine
+                     and (p / "report.html").is_file())
+    write_atomic(outdir / "index.html", index_html(cards, earlier))
     return outdir / "index.html"

@@ -36,7 +36,8 @@ from .errors import SettingsError
 __all__ = ["Section", "LaserSection", "ScrewSection", "PrintSection", "OrigamiSection",
            "ToleranceSection", "MotionSection", "FABRICATION_SECTIONS", "OVERRIDE_SECTIONS",
            "METHOD_OPTIONS", "check_section", "check_table", "check_fabrication", "section_of",
-           "check_settings", "check_method_options", "describe_keys", "refuse_unused",
+           "check_settings", "check_method_options", "check_motion_ends", "describe_keys",
+           "refuse_unused",
            "describe_validation_error", "LASER_FLAVOURS", "LASER_LABELS", "REFERENCE_SQUARES",
            "MATERIAL_NAMES", "HINGE_STYLES", "PRINT_LINKAGES", "ORIGAMI_SPACINGS"]
 
@@ -470,6 +471,50 @@ def check_method_options(method: str, options, where: str = "motion.options") ->
         except ValidationError as exc:
             raise _settings_error(exc, where, model) from None
     return options
+
+
+class _PortEnd(Section):
+    """One designed end value of a port (design units)."""
+
+    value: float = Field(gt=0, description="distance the port is designed to end at")
+
+
+def check_motion_ends(ends, ports, where: str = "motion.ends") -> dict:
+    """Validate ``[motion] ends``: designed end values of ports, ``{ d2 = 1.3, d3 = 1.25 }``.
+
+    Parameters
+    ----------
+    ends : object
+        The table as read from the template.
+    ports : iterable of str
+        The network's ports (a key must name one).
+
+    Returns
+    -------
+    dict of str to float
+
+    Raises
+    ------
+    SettingsError
+        Not a table, a key that is not a port, a value that is not a positive finite number.
+    """
+    if not isinstance(ends, dict):
+        raise SettingsError(where, f"must be a table of port = distance, got {_describe(ends)}")
+    known = sorted(ports)
+    if not ends:
+        raise SettingsError(where, "must name at least one port (or leave the key out)")
+    out = {}
+    for key, value in ends.items():
+        if key not in known:
+            raise SettingsError(f"{where}.{key}", "is not a port of the network; ports: "
+                                                  + ", ".join(known))
+        if isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)  # TOML's 1 is a distance too
+        try:
+            out[key] = _PortEnd.model_validate({"value": value}).value
+        except ValidationError as exc:
+            raise SettingsError(f"{where}.{key}", _explain(exc, where, _PortEnd)[1]) from None
+    return out
 
 
 def describe_keys(name: str) -> list[tuple[str, str, str]]:

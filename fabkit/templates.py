@@ -116,7 +116,7 @@ def _check_sizes(ctx, builder_key: str, section: dict, raw: dict) -> None:
 TOP_LEVEL_KEYS = {"name", "description", "figure", "notes", "motion", "fabrication", "analysis",
                   "tags"}
 
-_MOTION_KEYS = {"drive", "to", "method", "hold", "options", "start", "intent"}
+_MOTION_KEYS = {"drive", "to", "method", "hold", "options", "start", "intent", "ends"}
 
 
 @dataclass(frozen=True)
@@ -369,6 +369,14 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
     for i, h in enumerate(hold):
         if not isinstance(h, str) or h not in net.ports:
             raise ctx.error(f"motion.hold[{i}]", f"must name a port of the network, got {h!r}")
+    if "ends" in section:  # designed end values of ports (fabkit.motion.ends)
+        from .errors import SettingsError
+        from .schema import check_motion_ends
+
+        try:
+            check_motion_ends(section["ends"], net.ports)
+        except SettingsError as exc:
+            raise ctx.error(exc.key, exc.reason) from None
     options = ctx.get(section, "options", "motion", dict, required=False, default={})
     if options:
         from .errors import SettingsError

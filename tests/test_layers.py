@@ -42,6 +42,7 @@ LAYERS = {
     "mapplots": 7,
     "designplots": 7,
     "fab": 8,
+    "motion": 8,
     "tolerance": 8,
     "export": 9,
     "check": 10,

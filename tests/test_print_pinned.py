@@ -267,8 +267,8 @@ def test_a_missing_pin_is_caught(tmp_path, monkeypatch):
 
     real = pinned.pinned_print
 
-    def without_pin(design, s):
-        plan = real(design, s)
+    def without_pin(design, s, motion=None):
+        plan = real(design, s, motion)
         plan.carrier.pop(3)  # joint 3 (three bars) printed with holes only, no pin
         return plan
 

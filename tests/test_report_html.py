@@ -95,8 +95,9 @@ def test_an_index_card_says_why_a_design_exported_nothing(out):
     assert "checks:" not in card  # nothing was checked: no verdict that reads as a pass
     # a laser design also gets its print-in-place linkage: still made for the laser
     assert "made for laser-cut acrylic (Chicago screws) · formats: dxf, stl" in cards["fourbar"]
-    assert re.search(r'checks: <span class="ok">pass</span> \(\d+ files read back\)',
-                     cards["fourbar"])
+    assert re.search(r'<p class="verdict-line"><span class="ok">ok</span>: every as-built check '
+                     r"passed \((\d+) files read back\)", cards["fourbar"])
+    assert re.search(r"formats: dxf, stl · \d+ files read back", cards["fourbar"])
     assert "made for a 3D print" in cards["printed_planar"]
     assert "made for folded paper (origami) · formats: cp, fold, svg" in cards["origami_sheet"]
 

@@ -15,7 +15,7 @@ from fabkit.cli import main
 from fabkit.errors import TemplateError
 from fabkit.maps import module_map
 from fabkit.numerics import project_to_lengths
-from fabkit.report import report_markdown
+from fabkit.report import tolerance_markdown
 from fabkit.report_html import keep_chart_svg
 from fabkit.templates import load_template, parse_template
 from fabkit.tolerance import ToleranceSpec, analyse_tolerance, tolerance_spec
@@ -261,9 +261,10 @@ def test_a_sheet_is_made_flat_and_a_print_straight():
 
 def test_report_md_states_the_process_s_own_error_model():
     sheet = load_template(TEMPLATES / "origami_sheet.toml")
-    tol = analyse_tolerance(sheet, tolerance_spec(sheet, samples=10), attribute=False).as_dict()
-    md = report_markdown({"design": {"name": "origami_sheet"}, "tolerance": tol}).decode()
-    section = md[md.index("## Tolerance"):]
+    result = analyse_tolerance(sheet, tolerance_spec(sheet, samples=10), attribute=False)
+    tol = result.as_dict()
+    section = "\n".join(tolerance_markdown(result))
+    assert section.startswith("## Tolerance")
     assert "origami: crease position σ 0.5 mm, cut σ 0.2 mm" in section
     assert "bar-length" not in section and "hole clearance" not in section
     assert f"Margin {tol['margin']:.2g}" in section

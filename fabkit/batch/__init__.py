@@ -48,9 +48,11 @@ from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
 from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
                       exit_code)
+from .stages import Artefacts, Checks, DesignReport, Level, Plan, Verdict, judge_design
 from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
+           "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
            "OutputLock", "Progress", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
            "DESIGN_TIMEOUT", "SILENCE", "FAULT_ENV"]
@@ -127,7 +129,7 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
     analysis does not run (:func:`fabkit.schema.refuse_unused`)."""
     from ..errors import UsageError
     from ..schema import refuse_unused
-    from ..tolerance import design_process, key_process
+    from ..tolerance import key_process, made_process
     from .formats import choose_formats
 
     if not settings:
@@ -139,8 +141,8 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
         for fmt, module in chosen:
             made.add(fmt)
             used.update((fmt, *getattr(module, "READS", ())))
-        if tolerance_samples != 0:
-            analysed.add(tol.get("process") or design_process(design))
+        if tolerance_samples != 0:  # as the export will judge it: the process it makes
+            analysed.add(made_process(design, [f for f, _ in chosen], settings))
     used.update(analysed | ({"tolerance"} if analysed else set()))
     what = ", ".join(sorted(made)) or "no file"
     if analysed:
@@ -282,8 +284,11 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             stage_cb = progress.stage if progress else None
             for i in todo:
                 finished(i, export_one(*args[i], progress=stage_cb, **kwargs))
-        if any(r is not None and r.folder for r in results):
-            write_index(outdir)  # index.html of every design folder in the output
+        cards = [r.card for r in results if r is not None and r.folder and r.card is not None]
+        if cards:
+            # index.html from the cards the exports handed back (no page is read back); the
+            # folders of earlier runs are linked by name
+            write_index(outdir, cards)
     return results  # type: ignore[return-value]
 
 

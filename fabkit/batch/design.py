@@ -1,4 +1,5 @@
-"""One design, start to end: load, compute every file in memory, stage, check, report, swap in."""
+"""One design, start to end, through the typed stages (:mod:`fabkit.batch.stages`): load, trace
+the motion once, plan, compute every file in memory, stage, check, judge, report, swap in."""
 
 from __future__ import annotations
 
@@ -8,19 +9,31 @@ from pathlib import Path
 
 from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
 from .folders import _staging_names, carry_over, check_replaceable, recover_folder, swap_in
-from .formats import build_outputs, run_checks
+from .formats import make_artefacts, plan_design, run_checks
 from .results import DesignResult, FormatStatus, Outcome, Stage
+from .stages import Checks, DesignReport, judge_design
 
 
 # --- one design ------------------------------------------------------------------------------
 
-def _report_dict(facts, formats, outcome, files) -> dict:
+def report_dict(rep: DesignReport) -> dict:
+    """report.json of a design: its typed results as data (keys listed in docs/batch.md)."""
     import fabkit
 
-    return {**facts, "fabkit_version": fabkit.__version__,
-            "formats": {f: r.as_dict() for f, r in formats.items()},
-            "errors": [], "ok": outcome is Outcome.OK, "outcome": outcome.value,
-            "files": sorted(files), "report_version": 2}
+    from .formats import motion_facts
+
+    out = {"design": rep.facts, "fabkit_version": fabkit.__version__,
+           "formats": {f: r.as_dict() for f, r in rep.formats.items()},
+           "errors": list(rep.errors), "ok": rep.outcome is Outcome.OK,
+           "outcome": rep.outcome.value, "files": sorted(rep.names), "report_version": 3,
+           "previews": list(rep.artefacts.previews), "process": rep.process,
+           "verdict": rep.verdict.as_dict()}
+    mo = motion_facts(rep.motion, rep.formats) if rep.motion is not None else None
+    if mo is not None:
+        out["motion"] = mo
+    if rep.tolerance is not None:
+        out["tolerance"] = rep.tolerance.as_dict()
+    return out
 
 
 def export_one(path, formats, outdir, settings, check=True, tolerance_samples=None,
@@ -33,7 +46,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     path : path
         The template.
     formats, settings, tolerance_samples, exporters, previews, allow_large
-        See :func:`build_outputs`.
+        See :func:`fabkit.batch.formats.build_outputs`.
     outdir : path
     check : bool
         Run the as-built checks.
@@ -53,9 +66,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     """
     from ..export import write_atomic, write_outputs
     from ..errors import UnsafeNameError, brief
+    from ..motion import trace_motion
     from ..outputs import inside
-    from ..report import report_json, report_markdown
-    from ..report_html import write_design_report
+    from ..report import design_facts, report_json, report_markdown
+    from ..report_html import design_html, index_card, motion_frames
     from ..templates import load_template, with_settings
 
     t0, cpu0 = time.perf_counter(), time.process_time()
@@ -82,35 +96,51 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
         check_replaceable(folder)
         _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
-        files, fmts, facts = build_outputs(design, formats, settings, tolerance_samples,
-                                           exporters, previews, stage=stage,
-                                           allow_large=allow_large)
+        stage(Stage.MOTION)
+        motion = trace_motion(design)  # once: every later stage reads this one
+        plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
+                           allow_large=allow_large)
+        art = make_artefacts(design, plan, settings, motion, previews, stage=stage)
+        fmts = art.formats
         stage(Stage.WRITE)
         recover_folder(outdir, design.name)
         stage_dir = _staging_names(outdir, design.name)[0]
         stage_dir.mkdir(parents=True)
-        written = write_outputs(files, stage_dir)
+        written = write_outputs(art.files, stage_dir)
         outcome = Outcome.OK
+        by_format: dict = {}
         if check:
             stage(Stage.CHECK)
-            for chk in run_checks(written, design, settings):
+            for chk in run_checks(written, design, settings, motion):
                 fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
                 if fmt is None:
                     continue
                 fmts[fmt].checks.append(chk)
+                by_format.setdefault(fmt, []).append(chk)
                 if not chk.ok:
                     fmts[fmt].status = FormatStatus.CHECK_FAILED
                     outcome = Outcome.CHECK_FAILED
+        checks = Checks(by_format)
         refused = [f"{f}: {v.detail}" for f, v in fmts.items()
                    if v.status is FormatStatus.REFUSED]
         if refused:  # asked for and not made: a failure with its reason, never "ok"
             outcome = Outcome.REFUSED
         names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
-        report = _report_dict(facts, fmts, outcome, names)
-        report["errors"] = [f"{line} (format refused)" for line in refused]
-        write_atomic(stage_dir / "report.md", report_markdown(report))
-        write_atomic(stage_dir / "report.json", report_json(report))
-        write_design_report(stage_dir, design)  # report.html: from report.json and the files
+        verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
+        rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
+                           outcome, tuple(f"{line} (format refused)" for line in refused),
+                           tuple(names))
+        # the reports, rendered from the typed results above (none is read back)
+        md, js = report_markdown(rep), report_json(report_dict(rep))
+        write_atomic(stage_dir / "report.md", md)
+        write_atomic(stage_dir / "report.json", js)
+        traj = motion.trajectory if motion.traced else None
+        frames = motion_frames(design, traj, fmts)
+        listing = {p.name: len(art.files[p.name]) for p in written}
+        listing.update({"report.md": len(md), "report.json": len(js)})
+        write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
+        res.card = index_card(rep, design.name, frames)
+        res.level, res.headline = str(verdict.level), verdict.headline
         carry_over(folder, stage_dir)
         if swap:
             swap_in(stage_dir, folder)

@@ -4,26 +4,17 @@ from __future__ import annotations
 
 import re
 
-from ..errors import (FabkitError, MotionError,
-                      SingularStartError)
+from ..errors import FabkitError
 
 
 # --- the motion ------------------------------------------------------------------------------
 
-def _builder_key(design) -> str:
-    from ..templates import BUILDERS
-
-    return next((k for k in BUILDERS if k in design.raw), "network")
-
-
 def traced_motion(design, *, allow_singular_start=False, **overrides):
     """Trace a design's motion for export; every way it can fail is one :class:`MotionError`.
 
-    Which template key the error names is decided from the network's structure (its mode count)
-    and the trace's typed status, not from any message: no first-order motion → the builder
-    section; a singular start (states of self-stress and more than one first-order motion) → the
-    nodes; several motions without a singularity → the builder section; a turning or branch point
-    before the target → ``motion.to``; any other failure → ``motion``.
+    The Motion stage (:func:`fabkit.motion.trace_motion`) as a function that raises: which
+    template key the error names is decided from the network's structure and the trace's typed
+    status, never from a message.
 
     Parameters
     ----------
@@ -45,43 +36,12 @@ def traced_motion(design, *, allow_singular_start=False, **overrides):
     MotionError
         The motion is impossible, or its trace does not reach the target.
     """
-    from ..kinematics import Status
-    from ..rigidity import count_modes
+    from ..motion import MotionStatus, trace_motion
 
-    path = design.path or design.name
-    target = overrides.get("to", design.motion.to)
-    if target is None:
+    motion = trace_motion(design, judge=False, **overrides)
+    if motion.status is MotionStatus.NO_TARGET:
         return None
-    builder = _builder_key(design)
-    nodes_key = "network.nodes" if builder == "network" else builder
-    singular = several = False
-    if not design.motion.hold:
-        modes = count_modes(design.network)
-        if modes.conformational == 0:
-            raise MotionError(path, builder,
-                              f"the network is rigid: it has no conformational motion "
-                              f"(modes: {modes.total} = {modes.rigid} rigid); remove an edge",
-                              status="refused")
-        singular = modes.self_stress > 0 and modes.conformational > 1
-        several = modes.conformational > 1 and not singular
-    try:
-        traj = design.trace(**overrides)
-    except TypeError as exc:  # an unknown method option
-        raise MotionError(path, "motion.options", str(exc), status="refused") from None
-    except FabkitError as exc:
-        key = nodes_key if singular else builder if several else "motion"
-        cls = SingularStartError if singular else MotionError
-        raise cls(path, key, str(exc), status="refused") from None
-    if traj.success:
-        return traj
-    at_start = traj.n_steps <= 1
-    if singular and at_start:
-        raise SingularStartError(path, nodes_key, f"target {design.motion.drive} = "
-                                 f"{float(target):.10g} is not reached: {traj.message}",
-                                 status=str(traj.status))
-    key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) else "motion"
-    raise MotionError(path, key, f"target {design.motion.drive} = {float(target):.10g} is not "
-                                 f"reached: {traj.message}", status=str(traj.status))
+    return motion.require()
 
 
 def _chain_port_names(net) -> list[str]:

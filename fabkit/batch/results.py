@@ -132,6 +132,14 @@ class DesignResult:
     staged : str
         The complete staging folder not yet swapped in (``export_one(..., swap=False)``);
         ``""`` once swapped in, or when nothing was written.
+    card : IndexCard or None
+        The design's card in index.html, made from its typed report (None when nothing was
+        written).
+    level : str
+        The verdict's level (:class:`fabkit.batch.stages.Level` value: ``ok``, ``by design``,
+        ``FLAG``, ``FAIL``), ``""`` when nothing was written.
+    headline : str
+        The verdict in one line (it heads report.md, report.html and the card).
     """
 
     path: str
@@ -147,6 +155,9 @@ class DesignResult:
     stages: dict = field(default_factory=dict)
     worker_exit: int | None = None
     staged: str = ""
+    card: object = None
+    level: str = ""
+    headline: str = ""
 
     @property
     def ok(self) -> bool:
@@ -161,7 +172,8 @@ class DesignResult:
                 "ok": self.ok, "formats": self.exported_formats, "files": self.files,
                 "folder": self.folder, "error": self.error, "error_code": self.error_code,
                 "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
-                "stages": dict(self.stages), "worker_exit": self.worker_exit}
+                "stages": dict(self.stages), "worker_exit": self.worker_exit,
+                "level": self.level, "headline": self.headline}
 
 
 def exit_code(results) -> int:

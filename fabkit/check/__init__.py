@@ -36,7 +36,7 @@ def checker_for(path):
         raise FabkitError(f"the .{suffix} check is not available: {exc}") from None
 
 
-def check_file(path, design=None, settings=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     """Run the as-built check of an exported file (optionally against its design).
 
     The file must be a regular file, and its size goes through the work estimate before it is
@@ -67,6 +67,8 @@ def check_file(path, design=None, settings=None) -> dict:
     if not stat.S_ISREG(st.st_mode):
         raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)")
     require(f"{path}", ("file byte", st.st_size))  # refused before the checker is loaded
+    if motion is not None:  # the design's motion traced once by the pipeline
+        return module.check_file(path, design=design, settings=settings, motion=motion)
     return module.check_file(path, design=design, settings=settings)
 
 

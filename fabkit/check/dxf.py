@@ -183,7 +183,7 @@ def _header_values(head: dict):
         return "header " + describe_validation_error(exc, DxfHeader)
 
 
-def check_documents(texts: dict, design=None, settings=None) -> dict:
+def check_documents(texts: dict, design=None, settings=None, *, motion=None) -> dict:
     """As-built check of a set of DXF sheets given as text.
 
     Parameters
@@ -194,6 +194,9 @@ def check_documents(texts: dict, design=None, settings=None) -> dict:
         The design the sheets were made from (without it only file-level checks run).
     settings : dict, optional
         The laser overrides used for the export.
+    motion : TracedMotion, optional
+        The design's motion traced once by the pipeline: the kit's window and the design's
+        trace to compare with are taken from it instead of being traced again.
 
     Returns
     -------
@@ -212,10 +215,10 @@ def check_documents(texts: dict, design=None, settings=None) -> dict:
             checks.append(_check("readable", False, name, None, f"{name}: {exc}"))
     if checks:
         return {"ok": False, "checks": checks, "files": sorted(texts)}
-    return _check_groups(docs, design, settings)
+    return _check_groups(docs, design, settings, motion)
 
 
-def _check_groups(docs: dict, design, settings) -> dict:
+def _check_groups(docs: dict, design, settings, motion=None) -> dict:
     """The kit's sheets, its uncompensated copy and its coupon are checked each on their own
     when given together; the first group's result carries the others' checks, prefixed."""
     groups: dict[str, dict] = {}
@@ -224,11 +227,11 @@ def _check_groups(docs: dict, design, settings) -> dict:
         kind = "coupon" if "FABKIT_COUPON" in head else head.get("FABKIT_VARIANT", "")
         groups.setdefault(kind, {})[name] = doc
     if len(groups) <= 1:
-        return _check_docs(docs, design, settings)
+        return _check_docs(docs, design, settings, motion)
     main, *rest = sorted(groups)   # the kit's own sheets ("") first
-    out = _check_docs(groups[main], design, settings)
+    out = _check_docs(groups[main], design, settings, motion)
     for kind in rest:
-        other = _check_docs(groups[kind], design, settings)
+        other = _check_docs(groups[kind], design, settings, motion)
         out["checks"] = out["checks"] + [{**c, "name": f"{kind}: {c['name']}"}
                                          for c in other["checks"]]
         out["ok"] = bool(out["ok"] and other["ok"])
@@ -247,7 +250,7 @@ def _audit(doc) -> tuple[int, str]:
                    "block)")
 
 
-def _check_docs(docs: dict, design, settings) -> dict:
+def _check_docs(docs: dict, design, settings, motion=None) -> dict:
     checks = []
     sheets = {name: read_sheet(doc) for name, doc in docs.items()}
     units = {name: sh["insunits"] for name, sh in sheets.items()}
@@ -373,7 +376,8 @@ def _check_docs(docs: dict, design, settings) -> dict:
                if part["kind"] == "spacer" for _, r in part["outer"]]
     measured = {"widths": w_built.max(axis=1), "thickness": values["FABKIT_THICKNESS"],
                 "spacer": max(spacers) if spacers else None}
-    checks += _motion_checks(design, edges, lengths, layer, scale, settings, report, measured)
+    checks += _motion_checks(design, edges, lengths, layer, scale, settings, report, measured,
+                             motion)
     report.update(ok=all(c["ok"] for c in checks), checks=checks)
     return report
 
@@ -445,13 +449,15 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
             "coupon": True}
 
 
-def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, measured) -> list:
+def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, measured,
+                   motion=None) -> list:
     """Modes, the re-simulated motion, the screws and the clearances of the rebuilt kit.
 
     ``measured``: what the file says besides the bars' lengths: ``widths`` (each bar's width,
     kerf undone), ``thickness`` (the header's sheet) and ``spacer`` (the spacer rings'
     diameter, None when the kit has none). The template gives the clearance, the screw (a
-    catalogue entry) and the window of the motion the kit follows.
+    catalogue entry) and the window of the motion the kit follows; ``motion`` (the pipeline's
+    :class:`fabkit.motion.TracedMotion`) gives that window's motion, traced once.
     """
     from ..fab.laser import laser_overrides, laser_settings
     from ..network import Network
@@ -461,7 +467,8 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
 
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=design.network.size)
-    design = design_window(design, s.motion_from, s.motion_to)
+    # the motion the kit follows (motion_from / _to), from the Motion stage: traced once
+    design, reference = design_window(design, s.motion_from, s.motion_to, motion, "laser")
     net = design.network
     out = []
     # Joint positions with the read-back lengths. When the design's own joints already have them
@@ -488,7 +495,7 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     if m.to is None:
         out.append(_check("module_map", False, None, None, "the design has no motion target"))
         return out
-    cmp = compare_motion(design, built, MAP_RTOL)
+    cmp = compare_motion(design, built, MAP_RTOL, reference)
     out.append(_check("module_map", cmp["ok"], cmp["worst"], cmp["limit"],
                       f"largest port-distance difference (design units, at {cmp['port']}) "
                       f"between the design's and the rebuilt network's motion; both "
@@ -589,7 +596,7 @@ def _sheet_set(path: Path) -> list[Path]:
     return [p for _, p in sorted(found)] or [path]
 
 
-def check_file(path, design=None, settings=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     """As-built check of a laser-cut DXF (and the other sheets of its export beside it).
 
     Parameters
@@ -598,6 +605,8 @@ def check_file(path, design=None, settings=None) -> dict:
         One ``laser_sheet<k>.dxf``; the sibling sheets are read too.
     design : Design, optional
     settings : dict, optional
+    motion : TracedMotion, optional
+        See :func:`check_documents`.
 
     Returns
     -------
@@ -637,4 +646,4 @@ def check_file(path, design=None, settings=None) -> dict:
         docs[p.name] = doc
     if checks:
         return {"ok": False, "checks": checks, "files": [str(p) for p in sheets]}
-    return _check_docs(docs, design, settings)
+    return _check_docs(docs, design, settings, motion)

@@ -7,52 +7,46 @@ import numpy as np
 __all__ = ["compare_motion", "design_window"]
 
 
-def design_window(design, start, to):
-    """The design as a built kit moves: from drive value ``start`` to ``to`` (the template's
-    ``motion_from`` / ``motion_to`` of the process), traced here by the simulator.
+def design_window(design, start, to, motion=None, process: str = "laser"):
+    """The design as a built kit moves, from drive value ``start`` to ``to`` (the template's
+    ``motion_from`` / ``motion_to`` of the process), and its traced motion.
 
-    The kit's reference configuration is the design's state at ``start`` along its own motion,
-    with the bar lengths unchanged. Nothing of a writer's plan is used: a writer that planned
-    its kit for another window is caught by the comparison that follows.
+    Both come from the Motion stage (:class:`fabkit.motion.TracedMotion`): the design's motion
+    and each window traced once by the simulator, never from a writer's plan, so a writer that
+    planned its kit for another window is caught by the comparison that follows.
 
     Parameters
     ----------
     design : Design
     start, to : float or None
         None: the design's start and its ``motion.to``.
+    motion : TracedMotion, optional
+        The design's motion, traced once by the pipeline; traced here when not given (a check
+        called on its own).
+    process : str
+        ``"laser"`` or ``"print"``, for the messages.
 
     Returns
     -------
-    Design
+    design : Design
         ``design`` itself when neither is given.
+    trajectory : Trajectory or None
+        Its motion, as traced (None: the template gives no target).
 
     Raises
     ------
     FabkitError
-        The design has no motion, or its motion does not reach ``start``.
+        The design has no motion, its motion does not reach ``start``, or it cannot be traced.
     """
-    from dataclasses import replace
+    from ..motion import MotionStatus, motion_for
 
-    from ..errors import FabkitError
-    from ..network import Network
-
-    if start is None and to is None:
-        return design
-    m = design.motion
-    if m.to is None:
-        raise FabkitError("motion_from / motion_to need a design with a motion (motion.to)")
-    motion = m if to is None else replace(m, to=float(to))
-    net = design.network
-    if start is not None:
-        traj = design.trace(to=float(start))
-        if not traj.success:
-            raise FabkitError(f"motion_from = {float(start):g}: the design's motion does not "
-                              f"reach it ({traj.message})")
-        net = Network(traj.positions[-1], net.edges, net.ports, net.labels, net.assembly)
-    return replace(design, network=net, motion=motion)
+    kit = motion_for(design, motion).window_motion(start, to, process)
+    if kit.trajectory is None and kit.status is not MotionStatus.NO_TARGET:
+        kit.require()  # the motion's typed failure
+    return kit.design, kit.trajectory
 
 
-def compare_motion(design, built, rtol: float) -> dict:
+def compare_motion(design, built, rtol: float, reference) -> dict:
     """Trace ``built`` as the design's ``[motion]`` says and compare its ports with the design's.
 
     Parameters
@@ -63,6 +57,8 @@ def compare_motion(design, built, rtol: float) -> dict:
         The rebuilt network, numbered and with ports as the design's.
     rtol : float
         Largest port-distance difference accepted, relative to the network's size.
+    reference : Trajectory
+        The design's motion as the Motion stage traced it (:func:`design_window`).
 
     Returns
     -------
@@ -74,7 +70,7 @@ def compare_motion(design, built, rtol: float) -> dict:
     from ..kinematics import trace
 
     net, m = design.network, design.motion
-    ref = design.trace()
+    ref = reference
     got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)
     n = min(ref.n_steps, got.n_steps)
     worst, port = 0.0, None

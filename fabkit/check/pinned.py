@@ -246,7 +246,7 @@ def _place(joints, bar_joints, design, s):
             "pieces": len(pieces), "centres": centres}
 
 
-def check_pinned(meshes, names, design, s, report) -> dict:
+def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
     """The as-built check of a print-in-place linkage (see the module docstring).
 
     Parameters
@@ -259,6 +259,9 @@ def check_pinned(meshes, names, design, s, report) -> dict:
         ``linkage = "pins"``, from the template (and the overrides of the export).
     report : dict
         Filled in and returned, with ``ok`` and ``checks``.
+    motion : TracedMotion, optional
+        The design's motion, traced once by the pipeline: the window the linkage follows and
+        its trace are taken from it (traced here when not given).
 
     Returns
     -------
@@ -268,9 +271,10 @@ def check_pinned(meshes, names, design, s, report) -> dict:
 
     try:
         # the linkage is judged against the design as it prints: its motion from motion_from
-        # to motion_to, where the template sets them
-        design = _memo(("window",) + _design_key(design, s),
-                       lambda: design_window(design, s.motion_from, s.motion_to))
+        # to motion_to, where the template sets them (the Motion stage's window, traced once)
+        design, reference = _memo(("window",) + _design_key(design, s),
+                                  lambda: design_window(design, s.motion_from, s.motion_to,
+                                                        motion, "print"))
     except FabkitError as exc:
         report.update(ok=False, checks=[_check("design prints", False, detail=str(exc))])
         return report
@@ -392,11 +396,11 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     key = ("motion",) + _design_key(design, s) + (
         x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
     try:
-        motion, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
-                                                         measured))
+        moved, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
+                                                        measured, reference))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
-        motion, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
-    checks += motion
+        moved, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
+    checks += moved
     report.update(facts)
     report.update(ok=all(c["ok"] for c in checks), checks=checks)
     return report
@@ -511,9 +515,10 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
     return np.ascontiguousarray(x_mm)
 
 
-def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
+def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[dict], dict]:
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
-    the checks and the report's ``motion`` facts."""
+    the checks and the report's ``motion`` facts. ``reference``: the design's motion as the
+    Motion stage traced it."""
     from ..network import Network
     from ..rigidity import count_modes
     from .clearance import fine_motion, same_layer_gaps
@@ -531,7 +536,7 @@ def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
                       f"conformational motions of the rebuilt network ({modes.self_stress} states "
                       "of self-stress)"))
     m = design.motion
-    cmp = compare_motion(design, built, MAP_RTOL)
+    cmp = compare_motion(design, built, MAP_RTOL, reference)
     out.append(_check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
                       f"largest port-distance difference (design units, at {cmp['port']}) "
                       f"between the design's motion and the rebuilt network's; the rebuilt one "

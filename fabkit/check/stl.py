@@ -602,7 +602,7 @@ def _module_of(design):
 PINNED_HEADER = b"print-in-place"
 
 
-def check_file(path, design=None, settings=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     """Read an exported STL back (with the other beds of its export) and check it (see the
     module docstring).
 
@@ -615,6 +615,9 @@ def check_file(path, design=None, settings=None) -> dict:
         need the design).
     settings : dict, optional
         The command-line overrides used for the export (``{"print": {...}}``).
+    motion : TracedMotion, optional
+        The design's motion traced once by the pipeline (a linkage's window and the design's
+        trace to compare with are taken from it).
 
     Returns
     -------
@@ -639,11 +642,12 @@ def check_file(path, design=None, settings=None) -> dict:
     pinned = all(PINNED_HEADER in d[:80] for d in data.values())
     # where the beds lie (an STL is centred on its bed's centre) does not matter: every piece
     # is found in the design by its own geometry
-    return check_meshes(meshes, [p.name for p in paths], design, settings, pinned=pinned)
+    return check_meshes(meshes, [p.name for p in paths], design, settings, pinned=pinned,
+                        motion=motion)
 
 
 def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT,
-                 pinned: bool = False) -> dict:
+                 pinned: bool = False, motion=None) -> dict:
     """Check the beds of one export, read back as meshes in bed coordinates (mm).
 
     Parameters
@@ -652,7 +656,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
         One per bed, in bed order.
     names : list of str
         Their file names.
-    design, settings
+    design, settings, motion
         As for :func:`check_file`.
     fmt : str
         Format name for the report.
@@ -682,7 +686,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
     if s.linkage == "pins":
         from .pinned import check_pinned
 
-        return check_pinned(meshes, names, design, s, report)
+        return check_pinned(meshes, names, design, s, report, motion)
     return _check_hinge_beds(meshes, names, design, s, report)
 
 

@@ -293,7 +293,7 @@ def _settings_check(packages, names, design, settings) -> dict:
                   f"first layer; {layer:g} mm layers for every object")
 
 
-def check_file(path, design=None, settings=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     """Read an exported 3MF back (with the other beds of its export) and check it.
 
     Parameters
@@ -303,6 +303,8 @@ def check_file(path, design=None, settings=None) -> dict:
         Without it only the solid checks run.
     settings : dict, optional
         The command-line overrides used for the export.
+    motion : TracedMotion, optional
+        As for :func:`fabkit.check.stl.check_file`.
 
     Returns
     -------
@@ -328,7 +330,7 @@ def check_file(path, design=None, settings=None) -> dict:
     names = [p.name for p in paths]
     pinned = all(any(o["parts"] > 1 for o in pkg["objects"]) for pkg in packages)
     report = check_meshes([pkg["mesh"] for pkg in packages], names, design, settings,
-                          fmt=FORMAT, pinned=pinned)
+                          fmt=FORMAT, pinned=pinned, motion=motion)
     if design is not None:
         report["checks"].append(_settings_check(packages, names, design, settings))
         report["ok"] = all(c["ok"] for c in report["checks"])

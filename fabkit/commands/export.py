@@ -135,6 +135,9 @@ def run(args) -> int:
                           debug=getattr(args, "debug", False), wait=args.wait,
                           allow_large=getattr(args, "allow_large", False), **timeout)
     print(summary_table(results))
+    for r in results:  # the verdict of a design that is not plainly ok, in one line each
+        if r.ok and r.level not in ("", "ok"):
+            print(f"{r.name}: {r.headline}")
     for r in results:
         if not r.ok:
             print(f"fabkit: error: {r.error}", file=sys.stderr)

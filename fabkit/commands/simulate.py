@@ -71,12 +71,26 @@ def run(args) -> int:
     check_number("--to", args.to)
 
     def one(path) -> bool:
+        from dataclasses import replace
+
+        from ..motion import judge_ends
+
         design = load_template(path)
         traj, folder = simulate_design(design, Path(args.out), args.method, args.to, args.gif)
         print(f"== {design.name} -> {folder}")
         print(traj.summary())
         if traj.success:
-            return False
+            # reaching the target is not the design happening: every designed end, judged
+            traced = replace(design, motion=replace(design.motion, to=float(traj.target)))
+            ends = judge_ends(traced, traj)
+            if ends is None:
+                return False
+            if ends.reached:
+                print(f"designed ends: every one reached ({ends.basis})")
+                return False
+            print(f"fabkit: error: {path}: motion.ends: target {design.motion.drive} = "
+                  f"{traj.target:.10g} is reached, but {ends.reason}", file=sys.stderr)
+            return True
         # the files show the motion up to where it stopped; the target was not reached
         target = traj.target
         key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) \

@@ -37,7 +37,7 @@ from ..errors import FabricationError
 from . import ExportResult
 
 __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
-           "bill_of_materials", "bom_markdown", "kerf_note", "LAYERS", "APPID",
+           "bill_of_materials", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
            "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
@@ -76,7 +76,7 @@ class LaserPlan:
     variant: str = ""
 
 
-def laser_plan(design, settings: dict | None = None) -> LaserPlan:
+def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
     """Decide bars, layers, parts and sheets for a design (no files).
 
     Parameters
@@ -85,6 +85,10 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         A loaded template with a 2D network and a motion target.
     settings : dict, optional
         Overrides of ``[fabrication.laser]`` (``{"laser": {"kerf": 0.2}}`` or ``{"kerf": 0.2}``).
+    motion : TracedMotion, optional
+        The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`);
+        traced here when not given. A kit's window (``motion_from`` / ``motion_to``) is asked of
+        it, so the print of the same window shares its trace.
 
     Returns
     -------
@@ -97,9 +101,10 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         a sheet; one line each with a suggested fix.
     """
     from ..fab.bars import bar_set
-    from ..fab.laser import kit_design, laser_overrides, laser_settings
+    from ..fab.laser import laser_overrides, laser_settings
     from ..fab.layers import plan_layers, sample_chain, sample_motion
     from ..fab.nest import make_parts, nest_parts
+    from ..motion import motion_for
 
     net = design.network
     if net.dim != 2:
@@ -109,7 +114,8 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
         raise FabricationError("[fabrication.laser] must be a table")
     s = laser_settings(table, laser_overrides(settings), network_size=net.size)
     lengths = net.edge_lengths * s.scale  # the design's own, wherever the kit starts
-    design = kit_design(design, s)
+    kit = motion_for(design, motion).window_motion(s.motion_from, s.motion_to, "laser")
+    design, traj = kit.design, kit.planning_trajectory()
     net = design.network
     bars = bar_set(lengths, net.edges, s, scale=s.scale)
     # Module windows are sampled over the union of the ranges their modules sweep in the whole
@@ -119,10 +125,10 @@ def laser_plan(design, settings: dict | None = None) -> LaserPlan:
     sweep = None if s.motion_from is not None else sample_chain(
         net, design.motion, s.scale, s.sample_step, width=s.bar_width, clearance=s.clearance,
         column_radius=0.5 * s.screw.head_diameter, spacer_radius=0.5 * s.spacer_diameter,
-        floor_limit=s.clearance)
+        floor_limit=s.clearance, trajectory=traj)
     if sweep is None:  # not a chain of modules: sample the whole motion
         sweep = sample_motion(net, design.motion, s.scale, s.sample_step,
-                              floor_limit=s.clearance)
+                              floor_limit=s.clearance, trajectory=traj)
     stacking = plan_layers(net.edges, sweep, s)
     parts = make_parts(bars, stacking, s)
     sheets = nest_parts(parts, s)
@@ -415,63 +421,85 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
     }
 
 
-def bom_markdown(bom: dict) -> str:
-    """The bill of materials as Markdown for a person at the bench."""
+def bom_blocks(bom: dict) -> list[tuple]:
+    """The bill of materials as blocks, in order: ``("title", text)``, ``("heading", text)``,
+    ``("text", text)``, ``("strong", text)``, ``("item", text)`` or ``("table", header, rows)``
+    (cells as text). :func:`bom_markdown` writes them as Markdown; the HTML report renders the
+    same blocks (it never reads the Markdown back)."""
     s = bom["settings"]
     buy = bom["buy"]
     sh = buy["sheets"]
-    lines = [f"# Laser-cut kit: {bom['design']}", "",
-             f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
-             f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}. The "
-             f"stack is {bom['layers']['depth_mm']:g} mm deep.", "",
-             f"**Kerf: {bom['kerf']['note']}.**", "",
-             "## What to buy", "",
-             f"- {sh['material']}, {sh['thickness_mm']:g} mm thick, "
-             f"{sh['size_mm'][0]:g} x {sh['size_mm'][1]:g} mm: {sh['count']} sheet(s) + "
-             f"{sh['spares']} spare ({sh['note']}).", "",
-             "| part | used | spares | order |", "|---|---|---|---|"]
-    for h in buy["hardware"]:
-        lines.append(f"| {h['description']} | {h['count']} | {h['spares']} | {h['order']} |")
-    lines += ["", "## Sheets", "", "| sheet | file | parts | utilisation |", "|---|---|---|---|"]
-    for sheet in bom["sheets"]:
-        lines.append(f"| {sheet['index']} | {sheet['file']} | {len(sheet['parts'])} | "
-                     f"{100 * sheet['utilisation']:.1f} % |")
-    lines += ["", "## Screws", "", "| fastener | post length (mm) | extensions (mm) | count |",
-              "|---|---|---|---|"]
-    for sc in bom["screws"]:
-        ext = " + ".join(f"{v:.4g}" for v in sc["extensions_mm"]) or "-"
-        lines.append(f"| {sc['description']} | {sc['post_length_mm']:.4g} | {ext} | "
-                     f"{sc['count']} |")
+    blocks: list[tuple] = [
+        ("title", f"Laser-cut kit: {bom['design']}"),
+        ("text", f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
+                 f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}. The "
+                 f"stack is {bom['layers']['depth_mm']:g} mm deep."),
+        ("strong", f"Kerf: {bom['kerf']['note']}."),
+        ("heading", "What to buy"),
+        ("item", f"{sh['material']}, {sh['thickness_mm']:g} mm thick, "
+                 f"{sh['size_mm'][0]:g} x {sh['size_mm'][1]:g} mm: {sh['count']} sheet(s) + "
+                 f"{sh['spares']} spare ({sh['note']})."),
+        ("table", ("part", "used", "spares", "order"),
+         [(h["description"], f"{h['count']}", f"{h['spares']}", f"{h['order']}")
+          for h in buy["hardware"]]),
+        ("heading", "Sheets"),
+        ("table", ("sheet", "file", "parts", "utilisation"),
+         [(f"{sheet['index']}", sheet["file"], f"{len(sheet['parts'])}",
+           f"{100 * sheet['utilisation']:.1f} %") for sheet in bom["sheets"]]),
+        ("heading", "Screws"),
+        ("table", ("fastener", "post length (mm)", "extensions (mm)", "count"),
+         [(sc["description"], f"{sc['post_length_mm']:.4g}",
+           " + ".join(f"{v:.4g}" for v in sc["extensions_mm"]) or "-", f"{sc['count']}")
+          for sc in bom["screws"]]),
+    ]
     if bom["screws"]:
-        lines += ["", f"Series: {bom['screws'][0]['family']}."]
+        blocks.append(("text", f"Series: {bom['screws'][0]['family']}."))
     sp = bom["spacer_rings"]
-    lines += ["", f"Spacer rings: {sp['count']} (outer {sp['outer_diameter_mm']:g} mm, hole "
-              f"{sp['hole_diameter_mm']:g} mm, {sp['thickness_mm']:g} mm thick, {sp['note']}).",
-              "", "## Bars", "", "| bar | joints | layer | hole spacing (mm) | sheet |",
-              "|---|---|---|---|---|"]
-    for b in bom["bars"]:
-        lines.append(f"| {b['id']} | {b['joints'][0]}-{b['joints'][1]} | {b['layer']} | "
-                     f"{b['length_mm']:.3f} | {b['sheet']} |")
-    lines += ["", "## Stack at each joint (bottom to top)", "",
-              "| joint | stack | fastener | play nominal sheet (mm) | play thick-thin sheets (mm) |",
-              "|---|---|---|---|---|"]
-    for j in bom["joints"]:
-        p0, p1 = j["play_with_washers_mm"]
-        lines.append(f"| {j['joint']} | {', '.join(j['bottom_to_top'])} | {j['fastener']} | "
-                     f"{j['play_nominal_mm']:.2f} | {p0:.2f}-{p1:.2f} |")
+    blocks += [
+        ("text", f"Spacer rings: {sp['count']} (outer {sp['outer_diameter_mm']:g} mm, hole "
+                 f"{sp['hole_diameter_mm']:g} mm, {sp['thickness_mm']:g} mm thick, "
+                 f"{sp['note']})."),
+        ("heading", "Bars"),
+        ("table", ("bar", "joints", "layer", "hole spacing (mm)", "sheet"),
+         [(f"{b['id']}", f"{b['joints'][0]}-{b['joints'][1]}", f"{b['layer']}",
+           f"{b['length_mm']:.3f}", f"{b['sheet']}") for b in bom["bars"]]),
+        ("heading", "Stack at each joint (bottom to top)"),
+        ("table", ("joint", "stack", "fastener", "play nominal sheet (mm)",
+                   "play thick-thin sheets (mm)"),
+         [(f"{j['joint']}", ", ".join(j["bottom_to_top"]), j["fastener"],
+           f"{j['play_nominal_mm']:.2f}",
+           f"{j['play_with_washers_mm'][0]:.2f}-{j['play_with_washers_mm'][1]:.2f}")
+          for j in bom["joints"]]),
+    ]
     wa = bom["washers"]
     kinds = "; ".join(f"{k['count']} x {k['description']}" for k in wa.get("kinds", [])) or \
         f"{wa['count']} x {wa['name']}"
-    lines += ["", f"Shims: {kinds}; {wa['note']}."]
     mo = bom["motion"]
-    lines += ["", f"Motion: {mo['drive']} from {mo['from']:.6g} to {mo['to']:.6g} (design "
-              "units); " + mo["guarantee"] + ".", ""]
-    return "\n".join(lines)
+    blocks += [("text", f"Shims: {kinds}; {wa['note']}."),
+               ("text", f"Motion: {mo['drive']} from {mo['from']:.6g} to {mo['to']:.6g} (design "
+                        "units); " + mo["guarantee"] + ".")]
+    return blocks
+
+
+def bom_markdown(bom: dict) -> str:
+    """The bill of materials as Markdown for a person at the bench (:func:`bom_blocks`)."""
+    out = []
+    for block in bom_blocks(bom):
+        kind = block[0]
+        if kind == "table":
+            _, header, rows = block
+            out.append("\n".join(["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+                                 + ["| " + " | ".join(r) + " |" for r in rows]))
+        else:
+            text = block[1]
+            out.append({"title": f"# {text}", "heading": f"## {text}", "strong": f"**{text}**",
+                        "item": f"- {text}"}.get(kind, text))
+    return "\n\n".join(out) + "\n"
 
 
 # -- entry ----------------------------------------------------------------------------------
 
-def export_design(design, settings: dict | None = None) -> ExportResult:
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
     """Laser-cut files for a design (pure: returns bytes, writes nothing).
 
     Parameters
@@ -479,6 +507,8 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     design : Design
     settings : dict, optional
         Overrides of ``[fabrication.laser]``, e.g. ``{"laser": {"kerf": 0.2, "scale": 60}}``.
+    motion : TracedMotion, optional
+        The design's motion, traced once (see :func:`laser_plan`).
 
     Returns
     -------
@@ -504,7 +534,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     """
     from .laser_svg import sheet_svg
 
-    plan = laser_plan(design, settings)
+    plan = laser_plan(design, settings, motion)
     files: dict[str, bytes] = {}
     n = len(plan.sheets)
     for sheet in plan.sheets:
@@ -528,4 +558,6 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)[0]
     files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
     files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
-    return ExportResult(files=files, report={"format": FORMAT, **bom})
+    # the guide's page count rides with the report (a report never counts a PDF's pages)
+    return ExportResult(files=files, report={"format": FORMAT, **bom,
+                                             "guide_pages": int(guide.stats["pages"])})

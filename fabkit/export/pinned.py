@@ -213,7 +213,7 @@ def _stacks(plan) -> list[dict]:
     return out
 
 
-def export_pinned(design, s, name: str) -> ExportResult:
+def export_pinned(design, s, name: str, motion=None) -> ExportResult:
     """Files and report of a design's print-in-place linkage (see the module docstring).
 
     Parameters
@@ -223,6 +223,8 @@ def export_pinned(design, s, name: str) -> ExportResult:
         ``linkage = "pins"``.
     name : str
         File name stem.
+    motion : TracedMotion, optional
+        The design's motion, traced once (see :func:`fabkit.fab.pinned.pinned_print`).
 
     Returns
     -------
@@ -238,7 +240,7 @@ def export_pinned(design, s, name: str) -> ExportResult:
     from ..fab.slicer import slicer_settings
     from .stl import binary_stl, stl_origin, stored_mesh_is_closed
 
-    plan = pinned_print(design, s)
+    plan = pinned_print(design, s, motion)
     meshes = body_meshes(plan)
     beds = plan.beds
     files: dict[str, bytes] = {}

@@ -32,7 +32,7 @@ import re
 
 import numpy as np
 
-from ..errors import FabkitError, FabricationError
+from ..errors import FabricationError
 from . import ExportResult
 from ..numerics import MM_SLACK
 from .threemf import threemf_package
@@ -287,17 +287,19 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]", "_", name) or "network"
 
 
-def _hinge_report(design, geo) -> dict:
+def _hinge_report(design, geo, motion) -> dict:
     """Largest hinge rotation along the design's motion and the bending strain it means."""
     from ..fab.hinges import hinge_bending
+    from ..motion import MotionStatus
 
     s = geo.settings
     if design.motion.to is None:
         return {"status": "no motion in the template"}
-    try:
-        traj = design.trace()
-    except FabkitError as exc:
-        return {"status": f"motion not traced: {exc}"}
+    traj = motion.trajectory
+    if traj is None:
+        if motion.status is MotionStatus.NO_TARGET:
+            return {"status": "no motion in the template"}
+        return {"status": f"motion not traced: {motion.error or motion.reason}"}
     turn, strain = hinge_bending(geo, traj.positions)
     k = int(np.argmax(strain)) if strain.size else 0
     return {"status": str(traj.status),
@@ -309,7 +311,7 @@ def _hinge_report(design, geo) -> dict:
             if strain.size else 0.0}
 
 
-def export_design(design, settings: dict | None = None) -> ExportResult:
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
     """A printed network as STL (+ 3MF, preview PNG), laid out on the printer's bed.
 
     Parameters
@@ -319,6 +321,10 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         linkage), as ``linkage`` says.
     settings : dict, optional
         Command-line overrides; ``settings["print"]`` holds print keys (``gap``, ``scale`` ...).
+    motion : TracedMotion, optional
+        The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`):
+        the hinges' bending and a linkage's stacking are measured along it. Traced here, once,
+        when not given.
 
     Returns
     -------
@@ -342,7 +348,7 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
     if s.linkage == "pins":
         from .pinned import export_pinned
 
-        return export_pinned(design, s, name)
+        return export_pinned(design, s, name, motion)
     geo = print_geometry(design.network, s)
     body = print_solid(geo)
     verts, faces = solid_mesh(body)
@@ -355,7 +361,9 @@ def export_design(design, settings: dict | None = None) -> ExportResult:
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
         files[f"{name}_print.png"] = _preview_png(geo, design.name)
-    hinges = _hinge_report(design, geo)
+    from ..motion import motion_for
+
+    hinges = _hinge_report(design, geo, motion_for(design, motion))
     warnings = []
     if hinges.get("bending_strain", 0.0) > s.strain_limit:
         warnings.append(

@@ -263,9 +263,14 @@ def printed_design(design, s: PrintSettings):
     return motion_window(design, s.motion_from, s.motion_to, "print")
 
 
-def _sweep(design, s: PrintSettings):
+def _sweep(design, s: PrintSettings, kit=None):
+    """The linkage's motion sampled for its stacking: along the kit's traced motion (the
+    design's, or its window's), traced here only when none is given."""
+    from ..motion import trace_motion
     from .layers import sample_chain, sample_motion
 
+    kit = kit if kit is not None else trace_motion(design, judge=False)
+    traj = kit.planning_trajectory()
     net = design.network
     step = 0.5 * s.clearance
     # from a start part way along the motion the module windows would count every module as
@@ -273,9 +278,10 @@ def _sweep(design, s: PrintSettings):
     sweep = None if s.motion_from is not None else sample_chain(
         net, design.motion, s.scale, step, width=s.bar_width, clearance=s.clearance,
         column_radius=0.5 * s.cap_diameter, spacer_radius=0.5 * s.cap_diameter,
-        floor_limit=s.clearance)
+        floor_limit=s.clearance, trajectory=traj)
     if sweep is None:  # not a chain of modules: sample the whole motion
-        sweep = sample_motion(net, design.motion, s.scale, step, floor_limit=s.clearance)
+        sweep = sample_motion(net, design.motion, s.scale, step, floor_limit=s.clearance,
+                              trajectory=traj)
     return sweep
 
 
@@ -306,7 +312,7 @@ def _plan_key(design, s) -> tuple:
             s)
 
 
-def pinned_print(design, s: PrintSettings) -> PinnedPrint:
+def pinned_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     """Decide layers, pins and pieces of a design's print-in-place linkage (no solids yet).
 
     The same design and settings give the same plan, computed once per process (the export and
@@ -318,6 +324,9 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
         A planar bar network with a motion.
     s : PrintSettings
         ``linkage = "pins"`` settings (:func:`fabkit.fab.printing.design_print_settings`).
+    motion : TracedMotion, optional
+        The design's motion, traced once by the pipeline; its window (``motion_from`` /
+        ``motion_to``) is asked of it. Traced here when not given.
 
     Returns
     -------
@@ -335,15 +344,21 @@ def pinned_print(design, s: PrintSettings) -> PinnedPrint:
     if key not in _PLANS:
         while len(_PLANS) >= _PLANS_KEPT:
             _PLANS.pop(next(iter(_PLANS)))
-        _PLANS[key] = _plan_print(design, s)
+        _PLANS[key] = _plan_print(design, s, motion)
     return _PLANS[key]
 
 
-def _plan_print(design, s: PrintSettings) -> PinnedPrint:
+def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
+    from ..motion import motion_for
     from .layers import plan_layers
     from .printers import split_to_fit
 
-    design = printed_design(design, s)
+    kit = None
+    if motion is not None:  # the pipeline's motion: its window traced once for every process
+        kit = motion_for(design, motion).window_motion(s.motion_from, s.motion_to, "print")
+        design = kit.design
+    else:
+        design = printed_design(design, s)
     net = design.network
     if net.dim != 2:
         raise FabricationError(f"a printed bar linkage needs a 2D network; {design.name} is "
@@ -355,7 +370,7 @@ def _plan_print(design, s: PrintSettings) -> PinnedPrint:
     from ..workload import require
 
     require(f"{design.path or design.name}: print-in-place linkage", ("printed bar", net.n_edges))
-    sweep = _sweep(design, s)
+    sweep = _sweep(design, s, kit)
     stacking = plan_layers(net.edges, sweep, stack_settings(s))
     layer = np.asarray(stacking.layer, dtype=np.int64)
     edges = np.asarray(net.edges, dtype=np.int64)

@@ -47,10 +47,11 @@ from .figure import keep_chart, tolerance_figure
 from .horizon import lyapunov_estimate
 from .processes import PROCESSES, SOURCES
 from .result import ToleranceResult
-from .spec import (TOLERANCE_KEYS, ToleranceSpec, design_process, model_summary, perturbed_lengths,
-                   key_process, refuse_foreign, tolerance_spec)
+from .spec import (PROCESS_FORMATS, TOLERANCE_KEYS, ToleranceSpec, design_process, key_process,
+                   made_process, model_summary, perturbed_lengths, refuse_foreign,
+                   stated_process, tolerance_spec)
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
            "perturbed_lengths", "lyapunov_estimate", "tolerance_figure", "TOLERANCE_KEYS",
            "PROCESSES", "SOURCES", "design_process", "model_summary", "keep_chart",
-           "refuse_foreign", "key_process"]
+           "refuse_foreign", "key_process", "made_process", "stated_process", "PROCESS_FORMATS"]

@@ -38,7 +38,8 @@ import numpy as np
 
 from ..errors import ConstructionError, DesignError, KinematicsError, TemplateError
 
-__all__ = ["Behaviour", "Crystal", "infer_behaviour", "INTENTS", "STATE_FRACTION"]
+__all__ = ["Behaviour", "Crystal", "infer_behaviour", "map_fixed_points", "end_fixed_point",
+           "nominal_lock", "template_intent", "INTENTS", "STATE_FRACTION"]
 
 #: Values of ``[motion] intent``.
 INTENTS = ("auto", "target", "lock", "state", "shape")
@@ -226,6 +227,39 @@ def nominal_lock(plan, to: float, start: float, reach: float) -> float | None:
     return float(lo)
 
 
+def map_fixed_points(fmap, d_start: float, d_end: float, limit: float) -> tuple[bool, list]:
+    """The fixed points of a module map that can be crystals of a motion of its d_in from
+    ``d_start`` to ``d_end``.
+
+    Returns
+    -------
+    near_identity : bool
+        The map lies within ``limit`` of the identity over that travel: every state is fixed
+        there (a curvature module), so no state is a crystal of its own.
+    fixed : list of FixedPoint
+        ``fmap.fixed_points()``, or ``[]`` when ``near_identity``.
+    """
+    lo_d, hi_d = sorted((float(d_start), float(d_end)))
+    grid = np.clip(np.linspace(lo_d, hi_d, 65), *fmap.domain)
+    dev = np.abs(fmap(grid) - grid)
+    near_identity = bool(np.all(dev <= limit)) and hi_d > lo_d
+    return near_identity, ([] if near_identity else fmap.fixed_points())
+
+
+def end_fixed_point(fixed, end_ports, limit: float):
+    """The fixed point D* the first module of a chain ends at, or None.
+
+    It ends at D* when its ports d_in and d_out (``end_ports[:2]``, the first two chain ports at
+    the end) both lie within ``limit`` of D*: since d_out = f(d_in), that is a state the map
+    keeps, and a chain designed so is designed to end with every module at D*.
+    """
+    end_ports = np.asarray(end_ports, dtype=np.float64)
+    for fp in fixed:
+        if end_ports.size >= 2 and np.all(np.abs(end_ports[:2] - fp.value) <= limit):
+            return fp
+    return None
+
+
 def _order(plan, chain_pairs, start, end, d_start, d_end) -> tuple[int, float]:
     """Direction of the nominal front (+1, -1, 0) and the largest span of the profile."""
     from ..kinematics import place
@@ -337,11 +371,7 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
         except (ConstructionError, DesignError, KinematicsError):
             fmap = None
         if fmap is not None:
-            lo_d, hi_d = sorted((float(p0[0]), float(p1[0])))
-            grid = np.clip(np.linspace(lo_d, hi_d, 65), *fmap.domain)
-            dev = np.abs(fmap(grid) - grid)
-            near_identity = bool(np.all(dev <= limit)) and hi_d > lo_d
-            fixed = [] if near_identity else fmap.fixed_points()
+            near_identity, fixed = map_fixed_points(fmap, float(p0[0]), float(p1[0]), limit)
 
             def crystal(fp, role):
                 ends = [e for e in fmap.domain if abs(e - fp.value) <= state_tol]
@@ -353,10 +383,9 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
             for fp in fixed:
                 if np.all(np.abs(p0 - fp.value) <= limit):
                     crystals.append(crystal(fp, "start"))
-            for fp in fixed:
-                if p1.size >= 2 and np.all(np.abs(p1[:2] - fp.value) <= limit):
-                    crystals.append(crystal(fp, "end"))
-                    break
+            ending = end_fixed_point(fixed, p1, limit)
+            if ending is not None:
+                crystals.append(crystal(ending, "end"))
             if n >= 2 and plan is not None:
                 # progress runs from the start state to the end state (the end crystal when
                 # there is one: a free end that folds on past it counts as done)

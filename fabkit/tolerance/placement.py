@@ -159,7 +159,7 @@ def _sheets(design):
     return tuple(out)
 
 
-def _find_plan(problem, trajectory):
+def find_plan(problem, trajectory):
     """The cached construction plan from the start; from the target's sides when the start is a
     flat state (a flat origami sheet); None when there is no construction order."""
     from ..errors import ConstructionError
@@ -177,6 +177,10 @@ def _find_plan(problem, trajectory):
         return plan_construction(problem.work, problem.drive, final)
     except ConstructionError:
         return None
+
+
+#: The name the tolerance analysis imports.
+_find_plan = find_plan
 
 
 @dataclass

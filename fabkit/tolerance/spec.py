@@ -149,6 +149,55 @@ def design_process(design) -> str:
     return "origami" if design.network.dim == 3 else "laser"
 
 
+#: The formats that each process makes (a report section speaks for the process of its files).
+PROCESS_FORMATS = {"laser": ("dxf",), "origami": ("svg", "fold", "cp"), "print": ("stl",)}
+
+
+def stated_process(design, settings=None) -> str | None:
+    """The process the template or ``--set tolerance.process`` names, or None."""
+    cli = ((settings or {}).get("tolerance") or {}).get("process")
+    if cli in PROCESSES:
+        return cli
+    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
+    table = fab.get("tolerance")
+    if isinstance(table, dict) and table.get("process") in PROCESSES:
+        return table["process"]
+    return None
+
+
+def made_process(design, formats, settings=None) -> str:
+    """The process a design's export is made by and judged as: the one stated
+    (:func:`stated_process`); else the design's own (:func:`design_process`) when any of its
+    formats is made; else the process whose files are made (``fabkit export super_stable --to
+    stl`` writes a print, and is reported and judged as one: the print's scale and error
+    model, not the laser's).
+
+    Parameters
+    ----------
+    design : Design
+    formats : iterable of str
+        The formats that are made.
+    settings : dict, optional
+        Command-line overrides (``tolerance.process``).
+
+    Returns
+    -------
+    str
+        ``"laser"``, ``"print"`` or ``"origami"``.
+    """
+    stated = stated_process(design, settings)
+    if stated is not None:
+        return stated
+    own = design_process(design)
+    made = set(formats)
+    if not made or made & set(PROCESS_FORMATS[own]):
+        return own
+    for proc in ("origami", "laser", "print"):
+        if made & set(PROCESS_FORMATS[proc]):
+            return proc
+    return own
+
+
 def _laser_defaults(design, settings) -> dict:
     """Scale, thickness and hole clearance from the laser settings."""
     from ..errors import FabricationError

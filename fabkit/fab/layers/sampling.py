@@ -50,7 +50,7 @@ class Sweep:
 
 
 def sample_motion(net, motion, scale: float, step_limit: float, *,
-                  floor_limit: float | None = None) -> Sweep:
+                  floor_limit: float | None = None, trajectory=None) -> Sweep:
     """Sample a network's motion so that no node moves more than ``step_limit`` mm per sample.
 
     Parameters
@@ -68,13 +68,17 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
         ``step_limit`` (a chain amplifying its drive past float64's resolution), accept steps
         up to this many mm instead of refusing; the sweep's ``max_step`` reports the step met,
         and the stacking widens its clearance by the excess (see :func:`plan_layers`).
+    trajectory : Trajectory, optional
+        The motion of ``net`` as ``motion`` asks, traced once by the Motion stage
+        (:class:`fabkit.motion.TracedMotion`); traced here when not given.
 
     Returns
     -------
     Sweep
         Positions in mm. With the constructive method samples are placed exactly and refined
         by bisection where a step is too long; other methods are re-traced with a maximum
-        step small enough.
+        step small enough (a denser trace than the motion's own: the collision check needs
+        it).
 
     Raises
     ------
@@ -88,8 +92,9 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
     if motion.to is None:
         raise FabricationError("the template gives no [motion] target (motion.to): the stacking "
                                "layers are planned over the motion, so it must be known")
-    traj = trace(net, drive=motion.drive, to=motion.to, method=motion.method, hold=motion.hold,
-                 **motion.options)
+    traj = trajectory if trajectory is not None else trace(
+        net, drive=motion.drive, to=motion.to, method=motion.method, hold=motion.hold,
+        **motion.options)
     limit = step_limit / scale  # design units
     if traj.method == "constructive":
         problem = make_problem(net, motion.drive, motion.to, hold=motion.hold)
@@ -194,7 +199,7 @@ def _unique_rows(a: np.ndarray) -> np.ndarray:
 def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
                  clearance: float, column_radius: float, window: int = 3,
                  floor_limit: float | None = None,
-                 spacer_radius: float | None = None) -> Sweep | None:
+                 spacer_radius: float | None = None, trajectory=None) -> Sweep | None:
     """Conflicts of a planar chain measured module window by module window (near-linear).
 
     A chain's module k moves exactly as the module alone with its input distance at d_k, and
@@ -221,7 +226,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         As for :func:`find_conflicts`.
     window : int
         Modules per window (>= 2: neighbours share a joint pair).
-    floor_limit : float, optional
+    floor_limit, trajectory : optional
         See :func:`sample_motion`.
 
     Returns
@@ -243,7 +248,8 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
     outs = _module_ports(net, copies)
     if outs is None:
         return None
-    traj = trace(net, drive="d1", to=motion.to, method=motion.method, **motion.options)
+    traj = trajectory if trajectory is not None else trace(
+        net, drive="d1", to=motion.to, method=motion.method, **motion.options)
     edges = np.asarray(net.edges, dtype=np.int64)
     n_e = np.array([m.n_edges for m, _, _ in copies])
     offset = np.concatenate([[0], np.cumsum(n_e)])

@@ -1,0 +1,97 @@
+"""The export pipeline: a design's motion traced once per motion window and handed to every
+stage; no exporter, check or report traces it again; the reports head with the verdict."""
+
+from __future__ import annotations
+
+import ast
+import traceback
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fabkit
+import fabkit.kinematics as kinematics
+from fabkit.batch import export_one
+from fabkit.templates import Design, load_template
+
+from conftest import TEMPLATES
+
+ROOT = Path(fabkit.__file__).parent
+
+
+def _count_traces(monkeypatch, design_path):
+    """Export a design (every format, checked) and return the targets of every trace of the
+    design's own motion (``Design.trace``) and the number of tracer calls on the design's own
+    network made outside the as-built checks (which re-simulate the network read back)."""
+    reference = load_template(design_path).network
+    designs, own = [], []
+    real_design_trace, real_trace = Design.trace, kinematics.trace
+
+    def design_trace(self, **overrides):
+        designs.append(float(overrides.get("to", self.motion.to)))
+        return real_design_trace(self, **overrides)
+
+    def trace(net, *args, **kwargs):
+        same = (net.nodes.shape == reference.nodes.shape
+                and np.array_equal(net.edges, reference.edges)
+                and np.array_equal(net.edge_lengths, reference.edge_lengths))
+        in_check = any("/fabkit/check/" in f.filename for f in traceback.extract_stack())
+        if same and not in_check:
+            own.append(float(kwargs.get("to", np.nan)))
+        return real_trace(net, *args, **kwargs)
+
+    monkeypatch.setattr(Design, "trace", design_trace)
+    monkeypatch.setattr(kinematics, "trace", trace)
+    return designs, own
+
+
+@pytest.mark.parametrize("name, windows", [
+    # no window: the design's motion, traced once for the laser kit, the print, the checks,
+    # the previews and the tolerance analysis
+    ("super_stable_chain", [1.009950493837208]),
+    # the laser kit and the print both stop at motion_to = 2.9: that window is traced once
+    ("fixed_point_chain8", [2.9, 2.944486372867092]),
+])
+def test_an_export_traces_each_motion_window_once(monkeypatch, tmp_path, name, windows):
+    path = TEMPLATES / f"{name}.toml"
+    designs, own = _count_traces(monkeypatch, path)
+    res = export_one(path, None, tmp_path, {}, check=True, tolerance_samples=10,
+                     previews=False)
+    assert res.ok, res.error
+    assert {"dxf", "stl"} <= set(res.exported_formats)
+    assert sorted(designs) == windows
+    # every call of the tracer on the design's own network outside the checks is one of those
+    assert len(own) == len(windows)
+
+
+#: The modules that are handed the traced motion and must never trace the design themselves.
+NO_TRACE = sorted([*(ROOT / "export").glob("*.py"), *(ROOT / "check").glob("*.py"),
+                   ROOT / "report.py", ROOT / "report_html.py", ROOT / "batch" / "formats.py",
+                   ROOT / "batch" / "design.py", ROOT / "batch" / "stages.py"])
+#: Names that trace a design's motion or place a kit by tracing it.
+TRACERS = {"trace_motion", "kit_design", "printed_design", "motion_window", "traced_motion"}
+
+
+@pytest.mark.parametrize("path", NO_TRACE, ids=lambda p: str(p.relative_to(ROOT.parent)))
+def test_no_exporter_check_or_report_traces_the_design_itself(path):
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    found = []
+    checks = "check" in path.parts
+    pipeline = path.name in ("design.py", "formats.py") and "batch" in path.parts
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr == "trace":
+            found.append(f"line {node.lineno}: .trace(...)")
+        if isinstance(node, ast.ImportFrom):
+            names = {a.name for a in node.names}
+            if not checks and node.module and node.module.endswith("kinematics") \
+                    and "trace" in names:
+                # an exporter or a report has no network of its own to trace
+                found.append(f"line {node.lineno}: imports kinematics.trace")
+            bad = names & TRACERS
+            if pipeline:  # the pipeline's Motion stage is the one place the design is traced
+                bad -= {"trace_motion"}
+            if bad:
+                found.append(f"line {node.lineno}: imports {', '.join(sorted(bad))}")
+    assert not found, f"{path.relative_to(ROOT.parent)}: " + "; ".join(found)
