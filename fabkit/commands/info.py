@@ -2,8 +2,17 @@
 
 from __future__ import annotations
 
+from . import Example
+
 NAME = "info"
 HELP = "describe a template: sizes, mode count, self-stress, applicable methods"
+
+EXAMPLES = [
+    Example("fabkit info fourbar", "4 nodes, 4 edges, one motion, constructive applies"),
+    Example("fabkit info super_stable_chain --rank-method dense",
+            "the 24-module chain, its modes counted by a dense SVD too"),
+    Example("fabkit info fourbar super_stable origami_sheet", "several templates, a block each"),
+]
 
 
 def add_arguments(p):
