@@ -123,7 +123,11 @@ def parse_formats(text: str | None) -> list[str] | None:
         raise UsageError("--to", "give at least one format, e.g. --to dxf,stl")
     for n in names:
         if n not in EXPORTERS:
-            raise UsageError("--to", f"unknown format {n!r}; valid: {', '.join(EXPORTERS)}")
+            from ..suggest import did_you_mean
+
+            hint = did_you_mean(n, EXPORTERS)
+            raise UsageError("--to", f"unknown format {n!r}; " + (f"{hint} " if hint else "")
+                             + f"valid: {', '.join(EXPORTERS)}")
     return list(dict.fromkeys(names))
 
 

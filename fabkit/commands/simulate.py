@@ -16,8 +16,8 @@ HELP = "trace a template's motion; writes trajectory.npz and motion.png"
 EXAMPLES = [
     Example("fabkit simulate fourbar --method projected",
             "trace the 4-bar with the continuation method; out/fourbar/trajectory.npz, motion.png"),
-    Example("fabkit simulate super_stable_chain8 --gif --set motion.to=2.9",
-            "a chain driven to another target, with an animated motion.gif"),
+    Example("fabkit simulate super_stable_chain8 --gif --set motion.to=1.5",
+            "the chain driven part of the way (d1 = 1.5), with an animated motion.gif"),
     Example("fabkit simulate origami_sheet --method branch -o out/sim",
             "leave the flat sheet on a branch (the bifurcation method)"),
 ]
@@ -32,7 +32,7 @@ def add_arguments(p):
                    help=f"{', '.join(['auto', *METHODS])} (default: the template's)")
     p.add_argument("--to", type=float, default=None, help="target value of the drive")
     add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
-    add_settings(p, "override a motion setting, e.g. --set motion.to=2.9 or "
+    add_settings(p, "override a motion setting, e.g. --set motion.to=1.5 or "
                     "--set motion.method=projected (repeatable)")
     p.add_argument("--gif", action="store_true", help="also write an animated motion.gif")
     add_progress_options(p)
