@@ -48,3 +48,20 @@ def fourbar() -> fabkit.Network:
 def module():
     """Factory: module("super_stable") -> Network with ports d1, d2."""
     return module_network
+
+
+@pytest.fixture
+def dense_copies(monkeypatch) -> list:
+    """The shapes of the sparse matrices made dense during the test (any sparse format): work
+    that grows as the square of a network's size, checked without timing it."""
+    import scipy.sparse as sp
+
+    shapes = []
+    for cls in (sp.csr_matrix, sp.csc_matrix, sp.coo_matrix, sp.csr_array, sp.csc_array,
+                sp.coo_array):
+        def toarray(self, *a, _real=cls.toarray, **k):
+            shapes.append(self.shape)
+            return _real(self, *a, **k)
+
+        monkeypatch.setattr(cls, "toarray", toarray)
+    return shapes

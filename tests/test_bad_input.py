@@ -302,11 +302,12 @@ def test_bad_sizes_and_values_of_options_exit_2_before_work(args, words, tmp_pat
 
 
 def test_check_against_another_design_is_a_failed_check_not_a_crash(tmp_path, capsys):
-    sheet = GOOD.parent / "origami_sheet.toml"
-    out = tmp_path / "out"
-    assert main(["export", str(sheet), "--to", "fold", "-o", str(out), "--no-check", "-q"]) == 0
-    capsys.readouterr()
-    fold = out / "origami_sheet" / "origami_sheet.fold"
+    from fabkit.export import export
+    from fabkit.templates import load_template
+
+    # the file, as the exporter writes it (in this process: the subject is the check)
+    paths, _ = export(load_template(GOOD.parent / "origami_sheet.toml"), "fold", tmp_path)
+    [fold] = [p for p in paths if p.suffix == ".fold"]
     rc = main(["check", str(fold), "--design", str(GOOD.parent / "origami_chain12.toml")])
     captured = capsys.readouterr()
     assert rc == 1 and captured.err == ""

@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import signal
 import textwrap
-import time
 from pathlib import Path
 
 import pytest
@@ -101,27 +100,32 @@ def test_a_worker_dying_at_any_moment_fails_only_its_design(tmp_path, lengths, m
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
 
 
-@pytest.mark.parametrize("action, limits, words", [
-    # stopped (SIGSTOP): even its heartbeat is silent, so the silence limit finds it
-    ("stop", {"silence": 3.0}, "the worker stopped answering (no word for 3 s) while "
-                               "exporting super_stable, and was stopped"),
-    # stuck in the export while its heartbeat goes on: the design's time limit finds it
-    ("hang", {"timeout": 4.0}, "exporting super_stable ran past the time limit of 4 s "
-                               "(--timeout), and was stopped"),
-])
+@pytest.mark.parametrize("action", ["stop", "hang"])
 def test_a_worker_that_stops_answering_fails_only_its_design(tmp_path, lengths, monkeypatch,
-                                                             action, limits, words):
+                                                             action):
+    if action == "stop":
+        # stopped (SIGSTOP): even its heartbeat is silent, so the silence limit finds it; the
+        # heartbeat beats six times within the limit, and a worker's silence counts from its
+        # first word, so the others, slow to start on a busy machine, are not taken for silent
+        limits = {"silence": 3.0}
+        words = "the worker stopped answering (no word for 3 s) while exporting super_stable"
+    else:
+        # stuck in the export while its heartbeat goes on: the design's time limit finds it.
+        # The limit leaves the other designs four times what they take on this machine now,
+        # measured by the same export without the fault.
+        slowest = max(r.seconds for r in _export(tmp_path / "clean", lengths))
+        limits = {"timeout": max(4.0, round(4 * slowest))}
+        words = (f"exporting super_stable ran past the time limit of {limits['timeout']:g} s "
+                 "(--timeout)")
     out = tmp_path / "out"
     monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@{Stage.WRITE}:{action}")
-    t0 = time.monotonic()
     results = export_many([TEMPLATES / f"{n}.toml" for n in DESIGNS], None, out, jobs=2,
                           exporters=lengths, previews=False, tolerance_samples=0, **limits)
-    assert time.monotonic() - t0 < 60  # found within its limit, not waited on forever
     by_name = {r.name: r for r in results}
     stuck = by_name[VICTIM]
     assert stuck.outcome is Outcome.FAILED and stuck.error_code == "timeout"
-    assert stuck.error == (f"{TEMPLATES / (VICTIM + '.toml')}: {words}; nothing of "
-                           f"{VICTIM} was written")
+    assert stuck.error == (f"{TEMPLATES / (VICTIM + '.toml')}: {words}, and was stopped; "
+                           f"nothing of {VICTIM} was written")
     assert stuck.worker_exit == -signal.SIGKILL
     assert all(by_name[n].outcome is Outcome.OK for n in DESIGNS if n != VICTIM)
     assert exit_code(results) == 1
@@ -168,3 +172,32 @@ def test_a_fault_for_another_design_or_moment_changes_nothing(tmp_path, lengths,
     monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@no_such_moment")
     results = _export(tmp_path / "b", lengths)
     assert [r.outcome for r in results] == [Outcome.OK] * 3 and exit_code(results) == 0
+
+
+def test_the_limits_judge_the_worker_not_the_machine():
+    """The parent's judgement on a fake clock: a starting worker is not silent, silence counts
+    from the last word, the design's time limit from the moment the worker took the design."""
+    from fabkit.batch.workers import _why_stuck, _Worker, heartbeat_interval
+
+    w = _Worker(proc=None, conn=None)
+    w.born = 100.0
+    limits = {"silence": 3.0, "timeout": 4.0, "startup": 120.0}
+    # starting (an interpreter importing numpy and scipy): not a word yet, for a long time
+    assert _why_stuck(w, 100.0 + 119.0, "a", **limits) == ""
+    assert _why_stuck(w, 100.0 + 121.0, "a", **limits) == (
+        "the worker did not start within 120 s (it was to export a), and was stopped")
+    # its first word at 110: silent only 3 s after its last word, whatever came before
+    w.heard = 110.0
+    assert _why_stuck(w, 112.9, "a", **limits) == ""
+    assert _why_stuck(w, 113.1, "a", **limits).startswith(
+        "the worker stopped answering (no word for 3 s) while exporting a")
+    # it took the design at 111 and goes on beating: the time limit runs from 111
+    w.since = 111.0
+    w.heard = 114.9
+    assert _why_stuck(w, 114.9, "a", **limits) == ""
+    w.heard = 115.2
+    assert _why_stuck(w, 115.2, "a", **limits) == (
+        "exporting a ran past the time limit of 4 s (--timeout), and was stopped")
+    assert _why_stuck(w, 115.2, "a", **{**limits, "timeout": None}) == ""
+    # several beats fit in any silence limit
+    assert heartbeat_interval(120.0) == 1.0 and heartbeat_interval(3.0) == 0.5

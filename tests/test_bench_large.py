@@ -1,6 +1,7 @@
 """The large-network part of the bench: mode counting and projected on chains and a lattice."""
 
 import json
+import re
 
 import pytest
 
@@ -27,6 +28,23 @@ def test_dense_count_is_skipped_by_its_estimate():
     pts = large.count_modes_scaling([10, 1000], budget=1e-4, repeats=1)
     dense = [p for p in pts if p["path"] == "dense"]
     assert dense[1]["outcome"] == SKIPPED and dense[1]["estimate_s"] > 1e-4
+
+
+def test_dense_skip_does_not_depend_on_the_machine(monkeypatch):
+    # a machine so busy that every count takes 5 s: which points run is decided by their work
+    real = large.run_budgeted
+
+    def busy(fn, evaluate, budget, repeats):
+        outcome, times, info = real(fn, evaluate, budget, repeats)
+        return outcome, [5.0] * len(times), info
+
+    monkeypatch.setattr(large, "run_budgeted", busy)
+    pts = large.count_modes_scaling([10, 100], budget=30, repeats=1)
+    dense = [p for p in pts if p["path"] == "dense"]
+    assert [p["outcome"] for p in dense] == ["ok", "ok"]
+    assert dense[1]["estimate_s"] == large.dense_svd_seconds(600, 604)
+    # 1000 modules: 4·6004·6000² − 4·6000³/3 flops, minutes at any plausible rate
+    assert large.dense_svd_seconds(6000, 6004) > 100
 
 
 def test_chain_and_lattice_points_carry_errors_and_floors():
@@ -77,13 +95,17 @@ def test_large_targets_judge_the_figures():
     assert not any(g["met"] for g in goals.values())
 
 
-def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch):
+def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch, capsys):
     from fabkit.commands import bench
 
     small = {"modes": (10, 100), "chains": (10,), "lattice": (3,)}
     monkeypatch.setitem(bench.MODES, "quick", {**bench.MODES["quick"], "large": small})
     rc = main(["bench", "--quick", "--parts", "large", "-o", str(tmp_path)])
     assert rc == 0
+    printed = capsys.readouterr().out
+    # what was not measured is not said to be missed
+    assert re.search(r"target +count_modes_10000 +not measured: ", printed), printed
+    assert re.search(r"target +count_modes_exponent +not measured: ", printed), printed
     out = tmp_path / "bench"
     assert sorted(p.name for p in out.iterdir()) == ["bench.json", "large_networks.png"]
     assert (out / "large_networks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

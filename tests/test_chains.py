@@ -329,9 +329,14 @@ def test_physical_fourbar_chain_collapses_to_crystal():
 @pytest.mark.parametrize("method", ["constructive"])
 def test_ten_thousand_modules_build_and_trace(method):
     module = load("super_stable").network
-    t0 = time.perf_counter()
-    net = chain(module, 10_000, mirror="alternate")
-    build = time.perf_counter() - t0
+
+    def cpu_seconds(copies):
+        t0 = time.thread_time()
+        built = chain(module, copies, mirror="alternate")
+        return time.thread_time() - t0, built
+
+    small = min(cpu_seconds(1000)[0] for _ in range(3))
+    build, net = cpu_seconds(10_000)
     assert net.n_nodes == 30_002 and net.n_edges == 60_000 and "d10001" in net.ports
     opts = {"samples": 5} if method == "constructive" else {}
     traj = fabkit.trace(net, "d1", to=1.3, method=method, **opts)
@@ -341,7 +346,11 @@ def test_ten_thousand_modules_build_and_trace(method):
     d1, d2, d3 = (traj.distance(p)[-1] for p in ("d1", "d2", "d3"))
     assert abs(f(d1)[0] - d2) < 1e-8 and abs(f(d2)[0] - d3) < 1e-8
     assert abs(traj.distance("d10001")[-1] - SQRT3) < 1e-12
-    assert build < 30.0  # generous: the build is O(k) (about 0.3 s here); see docs/assembly.md
+    # the build is O(k) (docs/assembly.md): ten times the modules, about ten times the work
+    # (measured 10-12 on a quiet machine and beside four busy processes; O(k²) would give 100).
+    # Processor time of this thread, which neither the other processes on the machine nor this
+    # process's BLAS threads (still spinning after an earlier test's work) inflate.
+    assert build < 30 * small, (build, small)
 
 
 # -- pictures ---------------------------------------------------------------------------------

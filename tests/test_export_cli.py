@@ -555,7 +555,11 @@ SLOW_FORMAT = textwrap.dedent('''
 
         marks = Path(os.environ["FABKIT_TEST_MARKS"])
         (marks / f"started-{os.getpid()}").write_text(design.name)
-        time.sleep(float(os.environ.get("FABKIT_TEST_SLEEP", "60")))
+        # until the test says go, or for FABKIT_TEST_SLEEP seconds
+        end = time.monotonic() + float(os.environ.get("FABKIT_TEST_SLEEP", "60"))
+        while not (marks / "go").exists() and time.monotonic() < end:
+            time.sleep(0.02)
+        (marks / f"finished-{os.getpid()}").write_text(design.name)
         return ExportResult(files={design.name + ".txt": b"slow\\n"}, report={})
 ''')
 
@@ -619,7 +623,7 @@ def _alive(pid: int) -> bool:
     # a zombie is dead for our purpose: it runs no code and writes nothing
     try:
         return Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "Z"
-    except (FileNotFoundError, IndexError):
+    except (OSError, IndexError):  # reaped between the two looks (ProcessLookupError, ENOENT)
         return False
 
 
@@ -634,15 +638,14 @@ def _wait_dead(pids, timeout):
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_export, signum):
     out = tmp_path / "out"
-    proc, workers = slow_export(out)
+    # the exporters would sleep for an hour: the export ends only if its signal stops them
+    proc, workers = slow_export(out, sleep=3600.0)
     assert len(workers) == 2 and all(_alive(p) for p in workers)
-    t0 = time.monotonic()
     proc.send_signal(signum)
-    rc = proc.wait(timeout=30)
-    elapsed = time.monotonic() - t0
+    rc = proc.wait(timeout=300)
     assert rc == 128 + signum
-    assert elapsed < 10, elapsed  # the exporters would sleep for a minute
-    assert _wait_dead(workers, 5) == []
+    assert _wait_dead(workers, 30) == []
+    assert list((tmp_path / "marks").glob("finished-*")) == []  # no exporter ran to its end
     err = proc.stderr.read().strip().splitlines()
     assert err == [f"fabkit: interrupted ({signal.Signals(signum).name})"]
     assert snapshot(out) == {}  # no design folder, no staging folder, no lock file
@@ -651,11 +654,14 @@ def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_
 @pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
 def test_workers_die_with_a_killed_parent_and_write_nothing_later(tmp_path, slow_export):
     out = tmp_path / "out"
-    proc, workers = slow_export(out, sleep=3.0)
+    proc, workers = slow_export(out, sleep=3600.0)
     proc.kill()  # SIGKILL: no handler runs in the parent
     proc.wait(timeout=30)
-    assert _wait_dead(workers, 5) == []
-    time.sleep(4.0)  # past the moment the exporters would have returned and written
+    assert _wait_dead(workers, 30) == []
+    # let the exporters return: a worker left behind would now write its design
+    (tmp_path / "marks" / "go").touch()
+    time.sleep(1.0)
+    assert list((tmp_path / "marks").glob("finished-*")) == []
     visible = [k for k in snapshot(out) if not k.startswith(".")]
     assert visible == []
 
@@ -682,11 +688,13 @@ def test_a_second_export_into_the_same_folder_is_refused(tmp_path, slow_export, 
 @pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
 def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_export):
     out = tmp_path / "out"
-    proc, workers = slow_export(out, sleep=4.0)
+    proc, workers = slow_export(out, sleep=3600.0)
     marks = {int(p.name.split("-")[1]): p.read_text() for p in
              (tmp_path / "marks").glob("started-*")}
     victim = next(pid for pid, name in marks.items() if name == "fourbar")
     os.kill(victim, signal.SIGKILL)  # as the out-of-memory killer would
+    assert _wait_dead([victim], 30) == []
+    (tmp_path / "marks" / "go").touch()  # the other design's exporter returns
     rc = proc.wait(timeout=120)
     err = proc.stderr.read().strip().splitlines()
     assert rc == 1 and len(err) == 1, err

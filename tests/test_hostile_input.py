@@ -56,18 +56,26 @@ ports = { d1 = [0, 1], d2 = [2, 3] }
 
 # --- sizes: one estimate of the work, before the work ---------------------------------------
 
-def test_a_chain_of_chains_is_counted_through_every_level(tmp_path, capsys):
+def test_a_chain_of_chains_is_counted_through_every_level(tmp_path, capsys, monkeypatch):
     write(tmp_path, "inner.toml", '[chain]\nmodule = "fourbar"\ncopies = 1000\n')
     outer = write(tmp_path, "outer.toml", '[chain]\nmodule = "inner.toml"\ncopies = 1000\n'
                                           '[motion]\nto = 2.1\n')
-    t0 = time.perf_counter()
+    built = []
+    network_init = fabkit.Network.__init__
+
+    def record(self, *args, **kwargs):
+        network_init(self, *args, **kwargs)
+        built.append(self.n_nodes)
+
+    monkeypatch.setattr(fabkit.Network, "__init__", record)
     rc = main(["info", str(outer)])
-    seconds = time.perf_counter() - t0
     line = one_line(capsys.readouterr().err)
     assert rc == 1
     assert "outer.toml: chain.copies: 1,000,000 is over the limit of 20,000 modules (after " \
            "every level of nesting); fabkit --allow-large lifts the limit" in line
-    assert seconds < 10  # refused before the 10^6 modules are built (42 s and 2.8 GB before)
+    # refused before the 10^6 modules are built (42 s and 2.8 GB before): the largest network
+    # made is the inner chain of 1000 4-bars
+    assert max(built) == 2002, built
 
 
 @pytest.mark.parametrize("argv, words", [
@@ -311,10 +319,8 @@ def test_a_sweep_point_that_stops_answering_is_recorded_and_the_rest_goes_on(mon
 
     # worker processes are forked from this one and inherit the stuck point
     monkeypatch.setattr(chunks, "evaluate_point", stuck_at_one)
-    t0 = time.perf_counter()
     r = fabkit.sweep("chaotic", {"nodes[4].x": (-0.4, -0.3, 4)}, measure="fixed_points",
                      jobs=2, chunk_size=1, point_timeout=2.0, plots=False)
-    assert time.perf_counter() - t0 < 60
     assert r.counts() == {"ok": 3, "failed": 1}
     failed = [rec for rec in r.records if rec["status"] == "failed"]
     assert failed[0]["index"] == 1 and "stopped answering" in failed[0]["reason"]

@@ -1,6 +1,6 @@
-"""`fabkit info` on large networks: counts in seconds, a dense path that cannot fit is refused."""
+"""`fabkit info` on large networks: counts without a dense matrix, a dense path that cannot fit
+is refused."""
 
-import time
 from pathlib import Path
 
 import pytest
@@ -23,16 +23,15 @@ def chain_template(tmp_path, copies, mirror=False):
     return path
 
 
-def test_info_counts_a_ten_thousand_module_chain(tmp_path, capsys):
+def test_info_counts_a_ten_thousand_module_chain(tmp_path, capsys, dense_copies):
     path = chain_template(tmp_path, 10_000)
-    t = time.perf_counter()
     assert main(["info", str(path)]) == 0
-    elapsed = time.perf_counter() - t
     out = capsys.readouterr().out
     assert "nodes, edges  30002, 60000" in out
     assert "4 zero modes = 3 rigid + 1 conformational; 0 state(s) of self-stress" in out
     assert "sparse" in out and "ambiguous" not in out
-    assert elapsed < 30  # a few seconds on a shared two-core machine
+    # counted without a dense copy of the 60000 × 60004 matrix (what would take minutes)
+    assert not [s for s in dense_copies if max(s) > 1000], dense_copies
 
 
 def test_info_refuses_a_dense_path_that_cannot_fit(tmp_path, capsys, monkeypatch):

@@ -139,7 +139,17 @@ def test_the_medium_is_a_setting(design, tmp_path):
     _, report = export(design, "svg", tmp_path, origami={"medium": "305x1000"})
     assert report["pages"] == 1 and report["medium"] == "305 x 1000 mm (305 x 1000 mm)"
     _, letter = export(design, "svg", tmp_path / "l", origami={"medium": "Letter"})
-    assert letter["medium_mm"] == [215.9, 279.4] and letter["pages"] >= 3
+    assert letter["medium_mm"] == [215.9, 279.4]
+    # twelve sheets need more than one Letter page, and every page holds what it says
+    assert letter["pages"] == len(letter["sheets_per_page"]) >= 2
+    assert sum(letter["sheets_per_page"]) == 12
+    for page in sorted((tmp_path / "l").glob("*_layout*.svg")):
+        root = ET.parse(page).getroot()
+        for ln in root.iter(f"{SVG}line"):
+            assert 0 <= min(float(ln.get("x1")), float(ln.get("x2")))
+            assert max(float(ln.get("x1")), float(ln.get("x2"))) <= 215.9
+            assert 0 <= min(float(ln.get("y1")), float(ln.get("y2")))
+            assert max(float(ln.get("y1")), float(ln.get("y2"))) <= 279.4
     with pytest.raises(fabkit.FabricationError, match="not a medium; give A4"):
         export(design, "svg", tmp_path / "x", origami={"medium": "napkin"})
     assert not (tmp_path / "x").exists() or list((tmp_path / "x").iterdir()) == []

@@ -2,7 +2,6 @@
 threshold, and "ambiguous" instead of a guess near singular configurations."""
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -118,11 +117,10 @@ def test_long_network_with_a_near_singular_part_is_ambiguous(monkeypatch):
     assert near.ambiguous and near.note
 
 
-def test_ten_thousand_module_chain_in_about_a_second():
+def test_ten_thousand_module_chain_without_a_dense_matrix(dense_copies):
     net = fabkit.chain(paper_module("super_stable"), copies=10_000)
-    t = time.perf_counter()
     m = count_modes(net)
-    elapsed = time.perf_counter() - t
     assert counts(m) == (4, 3, 1, 0) and m.method == "sparse" and not m.ambiguous
     assert m.gap > 1e6 and 1e-4 < m.smallest_nonzero < 1e-3
-    assert elapsed < 10  # about 0.5 s on an idle two-core machine; generous for a shared one
+    # about 0.5 s (fabkit bench times it): no dense copy of the 60000 × 60004 matrix was made
+    assert not [s for s in dense_copies if max(s) > 1000], dense_copies

@@ -45,7 +45,8 @@ def test_every_case_is_covered(cases):
 @pytest.mark.parametrize("name, method", sorted(EXPECTED))
 def test_case_keeps_its_class(cases, name, method):
     opts = {"step": 0.02} if method == "rk4-nullspace" else None
-    row = stab.run_case(cases[name], method, opts, budget=60)
+    # the budget only guards against a runaway run: a class must not depend on the machine
+    row = stab.run_case(cases[name], method, opts, budget=600)
     assert row["class"] == EXPECTED[name, method], row["message"]
     if row["class"] == F:
         assert row["edge_error"] <= 1e-9

@@ -14,12 +14,18 @@ from .folders import _safe, recover_folder, swap_in
 from .results import DesignResult, Outcome
 
 
-#: Seconds between two "alive" messages of a worker process.
+#: Longest interval between two "alive" messages of a worker process; shorter silence limits
+#: get a faster heartbeat (:func:`heartbeat_interval`).
 HEARTBEAT = 1.0
 #: A worker silent for this long has stopped answering (it is stopped, or stuck somewhere not
 #: even its heartbeat thread runs): longer than the longest call that holds the interpreter
 #: lock (the layer solver's time limit is 20 s).
 SILENCE = 120.0
+#: A new worker must say its first word within this many seconds (or the silence limit, when
+#: that is longer). Until then it is starting, not silent: a fresh interpreter importing numpy,
+#: scipy and fabkit takes about a second on a quiet 2-core machine and several beside four busy
+#: processes, more than a short silence limit.
+STARTUP = 120.0
 #: Default time limit of one design in a worker process (``--timeout``); the work estimate
 #: refuses designs expected to take more than half of it.
 DESIGN_TIMEOUT = 3600.0
@@ -93,7 +99,21 @@ def _fault_point(name: str):
     return hit
 
 
-def _worker_main(parent_pid, conn, blas_threads: int) -> None:
+def heartbeat_interval(silence: float) -> float:
+    """Seconds between two "alive" messages of a worker under the silence limit ``silence``:
+    :data:`HEARTBEAT`, or a sixth of the limit when that is shorter, so that a worker counts
+    as silent only after several beats in a row went missing (one beat late on a busy machine
+    is not a stopped worker).
+
+    Examples
+    --------
+    >>> heartbeat_interval(120.0), heartbeat_interval(3.0)
+    (1.0, 0.5)
+    """
+    return min(HEARTBEAT, silence / 6.0)
+
+
+def _worker_main(parent_pid, conn, blas_threads: int, beat: float = HEARTBEAT) -> None:
     """A worker process: export the designs it is sent on ``conn`` until it gets None.
 
     ``blas_threads`` caps the BLAS/LAPACK threads of this worker so that the workers together
@@ -103,7 +123,9 @@ def _worker_main(parent_pid, conn, blas_threads: int) -> None:
 
     Everything goes back on the same pipe with blocking sends (no feeder thread), so what the
     parent reads was sent, and a design it has sent and not heard back about is known to be in
-    the hands of this worker whatever the moment it dies.
+    the hands of this worker whatever the moment it dies. The heartbeat says "alive" as soon as
+    the worker runs and then every ``beat`` seconds; a design is acknowledged with "taken" as it
+    arrives, which starts its time limit.
     """
     import signal
 
@@ -127,11 +149,11 @@ def _worker_main(parent_pid, conn, blas_threads: int) -> None:
 
     def heartbeat():
         while True:
-            time.sleep(HEARTBEAT)
             try:
                 send(("alive",))
             except (OSError, ValueError):  # the parent is gone or the pipe is closed
                 return
+            time.sleep(beat)
 
     threading.Thread(target=heartbeat, daemon=True, name="fabkit-heartbeat").start()
     try:
@@ -143,6 +165,7 @@ def _worker_main(parent_pid, conn, blas_threads: int) -> None:
             if task is None:
                 return
             index, name, args, kwargs = task
+            send(("taken", index))
             hit = _fault_point(name)
             hit("taken")
 
@@ -167,8 +190,9 @@ class _Worker:
         self.proc = proc
         self.conn = conn
         self.task = None  # index of the design sent and not reported back
-        self.heard = time.monotonic()  # when the worker last said anything
-        self.since = None  # when it was handed its design
+        self.born = time.monotonic()  # when it was started
+        self.heard = None  # when the worker last said anything (None: starting, not a word yet)
+        self.since = None  # when it took the design in hand (its "taken")
         self.stuck = ""  # why the parent stopped it (it stopped answering), or ""
 
     @property
@@ -179,11 +203,12 @@ class _Worker:
 class _Pool:
     """Worker processes, each fed one design at a time over its own pipe."""
 
-    def __init__(self, jobs: int):
+    def __init__(self, jobs: int, beat: float = HEARTBEAT):
         import multiprocessing
 
         self.ctx = multiprocessing.get_context("spawn")  # fresh interpreters, no forked state
         self.blas_threads = max(1, (os.cpu_count() or 1) // jobs)
+        self.beat = beat
         self.workers: list[_Worker] = []
         for _ in range(jobs):
             self.spawn()
@@ -199,7 +224,7 @@ class _Pool:
         mine, theirs = self.ctx.Pipe(duplex=True)
         try:
             proc = self.ctx.Process(target=_worker_main, daemon=True,
-                                    args=(os.getpid(), theirs, self.blas_threads),
+                                    args=(os.getpid(), theirs, self.blas_threads, self.beat),
                                     name=f"fabkit-export-{len(self.workers)}")
             proc.start()
         finally:
@@ -238,6 +263,29 @@ class _Pool:
             w.conn.close()
 
 
+def _why_stuck(w: _Worker, now: float, name: str, *, silence: float, timeout: float | None,
+               startup: float) -> str:
+    """Why the worker ``w``, holding design ``name``, is to be stopped at time ``now``, or "".
+
+    A worker that has not said a word yet is starting, allowed ``startup`` seconds from its
+    start; one that has spoken may stay silent ``silence`` seconds; its design may run
+    ``timeout`` seconds (None: no limit) from the moment the worker took it. Times are those of
+    :func:`time.monotonic` (any clock, for the tests).
+    """
+    if w.heard is None:
+        if now - w.born > startup:
+            return (f"the worker did not start within {startup:g} s (it was to export {name}), "
+                    "and was stopped")
+        return ""
+    if now - w.heard > silence:
+        return (f"the worker stopped answering (no word for {silence:g} s) while exporting "
+                f"{name}, and was stopped")
+    if timeout is not None and w.since is not None and now - w.since > timeout:
+        return (f"exporting {name} ran past the time limit of {timeout:g} s (--timeout), and "
+                "was stopped")
+    return ""
+
+
 def _died_message(path, name: str, code) -> str:
     import signal
 
@@ -261,24 +309,29 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
     was handed with ``error_code = "worker"`` and its exit status, its staging folder is
     removed, and a new worker takes its place while designs remain.
 
-    A worker that stops answering is found the same way: every worker says it is alive every
-    :data:`HEARTBEAT` seconds, so one that says nothing for ``silence`` seconds (stopped, or
-    stuck where not even its heartbeat runs) is killed; and a design that runs past
-    ``timeout`` seconds (stuck in a loop while its heartbeat goes on) is stopped too. Either
-    fails only that design, with the reason.
+    A worker that stops answering is found the same way: every worker says it is alive several
+    times within the silence limit (:func:`heartbeat_interval`), so one that says nothing for
+    ``silence`` seconds (stopped, or stuck where not even its heartbeat runs) is killed; and a
+    design that runs past ``timeout`` seconds from the moment its worker took it (stuck in a
+    loop while its heartbeat goes on) is stopped too. Either fails only that design, with the
+    reason. The clocks measure the worker, not the machine: a worker's silence counts from its
+    first word (until then it is starting, allowed :data:`STARTUP` seconds), and what a worker
+    sent is read before it is judged silent (a parent that was itself kept waiting by a busy
+    machine finds the heartbeats in the pipe).
     """
     from multiprocessing.connection import wait
 
     queue = list(todo)
     pending = set(todo)
-    pool = _Pool(max(1, min(jobs, len(todo))))
+    pool = _Pool(max(1, min(jobs, len(todo))), heartbeat_interval(silence))
+    startup = max(silence, STARTUP)
 
     def dispatch(w):
         if not queue:
             return
         i = queue.pop(0)
         w.task = i  # handed over from here on, whatever happens to the send
-        w.since = w.heard = time.monotonic()
+        w.since = None  # its time limit starts when the worker takes it
         try:
             w.conn.send((i, names[i], args[i], kwargs))
         except OSError:
@@ -291,6 +344,10 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                 event = w.conn.recv()
                 w.heard = time.monotonic()
                 if event[0] == "alive":
+                    continue
+                if event[0] == "taken":
+                    if event[1] == w.task:
+                        w.since = w.heard
                     continue
                 if event[0] == "stage":
                     if progress:
@@ -350,16 +407,13 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                     dispatch(w)
             ready = set(wait([w.conn for w in pool.workers] +
                              [w.proc.sentinel for w in pool.workers], timeout=1.0))
-            now = time.monotonic()
             for w in list(pool.workers):
-                open_ = receive(w) if w.conn in ready else True
+                # every worker's pipe is read, ready or not: what arrived since the wait counts
+                open_ = receive(w)
+                now = time.monotonic()
                 if w.task is not None and w.proc.is_alive() and not w.stuck:
-                    if now - w.heard > silence:
-                        w.stuck = (f"the worker stopped answering (no word for {silence:g} s) "
-                                   f"while exporting {names[w.task]}, and was stopped")
-                    elif timeout is not None and now - w.since > timeout:
-                        w.stuck = (f"exporting {names[w.task]} ran past the time limit of "
-                                   f"{timeout:g} s (--timeout), and was stopped")
+                    w.stuck = _why_stuck(w, now, names[w.task], silence=silence,
+                                         timeout=timeout, startup=startup)
                     if w.stuck:
                         w.proc.kill()
                         w.proc.join()

@@ -19,16 +19,38 @@ Every measurement runs in a child process with a time budget
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
 
-__all__ = ["count_modes_scaling", "fourbar_chain_points", "lattice_points", "lattice",
+__all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "lattice_points", "lattice",
            "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
            "certified_points", "certified_targets", "certified_line"]
+
+
+#: Floating-point operations a second assumed for a dense SVD on one thread: below what LAPACK
+#: reaches on the 2-core reference machine (3-7e9 for the singular values of 600 to 3000
+#: columns), so that :func:`dense_svd_seconds` is an upper bound there. A fixed rate, not one
+#: measured at run time: which points are skipped does not depend on how fast or how busy the
+#: machine is (a point that then overruns the budget is stopped and marked so).
+DENSE_SVD_FLOPS = 2e9
+
+
+def dense_svd_seconds(rows: int, cols: int) -> float:
+    """Estimated seconds for the singular values of a dense ``rows × cols`` matrix: the flop
+    count of the bidiagonal reduction, 4mn² − 4n³/3 (m ≥ n, Golub & Van Loan), at
+    :data:`DENSE_SVD_FLOPS`.
+
+    Examples
+    --------
+    >>> round(dense_svd_seconds(600, 604), 2)    # the rigidity matrix of 100 modules
+    0.29
+    >>> round(dense_svd_seconds(6000, 6004))     # 1000 modules
+    288
+    """
+    m, n = max(int(rows), int(cols)), min(int(rows), int(cols))
+    return (4.0 * m * n * n - 4.0 * n ** 3 / 3.0) / DENSE_SVD_FLOPS
 
 
 def _skip(est, budget) -> bool:
@@ -43,7 +65,8 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
     -------
     list of dict
         One per size and path (``"auto"``: what a user gets; ``"dense"``: SVD forced, skipped
-        where the N³ extrapolation from the last size exceeds the budget): ``modules``, ``nodes``,
+        where its work estimate, :func:`dense_svd_seconds`, exceeds the budget, or a smaller
+        chain's ran past it; ``estimate_s``): ``modules``, ``nodes``,
         ``path``, ``outcome``, ``time_s``, ``times``, ``method`` (the path actually taken),
         ``counts`` (total, rigid, conformational, self-stress), ``gap``, ``smallest_nonzero``,
         ``ambiguous``.
@@ -52,16 +75,18 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
     from ..rigidity import count_modes
 
     module = paper_module("super_stable")
-    points, last_dense = [], None
+    points, dense_stopped = [], False
     for k in sizes:
         net = chain(module, copies=int(k))
         for path in ("auto", "dense"):
             pt = {"modules": int(k), "nodes": net.n_nodes, "path": path, "budget_s": budget}
-            if path == "dense" and last_dense is not None:
-                n0, t0 = last_dense
-                est = t0 * (net.n_nodes / n0) ** 3
-                if _skip(est, budget):
-                    pt.update(outcome=SKIPPED, time_s=None, times=[], estimate_s=est)
+            if path == "dense":
+                est = dense_svd_seconds(net.n_edges, net.dim * net.n_nodes)
+                pt["estimate_s"] = est
+                if dense_stopped or _skip(est, budget):
+                    pt.update(outcome=SKIPPED, time_s=None, times=[])
+                    if dense_stopped:
+                        pt["message"] = "a smaller chain already exceeded the budget"
                     points.append(pt)
                     if progress:
                         progress(pt)
@@ -81,11 +106,8 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
                 pt.update(info)
             else:
                 pt["message"] = info
-            if path == "dense":
-                if outcome == "ok":
-                    last_dense = (net.n_nodes, pt["time_s"])
-                elif outcome == STOPPED:
-                    last_dense = (net.n_nodes, math.inf)
+            if path == "dense" and outcome == STOPPED:
+                dense_stopped = True
             points.append(pt)
             if progress:
                 progress(pt)
