@@ -53,7 +53,9 @@ def duration(seconds: float) -> str:
         return f"{seconds:.0f} s"
     if seconds < 3600:
         m, s = divmod(int(round(seconds)), 60)
-        return f"{m} min {s} s" if m < 10 and s else f"{m} min"
+        if m >= 10:  # seconds no longer matter: the nearest minute
+            return f"{int(round(seconds / 60))} min"
+        return f"{m} min {s} s" if s else f"{m} min"
     h, m = divmod(int(round(seconds / 60)), 60)
     return f"{h} h {m:02d} min"
 

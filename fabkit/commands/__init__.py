@@ -162,7 +162,7 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
         names = ", ".join(p.name for p in found[:3]) + (", ..." if len(found) > 3 else "")
         progress.stage(names, total=len(found), unit="templates")
     for path in found:
-        ended = "done"
+        ended, error = "done", None
         try:
             if work(path):
                 code, ended = max(code, 1), "failed"
@@ -172,10 +172,12 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
                 raise
             text = str(exc)
             named = str(path) in text or getattr(exc, "path", None) is not None
-            print(f"fabkit: error: {text if named else f'{path}: {text}'}", file=sys.stderr)
+            error = f"fabkit: error: {text if named else f'{path}: {text}'}"
             code = max(code, int(exc.exit_code))
         if progress is not None:
             progress.advance(text=f"{path.name}: {ended}")
+        if error is not None:  # after the progress line: the error is what a reader sees last
+            print(error, file=sys.stderr)
     if progress is not None:
         progress.close()
     return code

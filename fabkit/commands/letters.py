@@ -161,7 +161,8 @@ def run(args) -> int:
     check_number("--height", args.height)
     check_count("--beam", args.beam, 1, MAX_BEAM, "for the beam width")
     progress = progress_for(args, NAME)
-    progress.stage(f"{word}: the curvature modules")
+    steps = 1 + 2 * len(word)  # the modules, then a search and a trace per letter
+    progress.stage(f"{word}: the curvature modules", total=steps, unit="steps")
     folder = _module_folder(args.modules)
     designs = {name: load_template(folder / f) for name, f in MODULE_FILES.items()}
     nets = {name: d.network for name, d in designs.items()}
@@ -169,15 +170,15 @@ def run(args) -> int:
     if final is None:
         raise FabkitError(f"{folder / MODULE_FILES['expand']}: [motion] has no `to` (D2*)")
     modules = curvature_modules(nets, float(final))
-    progress.stage(f"{word}: searching the chains", total=2 * len(word), unit="steps")
+    progress.update(1, text=f"{word}: searching the chains")
     fits = design_word(word, modules, height=args.height, beam=args.beam,
                        progress=lambda done, total, letter: progress.update(
-                           done, text=f"{letter}: searching the modules"))
+                           1 + done, text=f"{letter}: searching the modules"))
     sims = []
     for i, (letter, fit) in enumerate(zip(word, fits)):
-        progress.update(len(word) + i, text=f"{letter}: tracing {len(fit.names)} modules")
+        progress.update(1 + len(word) + i, text=f"{letter}: tracing {len(fit.names)} modules")
         sims.append(simulate_letter(fit, nets, float(final)))
-    progress.update(2 * len(word), text=f"{word}: drawing and writing")
+    progress.update(steps, text=f"{word}: drawing and writing")
     # Everything is computed before the first file is written.
     files: dict[str, bytes] = {}
     for name, f in MODULE_FILES.items():
