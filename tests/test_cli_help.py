@@ -234,6 +234,12 @@ def test_letters_in_lower_case_get_the_word_in_capitals(tmp_path, capsys):
     (["export", "fourbar", "--to", "dfx"],
      "fabkit: error: --to: unknown format 'dfx'; did you mean 'dxf'? valid: dxf, svg, fold, "
      "stl, cp"),
+    (["map", "chaotic", "--in", "d2"],
+     "fabkit: error: unrecognized arguments: --in d2; did you mean '--d-in'? "
+     "(see fabkit map --help)"),
+    (["map", "chaotic", "--out", "d2"],  # a port or a folder? (it used to write into d2/)
+     "fabkit: error: argument --out: could mean two things here: the output folder is "
+     "-o/--out-dir DIR, the map's output port --d-out PORT (see fabkit map --help)"),
     (["templates", "--copy", "fourbr"],
      "fabkit: error: --copy: no bundled template 'fourbr'; did you mean 'fourbar'? "
      "`fabkit templates` lists them"),

@@ -53,13 +53,29 @@ def examples_epilog(examples) -> str:
 
 # --- options spelt the same in every command -------------------------------------------------
 
-def add_out_dir(p, default, help: str, **kwargs) -> None:
+def add_out_dir(p, default, help: str, *, ambiguous: str | None = None, **kwargs) -> None:
     """``-o/--out-dir DIR``: the output folder (``--out``, the older spelling, still works and
-    is not shown)."""
+    is not shown). With ``ambiguous`` (a command with another ``--...-out`` option, such as
+    ``map --d-out``), ``--out`` is refused with that text instead of naming a folder."""
     p.add_argument("-o", "--out-dir", dest="out_dir", default=default, metavar="DIR",
                    help=help, **kwargs)
+    if ambiguous is not None:
+        p.add_argument("--out", dest="out_dir", default=argparse.SUPPRESS, metavar="X",
+                       help=argparse.SUPPRESS, action=_Refused, refusal=ambiguous)
+        return
     p.add_argument("--out", dest="out_dir", default=argparse.SUPPRESS, metavar="DIR",
                    help=argparse.SUPPRESS, **kwargs)
+
+
+class _Refused(argparse.Action):
+    """An option refused with a one-line reason (a spelling that could mean two things)."""
+
+    def __init__(self, *args, refusal: str, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.refusal = refusal
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        raise argparse.ArgumentError(self, self.refusal)
 
 
 def add_jobs(p, default, help: str) -> None:

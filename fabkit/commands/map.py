@@ -61,7 +61,9 @@ def add_arguments(p):
                    help="discarded iterations for --lyapunov (default 5000)")
     p.add_argument("--average", type=int, default=None,
                    help="averaged iterations for --lyapunov (default 20000)")
-    add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
+    add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/",
+                ambiguous="could mean two things here: the output folder is -o/--out-dir DIR, "
+                          "the map's output port --d-out PORT")
     add_settings(p, "override a motion setting, e.g. --set motion.to=2.9 (repeatable)")
     add_progress_options(p)
 
