@@ -1,8 +1,8 @@
 """Progress of a long job, said the same way by every command: one line per event on stderr.
 
 Every command that can run for more than a couple of seconds (``export``, ``sweep``, ``bench``,
-``tolerance``, ``design``, ``map --lyapunov``, ``simulate``, ``letters``, ``check``, ``fold``)
-reports through one :class:`Progress`, from its start::
+``tolerance``, ``design``, ``map --lyapunov``, ``simulate``, ``letters``, ``check``, ``fold``,
+``info`` of many templates) reports through one :class:`Progress`, from its start::
 
     fabkit sweep [0/40 points, 0.3 s] period_doubling: 40 points on 2 processes
     fabkit sweep [12/40 points, 9.8 s, about 23 s left] period_doubling: computing

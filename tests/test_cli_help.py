@@ -15,7 +15,7 @@ SHARED = {"out_dir": {"-o", "--out-dir"}, "jobs": {"-j", "--jobs"}, "settings": 
           "quiet": {"-q", "--quiet"}, "progress": {"--progress"}}
 #: Commands that can run for more than two seconds: they show progress (and take -q).
 LONG = {"export", "sweep", "bench", "tolerance", "design", "map", "simulate", "letters", "check",
-        "fold"}
+        "fold", "info"}
 #: Commands whose work runs in parallel processes.
 PARALLEL = {"export", "sweep"}
 #: Commands that read templates and apply settings to them.
@@ -122,7 +122,7 @@ def test_options_are_named_the_same_in_every_command():
     assert having["quiet"] == having["progress"] == LONG
     assert having["jobs"] == PARALLEL
     assert having["settings"] == SETTINGS
-    assert having["out_dir"] >= LONG - {"check"} and "templates" in having["out_dir"]
+    assert having["out_dir"] >= LONG - {"check", "info"} and "templates" in having["out_dir"]
 
 
 def test_quiet_and_progress_exclude_each_other(capsys):

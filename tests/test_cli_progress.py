@@ -33,13 +33,14 @@ RUNS = {
     "simulate": ["simulate", "fourbar", "-o", "{tmp}/out"],
     "letters": ["letters", "NO", "-o", "{tmp}/letters"],
     "fold": ["fold", "origami_sheet"],
+    "info": ["info", "fourbar", "super_stable"],
     "check": ["check", "{tmp}/out/fourbar/laser_sheet1.dxf", "--design", "fourbar"],
 }
 #: The count each command ends on (units of its progress line), when it counts its work.
 FINAL_COUNT = {"export": "1/1 designs", "sweep": "3/3 points", "bench": "7/7 runs",
                "tolerance": "1/1 templates", "map": "1/1 templates",
                "simulate": "1/1 templates", "letters": "5/5 steps", "fold": "1/1 templates",
-               "check": "1/1 files"}
+               "check": "1/1 files", "info": "2/2 templates"}
 LINE = re.compile(r"^fabkit (\w+) \[((\d+/\d+ \w+, )*)([\d.]+ s|\d+ min( \d+ s)?)"
                   r"(, about [^\]]+ left( in this one)?)?\] \S")
 

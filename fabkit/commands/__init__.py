@@ -16,7 +16,7 @@ from ..errors import FabkitError
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
-           "add_jobs", "add_settings", "add_progress_options", "progress_for"]
+           "add_jobs", "add_settings", "add_progress_options", "progress_for", "short_list"]
 
 
 # --- the help's examples ---------------------------------------------------------------------
@@ -155,6 +155,11 @@ def expand_templates(paths) -> list[Path]:
     return unique
 
 
+def short_list(paths) -> str:
+    """``"a.toml, b.toml, c.toml, ..."``: the first three file names, for a progress line."""
+    return ", ".join(p.name for p in paths[:3]) + (", ..." if len(paths) > 3 else "")
+
+
 def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
     """Run ``work(path)`` for every template named by ``paths`` (see :func:`expand_templates`).
 
@@ -175,8 +180,7 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
     code = 0
     found = expand_templates(paths)
     if progress is not None:
-        names = ", ".join(p.name for p in found[:3]) + (", ..." if len(found) > 3 else "")
-        progress.stage(names, total=len(found), unit="templates")
+        progress.stage(short_list(found), total=len(found), unit="templates")
     for path in found:
         ended, error = "done", None
         try:
