@@ -232,7 +232,7 @@ class Progress:
         parts = [str(c) for c in (self.count, self.inner) if c is not None]
         parts.append(duration(now - self.t0))
         left = self.left(now)
-        if left is not None:
+        if left is not None and left >= 0.05:  # "about 0.0 s left" would tell nothing
             many = self.inner is not None and self.count is not None \
                 and self.count.done < self.count.total - 1
             parts.append(f"about {duration(left)} left" + (" in this one" if many else ""))

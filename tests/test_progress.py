@@ -99,6 +99,18 @@ def test_the_item_in_hand_has_its_own_count_and_the_time_left_is_its_own():
     ]
 
 
+def test_a_time_left_too_short_to_read_is_left_out():
+    clock = Clock()
+    p, out = _progress(clock)
+    p.stage("quick", total=3, unit="steps")
+    clock.now += 0.01
+    p.update(1, text="one")  # 0.02 s left: "0.0 s" would tell nothing
+    clock.now += 0.5
+    p.update(2, text="two")  # 0.26 s a step
+    assert _lines(out)[1:] == ["fabkit job [1/3 steps, 0.0 s] one",
+                               "fabkit job [2/3 steps, 0.5 s, about 0.3 s left] two"]
+
+
 def test_a_resumed_count_times_only_the_work_of_this_run():
     clock = Clock()
     p, out = _progress(clock)
