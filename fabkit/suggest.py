@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import difflib
 
-__all__ = ["close_names", "did_you_mean"]
+__all__ = ["close_names", "did_you_mean", "nearest_file"]
 
 #: How alike a name must be to be offered (difflib's ratio; 0.6 is its own default).
 CUTOFF = 0.6
@@ -48,3 +48,29 @@ def did_you_mean(word, choices, *, quote: bool = True) -> str:
     if not names:
         return ""
     return f"did you mean {names[0]!r}?" if quote else f"did you mean {names[0]}?"
+
+
+def nearest_file(path, pattern: str = "*") -> str:
+    """``"did you mean 'out/fourbar/laser_sheet1.dxf'?"``: the file beside a missing ``path``
+    (among those matching ``pattern`` in its folder) whose name is closest to its name; ``""``
+    when none is alike or the folder cannot be read.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     (pathlib.Path(d) / "chain.toml").write_text("")
+    ...     nearest_file(pathlib.Path(d) / "chian.toml") == f"did you mean '{d}/chain.toml'?"
+    0
+    True
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        beside = sorted(p.name for p in path.parent.glob(pattern) if p.is_file()) \
+            if path.parent.is_dir() else []
+    except OSError:
+        return ""
+    found = close_names(path.name, beside, n=1)
+    return f"did you mean '{path.parent / found[0]}'?" if found else ""

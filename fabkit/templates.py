@@ -585,7 +585,7 @@ def _nearest_template(name) -> str:
     """``"; did you mean 'super_stable'?"`` for a misspelt template: among the bundled names and
     the templates of the current folder for a bare name, among the templates beside it for a
     path; ``""`` when none is alike."""
-    from .suggest import close_names
+    from .suggest import close_names, nearest_file
 
     if is_template_name(str(name)):  # a name, or a path as plain as one
         stem = str(name).removesuffix(".toml")
@@ -594,14 +594,8 @@ def _nearest_template(name) -> str:
         here = [p.stem for p in Path().glob("*.toml")]
         found = close_names(stem, sorted(set(bundled_names()) | set(here)), n=1)
         return f"; did you mean {found[0]!r}?" if found else ""
-    path = Path(name)
-    try:
-        beside = sorted(p.name for p in path.parent.glob("*.toml")) if path.parent.is_dir() \
-            else []
-    except OSError:
-        return ""
-    found = close_names(path.name, beside, n=1)
-    return f"; did you mean '{path.parent / found[0]}'?" if found else ""
+    hint = nearest_file(name, "*.toml")
+    return f"; {hint}" if hint else ""
 
 
 #: The package whose data files are the bundled templates. In the repo they live in ``templates/``

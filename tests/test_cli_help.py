@@ -204,6 +204,20 @@ def test_a_misspelt_template_gets_did_you_mean(tmp_path, monkeypatch, capsys):
                              "'sub/chain.toml'?"
 
 
+def test_a_misspelt_file_to_check_gets_the_file_beside_it(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "kit").mkdir()
+    (tmp_path / "kit" / "laser_sheet1.dxf").write_text("0\nEOF\n")
+    (tmp_path / "kit" / "laser_bom.md").write_text("")
+    assert main(["check", "kit/laser_sheet.dxf"]) == 1
+    assert _error(capsys) == ("fabkit: error: kit/laser_sheet.dxf: no such file; did you mean "
+                              "'kit/laser_sheet1.dxf'?")
+    assert main(["check", "kit/part.stl"]) == 1  # nothing alike: no guess
+    assert _error(capsys) == "fabkit: error: kit/part.stl: no such file"
+    assert main(["check", "nowhere/part.stl"]) == 1  # no such folder either
+    assert _error(capsys) == "fabkit: error: nowhere/part.stl: no such file"
+
+
 def test_letters_in_lower_case_get_the_word_in_capitals(tmp_path, capsys):
     assert main(["letters", "network", "-o", str(tmp_path / "out")]) == 2
     assert _error(capsys) == (

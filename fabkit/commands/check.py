@@ -83,7 +83,10 @@ def run(args) -> int:
     for name in args.files:
         path = Path(name)
         if not path.is_file():
-            raise FabkitError(f"{path}: no such file")
+            from ..suggest import nearest_file
+
+            hint = nearest_file(path)
+            raise FabkitError(f"{path}: no such file" + (f"; {hint}" if hint else ""))
         progress.stage(f"{path}: reading back, rebuilding, moving")
         if args.debug:  # in this process, for the traceback
             report = check_file(path, design=design, settings=settings)
