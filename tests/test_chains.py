@@ -3,6 +3,7 @@ chains, fixed points and cycles, the soliton, the AND gate, curvature and the ph
 
 from __future__ import annotations
 
+import gc
 import time
 
 import numpy as np
@@ -331,12 +332,19 @@ def test_ten_thousand_modules_build_and_trace(method):
     module = load("super_stable").network
 
     def cpu_seconds(copies):
-        t0 = time.thread_time()
-        built = chain(module, copies, mirror="alternate")
-        return time.thread_time() - t0, built
+        # the collector off while timing: a full collection walks every object the suite's
+        # earlier tests left alive, work that is not the build's
+        gc.collect()
+        gc.disable()
+        try:
+            t0 = time.thread_time()
+            built = chain(module, copies, mirror="alternate")
+            return time.thread_time() - t0, built
+        finally:
+            gc.enable()
 
     small = min(cpu_seconds(1000)[0] for _ in range(3))
-    build, net = cpu_seconds(10_000)
+    build, net = min((cpu_seconds(10_000) for _ in range(2)), key=lambda r: r[0])
     assert net.n_nodes == 30_002 and net.n_edges == 60_000 and "d10001" in net.ports
     opts = {"samples": 5} if method == "constructive" else {}
     traj = fabkit.trace(net, "d1", to=1.3, method=method, **opts)

@@ -155,7 +155,9 @@ def test_a_3mf_of_no_bar_of_the_design_is_a_failed_check(tmp_path, capsys):
     rc = main(["check", str(tetrahedra_3mf(tmp_path / "t.3mf", 20)), "--design", "super_stable"])
     out = capsys.readouterr()
     assert rc == 1 and out.err == ""
-    assert "0 bars on 0 layers" in out.out and out.out.strip().endswith("t.3mf: FAILED")
+    assert "FAIL  one closed body per bar: 20 (limit 6)" in out.out
+    assert "body 0 on t.3mf: 0 holes and 0 pins, not two joints" in out.out
+    assert out.out.strip().endswith("t.3mf: FAILED")
 
 
 # --- STL: the triangles it holds ------------------------------------------------------------

@@ -1,13 +1,9 @@
-"""Beds of a printed network read back: the files of one export, and each piece back in its frame.
+"""Beds of a printed network read back: the files of one export, and the bodies they hold.
 
 A print is written bed by bed (``NAME.stl``, or ``NAME_bed1.stl``, ``NAME_bed2.stl`` ... and the
-same for ``.3mf``), every piece turned and moved onto its bed (:mod:`fabkit.fab.printers`). To
-compare what a file holds with the design, the checks put each piece back where the design has
-it: the placement the exporter chooses is recomputed from the design and the settings (the
-exporters' layouts are pure, :func:`fabkit.export.stl.hinge_layout` and
-:func:`fabkit.fab.pinned.pinned_print`), each body read back is given to the placed piece whose
-bed rectangle holds its centre, and the placement is undone. A file made otherwise does not
-match the design, and the checks say so.
+same for ``.3mf``), every piece turned and moved onto its bed. The checks read every bed of the
+export and find each piece in the design by its own geometry (:mod:`fabkit.check.register`);
+where the writer placed it is never asked.
 """
 
 from __future__ import annotations
@@ -17,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["bed_set", "split_bodies", "assign_bodies", "unplace"]
+__all__ = ["bed_set", "split_bodies"]
 
 
 def bed_set(path) -> list[Path]:
@@ -38,47 +34,3 @@ def split_bodies(mesh) -> list:
     """The connected shells of a mesh (trimesh), in a fixed order (by their lowest vertex)."""
     bodies = list(mesh.split(only_watertight=False))
     return sorted(bodies, key=lambda b: tuple(np.round(b.bounds[0], 6)))
-
-
-def assign_bodies(bodies, placements, margin: float = 1.0) -> dict:
-    """Which placed piece each body belongs to: the one whose rectangle on the bed holds the
-    body's centre (``margin`` mm of slack).
-
-    Parameters
-    ----------
-    bodies : list of trimesh.Trimesh
-    placements : list of Placement
-        The pieces on this bed.
-
-    Returns
-    -------
-    dict
-        Piece index -> list of bodies; bodies outside every rectangle under ``-1``.
-    """
-    out: dict = {}
-    for body in bodies:
-        c = 0.5 * (body.bounds[0][:2] + body.bounds[1][:2])
-        owner = -1
-        for p in placements:
-            lo = _placed_box(p)
-            if np.all(c >= lo[0] - margin) and np.all(c <= lo[1] + margin):
-                owner = p.piece
-                break
-        out.setdefault(owner, []).append(body)
-    return out
-
-
-def _placed_box(p) -> np.ndarray:
-    """The bed rectangle a placed piece fills (its turned bounding box)."""
-    return np.array([p.box_lo, np.asarray(p.box_lo) + np.asarray(p.size)])
-
-
-def unplace(mesh, matrix):
-    """The mesh moved back from the bed by the inverse of a 4 x 4 (or 3 x 4) placement."""
-    import trimesh
-
-    m = np.eye(4)
-    m[:np.asarray(matrix).shape[0], :] = matrix
-    inv = np.linalg.inv(m)
-    v = np.asarray(mesh.vertices, dtype=np.float64) @ inv[:3, :3].T + inv[:3, 3]
-    return trimesh.Trimesh(v, np.asarray(mesh.faces), process=False)

@@ -31,6 +31,7 @@ import io
 import math
 import re
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -79,6 +80,8 @@ class DxfHeader(BaseModel):
     FABKIT_HOLE: float = Field(gt=0, le=1000, description="screw hole diameter (mm)")
     FABKIT_BARS: int = Field(ge=1, le=MAX_INDEX, description="bars in the kit")
     FABKIT_SCALE: float = Field(gt=0, le=1e6, description="mm per design unit")
+    FABKIT_THICKNESS: Optional[float] = Field(None, gt=0, le=1000,
+                                              description="sheet thickness (mm)")
 
 
 def _mm(v: float) -> str:
@@ -87,6 +90,18 @@ def _mm(v: float) -> str:
 
 def _check(name, ok, value=None, limit=None, detail=""):
     return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
+
+
+def _bar_name(k, joints) -> str:
+    return f"bar {int(k)} (joints {int(joints[0])}-{int(joints[1])})"
+
+
+def _kerf_undone(drawn_outline_radius, drawn_hole_radius, kerf: float):
+    """(width, hole diameter) of a part as it comes off the laser, from the radii drawn in the
+    file and the kerf its header says it was drawn for: outlines were grown and holes shrunk
+    by half the kerf, and the laser takes that half back on each side."""
+    return (2.0 * np.asarray(drawn_outline_radius) - kerf,
+            2.0 * np.asarray(drawn_hole_radius) + kerf)
 
 
 def read_sheet(doc) -> dict:
@@ -308,19 +323,23 @@ def _check_docs(docs: dict, design, settings) -> dict:
     d_same = np.linalg.norm(ac - hc, axis=2).max(1)
     d_swap = np.linalg.norm(ac[:, ::-1] - hc, axis=2).max(1)
     off = np.minimum(d_same, d_swap)
+    edges = np.array([bars[k]["joints"] for k in ks], dtype=np.int64)
+    worst = int(np.argmax(off))
     checks.append(_check("holes_centred", off.max() <= LENGTH_TOL, float(off.max()), LENGTH_TOL,
-                         "largest distance (mm) from a hole centre to its round end's centre"))
-    from ..fab.bars import undo_kerf
-
-    w_built, h_built = undo_kerf(ar, hr, kerf)
+                         "largest distance (mm) from a hole centre to its round end's centre"
+                         if off.max() <= LENGTH_TOL else
+                         f"{_bar_name(ks[worst], edges[worst])}: a hole lies {off[worst]:.3f} mm "
+                         "from the centre of its round end"))
+    w_built, h_built = _kerf_undone(ar, hr, kerf)
     dw = float(np.abs(w_built - width).max())
     dh = float(np.abs(h_built - hole).max())
     checks.append(_check("width_after_kerf", dw <= LENGTH_TOL, dw, LENGTH_TOL,
-                         f"bar width with the {kerf:g} mm kerf undone vs {width:g} mm"))
+                         f"bar width with the {kerf:g} mm kerf of the header undone vs "
+                         f"{width:g} mm"))
     checks.append(_check("hole_after_kerf", dh <= LENGTH_TOL, dh, LENGTH_TOL,
-                         f"hole diameter with the kerf undone vs {hole:g} mm"))
+                         f"hole diameter with the {kerf:g} mm kerf of the header undone vs "
+                         f"{hole:g} mm"))
     lengths = np.linalg.norm(hc[:, 0] - hc[:, 1], axis=1)
-    edges = np.array([bars[k]["joints"] for k in ks], dtype=np.int64)
     layer = np.array([bars[k]["layer"] for k in ks], dtype=np.int64)
     report = {"files": sorted(docs), "bars": [round(float(v), 9) for v in lengths],
               "scale": scale}
@@ -337,9 +356,12 @@ def _check_docs(docs: dict, design, settings) -> dict:
         report.update(ok=False, checks=checks)
         return report
     want = net.edge_lengths * scale
-    dl = float(np.abs(lengths - want).max())
+    worst = int(np.argmax(np.abs(lengths - want)))
+    dl = float(abs(lengths[worst] - want[worst]))
     checks.append(_check("lengths", dl <= LENGTH_TOL, dl, LENGTH_TOL,
-                         "largest |read-back - designed| bar length (mm)"))
+                         "largest |read-back - designed| bar length (mm)" if dl <= LENGTH_TOL else
+                         f"{_bar_name(ks[worst], edges[worst])}: its holes are "
+                         f"{lengths[worst]:.3f} mm apart, the design's bar {want[worst]:.3f} mm"))
     same_topology = np.array_equal(np.sort(edges, 1), np.sort(net.edges, 1))
     checks.append(_check("topology", same_topology, None, None,
                          "bars join the designed joints" if same_topology else
@@ -347,7 +369,11 @@ def _check_docs(docs: dict, design, settings) -> dict:
     if not same_topology:
         report.update(ok=False, checks=checks)
         return report
-    checks += _motion_checks(design, edges, lengths, layer, scale, settings, report)
+    spacers = [2.0 * r - kerf for sh in sheets.values() for part in sh["parts"].values()
+               if part["kind"] == "spacer" for _, r in part["outer"]]
+    measured = {"widths": w_built.max(axis=1), "thickness": values["FABKIT_THICKNESS"],
+                "spacer": max(spacers) if spacers else None}
+    checks += _motion_checks(design, edges, lengths, layer, scale, settings, report, measured)
     report.update(ok=all(c["ok"] for c in checks), checks=checks)
     return report
 
@@ -369,7 +395,6 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
     design) the same width, hole, ring and kerf as the kit those settings make."""
     from pydantic import ValidationError
 
-    from ..fab.bars import undo_kerf
     from ..schema import describe_validation_error
 
     try:
@@ -391,8 +416,8 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
     kerf = v["FABKIT_KERF"]
     ar = np.array([[a[1] for a in b["arcs"]] for b in bars])
     hr = np.array([[h[1] for h in b["holes"]] for b in bars] + [[rings[0]["holes"][0][1]] * 2])
-    w, h = undo_kerf(ar, hr, kerf)
-    ring_d, _ = undo_kerf(np.array([rings[0]["outer"][0][1]]), np.zeros(1), kerf)
+    w, h = _kerf_undone(ar, hr, kerf)
+    ring_d, _ = _kerf_undone(np.array([rings[0]["outer"][0][1]]), np.zeros(1), kerf)
     spacing = np.array([np.linalg.norm(np.subtract(b["holes"][0][0], b["holes"][1][0]))
                         for b in bars])
     want = {"width_after_kerf": (w, v["FABKIT_BAR_WIDTH"]),
@@ -420,16 +445,23 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
             "coupon": True}
 
 
-def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) -> list:
-    from ..fab.laser import kit_design, laser_overrides, laser_settings
-    from ..fab.layers import JointStack, sample_motion, stacking_gaps
+def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, measured) -> list:
+    """Modes, the re-simulated motion, the screws and the clearances of the rebuilt kit.
+
+    ``measured``: what the file says besides the bars' lengths: ``widths`` (each bar's width,
+    kerf undone), ``thickness`` (the header's sheet) and ``spacer`` (the spacer rings'
+    diameter, None when the kit has none). The template gives the clearance, the screw (a
+    catalogue entry) and the window of the motion the kit follows.
+    """
+    from ..fab.laser import laser_overrides, laser_settings
     from ..network import Network
     from ..rigidity import count_modes
-    from .motion import compare_motion
+    from .clearance import fine_motion, same_layer_gaps
+    from .motion import compare_motion, design_window
 
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=design.network.size)
-    design = kit_design(design, s)  # the motion the kit was planned for (motion_from / _to)
+    design = design_window(design, s.motion_from, s.motion_to)
     net = design.network
     out = []
     # Joint positions with the read-back lengths. When the design's own joints already have them
@@ -461,20 +493,15 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
                       f"largest port-distance difference (design units, at {cmp['port']}) "
                       f"between the design's and the rebuilt network's motion; both "
                       f"{cmp['status']}"))
-    out.append(_screws_close(edges, layer, s))
+    thickness = measured["thickness"] or s.thickness
+    out.append(_screws_close(edges, layer, s, thickness))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
-    # the gap required grows by the excess (the planner widened its clearance the same way)
-    fine = sample_motion(built, m, scale, 0.25 * s.clearance, floor_limit=s.clearance)
-    inc = {}
-    for b, (i, j) in enumerate(edges.tolist()):
-        inc.setdefault(i, []).append(b)
-        inc.setdefault(j, []).append(b)
-    joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
-              for j, bs in sorted(inc.items()) if len(bs) >= 2]
-    head = int(math.ceil(s.screw.head_height / s.thickness - HEAD_LAYERS_SLACK))
-    gaps = stacking_gaps(edges, layer, fine.positions, width=s.bar_width, joints=joints,
-                         head_slots=head, column_radius=0.5 * s.screw.head_diameter,
-                         spacer_radius=0.5 * s.spacer_diameter)
+    # the gap required grows by the excess
+    fine = fine_motion(built, m, scale, 0.25 * s.clearance, floor=s.clearance)
+    head = int(math.ceil(s.screw.head_height / thickness - HEAD_LAYERS_SLACK))
+    gaps = same_layer_gaps(edges, layer, fine.positions, measured["widths"],
+                           columns=_columns(edges, layer, head, 0.5 * s.screw.head_diameter,
+                                            0.5 * (measured["spacer"] or s.spacer_diameter)))
     need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
     worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
     report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
@@ -484,13 +511,44 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report) ->
         "same_layer", worst_gap >= need, None if math.isinf(worst_gap) else round(worst_gap, 6),
         need, f"smallest gap (mm) between parts sharing a layer over {fine.n_samples} samples "
               f"(bar to bar {_mm(gaps['bar_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, "
-              f"screw to screw {_mm(gaps['column_gap'])})"))
+              f"screw to screw {_mm(gaps['column_gap'])})" + _closest(gaps, need)))
     return out
 
 
-def _screws_close(edges, layer, s) -> dict:
-    """Every joint's screw, chosen for the layers read back, closes on the thickest sheets the
-    thickness tolerance allows (and the catalogue has such a post)."""
+def _closest(gaps: dict, need: float) -> str:
+    """Where the parts come too close, named (empty when nothing does)."""
+    if gaps["bar_gap"] < need:
+        return f"; bars {gaps['bar_pair'][0]} and {gaps['bar_pair'][1]} at sample " \
+               f"{gaps['sample']}"
+    if gaps["screw_gap"] < need:
+        return f"; bar {gaps['screw_at'][0]} and the screw at joint {gaps['screw_at'][1]}"
+    if gaps["column_gap"] < need:
+        return f"; the screws at joints {gaps['column_pair'][0]} and {gaps['column_pair'][1]}"
+    return ""
+
+
+def _columns(edges, layer, head_slots: int, radius: float, ring_radius: float) -> dict:
+    """The screw at every joint of two or more bars: its stack's layers, and its heads
+    ``head_slots`` layers above and below (see :func:`fabkit.check.clearance.same_layer_gaps`)."""
+    spans: dict[int, list[int]] = {}
+    for b, (i, j) in enumerate(edges.tolist()):
+        for v in (i, j):
+            spans.setdefault(v, []).append(int(layer[b]))
+    joints = sorted(j for j, zs in spans.items() if len(zs) >= 2)
+    lo = np.array([min(spans[j]) for j in joints], dtype=np.int64)
+    hi = np.array([max(spans[j]) for j in joints], dtype=np.int64)
+    return {"joints": np.array(joints, dtype=np.int64), "low": lo - head_slots,
+            "high": hi + head_slots, "inner_low": lo, "inner_high": hi, "radius": radius,
+            "inner_radius": ring_radius}
+
+
+def _screws_close(edges, layer, s, thickness: float) -> dict:
+    """Every joint's stack (its layers read back) is closed by a fastener of the catalogue on
+    the thickest sheets the thickness tolerance allows.
+
+    The catalogue (:func:`fabkit.fab.hardware.fit_fastener`: the posts, extensions and shims as
+    sold) is asked afresh for the stack read back; the fasteners the writer chose are not
+    consulted (the DXF holds none)."""
     from ..errors import FabricationError
     from ..fab.hardware import fit_fastener
 
@@ -504,7 +562,7 @@ def _screws_close(edges, layer, s) -> dict:
             continue
         n = max(zs) - min(zs) + 1
         try:
-            fit = fit_fastener(s.screw, n, s.thickness, s.thickness_tolerance)
+            fit = fit_fastener(s.screw, n, thickness, s.thickness_tolerance)
         except FabricationError as exc:
             problem = f"joint {joint}: {exc}"
             worst, where = -math.inf, joint
@@ -514,7 +572,7 @@ def _screws_close(edges, layer, s) -> dict:
     ok = not problem and worst >= -MM_SLACK
     return _check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
                   problem or f"least axial play (mm) with washers on sheets of "
-                  f"{s.thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
+                  f"{thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
 
 
 def _sheet_set(path: Path) -> list[Path]:

@@ -39,6 +39,9 @@ MAP_TOL = 1e-8
 #: the frames are written with 12 significant digits (see export/fold.py), so 1e-8 leaves margin
 #: for rounding and refuses a frame that is visibly off.
 FRAME_RTOL = 1e-8
+#: Largest distance (mm) of a file vertex from the design's node: the file stores 12
+#: significant digits, so anything above round-off is a vertex the writer put elsewhere.
+GEOMETRY_TOL_MM = 1e-6
 
 
 def _check(name, ok, value, limit, detail):
@@ -148,6 +151,65 @@ def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
                    f"{len(next(iter(stored.values())))} frames")
 
 
+def _design_checks(checks, doc, model, design, drive, values, stored, sheets, name):
+    """The file against the design's template: its vertices are the design's nodes (a rigid
+    fit, the worst vertex named), its edges and ports the design's; and the design's own
+    geometry, folded by the simulator as the file says (its assignment, branch and frames),
+    gives the map the file stores. Returns the largest map difference, None when the file is
+    another design's."""
+    from ..fab.creases import fold_model
+    from ..numerics import apply_fit, rigid_fit
+
+    net = design.network
+    scale = float(doc["fabkit:scale"])
+    root = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
+    nv = root.shape[0]
+    file_edges = {tuple(sorted(e)) for e, a in zip(model.edges.tolist(), doc["edges_assignment"])
+                  if a != "C"}
+    design_edges = {tuple(sorted(e)) for e in net.edges.tolist() if max(e) < nv}
+    same = (net.n_nodes >= nv and net.dim == 3 and file_edges == design_edges
+            and {k: tuple(v) for k, v in doc["fabkit:ports"].items()}
+            == {k: tuple(v) for k, v in net.ports.items()})
+    if not same:  # another design (other sheets, other ports): a failed check, not an error
+        checks.append(_check("design_map", False, None, MAP_TOL,
+                             f"the design {design.name} does not match this file ({net.n_nodes} "
+                             f"nodes, ports {', '.join(sorted(net.ports))} against {nv} "
+                             f"vertices, ports {', '.join(sorted(doc['fabkit:ports']))})"))
+        return None
+    flat = np.zeros((nv, 3))
+    flat[:, :root.shape[1]] = root
+    fit = rigid_fit(flat, net.nodes[:nv])
+    off = np.linalg.norm(apply_fit(fit, flat) - net.nodes[:nv], axis=1) * scale
+    k = int(np.argmax(off))
+    checks.append(_check("design_geometry", off[k] <= GEOMETRY_TOL_MM, float(off[k]),
+                         GEOMETRY_TOL_MM,
+                         f"vertex {k} lies {off[k]:.3f} mm from the design's node {k} (best "
+                         "rigid fit of the file's vertices onto the design's nodes)"
+                         if off[k] > GEOMETRY_TOL_MM else
+                         "largest distance (mm) of a file vertex from the design's node after a "
+                         "rigid fit; edges and ports are the design's"))
+    # the design's nodes carried into the file's frame, folded as the file says
+    inverse = (net.nodes[:nv] - fit.shift) @ fit.rotation
+    again = dict(doc, vertices_coords=(inverse[:, :root.shape[1]] * scale).tolist())
+    dm = model_from_fold(again, name)
+    m = design.motion
+    try:
+        dfold = fold_model(dm, m.drive, m.to)
+        if len(sheets) > 1:
+            ddiff, _ = _sheet_maps(dm, sheets, stored)
+        else:
+            dmap = _map_at(dm, dfold, drive, values)
+            ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in stored)
+    except FabkitError as exc:
+        checks.append(_check("design_map", False, None, MAP_TOL,
+                             f"the design's geometry does not fold as the file says: {exc}"))
+        return None
+    checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
+                         f"the file's map against the design {design.name}'s geometry, folded by "
+                         f"the simulator to {m.drive} = {float(m.to):g}"))
+    return ddiff
+
+
 def check_file(path, design=None, settings=None) -> dict:
     """Read a FOLD file back and re-fold it (see the module docstring).
 
@@ -156,7 +218,7 @@ def check_file(path, design=None, settings=None) -> dict:
     dict
         ``ok``, ``checks``, and ``max_map_difference``.
     """
-    from ..fab.creases import flat_foldability, fold_model, origami_model
+    from ..fab.creases import flat_foldability, fold_model
     from ..rigidity import count_modes
 
     from . import require_files
@@ -216,26 +278,7 @@ def check_file(path, design=None, settings=None) -> dict:
     report = {"format": FORMAT, "file": str(path), "checks": checks, "max_map_difference": diff,
               "branches": fold.branches, "branch": fold.branch}
     if design is not None:
-        dm = origami_model(design, (settings or {}).get("origami"))
-        dfold = fold_model(dm, design.motion.drive, design.motion.to)
-        if len(dm.sheets) > 1:
-            # the design's own frames, input by input: the same well-conditioned comparison
-            dmap = {k: np.asarray(v) for k, v in dfold.ports.items()}
-        else:
-            dmap = _map_at(dm, dfold, drive, values)
-        common = [k for k in stored if k in dmap]
-        # another design (other sheets, other ports) cannot be compared value by value: that is
-        # a failed check, not an error
-        if not common or any(np.shape(dmap[k]) != np.shape(stored[k]) for k in common):
-            checks.append(_check("design_map", False, None, MAP_TOL,
-                                 f"the design {design.name} does not match this file (ports "
-                                 f"{', '.join(sorted(dmap))} against {', '.join(sorted(stored))}, "
-                                 f"{len(dm.sheets)} sheet(s) against {max(len(sheets), 1)})"))
-            ddiff = None
-        else:
-            ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in common)
-            checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
-                                 f"file map against the design {design.name}"))
+        ddiff = _design_checks(checks, doc, model, design, drive, values, stored, sheets, Path(path).stem)
         report["max_design_difference"] = ddiff
     if model.flat_start:
         ff = flat_foldability(model.pattern())

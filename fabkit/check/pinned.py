@@ -1,16 +1,19 @@
 """As-built check of a print-in-place bar linkage, read back from its STL or 3MF beds.
 
-From the meshes alone (with the design for its settings and its placement on the beds,
-:mod:`fabkit.check.beds`):
+From the meshes alone (the template gives the print settings: layer pitch, bar size, pin
+clearance, nozzle; nothing of the writer's plan or layout is used):
 
-* **bodies**: one closed, consistently wound shell per bar, nothing fused (trimesh), with the
-  exact volume of the bars and pins (relative :data:`VOLUME_RTOL`);
+* **bodies**: one closed, consistently wound shell per bar, nothing fused (trimesh);
 * **bars**: each body's lowest slab is a bar: its height a whole number of layers on a layer of
   the stack (``z = layer x pitch``); a cross-section through it gives the outline (its width)
   and the holes; a cross-section just above it the pins the bar carries; every bar has two
   joints, each a hole or a pin;
-* **pins -> joints**: holes and pins that share a centre are one joint; every joint of two or
-  more bars has exactly one pin (but the joints where the print is cut between pieces);
+* **pieces**: holes and pins that share a centre on one bed are one joint; bars joined at
+  joints are one piece; each piece is laid onto the design's nodes by a rigid motion found from
+  its own bars (:mod:`fabkit.check.register`), every design edge built once; a design node held
+  by two pieces is a joint where the print is cut, to be joined by hand;
+* **pins -> joints**: every joint of two or more bars has exactly one pin, but the joints
+  where the print is cut (plain holes);
 * **pin clearance**: the smallest radial gap between a pin and a hole around it (the hole's
   inscribed circle less the pin's circumscribed one less their offset), at least
   ``pin_clearance``;
@@ -18,16 +21,15 @@ From the meshes alone (with the design for its settings and its placement on the
 * **layer gaps**: one ``layer_gap`` above and below every bar on a pin, the pin's body is no
   wider than the pin (its collars and cap keep clear of the bars), and stacked bars are a gap
   apart (pitch less thickness);
-* **rebuilt network**: the joints, moved back from the bed into the design's frame, match the
-  design's nodes (:data:`NODE_TOL_MM`), the bars join the designed joints with the designed
-  lengths (:data:`LENGTH_TOL_MM`), and the network has the design's conformational motion;
+* **rebuilt network**: the joints match the design's nodes (:data:`NODE_TOL_MM`), the bars
+  join the designed joints with the designed lengths (:data:`LENGTH_TOL_MM`), and the network
+  has the design's conformational motion;
 * **motion**: the motion is re-simulated on the rebuilt network (its joints refitted to the
   read-back lengths where they differ from the design's by more than the files' float32
-  resolution) and compared with the design's; then, sampled more finely than the stacking was
-  planned (no node moves more than a quarter of the clearance between samples), no two bars of
-  one layer come closer than half the clearance, and no bar enters the layers of a pin's
-  collars or cap nearby (:func:`fabkit.fab.layers.stacking_gaps`, with the layers, widths and
-  cap radii read back).
+  resolution) and compared with the design's; then, sampled more finely than a quarter of the
+  clearance per step, no two bars of one layer of a piece come closer than half the
+  clearance, and no bar enters the layers of a pin's collars or cap nearby
+  (:mod:`fabkit.check.clearance`, with the layers, widths and cap radii read back).
 """
 
 from __future__ import annotations
@@ -38,10 +40,8 @@ import numpy as np
 
 from ..errors import FabkitError
 
-__all__ = ["check_pinned", "read_bar", "VOLUME_RTOL", "NODE_TOL_MM", "LENGTH_TOL_MM"]
+__all__ = ["check_pinned", "read_bar", "NODE_TOL_MM", "LENGTH_TOL_MM"]
 
-#: Relative tolerance between the bodies' volume and the exact volume of bars and pins.
-VOLUME_RTOL = 1e-6
 #: Largest distance (mm) between a rebuilt joint and the design's node.
 NODE_TOL_MM = 1e-2
 #: Largest difference (mm) between a read-back bar length and the design's: STL and 3MF store
@@ -100,7 +100,7 @@ def read_bar(body, s) -> dict:
     """
     import shapely
 
-    from .stl import _section
+    from .sections import section as _section
 
     z = np.asarray(body.vertices)[:, 2]
     z0 = float(z.min())
@@ -133,48 +133,11 @@ def read_bar(body, s) -> dict:
         return out
     a, b = ends
     ext = np.asarray(poly.exterior.coords)[:-1, :2]
-    from ..fab.layers import point_segment_distance
+    from .clearance import point_gap
 
-    d = point_segment_distance(ext[None], a[None], b[None])
+    d = point_gap(ext, a[None], b[None])
     out["width"] = 2.0 * float(np.max(d))
     return out
-
-
-def _unplaced_bodies(meshes, names, plan, checks):
-    """Every body read back, moved from its bed into the print frame, with its piece."""
-    from .beds import assign_bodies, split_bodies, unplace
-
-    bodies = []
-    for b, mesh in enumerate(meshes):
-        on_bed = [p for p in plan.layout if p.bed == b]
-        owners = assign_bodies(split_bodies(mesh), on_bed)
-        stray = owners.pop(-1, [])
-        if stray:
-            checks.append(_check(f"{names[b]}: bodies in place", False, len(stray), 0,
-                                 "bodies outside every piece's place on the bed"))
-        for piece, found in owners.items():
-            m = plan.placement_matrix(piece)
-            bodies += [(piece, unplace(body, m)) for body in found]
-    return bodies
-
-
-def _joints(bars, plan):
-    """Cluster holes and pins by centre: each cluster is a joint."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    feats = []  # (bar, kind, centre, inner, outer)
-    for k, bar in enumerate(bars):
-        feats += [(k, "hole", c, r_in, r_out) for c, r_in, r_out in bar["holes"]]
-        feats += [(k, "pin", c, r_out, r_out) for c, r_out in bar["pins"]]
-    centres = np.array([f[2] for f in feats]).reshape(-1, 2)
-    pairs = cKDTree(centres).query_pairs(JOINT_TOL_MM, output_type="ndarray")
-    adj = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                     shape=(len(feats),) * 2)
-    n, label = connected_components(adj, directed=False)
-    joints = [[feats[i] for i in np.flatnonzero(label == j)] for j in range(n)]
-    return joints, label, feats
 
 
 def _gap_probe(carrier, centre, z, s) -> float:
@@ -182,7 +145,7 @@ def _gap_probe(carrier, centre, z, s) -> float:
     0 when it has nothing there."""
     import shapely
 
-    from .stl import _section
+    from .sections import section as _section
 
     reach = 0.0
     disc = shapely.Point(*centre).buffer(0.5 * s.cap_diameter + s.nozzle_width)
@@ -195,17 +158,105 @@ def _gap_probe(carrier, centre, z, s) -> float:
     return reach
 
 
+def _bodies(meshes):
+    """Every body read back, with its bed: (bed, trimesh.Trimesh) in bed coordinates."""
+    from .beds import split_bodies
+
+    return [(b, body) for b, mesh in enumerate(meshes) for body in split_bodies(mesh)]
+
+
+def _joints(bars, beds):
+    """Cluster holes and pins by centre, bed by bed: each cluster is a joint.
+
+    Returns
+    -------
+    joints : list of list of features
+        A feature is (bar, kind, centre, inner radius, outer radius).
+    bar_joints : numpy.ndarray of int, shape (B, 2)
+        The two joints of each bar.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    feats = []  # (bar, kind, centre, inner, outer)
+    for k, bar in enumerate(bars):
+        feats += [(k, "hole", c, r_in, r_out) for c, r_in, r_out in bar["holes"]]
+        feats += [(k, "pin", c, r_out, r_out) for c, r_out in bar["pins"]]
+    # beds apart along a third axis: features of two beds never share a joint
+    points = np.array([[*f[2], 1e7 * beds[f[0]]] for f in feats]).reshape(-1, 3)
+    pairs = cKDTree(points).query_pairs(JOINT_TOL_MM, output_type="ndarray")
+    adj = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                     shape=(len(feats),) * 2)
+    n, label = connected_components(adj, directed=False)
+    joints = [[feats[i] for i in np.flatnonzero(label == j)] for j in range(n)]
+    bar_joints = np.zeros((len(bars), 2), dtype=np.int64)
+    seen = np.zeros(len(bars), dtype=np.int64)
+    for i, f in enumerate(feats):
+        bar_joints[f[0], min(seen[f[0]], 1)] = label[i]
+        seen[f[0]] += 1
+    return joints, bar_joints
+
+
+def _place(joints, bar_joints, design, s):
+    """Each joint's design node and each bar's design edge, from the pieces laid onto the
+    design (:func:`fabkit.check.register.place_pieces`).
+
+    Returns
+    -------
+    dict
+        ``node`` (design node of each joint, -1 where its piece fits nowhere), ``deviation``
+        (mm), ``piece`` (of each joint), ``edge`` (design edge of each bar, -1: none).
+    """
+    from .register import pieces_of, place_pieces
+
+    net = design.network
+    centres = np.array([np.mean([f[2] for f in jf], axis=0) for jf in joints]).reshape(-1, 2)
+    pieces = pieces_of(len(joints), bar_joints)
+    local = np.empty(len(joints), dtype=np.int64)
+    piece_of = np.empty(len(joints), dtype=np.int64)
+    for p, members in enumerate(pieces):
+        local[members] = np.arange(len(members))
+        piece_of[members] = p
+    bars_of = [np.flatnonzero(piece_of[bar_joints[:, 0]] == p) for p in range(len(pieces))]
+    pinned = np.array([any(f[1] == "pin" for f in jf) for jf in joints])
+    holes = np.array([sum(f[1] == "hole" for f in jf) for jf in joints])
+
+    def pins_agree(places) -> bool:
+        """A joint is cut between pieces exactly where it has plain holes and no pin."""
+        node = np.empty(len(joints), dtype=np.int64)
+        for members, pl in zip(pieces, places):
+            node[members] = pl.match
+        cut = np.bincount(node, minlength=net.n_nodes)[node] >= 2
+        return bool(not (cut & pinned).any() and not (~cut & ~pinned & (holes >= 2)).any())
+
+    placed = place_pieces([(centres[m], local[bar_joints[bars_of[p]]])
+                           for p, m in enumerate(pieces)],
+                          net.nodes * s.scale, net.edges, tol=NODE_TOL_MM, accept=pins_agree)
+    node = np.full(len(joints), -1, dtype=np.int64)
+    dev = np.full(len(joints), np.inf)
+    for members, pl in zip(pieces, placed):
+        if pl is not None:
+            node[members], dev[members] = pl.match, pl.deviation
+    designed = {tuple(e): k for k, e in enumerate(np.sort(net.edges, axis=1).tolist())}
+    ends = np.sort(node[bar_joints], axis=1)
+    edge = np.array([designed.get(tuple(e), -1) if e[0] >= 0 else -1 for e in ends.tolist()],
+                    dtype=np.int64)
+    return {"node": node, "deviation": dev, "piece": piece_of, "edge": edge,
+            "pieces": len(pieces), "centres": centres}
+
+
 def check_pinned(meshes, names, design, s, report) -> dict:
     """The as-built check of a print-in-place linkage (see the module docstring).
 
     Parameters
     ----------
     meshes : list of trimesh.Trimesh
-        The beds as read back (bed coordinates, mm), in bed order.
+        The beds as read back (mm), in bed order.
     names : list of str
     design : Design
     s : PrintSettings
-        ``linkage = "pins"``.
+        ``linkage = "pins"``, from the template (and the overrides of the export).
     report : dict
         Filled in and returned, with ``ok`` and ``checks``.
 
@@ -213,37 +264,30 @@ def check_pinned(meshes, names, design, s, report) -> dict:
     -------
     dict
     """
-    from ..fab.pinned import pinned_print, printed_design
+    from .motion import design_window
 
     try:
-        plan = _memo(("plan",) + _design_key(design, s), lambda: pinned_print(design, s))
         # the linkage is judged against the design as it prints: its motion from motion_from
         # to motion_to, where the template sets them
-        design = _memo(("window",) + _design_key(design, s), lambda: printed_design(design, s))
+        design = _memo(("window",) + _design_key(design, s),
+                       lambda: design_window(design, s.motion_from, s.motion_to))
     except FabkitError as exc:
         report.update(ok=False, checks=[_check("design prints", False, detail=str(exc))])
         return report
+    net = design.network
     checks = []
-    if len(meshes) != plan.beds:
-        checks.append(_check("bed files", False, len(meshes), plan.beds,
-                             f"the design prints on {plan.beds} bed(s) with these settings"))
-        report.update(ok=False, checks=checks)
-        return report
-    placed = _unplaced_bodies(meshes, names, plan, checks)
+    placed = _bodies(meshes)
     bodies = [b for _, b in placed]
+    beds = [bed for bed, _ in placed]
     closed = [b.is_watertight and b.is_winding_consistent and b.volume > 0 for b in bodies]
-    checks.append(_check("one closed body per bar", len(bodies) == plan.n_bars and all(closed),
-                         value=len(bodies), limit=plan.n_bars,
+    checks.append(_check("one closed body per bar", len(bodies) == net.n_edges and all(closed),
+                         value=len(bodies), limit=net.n_edges,
                          detail=f"{sum(closed)} of {len(bodies)} bodies watertight, consistently "
-                                "wound, outward; none shares a vertex with another"))
-    volume = float(sum(b.volume for b in bodies))
-    exact = float(plan.volumes.sum())
-    rel = abs(volume - exact) / exact
-    checks.append(_check("volume = bars and pins", rel <= VOLUME_RTOL, value=rel,
-                         limit=VOLUME_RTOL,
-                         detail=f"bodies {volume:.9g} mm^3, exact {exact:.9g} mm^3"))
+                                f"wound, outward; none shares a vertex with another; the design "
+                                f"has {net.n_edges} bars"))
     bars = [read_bar(b, s) for b in bodies]
-    bad = [f"body {k}: {b['problem']}" for k, b in enumerate(bars) if b["problem"]]
+    bad = [f"body {k} on {names[beds[k]]}: {b['problem']}" for k, b in enumerate(bars)
+           if b["problem"]]
     pitch = s.layer_pitch
     layer = np.array([round(b["z0"] / pitch) for b in bars], dtype=np.int64)
     off_layer = max((abs(b["z0"] - lz * pitch) for b, lz in zip(bars, layer)), default=0.0)
@@ -257,69 +301,94 @@ def check_pinned(meshes, names, design, s, report) -> dict:
         detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
                                       f"layers of {pitch:g} mm; largest error of height, "
                                       f"thickness and width (mm)"))
-    if bad or len(bodies) != plan.n_bars:
+    if bad or len(bodies) != net.n_edges:
         report.update(ok=False, checks=checks)
         return report
-    joints, label, feats = _joints(bars, plan)
-    problems, clear, hold = [], math.inf, math.inf
+    joints, bar_joints = _joints(bars, beds)
+    where = _place(joints, bar_joints, design, s)
+    node = where["node"]
+    held = np.bincount(node[node >= 0], minlength=net.n_nodes)
+    cut = {int(v) for v in np.flatnonzero(held >= 2)}  # a node built on two pieces
+
+    def at(j) -> str:
+        return f"the joint at node {node[j]}" if node[j] >= 0 else f"joint {j} (at no node)"
+
+    problems, clear, hold = [], (math.inf, None), (math.inf, None)
     cap_radius, head_slots = 0.0, 1
     pin_of = {}
-    for jfeats in joints:
+    for j, jfeats in enumerate(joints):
         pins = [f for f in jfeats if f[1] == "pin"]
         holes = [f for f in jfeats if f[1] == "hole"]
         if len(pins) > 1:
-            problems.append(f"{len(pins)} pins in one joint")
+            problems.append(f"{at(j)} has {len(pins)} pins")
             continue
         if not pins:
+            if len(holes) >= 2 and int(node[j]) not in cut:
+                problems.append(f"{at(j)} has {len(holes)} holes and no pin")
             continue
+        if int(node[j]) in cut:
+            problems.append(f"{at(j)} is cut between pieces but has a pin")
         pk, _, pc, _, pr = pins[0]
-        pin_of[tuple(np.round(pc, 3))] = (pk, pc, jfeats)
+        pin_of[j] = (pk, pc, jfeats)
         for hk, _, hc, hin, hout in holes:
-            clear = min(clear, hin - pr - float(np.hypot(*(hc - pc))))
+            gap = hin - pr - float(np.hypot(*(hc - pc)))
+            if gap < clear[0]:
+                clear = (gap, j)
         if holes:
             top = max(holes, key=lambda f: bars[f[0]]["z0"])
             cap_top, cap_in, cap_out = _cap(bodies[pk], pc, s)
-            hold = min(hold, cap_in - top[4])
+            if cap_in - top[4] < hold[0]:
+                hold = (cap_in - top[4], j)
             cap_radius = max(cap_radius, cap_out)
             above = cap_top - bars[top[0]]["z0"] - bars[top[0]]["thickness"]
             head_slots = max(head_slots, math.ceil(above / pitch - MEASURE_TOL_MM))
-    unpinned = [jf for jf in joints if len(jf) >= 2 and not any(f[1] == "pin" for f in jf)]
-    ok = (not problems and len(joints) == design.network.n_nodes
-          and len(pin_of) == len(plan.carrier) and len(unpinned) == len(plan.cut_joints))
-    checks.append(_check("pins -> joints", ok,
-                         value=[len(joints), len(pin_of)],
-                         limit=[design.network.n_nodes, len(plan.carrier)],
+    built_nodes = int(np.unique(node[node >= 0]).size)
+    checks.append(_check("pins -> joints", not problems,
+                         value=[built_nodes, len(pin_of)], limit=[net.n_nodes, None],
                          detail="; ".join(problems[:3]) or
-                                f"{len(joints)} joints from {len(feats)} holes and pins; "
-                                f"{len(pin_of)} printed pins, {len(unpinned)} joints without "
-                                "one (cut between pieces)"))
+                                f"{len(joints)} joints from the holes and pins of "
+                                f"{where['pieces']} piece(s); {len(pin_of)} printed pins, "
+                                f"{len(cut)} joints cut between pieces (plain holes)"))
     # a gap of zero or less is a pin fused to its hole, whatever tolerance the measure has
-    checks.append(_check("pin clearance", clear >= s.pin_clearance - MEASURE_TOL_MM and clear > 0,
-                         value=None if math.isinf(clear) else round(clear, 6),
+    c_ok = clear[0] >= s.pin_clearance - MEASURE_TOL_MM and clear[0] > 0
+    checks.append(_check("pin clearance", c_ok,
+                         value=None if math.isinf(clear[0]) else round(clear[0], 6),
                          limit=s.pin_clearance,
                          detail="smallest radial gap (mm) between a pin and a hole around it"
-                                + ("; none: the pin touches or overlaps its hole" if clear <= 0
+                                if c_ok else
+                                f"{at(clear[1])}: its pin leaves {clear[0]:.3f} mm to the hole "
+                                f"around it, {s.pin_clearance:g} mm wanted"
+                                + ("; the pin touches or overlaps its hole" if clear[0] <= 0
                                    else "")))
     need_hold = 0.5 * s.nozzle_width
-    checks.append(_check("caps hold the bars", hold >= need_hold,
-                         value=None if math.isinf(hold) else round(hold, 6), limit=need_hold,
+    checks.append(_check("caps hold the bars", hold[0] >= need_hold,
+                         value=None if math.isinf(hold[0]) else round(hold[0], 6),
+                         limit=need_hold,
                          detail="smallest overlap (mm) of a cap over the top bar's hole on its "
-                                "pin"))
+                                "pin" if hold[0] >= need_hold else
+                                f"{at(hold[1])}: its cap overlaps the top bar's hole by "
+                                f"{hold[0]:.3f} mm, {need_hold:g} mm wanted"))
     checks.append(_layer_gap_check(pin_of, bars, bodies, s))
-    net = _rebuilt_network(design, plan, joints, bars, checks, s)
-    if net is None:
+    rebuilt = _rebuilt_network(design, where, bar_joints, checks, s)
+    if rebuilt is None:
         report.update(ok=False, checks=checks)
         return report
-    _, edge_layer, lengths, dev = net
+    order, lengths, dev = rebuilt
+    # layers count within a piece: each piece is lowered onto its bed, and pieces joined by
+    # hand stack as their bill of materials says; the pieces' layers are kept apart here
+    piece_of_bar = where["piece"][bar_joints[:, 0]]
+    band = int(layer.max(initial=0)) + 2 * head_slots + 2
+    edge_layer = (layer + band * piece_of_bar)[order]
     report["as_built"] = {"bars": len(bars), "joints": len(joints), "printed_pins": len(pin_of),
+                          "pieces": where["pieces"], "cut_joints": sorted(cut),
                           "layers": int(layer.max()) + 1, "node_deviation_mm": dev,
-                          "pin_clearance_mm": None if math.isinf(clear) else clear,
-                          "cap_overlap_mm": None if math.isinf(hold) else hold}
+                          "pin_clearance_mm": None if math.isinf(clear[0]) else clear[0],
+                          "cap_overlap_mm": None if math.isinf(hold[0]) else hold[0]}
     # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
     measured = {"width": _to_resolution(max(widths)),
                 "cap_radius": _to_resolution(cap_radius or 0.5 * s.cap_diameter),
-                "head_slots": head_slots}
-    x_mm = _joints_mm(design.network, lengths, s)
+                "head_slots": head_slots, "band": band}
+    x_mm = _joints_mm(net, lengths, s)
     key = ("motion",) + _design_key(design, s) + (
         x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
     try:
@@ -338,7 +407,7 @@ def _cap(carrier, centre, s) -> tuple[float, float, float]:
     carrier's cross-section half a layer below the top); radii 0 when there is none."""
     import shapely
 
-    from .stl import _section
+    from .sections import section as _section
 
     v = np.asarray(carrier.vertices)
     near = np.hypot(*(v[:, :2] - centre).T) <= 0.5 * s.cap_diameter + MEASURE_TOL_MM
@@ -376,49 +445,53 @@ def _layer_gap_check(pin_of, bars, bodies, s) -> dict:
                          f"stacked bars {pitch_gap:.4g} mm apart")
 
 
-def _rebuilt_network(design, plan, joints, bars, checks, s):
-    """Joints back in the design's frame, matched to its nodes; the bars as edges."""
-    from scipy.spatial import cKDTree
+def _rebuilt_network(design, where, bar_joints, checks, s):
+    """The joints matched to the design's nodes, the bars to its edges, the lengths read back.
 
-
+    Returns (order, lengths, deviation): ``order[e]`` the bar read back as design edge ``e``,
+    ``lengths`` (E,) the distance between its joints (mm); None when the file is not this
+    design's (the failed checks added)."""
     net = design.network
-    centres = np.array([np.mean([f[2] for f in jf], axis=0) for jf in joints])
-    design_mm = net.nodes * s.scale - plan.offset
-    dist, match = cKDTree(design_mm).query(centres)
-    bijective = np.unique(match).size == net.n_nodes == len(joints)
-    ok = bijective and float(dist.max()) < NODE_TOL_MM
-    checks.append(_check("rebuilt joints match the design", ok, value=float(dist.max()),
-                         limit=NODE_TOL_MM,
-                         detail="largest distance (mm) between a rebuilt joint and its design "
-                                "node" + ("" if bijective else "; joints and nodes do not pair "
-                                                               "up one to one")))
+    node, dev = where["node"], where["deviation"]
+    held = np.bincount(node[node >= 0], minlength=net.n_nodes)
+    worst = int(np.argmax(dev)) if len(dev) else 0
+    d = float(dev[worst]) if len(dev) else 0.0
+    ok = bool(np.isfinite(dev).all()) and d <= NODE_TOL_MM and bool((held >= 1).all())
+    if ok:
+        detail = "largest distance (mm) between a rebuilt joint and its design node"
+    elif not np.isfinite(dev).all():
+        detail = (f"{int(np.sum(~np.isfinite(dev)))} joints belong to a piece that fits nowhere "
+                  f"in the design {design.name}")
+    elif d > NODE_TOL_MM:
+        detail = (f"the joint at node {node[worst]} lies {d:.3f} mm from where the design has "
+                  "it (the piece laid onto the design by its best rigid fit)")
+    else:
+        detail = f"{int(np.sum(held == 0))} design nodes are built by no joint"
+    checks.append(_check("rebuilt joints match the design", ok,
+                         value=d if np.isfinite(d) else None, limit=NODE_TOL_MM, detail=detail))
     if not ok:
         return None
-    feat_joint = {}
-    for j, jf in enumerate(joints):
-        for f in jf:
-            feat_joint.setdefault(f[0], []).append(int(match[j]))
-    edges = np.array([sorted(feat_joint[k]) for k in range(len(bars))], dtype=np.int64)
-    designed = {tuple(e): k for k, e in enumerate(np.sort(net.edges, axis=1).tolist())}
-    found = [designed.get(tuple(e)) for e in edges.tolist()]
-    same = None not in found and len(set(found)) == net.n_edges
-    checks.append(_check("topology", same, value=len(edges), limit=net.n_edges,
+    edge = where["edge"]
+    same = bool((edge >= 0).all()) and np.unique(edge).size == net.n_edges == len(edge)
+    checks.append(_check("topology", same, value=len(edge), limit=net.n_edges,
                          detail="the bars join the designed joints" if same else
                                 "the bars read back join other joints than the design's"))
     if not same:
         return None
     order = np.empty(net.n_edges, dtype=np.int64)
-    order[found] = np.arange(len(edges))
-    joint_xy = np.empty((net.n_nodes, 2))
-    joint_xy[match] = centres
-    lengths = np.linalg.norm(joint_xy[net.edges[:, 0]] - joint_xy[net.edges[:, 1]], axis=1)
+    order[edge] = np.arange(len(edge))
+    centres = where["centres"]
+    lengths = np.linalg.norm(centres[bar_joints[order, 0]] - centres[bar_joints[order, 1]], axis=1)
     want = net.edge_lengths * s.scale
-    dl = float(np.abs(lengths - want).max())
+    k = int(np.argmax(np.abs(lengths - want)))
+    dl = float(abs(lengths[k] - want[k]))
+    i, j = net.edges[k]
     checks.append(_check("lengths", dl <= LENGTH_TOL_MM, value=dl, limit=LENGTH_TOL_MM,
                          detail="largest |read-back - designed| distance (mm) between a bar's "
-                                "joints"))
-    layer = np.array([round(bars[k]["z0"] / s.layer_pitch) for k in order], dtype=np.int64)
-    return (joint_xy, layer, lengths, float(dist.max()))
+                                "joints" if dl <= LENGTH_TOL_MM else
+                                f"the bar between nodes {i} and {j}: its joints are "
+                                f"{lengths[k]:.3f} mm apart, the design's {want[k]:.3f} mm"))
+    return order, lengths, d
 
 
 def _to_resolution(mm: float) -> float:
@@ -441,9 +514,9 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
 def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts."""
-    from ..fab.layers import JointStack, sample_motion, stacking_gaps
     from ..network import Network
     from ..rigidity import count_modes
+    from .clearance import fine_motion, same_layer_gaps
     from .motion import compare_motion
 
     net = design.network
@@ -463,18 +536,11 @@ def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
                       f"largest port-distance difference (design units, at {cmp['port']}) "
                       f"between the design's motion and the rebuilt network's; the rebuilt one "
                       f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
-    fine = sample_motion(built, m, s.scale, 0.25 * s.clearance, floor_limit=s.clearance)
-    inc = {}
-    for b, (i, j) in enumerate(net.edges.tolist()):
-        inc.setdefault(i, []).append(b)
-        inc.setdefault(j, []).append(b)
-    joints = [JointStack(j, tuple(bs), tuple(int(layer[b]) for b in bs), (), 0.0, 0.0, 0.0)
-              for j, bs in sorted(inc.items()) if len(bs) >= 2]
+    fine = fine_motion(built, m, s.scale, 0.25 * s.clearance, floor=s.clearance)
     # widths and cap radii as read back; caps and collars above and below every stack
-    gaps = stacking_gaps(net.edges, layer, fine.positions, width=measured["width"],
-                         joints=joints, head_slots=measured["head_slots"],
-                         column_radius=measured["cap_radius"],
-                         spacer_radius=measured["cap_radius"])
+    gaps = same_layer_gaps(net.edges, layer, fine.positions, measured["width"],
+                           columns=_pin_columns(net.edges, layer, measured["band"],
+                                                measured["head_slots"], measured["cap_radius"]))
     need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
     worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
 
@@ -491,3 +557,18 @@ def _motion_checks(design, layer, x_mm, s, measured) -> tuple[list[dict], dict]:
         f"bar {mm(gaps['bar_gap'])}, bar to a pin's cap or collar {mm(gaps['screw_gap'])}, cap "
         f"to cap {mm(gaps['column_gap'])})"))
     return out, facts
+
+
+def _pin_columns(edges, layer, band: int, head_slots: int, radius: float) -> dict:
+    """A column at every joint of two or more bars of one piece (pieces lie in layer bands of
+    their own): its bars' layers, and its collars and cap ``head_slots`` layers beyond."""
+    spans: dict[tuple, list[int]] = {}
+    for b, (i, j) in enumerate(edges.tolist()):
+        for v in (i, j):
+            spans.setdefault((v, int(layer[b]) // band), []).append(int(layer[b]))
+    keys = sorted(k for k, zs in spans.items() if len(zs) >= 2)
+    lo = np.array([min(spans[k]) for k in keys], dtype=np.int64)
+    hi = np.array([max(spans[k]) for k in keys], dtype=np.int64)
+    return {"joints": np.array([k[0] for k in keys], dtype=np.int64), "low": lo - head_slots,
+            "high": hi + head_slots, "inner_low": lo, "inner_high": hi, "radius": radius,
+            "inner_radius": radius}

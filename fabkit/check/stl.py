@@ -6,10 +6,12 @@ print-in-place bar linkage (``linkage = "pins"``) is checked by :mod:`fabkit.che
 triangle-hinge network as follows (a print split into pieces piece by piece, against each
 piece's own network, without the transition).
 
-Solid checks: the mesh is watertight, consistently wound, exactly one body, with a volume equal to
-the analytic volume of plates plus hinges (relative 1e-6), and no feature thinner than the nozzle
+Solid checks: the mesh is watertight, consistently wound, exactly one body, and no feature thinner
+than the nozzle
 (in the plane: every piece of a cross-section survives an opening by a disc of the nozzle's
 width; across the layers: every slab of the solid is a whole number of layers, at least one).
+The as-built check does not compare the volume with the writer's analytic volume (that would
+recompute the writer's geometry); :func:`check_mesh` does when given one (``fabkit bench``).
 
 As-built linkage: the linkage is rebuilt from the solid alone (with the print settings' gap and
 scale): a cross-section above the hinges shows the plates; each plate's three sides (its edges
@@ -29,6 +31,7 @@ import numpy as np
 from ..errors import FabkitError, FabricationError
 from ..network import Network
 from ..numerics import START_RTOL
+from .sections import plane_segments, section
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_meshes", "check_mesh", "slab_sections",
            "rebuild_linkage",
@@ -123,49 +126,9 @@ def _load(data: bytes, path):
 
 # --- cross-sections ------------------------------------------------------------------------------
 
-def _plane_segments(mesh, z: float) -> np.ndarray:
-    """Where the plane at height z cuts the mesh's triangles: segments (S, 2, 2) in x-y.
-
-    Each crossing point is computed once per edge, from its lower-numbered vertex, so the two
-    triangles beside an edge end their segments at the same point bit for bit and the segments
-    close into loops whatever the coordinates' digits (a vertex on the plane counts as below
-    it). Computed per triangle, the two ends could differ by one rounding, and the outline of
-    a bar written with decimal coordinates fell apart into pieces.
-    """
-    v = np.asarray(mesh.vertices, dtype=np.float64)
-    f = np.asarray(mesh.faces, dtype=np.int64)
-    above = v[:, 2] > z
-    up = above[f]
-    cut = up.any(axis=1) & ~up.all(axis=1)
-    if not cut.any():
-        return np.zeros((0, 2, 2))
-    f = f[cut]
-    a = f[:, [0, 1, 2]].ravel()
-    b = f[:, [1, 2, 0]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
-    crosses = above[lo] != above[hi]  # two of a cut triangle's three edges
-    lo, hi = lo[crosses], hi[crosses]
-    t = (z - v[lo, 2]) / (v[hi, 2] - v[lo, 2])
-    pts = v[lo, :2] + t[:, None] * (v[hi, :2] - v[lo, :2])
-    return pts.reshape(-1, 2, 2)
-
-
-def _section(mesh, z: float):
-    """The solid's material in the plane at height z, as shapely polygons (even-odd rule)."""
-    import shapely
-
-    seg = _plane_segments(mesh, z)
-    if len(seg) == 0:
-        return []
-    faces = np.asarray(shapely.get_parts(shapely.polygonize(shapely.linestrings(seg))))
-    # polygonize gives one face per region between boundary loops; a face is material when an
-    # even number of other faces' outlines encloses it (0: outside shell, 1: a hole, 2: an island)
-    shells = shapely.polygons(shapely.get_exterior_ring(faces))
-    probes = shapely.point_on_surface(faces)
-    hits = shapely.STRtree(shells).query(probes, predicate="within")
-    hits = hits[:, hits[0] != hits[1]]
-    depth = np.bincount(hits[0], minlength=len(faces))
-    return list(faces[depth % 2 == 0])
+# the cross-sections live in :mod:`fabkit.check.sections` (shared with the pinned check)
+_plane_segments = plane_segments
+_section = section
 
 
 def _thin_pieces(polys, radius: float) -> int:
@@ -264,6 +227,9 @@ class AsBuilt:
     edges: np.ndarray
     joints: np.ndarray
     problems: list
+    #: For each triangle, its plate among the cross-section's plates (arm lengths are measured
+    #: from them).
+    plate_index: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, int))
 
 
 def rebuild_linkage(mesh, settings, sections=None) -> AsBuilt:
@@ -343,7 +309,7 @@ def rebuild_linkage(mesh, settings, sections=None) -> AsBuilt:
         problems.append(f"{int(np.sum(per_hinge != 1))} hinge(s) hold no joint or several")
     if (per_node != 1).any():
         problems.append(f"{int(np.sum(per_node != 1))} shared corner(s) lie in no hinge")
-    return AsBuilt(nodes, tri, edges, shared, problems)
+    return AsBuilt(nodes, tri, edges, shared, problems, np.flatnonzero(n_sides == 3))
 
 
 # --- the module's fixed points and the sequential transition -------------------------------------
@@ -452,9 +418,7 @@ def sequential_transition(net: Network, module: Network, copies: int, fixed: dic
     final_module = module.with_nodes(fixed["positions"])
     final = final_module if copies == 1 else chain(final_module, copies)
     idx = np.arange(net.n_nodes) if design_index is None else np.asarray(design_index)
-    from ..fab.hinges import rigid_triangles
-
-    owners = np.bincount(rigid_triangles(net).ravel(), minlength=net.n_nodes)
+    owners = np.bincount(triangles_of(net).ravel(), minlength=net.n_nodes)
     joints = np.flatnonzero(owners >= 2)  # nodes held by a hinge
     xj = net.nodes[joints]
     dist = np.linalg.norm(xj[:, None] - xj[None], axis=2)
@@ -525,11 +489,11 @@ def as_built_tolerance(fixed: dict, node_deviation: float) -> float:
     return TRANSITION_RTOL * fixed["D2"] + 10.0 * node_deviation
 
 
-def _transition_checks(report, asbuilt, module, copies, fixed, geo, s,
+def _transition_checks(report, asbuilt, module, copies, fixed, arms, s,
                        node_deviation) -> list[dict]:
-    """Simulate D1* -> D2* on the rebuilt linkage; the transition and hinge-strain checks."""
-    from ..fab.hinges import hinge_bending
+    """Simulate D1* -> D2* on the rebuilt linkage; the transition and hinge-strain checks.
 
+    ``arms``: from :func:`hinge_arms` (the hinges' free lengths measured on the file)."""
     name = "sequential transition D1* -> D2*"
     tol = as_built_tolerance(fixed, node_deviation)
     try:
@@ -537,7 +501,7 @@ def _transition_checks(report, asbuilt, module, copies, fixed, geo, s,
                                    tolerance=tol)
     except FabkitError as exc:
         return [_check(name, False, detail=str(exc))]
-    turn, strain = hinge_bending(geo, tr.pop("positions"))
+    turn, strain = hinge_strain(arms, tr.pop("positions"), s.hinge_width)
     worst = int(np.argmax(strain))
     report["transition"] = dict(tr, status="simulated")
     report["fixed_points"] = {k: fixed[k] for k in ("D1", "slope1", "D2", "slope2",
@@ -550,9 +514,72 @@ def _transition_checks(report, asbuilt, module, copies, fixed, geo, s,
         _check("hinge strain along the transition", strain[worst] <= s.strain_limit,
                value=float(strain[worst]), limit=s.strain_limit,
                detail=f"largest hinge rotation {np.degrees(turn.max()):.1f} degrees (joint "
-                      f"{int(geo.arm_joint[worst])}); {s.material} hinges {s.hinge_width:g} mm "
-                      f"wide, {2 * geo.arm_length[worst]:.3g} mm free length"),
+                      f"{int(arms['joint'][worst])}); {s.material} hinges {s.hinge_width:g} mm "
+                      f"wide, {2 * arms['length'][worst]:.3g} mm free length (measured)"),
     ]
+
+
+def triangles_of(net) -> np.ndarray:
+    """Every triangle of a network's edges (3-cliques), sorted node indices, rows sorted."""
+    nbr = [set() for _ in range(net.n_nodes)]
+    for i, j in net.edges.tolist():
+        nbr[i].add(j)
+        nbr[j].add(i)
+    out = sorted({tuple(sorted((i, j, k))) for i, j in net.edges.tolist()
+                  for k in nbr[i] & nbr[j]})
+    return np.array(out, dtype=np.int64).reshape(-1, 3)
+
+
+def hinge_arms(built: AsBuilt, sections, triangles, match) -> dict:
+    """The hinge arms of a rebuilt linkage, measured on the file: for every plate at every
+    hinge joint, its free length (the distance from the joint to the plate, mm) and the next
+    plate around the joint (counter-clockwise).
+
+    ``triangles``: the rebuilt triangles in the design's numbering; ``match``: the design node
+    of each rebuilt node. Returns ``plate`` (triangle row), ``joint`` (design node),
+    ``partner`` (arm index) and ``length``.
+    """
+    import shapely
+
+    plates = np.asarray(sections["plates"])[built.plate_index]
+    owners: dict[int, list[int]] = {}
+    for t, tri in enumerate(built.triangles.tolist()):
+        for v in tri:
+            owners.setdefault(v, []).append(t)
+    plate, joint, length, partner = [], [], [], []
+    for v, ts in sorted(owners.items()):
+        if len(ts) < 2:
+            continue
+        centre = built.nodes[v]
+        ang = [np.arctan2(*(built.nodes[built.triangles[t]].mean(0) - centre)[::-1]) for t in ts]
+        ts = [t for _, t in sorted(zip(ang, ts))]
+        first = len(plate)
+        for k, t in enumerate(ts):
+            plate.append(t)
+            joint.append(int(match[v]))
+            length.append(float(shapely.distance(shapely.Point(*centre), plates[t])))
+            partner.append(first + (k + 1) % len(ts))
+    return {"plate": np.array(plate, dtype=np.int64), "joint": np.array(joint, dtype=np.int64),
+            "partner": np.array(partner, dtype=np.int64), "length": np.array(length),
+            "triangles": np.asarray(triangles)}
+
+
+def hinge_strain(arms: dict, positions, hinge_width: float):
+    """Largest rotation of each hinge arm against the next plate over a motion, and the
+    bending strain of a neck of ``hinge_width`` bent uniformly over the two arms' free length
+    (``hinge_width * rotation / (2 * length)``).
+
+    ``positions``: (S, N, 2) configurations in the design's numbering. Returns (rotation,
+    strain), one value per arm."""
+    x = np.asarray(positions, dtype=np.float64)
+    tri = arms["triangles"]
+    d = x[:, tri[:, 1]] - x[:, tri[:, 0]]
+    ang = np.unwrap(np.arctan2(d[..., 1], d[..., 0]), axis=0)
+    rel = ang - ang[:1]
+    p, q = arms["plate"], arms["plate"][arms["partner"]]
+    turn = np.abs(rel[:, p] - rel[:, q]).max(0)
+    free = arms["length"] + arms["length"][arms["partner"]]
+    return turn, hinge_width * turn / (2.0 * free)
 
 
 def _frame_offset(net, s):
@@ -610,12 +637,8 @@ def check_file(path, design=None, settings=None) -> dict:
                                 sum(stl_triangles(d, p) for p, d in data.items())))
     meshes = [_load(d, p) for p, d in data.items()]
     pinned = all(PINNED_HEADER in d[:80] for d in data.values())
-    if design is not None:  # an STL is centred on its bed's centre: back onto the bed
-        from ..export.stl import stl_origin
-        from ..fab.printing import design_print_settings
-
-        origin = stl_origin(design_print_settings(design, settings).printer_profile())
-        meshes = [m.copy().apply_translation(origin) for m in meshes]
+    # where the beds lie (an STL is centred on its bed's centre) does not matter: every piece
+    # is found in the design by its own geometry
     return check_meshes(meshes, [p.name for p in paths], design, settings, pinned=pinned)
 
 
@@ -664,111 +687,130 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
 
 
 def _check_hinge_beds(meshes, names, design, s, report) -> dict:
-    """The hinge print's beds: every piece back in its own frame, then checked."""
-    from ..export.stl import hinge_layout, piece_network
-    from .beds import assign_bodies, split_bodies, unplace
+    """The hinge print's beds: every piece rebuilt from the solid, laid onto the design by its
+    own geometry (:mod:`fabkit.check.register`), and checked against the part of the design
+    it builds; a print of one piece is also driven through its transition."""
+    from .register import pieces_of, place_pieces
 
-    pieces, geos, layout = hinge_layout(design, s)
-    beds = 1 + max(p.bed for p in layout)
-    if len(meshes) != beds:
-        checks = [_check("bed files", False, len(meshes), beds,
-                         f"the design prints on {beds} bed(s) with these settings")]
+    net = design.network
+    checks, found = [], []  # found: (bed, sections, rebuilt linkage, its nodes in one piece)
+    for b, mesh in enumerate(meshes):
+        sections = slab_sections(mesh, s)
+        built = rebuild_linkage(mesh, s, sections)
+        pieces = pieces_of(len(built.nodes), built.edges) if len(built.nodes) else []
+        # one body per piece: a body split where the design is whole, or joined where a
+        # hinge should not be, does not match the plates found in its cross-sections
+        for c in check_mesh(mesh, s, None, sections, bodies=max(1, len(pieces))):
+            if len(meshes) > 1:
+                c["name"] = f"{names[b]}: {c['name']}"
+            checks.append(c)
+        name = "plates -> triangles, hinges -> joints"
+        checks.append(_check(name if len(meshes) == 1 else f"{names[b]}: {name}",
+                             not built.problems,
+                             value=[len(built.triangles), len(built.joints)], limit=None,
+                             detail="; ".join(built.problems) or "every hinge holds one joint"))
+        found += [(b, sections, built, members) for members in pieces]
+    if not found or any(f[2].problems for f in found):
         report.update(ok=False, checks=checks)
         return report
-    if len(pieces) == 1:
-        p = layout[0]
-        mesh = unplace(meshes[p.bed], p.matrix())
-        checks = _check_hinge_piece(mesh, design, design.network, geos[0], s, report,
-                                    transition=True)
-        report.update(ok=all(c["ok"] for c in checks), checks=checks)
-        return report
-    checks, built = [], []
-    for b, mesh in enumerate(meshes):
-        on_bed = [p for p in layout if p.bed == b]
-        owners = assign_bodies(split_bodies(mesh), on_bed)
-        stray = owners.pop(-1, [])
-        if stray:
-            checks.append(_check(f"{names[b]}: bodies in place", False, len(stray), 0,
-                                 "bodies outside every piece's place on the bed"))
-        for p in on_bed:
-            bodies = owners.get(p.piece, [])
-            if not bodies:
-                checks.append(_check(f"piece {p.piece + 1}: found", False, 0, 1,
-                                     f"no body where piece {p.piece + 1} goes on {names[b]}"))
-                continue
-            import trimesh
-
-            mesh_p = unplace(trimesh.util.concatenate(bodies), p.matrix())
-            sub = {}
-            nodes, _ = pieces[p.piece]
-            for c in _check_hinge_piece(mesh_p, design, piece_network(design.network, nodes),
-                                        geos[p.piece], s, sub, transition=False):
-                c["name"] = f"piece {p.piece + 1}: {c['name']}"
-                checks.append(c)
-            built.append({"piece": p.piece + 1, **sub.get("as_built", {})})
-    report["as_built"] = {"pieces": built}
-    report["transition"] = {"status": f"not simulated: the print is split into {len(pieces)} "
-                                      "pieces, each checked on its own; joined, they are the "
-                                      "design"}
+    pieces = []
+    for _, _, built, members in found:
+        local = np.full(len(built.nodes), -1, dtype=np.int64)
+        local[members] = np.arange(len(members))
+        edges = built.edges[np.isin(built.edges[:, 0], members)]
+        pieces.append((built.nodes[members], local[edges]))
+    placed = place_pieces(pieces, net.nodes * s.scale, net.edges, tol=NODE_TOL_MM)
+    single = len(found) == 1
+    built_pieces = []
+    for k, ((b, sections, built, members), place) in enumerate(zip(found, placed)):
+        sub = {}
+        piece_checks = _check_hinge_piece(design, s, sections, built, members, place, sub,
+                                          transition=single)
+        for c in piece_checks:
+            if not single:
+                c["name"] = f"piece {k + 1} on {names[b]}: {c['name']}"
+            checks.append(c)
+        built_pieces.append({"piece": k + 1, "bed": b + 1, **sub.get("as_built", {})})
+        if single:
+            report.update({key: v for key, v in sub.items()})
+    if not single:
+        matched = [p for p in placed if p is not None]
+        held = np.bincount(np.concatenate([p.match for p in matched] + [np.zeros(0, int)]),
+                           minlength=net.n_nodes)
+        whole = bool((held >= 1).all())
+        checks.append(_check("pieces build the design", whole and len(matched) == len(placed),
+                             value=int(np.sum(held == 0)), limit=0,
+                             detail=f"{len(found)} pieces laid onto the design; nodes built by "
+                                    f"no piece: {int(np.sum(held == 0))}"))
+        report["as_built"] = {"pieces": built_pieces}
+        report["transition"] = {"status": f"not simulated: the print is split into "
+                                          f"{len(found)} pieces, each checked on its own; "
+                                          "joined, they are the design"}
     report.update(ok=all(c["ok"] for c in checks), checks=checks)
     return report
 
 
-def _check_hinge_piece(mesh, design, net, geo, s, report, *, transition: bool) -> list[dict]:
-    """Solid, rebuilt linkage and (with ``transition``) the D1* -> D2* transition of one piece
-    in its own print frame (``net`` is the piece's network)."""
+def _check_hinge_piece(design, s, sections, built, members, place, report, *,
+                       transition: bool) -> list[dict]:
+    """One piece rebuilt from a bed: its nodes and edges against the part of the design it
+    lies on, its modes, and (with ``transition``) the D1* -> D2* transition."""
     from ..rigidity import count_modes
 
-    sections = slab_sections(mesh, s)
-    checks = check_mesh(mesh, s, geo.volume, sections)
-    built = rebuild_linkage(mesh, s, sections)
-    checks.append(_check("plates -> triangles, hinges -> joints", not built.problems,
-                         value=[len(built.triangles), len(built.joints)],
-                         limit=[len(geo.triangles), len(geo.joints)],
-                         detail="; ".join(built.problems) or "every hinge holds one joint"))
-    offset = _frame_offset(net, s)
-    if len(built.nodes) != net.n_nodes or built.problems:
-        checks.append(_check("rebuilt nodes match the design", False, value=len(built.nodes),
-                             limit=net.n_nodes))
-        return checks
-    from scipy.spatial import cKDTree
-
-    dist, match = cKDTree(net.nodes * s.scale - offset).query(built.nodes)
-    bijective = np.unique(match).size == net.n_nodes
-    matched = bijective and dist.max() < NODE_TOL_MM
-    checks.append(_check("rebuilt nodes match the design", matched,
-                         value=float(dist.max()), limit=NODE_TOL_MM,
-                         detail="largest distance (mm) between a rebuilt node and its design node"
-                                + ("" if bijective else "; two rebuilt nodes match one design "
-                                                        "node")))
+    net = design.network
+    if place is None:
+        return [_check("rebuilt nodes match the design", False, value=None, limit=NODE_TOL_MM,
+                       detail=f"the piece fits nowhere in the design {design.name}")]
+    worst = int(np.argmax(place.deviation))
+    dev = float(place.deviation[worst])
+    match = place.match
+    bijective = np.unique(match).size == len(match)
+    matched = bijective and dev <= NODE_TOL_MM and (not transition or len(match) == net.n_nodes)
+    if matched:
+        detail = "largest distance (mm) between a rebuilt node and its design node"
+    elif not bijective:
+        detail = "two rebuilt nodes match one design node"
+    elif dev > NODE_TOL_MM:
+        detail = (f"the node at design node {match[worst]} lies {dev:.3f} mm from where the "
+                  "design has it (the piece laid onto the design by its best rigid fit)")
+    else:
+        detail = f"the piece builds {len(match)} of the design's {net.n_nodes} nodes"
+    checks = [_check("rebuilt nodes match the design", matched, value=dev, limit=NODE_TOL_MM,
+                     detail=detail)]
     if not matched:  # the file was not made from this design with these settings
         return checks
-    # as-built network in design units, numbered like the design
-    order = np.empty(net.n_nodes, dtype=np.int64)
-    order[match] = np.arange(net.n_nodes)
-    nodes = (built.nodes[order] + offset) / s.scale
-    edges = match[built.edges]
+    # the piece in the design's frame and numbering: its nodes where the fit puts them
+    keep = np.sort(match)
+    index = np.full(net.n_nodes, -1, dtype=np.int64)
+    index[keep] = np.arange(len(keep))
+    local = np.full(len(built.nodes), -1, dtype=np.int64)
+    local[members] = np.arange(len(members))
+    in_design = (built.nodes[members] @ place.rotation.T + place.shift) / s.scale
+    nodes = np.empty((len(keep), 2))
+    nodes[index[match]] = in_design
+    edges = index[match[local[built.edges[np.isin(built.edges[:, 0], members)]]]]
+    sub_net = net if len(keep) == net.n_nodes else _sub_network(net, keep)
+    ports = dict(net.ports) if len(keep) == net.n_nodes else {}
     try:
-        asbuilt = Network(nodes, edges, ports=dict(net.ports))
+        asbuilt = Network(nodes, edges, ports=ports)
     except FabkitError as exc:
         checks.append(_check("rebuilt edges match the design", False, detail=str(exc)))
         return checks
     same_edges = {tuple(e) for e in np.sort(edges, 1).tolist()} == {
-        tuple(e) for e in np.sort(net.edges, 1).tolist()}
+        tuple(e) for e in np.sort(sub_net.edges, 1).tolist()}
     checks.append(_check("rebuilt edges match the design", same_edges,
-                         value=asbuilt.n_edges, limit=net.n_edges))
+                         value=asbuilt.n_edges, limit=sub_net.n_edges))
     modes = count_modes(asbuilt)
     detail = str(modes)
     ok_modes = modes.conformational == 1
     if not ok_modes:  # a print is faithful when it moves as its design does
-        designed = count_modes(net)
+        designed = count_modes(sub_net)
         ok_modes = designed.conformational == modes.conformational
         detail += f"; the design has {designed.conformational}"
     checks.append(_check("one conformational motion", ok_modes,
                          value=int(modes.conformational), limit=1, detail=detail))
     report["as_built"] = {"nodes": asbuilt.n_nodes, "edges": asbuilt.n_edges,
                           "triangles": int(len(built.triangles)), "joints": int(len(built.joints)),
-                          "node_deviation_mm": float(dist.max()), "modes": str(modes)}
+                          "node_deviation_mm": dev, "modes": str(modes)}
     if not transition:
         return checks
     if modes.conformational != 1 or "d1" not in net.ports or "d2" not in net.ports:
@@ -780,6 +822,15 @@ def _check_hinge_piece(mesh, design, net, geo, s, report, *, transition: bool) -
         except FabkitError as exc:  # not a module between two fixed points: nothing to simulate
             report["transition"] = {"status": f"not applicable: {exc}"}
         else:
-            checks.extend(_transition_checks(report, asbuilt, module, copies, fixed, geo, s,
-                                             float(dist.max()) / s.scale))
+            arms = hinge_arms(built, sections, match[local[built.triangles]], match)
+            checks.extend(_transition_checks(report, asbuilt, module, copies, fixed, arms, s,
+                                             dev / s.scale))
     return checks
+
+
+def _sub_network(net, nodes):
+    """The part of ``net`` on ``nodes`` (sorted), renumbered in their order."""
+    keep = np.zeros(net.n_nodes, dtype=bool)
+    keep[nodes] = True
+    index = np.cumsum(keep) - 1
+    return Network(net.nodes[keep], index[net.edges[keep[net.edges].all(axis=1)]])

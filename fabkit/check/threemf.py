@@ -29,6 +29,10 @@ FORMAT = "3mf"
 READS = ("print",)
 SUFFIXES = (".3mf",)
 
+#: A layer height read back from the slicer settings within this of the template's is the
+#: template's (mm): the writer prints them as short decimals, far coarser than this.
+LAYER_MATCH_MM = 1e-9
+
 _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
 #: Units a 3MF may declare, in millimetres.
 _UNITS = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8,
@@ -244,34 +248,49 @@ def read_package(path, data: bytes | None = None) -> dict:
     return _place(path, parsed)
 
 
+def _number(text):
+    """A setting's value as a number, or None when it is not one."""
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return None
+
+
 def _settings_check(packages, names, design, settings) -> dict:
-    """The slicer settings in every bed file are those the design needs."""
+    """The slicer settings in every bed file give the print the design's template asks for:
+    its layer height (the project's, its first layer's and every object's: every height of the
+    print is a whole number of layers) and its material (PrusaSlicer's filament type for it).
+
+    The values are compared as numbers with the template's print settings; what else the
+    writer chose to tell the slicer (perimeters, supports, skirt) is its own business."""
     from ..fab.printing import design_print_settings
-    from ..fab.slicer import slicer_settings
-    from ..export.threemf import _value
+    from ..fab.slicer import FILAMENTS
 
     s = design_print_settings(design, settings)
-    want = slicer_settings(s)
+    layer = float(s.layer_height)
+    filament = FILAMENTS[s.material]["filament_type"]
     wrong = []
+
+    def compare(where, got, key):
+        value = _number(got)
+        if value is None or abs(value - layer) > LAYER_MATCH_MM:
+            wrong.append(f"{where} {key} = {got!r}, not the template's {layer:g} mm")
+
     for name, pkg in zip(names, packages):
-        for key, value in want.project.items():
-            if pkg["project"].get(key) != _value(value):
-                wrong.append(f"{name}: project {key} = {pkg['project'].get(key)!r}, not "
-                             f"{_value(value)!r}")
+        for key in ("layer_height", "first_layer_height"):
+            compare(f"{name}: project", pkg["project"].get(key), key)
+        if pkg["project"].get("filament_type") != filament:
+            wrong.append(f"{name}: project filament_type = "
+                         f"{pkg['project'].get('filament_type')!r}, not {filament!r} "
+                         f"({s.material})")
         if not pkg["per_object"]:
             wrong.append(f"{name}: no per-object settings")
         for k, obj in enumerate(pkg["per_object"]):
-            for key, value in want.per_object.items():
-                if obj.get(key) != _value(value):
-                    wrong.append(f"{name}: object {k + 1} {key} = {obj.get(key)!r}, not "
-                                 f"{_value(value)!r}")
-    extra = ", ".join(f"{k} = {_value(v)}" for k, v in want.per_object.items()
-                      if k != "layer_height")
+            compare(f"{name}: object {k + 1}", obj.get("layer_height"), "layer_height")
     return _check("slicer settings", not wrong, value=len(wrong), limit=0,
                   detail="; ".join(wrong[:3]) or
-                  f"{want.material} ({want.project['filament_type']}) and "
-                  f"{s.layer_height:g} mm layers for the project; {s.layer_height:g} mm layers"
-                  f"{', ' + extra if extra else ''} for every object")
+                  f"{s.material} ({filament}) and {layer:g} mm layers for the project and its "
+                  f"first layer; {layer:g} mm layers for every object")
 
 
 def check_file(path, design=None, settings=None) -> dict:

@@ -1,0 +1,185 @@
+"""Pieces of a print read back, found in the design by their geometry alone.
+
+A print's beds hold its pieces turned and moved wherever the writer put them; no file says
+where (an STL carries no placement). The checks do not ask the writer's layout: each piece
+rebuilt from a file (joints in bed millimetres, and the bars or plate sides between them) is
+laid onto the design's nodes by a rigid motion found from the piece itself. One of its bars is
+laid onto every design edge of the same length, both ways round; the motion that brings most
+of the piece's joints onto design nodes wins, refined by a least-squares fit over all of them.
+
+A piece may fit the design in several places (a chain of equal modules, a symmetric network);
+the places of all pieces are then chosen together so that every design edge is built exactly
+once. A joint shared by two pieces is a joint where the print is cut, to be joined by hand.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Placement", "place_pieces", "pieces_of"]
+
+#: Anchor bars tried per piece (its longest), so that one wrong bar does not lose the piece.
+ANCHORS = 3
+#: Most rigid motions scored per piece.
+MAX_CANDIDATES = 4000
+#: Most alternative places kept per piece for the joint choice.
+MAX_PLACES = 64
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a piece read back lies in the design.
+
+    Attributes
+    ----------
+    match : numpy.ndarray of int, shape (M,)
+        The design node of each of the piece's joints.
+    deviation : numpy.ndarray, shape (M,)
+        Distance (mm) of each joint, moved by the fit, from its design node.
+    rotation : numpy.ndarray, shape (2, 2)
+    shift : numpy.ndarray, shape (2,)
+        The fit: design = bed @ rotation.T + shift (mm).
+    """
+
+    match: np.ndarray
+    deviation: np.ndarray
+    rotation: np.ndarray
+    shift: np.ndarray
+
+
+def pieces_of(n_joints: int, bars) -> list[np.ndarray]:
+    """The connected pieces of joints joined by bars (arrays of joint indices, in order)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    bars = np.asarray(bars, dtype=np.int64).reshape(-1, 2)
+    adj = coo_matrix((np.ones(len(bars)), (bars[:, 0], bars[:, 1])), shape=(n_joints,) * 2)
+    n, label = connected_components(adj, directed=False)
+    return [np.flatnonzero(label == k) for k in range(n)]
+
+
+def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
+    """Candidate places of one piece: (joints within ``reach``, rms, Placement), best first."""
+    from scipy.spatial import cKDTree
+
+    from ..numerics import apply_fit, rigid_fit
+
+    tree = cKDTree(design_xy)
+    d_len = np.linalg.norm(design_xy[design_edges[:, 0]] - design_xy[design_edges[:, 1]], axis=1)
+    b_len = np.linalg.norm(xy[bars[:, 0]] - xy[bars[:, 1]], axis=1)
+    seen, out, tried = set(), [], 0
+    for anchor in np.argsort(-b_len, kind="stable")[:ANCHORS]:
+        a, b = bars[anchor]
+        u = xy[b] - xy[a]
+        for e in np.flatnonzero(np.abs(d_len - b_len[anchor]) <= length_tol):
+            for i, j in (design_edges[e], design_edges[e][::-1]):
+                if tried >= MAX_CANDIDATES:
+                    break
+                tried += 1
+                v = design_xy[j] - design_xy[i]
+                turn = np.arctan2(v[1], v[0]) - np.arctan2(u[1], u[0])
+                rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+                moved = (xy - xy[a]) @ rot.T + design_xy[i]
+                dist, near = tree.query(moved, distance_upper_bound=reach)
+                hit = np.isfinite(dist)
+                if hit.sum() < min(3, len(xy)):
+                    continue
+                key = tuple(np.where(hit, near, -1).tolist())
+                if key in seen:
+                    continue
+                seen.add(key)
+                fit = rigid_fit(xy[hit], design_xy[near[hit]])
+                if np.linalg.det(fit.rotation) < 0:  # pragma: no cover - a proper fit
+                    continue
+                # every joint to its nearest design node under the refined motion
+                refined = apply_fit(fit, xy)
+                dev, match = tree.query(refined)
+                out.append((int(hit.sum()), float(np.sqrt(np.mean(dev ** 2))),
+                            Placement(match, dev, fit.rotation, fit.shift)))
+    out.sort(key=lambda c: (-c[0], c[1]))
+    return out[:MAX_PLACES]
+
+
+def place_pieces(pieces, design_xy, design_edges, *, tol: float,
+                 accept=None) -> list[Placement | None]:
+    """Lay every piece onto the design (see the module docstring).
+
+    Parameters
+    ----------
+    pieces : list of (xy, bars)
+        Each piece's joints (M, 2) in bed millimetres and its bars (B, 2) as pairs of its
+        joint indices.
+    design_xy : numpy.ndarray, shape (N, 2)
+        The design's nodes, mm.
+    design_edges : numpy.ndarray of int, shape (E, 2)
+    tol : float
+        Largest joint deviation (mm) of a piece built as designed; places within it are
+        preferred, and together must cover every design edge once.
+    accept : callable, optional
+        ``accept(places) -> bool``: what else the file says about a choice of places (a
+        print-in-place linkage has no pin where it is cut between pieces); the first choice it
+        accepts wins, else the first that covers the design.
+
+    Returns
+    -------
+    list of Placement or None
+        Per piece, its place (None: nothing of the design fits it).
+    """
+    design_xy = np.asarray(design_xy, dtype=np.float64)
+    design_edges = np.asarray(design_edges, dtype=np.int64)
+    d_len = np.linalg.norm(design_xy[design_edges[:, 0]] - design_xy[design_edges[:, 1]], axis=1)
+    # far enough to find a joint moved by a writer's mistake, near enough to tell joints apart
+    reach = 0.45 * float(d_len.min()) if len(d_len) else 1.0
+    edge_key = {tuple(e): k for k, e in enumerate(np.sort(design_edges, axis=1).tolist())}
+    options = []
+    for xy, bars in pieces:
+        bars = np.asarray(bars, dtype=np.int64).reshape(-1, 2)
+        fits = _fits(np.asarray(xy, dtype=np.float64), bars, design_xy, design_edges, reach,
+                     max(tol, reach))
+        good = [f[2] for f in fits if f[0] == len(xy) and f[2].deviation.max() <= tol]
+        covered = []
+        for p in good:
+            keys = {edge_key.get(tuple(sorted(e))) for e in p.match[bars].tolist()}
+            covered.append(keys if None not in keys and len(keys) == len(bars) else None)
+        options.append(([p for p, c in zip(good, covered) if c is not None],
+                        [c for c in covered if c is not None],
+                        fits[0][2] if fits else None))
+    for test in ((accept,) if accept is not None else ()) + (None,):
+        chosen = _cover(options, len(design_edges), test)
+        if chosen is not None:
+            return chosen
+    # no exact cover: each piece's best place, for the checks to say what is wrong
+    return [best for _, _, best in options]
+
+
+def _cover(options, n_edges: int, accept=None):
+    """One place per piece so that every design edge is built once (depth-first, pieces with
+    the fewest places first), or None."""
+    order = sorted(range(len(options)), key=lambda k: len(options[k][0]))
+    if any(not options[k][0] for k in order):
+        return None
+    chosen: dict[int, Placement] = {}
+    used: set = set()
+    budget = [20000]
+
+    def go(depth: int) -> bool:
+        if depth == len(order):
+            return len(used) == n_edges and (accept is None or accept(
+                [chosen[k] for k in range(len(options))]))
+        k = order[depth]
+        for place, edges in zip(*options[k][:2]):
+            budget[0] -= 1
+            if budget[0] < 0:
+                return False
+            if used & edges:
+                continue
+            used.update(edges)
+            chosen[k] = place
+            if go(depth + 1):
+                return True
+            used.difference_update(edges)
+        return False
+
+    return [chosen[k] for k in range(len(options))] if go(0) else None

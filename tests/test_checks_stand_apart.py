@@ -1,0 +1,141 @@
+"""The as-built checks stand apart from the writers they check.
+
+A check that reused a writer's code would reproduce the writer's bug instead of catching it. So
+``fabkit/check`` imports nothing from ``fabkit/export`` nor from the plans the writers draw from
+(the laser kit, the pinned print, the layer stacking, the hinges): it reads the written file with
+its own reader, rebuilds the network from the file's geometry and re-simulates it. Here that is
+tested on the import graph (function-level imports included) and by planting writer bugs: a
+hole moved by 0.5 mm in a written DXF, pins written 0.4 mm thicker in a 3MF.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import ezdxf
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.check import check_file
+from fabkit.export import export
+
+from conftest import TEMPLATES
+
+CHECK = Path(fabkit.__file__).parent / "check"
+
+#: What a check may take from fabkit/fab: settings and catalogues that say what was asked for
+#: (never how it was drawn), and the origami model (the simulator of a crease pattern).
+ALLOWED_FAB = {
+    "fabkit.fab.laser": {"laser_overrides", "laser_settings"},
+    "fabkit.fab.printing": {"design_print_settings"},
+    "fabkit.fab.slicer": {"FILAMENTS"},
+    "fabkit.fab.hardware": {"fit_fastener"},
+    "fabkit.fab.creases": {"CreasePattern", "OrigamiModel", "Sheet", "network_from_pattern",
+                           "fold_model", "flat_foldability"},
+}
+
+
+def _imports(path: Path):
+    """(module, name) of every import in a file of fabkit/check, wherever it stands."""
+    package = "fabkit.check"
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                yield a.name, None
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([node.module] if node.module else []))
+            else:
+                module = node.module
+            for a in node.names:
+                yield module, a.name
+
+
+def test_the_checks_import_nothing_from_the_writers():
+    files = sorted(CHECK.glob("*.py"))
+    assert len(files) >= 10  # the walk sees the package
+    seen_fab = set()
+    for path in files:
+        for module, name in _imports(path):
+            where = f"{path.name}: from {module} import {name}"
+            assert not module.startswith("fabkit.export"), where
+            if module == "fabkit.fab" or module.startswith("fabkit.fab."):
+                assert name in ALLOWED_FAB.get(module, set()), where
+                seen_fab.add(module)
+    # the walk resolves relative imports (the check does use fab's settings)
+    assert "fabkit.fab.laser" in seen_fab and "fabkit.fab.printing" in seen_fab
+
+
+@pytest.fixture(scope="module")
+def laser_kit(tmp_path_factory):
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    out = tmp_path_factory.mktemp("laser")
+    result, _ = export(design, "dxf", out)
+    sheets = sorted(p for p in out.glob("*.dxf") if "coupon" not in p.name)
+    assert sheets  # the kit's sheets (the coupon is a test piece, checked on its own)
+    return design, sheets
+
+
+def _by_name(report):
+    return {c["name"]: c for c in report["checks"]}
+
+
+def test_the_written_dxf_passes(laser_kit):
+    design, sheets = laser_kit
+    r = check_file(sheets[0], design=design)
+    assert r["ok"], [c for c in r["checks"] if not c["ok"]]
+
+
+def test_a_hole_moved_half_a_millimetre_in_the_dxf_is_caught(laser_kit, tmp_path):
+    design, sheets = laser_kit
+    for sheet in sheets:  # the whole kit, one hole moved
+        doc = ezdxf.readfile(sheet)
+        if sheet == sheets[0]:
+            hole = next(e for e in doc.modelspace()
+                        if e.dxftype() == "CIRCLE" and e.dxf.layer == "CUT_INNER")
+            c = hole.dxf.center
+            hole.dxf.center = (c.x + 0.5, c.y, 0.0)
+        doc.saveas(tmp_path / sheet.name)
+    r = check_file(tmp_path / sheets[0].name, design=design)
+    assert not r["ok"]
+    c = _by_name(r)
+    assert not c["holes_centred"]["ok"]
+    assert c["holes_centred"]["value"] == pytest.approx(0.5, abs=1e-6)
+    assert not c["lengths"]["ok"] and c["lengths"]["value"] > 0.1
+
+
+@pytest.fixture(scope="module")
+def super_stable():
+    return fabkit.load_template(TEMPLATES / "super_stable.toml")
+
+
+def _pin_clearance(report):
+    c = _by_name(report)["pin clearance"]
+    return c["ok"], c["value"]
+
+
+def test_pins_written_thicker_in_the_3mf_are_caught(super_stable, tmp_path, monkeypatch):
+    import fabkit.fab.pinned as pinned
+
+    export(super_stable, "stl", tmp_path / "good", print={"preview": False})
+    good = check_file(tmp_path / "good" / "super_stable.3mf", design=super_stable)
+    assert good["ok"] and _pin_clearance(good)[1] == pytest.approx(0.3, abs=1e-3)
+
+    real = pinned.pin_profile
+
+    def thicker(z_start, stack, s):  # the writer's bug: the shaft 0.2 mm wider in radius
+        profile = real(z_start, stack, s).copy()
+        shaft = np.isclose(profile[:, 0], 0.5 * s.pin_diameter)
+        profile[shaft, 0] += 0.2
+        return profile
+
+    monkeypatch.setattr(pinned, "pin_profile", thicker)
+    export(super_stable, "stl", tmp_path / "bad", print={"preview": False})
+    monkeypatch.undo()
+    bad = check_file(tmp_path / "bad" / "super_stable.3mf", design=super_stable)
+    ok, value = _pin_clearance(bad)
+    assert not bad["ok"] and not ok
+    assert value == pytest.approx(0.1, abs=1e-3)  # 0.3 mm asked, 0.1 mm written
