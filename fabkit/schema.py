@@ -21,7 +21,7 @@ Examples
 >>> check_settings({"lasre": {"kerf": 0.2}})
 Traceback (most recent call last):
 ...
-fabkit.errors.SettingsError: lasre: unknown section; known: laser, motion, origami, print, tolerance
+fabkit.errors.SettingsError: lasre: unknown section; known: laser, motion, origami, print, tolerance; did you mean 'laser'?
 """
 
 from __future__ import annotations
