@@ -16,8 +16,12 @@ venv: $(STAMP)
 
 # Runs the main job on the bundled templates: every design simulated, exported in every format
 # that applies, checked as built, with report.md/report.json per design; everything in out/.
+# Its last line names the page to open, after any design's error, and keeps export's exit code.
 demo: $(STAMP)
-	$(VENV)/bin/fabkit export templates -o out --jobs 2
+	@$(VENV)/bin/fabkit export templates -o out --jobs 2; status=$$?; \
+	if [ -f out/index.html ]; then \
+		echo "Open out/index.html in a browser: every design's report, files and checks."; \
+	fi; exit $$status
 
 # The fast suite (what CI runs); `make test-all` adds the slow studies.
 test: $(STAMP)

@@ -48,19 +48,86 @@ def _commands():
 
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line usage errors (``fabkit: error: ...``, exit status 2), like every
-    other error of the command line."""
+    other error of the command line, that say "did you mean" for a misspelt command, choice
+    or option."""
 
     def error(self, message):
         command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
         hint = f"fabkit {command} --help" if command else "fabkit --help"
         self.exit(ExitCode.USAGE, f"fabkit: error: {' '.join(message.split())} (see {hint})\n")
 
+    def _check_value(self, action, value):
+        # argparse's own check, with the nearest valid choice named (a command, --rank-method)
+        from .suggest import did_you_mean
+
+        if action.choices is not None and value not in action.choices:
+            hint = did_you_mean(value, [str(c) for c in action.choices])
+            choices = ", ".join(repr(c) for c in action.choices)
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r}"
+                                                 + (f"; {hint}" if hint else "")
+                                                 + f" (choose from {choices})")
+
+    def parse_args(self, args=None, namespace=None):
+        args, extra = self.parse_known_args(args, namespace)
+        if extra:
+            # said by the command's own parser, with the nearest option it has
+            parser = _command_parser(self, getattr(args, "command", None)) or self
+            parser.error(f"unrecognized arguments: {' '.join(extra)}"
+                         + parser.option_hint(extra))
+        return args
+
+    def option_hint(self, extra) -> str:
+        """``"; did you mean '--jobs'?"`` for the first unknown option in ``extra``."""
+        from .suggest import did_you_mean
+
+        known = [o for a in self._actions if a.help is not argparse.SUPPRESS
+                 for o in a.option_strings]
+        for word in extra:
+            if word.startswith("-") and len(word) > 1:
+                hint = did_you_mean(word.split("=", 1)[0], known)
+                if hint:
+                    return f"; {hint}"
+        return ""
+
+
+def _command_parser(parser, name):
+    """The parser of subcommand ``name`` (None when there is none)."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction) and name in action.choices:
+            return action.choices[name]
+    return None
+
+
+class _Formatter(argparse.HelpFormatter):
+    """argparse's help, with the ``Examples:`` section kept as written (one command a line)."""
+
+    def _fill_text(self, text, width, indent):
+        if text.startswith("Examples:"):
+            return "".join(indent + line for line in text.splitlines(keepends=True))
+        return super()._fill_text(text, width, indent)
+
+
+#: The examples of ``fabkit --help``.
+EXAMPLES_TEXT = """Examples:
+  fabkit templates
+      the bundled designs, one line each
+  fabkit export super_stable --to dxf
+      a laser-cut kit of a bundled design into out/super_stable/
+  fabkit COMMAND --help
+      a command's options and its own examples
+
+Progress of long commands goes to stderr, shown when it is a terminal (--progress: always,
+-q: never); results go to stdout. Exit codes: 0 ok, 1 a design or check failed, 2 usage error."""
+
 
 def build_parser() -> argparse.ArgumentParser:
+    from .commands import examples_epilog
+
     parser = _Parser(
         prog="fabkit",
         description="Design mechanical networks as iterated maps, simulate their motion, and "
                     "export them for laser cutting, origami and 3D printing.",
+        epilog=EXAMPLES_TEXT, formatter_class=_Formatter,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--version", action="version",
@@ -69,7 +136,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="lift the size bounds (modules, samples, periods) checked before work")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for mod in _commands():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP))
+        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
+                           epilog=examples_epilog(mod.EXAMPLES), formatter_class=_Formatter)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser
@@ -139,8 +207,9 @@ def main(argv=None) -> int:
             os.environ["FABKIT_ALLOW_LARGE"] = saved_large
 
 
-#: Argument names that hold a command's output folder (``-o``); checked before any work.
-OUTPUT_DESTS = ("out", "outdir")
+#: Argument names that hold a command's output folder (``-o/--out-dir``); checked before any
+#: work.
+OUTPUT_DESTS = ("out_dir",)
 
 
 def _check_output_option(args) -> None:

@@ -422,8 +422,9 @@ def glyph(letter: str, height: float = 1.0) -> np.ndarray:
 
 
 def design_word(word: str, modules: list[CurvatureModule], *, height: float = 40.0,
-                beam: int = 48) -> list[CurveFit]:
+                beam: int = 48, progress=None) -> list[CurveFit]:
     """One :class:`CurveFit` per letter of ``word`` (capitals A-Z), each letter ``height`` tall.
+    ``progress(done, total, letter)`` is called as each letter's search starts.
 
     Raises
     ------
@@ -437,7 +438,9 @@ def design_word(word: str, modules: list[CurvatureModule], *, height: float = 40
         raise FabkitError(f"cannot spell {bad[0]!r}: use capital letters A-Z only")
     cache: dict[str, CurveFit] = {}
     fits = []
-    for c in word:
+    for i, c in enumerate(word):
+        if progress is not None:
+            progress(i, len(word), c)
         if c not in cache:
             cache[c] = design_curve(glyph(c, height), modules, beam=beam)
         fits.append(cache[c])

@@ -21,7 +21,7 @@ Examples
 >>> check_settings({"lasre": {"kerf": 0.2}})
 Traceback (most recent call last):
 ...
-fabkit.errors.SettingsError: lasre: unknown section; known: laser, motion, origami, print, tolerance
+fabkit.errors.SettingsError: lasre: unknown section; known: laser, motion, origami, print, tolerance; did you mean 'laser'?
 """
 
 from __future__ import annotations
@@ -369,7 +369,8 @@ def check_fabrication(table, where: str = "fabrication") -> dict:
                                                      "e.g. skip = { dxf = \"why\" }")
             continue
         if key not in FABRICATION_SECTIONS:
-            raise SettingsError(f"{where}.{key}", f"unknown section; known: {', '.join(known)}")
+            raise SettingsError(f"{where}.{key}", f"unknown section; known: {', '.join(known)}"
+                                                  + _hint(key, known))
         check_section(key, value, f"{where}.{key}")
     return table
 
@@ -396,7 +397,8 @@ def check_settings(settings, where: str = "", sections: dict | None = None) -> d
     for key, value in settings.items():
         full = f"{where}.{key}" if where else key
         if key not in known:
-            raise SettingsError(full, f"unknown section; known: {', '.join(sorted(known))}")
+            raise SettingsError(full, f"unknown section; known: {', '.join(sorted(known))}"
+                                      + _hint(key, known))
         check_table(known[key], value, full)
     return settings
 
@@ -430,6 +432,14 @@ def refuse_unused(settings, used, why: str) -> None:
             else section
         raise UsageError("--set", f"{keys}: {section} settings have no effect here: {why}; "
                                   "remove them")
+
+
+def _hint(name, known) -> str:
+    """``"; did you mean 'kerf'?"`` for a misspelt section or key, else ``""``."""
+    from .suggest import did_you_mean
+
+    hint = did_you_mean(name, sorted(known))
+    return f"; {hint}" if hint else ""
 
 
 def section_of(settings, name: str) -> dict:
@@ -566,7 +576,8 @@ def _explain(exc: ValidationError, where: str, model) -> tuple[str, str]:
     if kind == "missing":
         return key, "is missing"
     if kind == "extra_forbidden":
-        return key, f"unknown key; known: {', '.join(sorted(parent.model_fields))}"
+        return key, (f"unknown key; known: {', '.join(sorted(parent.model_fields))}"
+                     + _hint(loc[-1] if loc else "", parent.model_fields))
     info = parent.model_fields.get(loc[-1]) if loc else None
     doc = f" ({info.description})" if info is not None and info.description else ""
     reasons = {

@@ -557,7 +557,7 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
         also = (", nor a bundled template of that name (fabkit templates lists them)"
                 if is_template_name(str(name)) and str(name).removesuffix(".toml")
                 not in bundled_names() else "")
-        raise TemplateError(path, "", f"no such file{also}") from None
+        raise TemplateError(path, "", f"no such file{also}{_nearest_template(name)}") from None
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             raise InputFileError(path, "symbolic-link loop: the link never reaches a "
@@ -587,6 +587,23 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
     except UnicodeDecodeError:
         raise TemplateError(path, "", "not a text file (not UTF-8): a template is TOML text") from None
     return parse_template(text, path, _stack, _loading)
+
+
+def _nearest_template(name) -> str:
+    """``"; did you mean 'super_stable'?"`` for a misspelt template: among the bundled names and
+    the templates of the current folder for a bare name, among the templates beside it for a
+    path; ``""`` when none is alike."""
+    from .suggest import close_names, nearest_file
+
+    if is_template_name(str(name)):  # a name, or a path as plain as one
+        stem = str(name).removesuffix(".toml")
+        if stem in bundled_names():  # a path on purpose (./fourbar): no other name was meant
+            return ""
+        here = [p.stem for p in Path().glob("*.toml")]
+        found = close_names(stem, sorted(set(bundled_names()) | set(here)), n=1)
+        return f"; did you mean {found[0]!r}?" if found else ""
+    hint = nearest_file(name, "*.toml")
+    return f"; {hint}" if hint else ""
 
 
 #: The package whose data files are the bundled templates. In the repo they live in ``templates/``

@@ -86,6 +86,10 @@ def test_an_unknown_name_says_there_is_no_file_nor_bundled_template(elsewhere, c
     assert main(["info", "fourbars"]) == 1
     assert capsys.readouterr().err.strip().splitlines() == [
         "fabkit: error: fourbars: no such file, nor a bundled template of that name "
+        "(fabkit templates lists them); did you mean 'fourbar'?"]
+    assert main(["info", "qwertyuiop"]) == 1  # nothing alike: no suggestion
+    assert capsys.readouterr().err.strip().splitlines() == [
+        "fabkit: error: qwertyuiop: no such file, nor a bundled template of that name "
         "(fabkit templates lists them)"]
     assert main(["info", "./fourbar"]) == 1
     assert capsys.readouterr().err.strip() == "fabkit: error: fourbar: no such file"

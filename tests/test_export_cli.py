@@ -81,12 +81,15 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
     out = tmp_path / "out"
     rc = main(["export", str(TEMPLATES / "fourbar.toml"),
                str(TEMPLATES / "super_stable_chain8.toml"), "-o", str(out), "--jobs", "2",
-               "--set", "lengths.scale=10", "--tolerance-samples", "40"])
+               "--set", "lengths.scale=10", "--tolerance-samples", "40", "--progress"])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    assert captured.err == ""  # errors only on stderr; progress goes to stdout, terminal or not
-    assert "2 exported, 0 failed" in captured.out
-    assert "fourbar: ok in " in captured.out and "super_stable_chain8: ok in " in captured.out
+    # progress on stderr (asked for: it is not a terminal), the summary on stdout
+    progress = captured.err.splitlines()
+    assert all(line.startswith("fabkit export [") for line in progress), progress
+    assert "fourbar: ok in " in captured.err and "super_stable_chain8: ok in " in captured.err
+    assert "2 exported, 0 failed" in captured.out and "ok in" not in captured.out
+    assert captured.out.splitlines()[-1] == f"open {out / 'index.html'} (every design's report)"
     assert sorted(p.name for p in out.iterdir()) == ["fourbar", "index.html",
                                                      "super_stable_chain8"]
 

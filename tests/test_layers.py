@@ -23,6 +23,8 @@ LAYERS = {
     "inputs": 0,
     "workload": 0,
     "schema": 0,
+    "progress": 0,
+    "suggest": 0,
     "arguments": 1,
     "numerics": 1,
     "network": 1,

@@ -156,7 +156,7 @@ def test_letters_command_spells_network(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message, code", [
-    (["letters", "Net"], "WORD must be capital letters A-Z", 2),
+    (["letters", "Net"], "WORD: must be capital letters, those with strokes: A", 2),
     (["letters", "AB", "--height", "-2"], "--height must be positive", 2),
     (["letters", "AB", "--modules", "/nonexistent"], "no curvature module template", 1),
 ])

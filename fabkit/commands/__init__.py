@@ -1,13 +1,114 @@
-"""Subcommands of the ``fabkit`` command line, one per file (see :mod:`fabkit.cli`)."""
+"""Subcommands of the ``fabkit`` command line, one per file (see :mod:`fabkit.cli`).
+
+Options that mean the same in several commands are added here, so that they are spelt the same
+everywhere: ``-o/--out-dir DIR`` (the output folder), ``-j/--jobs N`` (parallel processes),
+``--set SECTION.KEY=VALUE`` (settings), ``-q/--quiet`` and ``--progress`` (progress lines, on
+stderr: :mod:`fabkit.progress`). Each command's ``EXAMPLES`` end its ``--help``.
+"""
 
 from __future__ import annotations
 
+import argparse
+from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import FabkitError
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
-           "check_jobs", "check_number"]
+           "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
+           "add_jobs", "add_settings", "add_progress_options", "progress_for", "short_list"]
+
+
+# --- the help's examples ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Example:
+    """One example at the end of a command's ``--help``.
+
+    Attributes
+    ----------
+    command : str
+        The command line, as typed (``fabkit export super_stable --to dxf``).
+    says : str
+        What it does, one short line.
+    cheap : bool
+        Quick enough for the test suite to run it (the others are parsed only).
+    needs : tuple of str
+        Command lines to run first, for the files this one reads.
+    """
+
+    command: str
+    says: str
+    cheap: bool = True
+    needs: tuple = ()
+
+
+def examples_epilog(examples) -> str:
+    """The ``Examples:`` section that ends a command's ``--help``."""
+    lines = ["Examples:"]
+    for e in examples:
+        lines += [f"  {e.command}", f"      {e.says}"]
+    return "\n".join(lines)
+
+
+# --- options spelt the same in every command -------------------------------------------------
+
+def add_out_dir(p, default, help: str, *, ambiguous: str | None = None, **kwargs) -> None:
+    """``-o/--out-dir DIR``: the output folder (``--out``, the older spelling, still works and
+    is not shown). With ``ambiguous`` (a command with another ``--...-out`` option, such as
+    ``map --d-out``), ``--out`` is refused with that text instead of naming a folder."""
+    p.add_argument("-o", "--out-dir", dest="out_dir", default=default, metavar="DIR",
+                   help=help, **kwargs)
+    if ambiguous is not None:
+        p.add_argument("--out", dest="out_dir", default=argparse.SUPPRESS, metavar="X",
+                       help=argparse.SUPPRESS, action=_Refused, refusal=ambiguous)
+        return
+    p.add_argument("--out", dest="out_dir", default=argparse.SUPPRESS, metavar="DIR",
+                   help=argparse.SUPPRESS, **kwargs)
+
+
+class _Refused(argparse.Action):
+    """An option refused with a one-line reason (a spelling that could mean two things)."""
+
+    def __init__(self, *args, refusal: str, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.refusal = refusal
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        raise argparse.ArgumentError(self, self.refusal)
+
+
+def add_jobs(p, default, help: str) -> None:
+    """``-j/--jobs N``: work in parallel processes."""
+    p.add_argument("-j", "--jobs", type=int, default=default, metavar="N", help=help)
+
+
+def add_settings(p, help: str) -> None:
+    """``--set SECTION.KEY=VALUE`` (repeatable): settings over the template's, read as TOML
+    values (:func:`fabkit.commands.export.parse_settings`)."""
+    p.add_argument("--set", dest="settings", action="append", default=[],
+                   metavar="SECTION.KEY=VALUE", help=help)
+
+
+def add_progress_options(p) -> None:
+    """``-q/--quiet`` and ``--progress``: progress lines on stderr, shown on a terminal."""
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("-q", "--quiet", action="store_true",
+                       help="no progress lines (they go to stderr, shown when it is a terminal)")
+    group.add_argument("--progress", action="store_true",
+                       help="progress lines on stderr even when it is not a terminal (a log, "
+                            "a CI job)")
+
+
+def progress_for(args, command: str):
+    """The :class:`~fabkit.progress.Progress` of a command, as ``-q``/``--progress`` ask."""
+    from ..progress import Progress
+
+    quiet, forced = getattr(args, "quiet", False), getattr(args, "progress", False)
+    return Progress(f"fabkit {command}", show=False if quiet else True if forced else None)
+
+
+# --- templates -------------------------------------------------------------------------------
 
 
 def expand_templates(paths) -> list[Path]:
@@ -54,12 +155,19 @@ def expand_templates(paths) -> list[Path]:
     return unique
 
 
-def each_template(paths, work, *, debug: bool = False) -> int:
+def short_list(paths) -> str:
+    """``"a.toml, b.toml, c.toml, ..."``: the first three file names, for a progress line."""
+    return ", ".join(p.name for p in paths[:3]) + (", ..." if len(paths) > 3 else "")
+
+
+def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
     """Run ``work(path)`` for every template named by ``paths`` (see :func:`expand_templates`).
 
     A fabkit error of one template is printed as one line that names the template, and the
     others still run (as ``fabkit export`` does). ``work`` returns True when its template
     failed in a way it has already reported (a target not reached, a flagged design).
+    With a :class:`~fabkit.progress.Progress`, the templates are its count (``work`` names
+    its own stages with ``progress.stage(text)``).
 
     Returns
     -------
@@ -70,17 +178,28 @@ def each_template(paths, work, *, debug: bool = False) -> int:
     import sys
 
     code = 0
-    for path in expand_templates(paths):
+    found = expand_templates(paths)
+    if progress is not None:
+        progress.stage(short_list(found), total=len(found), unit="templates")
+    for path in found:
+        ended, error = "done", None
         try:
             if work(path):
-                code = max(code, 1)
+                code, ended = max(code, 1), "failed"
         except FabkitError as exc:
+            ended = "failed"
             if debug:
                 raise
             text = str(exc)
             named = str(path) in text or getattr(exc, "path", None) is not None
-            print(f"fabkit: error: {text if named else f'{path}: {text}'}", file=sys.stderr)
+            error = f"fabkit: error: {text if named else f'{path}: {text}'}"
             code = max(code, int(exc.exit_code))
+        if progress is not None:
+            progress.advance(text=f"{path.name}: {ended}")
+        if error is not None:  # after the progress line: the error is what a reader sees last
+            print(error, file=sys.stderr)
+    if progress is not None:
+        progress.close()
     return code
 
 

@@ -3,7 +3,8 @@
 Writes ``DIR/bench/``: ``work_precision.png``, ``scaling.png`` (fitted exponents),
 ``stability.md`` (the stability table with its evidence), ``failure_cases.png``, ``bench.json``
 (every measured point, the targets, machine information) and, with ``--profile``,
-``profile.txt``. Nothing is written until every result exists.
+``profile.txt``. Nothing is written until every result exists. Each measurement, as it ends,
+is a progress line on stderr (:mod:`fabkit.progress`); the summary goes to stdout.
 """
 
 from __future__ import annotations
@@ -12,12 +13,23 @@ import json
 import sys
 import time
 
+from . import Example
+
 NAME = "bench"
 HELP = "speed against accuracy: work-precision and scaling charts, stability study"
 DESCRIPTION = (
     "Time every tracing method against its accuracy on chains of 10 to 10 000 super-stable "
     "modules, fit how the time grows with size, and run the stability study where methods fail. "
     "--quick finishes in about 40 s on a quiet 2-core machine.")
+
+EXAMPLES = [
+    Example("fabkit bench --quick --parts workprecision --sizes 3 --budget 5 -o out/bench-tiny",
+            "one tiny chain, every method timed: the charts and bench.json"),
+    Example("fabkit bench --quick",
+            "speed against accuracy and the stability study, small sizes", cheap=False),
+    Example("fabkit bench -o out --profile",
+            "the full study, and a profile of 'projected' on the largest chain", cheap=False),
+]
 
 #: Parameters of the two modes.
 MODES = {
@@ -44,8 +56,9 @@ MODES = {
 
 
 def add_arguments(p):
-    p.add_argument("-o", "--out", default="out", help="output folder (default: out); results go "
-                   "to OUT/bench/")
+    from . import add_out_dir, add_progress_options
+
+    add_out_dir(p, "out", "output folder (default: out); results go to DIR/bench/")
     p.add_argument("--quick", action="store_true",
                    help="small sizes and budgets (about 40 s on a quiet 2-core machine)")
     p.add_argument("--budget", type=float, default=None,
@@ -59,6 +72,7 @@ def add_arguments(p):
                         "chains and a 2D lattice); default all")
     p.add_argument("--profile", action="store_true",
                    help="also profile 'projected' on the largest chain (profile.txt)")
+    add_progress_options(p)
 
 
 #: Largest chain in the work-precision study without ``--allow-large`` (the full bench's own).
@@ -77,10 +91,6 @@ def _sizes(text):
         raise UsageError("--sizes", f"must list positive numbers of modules, got {text!r}")
     check_count("--sizes", max(sizes), 1, MAX_BENCH_MODULES, "modules")
     return sizes
-
-
-def _say(msg):
-    print(msg, file=sys.stderr, flush=True)
 
 
 def _point_line(p):
@@ -155,7 +165,7 @@ def run(args) -> int:
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
     from ..outputs import inside, write_files
-    from . import check_number
+    from . import check_number, progress_for
     from ..viz import figure_png
 
     import signal
@@ -175,7 +185,8 @@ def run(args) -> int:
                for s in settings):
         rk4_step = next(s.options["step"] for s in settings if s.method == "rk4-nullspace")
     # checked before the work and again when writing: never through a link out of -o
-    outdir = inside(args.out, "bench")
+    outdir = inside(args.out_dir, "bench")
+    say = progress_for(args, NAME)
     t_start = time.perf_counter()
     doc = {"command": "fabkit bench" + (" --quick" if args.quick else ""), "mode": mode,
            "parts": parts, "sizes": list(sizes), "budget_s": budget, "machine": machine_info()}
@@ -183,29 +194,33 @@ def run(args) -> int:
 
     points, scal = [], {}
     if "workprecision" in parts or "targets" in parts:
-        _say(f"fabkit bench ({mode}): work-precision on {', '.join(map(str, sizes))} modules, "
-             f"budget {budget:g} s per run")
+        say.stage(f"{mode}: work-precision on {', '.join(map(str, sizes))} modules, budget "
+                  f"{budget:g} s per run", total=len(sizes) * len(settings), unit="runs")
         points = work_precision(sizes, settings, budget=budget, repeats=cfg["repeats"],
-                                progress=lambda p: _say(_point_line(p)))
+                                progress=lambda p: say.advance(text=_point_line(p)))
         scal = scaling(points)
         doc.update(points=points, scaling=scal)
         files["work_precision.png"] = figure_png(work_precision_figure(points))
 
     comparison = lyap = None
     if "targets" in parts:
-        _say(f"comparison with rk4-nullspace at {cfg['compare_modules']} modules")
+        say.stage(f"comparison with rk4-nullspace at {cfg['compare_modules']} modules",
+                  total=3, unit="steps")
         comparison = comparison_at(cfg["compare_modules"], points, settings, budget,
                                    cfg["repeats"], rk4_step)
         starts, transient, iterations = cfg["lyapunov"]
-        _say(f"Lyapunov protocol ({starts} x {transient + iterations} map iterations)")
+        say.update(1, text=f"Lyapunov protocol ({starts} x {transient + iterations} map "
+                           "iterations)")
         lyap = lyapunov_protocol(starts, transient, iterations)
         if (starts, transient, iterations) != (1000, 5000, 20000):
             # the protocol's cost is linear in the number of map evaluations
             lyap["extrapolated_time_s"] = lyap["time_per_map_evaluation_s"] * 1000 * (
                 5000 + 20000)
         lib_cfg = (1000, 500, 2000) if args.quick else (1000, 5000, 20000)
-        _say(f"Lyapunov protocol of fabkit.maps ({lib_cfg[0]} x {lib_cfg[1] + lib_cfg[2]})")
+        say.update(2, text=f"Lyapunov protocol of fabkit.maps ({lib_cfg[0]} x "
+                           f"{lib_cfg[1] + lib_cfg[2]})")
         lyap["library"] = maps_lyapunov(*lib_cfg, budget=max(budget, 60.0))
+        say.update(3, text="comparison and Lyapunov protocols done")
         doc.update(comparison=comparison, lyapunov=lyap)
     if points:
         doc["targets"] = targets(points, scal, comparison, lyap)
@@ -214,12 +229,14 @@ def run(args) -> int:
 
     study = horizon = None
     if "stability" in parts:
-        _say("stability study")
+        say.stage("stability study: building the cases")
+        cases = stab.stability_cases(**cfg["stability"])
+        say.stage("stability study", total=len(cases) * len(stab.study_methods()), unit="runs")
         study = stab.stability_study(
-            None, budget=max(budget, 30.0),
-            cases=stab.stability_cases(**cfg["stability"]),
-            progress=lambda r: _say(f"  {r['case']:<20} {r['method']:<14} {r['class']}"))
-        _say("predictability horizon of the chaotic chain")
+            None, budget=max(budget, 30.0), cases=cases,
+            progress=lambda r: say.advance(text=f"{r['case']:<20} {r['method']:<14} "
+                                                f"{r['class']}"))
+        say.stage("predictability horizon of the chaotic chain", total=None)
         horizon = stab.predictability_horizon(cfg["horizon_modules"], budget=max(budget, 30.0))
         doc.update(stability=study, horizon=horizon)
         files["failure_cases.png"] = figure_png(stab.failure_figure(study, horizon))
@@ -229,30 +246,36 @@ def run(args) -> int:
         from ..bench import large
 
         lcfg = cfg["large"]
-        _say("large networks: count_modes on super-stable chains")
+        def measured(p):
+            say.advance(text=_large_line(p))
+
+        say.stage("large networks: count_modes on super-stable chains",
+                  total=2 * len(lcfg["modes"]), unit="runs")
         modes = large.count_modes_scaling(lcfg["modes"], budget=budget, repeats=cfg["repeats"],
-                                          progress=lambda p: _say(_large_line(p)))
-        _say("large networks: 4-bar chains, d1 2 -> 2.6")
+                                          progress=measured)
+        say.stage("large networks: 4-bar chains, d1 2 -> 2.6", total=2 * len(lcfg["chains"]))
         chains = large.fourbar_chain_points(lcfg["chains"], budget=budget,
-                                            repeats=cfg["repeats"],
-                                            progress=lambda p: _say(_large_line(p)))
-        _say("large networks: projected on k x k 4-bar lattices")
+                                            repeats=cfg["repeats"], progress=measured)
+        say.stage("large networks: projected on k x k 4-bar lattices",
+                  total=len(lcfg["lattice"]))
         lattice = large.lattice_points(lcfg["lattice"], budget=budget, repeats=cfg["repeats"],
-                                       progress=lambda p: _say(_large_line(p)))
+                                       progress=measured)
         doc["large"] = {"count_modes": modes, "fourbar_chains": chains, "lattice": lattice}
         doc.setdefault("targets", {}).update(large.large_targets(modes, chains))
         if "certified" in lcfg:
-            _say("large networks: exact counts and linear traces, mirrored super-stable chain")
+            say.stage("large networks: exact counts and linear traces, mirrored super-stable "
+                      "chain", total=None)
             cert = large.certified_points(**{"repeats": cfg["repeats"], **lcfg["certified"]},
                                           budget=max(budget, 60.0),
-                                          progress=lambda k, p: _say(large.certified_line(k, p)))
+                                          progress=lambda k, p: say.note(
+                                              large.certified_line(k, p)))
             doc["large"]["certified"] = cert
             doc["targets"].update(large.certified_targets(cert))
         files["large_networks.png"] = figure_png(large.large_figure(modes, chains, lattice))
 
     if args.profile:
         k = max(sizes) if args.sizes else cfg["profile_modules"]
-        _say(f"profiling projected on {k} modules")
+        say.stage(f"profiling projected on {k} modules")
         prof = profile_method(k, "projected")
         files["profile.txt"] = prof.pop("text").encode()
         doc["profile"] = prof
@@ -261,7 +284,9 @@ def run(args) -> int:
     # everything measured and rendered: only now write
     files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
                                      allow_nan=False).encode()
-    write_files(args.out, {f"bench/{name}": data for name, data in files.items()})
+    say.stage(f"writing {len(files)} files into {outdir}")
+    write_files(args.out_dir, {f"bench/{name}": data for name, data in files.items()})
+    say.close()
 
     print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_s']:.0f} s)")
     for s in scal.values():

@@ -7,18 +7,33 @@ design. Prints one line per check; exits 1 when any check fails.
 
 from __future__ import annotations
 
+from . import Example
+
 NAME = "check"
 HELP = "as-built check of exported DXF / FOLD / STL files (optionally against their template)"
 
+_KIT = "fabkit export fourbar --to dxf --no-previews --tolerance-samples 0"
+EXAMPLES = [
+    Example("fabkit check out/fourbar/laser_sheet1.dxf --design fourbar",
+            f"a kit exported before ({_KIT}) read back, rebuilt and moved like the design",
+            needs=(_KIT,)),
+    Example("fabkit check out/fourbar/laser_sheet1.dxf --json",
+            "the file alone (no template), the report as JSON on stdout", needs=(_KIT,)),
+    Example("fabkit check out/super_stable/*.stl --design super_stable --set print.clearance=0.4",
+            "printed parts, checked with the settings they were exported with", cheap=False),
+]
+
 
 def add_arguments(p):
+    from . import add_progress_options, add_settings
+
     p.add_argument("files", nargs="+", metavar="FILE", help="exported file(s)")
     p.add_argument("--design", default=None, metavar="TEMPLATE",
                    help="the template the files were exported from")
-    p.add_argument("--set", dest="settings", action="append", default=[],
-                   metavar="SECTION.KEY=VALUE",
-                   help="fabrication settings used for the export (as for fabkit export)")
+    add_settings(p, "fabrication settings used for the export (as for fabkit export; "
+                    "repeatable)")
     p.add_argument("--json", action="store_true", help="print the check reports as JSON")
+    add_progress_options(p)
 
 
 def _value(v) -> str:
@@ -48,6 +63,7 @@ def run(args) -> int:
     from ..report import jsonable
     from ..stoppable import run_stoppable
     from ..templates import load_template, with_settings
+    from . import progress_for
     from .export import parse_settings
 
     settings = parse_settings(args.settings)
@@ -58,23 +74,32 @@ def run(args) -> int:
         reads = {"motion"}.union(*(getattr(checker_for(f), "READS", ()) for f in args.files))
         refuse_unused(settings, reads, f"the checks of these files read "
                                        f"{', '.join(sorted(reads - {'motion'}))} settings only")
+    progress = progress_for(args, NAME)
+    progress.stage(f"{len(args.files)} file{'s' * (len(args.files) != 1)}",
+                   total=len(args.files), unit="files")
     design = with_settings(load_template(args.design), settings) if args.design else None
     failed = 0
     out = {}
     for name in args.files:
         path = Path(name)
         if not path.is_file():
-            raise FabkitError(f"{path}: no such file")
+            from ..suggest import nearest_file
+
+            hint = nearest_file(path)
+            raise FabkitError(f"{path}: no such file" + (f"; {hint}" if hint else ""))
+        progress.stage(f"{path}: reading back, rebuilding, moving")
         if args.debug:  # in this process, for the traceback
             report = check_file(path, design=design, settings=settings)
         else:  # where SIGINT/SIGTERM stop it at once, held to its work estimate
             report = run_stoppable(check_file, path, design=design, settings=settings,
                                    what=str(path))
         failed += not report.get("ok")
+        progress.advance(text=f"{path}: {'ok' if report.get('ok') else 'FAILED'}")
         if args.json:
             out[str(path)] = report
         else:
             print(format_report(path, report))
+    progress.close()
     if args.json:
         print(json.dumps(jsonable(out), indent=2, sort_keys=True))
     return 1 if failed else 0

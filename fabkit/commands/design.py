@@ -8,6 +8,7 @@ import re
 from pathlib import Path
 
 from ..errors import InputFileError, UsageError
+from . import Example
 
 NAME = "design"
 HELP = "design a module from map wishes (--fixed-point, --cycle) or a chain from a curve (--curve)"
@@ -18,6 +19,16 @@ DESCRIPTION = (
     "a JSON report and a picture into -o DIR; the templates export like any other "
     "(fabkit export DIR/NAME.toml --to dxf). A wish that cannot be met exits 2 with one line "
     "naming it, why, and the nearest feasible wish.")
+
+EXAMPLES = [
+    Example("fabkit design --fixed-point 1.6:0 --fixed-point 1.1 -o out/design",
+            "a module super-stable at 1.6 with a second fixed point at 1.1"),
+    Example("fabkit design --cycle 1.4,1.8 --name two_cycle",
+            "a module whose map has the 2-cycle 1.4 <-> 1.8; out/design/two_cycle.toml"),
+    Example("fabkit design --curve quadrifolium.csv --curve-scale 70 -o out/quad",
+            "a chain whose final state follows a bundled curve, 70 times the drawing",
+            cheap=False),
+]
 
 #: Largest curve file read (an SVG of a hand-drawn curve is a few kB).
 MAX_CURVE_BYTES = 16 * 2**20
@@ -83,8 +94,10 @@ def add_arguments(p):
                         "the fit)")
     p.add_argument("--name", action=_Once, default=None,
                    help="stem of the files written (default: module, or the curve file's stem)")
-    p.add_argument("-o", "--out", action=_Once, default="out/design",
-                   help="output folder (default out/design)")
+    from . import add_out_dir, add_progress_options
+
+    add_out_dir(p, "out/design", "output folder (default: out/design)", action=_Once)
+    add_progress_options(p)
 
 
 def _name(args) -> str:
@@ -166,7 +179,7 @@ def run(args) -> int:
     from ..viz import figure_png
 
     name = _name(args)
-    out = Path(args.out)
+    out = Path(args.out_dir)
     if args.curve is not None:
         if args.fixed_point or args.cycle:
             raise UsageError("--curve", "designs a chain from a curve; give it without "
@@ -194,7 +207,14 @@ def _run_module(args, name, out, figure_png) -> int:
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
     cycle = parse_cycle(args.cycle) if args.cycle is not None else None
-    result = design_map(wishes, cycle, name=name, progress=_progress, sample_builds=laser_builds)
+    from . import progress_for
+
+    progress = progress_for(args, NAME)
+    progress.stage(f"{name}: a module from its map wishes, judged against simulated laser "
+                   "builds")
+    result = design_map(wishes, cycle, name=name, progress=progress.stage,
+                        sample_builds=laser_builds)
+    progress.stage(f"{name}: drawing and writing")
     report = result.report
     files = {
         f"{name}.toml": result.template.encode(),
@@ -256,12 +276,6 @@ def laser_builds(design):
     return built, float(spec.scale), model_summary(spec)
 
 
-def _progress(text: str) -> None:
-    """A long search says what it is doing (stdout: a refusal's one line stays alone on
-    stderr)."""
-    print(f"  ... {text}", flush=True)
-
-
 def _run_curve(args, name, out, figure_png) -> int:
     import numpy as np
 
@@ -270,6 +284,10 @@ def _run_curve(args, name, out, figure_png) -> int:
     from ..designer.toml_text import fit_lines
     from ..designplots import curve_design_figure
 
+    from . import progress_for
+
+    progress = progress_for(args, NAME)
+    progress.stage(f"{name}: reading {args.curve}")
     curve = _read_curve_file(args.curve)
     if args.curve_scale != 1.0:
         lo = 2 * args.module_size / curve.length
@@ -286,7 +304,8 @@ def _run_curve(args, name, out, figure_png) -> int:
             curve = scaled(curve, args.curve_scale)
     _check_curve_size(curve, args.module_size)
     result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
-                                name=name, progress=_progress)
+                                name=name, progress=progress.stage)
+    progress.stage(f"{name}: drawing and writing")
     report = result.report
     rows = "\n".join(f"{x:.6f},{y:.6f}" for x, y in np.asarray(result.centerline))
     files = {f: t.encode() for f, t in result.templates.items()}

@@ -1,4 +1,4 @@
-"""``fabkit export PATH... [--to dxf,svg,fold,stl] [-o DIR] [--jobs N] [--set KEY=VALUE ...]``.
+"""``fabkit export PATH... [--to dxf,svg,fold,stl] [-o DIR] [-j N] [--set KEY=VALUE ...]``.
 
 Exports templates (files, folders of ``*.toml``, glob patterns) into one folder per design:
 the files of every format that applies (or of the formats asked for), ``report.json``,
@@ -6,6 +6,8 @@ the files of every format that applies (or of the formats asked for), ``report.j
 
 This module only reads the command line and prints; the work is done by :mod:`fabkit.batch`
 (atomic folders, as-built checks, worker processes, signals, the lock on the output folder).
+Progress (each design's stages as they start, each design as it ends, the time left) goes to
+stderr through :mod:`fabkit.progress`; the summary table and the page to open go to stdout.
 A design that fails is reported and the others still export; the exit code is 1 when any failed,
 2 for a bad option. Identical input gives identical bytes.
 """
@@ -14,33 +16,45 @@ from __future__ import annotations
 
 import sys
 
+from . import Example
+
 NAME = "export"
 HELP = "export templates (files, folders, globs) for fabrication, with reports and checks"
 
+EXAMPLES = [
+    Example("fabkit export fourbar --to dxf --no-previews --tolerance-samples 0",
+            "a laser-cut kit of a bundled design into out/fourbar/, quickly"),
+    Example("fabkit export super_stable --to dxf,stl -o out",
+            "the laser kit and the printed-in-place parts, checked as built", cheap=False),
+    Example("fabkit export templates -o out -j 2",
+            "every template of a folder, two at a time; then open out/index.html", cheap=False),
+]
+
+
 def add_arguments(p):
+    from ..tolerance.spec import ToleranceSpec
+    from . import add_jobs, add_out_dir, add_progress_options, add_settings
+
     p.add_argument("paths", nargs="+", metavar="PATH",
                    help="template files, folders of *.toml templates, or glob patterns")
     p.add_argument("--to", default=None, metavar="FORMATS",
                    help="comma-separated formats (default: every format that applies to a design)")
-    p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
-    p.add_argument("--jobs", "-j", type=int, default=1,
-                   help="designs exported in parallel processes (default: 1)")
-    p.add_argument("--set", dest="settings", action="append", default=[],
-                   metavar="SECTION.KEY=VALUE",
-                   help="override a fabrication setting, e.g. --set laser.kerf=0.2 (repeatable; "
-                        "values are read as TOML: 0.2, true, \"text\", [1, 2])")
+    add_out_dir(p, "out", "output folder (default: out); each design goes to DIR/<name>/")
+    add_jobs(p, 1, "designs exported in parallel processes (default: 1)")
+    add_settings(p, "override a fabrication setting, e.g. --set laser.kerf=0.2 (repeatable; "
+                    "values are read as TOML: 0.2, true, \"text\", [1, 2])")
     p.add_argument("--no-check", action="store_true",
                    help="skip the as-built check of the written files")
     p.add_argument("--no-previews", action="store_true",
                    help="skip the preview pictures (motion, map, tolerance): faster batches")
+    samples = ToleranceSpec.__dataclass_fields__["samples"].default
     p.add_argument("--tolerance-samples", type=int, default=None, metavar="N",
                    help="Monte Carlo builds in the tolerance analysis (0: skip; default: the "
-                        "template's [fabrication.tolerance] samples, else 100)")
+                        f"template's [fabrication.tolerance] samples, else {samples})")
     p.add_argument("--wait", action="store_true",
                    help="wait for another export into the same output folder to finish "
                         "(default: refuse at once)")
-    p.add_argument("--quiet", "-q", action="store_true",
-                   help="no progress lines on stderr")
+    add_progress_options(p)
     p.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
                    help="seconds one design may take before it is stopped and failed "
                         "(default 3600; 0: no limit)")
@@ -109,14 +123,20 @@ def parse_formats(text: str | None) -> list[str] | None:
         raise UsageError("--to", "give at least one format, e.g. --to dxf,stl")
     for n in names:
         if n not in EXPORTERS:
-            raise UsageError("--to", f"unknown format {n!r}; valid: {', '.join(EXPORTERS)}")
+            from ..suggest import did_you_mean
+
+            hint = did_you_mean(n, EXPORTERS)
+            raise UsageError("--to", f"unknown format {n!r}; " + (f"{hint} " if hint else "")
+                             + f"valid: {', '.join(EXPORTERS)}")
     return list(dict.fromkeys(names))
 
 
 def run(args) -> int:
-    from ..batch import Progress, exit_code, export_many, summary_table
+    from pathlib import Path
+
+    from ..batch import exit_code, export_many, summary_table
     from ..errors import UsageError
-    from . import check_jobs, expand_templates
+    from . import check_jobs, expand_templates, progress_for
 
     check_jobs("--jobs", args.jobs)
     if args.timeout is not None and not (args.timeout >= 0 and args.timeout < float("inf")):
@@ -128,17 +148,42 @@ def run(args) -> int:
     formats = parse_formats(args.to)
     settings = parse_settings(args.settings)
     paths = expand_templates(args.paths)
-    progress = Progress(len(paths), quiet=args.quiet)
-    results = export_many(paths, formats, args.out, settings, jobs=args.jobs,
+    progress = progress_for(args, NAME)
+    jobs = min(args.jobs, len(paths)) or 1
+    progress.stage(f"{len(paths)} design{'s' * (len(paths) != 1)} into {args.out_dir}, "
+                   f"{jobs} at a time", total=len(paths), unit="designs")
+    results = export_many(paths, formats, args.out_dir, settings, jobs=args.jobs,
                           check=not args.no_check, tolerance_samples=args.tolerance_samples,
-                          progress=progress, previews=not args.no_previews,
+                          progress=DesignProgress(progress), previews=not args.no_previews,
                           debug=getattr(args, "debug", False), wait=args.wait,
                           allow_large=getattr(args, "allow_large", False), **timeout)
+    progress.close()
     print(summary_table(results))
     for r in results:  # the verdict of a design that is not plainly ok, in one line each
         if r.ok and r.level not in ("", "ok"):
             print(f"{r.name}: {r.headline}")
+    index = Path(args.out_dir) / "index.html"
+    if any(r.folder for r in results) and index.is_file():
+        print(f"open {index} (every design's report)")
     for r in results:
         if not r.ok:
             print(f"fabkit: error: {r.error}", file=sys.stderr)
     return exit_code(results)
+
+
+class DesignProgress:
+    """What :func:`fabkit.batch.export_many` reports (``stage(name, stage)`` as a design starts
+    a stage, ``finished(result)`` as it ends), said through one
+    :class:`~fabkit.progress.Progress` whose count is the designs."""
+
+    def __init__(self, progress):
+        self.progress = progress
+
+    def stage(self, name: str, stage) -> None:
+        self.progress.stage(f"{name}: {stage}")
+
+    def finished(self, result) -> None:
+        self.progress.advance(text=f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
+
+    def close(self) -> None:
+        self.progress.close()

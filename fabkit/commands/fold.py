@@ -11,11 +11,24 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import Example
+
 NAME = "fold"
 HELP = "fold an origami template: bifurcation, branches, fold angles; -o writes SVG/FOLD/CP"
 
+EXAMPLES = [
+    Example("fabkit fold origami_sheet",
+            "the bifurcation at the flat sheet, the branch taken, every crease's fold angle"),
+    Example("fabkit fold origami_sheet --branch 2 --sign -1 -o out/fold",
+            "the branch's mirror image; writes the SVG, FOLD and .cp and re-folds the FOLD"),
+    Example("fabkit fold origami_sheet --set origami.samples=40 --to 1.0",
+            "fewer frames, folded only as far as d1 = 1.0"),
+]
+
 
 def add_arguments(p):
+    from . import add_out_dir, add_progress_options, add_settings
+
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="origami template file(s)")
     p.add_argument("--branch", type=int, default=None,
                    help="branch number to leave the flat state on (default: by assignment)")
@@ -23,9 +36,11 @@ def add_arguments(p):
                    help="direction along the branch (the two are mirror images)")
     p.add_argument("--drive", default=None, help="port to drive (default: the template's)")
     p.add_argument("--to", type=float, default=None, help="target value of the drive")
-    p.add_argument("-o", "--out", default=None,
-                   help="output folder: also write svg/fold/cp files into OUT/<name>/ and check "
-                        "the FOLD file")
+    add_out_dir(p, None, "output folder: also write svg/fold/cp files into DIR/<name>/ and "
+                         "check the FOLD file")
+    add_settings(p, "override an origami or motion setting, e.g. --set origami.samples=40 "
+                    "(repeatable)")
+    add_progress_options(p)
 
 
 def describe(design, model, fold) -> str:
@@ -69,17 +84,26 @@ def run(args) -> int:
     from . import each_template
 
     from ..errors import UsageError
-    from . import check_number
+    from ..schema import refuse_unused
+    from ..templates import with_settings
+    from . import check_number, progress_for
+    from .export import parse_settings
 
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")
     check_number("--to", args.to)
+    settings = parse_settings(args.settings)
+    refuse_unused(settings, {"motion", "origami"}, "fold reads origami and motion settings only")
+    progress = progress_for(args, NAME)
 
     def one(path) -> bool:
-        design = load_template(path)
-        folder = inside(Path(args.out), design.name) if args.out else None  # before the work
-        overrides = {k: v for k, v in (("branch", args.branch), ("sign", args.sign))
-                     if v is not None}
+        progress.stage(f"{path.name}: the crease pattern")
+        design = with_settings(load_template(path), settings)
+        out = args.out_dir
+        folder = inside(Path(out), design.name) if out else None  # before the work
+        overrides = {**settings.get("origami", {}),
+                     **{k: v for k, v in (("branch", args.branch), ("sign", args.sign))
+                        if v is not None}}
         model = origami_model(design, overrides)
         drive = args.drive or design.motion.drive
         if drive not in design.network.ports:
@@ -89,24 +113,26 @@ def run(args) -> int:
         motion = replace(design.motion, drive=drive,
                          to=args.to if args.to is not None else design.motion.to)
         design = replace(design, motion=motion)
+        progress.stage(f"{design.name}: folding")
         fold = fold_model(model, motion.drive, motion.to)
         print(describe(design, model, fold))
-        if args.out:
+        if out:
             from ..check import check_file
             from ..export import get_exporter
             from ..outputs import write_files
 
-            settings = {"origami": overrides} if overrides else {}
+            chosen = {"origami": overrides} if overrides else {}
             files: dict[str, bytes] = {}
             for fmt in ("svg", "fold", "cp"):
                 module = get_exporter(fmt)
                 if module.applies(design):
-                    files.update(module.export_design(design, settings).files)
+                    files.update(module.export_design(design, chosen).files)
             paths = write_files(folder, files)  # every format computed first: all or nothing
             print("wrote        " + ", ".join(str(p) for p in paths))
+            progress.stage(f"{design.name}: checking {design.name}.fold by folding it again")
             try:
                 report = check_file(folder / f"{design.name}.fold", design=design,
-                                    settings=settings)
+                                    settings=chosen)
             except FabkitError as exc:
                 print(f"check        failed: {exc}")
                 return True
@@ -115,4 +141,4 @@ def run(args) -> int:
             return not report["ok"]
         return False
 
-    return each_template(args.templates, one, debug=args.debug)
+    return each_template(args.templates, one, debug=args.debug, progress=progress)

@@ -2,8 +2,17 @@
 
 from __future__ import annotations
 
+from . import Example
+
 NAME = "info"
 HELP = "describe a template: sizes, mode count, self-stress, applicable methods"
+
+EXAMPLES = [
+    Example("fabkit info fourbar", "4 nodes, 4 edges, one motion, constructive applies"),
+    Example("fabkit info super_stable_chain --rank-method dense",
+            "the 24-module chain, its modes counted by a dense SVD too"),
+    Example("fabkit info fourbar super_stable origami_sheet", "several templates, a block each"),
+]
 
 
 def add_arguments(p):
@@ -16,6 +25,9 @@ def add_arguments(p):
                         "proof only (structure); or the numeric rank by a dense SVD or the "
                         "certified sparse path; a dense SVD that cannot fit in memory is refused "
                         "before it starts")
+    from . import add_progress_options
+
+    add_progress_options(p)  # many templates, or one large network, take a while
 
 
 def describe(design, rank_method: str = "auto") -> str:
@@ -63,8 +75,14 @@ def describe(design, rank_method: str = "auto") -> str:
 
 def run(args) -> int:
     from ..templates import load_template
-    from . import expand_templates
+    from . import expand_templates, progress_for, short_list
 
-    for path in expand_templates(args.templates):
-        print(describe(load_template(path), args.rank_method))
+    found = expand_templates(args.templates)
+    progress = progress_for(args, NAME)
+    progress.stage(short_list(found), total=len(found), unit="templates")
+    for path in found:
+        text = describe(load_template(path), args.rank_method)
+        progress.advance(text=f"{path.name}: described")
+        print(text)
+    progress.close()
     return 0

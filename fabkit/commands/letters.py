@@ -8,9 +8,18 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError
+from . import Example
 
 NAME = "letters"
 HELP = "design one curvature chain per letter of WORD; writes templates, a PNG and the fit errors"
+
+EXAMPLES = [
+    Example("fabkit letters NO", "two chains whose final states spell NO; out/letters/"),
+    Example("fabkit letters NETWORK -o out/network",
+            "the paper's word: seven chains, their templates, network.png and the fit errors"),
+    Example("fabkit letters FAB --height 60 --beam 200",
+            "taller letters (more modules each), a wider search"),
+]
 
 #: The curvature modules used, by name → template file (Fig 4a-c).
 MODULE_FILES = {
@@ -21,14 +30,17 @@ MODULE_FILES = {
 
 
 def add_arguments(p):
+    from . import add_out_dir, add_progress_options
+
     p.add_argument("word", metavar="WORD", help="capital letters A-Z, e.g. NETWORK")
-    p.add_argument("-o", "--out", default="out/letters", help="output folder (default: out/letters)")
+    add_out_dir(p, "out/letters", "output folder (default: out/letters)")
     p.add_argument("--height", type=float, default=40.0,
                    help="letter height in design units (default 40: about 16 strip widths)")
     p.add_argument("--modules", default=None,
                    help="folder holding curvature_contract/maintain/expand.toml "
                         "(default: the bundled templates)")
     p.add_argument("--beam", type=int, default=96, help="beam width of the search (default 96)")
+    add_progress_options(p)
 
 
 def _module_folder(arg) -> Path:
@@ -118,22 +130,34 @@ MAX_BEAM = 5_000
 
 
 def run(args) -> int:
-    from ..letters import curvature_modules, design_word, letter_template
+    from ..letters import GLYPHS, curvature_modules, design_word, letter_template
     from ..templates import load_template
     from ..viz import figure_png
 
     from ..errors import UsageError
     from ..outputs import write_files
-    from . import check_count, check_number
+    from . import check_count, check_number, progress_for
 
     word = args.word
-    if not word or not word.isascii() or not word.isalpha() or not word.isupper():
-        raise UsageError("WORD", f"WORD must be capital letters A-Z, got {word!r}")
+    if not word:
+        raise UsageError("WORD", "is empty; give capital letters, e.g. NETWORK")
+    if any(c not in GLYPHS for c in word):
+        from ..suggest import did_you_mean
+
+        known = "".join(sorted(GLYPHS))
+        bad = next((c for c in word if c.upper() not in GLYPHS), None)
+        why = (f"{bad!r} is none of them" if bad is not None else
+               did_you_mean(word, [word.upper()], quote=False))
+        raise UsageError("WORD", f"must be capital letters, those with strokes: {known}; got "
+                                 f"{word!r}: {why}")
     check_count("WORD", len(word), 1, MAX_LETTERS, "letters")
     if not args.height > 0:
         raise UsageError("--height", f"--height must be positive, got {args.height}")
     check_number("--height", args.height)
     check_count("--beam", args.beam, 1, MAX_BEAM, "for the beam width")
+    progress = progress_for(args, NAME)
+    steps = 1 + 2 * len(word)  # the modules, then a search and a trace per letter
+    progress.stage(f"{word}: the curvature modules", total=steps, unit="steps")
     folder = _module_folder(args.modules)
     designs = {name: load_template(folder / f) for name, f in MODULE_FILES.items()}
     nets = {name: d.network for name, d in designs.items()}
@@ -141,8 +165,15 @@ def run(args) -> int:
     if final is None:
         raise FabkitError(f"{folder / MODULE_FILES['expand']}: [motion] has no `to` (D2*)")
     modules = curvature_modules(nets, float(final))
-    fits = design_word(word, modules, height=args.height, beam=args.beam)
-    sims = [simulate_letter(fit, nets, float(final)) for fit in fits]
+    progress.update(1, text=f"{word}: searching the chains")
+    fits = design_word(word, modules, height=args.height, beam=args.beam,
+                       progress=lambda done, total, letter: progress.update(
+                           1 + done, text=f"{letter}: searching the modules"))
+    sims = []
+    for i, (letter, fit) in enumerate(zip(word, fits)):
+        progress.update(1 + len(word) + i, text=f"{letter}: tracing {len(fit.names)} modules")
+        sims.append(simulate_letter(fit, nets, float(final)))
+    progress.update(steps, text=f"{word}: drawing and writing")
     # Everything is computed before the first file is written.
     files: dict[str, bytes] = {}
     for name, f in MODULE_FILES.items():
@@ -159,8 +190,9 @@ def run(args) -> int:
         })
     files[f"{word.lower()}.png"] = figure_png(word_figure(word, fits, sims), dpi=100)
     files[f"{word.lower()}_fit.json"] = (json.dumps(report, indent=1) + "\n").encode()
-    out = Path(args.out)
+    out = Path(args.out_dir)
     write_files(out, files)
+    progress.close()
     print(f"{word}: {len(word)} chains -> {out}")
     print("letter  modules  rms/height  max/height  end/height")
     for row in report["letters"]:

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import FabkitError, UsageError
 from ..numerics import DOMAIN_RTOL
+from . import Example
 
 #: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
 #: on f composed m times, whose roots grow with m; orbits and iterations cost one map evaluation
@@ -29,8 +30,18 @@ DESCRIPTION = (
     "configuration: fixed points with slopes and stability, cycles, optionally the Lyapunov "
     "exponent. Writes DIR/<name>/map.png, cobweb.png, map.json (and lyapunov.png, design.png).")
 
+EXAMPLES = [
+    Example("fabkit map fourbar", "f(d) = 4/d: its fixed point 2, the cobweb; out/fourbar/"),
+    Example("fabkit map chaotic --lyapunov --orbits 50 --discard 500 --average 2000",
+            "the chaotic module's exponent, with a shorter protocol"),
+    Example("fabkit map chaotic --lyapunov -o out/maps",
+            "the paper's protocol: 1000 orbits, 5000 discarded, 20000 averaged", cheap=False),
+]
+
 
 def add_arguments(p):
+    from . import add_out_dir, add_progress_options, add_settings
+
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="module template file(s)")
     p.add_argument("--d1", default=None, metavar="VALUES",
                    help="comma-separated initial d1 values for the cobweb (default: the fixed "
@@ -50,8 +61,11 @@ def add_arguments(p):
                    help="discarded iterations for --lyapunov (default 5000)")
     p.add_argument("--average", type=int, default=None,
                    help="averaged iterations for --lyapunov (default 20000)")
-    p.add_argument("-o", "--out", dest="outdir", default="out",
-                   help="output folder (default: out); results go to OUT/<name>/")
+    add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/",
+                ambiguous="could mean two things here: the output folder is -o/--out-dir DIR, "
+                          "the map's output port --d-out PORT")
+    add_settings(p, "override a motion setting, e.g. --set motion.to=2.9 (repeatable)")
+    add_progress_options(p)
 
 
 def parse_values(text: str) -> list[float]:
@@ -119,15 +133,21 @@ def default_d1(fmap, fixed) -> list[float]:
 
 
 def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapunov=False,
-               orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2") -> dict:
-    """Compute everything for one template and write its files; returns the summary."""
+               orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2",
+               progress=None) -> dict:
+    """Compute everything for one template and write its files; returns the summary.
+    ``progress``: a :class:`~fabkit.progress.Progress` told each stage."""
     from ..mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
     from ..viz import figure_png
 
     from ..outputs import inside, write_files
+    from ..progress import Progress
 
+    progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
+    progress.stage(f"{design.name}: the map")
     fmap = design_map(design, d_in, d_out)
+    progress.stage(f"{design.name}: fixed points and cycles")
     fixed = fmap.fixed_points()
     cycles = [c for m in periods for c in fmap.cycles(m)]
     values = default_d1(fmap, fixed) if d1 is None else list(d1)
@@ -139,7 +159,10 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                               f"for {design.name}: no configuration there")
     lyap = None
     if lyapunov:
-        lyap = fmap.lyapunov(initial=orbits, discard=discard, average=average)
+        progress.stage(f"{design.name}: Lyapunov exponent, {orbits} orbits")
+        lyap = fmap.lyapunov(initial=orbits, discard=discard, average=average,
+                             progress=lambda done, total: progress.within(done, total,
+                                                                          "iterations"))
     summary = fmap.summary(periods=periods, lyapunov=lyap)
     summary["template"] = str(design.path)
     summary["cobweb"] = [{"d1": v, "orbit": fmap.orbit(v, steps).tolist()} for v in values]
@@ -160,6 +183,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     summary["claims"] = claims
     if "design" in design.meta:
         summary["design"] = design.meta["design"]
+    progress.stage(f"{design.name}: drawing")
     files = {
         "map.png": figure_png(map_figure(fmap, fixed=fixed, cycles=cycles, title=design.name)),
         "cobweb.png": figure_png(cobweb_figure(fmap, values, steps, title=f"{design.name}: cobweb")),
@@ -194,10 +218,10 @@ def _json_default(o):
 
 
 def run(args) -> int:
-    from ..templates import load_template
-    from . import each_template
-
-    from . import check_count
+    from ..schema import refuse_unused
+    from ..templates import load_template, with_settings
+    from . import check_count, each_template, progress_for
+    from .export import parse_settings
 
     if args.steps < 1:
         raise UsageError("--steps", f"must be at least 1, got {args.steps}")
@@ -227,17 +251,22 @@ def run(args) -> int:
     require("map --lyapunov" if args.lyapunov else "map", lyap,
             ("orbit step", args.steps * (len(d1) if d1 else 3)), option=True)
 
+    settings = parse_settings(args.settings)
+    refuse_unused(settings, {"motion"}, "map reads motion settings only")
+    progress = progress_for(args, NAME)
+
     def one(path) -> bool:
-        design = load_template(path)
-        summary = map_design(design, Path(args.outdir), d1=d1, steps=args.steps, periods=periods,
-                             lyapunov=args.lyapunov, orbits=args.orbits, discard=args.discard,
-                             average=args.average, d_in=args.d_in, d_out=args.d_out)
+        design = with_settings(load_template(path), settings)
+        summary = map_design(design, Path(args.out_dir), d1=d1, steps=args.steps,
+                             periods=periods, lyapunov=args.lyapunov, orbits=args.orbits,
+                             discard=args.discard, average=args.average, d_in=args.d_in,
+                             d_out=args.d_out, progress=progress)
         lo, hi = summary["domain"]
-        print(f"== {design.name} -> {Path(args.outdir) / design.name}")
+        print(f"== {design.name} -> {Path(args.out_dir) / design.name}")
         print(f"map {summary['name']} ({summary['source']}), domain [{lo:.10g}, {hi:.10g}], "
               f"{len(summary['branches'])} branch(es) in the whole motion")
         for line in summary["claims"]:
             print("  " + line)
         return False
 
-    return each_template(args.templates, one, debug=args.debug)
+    return each_template(args.templates, one, debug=args.debug, progress=progress)

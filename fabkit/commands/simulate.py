@@ -8,17 +8,34 @@ from pathlib import Path
 
 import numpy as np
 
+from . import Example
+
 NAME = "simulate"
 HELP = "trace a template's motion; writes trajectory.npz and motion.png"
 
+EXAMPLES = [
+    Example("fabkit simulate fourbar --method projected",
+            "trace the 4-bar with the continuation method; out/fourbar/trajectory.npz, motion.png"),
+    Example("fabkit simulate super_stable_chain8 --gif --set motion.to=1.5",
+            "the chain driven part of the way (d1 = 1.5), with an animated motion.gif"),
+    Example("fabkit simulate origami_sheet --method branch -o out/sim",
+            "leave the flat sheet on a branch (the bifurcation method)"),
+]
+
 
 def add_arguments(p):
+    from ..kinematics import METHODS
+    from . import add_out_dir, add_progress_options, add_settings
+
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
-    p.add_argument("--method", default=None,
-                   help="auto, constructive, projected or rk4-nullspace (default: the template's)")
+    p.add_argument("--method", default=None, metavar="METHOD",
+                   help=f"{', '.join(['auto', *METHODS])} (default: the template's)")
     p.add_argument("--to", type=float, default=None, help="target value of the drive")
-    p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
+    add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
+    add_settings(p, "override a motion setting, e.g. --set motion.to=1.5 or "
+                    "--set motion.method=projected (repeatable)")
     p.add_argument("--gif", action="store_true", help="also write an animated motion.gif")
+    add_progress_options(p)
 
 
 def trajectory_npz(traj) -> bytes:
@@ -38,9 +55,11 @@ def trajectory_npz(traj) -> bytes:
     return buf.getvalue()
 
 
-def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
+def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None):
     from ..outputs import inside, write_files
     from ..viz import figure_png, motion_figure
+
+    say = progress.stage if progress is not None else (lambda text: None)
 
     overrides = {}
     if method:
@@ -48,12 +67,15 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
     if to is not None:
         overrides["to"] = to
     folder = inside(outdir, design.name)  # before the work
+    say(f"{design.name}: tracing the motion")
     traj = design.trace(**overrides)
+    say(f"{design.name}: drawing")
     files = {"trajectory.npz": trajectory_npz(traj),
              "motion.png": figure_png(motion_figure(traj, title=design.name))}
     if gif:
         from ..animate import motion_gif
 
+        say(f"{design.name}: animating motion.gif")
         files["motion.gif"] = motion_gif(traj)
     write_files(folder, files)
     return traj, folder
@@ -62,21 +84,30 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False):
 def run(args) -> int:
     from ..errors import UsageError
     from ..kinematics import METHODS, Status
-    from ..templates import load_template
-    from . import check_number, each_template
+    from ..schema import refuse_unused
+    from ..suggest import did_you_mean
+    from ..templates import load_template, with_settings
+    from . import check_number, each_template, progress_for
+    from .export import parse_settings
 
-    if args.method is not None and args.method != "auto" and args.method not in METHODS:
-        raise UsageError("--method", f"unknown method {args.method!r}; valid: auto, "
-                                     f"{', '.join(METHODS)}")
+    valid = ["auto", *METHODS]
+    if args.method is not None and args.method not in valid:
+        hint = did_you_mean(args.method, valid)
+        raise UsageError("--method", f"unknown method {args.method!r}; "
+                                     + (f"{hint} " if hint else "") + f"valid: {', '.join(valid)}")
     check_number("--to", args.to)
+    settings = parse_settings(args.settings)
+    refuse_unused(settings, {"motion"}, "simulate reads motion settings only")
+    progress = progress_for(args, NAME)
 
     def one(path) -> bool:
         from dataclasses import replace
 
         from ..motion import judge_ends
 
-        design = load_template(path)
-        traj, folder = simulate_design(design, Path(args.out), args.method, args.to, args.gif)
+        design = with_settings(load_template(path), settings)
+        traj, folder = simulate_design(design, Path(args.out_dir), args.method, args.to,
+                                       args.gif, progress)
         print(f"== {design.name} -> {folder}")
         print(traj.summary())
         if traj.success:
@@ -99,4 +130,4 @@ def run(args) -> int:
               f"not reached: {traj.message}", file=sys.stderr)
         return True
 
-    return each_template(args.templates, one, debug=args.debug)
+    return each_template(args.templates, one, debug=args.debug, progress=progress)

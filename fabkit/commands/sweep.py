@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 from pathlib import Path
+
+from . import Example
 
 NAME = "sweep"
 HELP = "sweep template keys on a grid: fixed points, cycles, λ per point; bifurcation diagram"
@@ -19,12 +20,24 @@ DESCRIPTION = (
     "TEMPLATE may also be a sweep spec (a TOML file with a [sweep] table, e.g. "
     "templates/sweeps/period_doubling.toml).")
 
+EXAMPLES = [
+    Example("fabkit sweep chaotic --vary nodes[4].x=-0.3:-0.2:3 --measure fixed_points,slopes "
+            "--no-plots -j 1 -o out/sweep-small",
+            "three members of a module family: their fixed points and slopes"),
+    Example("fabkit sweep templates/sweeps/period_doubling.toml -o out/sweep",
+            "the bifurcation diagram of a module family (a sweep spec file)", cheap=False),
+    Example("fabkit sweep chaotic --vary nodes[4].x=-0.3:0.3:41 --scheduler tcp://10.0.0.5:8786",
+            "the same on a dask cluster", cheap=False),
+]
+
 
 #: Rates are points per second over at least this long (a run that finished at once).
 MIN_SECONDS = 1e-9
 
 
 def add_arguments(p):
+    from . import add_jobs, add_out_dir, add_progress_options
+
     p.add_argument("template", metavar="TEMPLATE", help="module template, or a sweep spec file")
     p.add_argument("--vary", action="append", default=None, metavar="KEY=START:STOP:N",
                    help="vary a key over N evenly spaced values (repeatable: a grid); keys like "
@@ -32,15 +45,13 @@ def add_arguments(p):
     p.add_argument("--measure", default=None, metavar="LIST",
                    help="comma-separated: fixed_points,slopes,cycles,lyapunov,modes,attractor "
                         "(default: all)")
-    p.add_argument("-o", "--out", dest="outdir", default=None, metavar="DIR",
-                   help="output folder (default: out/sweep-<template name>)")
+    add_out_dir(p, None, "output folder (default: out/sweep-<template name>)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (default: "
                         "$DASK_SCHEDULER_ADDRESS, else this machine)")
     p.add_argument("--connect-timeout", type=float, default=10.0, metavar="SECONDS",
                    help="how long to wait for the scheduler (default 10)")
-    p.add_argument("--jobs", type=int, default=None,
-                   help="local processes without a scheduler (default: one per core)")
+    add_jobs(p, None, "local processes without a scheduler (default: one per core)")
     p.add_argument("--chunk-size", type=int, default=None, metavar="N",
                    help="points per task (default: about four tasks per worker, at most 32)")
     p.add_argument("--lyapunov-protocol", default=None, metavar="ORBITS:DISCARD:AVERAGE",
@@ -50,6 +61,7 @@ def add_arguments(p):
     p.add_argument("--point-timeout", type=float, default=None, metavar="SECONDS",
                    help="seconds a point may take on a worker process before it counts as "
                         "stopped answering and is recorded as failed (default 600)")
+    add_progress_options(p)
 
 
 def _usage(message: str):
@@ -59,13 +71,13 @@ def _usage(message: str):
     raise UsageError("", message)
 
 
-class _Bar:
-    """A progress bar on a terminal (nothing when stderr is not one)."""
+class _Points:
+    """The sweep's ``progress(done, total)``, said through a :class:`~fabkit.progress.Progress`
+    (points done of all, the time left at the rate of this run)."""
 
-    def __init__(self, stream=None):
-        self.stream = stream or sys.stderr  # looked up now: stderr may have been replaced
-        self.tty = self.stream.isatty()
-        self.t0 = time.perf_counter()
+    def __init__(self, progress, name: str):
+        self.progress = progress
+        self.name = name
         self.start = None
 
     @property
@@ -74,25 +86,23 @@ class _Bar:
         return self.start is not None
 
     def __call__(self, done, total):
-        if self.start is None:
+        if self.start is None:  # the first call: the points read back from an earlier run
             self.start = done
-        if not self.tty:
+            resumed = f", {done} read back from an earlier run" if done else ""
+            self.progress.stage(f"{self.name}: computing{resumed}", total=total, unit="points",
+                                done=done)
             return
-        width = 30
-        fill = int(width * done / max(total, 1))
-        rate = (done - self.start) / max(time.perf_counter() - self.t0, MIN_SECONDS)
-        self.stream.write(f"\rsweep [{'#' * fill}{'.' * (width - fill)}] {done}/{total} points"
-                          f"  {rate:.1f} points/s ")
-        self.stream.flush()
-        if done == total:
-            self.stream.write("\n")
+        if done >= total:
+            self.progress.update(done, total, f"{self.name}: writing the table and plots")
+        else:
+            self.progress.update(done, total)
 
 
 def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..outputs import inside
-    from . import check_jobs, check_number
+    from . import check_jobs, check_number, progress_for
     from ..templates import load_template
 
     try:
@@ -128,11 +138,19 @@ def run(args) -> int:
         check_jobs("--jobs", args.jobs)
         if args.chunk_size is not None and args.chunk_size < 1:
             _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
+        progress = progress_for(args, NAME)
+        size = 1
+        for axis in axes:
+            size *= len(axis.values)
+        progress.stage(f"{template}: {size} points", total=size, unit="points")
         design = load_template(template)
-        outdir = (Path(args.outdir) if args.outdir
+        outdir = (Path(args.out_dir) if args.out_dir
                   else inside(Path("out"), f"sweep-{design.name}"))
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
-        bar = _Bar()
+        where = f"the scheduler {scheduler}" if scheduler else (
+            f"{args.jobs} process{'es' * (args.jobs != 1)}" if args.jobs else "this machine's cores")
+        progress.stage(f"{design.name}: starting on {where}")
+        bar = _Points(progress, design.name)
         try:
             result = sweep(design, axes, measures, outdir=outdir, scheduler=scheduler,
                            jobs=args.jobs, chunk_size=args.chunk_size, protocol=protocol,
@@ -146,13 +164,12 @@ def run(args) -> int:
             # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
             # command line report the interruption itself
             if bar.started:
-                if bar.tty:
-                    sys.stderr.write("\n")
                 print(f"fabkit: finished chunks are in {outdir / 'chunks'}: run the same command "
                       "again to resume", file=sys.stderr)
             raise
     except SweepError as exc:
         _usage(str(exc))
+    progress.close()
     counts = ", ".join(f"{n} {s}" for s, n in sorted(result.counts().items()))
     print(f"sweep {design.name}: {result.spec.size} points ({counts}) -> {outdir}")
     resumed = result.spec.size - result.computed

@@ -8,9 +8,20 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from . import Example
+
 NAME = "templates"
 HELP = ("list the bundled templates (or those in a folder), one line each; --copy NAME [DIR] "
         "copies one to edit")
+
+EXAMPLES = [
+    Example("fabkit templates", "the bundled designs, one line each, and their folder"),
+    Example("fabkit templates --copy super_stable_chain -o mine",
+            "the chain and its module into mine/, to edit; then fabkit info "
+            "mine/super_stable_chain.toml"),
+    Example("fabkit templates mine", "the templates of a folder of your own",
+            needs=("fabkit templates --copy super_stable_chain -o mine",)),
+]
 
 
 def template_line(path: Path, width: int = 28) -> str:
@@ -36,6 +47,10 @@ def add_arguments(p):
     p.add_argument("--copy", metavar="NAME", default=None,
                    help="copy the bundled template NAME and the templates it refers to into "
                         "FOLDER, to edit")
+    from . import add_out_dir
+
+    add_out_dir(p, None, "with --copy: the folder to copy into (as FOLDER; default: the "
+                         "current folder)")
     p.add_argument("--force", action="store_true",
                    help="with --copy: overwrite files that already exist")
 
@@ -58,8 +73,13 @@ def template_files(name: str) -> dict[str, Path]:
     try:
         path = bundled_template(name)
     except KeyError:
-        raise UsageError("--copy", f"no bundled template {name!r}; `fabkit templates` lists "
-                                   "them") from None
+        from ..suggest import did_you_mean
+        from ..templates import bundled_names, is_template_name
+
+        hint = did_you_mean(name.removesuffix(".toml"), bundled_names()) \
+            if is_template_name(name) else ""
+        raise UsageError("--copy", f"no bundled template {name!r}; " + (f"{hint} " if hint else "")
+                         + "`fabkit templates` lists them") from None
     root = bundled_folder().resolve()
     files: dict[str, Path] = {}
     todo = [load_template(path)]
@@ -148,6 +168,13 @@ def _list_bundled() -> int:
 def run(args) -> int:
     from ..errors import FabkitError, UsageError
 
+    if args.out_dir is not None:
+        if args.copy is None:
+            raise UsageError("-o", "is the folder --copy copies into; give it with --copy NAME")
+        if args.folder is not None:
+            raise UsageError("-o", f"and FOLDER ({args.folder}) both name the folder to copy "
+                                   "into; give one")
+        args.folder = args.out_dir
     if args.copy is not None:
         return _copy(args)
     if args.force:

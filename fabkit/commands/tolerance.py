@@ -16,21 +16,35 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from . import Example
+
 NAME = "tolerance"
 HELP = "Monte Carlo of manufacturing errors: the behaviour builds keep, the verdict's margin"
 
+EXAMPLES = [
+    Example("fabkit tolerance fourbar --samples 50 --no-files",
+            "does a laser-cut 4-bar keep what it is for? the verdict and its margin"),
+    Example("fabkit tolerance super_stable_chain8 --set tolerance.process=print",
+            "the same chain judged as a 3D print; tolerance.json and .png into out/<name>/"),
+    Example("fabkit tolerance templates/*.toml -o out/tolerance",
+            "every template; exits 1 when any is flagged", cheap=False),
+]
+
 
 def add_arguments(p):
+    from ..tolerance.spec import ToleranceSpec
+    from . import add_out_dir, add_progress_options, add_settings
+
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
-    p.add_argument("-o", "--out", default="out", help="output folder (default: out)")
+    add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
+    samples = ToleranceSpec.__dataclass_fields__["samples"].default
     p.add_argument("--samples", type=int, default=None,
-                   help="simulated builds (default: the template's, else 200)")
+                   help=f"simulated builds (default: the template's, else {samples})")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: 0)")
-    p.add_argument("--set", dest="settings", action="append", default=[],
-                   metavar="SECTION.KEY=VALUE",
-                   help="override a setting, e.g. --set tolerance.length_sigma=0.1, "
-                        "--set tolerance.process=print or --set laser.scale=40")
+    add_settings(p, "override a setting, e.g. --set tolerance.length_sigma=0.1, "
+                    "--set tolerance.process=print or --set laser.scale=40 (repeatable)")
     p.add_argument("--no-files", action="store_true", help="print only; write no files")
+    add_progress_options(p)
 
 
 def describe(result) -> str:
@@ -115,7 +129,7 @@ def run(args) -> int:
 
     from ..batch import MAX_SAMPLES
     from ..errors import UsageError
-    from . import check_count
+    from . import check_count, progress_for
 
     if args.samples is not None and args.samples < 1:
         raise UsageError("--samples", f"must be at least 1, got {args.samples}")
@@ -125,18 +139,26 @@ def run(args) -> int:
     settings = parse_settings(args.settings)
     overrides = {k: v for k, v in (("samples", args.samples), ("seed", args.seed)) if v is not None}
 
+    progress = progress_for(args, NAME)
+
     def one(path) -> bool:
+        progress.stage(f"{path.name}: loading")
         design = with_settings(load_template(path), settings)
         # --set of another process has no effect here: refused as a key of another process is
         refuse_foreign(settings, design_process(design), design.name)
-        folder = inside(Path(args.out), design.name)  # before the work
+        folder = inside(Path(args.out_dir), design.name)  # before the work
+        progress.stage(f"{design.name}: tracing the motion")
         traj = traced_motion(design)
         if traj is None:
             raise FabkitError(f"{path}: motion.to: the tolerance analysis needs a target value "
                               "of the drive")
         spec = tolerance_spec(design, settings, **overrides)
-        result = analyse_tolerance(design, spec, trajectory=traj)
+        result = analyse_tolerance(design, spec, trajectory=traj,
+                                   progress=lambda done, total, what: progress.within(
+                                       done, total, "steps", f"{design.name}: {what}"))
         # compute every byte before writing any
+        if not args.no_files:
+            progress.stage(f"{design.name}: drawing and writing")
         files = {} if args.no_files else {
             "tolerance.json": report_json(result.as_dict()),
             "tolerance.png": figure_png(tolerance_figure(result, title=design.name)),
@@ -147,4 +169,4 @@ def run(args) -> int:
         print(describe(result))
         return bool(result.flagged)
 
-    return each_template(args.templates, one, debug=args.debug)
+    return each_template(args.templates, one, debug=args.debug, progress=progress)

@@ -467,7 +467,7 @@ class Map1D:
 
     def lyapunov(self, initial=1000, discard: int = 5000, average: int = 20000,
                  lo: float | None = None, hi: float | None = None,
-                 method: str = "auto") -> LyapunovResult:
+                 method: str = "auto", progress=None) -> LyapunovResult:
         """Lyapunov exponents λ = mean of ln|f'(d_i)| along orbits (supplement protocol).
 
         Parameters
@@ -489,6 +489,9 @@ class Map1D:
             passes that check and the initial values lie in its range. A chaotic orbit in
             float64 is a pseudo-orbit after ~ln(1e16)/λ iterations either way; the exponent,
             an average over the attractor, is not affected.
+        progress : callable, optional
+            ``progress(done, total)``: iterations done of ``discard + average``, about a
+            hundred times along the way.
 
         Returns
         -------
@@ -534,14 +537,22 @@ class Map1D:
         # hot loop: no domain clipping (an orbit that leaves the domain turns NaN and stays NaN,
         # which marks it as escaped)
         x = x0.copy()
+        iterations = int(discard) + int(average)
+        every = max(1, iterations // 100)
         with np.errstate(invalid="ignore", divide="ignore"):
-            for _ in range(int(discard)):
+            for i in range(int(discard)):
                 x = step(x, False)[0]
+                if progress is not None and i % every == 0:
+                    progress(i, iterations)
             total = np.zeros_like(x)
-            for _ in range(int(average)):
+            for i in range(int(discard), iterations):
                 fx, df = step(x, True)
                 total += np.log(np.abs(df))
                 x = fx
+                if progress is not None and i % every == 0:
+                    progress(i, iterations)
+        if progress is not None:
+            progress(iterations, iterations)
         lam = total / max(int(average), 1)
         ok = np.isfinite(x0) & ~np.isnan(lam)
         vals = np.where(ok, lam, np.nan)

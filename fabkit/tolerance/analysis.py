@@ -157,7 +157,7 @@ class _Traced:
 
 
 def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=None,
-                      grid: int = 41, attribute: bool = True) -> ToleranceResult:
+                      grid: int = 41, attribute: bool = True, progress=None) -> ToleranceResult:
     """Monte Carlo of built copies of a design, judged against what it is for.
 
     The design's behaviour (:mod:`fabkit.tolerance.behaviour`) is inferred from its map and
@@ -179,6 +179,9 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     attribute : bool
         Also find each error source's own margin and curve (``margin["sources"]``), and name
         in a flagged verdict the sources that stop the design.
+    progress : callable, optional
+        ``progress(done, total, what)`` as each step of the analysis starts (the builds, the
+        margin, each source's own margin, the horizon).
 
     Returns
     -------
@@ -256,22 +259,28 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     M = spec.samples
     rows = np.arange(M)
+    names = list(SOURCES[spec.process])
+    steps = 3 + (len(names) if attribute else 0)
+    say = progress or (lambda done, total, what: None)
+    say(0, steps, f"{M} builds ({method})")
     main = run(np.ones(M), rows, observe=True)
     keep = main.keep
+    say(1, steps, "the margin: every error scaled")
     crit = critical_scales(lambda g, r: run(g, r).keep, keep)
     margin, bound = margin_of(crit, spec.min_reached)
-    names = list(SOURCES[spec.process])
     curves = {"scales": CURVE_SCALES.tolist(), "all": keep_curve(crit).tolist()}
     source_margins = {}
     if attribute:
         k = min(M, SOURCE_SAMPLES if method == "constructive" else PROJECTED_SOURCE_SAMPLES)
         few = np.arange(k)
-        for name in names:
+        for i, name in enumerate(names):
+            say(2 + i, steps, f"the margin of {name} alone")
             one = run(np.ones(k), few, [name]).keep
             c = critical_scales(lambda g, r, name=name: run(g, few[r], [name]).keep, one,
                                 SOURCE_BISECTIONS)
             curves[name] = keep_curve(c).tolist()
             source_margins[name] = margin_of(c, spec.min_reached)
+    say(steps - 1, steps, "order, ports and horizon")
     observed = run.observe_order(main, rows, chain_cols) if method == "constructive" else None
 
     # the builds at their end, for the ports table and the pictures
