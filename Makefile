@@ -18,6 +18,7 @@ venv: $(STAMP)
 # that applies, checked as built, with report.md/report.json per design; everything in out/.
 demo: $(STAMP)
 	$(VENV)/bin/fabkit export templates -o out --jobs 2
+	@echo "open out/index.html: every design, its files, checks and reports"
 
 # The fast suite (what CI runs); `make test-all` adds the slow studies.
 test: $(STAMP)
