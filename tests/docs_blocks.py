@@ -60,7 +60,8 @@ class Block:
 
     @property
     def name(self) -> str:
-        return f"{self.page.relative_to(ROOT)}:{self.line}"
+        page = self.page.relative_to(ROOT) if self.page.is_relative_to(ROOT) else self.page
+        return f"{page}:{self.line}"
 
     def has(self, word: str) -> bool:
         return any(m == word or m.startswith(word + " ") or m.startswith(word + ":")
@@ -160,3 +161,48 @@ def runnable_chains() -> list[list[Block]]:
             if run:
                 out.append(run)
     return out
+
+
+KNOWN_WORDS = ("slow", "continues", "checkout", "cluster")
+KNOWN_PREFIXES = ("exits ", "not run:", "output of:")
+
+
+def problems(page_blocks: list[Block]) -> list[str]:
+    """What is wrong with the blocks of a page: a fence without a known language, a shell or
+    Python block neither run nor given a reason, an unknown mark, a mark where it means nothing."""
+    found = []
+    for i, b in enumerate(page_blocks):
+        if b.language not in RUN_LANGUAGES | DATA_LANGUAGES:
+            found.append(f"{b.name}: fence without a known language ({b.language!r}); "
+                         f"use one of {sorted(RUN_LANGUAGES | DATA_LANGUAGES)}")
+        elif b.language in RUN_LANGUAGES and not b.runs:
+            if not any(m == "cluster" or (m.startswith("not run:") and m[8:].strip())
+                       for m in b.marks):
+                found.append(f"{b.name}: not run and no reason given")
+        for m in b.marks:
+            if m not in KNOWN_WORDS and not m.startswith(KNOWN_PREFIXES):
+                found.append(f"{b.name}: unknown mark {m!r} (see tests/docs_blocks.py)")
+            elif m.startswith("exits ") and not m[6:].strip().isdigit():
+                found.append(f"{b.name}: {m!r}: the exit status is a number")
+        if b.exit_status and b.language != "sh" and not b.output_of:
+            found.append(f"{b.name}: 'exits N' is for shell blocks and quoted output")
+        if b.output_of is not None and (b.language != "text" or not b.output_of):
+            found.append(f"{b.name}: 'output of: COMMAND' is for text blocks, with a command")
+        shown = [re.sub(r"\s+#.*$", "", line[2:]).strip() for line in b.code.splitlines()
+                 if line.startswith("$ ")]
+        if b.output_of and shown and shown != [b.output_of]:
+            found.append(f"{b.name}: shows `$ {shown[0]}`, runs `{b.output_of}`")
+        if b.has("continues") and i == 0:
+            found.append(f"{b.name}: 'continues' on the first block of the page")
+    return found
+
+
+def missing_line(block: Block, printed: str) -> str | None:
+    """The first line ``block`` quotes that is not in ``printed`` (in order), or None."""
+    lines = comparable_lines(printed)
+    at = 0
+    for line in block.quoted_lines:
+        if line not in lines[at:]:
+            return line
+        at = lines.index(line, at) + 1
+    return None
