@@ -1,0 +1,100 @@
+"""Tables of results in the docs, made from what the code computes now.
+
+A generated table sits between two marks in a page::
+
+    <!-- docs-table: letters -->
+    | letter | modules | ... |
+    <!-- /docs-table -->
+
+``python tools/docs_tables.py`` runs the commands behind every table and writes the tables into
+the pages; ``python tools/docs_tables.py --check`` writes nothing and exits 1 naming every table
+that differs from what the code gives (tests/test_docs_blocks.py runs the check).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+FABKIT = [sys.executable, "-m", "fabkit"]
+
+
+def _run_fabkit(args: list[str], cwd: Path) -> None:
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run(FABKIT + args, cwd=cwd, env=env, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"fabkit {' '.join(args)} exited {proc.returncode}: {proc.stderr[-2000:]}")
+
+
+def letters_table() -> str:
+    """The letters of ``fabkit letters NETWORK``: modules and errors of the simulated final states.
+
+    Errors are relative to the letter height (40), as ``network_fit.json`` gives them.
+    """
+    with tempfile.TemporaryDirectory() as folder:
+        _run_fabkit(["letters", "NETWORK", "-o", "letters"], Path(folder))
+        fit = json.loads((Path(folder) / "letters" / "network_fit.json").read_text())
+    rows = ["| letter | modules | rms | max | end |", "|---|---|---|---|---|"]
+    for row in fit["letters"]:
+        rows.append(f"| {row['letter']} | {row['modules']} | {row['rms_error']:.4f} | "
+                    f"{row['max_error']:.4f} | {row['end_error']:.4f} |")
+    return "\n".join(rows)
+
+
+#: table name -> (page, function making the table's markdown)
+TABLES = {"letters": ("docs/assembly.md", letters_table)}
+
+_SPAN = r"(<!-- docs-table: {name} -->\n)(.*?)(\n<!-- /docs-table -->)"
+
+
+def table_in_page(name: str) -> str:
+    """The table ``name`` as the page holds it now."""
+    page, _ = TABLES[name]
+    text = (ROOT / page).read_text(encoding="utf-8")
+    m = re.search(_SPAN.format(name=re.escape(name)), text, re.S)
+    if not m:
+        raise LookupError(f"{page}: no '<!-- docs-table: {name} -->' ... '<!-- /docs-table -->'")
+    return m.group(2)
+
+
+def write_table(name: str, table: str) -> None:
+    """Put ``table`` between the marks of ``name`` in its page."""
+    page, _ = TABLES[name]
+    path = ROOT / page
+    text = path.read_text(encoding="utf-8")
+    table_in_page(name)
+    new = re.sub(_SPAN.format(name=re.escape(name)), lambda m: m.group(1) + table + m.group(3),
+                 text, flags=re.S)
+    path.write_text(new, encoding="utf-8")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--check", action="store_true",
+                        help="write nothing; exit 1 if a page's table differs from the code's")
+    parser.add_argument("names", nargs="*", help=f"tables (default: all of {sorted(TABLES)})")
+    args = parser.parse_args(argv)
+    stale = []
+    for name in args.names or sorted(TABLES):
+        table = TABLES[name][1]()
+        if table_in_page(name) == table:
+            continue
+        if args.check:
+            stale.append(f"{TABLES[name][0]}: table '{name}' differs from the code's:\n{table}")
+        else:
+            write_table(name, table)
+            print(f"{TABLES[name][0]}: table '{name}' rewritten")
+    for line in stale:
+        print(line)
+    return 1 if stale else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
