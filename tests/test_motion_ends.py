@@ -112,7 +112,11 @@ def test_a_chain_that_collapses_to_its_crystal_reaches_the_ends_it_implies():
 def test_simulate_and_export_say_it_in_one_line(tmp_path, capsys):
     path = _two_cycle(tmp_path, 0.76)
     assert main(["simulate", str(path), "-o", str(tmp_path / "sim")]) == 1
-    err = capsys.readouterr().err.strip().splitlines()
+    said = capsys.readouterr()
+    # the summary says the design did not happen before the error does, never "finished"
+    assert "status        ends missed: the drive reached d1 = 0.76" in said.out
+    assert "finished" not in said.out
+    err = said.err.strip().splitlines()
     assert len(err) == 1
     assert err[0].startswith(f"fabkit: error: {path}: motion.ends: target d1 = 0.76 is reached, "
                              "but d2–d4 (modules 1–3) did not reach their designed end")

@@ -109,19 +109,23 @@ def run(args) -> int:
         traj, folder = simulate_design(design, Path(args.out_dir), args.method, args.to,
                                        args.gif, progress)
         print(f"== {design.name} -> {folder}")
-        print(traj.summary())
+        ends = None
         if traj.success:
             # reaching the target is not the design happening: every designed end, judged
             traced = replace(design, motion=replace(design.motion, to=float(traj.target)))
             ends = judge_ends(traced, traj)
-            if ends is None:
-                return False
-            if ends.reached:
-                print(f"designed ends: every one reached ({ends.basis})")
-                return False
+        if ends is not None and not ends.reached:  # the trace finished, the design did not
+            print(traj.summary(status="ends missed", message=(
+                f"the drive reached {design.motion.drive} = {traj.target:.10g}, "
+                "the designed ends were not")))
             print(f"fabkit: error: {path}: motion.ends: target {design.motion.drive} = "
                   f"{traj.target:.10g} is reached, but {ends.reason}", file=sys.stderr)
             return True
+        print(traj.summary())
+        if traj.success:
+            if ends is not None:
+                print(f"designed ends: every one reached ({ends.basis})")
+            return False
         # the files show the motion up to where it stopped; the target was not reached
         target = traj.target
         key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) \

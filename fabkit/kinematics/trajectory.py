@@ -166,11 +166,15 @@ class Trajectory:
         names = list(self.network.ports) if names is None else list(names)
         return {n: self.distance(n) for n in names}
 
-    def summary(self) -> str:
-        """A few lines for a terminal."""
+    def summary(self, *, status: str | None = None, message: str | None = None) -> str:
+        """A few lines for a terminal.
+
+        ``status`` and ``message`` stand in for the trace's own where a later judgement says
+        more (a trace that finished while the design's ends were missed).
+        """
         lines = [
             f"method        {self.method}",
-            f"status        {self.status}: {self.message}",
+            f"status        {status or self.status}: {message or self.message}",
             f"steps         {self.n_steps}",
             f"drive         {self.drive[0]:.10g} -> {self.drive[-1]:.10g} (target {self.target:.10g})",
             f"arclength     {self.arclength[-1]:.6g}",
