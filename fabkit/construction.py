@@ -75,6 +75,22 @@ class ConstructionPlan:
     def n_nodes(self) -> int:
         return int(self.reference.shape[0])
 
+    def edge_index(self, net: Network) -> np.ndarray:
+        """For every (placed node, parent) pair, the index of its edge in ``net``.
+
+        Returns
+        -------
+        numpy.ndarray of int, shape (K, dim)
+            -1 where a node has no parent in that slot (the 3D gauge node's free slot).
+        """
+        lookup = {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(net.edges.tolist())}
+        idx = np.full(self.parents.shape, -1, dtype=np.int64)
+        for row, (v, par) in enumerate(zip(self.order.tolist(), self.parents.tolist())):
+            for c, p in enumerate(par):
+                if p >= 0:
+                    idx[row, c] = lookup[(min(v, p), max(v, p))]
+        return idx
+
     @cached_property
     def lists(self) -> tuple[list, list, list, list]:
         """The plan as plain Python lists, made once: the order, the parents and the squared

@@ -35,6 +35,7 @@ from ..design import displacement_space, velocity_space
 from ..errors import DesignError, FabkitError
 from ..network import Network
 from ..numerics import TINY
+from .branch import MIN_BRANCH_MARGIN, branch_margins, on_branch
 from .geometry import (MODULE_EDGES, bar_lengths, branch_signs, fixed_point_gain,
                        joint_separation, module_positions, rigidity_margin, slope_velocities,
                        triangle)
@@ -87,11 +88,6 @@ MIN_BULGE = 0.01
 GOOD_BULGE = 0.1
 #: Grid on which extra fixed points are bracketed (sign changes of f(d) - d).
 EXTRA_GRID = 2001
-#: Least distance of every wished state from the nearest fold of its branch, as a fraction of
-#: the state: a wish 1.8e-4 from its fold (slope -55.7 there) lost its fixed point in 2 of 6
-#: simulated builds; at 2 % the laser's errors (0.05 mm bars, 0.2 mm hole play at 100 mm per
-#: unit) move the fold far less than that.
-MIN_BRANCH_MARGIN = 0.02
 #: A wished slope nearer ±1 than this (in |slope|) is nearly neutral: its fixed point moves
 #: by the bars' errors over (1 - slope), and a nearest wish may ease it toward ±NEAR_NEUTRAL.
 NEAR_NEUTRAL = 0.5
@@ -342,27 +338,6 @@ def _verify(c: _Candidate, wish: MapWish, size: float) -> bool:
     return True
 
 
-def branch_margins(fmap, values) -> list[dict]:
-    """Distance of each wished state to the nearest fold of its branch (an end of the map's
-    domain, where d1 turns back): a build's bars move the fold, and a state closer to it than
-    their errors reach is lost.
-
-    Returns
-    -------
-    list of dict
-        Per value: ``value``, ``margin`` (design units), ``fraction`` (of the value) and
-        ``fold`` (the d1 of the nearer fold).
-    """
-    lo, hi = fmap.domain
-    out = []
-    for v in values:
-        fold = lo if v - lo <= hi - v else hi
-        margin = abs(v - fold)
-        out.append({"value": float(v), "margin": float(margin), "fraction": float(margin / v),
-                    "fold": float(fold)})
-    return out
-
-
 def _extras(fmap, wish: MapWish) -> list[float]:
     """Fixed points of the branch that were not asked for: sign changes of f(d) - d on a grid,
     refined by Brent's method (a cycle's branch must cross the diagonal between its values:
@@ -579,34 +554,6 @@ def design_map(fixed_points=(), cycle=None, *, name: str = "designed_module",
                      time.perf_counter() - start)
     report["builds"] = builds.as_dict() if builds is not None else None
     return MapDesign(design=design, report=report, template=text, map=fmap, wish=wish)
-
-
-def on_branch(fmap) -> dict:
-    """Every fixed point and 2-cycle of the map's branch, each with its distance to the
-    nearest fold (:func:`branch_margins`), and the branch's domain and what ends it.
-
-    Examples
-    --------
-    >>> from fabkit.designer import design_map
-    >>> b = on_branch(design_map([], (1.3, 1.8)).map)
-    >>> [round(p["value"], 6) for p in b["fixed_points"]]
-    [1.596294]
-    """
-    fps = fmap.fixed_points()
-    cycles = fmap.cycles(2)
-    out_fps = []
-    for p, m in zip(fps, branch_margins(fmap, [p.value for p in fps])):
-        out_fps.append({**p.as_dict(), "branch_margin": m["margin"],
-                        "branch_margin_fraction": m["fraction"], "fold": m["fold"]})
-    out_cycles = []
-    for c in cycles:
-        ms = branch_margins(fmap, list(c.values))
-        worst = min(ms, key=lambda m: m["fraction"])
-        out_cycles.append({**c.as_dict(), "branch_margin": worst["margin"],
-                           "branch_margin_fraction": worst["fraction"], "fold": worst["fold"]})
-    ends = list(fmap.branch.ends) if fmap.branch is not None else ["", ""]
-    return {"domain": list(fmap.domain), "ends": ends, "fixed_points": out_fps,
-            "cycles": out_cycles}
 
 
 def _report(wish, best, fmap, met, design, n_specs, n_cands, seconds) -> dict:

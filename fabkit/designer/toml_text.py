@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from .branch import MIN_BRANCH_MARGIN, on_branch
+
 __all__ = ["points_toml", "module_template", "toml_string", "curvature_template", "chain_template",
            "fit_lines", "margin_lines", "builds_line"]
 
@@ -36,12 +38,10 @@ def margin_lines(margins, branch: dict) -> list[str]:
     Parameters
     ----------
     margins : list of dict
-        :func:`fabkit.designer.module.branch_margins` of the wished states.
+        :func:`fabkit.designer.branch.branch_margins` of the wished states.
     branch : dict
-        :func:`fabkit.designer.module.on_branch` of the map.
+        :func:`fabkit.designer.branch.on_branch` of the map.
     """
-    from .module import MIN_BRANCH_MARGIN
-
     lo, hi = branch["domain"]
     out = [f"branch: d1 from {lo:.6g} to {hi:.6g} (folds at both ends); every wished state is "
            f"kept at least {100 * MIN_BRANCH_MARGIN:g} % of itself from a fold"]
@@ -114,8 +114,6 @@ def module_template(name: str, wish, cand, builds=None) -> str:
                  f"{m['joint_separation']:.3f} apart, rigidity margin {m['rigidity_margin']:.3f} "
                  f"along the motion, branch margin {worst['margin']:.4g} "
                  f"({100 * worst['fraction']:.3g} % of {worst['value']:.6g}) to the nearest fold.")
-    from .module import on_branch
-
     lines += [f"#   {line}" for line in margin_lines(m["branch_margins"], on_branch(cand.fmap))]
     if builds is not None:
         lines.append(f"#   {builds_line(builds)}")

@@ -407,7 +407,7 @@ def _pin_settings(given: dict, where: str) -> PrintSettings:
 
 def default_linkage(network) -> str:
     """``"hinges"`` for a planar network made of rigid triangles, else ``"pins"``."""
-    from .hinges import rigid_triangles
+    from .triangles import rigid_triangles
 
     try:
         rigid_triangles(network)

@@ -19,8 +19,8 @@ import numpy as np
 
 from ..errors import ConstructionError, FabkitError
 from ..network import Network
-from .placement import _plan_edge_index
-from .processes import BuildLengths, ProcessGeometry, state_profile
+from .processes import (PROFILE_SAMPLES, BuildLengths, ProcessGeometry, interp_rows,
+                        state_profile)
 
 __all__ = ["Module", "chain_modules", "ModuleMaps"]
 
@@ -29,23 +29,11 @@ __all__ = ["Module", "chain_modules", "ModuleMaps"]
 #: error studied.
 BRANCH_END_BISECTIONS = 16
 
-#: Samples of a module's nominal branch at which the state profile (bent hinges, folds) is
-#: tabulated; it is smooth along the branch and interpolated between them.
-PROFILE_SAMPLES = 257
-
 #: The profile's first and last samples sit this far (relative to the branch's extent) inside
 #: its ends: at an end itself (a turning point, a flat state where branches meet) the place of
 #: a node hangs on round-off, while the profile is continuous there, so this moves it by at
 #: most ~3e-5 of its range (at a square-root end) and makes it the same on every machine.
 PROFILE_END_INSET = 1e-9
-
-
-def _interp_rows(values, grid, table) -> np.ndarray:
-    """Linear interpolation of every column of ``table`` (G, K) at ``values`` (Q,), clamped."""
-    v = np.clip(values, grid[0], grid[-1])
-    i = np.clip(np.searchsorted(grid, v) - 1, 0, grid.size - 2)
-    t = ((v - grid[i]) / (grid[i + 1] - grid[i]))[:, None]
-    return (1.0 - t) * table[i] + t * table[i + 1]
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,7 +137,7 @@ def chain_modules(design, references) -> list[Module] | None:
         if plan is None or plan.order.size != s.size - 2:
             return None
         modules.append(Module(k, s, np.asarray(ids, dtype=np.int64), sub, plan,
-                              _plan_edge_index(plan, sub), net.nodes[s]))
+                              plan.edge_index(sub), net.nodes[s]))
     return modules
 
 
@@ -215,7 +203,7 @@ class ModuleMaps:
         """:func:`state_profile` of the module's bars in its nominal state at each d_in,
         (Q, E_k), interpolated in its table; beyond the nominal branch, that of its end."""
         grid, table = self.tables[module.index]
-        return _interp_rows(np.asarray(values, dtype=np.float64), grid, table)
+        return interp_rows(np.asarray(values, dtype=np.float64), grid, table)
 
     def evaluate(self, builds: BuildLengths, values) -> tuple[np.ndarray, np.ndarray]:
         """d_out of every built module at the given d_in values.

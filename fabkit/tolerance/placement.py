@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..numerics import EDGE_RTOL
-from .processes import ProcessGeometry
+from .processes import PROFILE_SAMPLES, ProcessGeometry, interp_rows
 
 #: Builds whose lengths must be realised and traced one by one (no construction order) are
 #: slow; their number is capped at this.
@@ -27,17 +27,6 @@ def _chain_ports(net) -> list[str]:
     """Ports named d1, d2, ... in order, followed by the other ports."""
     chain = sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
     return chain + sorted(p for p in net.ports if p not in chain)
-
-
-def _plan_edge_index(plan, net) -> np.ndarray:
-    """For every (placed node, parent) pair of a plan, the index of its edge in ``net``."""
-    lookup = {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(net.edges.tolist())}
-    idx = np.full(plan.parents.shape, -1, dtype=np.int64)
-    for row, (v, par) in enumerate(zip(plan.order.tolist(), plan.parents.tolist())):
-        for c, p in enumerate(par):
-            if p >= 0:
-                idx[row, c] = lookup[(min(v, p), max(v, p))]
-    return idx
 
 
 def _to_drive_frame(x, a, b, ref_dir) -> np.ndarray:
@@ -231,7 +220,7 @@ class Driver:
 
     def __init__(self, plan, problem, net, pairs, geo, process: str, valid):
         self.plan, self.problem, self.net, self.pairs = plan, problem, net, pairs
-        self.eidx = _plan_edge_index(plan, problem.work)
+        self.eidx = plan.edge_index(problem.work)
         self.mask = self.eidx >= 0
         used = np.zeros(problem.work.n_edges, dtype=bool)
         used[self.eidx[self.mask]] = True
@@ -245,7 +234,6 @@ class Driver:
     def _table(self):
         """The state profile along the nominal motion, tabulated (None: none)."""
         from ..kinematics import place
-        from .modules import PROFILE_SAMPLES
         from .processes import state_profile
 
         grid = np.linspace(self.valid[0], self.valid[1], PROFILE_SAMPLES)
@@ -264,11 +252,10 @@ class Driver:
         the state."""
         if self.table is None:
             return None
-        from .modules import _interp_rows
 
         grid, table = self.table
         v = np.asarray(values, dtype=np.float64)
-        return _interp_rows(v.ravel(), grid, table).reshape(v.shape + (-1,))
+        return interp_rows(v.ravel(), grid, table).reshape(v.shape + (-1,))
 
     def radii(self, lengths) -> np.ndarray:
         """Radii of the plan's intersections from bar lengths (..., E) -> (..., K, dim)."""

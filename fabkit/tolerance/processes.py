@@ -54,7 +54,7 @@ from .canonical import canonical_frame, canonical_order, canonical_scalars, cano
 
 __all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "Sheet", "BuildLengths",
            "sample_lengths", "sample_builds", "hinge_shortening", "state_profile",
-           "joint_turns"]
+           "joint_turns", "PROFILE_SAMPLES", "interp_rows"]
 
 #: The processes and, for each, its error sources (names used in verdicts) with the spec keys
 #: each one reads.
@@ -411,6 +411,31 @@ def _fold_fractions(sheet: Sheet, x) -> np.ndarray:
     cos = np.sum(n1 * n2, axis=-1) / np.maximum(
         np.linalg.norm(n1, axis=-1) * np.linalg.norm(n2, axis=-1), TINY)
     return np.nan_to_num(np.arccos(np.clip(cos, -1.0, 1.0)) / np.pi).max(axis=1)
+
+
+#: Samples of a module's nominal branch at which the state profile (bent hinges, folds) is
+#: tabulated; it is smooth along the branch and interpolated between them.
+PROFILE_SAMPLES = 257
+
+
+def interp_rows(values, grid, table) -> np.ndarray:
+    """Linear interpolation of every column of ``table`` (G, K) at ``values`` (Q,), clamped.
+
+    Parameters
+    ----------
+    values : numpy.ndarray, shape (Q,)
+    grid : numpy.ndarray, shape (G,)
+        Increasing sample positions.
+    table : numpy.ndarray, shape (G, K)
+
+    Returns
+    -------
+    numpy.ndarray, shape (Q, K)
+    """
+    v = np.clip(values, grid[0], grid[-1])
+    i = np.clip(np.searchsorted(grid, v) - 1, 0, grid.size - 2)
+    t = ((v - grid[i]) / (grid[i + 1] - grid[i]))[:, None]
+    return (1.0 - t) * table[i] + t * table[i + 1]
 
 
 def state_profile(geo: ProcessGeometry, process: str, configs, nodes, edge_ids):
