@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
+from ..fab.laser import kerf_note
 from . import ExportResult
 
 __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
@@ -306,15 +307,6 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
 
 #: The sheet stock a kit is cut from, as it is sold.
 SHEET_MATERIAL = "cast acrylic (PMMA) sheet"
-
-
-def kerf_note(settings) -> str:
-    """What a cutter must know about the kerf, in one sentence (DXF header, SVG, BOM)."""
-    if settings.kerf == 0:
-        return ("drawn at true size (kerf 0): let the laser or the cutting service compensate "
-                "its kerf")
-    return (f"kerf {settings.kerf:g} mm already applied: outlines grown and holes shrunk by "
-            f"{0.5 * settings.kerf:g} mm; cut on the line, do not compensate kerf again")
 
 
 def bill_of_materials(plan: LaserPlan, files: dict) -> dict:

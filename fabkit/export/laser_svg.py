@@ -58,7 +58,7 @@ def _poly_path(points, H: float) -> str:
 
 
 def _kerf_text(settings) -> str:
-    from .dxf import kerf_note
+    from ..fab.laser import kerf_note
 
     return kerf_note(settings).capitalize() + "."
 

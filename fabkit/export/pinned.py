@@ -238,7 +238,7 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
     """
     from ..fab.pinned import pinned_print
     from ..fab.slicer import slicer_settings
-    from .stl import binary_stl, stl_origin, stored_mesh_is_closed
+    from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 
     plan = pinned_print(design, s, motion)
     meshes = body_meshes(plan)

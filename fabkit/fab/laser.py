@@ -20,7 +20,7 @@ from ..schema import LaserSection, check_section, section_of
 from .hardware import ScrewSpec, screw_spec
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "DEFAULT_SCALE",
-           "DEFAULT_MAX_LAYERS", "LASER_KEYS"]
+           "DEFAULT_MAX_LAYERS", "LASER_KEYS", "kerf_note"]
 
 #: mm per design unit when neither ``scale`` nor ``size`` is given: the paper's modules (edges
 #: 0.57-2.8 units) become bars of 57-283 mm, comfortably longer than two 4.2 mm holes.
@@ -254,3 +254,12 @@ def kit_design(design, settings: LaserSettings):
     from .window import motion_window
 
     return motion_window(design, settings.motion_from, settings.motion_to, "laser")
+
+
+def kerf_note(settings) -> str:
+    """What a cutter must know about the kerf, in one sentence (DXF header, SVG, BOM)."""
+    if settings.kerf == 0:
+        return ("drawn at true size (kerf 0): let the laser or the cutting service compensate "
+                "its kerf")
+    return (f"kerf {settings.kerf:g} mm already applied: outlines grown and holes shrunk by "
+            f"{0.5 * settings.kerf:g} mm; cut on the line, do not compensate kerf again")
