@@ -15,31 +15,31 @@ from .errors import (
     SettingsError,
     TemplateError,
 )
-from .network import Network
-from .rigidity import ModeCount, count_modes, rigid_body_basis, rigidity_matrix
+from .model.network import Network
+from .model.rigidity import ModeCount, count_modes, rigid_body_basis, rigidity_matrix
 from .kinematics import METHODS, Trajectory, trace
-from .templates import Design, load_template
+from .io.templates import Design, load_template
 
 __version__ = "0.1.0"
 
 # Names provided by modules that are imported on first use (keeps `import fabkit` light).
 _LAZY = {
-    "chain": "fabkit.assemble",
-    "join_transform": "fabkit.assemble",
-    "join": "fabkit.assemble",
-    "branch": "fabkit.assemble",
-    "tessellate": "fabkit.assemble",
-    "design_curve": "fabkit.letters",
-    "design_word": "fabkit.letters",
-    "glyph": "fabkit.letters",
-    "motion_gif": "fabkit.animate",
+    "chain": "fabkit.design.assemble",
+    "join_transform": "fabkit.design.assemble",
+    "join": "fabkit.design.assemble",
+    "branch": "fabkit.design.assemble",
+    "tessellate": "fabkit.design.assemble",
+    "design_curve": "fabkit.design.letters",
+    "design_word": "fabkit.design.letters",
+    "glyph": "fabkit.design.letters",
+    "motion_gif": "fabkit.report.animate",
     "module_map": "fabkit.maps",
     "Map1D": "fabkit.maps",
-    "design_module": "fabkit.design",
-    "design_map": "fabkit.designer",
-    "design_curve_chain": "fabkit.designer",
-    "read_curve": "fabkit.designer",
-    "SolutionSpace": "fabkit.design",
+    "design_module": "fabkit.design.solution_space",
+    "design_map": "fabkit.design",
+    "design_curve_chain": "fabkit.design",
+    "read_curve": "fabkit.design",
+    "SolutionSpace": "fabkit.design.solution_space",
     "fold_through": "fabkit.kinematics.branching",
     "analyze_bifurcation": "fabkit.kinematics.branching",
     "sweep": "fabkit.sweep",

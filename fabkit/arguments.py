@@ -30,7 +30,7 @@ __all__ = ["network", "whole", "real", "choice", "port", "names"]
 
 def network(name: str, value):
     """``value`` when it is a :class:`fabkit.Network`."""
-    from .network import Network
+    from .model.network import Network
 
     if not isinstance(value, Network):
         raise ArgumentTypeError(name, f"must be a fabkit.Network, got {_kind(value)}")

@@ -58,7 +58,7 @@ class _Parser(argparse.ArgumentParser):
 
     def _check_value(self, action, value):
         # argparse's own check, with the nearest valid choice named (a command, --rank-method)
-        from .suggest import did_you_mean
+        from .io.suggest import did_you_mean
 
         if action.choices is not None and value not in action.choices:
             hint = did_you_mean(value, [str(c) for c in action.choices])
@@ -78,7 +78,7 @@ class _Parser(argparse.ArgumentParser):
 
     def option_hint(self, extra) -> str:
         """``"; did you mean '--jobs'?"`` for the first unknown option in ``extra``."""
-        from .suggest import did_you_mean
+        from .io.suggest import did_you_mean
 
         known = [o for a in self._actions if a.help is not argparse.SUPPRESS
                  for o in a.option_strings]

@@ -192,7 +192,7 @@ class BoundsError(FabkitError):
         The size asked for and the largest one accepted.
     override : str
         How to lift the limit (a flag or an environment variable), or ``""``.
-    estimate : fabkit.workload.Estimate, optional
+    estimate : fabkit.io.workload.Estimate, optional
         The estimate of time and memory that was refused (``value`` and ``limit`` are then its
         description and the bound, as text).
     """
@@ -218,7 +218,7 @@ class BoundsError(FabkitError):
 
 
 class SettingsError(FabkitError, ValueError):
-    """A setting that the declared schema (:mod:`fabkit.schema`) refuses: an unknown section or
+    """A setting that the declared schema (:mod:`fabkit.io.schema`) refuses: an unknown section or
     key, a value of the wrong type, a value out of range.
 
     Parameters

@@ -15,7 +15,7 @@ import dataclasses
 
 import numpy as np
 
-from fabkit.network import Assembly, Network
+from fabkit.model.network import Assembly, Network
 
 __all__ = ["renumbered", "moved", "perturbed", "VARIANTS"]
 

@@ -1,7 +1,7 @@
 """Worker processes of the batch that die at any moment: the design they were handed fails with
 the worker's exit status, nothing of it is written, the other designs are exported as usual.
 
-The deaths are injected at fixed moments (``fabkit.batch.FAULT_ENV``): the worker ends itself as
+The deaths are injected at fixed moments (``fabkit.pipeline.FAULT_ENV``): the worker ends itself as
 it receives the design, as a stage starts, or after the export before it reports back, so every
 case is reached deterministically, not by timing a kill from outside.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fabkit.batch import FAULT_ENV, Outcome, Stage, exit_code, export_many
+from fabkit.pipeline import FAULT_ENV, Outcome, Stage, exit_code, export_many
 from fabkit.cli import main
 
 from conftest import TEMPLATES
@@ -177,7 +177,7 @@ def test_a_fault_for_another_design_or_moment_changes_nothing(tmp_path, lengths,
 def test_the_limits_judge_the_worker_not_the_machine():
     """The parent's judgement on a fake clock: a starting worker is not silent, silence counts
     from the last word, the design's time limit from the moment the worker took the design."""
-    from fabkit.batch.workers import _why_stuck, _Worker, heartbeat_interval
+    from fabkit.pipeline.workers import _why_stuck, _Worker, heartbeat_interval
 
     w = _Worker(proc=None, conn=None)
     w.born = 100.0

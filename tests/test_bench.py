@@ -30,7 +30,7 @@ def test_module_map_is_the_fourbar_hyperbola():
 
 
 def test_module_map_matches_the_chain_it_references():
-    from fabkit.assemble import chain
+    from fabkit.design.assemble import chain
 
     ss = paper_module("super_stable")
     net = chain(ss, 5)
@@ -156,7 +156,7 @@ def test_cases_have_the_truth_they_claim(cases):
     assert cases["fourbar_flat"].stop_drive == pytest.approx(2 * math.sqrt(2) - 2, abs=1e-14)
     tp = cases["turning_point"]
     assert 0 < tp.facts["start_d1"] - tp.stop_drive < 2e-5  # the turning point hugs the start
-    from fabkit.rigidity import count_modes
+    from fabkit.model.rigidity import count_modes
 
     gate = count_modes(cases["self_stress"].network)
     assert (gate.conformational, gate.self_stress) == (2, 1)

@@ -8,7 +8,7 @@ import pytest
 from fabkit.bench import large
 from fabkit.bench.workprecision import SKIPPED
 from fabkit.cli import main
-from fabkit.rigidity import SPARSE_FROM
+from fabkit.model.rigidity import SPARSE_FROM
 
 
 def test_count_modes_scaling_records_counts_and_paths():

@@ -136,8 +136,8 @@ def test_no_decision_reads_message_text():
     import re
 
     root = Path(__file__).resolve().parents[1] / "fabkit"
-    files = [*sorted((root / "batch").glob("*.py")), root / "cli.py", root / "report.py",
-             root / "templates.py", root / "errors.py", *sorted((root / "commands").glob("*.py"))]
+    files = [*sorted((root / "pipeline").glob("*.py")), root / "cli.py", root / "report" / "text.py",
+             root / "io" / "templates.py", root / "errors.py", *sorted((root / "commands").glob("*.py"))]
     pattern = re.compile(r"in str\(|in reason\b|in message\b|in msg\b|_is_singular_start"
                          r"|startswith\(str\(")
     hits = [f"{p.name}:{i}" for p in files
@@ -154,8 +154,8 @@ def test_no_decision_reads_message_text():
 ])
 def test_motion_failures_are_typed(stem, cls, key, status):
     from fabkit import errors
-    from fabkit.batch import traced_motion
-    from fabkit.templates import load_template
+    from fabkit.pipeline import traced_motion
+    from fabkit.io.templates import load_template
 
     design = load_template(Path(__file__).resolve().parent / "bad_templates" / f"{stem}.toml")
     with pytest.raises(errors.MotionError) as info:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-import fabkit.batch
+import fabkit.pipeline
 import fabkit.bench.workprecision
 import fabkit.sweep
 from fabkit.cli import main
@@ -88,10 +88,10 @@ class _Stop(FabkitError):
 
 
 @pytest.mark.parametrize("name, module, work", [
-    ("export", fabkit.batch, "export_many"),
+    ("export", fabkit.pipeline, "export_many"),
     ("sweep", fabkit.sweep, "sweep"),
     ("bench", fabkit.bench.workprecision, "work_precision"),
-    ("tolerance", fabkit.batch, "traced_motion"),
+    ("tolerance", fabkit.pipeline, "traced_motion"),
 ])
 def test_the_first_line_comes_before_any_work(name, module, work, tmp_path, monkeypatch,
                                               capsys):

@@ -12,10 +12,10 @@ import pytest
 
 import fabkit
 from fabkit.cli import main
-from fabkit.designer import design_curve_chain, read_curve
-from fabkit.designer.curvature import APEX_RANGE_DEG, LEG_RATIO, design_curvature_type
+from fabkit.design import design_curve_chain, read_curve
+from fabkit.design.curvature import APEX_RANGE_DEG, LEG_RATIO, design_curvature_type
 from fabkit.errors import FabkitError
-from fabkit.letters import chain_centerline
+from fabkit.design.letters import chain_centerline
 from fabkit.maps import module_map
 
 R = 250.0
@@ -131,7 +131,7 @@ def test_curvature_modules_are_designed_as_wished(arcs):
 
 
 def test_variable_nodes_stay_inside_their_triangle():
-    from fabkit.designer.geometry import inside_margin
+    from fabkit.design.geometry import inside_margin
 
     for apex in (50.0, 70.0, 90.0):
         t = design_curvature_type(apex)

@@ -18,8 +18,8 @@ from scipy.spatial import cKDTree
 
 import fabkit
 from fabkit.cli import main
-from fabkit.letters import chain_centerline
-from fabkit.templates import bundled_folder
+from fabkit.design.letters import chain_centerline
+from fabkit.io.templates import bundled_folder
 
 CURVES = bundled_folder() / "curves"
 

@@ -17,10 +17,10 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.batch import Outcome, Progress, export_many
+from fabkit.pipeline import Outcome, Progress, export_many
 from fabkit.commands.export import parse_formats, parse_settings
 from fabkit.errors import UsageError
-from fabkit.templates import load_template
+from fabkit.io.templates import load_template
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
@@ -33,7 +33,7 @@ FAKE_SOURCE = textwrap.dedent('''
 
     from pydantic import Field
 
-    from fabkit.schema import Section
+    from fabkit.io.schema import Section
 
     FORMAT = "lengths"
 
@@ -256,7 +256,7 @@ RUNNER = textwrap.dedent('''
     from pathlib import Path
 
     import fabkit.export
-    from fabkit.batch import export_many
+    from fabkit.pipeline import export_many
 
     fabkit.export.EXPORTERS.clear()
     fabkit.export.EXPORTERS["lengths"] = sys.argv[3]
@@ -437,7 +437,7 @@ def test_formats_are_checked_against_the_registry(capsys, tmp_path):
 def test_progress_is_one_line_per_stage_also_off_a_terminal():
     import io
 
-    from fabkit.batch import DesignResult, Stage
+    from fabkit.pipeline import DesignResult, Stage
 
     stream = io.StringIO()  # not a terminal
     bar = Progress(2, stream, after=0.0)
@@ -531,7 +531,7 @@ def test_check_reads_an_exported_fold_file_back(tmp_path, capsys):
 # --- report bytes -----------------------------------------------------------------------------
 
 def test_report_json_is_plain_sorted_and_stable():
-    from fabkit.report import jsonable, report_json
+    from fabkit.report.text import jsonable, report_json
 
     report = {"b": np.float64(1.5), "a": (np.int64(2), float("nan")), "c": {"z": np.bool_(True)},
               "p": Path("x/y.png")}

@@ -228,7 +228,7 @@ def test_a_signal_ends_a_check_inside_geos(signum, tmp_path):
 
 
 def test_a_check_that_runs_past_its_estimate_is_stopped(tmp_path, monkeypatch, capsys):
-    import fabkit.stoppable as stoppable
+    import fabkit.pipeline.stoppable as stoppable
 
     # the CPU time allowed is four times the estimate and at least a minute; lowered here so
     # that the test needs a few seconds: the same kernel limit (RLIMIT_CPU) stops it either way
@@ -322,7 +322,7 @@ def test_a_fifo_given_as_input_is_refused_not_waited_on(command, tmp_path, capsy
 # --- templates: references and samples ------------------------------------------------------
 
 def test_a_sheet_named_by_many_spellings_is_read_once(tmp_path, monkeypatch, capsys):
-    import fabkit.templates as templates
+    import fabkit.io.templates as templates
 
     (tmp_path / "sheet.toml").write_text('[chain]\nmodule = "fourbar"\ncopies = 2000\n')
     wrapper = (TEMPLATES / "fourbar.toml").read_text().replace('name = "fourbar"', "")
@@ -344,7 +344,7 @@ def test_a_sheet_named_by_many_spellings_is_read_once(tmp_path, monkeypatch, cap
 
 
 def test_referenced_sheets_count_together_against_the_estimate(tmp_path, monkeypatch, capsys):
-    import fabkit.workload as workload
+    import fabkit.io.workload as workload
 
     # five distinct sheets of 5000 modules (20 002 nodes each, 8 MB by the estimate): with the
     # memory bound lowered to 30 MB the fourth is refused before it is built, whatever each
@@ -418,7 +418,7 @@ def test_a_curve_scaled_past_any_chain_is_refused_before_design(tmp_path, capsys
 
 
 def test_long_segments_are_sampled_within_one_budget(monkeypatch):
-    import fabkit.designer.curve_files as cf
+    import fabkit.design.curve_files as cf
 
     sampled = []
     real = cf._points
@@ -451,7 +451,7 @@ def test_closed_subpaths_without_a_move_are_counted_before_parsing(tmp_path, cap
 
 def test_a_drawing_of_a_million_segments_is_refused_by_its_estimate(tmp_path, monkeypatch,
                                                                     capsys):
-    import fabkit.workload as workload
+    import fabkit.io.workload as workload
 
     src = tmp_path / "many.svg"
     src.write_text(SVG.format('<path d="M 0 0 ' + " ".join(f"L {k % 97} {k % 89}"

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit import Network, count_modes, rigidity
+from fabkit import Network, count_modes
+from fabkit.model import rigidity
 from fabkit.bench import large
 from fabkit.errors import KinematicsError, NetworkError
-from fabkit.rigidity import independent_edges, rigidity_matrix
+from fabkit.model.rigidity import independent_edges, rigidity_matrix
 
 from conftest import TEMPLATES
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from fabkit import rigidity
+from fabkit.model import rigidity
 from fabkit.cli import main
 from fabkit.errors import ResourceError
 

@@ -62,7 +62,7 @@ def test_projected_reports_branch_point_at_flat_fourbar(fourbar):
     assert "self-stress" in traj.message
     # at the located point the rigidity matrix is nearly singular (a state of self-stress there):
     # its smallest singular value has dropped by more than three orders from the start's 0.77
-    from fabkit.rigidity import rigidity_matrix
+    from fabkit.model.rigidity import rigidity_matrix
 
     sv = np.linalg.svd(rigidity_matrix(fourbar, traj.final, normalized=True).toarray(), compute_uv=False)
     assert sv[-1] < 1e-3 and sv[-2] > 1.0
@@ -262,7 +262,7 @@ def test_projected_node_step_bound_refines_only_where_nodes_move_fast():
     assert by_node.n_steps < by_arc.n_steps
     assert abs(by_node.distance(m.drive)[-1] - m.to) < 1e-12
     from fabkit.errors import SettingsError
-    from fabkit.schema import check_method_options
+    from fabkit.io.schema import check_method_options
 
     with pytest.raises(SettingsError, match="max_node_step"):
         check_method_options("projected", {"max_node_step": -1.0})

@@ -14,7 +14,7 @@ from fabkit.fab.layers import (Sweep, find_conflicts, plan_layers, point_segment
                                sample_motion, segment_distance, stacking_gaps)
 from fabkit.fab.nest import REFERENCE_SIZE, make_parts, nest_parts
 from fabkit.fab.bars import bar_set
-from fabkit.templates import Motion
+from fabkit.io.templates import Motion
 
 from conftest import TEMPLATES
 
@@ -135,7 +135,7 @@ def test_stacking_reorders_layers_to_keep_bars_off_screw_heads():
 
 
 def test_coinciding_joints_are_refused_with_a_fix():
-    from fabkit.assemble import chain
+    from fabkit.design.assemble import chain
 
     module = fabkit.load_template(TEMPLATES / "super_stable.toml")
     net = chain(module.network, 8)   # unmirrored: every third module lies on the first

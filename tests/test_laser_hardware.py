@@ -19,7 +19,7 @@ from fabkit.export.dxf import export_design
 from fabkit.fab.hardware import (CATALOGUE, DEFAULT_SCREW, MAX_AXIAL_PLAY, MAX_EXTENSIONS, PINS,
                                  WASHER_CLEARANCE, WASHERS, ScrewSpec, choose_washer,
                                  fit_fastener, inch_text, screw_spec)
-from fabkit.schema import ScrewSection
+from fabkit.io.schema import ScrewSection
 
 from conftest import TEMPLATES
 

@@ -18,39 +18,42 @@ ROOT = Path(__file__).resolve().parents[1] / "fabkit"
 #: Rank of each top-level part of the package; an import must not go to a higher rank.
 LAYERS = {
     "errors": 0,
-    "outputs": 0,
-    "stoppable": 0,
-    "inputs": 0,
-    "workload": 0,
-    "schema": 0,
-    "progress": 0,
-    "suggest": 0,
+    "io": 0,
+    "io.outputs": 0,
+    "pipeline.stoppable": 0,
+    "io.inputs": 0,
+    "io.workload": 0,
+    "io.schema": 0,
+    "commands.progress": 0,
+    "io.suggest": 0,
     "arguments": 1,
     "numerics": 1,
-    "network": 1,
-    "rigidity": 2,
-    "construction": 2,
-    "rigidity_structure": 2,
-    "rigidity_edges": 2,
+    "model": 1,
+    "model.network": 1,
+    "model.rigidity": 2,
+    "model.construction": 2,
+    "model.certificate": 2,
+    "model.independent_edges": 2,
     "kinematics": 3,
     "maps": 4,
-    "design": 4,
-    "assemble": 5,
-    "letters": 5,
-    "templates": 6,
-    "designer": 6,
-    "viz": 7,
-    "animate": 7,
-    "mapplots": 7,
-    "designplots": 7,
+    "design.solution_space": 4,
+    "design.assemble": 5,
+    "design.letters": 5,
+    "io.templates": 6,
+    "design": 6,
+    "report": 7,
+    "report.viz": 7,
+    "report.animate": 7,
+    "report.mapplots": 7,
+    "report.designplots": 7,
     "fab": 8,
     "motion": 8,
     "tolerance": 8,
     "export": 9,
     "check": 10,
-    "report": 11,
-    "report_html": 11,
-    "batch": 12,
+    "report.text": 11,
+    "report.html": 11,
+    "pipeline": 12,
     "sweep": 12,
     "bench": 13,
     "commands": 14,
@@ -62,7 +65,7 @@ LAYERS = {
 #: layers that take template paths from a user (the command line, the batch engine behind
 #: ``fabkit export``, sweeps, and the studies, which load the paper's bundled modules). Every
 #: other stage gets a loaded Design, with the templates it refers to in ``Design.references``.
-TEMPLATE_READERS = {"templates", "commands", "cli", "batch", "sweep", "bench"}
+TEMPLATE_READERS = {"io.templates", "commands", "cli", "pipeline", "sweep", "bench"}
 
 
 def _module_name(path: Path) -> str:
@@ -92,8 +95,16 @@ def _imports(path: Path, source: str | None = None):
 
 
 def _part(module: str) -> str | None:
+    """The entry of LAYERS a module belongs to: its longest dotted prefix under ``fabkit``
+    (``model.network``, ``design.assemble``), else its top-level part."""
     pieces = module.split(".")
-    return pieces[1] if len(pieces) > 1 and pieces[0] == "fabkit" else None
+    if len(pieces) < 2 or pieces[0] != "fabkit":
+        return None
+    for end in range(len(pieces), 1, -1):
+        key = ".".join(pieces[1:end])
+        if key in LAYERS:
+            return key
+    return pieces[1]
 
 
 FILES = sorted(p for p in ROOT.rglob("*.py"))
@@ -112,15 +123,11 @@ def _upward(path: Path, source: str | None = None) -> list[tuple[int, str]]:
     for line, target, names in _imports(path, source):
         if not target.startswith("fabkit"):
             continue
-        there = _part(target)
-        if there is None:
-            # `from fabkit import X`: X is a part, or a name re-exported by the package root
-            for name in names:
-                if name in LAYERS and LAYERS[name] > LAYERS[here]:
-                    upward.append((line, f"fabkit.{name}"))
-            continue
-        if LAYERS[there] > LAYERS[here]:
-            upward.append((line, target))
+        # `from fabkit.model import network` imports the module fabkit.model.network; a name
+        # re-exported by the package root (`from fabkit import Network`) has no layer of its own
+        for there in sorted({_part(f"{target}.{n}") for n in names} or {_part(target)}):
+            if there in LAYERS and LAYERS[there] > LAYERS[here]:
+                upward.append((line, f"fabkit.{there}"))
     return upward
 
 
@@ -141,13 +148,13 @@ def test_only_the_template_reader_reads_templates(path):
                if (target.endswith("templates") and "load_template" in names)
                or (target == "fabkit" and "load_template" in names)]
     assert not readers, (f"{path.relative_to(ROOT.parent)} imports load_template at lines "
-                         f"{readers}: referenced templates are resolved by fabkit.templates")
+                         f"{readers}: referenced templates are resolved by fabkit.io.templates")
 
 
 def test_the_walk_sees_imports_inside_functions():
     # An upward import hidden in a function body is caught, with its line; a downward one is not.
-    src = "import numpy\n\ndef f():\n    from .export import stl\n    from .network import Network\n"
-    assert _upward(ROOT / "rigidity.py", src) == [(4, "fabkit.export")]
+    src = "import numpy\n\ndef f():\n    from ..export import stl\n    from .network import Network\n"
+    assert _upward(ROOT / "model" / "rigidity.py", src) == [(4, "fabkit.export")]
     assert _upward(ROOT / "fab" / "bars.py", "def g():\n    from ..check import dxf\n") == [
         (2, "fabkit.check")]
-    assert _upward(ROOT / "fab" / "bars.py", "from fabkit import batch\n") == [(1, "fabkit.batch")]
+    assert _upward(ROOT / "fab" / "bars.py", "from fabkit import pipeline\n") == [(1, "fabkit.pipeline")]

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.assemble import chain
+from fabkit.design.assemble import chain
 from fabkit.cli import main
 from fabkit.errors import DesignError, FabkitError
-from fabkit.letters import (GLYPHS, chain_centerline, curvature_modules, design_curve,
+from fabkit.design.letters import (GLYPHS, chain_centerline, curvature_modules, design_curve,
                             design_word, glyph, polyline_distance, strip_model)
-from fabkit.rigidity import count_modes
-from fabkit.templates import load_template
+from fabkit.model.rigidity import count_modes
+from fabkit.io.templates import load_template
 
 from conftest import TEMPLATES
 

@@ -14,10 +14,10 @@ import pytest
 import fabkit
 from fabkit.cli import main
 from fabkit.commands.design import write_files
-from fabkit.designer import WishError, check_wish, design_map
+from fabkit.design import WishError, check_wish, design_map
 from fabkit.errors import OutputError
 from fabkit.maps import module_map
-from fabkit.rigidity import count_modes
+from fabkit.model.rigidity import count_modes
 
 SQRT3 = math.sqrt(3.0)
 #: The paper's super-stable module's second fixed point (docs/paper_notes.md).

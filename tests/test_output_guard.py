@@ -1,4 +1,4 @@
-"""One guard for every path fabkit writes (fabkit.outputs): a shared template cannot make any
+"""One guard for every path fabkit writes (fabkit.io.outputs): a shared template cannot make any
 command write outside its output folder, and a failed write leaves nothing half-written.
 
 Each test snapshots the whole temporary folder (the output folder, its parents and a folder
@@ -18,7 +18,7 @@ import pytest
 
 from fabkit.cli import main
 from fabkit.errors import OutputError, UnsafeNameError, WriteError
-from fabkit.outputs import check_name, inside, output_folder, write_files
+from fabkit.io.outputs import check_name, inside, output_folder, write_files
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
@@ -303,7 +303,7 @@ def test_bench_output_never_goes_through_a_link_and_is_refused_before_work(tmp_p
 
 
 def test_open_own_file_refuses_links_and_fifos(tmp_path):
-    from fabkit.outputs import open_own_file, own_entry
+    from fabkit.io.outputs import open_own_file, own_entry
 
     os.mkfifo(tmp_path / "fifo")
     (tmp_path / "link").symlink_to(tmp_path / "nowhere")

@@ -12,8 +12,8 @@ import pytest
 
 import fabkit
 import fabkit.kinematics as kinematics
-from fabkit.batch import export_one
-from fabkit.templates import Design, load_template
+from fabkit.pipeline import export_one
+from fabkit.io.templates import Design, load_template
 
 from conftest import TEMPLATES
 
@@ -67,8 +67,8 @@ def test_an_export_traces_each_motion_window_once(monkeypatch, tmp_path, name, w
 
 #: The modules that are handed the traced motion and must never trace the design themselves.
 NO_TRACE = sorted([*(ROOT / "export").glob("*.py"), *(ROOT / "check").glob("*.py"),
-                   ROOT / "report.py", ROOT / "report_html.py", ROOT / "batch" / "formats.py",
-                   ROOT / "batch" / "design.py", ROOT / "batch" / "stages.py"])
+                   ROOT / "report" / "text.py", ROOT / "report" / "html.py", ROOT / "pipeline" / "formats.py",
+                   ROOT / "pipeline" / "design.py", ROOT / "pipeline" / "stages.py"])
 #: Names that trace a design's motion or place a kit by tracing it.
 TRACERS = {"trace_motion", "kit_design", "printed_design", "motion_window", "traced_motion"}
 
@@ -78,7 +78,7 @@ def test_no_exporter_check_or_report_traces_the_design_itself(path):
     tree = ast.parse(path.read_text(encoding="utf-8"))
     found = []
     checks = "check" in path.parts
-    pipeline = path.name in ("design.py", "formats.py") and "batch" in path.parts
+    pipeline = path.name in ("design.py", "formats.py") and "pipeline" in path.parts
     for node in ast.walk(tree):
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
                 and node.func.attr == "trace":

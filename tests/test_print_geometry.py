@@ -7,7 +7,7 @@ import pytest
 import shapely
 
 import fabkit
-from fabkit.assemble import chain
+from fabkit.design.assemble import chain
 from fabkit.errors import FabricationError
 from fabkit.fab.hinges import hinge_bending, print_geometry, rigid_triangles
 from fabkit.fab.printing import print_settings

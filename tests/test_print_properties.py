@@ -9,7 +9,7 @@ import trimesh
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from fabkit.assemble import chain
+from fabkit.design.assemble import chain
 from fabkit.errors import FabricationError
 from fabkit.export.stl import binary_stl
 from fabkit.fab.hinges import print_geometry, print_solid, solid_mesh

@@ -1,4 +1,4 @@
-"""fabkit.progress: the one way long commands say how far they are (stage, count done of total,
+"""fabkit.commands.progress: the one way long commands say how far they are (stage, count done of total,
 time left), on stderr, shown on a terminal, forced with --progress, silenced with -q."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from fabkit.progress import Progress, duration
+from fabkit.commands.progress import Progress, duration
 
 
 class Clock:

@@ -14,7 +14,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import fabkit
-from fabkit.rigidity import count_modes
+from fabkit.model.rigidity import count_modes
 
 from conftest import module_network
 

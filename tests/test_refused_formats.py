@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from fabkit.batch import FormatStatus, Outcome, export_many
+from fabkit.pipeline import FormatStatus, Outcome, export_many
 from fabkit.cli import main
 
 from conftest import TEMPLATES

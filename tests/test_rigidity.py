@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fabkit import Network, count_modes, rigidity_matrix, rigid_body_basis
-from fabkit.rigidity import self_stresses, zero_modes
+from fabkit.model.rigidity import self_stresses, zero_modes
 
 
 def test_rigidity_matrix_annihilates_rigid_motions(module):
@@ -101,7 +101,7 @@ def test_zero_modes_are_orthogonal_to_rigid_motions(fourbar):
 
 def test_sparse_rank_decision_matches_dense(monkeypatch, fourbar):
     import fabkit
-    from fabkit import rigidity
+    from fabkit.model import rigidity
 
     net = fabkit.chain(fourbar, copies=40)
     dense = count_modes(net)

@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit import Network, count_modes, rigidity
-from fabkit.assemble import tessellate
+from fabkit import Network, count_modes
+from fabkit.model import rigidity
+from fabkit.design.assemble import tessellate
 from fabkit.bench import paper_module
 
 

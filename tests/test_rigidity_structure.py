@@ -1,4 +1,4 @@
-"""Mode counts proved from the construction (fabkit.rigidity_structure): the same counts as the
+"""Mode counts proved from the construction (fabkit.model.certificate): the same counts as the
 numeric rank on every bundled template and on random chains, exact where the numeric rank of a
 long straight chain is ambiguous, and the numeric rule where no construction decides."""
 
@@ -13,10 +13,10 @@ import pytest
 import fabkit
 from fabkit import Network, count_modes
 from fabkit.bench import large, paper_module
-from fabkit.construction import EdgeLookup, cached_plan
+from fabkit.model.construction import EdgeLookup, cached_plan
 from fabkit.errors import ConstructionError
-from fabkit.rigidity import rigidity_matrix
-from fabkit.rigidity_structure import (MIN_SINE, Uncertified, certify, construction_velocity,
+from fabkit.model.rigidity import rigidity_matrix
+from fabkit.model.certificate import (MIN_SINE, Uncertified, certify, construction_velocity,
                                        intersection_sines)
 
 ROOT = Path(__file__).resolve().parents[1]

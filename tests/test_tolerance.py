@@ -13,7 +13,7 @@ import pytest
 
 from fabkit.cli import main
 from fabkit.errors import TemplateError
-from fabkit.templates import load_template, parse_template
+from fabkit.io.templates import load_template, parse_template
 from fabkit.tolerance import (
     ToleranceSpec,
     analyse_tolerance,

@@ -18,7 +18,7 @@ import platform
 
 import numpy as np
 
-from ..network import Network
+from ..model.network import Network
 
 __all__ = ["paper_module", "ModuleMap", "machine_info", "single_thread_blas",
            "finite"]
@@ -44,7 +44,7 @@ def paper_module(name: str, nodes=None) -> Network:
     >>> net.n_nodes, round(float(net.port_distance("d1")), 12)
     (4, 2.0)
     """
-    from ..templates import bundled_template, load_template
+    from ..io.templates import bundled_template, load_template
 
     net = load_template(bundled_template(name)).network
     return net if nodes is None else net.with_nodes(np.asarray(nodes, dtype=np.float64))

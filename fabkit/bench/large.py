@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..viz import figure_kit
+from ..report.viz import figure_kit
 from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
 
@@ -72,8 +72,8 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
         ``counts`` (total, rigid, conformational, self-stress), ``gap``, ``smallest_nonzero``,
         ``ambiguous``.
     """
-    from ..assemble import chain
-    from ..rigidity import count_modes
+    from ..design.assemble import chain
+    from ..model.rigidity import count_modes
 
     module = paper_module("super_stable")
     points, dense_stopped = [], False
@@ -152,7 +152,7 @@ def fourbar_chain_points(sizes, *, budget: float = 30.0, repeats: int = 3, to: f
                          progress=None) -> list[dict]:
     """``constructive`` (101 samples) and ``projected`` (defaults) on k-module 4-bar chains
     driven from d1 = 2 to ``to``."""
-    from ..assemble import chain
+    from ..design.assemble import chain
 
     points = []
     for k in sizes:
@@ -169,7 +169,7 @@ def fourbar_chain_points(sizes, *, budget: float = 30.0, repeats: int = 3, to: f
 def lattice(k: int):
     """A k × k square lattice of the paper's 4-bar (Fig. 2a), cells joined side to side and
     top to bottom: one conformational motion and (for k ≥ 3) states of self-stress."""
-    from ..assemble import tessellate
+    from ..design.assemble import tessellate
 
     m = paper_module("fourbar")
     m = m.with_ports({**m.ports, "b": (0, 2), "t": (1, 3)})
@@ -239,7 +239,7 @@ def large_figure(modes, chains, lattice_pts):
     """Two panels: count_modes time against nodes (as called, and dense SVD forced); time per
     configuration of ``projected`` on 4-bar chains and on the 2D lattice (``constructive`` on the
     chains for reference), with fitted exponents."""
-    from ..rigidity import SPARSE_FROM
+    from ..model.rigidity import SPARSE_FROM
 
     fig, (ax1, ax2) = figure_kit.subplots(1, 2, figsize=(13, 5.2))
 
@@ -295,7 +295,7 @@ def large_figure(modes, chains, lattice_pts):
 def mirrored_chain(k: int):
     """The bundled super-stable module chained k times, every second one mirrored (the straight
     chain of the paper's Fig. 3f, ``fabkit.chain(super_stable, copies=k, mirror="alternate")``)."""
-    from ..assemble import chain
+    from ..design.assemble import chain
 
     return chain(paper_module("super_stable"), copies=int(k), mirror="alternate")
 
@@ -305,7 +305,7 @@ def bundled_modules() -> list[str]:
     :func:`fabkit.chain` chains port to port. (The origami sheet is joined by three corners,
     :func:`fabkit.fab.creases.chains.sheet_chain`; chained by its d2/d1 pair alone each join is
     a hinge, a network of a thousand motions at its flat state.)"""
-    from ..templates import bundled_folder, load_template
+    from ..io.templates import bundled_folder, load_template
 
     names = []
     for path in sorted(bundled_folder().glob("*.toml")):
@@ -326,7 +326,7 @@ def _cold(net, fn):
 
 
 def _count_row(net, budget, repeats) -> dict:
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     def evaluate(m):
         return {"counts": [m.total, m.rigid, m.conformational, m.self_stress],
@@ -350,7 +350,7 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
     import time
     from pathlib import Path
 
-    from ..templates import bundled_template
+    from ..io.templates import bundled_template
 
     times, out, code = [], "", None
     with tempfile.TemporaryDirectory() as tmp:
@@ -437,7 +437,7 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
             pt["modules"] = int(projected)
             note("projected", pt)
     if bundled:
-        from ..assemble import chain
+        from ..design.assemble import chain
         from ..errors import FabkitError
 
         for name in bundled_modules():

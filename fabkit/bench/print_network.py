@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..network import Network
+from ..model.network import Network
 
 __all__ = ["PRINTED_MODULE", "printed_module", "benchmark_print"]
 
@@ -71,13 +71,13 @@ def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: f
     import trimesh
     from scipy.spatial import cKDTree
 
-    from ..assemble import chain
+    from ..design.assemble import chain
     from ..check.stl import (_frame_offset, as_built_tolerance, check_mesh, module_fixed_points,
                              rebuild_linkage, sequential_transition, slab_sections)
     from ..export.stl import binary_stl
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
     from ..fab.printing import print_settings
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     copies = max(1, math.ceil(triangles / 4))
     seconds = {}

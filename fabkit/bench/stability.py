@@ -21,7 +21,7 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
-from ..viz import figure_kit
+from ..report.viz import figure_kit
 from . import ModuleMap, paper_module
 
 __all__ = [
@@ -239,12 +239,12 @@ def _physical_fourbar_at(d1: float):
 def and_gate(modules: int = 6):
     """Two super-stable chains, the far end of the first joined to the middle of the second.
 
-    Built by :func:`fabkit.assemble.branch` (the second chain is the trunk, the first the limb).
+    Built by :func:`fabkit.design.assemble.branch` (the second chain is the trunk, the first the limb).
     Ports: ``d1`` (first branch's input), ``b1`` (second branch's input), ``out`` (the second
     branch's far end), ``joint`` (the shared pair). Of the four ways to join (mirror, swap), the
     one that keeps the limb's nodes farthest from the trunk's is taken.
     """
-    from ..assemble import branch, chain
+    from ..design.assemble import branch, chain
 
     ss = paper_module("super_stable")
     trunk = chain(ss, modules)
@@ -265,7 +265,7 @@ def and_gate(modules: int = 6):
 
 def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20) -> list[Case]:
     """The cases of the study (see the module docstring and docs/bench.md)."""
-    from ..assemble import chain
+    from ..design.assemble import chain
 
     cases = []
     fb = paper_module("fourbar")
@@ -360,7 +360,7 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
 
 
 def _modes(net):
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     return count_modes(net)
 
@@ -587,7 +587,7 @@ def predictability_horizon(k: int = 200, *, d1: float = 0.9, delta: float = 1e-8
         extrapolated one with ``extrapolated: true``), ``growth_rate`` (fitted slope of log
         error), and the pairwise disagreement horizons.
     """
-    from ..assemble import chain
+    from ..design.assemble import chain
     from ..kinematics import trace
     from .workprecision import run_budgeted
 

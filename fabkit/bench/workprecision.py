@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..viz import figure_kit
+from ..report.viz import figure_kit
 from . import ModuleMap, paper_module, single_thread_blas
 
 __all__ = [
@@ -163,7 +163,7 @@ def chain_problem(k: int, module: str = "super_stable", target: float | None = N
         through about 20 modules (the distance to D2* grows by the slope ≈ 4 per module): the
         whole soliton.
     """
-    from ..assemble import chain
+    from ..design.assemble import chain
 
     mod = paper_module(module)
     if target is None:

@@ -55,7 +55,7 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     import stat
 
     from ..errors import InputFileError
-    from ..workload import require
+    from ..io.workload import require
 
     module = checker_for(path)
     try:
@@ -74,9 +74,9 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
 
 def require_checked(where: str, *parts):
     """Estimate the work of a check from counts read in the file, refuse it past the bounds,
-    and hold the check to it (:func:`fabkit.stoppable.keep_to`); returns the estimate."""
-    from ..stoppable import keep_to
-    from ..workload import require
+    and hold the check to it (:func:`fabkit.pipeline.stoppable.keep_to`); returns the estimate."""
+    from ..pipeline.stoppable import keep_to
+    from ..io.workload import require
 
     est = require(where, *parts)
     keep_to(est)
@@ -99,7 +99,7 @@ def require_files(paths) -> None:
     import stat
 
     from ..errors import InputFileError
-    from ..inputs import file_kind
+    from ..io.inputs import file_kind
 
     total = 0
     for p in paths:
@@ -125,8 +125,8 @@ def read_set(paths) -> dict:
     InputFileError, BoundsError
         As :func:`require_files`.
     """
-    from ..inputs import read_regular
-    from ..workload import MAX_BYTES
+    from ..io.inputs import read_regular
+    from ..io.workload import MAX_BYTES
 
     require_files(paths)
     return {p: read_regular(p, MAX_BYTES) for p in paths}

@@ -173,7 +173,7 @@ def _header_values(head: dict):
     """The FABKIT_* header variables as numbers, or why they cannot be read (a sentence)."""
     from pydantic import ValidationError
 
-    from ..schema import describe_validation_error
+    from ..io.schema import describe_validation_error
 
     if "FABKIT_BARS" not in head:
         return "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"
@@ -399,7 +399,7 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
     design) the same width, hole, ring and kerf as the kit those settings make."""
     from pydantic import ValidationError
 
-    from ..schema import describe_validation_error
+    from ..io.schema import describe_validation_error
 
     try:
         v = CouponHeader.model_validate(head).model_dump()
@@ -460,8 +460,8 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     :class:`fabkit.motion.TracedMotion`) gives that window's motion, traced once.
     """
     from ..fab.laser import laser_overrides, laser_settings
-    from ..network import Network
-    from ..rigidity import count_modes
+    from ..model.network import Network
+    from ..model.rigidity import count_modes
     from .clearance import fine_motion, same_layer_gaps
     from .motion import compare_motion, design_window
 

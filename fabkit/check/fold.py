@@ -72,7 +72,7 @@ def structure_problems(doc: dict) -> list[str]:
 def model_from_fold(doc: dict, name: str = "fold"):
     """Rebuild an :class:`~fabkit.fab.creases.OrigamiModel` from a FOLD document (design units)."""
     from ..fab.creases import (CreasePattern, OrigamiModel, Sheet, network_from_pattern)
-    from ..network import Network
+    from ..model.network import Network
 
     scale = float(doc["fabkit:scale"])
     x = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
@@ -126,7 +126,7 @@ def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
     by sheet, each rebuilt from the file alone and folded at the stored input distances.
     """
     from ..kinematics import place, plan_construction
-    from ..network import Network
+    from ..model.network import Network
 
     net = model.network
     worst, n = 0.0, 0
@@ -219,7 +219,7 @@ def check_file(path, design=None, settings=None) -> dict:
         ``ok``, ``checks``, and ``max_map_difference``.
     """
     from ..fab.creases import flat_foldability, fold_model
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     from . import require_files
 

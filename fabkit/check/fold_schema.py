@@ -18,7 +18,7 @@ from typing import Annotated, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import BoundsError
-from ..schema import MAX_SAMPLES_SETTING
+from ..io.schema import MAX_SAMPLES_SETTING
 
 __all__ = ["FoldFile", "fold_problems"]
 
@@ -141,7 +141,7 @@ def fold_problems(doc: dict) -> list[str]:
         if sh.map is not None and not set(sh.map) <= set(f.ports):
             out.append(f"fabkit:sheets[{k}].map names a port that is not in fabkit:ports")
     if not out:
-        from ..workload import require
+        from ..io.workload import require
 
         try:  # the file asks for a folding of samples x vertices: bounded before it starts
             require("fabkit:motion.samples", ("origami sample node", f.motion.samples * nv))
@@ -152,6 +152,6 @@ def fold_problems(doc: dict) -> list[str]:
 
 def _sentence(exc: ValidationError) -> str:
     """The first error of a FOLD document as ``key[index].key: must be ..., got ...``."""
-    from ..schema import describe_validation_error
+    from ..io.schema import describe_validation_error
 
     return describe_validation_error(exc, FoldFile, "", aliases=True)

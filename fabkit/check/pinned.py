@@ -519,8 +519,8 @@ def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[di
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts. ``reference``: the design's motion as the
     Motion stage traced it."""
-    from ..network import Network
-    from ..rigidity import count_modes
+    from ..model.network import Network
+    from ..model.rigidity import count_modes
     from .clearance import fine_motion, same_layer_gaps
     from .motion import compare_motion
 

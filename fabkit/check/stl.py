@@ -29,7 +29,7 @@ import dataclasses
 import numpy as np
 
 from ..errors import FabkitError, FabricationError
-from ..network import Network
+from ..model.network import Network
 from ..numerics import START_RTOL
 from .sections import plane_segments, section
 
@@ -411,7 +411,7 @@ def sequential_transition(net: Network, module: Network, copies: int, fixed: dic
         ``max_deviation`` from D2*, ``order`` (arclength at which each d_k passes halfway from
         D1* to D2*; increasing = sequential), ``sequential``, ``max_edge_error``.
     """
-    from ..assemble import chain
+    from ..design.assemble import chain
     from ..kinematics import trace
 
     d1s, d2s = fixed["D1"], fixed["D2"]
@@ -758,7 +758,7 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
                        transition: bool) -> list[dict]:
     """One piece rebuilt from a bed: its nodes and edges against the part of the design it
     lies on, its modes, and (with ``transition``) the D1* -> D2* transition."""
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     net = design.network
     if place is None:

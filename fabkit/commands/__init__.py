@@ -3,7 +3,7 @@
 Options that mean the same in several commands are added here, so that they are spelt the same
 everywhere: ``-o/--out-dir DIR`` (the output folder), ``-j/--jobs N`` (parallel processes),
 ``--set SECTION.KEY=VALUE`` (settings), ``-q/--quiet`` and ``--progress`` (progress lines, on
-stderr: :mod:`fabkit.progress`). Each command's ``EXAMPLES`` end its ``--help``.
+stderr: :mod:`fabkit.commands.progress`). Each command's ``EXAMPLES`` end its ``--help``.
 """
 
 from __future__ import annotations
@@ -101,8 +101,8 @@ def add_progress_options(p) -> None:
 
 
 def progress_for(args, command: str):
-    """The :class:`~fabkit.progress.Progress` of a command, as ``-q``/``--progress`` ask."""
-    from ..progress import Progress
+    """The :class:`~fabkit.commands.progress.Progress` of a command, as ``-q``/``--progress`` ask."""
+    from .progress import Progress
 
     quiet, forced = getattr(args, "quiet", False), getattr(args, "progress", False)
     return Progress(f"fabkit {command}", show=False if quiet else True if forced else None)
@@ -114,11 +114,11 @@ def progress_for(args, command: str):
 def expand_templates(paths) -> list[Path]:
     """Template files named by files, folders (their ``*.toml``), glob patterns and names of
     bundled templates (``fourbar``; a file of that name in the current folder wins, see
-    :func:`fabkit.templates.resolve_template`), in order."""
+    :func:`fabkit.io.templates.resolve_template`), in order."""
     import glob
 
     from ..errors import InputFileError
-    from ..templates import resolve_template
+    from ..io.templates import resolve_template
 
     out: list[Path] = []
     for raw in paths:
@@ -166,7 +166,7 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
     A fabkit error of one template is printed as one line that names the template, and the
     others still run (as ``fabkit export`` does). ``work`` returns True when its template
     failed in a way it has already reported (a target not reached, a flagged design).
-    With a :class:`~fabkit.progress.Progress`, the templates are its count (``work`` names
+    With a :class:`~fabkit.commands.progress.Progress`, the templates are its count (``work`` names
     its own stages with ``progress.stage(text)``).
 
     Returns
@@ -205,13 +205,13 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
 
 def check_output_folder(path, option: str = "-o") -> Path:
     """Refuse an output folder that cannot be used, before any work (one line): the one guard
-    of :func:`fabkit.outputs.output_folder`.
+    of :func:`fabkit.io.outputs.output_folder`.
 
     Raises
     ------
     OutputError
     """
-    from ..outputs import output_folder
+    from ..io.outputs import output_folder
 
     return output_folder(path, option)
 
@@ -221,7 +221,7 @@ def check_count(option: str, value, minimum: int = 1, maximum: int | None = None
     """A whole-number option within ``[minimum, maximum]``: UsageError below, BoundsError above
     (unless ``fabkit --allow-large``)."""
     from ..errors import BoundsError, UsageError
-    from ..templates import allow_large
+    from ..io.templates import allow_large
 
     if value is None:
         return

@@ -4,7 +4,7 @@ Writes ``DIR/bench/``: ``work_precision.png``, ``scaling.png`` (fitted exponents
 ``stability.md`` (the stability table with its evidence), ``failure_cases.png``, ``bench.json``
 (every measured point, the targets, machine information) and, with ``--profile``,
 ``profile.txt``. Nothing is written until every result exists. Each measurement, as it ends,
-is a progress line on stderr (:mod:`fabkit.progress`); the summary goes to stdout.
+is a progress line on stderr (:mod:`fabkit.commands.progress`); the summary goes to stdout.
 """
 
 from __future__ import annotations
@@ -164,9 +164,9 @@ def run(args) -> int:
     from ..bench.workprecision import (FULL_SETTINGS, QUICK_SETTINGS, lyapunov_protocol,
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
-    from ..outputs import inside, write_files
+    from ..io.outputs import inside, write_files
     from . import check_number, progress_for
-    from ..viz import figure_png
+    from ..report.viz import figure_png
 
     import signal
 

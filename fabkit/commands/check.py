@@ -60,16 +60,16 @@ def run(args) -> int:
 
     from ..check import check_file
     from ..errors import FabkitError
-    from ..report import jsonable
-    from ..stoppable import run_stoppable
-    from ..templates import load_template, with_settings
+    from ..report.text import jsonable
+    from ..pipeline.stoppable import run_stoppable
+    from ..io.templates import load_template, with_settings
     from . import progress_for
     from .export import parse_settings
 
     settings = parse_settings(args.settings)
     if settings:  # a section no check of these files reads would be accepted without effect
         from ..check import checker_for
-        from ..schema import refuse_unused
+        from ..io.schema import refuse_unused
 
         reads = {"motion"}.union(*(getattr(checker_for(f), "READS", ()) for f in args.files))
         refuse_unused(settings, reads, f"the checks of these files read "
@@ -83,7 +83,7 @@ def run(args) -> int:
     for name in args.files:
         path = Path(name)
         if not path.is_file():
-            from ..suggest import nearest_file
+            from ..io.suggest import nearest_file
 
             hint = nearest_file(path)
             raise FabkitError(f"{path}: no such file" + (f"; {hint}" if hint else ""))

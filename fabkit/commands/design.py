@@ -49,9 +49,9 @@ class _Once(argparse.Action):
 
 
 def _decimal(option: str, *, positive: bool = True):
-    """argparse type: a decimal number as typed (see :func:`fabkit.designer.parse_decimal`)."""
+    """argparse type: a decimal number as typed (see :func:`fabkit.design.parse_decimal`)."""
     def convert(text):
-        from ..designer import parse_decimal
+        from ..design import parse_decimal
 
         try:
             value = parse_decimal(text)
@@ -103,7 +103,7 @@ def add_arguments(p):
 def _name(args) -> str:
     if args.name is not None:
         from ..errors import UnsafeNameError, brief
-        from ..outputs import check_name
+        from ..io.outputs import check_name
 
         try:  # the one guard: a name never leaves -o
             return check_name(args.name, "--name")
@@ -117,8 +117,8 @@ def _name(args) -> str:
 
 def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
     """Write every file inside the output folder ``out``, all or nothing, refusing any name
-    that would leave it (the one place this command writes: :func:`fabkit.outputs.write_files`)."""
-    from ..outputs import write_files as write_all
+    that would leave it (the one place this command writes: :func:`fabkit.io.outputs.write_files`)."""
+    from ..io.outputs import write_files as write_all
 
     return write_all(out, files)
 
@@ -129,17 +129,17 @@ def _curve_path(path: str) -> Path:
     p = Path(path)
     if p.exists() or p.name != str(path):
         return p
-    from ..templates import bundled_folder
+    from ..io.templates import bundled_folder
 
     bundled = bundled_folder() / "curves" / p.name
     return bundled if bundled.is_file() else p
 
 
 def _read_curve_file(path: str):
-    from ..designer import read_curve
+    from ..design import read_curve
     from ..errors import BoundsError
-    from ..inputs import read_regular
-    from ..workload import require
+    from ..io.inputs import read_regular
+    from ..io.workload import require
 
     p = _curve_path(path)
     if not p.exists():
@@ -150,7 +150,7 @@ def _read_curve_file(path: str):
         raise InputFileError(p, f"{exc.value:,} bytes is over the limit of {MAX_CURVE_BYTES:,} "
                                 "for a curve file") from None
     if p.suffix.lower() == ".svg":
-        from ..designer.curve_files import svg_work
+        from ..design.curve_files import svg_work
 
         require(f"{p}", *svg_work(data), option=True)
     return read_curve(data, str(path))
@@ -158,10 +158,10 @@ def _read_curve_file(path: str):
 
 def _check_curve_size(curve, module_size: float) -> None:
     """The drawing, at its scale, is within reach of a chain: finite, and at most
-    :data:`fabkit.templates.MAX_MODULES` modules long (before any design work)."""
+    :data:`fabkit.io.templates.MAX_MODULES` modules long (before any design work)."""
     import numpy as np
 
-    from ..templates import MAX_MODULES, allow_large
+    from ..io.templates import MAX_MODULES, allow_large
 
     if not np.isfinite(curve.points).all() or not np.isfinite(curve.length):
         raise UsageError("--curve-scale", "makes the curve's coordinates overflow; give a "
@@ -176,7 +176,7 @@ def _check_curve_size(curve, module_size: float) -> None:
 
 
 def run(args) -> int:
-    from ..viz import figure_png
+    from ..report.viz import figure_png
 
     name = _name(args)
     out = Path(args.out_dir)
@@ -200,9 +200,9 @@ def run(args) -> int:
 
 
 def _run_module(args, name, out, figure_png) -> int:
-    from ..designer import design_map, parse_cycle, parse_fixed_point
-    from ..designer.toml_text import builds_line, margin_lines
-    from ..designplots import module_design_figure
+    from ..design import design_map, parse_cycle, parse_fixed_point
+    from ..design.toml_text import builds_line, margin_lines
+    from ..report.designplots import module_design_figure
     from ..maps import classify_slope
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
@@ -250,7 +250,7 @@ def _run_module(args, name, out, figure_png) -> int:
 def laser_builds(design):
     """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
     model (bar length, kerf, hole play, sheet thickness) at the scale the kit of this template
-    is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.designer.design_map` judges
+    is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.design.design_map` judges
     its wishes and suggestions against (``sample_builds``).
 
     Returns
@@ -264,7 +264,7 @@ def laser_builds(design):
     """
     import numpy as np
 
-    from ..designer.robustness import BUILDS
+    from ..design.robustness import BUILDS
     from ..tolerance import model_summary, tolerance_spec
     from ..tolerance.processes import ProcessGeometry, sample_lengths
 
@@ -279,10 +279,10 @@ def laser_builds(design):
 def _run_curve(args, name, out, figure_png) -> int:
     import numpy as np
 
-    from ..designer import design_curve_chain
-    from ..designer.curve import MAX_MODULES, scaled
-    from ..designer.toml_text import fit_lines
-    from ..designplots import curve_design_figure
+    from ..design import design_curve_chain
+    from ..design.curve import MAX_MODULES, scaled
+    from ..design.toml_text import fit_lines
+    from ..report.designplots import curve_design_figure
 
     from . import progress_for
 

@@ -4,10 +4,10 @@ Exports templates (files, folders of ``*.toml``, glob patterns) into one folder 
 the files of every format that applies (or of the formats asked for), ``report.json``,
 ``report.md`` and preview PNGs (motion, map, tolerance, and any preview an exporter makes).
 
-This module only reads the command line and prints; the work is done by :mod:`fabkit.batch`
+This module only reads the command line and prints; the work is done by :mod:`fabkit.pipeline`
 (atomic folders, as-built checks, worker processes, signals, the lock on the output folder).
 Progress (each design's stages as they start, each design as it ends, the time left) goes to
-stderr through :mod:`fabkit.progress`; the summary table and the page to open go to stdout.
+stderr through :mod:`fabkit.commands.progress`; the summary table and the page to open go to stdout.
 A design that fails is reported and the others still export; the exit code is 1 when any failed,
 2 for a bad option. Identical input gives identical bytes.
 """
@@ -72,11 +72,11 @@ def parse_settings(items) -> dict:
     ------
     UsageError
         An item without ``=`` or without a dotted key, a key given twice, or settings that the
-        schema (:mod:`fabkit.schema`) refuses: an unknown section or key, a wrong type, a value
+        schema (:mod:`fabkit.io.schema`) refuses: an unknown section or key, a wrong type, a value
         out of range.
     """
     from ..errors import UsageError
-    from ..templates import tomllib
+    from ..io.templates import tomllib
 
     out: dict = {}
     for item in items:
@@ -123,7 +123,7 @@ def parse_formats(text: str | None) -> list[str] | None:
         raise UsageError("--to", "give at least one format, e.g. --to dxf,stl")
     for n in names:
         if n not in EXPORTERS:
-            from ..suggest import did_you_mean
+            from ..io.suggest import did_you_mean
 
             hint = did_you_mean(n, EXPORTERS)
             raise UsageError("--to", f"unknown format {n!r}; " + (f"{hint} " if hint else "")
@@ -134,7 +134,7 @@ def parse_formats(text: str | None) -> list[str] | None:
 def run(args) -> int:
     from pathlib import Path
 
-    from ..batch import exit_code, export_many, summary_table
+    from ..pipeline import exit_code, export_many, summary_table
     from ..errors import UsageError
     from . import check_jobs, expand_templates, progress_for
 
@@ -172,9 +172,9 @@ def run(args) -> int:
 
 
 class DesignProgress:
-    """What :func:`fabkit.batch.export_many` reports (``stage(name, stage)`` as a design starts
+    """What :func:`fabkit.pipeline.export_many` reports (``stage(name, stage)`` as a design starts
     a stage, ``finished(result)`` as it ends), said through one
-    :class:`~fabkit.progress.Progress` whose count is the designs."""
+    :class:`~fabkit.commands.progress.Progress` whose count is the designs."""
 
     def __init__(self, progress):
         self.progress = progress

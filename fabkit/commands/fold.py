@@ -79,13 +79,13 @@ def run(args) -> int:
 
     from ..errors import FabkitError
     from ..fab.creases import fold_model, origami_model
-    from ..outputs import inside
-    from ..templates import load_template
+    from ..io.outputs import inside
+    from ..io.templates import load_template
     from . import each_template
 
     from ..errors import UsageError
-    from ..schema import refuse_unused
-    from ..templates import with_settings
+    from ..io.schema import refuse_unused
+    from ..io.templates import with_settings
     from . import check_number, progress_for
     from .export import parse_settings
 
@@ -119,7 +119,7 @@ def run(args) -> int:
         if out:
             from ..check import check_file
             from ..export import get_exporter
-            from ..outputs import write_files
+            from ..io.outputs import write_files
 
             chosen = {"origami": overrides} if overrides else {}
             files: dict[str, bytes] = {}

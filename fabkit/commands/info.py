@@ -33,7 +33,7 @@ def add_arguments(p):
 def describe(design, rank_method: str = "auto") -> str:
     from ..errors import ConstructionError
     from ..kinematics.constructive import cached_plan
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     net = design.network
     m = count_modes(net, method=rank_method)
@@ -74,7 +74,7 @@ def describe(design, rank_method: str = "auto") -> str:
 
 
 def run(args) -> int:
-    from ..templates import load_template
+    from ..io.templates import load_template
     from . import expand_templates, progress_for, short_list
 
     found = expand_templates(args.templates)

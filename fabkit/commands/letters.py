@@ -47,7 +47,7 @@ def _module_folder(arg) -> Path:
     if arg is not None:
         folder = Path(arg)
     else:
-        from ..templates import bundled_folder
+        from ..io.templates import bundled_folder
 
         folder = bundled_folder()
     missing = [f for f in MODULE_FILES.values() if not (folder / f).is_file()]
@@ -73,9 +73,9 @@ def simulate_letter(fit, modules_by_name, final):
     -------
     dict with the network, trajectory, the final positions in the target's frame and the errors.
     """
-    from ..assemble import chain
+    from ..design.assemble import chain
     from ..kinematics import trace
-    from ..letters import chain_centerline, polyline_distance
+    from ..design.letters import chain_centerline, polyline_distance
 
     net = chain([modules_by_name[n] for n in fit.names], mirror="alternate")
     traj = trace(net, "d1", to=final, method="constructive", samples=5)
@@ -98,7 +98,7 @@ def simulate_letter(fit, modules_by_name, final):
 
 def word_figure(word, fits, sims):
     """Initial (straight) and final states of every letter's chain, side by side."""
-    from ..viz import draw_network, figure_kit
+    from ..report.viz import draw_network, figure_kit
 
     fig, (top, ax) = figure_kit.subplots(2, 1, figsize=(2.4 * len(word) + 1, 8.5),
                                   gridspec_kw={"height_ratios": [1.3, 3]})
@@ -130,19 +130,19 @@ MAX_BEAM = 5_000
 
 
 def run(args) -> int:
-    from ..letters import GLYPHS, curvature_modules, design_word, letter_template
-    from ..templates import load_template
-    from ..viz import figure_png
+    from ..design.letters import GLYPHS, curvature_modules, design_word, letter_template
+    from ..io.templates import load_template
+    from ..report.viz import figure_png
 
     from ..errors import UsageError
-    from ..outputs import write_files
+    from ..io.outputs import write_files
     from . import check_count, check_number, progress_for
 
     word = args.word
     if not word:
         raise UsageError("WORD", "is empty; give capital letters, e.g. NETWORK")
     if any(c not in GLYPHS for c in word):
-        from ..suggest import did_you_mean
+        from ..io.suggest import did_you_mean
 
         known = "".join(sorted(GLYPHS))
         bad = next((c for c in word if c.upper() not in GLYPHS), None)

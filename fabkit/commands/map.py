@@ -136,12 +136,12 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2",
                progress=None) -> dict:
     """Compute everything for one template and write its files; returns the summary.
-    ``progress``: a :class:`~fabkit.progress.Progress` told each stage."""
-    from ..mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
-    from ..viz import figure_png
+    ``progress``: a :class:`~fabkit.commands.progress.Progress` told each stage."""
+    from ..report.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
+    from ..report.viz import figure_png
 
-    from ..outputs import inside, write_files
-    from ..progress import Progress
+    from ..io.outputs import inside, write_files
+    from .progress import Progress
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
@@ -192,7 +192,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
         files["lyapunov.png"] = figure_png(lyapunov_figure(lyap))
     section = design.raw.get("design")
     if isinstance(section, dict) and design.network.dim == 2:
-        from ..design import displacement_space, velocity_space
+        from ..design.solution_space import displacement_space, velocity_space
 
         spaces = []
         if "velocities" in section:
@@ -218,8 +218,8 @@ def _json_default(o):
 
 
 def run(args) -> int:
-    from ..schema import refuse_unused
-    from ..templates import load_template, with_settings
+    from ..io.schema import refuse_unused
+    from ..io.templates import load_template, with_settings
     from . import check_count, each_template, progress_for
     from .export import parse_settings
 
@@ -244,7 +244,7 @@ def run(args) -> int:
     if d1 is not None:
         check_count("--d1", len(d1), 1, MAX_D1, "values")
     # the options multiply: one estimate of the whole work, before any of it
-    from ..workload import require
+    from ..io.workload import require
 
     lyap = ("map evaluation", args.orbits * (args.discard + args.average) if args.lyapunov
             else 0)

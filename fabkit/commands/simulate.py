@@ -56,8 +56,8 @@ def trajectory_npz(traj) -> bytes:
 
 
 def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None):
-    from ..outputs import inside, write_files
-    from ..viz import figure_png, motion_figure
+    from ..io.outputs import inside, write_files
+    from ..report.viz import figure_png, motion_figure
 
     say = progress.stage if progress is not None else (lambda text: None)
 
@@ -73,7 +73,7 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
     files = {"trajectory.npz": trajectory_npz(traj),
              "motion.png": figure_png(motion_figure(traj, title=design.name))}
     if gif:
-        from ..animate import motion_gif
+        from ..report.animate import motion_gif
 
         say(f"{design.name}: animating motion.gif")
         files["motion.gif"] = motion_gif(traj)
@@ -84,9 +84,9 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
 def run(args) -> int:
     from ..errors import UsageError
     from ..kinematics import METHODS, Status
-    from ..schema import refuse_unused
-    from ..suggest import did_you_mean
-    from ..templates import load_template, with_settings
+    from ..io.schema import refuse_unused
+    from ..io.suggest import did_you_mean
+    from ..io.templates import load_template, with_settings
     from . import check_number, each_template, progress_for
     from .export import parse_settings
 

@@ -72,7 +72,7 @@ def _usage(message: str):
 
 
 class _Points:
-    """The sweep's ``progress(done, total)``, said through a :class:`~fabkit.progress.Progress`
+    """The sweep's ``progress(done, total)``, said through a :class:`~fabkit.commands.progress.Progress`
     (points done of all, the time left at the rate of this run)."""
 
     def __init__(self, progress, name: str):
@@ -101,9 +101,9 @@ class _Points:
 def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
-    from ..outputs import inside
+    from ..io.outputs import inside
     from . import check_jobs, check_number, progress_for
-    from ..templates import load_template
+    from ..io.templates import load_template
 
     try:
         spec_file = read_sweep_file(args.template)

@@ -27,7 +27,7 @@ EXAMPLES = [
 def template_line(path: Path, width: int = 28) -> str:
     """``name  [figure]  description`` for a template; the reason instead when it is invalid."""
     from ..errors import FabkitError
-    from ..templates import load_template
+    from ..io.templates import load_template
 
     try:
         design = load_template(path)
@@ -68,13 +68,13 @@ def template_files(name: str) -> dict[str, Path]:
         same relative path).
     """
     from ..errors import FabkitError, UsageError
-    from ..templates import bundled_folder, bundled_template, load_template
+    from ..io.templates import bundled_folder, bundled_template, load_template
 
     try:
         path = bundled_template(name)
     except KeyError:
-        from ..suggest import did_you_mean
-        from ..templates import bundled_names, is_template_name
+        from ..io.suggest import did_you_mean
+        from ..io.templates import bundled_names, is_template_name
 
         hint = did_you_mean(name.removesuffix(".toml"), bundled_names()) \
             if is_template_name(name) else ""
@@ -113,7 +113,7 @@ def copy_template(name: str, folder, force: bool = False) -> list[Path]:
         A file exists (without ``force``), or is not a regular file.
     """
     from ..errors import OutputError
-    from ..outputs import write_files
+    from ..io.outputs import write_files
 
     files = template_files(name)
     folder = Path(folder)
@@ -145,7 +145,7 @@ def _copy(args) -> int:
 
 def _list_bundled() -> int:
     from ..errors import FabkitError
-    from ..templates import bundled_folder, resolve_template
+    from ..io.templates import bundled_folder, resolve_template
 
     folder = bundled_folder()
     paths = sorted(folder.glob("*.toml"))

@@ -117,17 +117,17 @@ def describe(result) -> str:
 
 def run(args) -> int:
     from ..errors import FabkitError
-    from ..report import report_json
-    from ..templates import load_template, with_settings
+    from ..report.text import report_json
+    from ..io.templates import load_template, with_settings
     from ..tolerance import (analyse_tolerance, design_process, refuse_foreign,
                              tolerance_figure, tolerance_spec)
-    from ..viz import figure_png
-    from ..outputs import inside, write_files
+    from ..report.viz import figure_png
+    from ..io.outputs import inside, write_files
     from . import each_template
-    from ..batch import traced_motion
+    from ..pipeline import traced_motion
     from .export import parse_settings
 
-    from ..batch import MAX_SAMPLES
+    from ..pipeline import MAX_SAMPLES
     from ..errors import UsageError
     from . import check_count, progress_for
 

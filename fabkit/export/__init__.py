@@ -3,7 +3,7 @@
 Each format module defines ``FORMAT`` (its name) and ``export_design(design, settings) ->
 ExportResult``: pure, it returns the bytes of every file to write and a report dict, and never
 opens a file. Only :func:`write_outputs` writes, through a temporary file in the target folder
-and ``os.replace`` (:mod:`fabkit.outputs`), so that no half-written file is ever left behind.
+and ``os.replace`` (:mod:`fabkit.io.outputs`), so that no half-written file is ever left behind.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import FabkitError
-from ..outputs import write_atomic, write_files
+from ..io.outputs import write_atomic, write_files
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export", "check_export_settings"]
@@ -46,15 +46,15 @@ class ExportResult:
 
 
 def check_export_settings(settings, exporters: dict | None = None) -> dict:
-    """Check overrides nested by section against :mod:`fabkit.schema`, with the sections that
+    """Check overrides nested by section against :mod:`fabkit.io.schema`, with the sections that
     export formats of one's own declare (a module-level ``SETTINGS``, a
-    :class:`fabkit.schema.Section` subclass). Returns the settings unchanged.
+    :class:`fabkit.io.schema.Section` subclass). Returns the settings unchanged.
 
     Raises
     ------
     SettingsError
     """
-    from ..schema import OVERRIDE_SECTIONS, check_settings
+    from ..io.schema import OVERRIDE_SECTIONS, check_settings
 
     registry = EXPORTERS if exporters is None else exporters
     extra = {}
@@ -95,7 +95,7 @@ def applies(design, fmt: str, module=None) -> bool:
 
 def write_outputs(files: dict[str, bytes], outdir) -> list[Path]:
     """Write every file of an :class:`ExportResult`, all or nothing
-    (:func:`fabkit.outputs.write_files`); returns the paths written."""
+    (:func:`fabkit.io.outputs.write_files`); returns the paths written."""
     return write_files(outdir, files)
 
 
@@ -112,7 +112,7 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     outdir : path
     **settings : dict
         Overrides nested by section, as ``--set`` gives them (``laser={"kerf": 0.2}``); every
-        section and key is checked against :mod:`fabkit.schema`.
+        section and key is checked against :mod:`fabkit.io.schema`.
 
     Returns
     -------
@@ -129,8 +129,8 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
         ``outdir`` is not a folder path, or cannot be created or written.
     """
     from ..errors import ArgumentTypeError
-    from ..outputs import output_folder
-    from ..templates import Design
+    from ..io.outputs import output_folder
+    from ..io.templates import Design
 
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
     if not isinstance(design, Design):

@@ -88,7 +88,7 @@ def preview_figure(plan, title: str):
 
     from matplotlib.collections import PatchCollection, PolyCollection
 
-    from ..viz import figure_kit
+    from ..report.viz import figure_kit
 
     s = plan.settings
     printer = s.printer_profile()
@@ -288,7 +288,7 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
         if s.threemf:
             files[mf_names[b]] = _threemf(objects, slicer, design.name)
     if s.preview:
-        from ..viz import figure_png
+        from ..report.viz import figure_png
 
         files[f"{name}_print.png"] = figure_png(preview_figure(plan, design.name))
     volumes = plan.volumes

@@ -60,7 +60,7 @@ JOIN = ("each cut port's two hinge hubs are printed on both pieces: lay the late
 
 def piece_network(net, nodes):
     """The sub-network on ``nodes`` (renumbered in their order) that a split piece prints."""
-    from ..network import Network
+    from ..model.network import Network
 
     keep = np.zeros(net.n_nodes, dtype=bool)
     keep[nodes] = True
@@ -196,7 +196,7 @@ def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]
 
 
 def _preview_png(geo, title: str) -> bytes:
-    from ..viz import figure_png, figure_kit
+    from ..report.viz import figure_png, figure_kit
 
     from matplotlib.collections import PolyCollection
 
@@ -253,7 +253,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
 
     Parameters
     ----------
-    design : fabkit.templates.Design
+    design : fabkit.io.templates.Design
         A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
         linkage), as ``linkage`` says.
     settings : dict, optional

@@ -42,7 +42,7 @@ from fractions import Fraction
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
-from ..schema import ScrewSection, check_table
+from ..io.schema import ScrewSection, check_table
 
 __all__ = ["ScrewSpec", "CATALOGUE", "DEFAULT_SCREW", "screw_spec", "choose_length",
            "WASHER_THICKNESS", "WASHER_CLEARANCE", "Washer", "WASHERS", "MAX_AXIAL_PLAY",

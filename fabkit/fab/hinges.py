@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FabricationError
-from ..network import Network
+from ..model.network import Network
 from .printing import PrintSettings
 from .triangles import rigid_triangles
 

@@ -1,7 +1,7 @@
 """Laser-cutting settings: the template's ``[fabrication.laser]`` table merged with overrides.
 
 Every setting has a default that gives a working export for the bundled templates. Types and
-ranges are declared once, in :class:`fabkit.schema.LaserSection`; what only the settings
+ranges are declared once, in :class:`fabkit.io.schema.LaserSection`; what only the settings
 together can tell (a hole that leaves too thin a web) is checked here, with one line that names
 the setting, the value and a fix.
 
@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
-from ..schema import LaserSection, check_section, section_of
+from ..io.schema import LaserSection, check_section, section_of
 from .hardware import ScrewSpec, screw_spec
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "DEFAULT_SCALE",
@@ -137,7 +137,7 @@ def laser_settings(table: dict | None = None, overrides: dict | None = None, *,
                    network_size: float | None = None) -> LaserSettings:
     """Resolve laser settings from a template table and overrides (overrides win).
 
-    Types and ranges of every key are those of :class:`fabkit.schema.LaserSection`; here the
+    Types and ranges of every key are those of :class:`fabkit.io.schema.LaserSection`; here the
     defaults are filled in and the settings are checked against one another.
 
     Parameters

@@ -367,7 +367,7 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
         raise FabricationError("a print-in-place linkage is stacked over the design's motion; "
                                "the template has no [motion] to")
     _check_bars(net, s)
-    from ..workload import require
+    from ..io.workload import require
 
     require(f"{design.path or design.name}: print-in-place linkage", ("printed bar", net.n_edges))
     sweep = _sweep(design, s, kit)

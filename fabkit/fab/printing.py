@@ -4,7 +4,7 @@ Two kinds of print share the table (``linkage``): ``"hinges"``, rigid triangles 
 hinges in one solid (:mod:`fabkit.fab.hinges`), and ``"pins"``, bars stacked in layers on printed
 pins, one body per bar, printed in place (:mod:`fabkit.fab.pinned`). A template's table is merged
 with command-line overrides (``--set print.gap=0.3``) over the defaults of the chosen material
-and kind. Types and ranges are declared in :class:`fabkit.schema.PrintSection`; what only the
+and kind. Types and ranges are declared in :class:`fabkit.io.schema.PrintSection`; what only the
 settings together can tell (a hole that leaves too thin a web, a height that is not a whole
 number of layers) is checked here, once, and a bad one raises a
 :class:`~fabkit.errors.FabricationError` whose message is one line naming the key, the value and
@@ -20,12 +20,12 @@ from dataclasses import asdict, dataclass
 
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
-from ..schema import HINGE_STYLES, check_section, section_of
+from ..io.schema import HINGE_STYLES, check_section, section_of
 
 __all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "PIN_DEFAULTS", "print_settings",
            "design_print_settings", "default_linkage"]
 
-# Hinge styles (HINGE_STYLES, declared in fabkit.schema). "neck": a narrow neck as tall as the
+# Hinge styles (HINGE_STYLES, declared in fabkit.io.schema). "neck": a narrow neck as tall as the
 # plates less one layer, bending in the plane of the print (stiff out of the plane, compliant in
 # it). "bridge": a thin bridge of whole layers on the build plate (the paper's "thin layer of
 # material").
@@ -241,7 +241,7 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
     ------
     SettingsError
         Unknown key or material, a value of the wrong type or out of range (the schema,
-        :class:`fabkit.schema.PrintSection`).
+        :class:`fabkit.io.schema.PrintSection`).
     FabricationError
         A hinge narrower than the nozzle, a hinge thickness that is not a whole number of
         layers or not thinner than the plates, a bridge setting on a neck-style print; a key

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FabricationError
-from ..network import Network
+from ..model.network import Network
 
 __all__ = ["rigid_triangles"]
 

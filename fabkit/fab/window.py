@@ -38,7 +38,7 @@ def motion_window(design, start, to, process: str):
     """
     from dataclasses import replace
 
-    from ..network import Network
+    from ..model.network import Network
 
     if start is None and to is None:
         return design

@@ -13,7 +13,7 @@ predictor-corrector on the constraint set, any network with one motion) and ``"r
 from __future__ import annotations
 
 from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError, KinematicsError
-from ..network import Network
+from ..model.network import Network
 from .base import (Mark, Method, Outcome, Problem, align_to_gauge, check_option, choose_gauge,
                    make_problem)
 from .stepping import Step, StepMethod, Stop
@@ -165,8 +165,8 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
 
 def _require_samples(net: Network, samples: int) -> None:
     """A sampled trace holds every sample's configuration while it computes: refused, before
-    it starts, past the bounds of :func:`fabkit.workload.require`."""
-    from ..workload import require
+    it starts, past the bounds of :func:`fabkit.io.workload.require`."""
+    from ..io.workload import require
 
     require(f"trace: samples = {samples:,} on {net.n_nodes:,} nodes",
             ("trace configuration node", samples * net.n_nodes), ("stored value", samples))

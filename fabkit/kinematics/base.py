@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ArgumentTypeError, KinematicsError
-from ..network import Network
+from ..model.network import Network
 from ..numerics import START_RTOL, TARGET_AT_TURN_RTOL, TINY, rigid_fit
 from .record import Record, edge_errors, keep_rule, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
@@ -352,12 +352,12 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
 
 def check_option(method: str, name: str, value) -> None:
     """Refuse an option of a built-in method that its declared schema
-    (:data:`fabkit.schema.METHOD_OPTIONS`) does not allow, before any work, with an
+    (:data:`fabkit.io.schema.METHOD_OPTIONS`) does not allow, before any work, with an
     :class:`~fabkit.errors.ArgumentError` naming it (a NaN ``max_step`` once ended a trace
     after three samples); NumPy scalars count as the Python numbers they hold. Options of a
     method of one's own, and undeclared ones (``plan``), are the method's to check."""
     from ..errors import ArgumentValueError, SettingsError
-    from ..schema import check_method_options
+    from ..io.schema import check_method_options
 
     plain = value.item() if isinstance(value, np.generic) else value
     try:

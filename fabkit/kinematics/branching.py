@@ -31,9 +31,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import ConstructionError, KinematicsError
-from ..network import Network
+from ..model.network import Network
 from ..numerics import START_RTOL, TINY, project_to_lengths
-from ..rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
+from ..model.rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
 from .base import Mark, Method, Outcome, make_problem
 from .trajectory import EventKind, Trajectory
 

@@ -157,9 +157,9 @@ class Projected(StepMethod):
 
     def _independent_rows(self, work, x0, gcols):
         """Edges whose rows of the rigidity matrix are independent at the start, dN - g - 1 of
-        them (a windowed selection along the band, see :func:`fabkit.rigidity.independent_edges`),
+        them (a windowed selection along the band, see :func:`fabkit.model.rigidity.independent_edges`),
         for a network with states of self-stress and one conformational motion."""
-        from ..rigidity import count_modes, independent_edges
+        from ..model.rigidity import count_modes, independent_edges
 
         m = count_modes(work, x0)
         if m.conformational != 1:

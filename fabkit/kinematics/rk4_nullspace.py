@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import KinematicsError
-from ..rigidity import rigid_body_basis, rigidity_matrix
+from ..model.rigidity import rigid_body_basis, rigidity_matrix
 from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 

@@ -8,7 +8,7 @@ from enum import Enum
 import numpy as np
 
 from ..errors import KinematicsError
-from ..network import Network
+from ..model.network import Network
 
 __all__ = ["Status", "EventKind", "Event", "Trajectory"]
 

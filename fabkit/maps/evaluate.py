@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ArgumentTypeError, KinematicsError
-from ..network import Network
+from ..model.network import Network
 from ..numerics import FLAT_RTOL
 
 

@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 from .. import arguments
 from ..errors import ArgumentTypeError, DesignError
 from ..numerics import DOMAIN_RTOL, FIXED_POINT_RTOL
-from ..workload import require
+from ..io.workload import require
 from .results import Branch, Cycle, FixedPoint, LyapunovResult, classify_slope
 
 

@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 
 from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
-from ..network import Network
+from ..model.network import Network
 from ..numerics import DOMAIN_RTOL, FLAT_RTOL, TINY
 from .evaluate import _Constructive2D, _ConstructiveGeneral, _pair
 from .map1d import Map1D

@@ -181,7 +181,7 @@ def motion_for(design, motion):
 
 
 def _builder_key(design) -> str:
-    from ..templates import BUILDERS
+    from ..io.templates import BUILDERS
 
     return next((k for k in BUILDERS if k in design.raw), "network")
 
@@ -219,7 +219,7 @@ def trace_motion(design, *, judge: bool = True, **overrides) -> TracedMotion:
 
 def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  # noqa: C901
     from ..kinematics import Status
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     path = design.path or design.name
     target = overrides.get("to", design.motion.to)

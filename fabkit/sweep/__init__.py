@@ -124,7 +124,7 @@ def make_spec(template, vary, measure=None, protocol: Protocol | None = None) ->
     SweepError
         Unknown or non-numeric key, bad grid, unknown measure, unknown port.
     """
-    from ..templates import Design, load_template
+    from ..io.templates import Design, load_template
 
     design = template if isinstance(template, Design) else load_template(template)
     raw = design.raw
@@ -189,8 +189,8 @@ def read_sweep_file(path) -> SweepFile | None:
     else:  # pragma: no cover - Python 3.10
         import tomli as tomllib
     from ..errors import BoundsError, InputFileError
-    from ..inputs import read_regular
-    from ..templates import MAX_FILE_BYTES
+    from ..io.inputs import read_regular
+    from ..io.templates import MAX_FILE_BYTES
 
     path = Path(path)
     try:  # a FIFO or a device given as the template is refused here, never waited on
@@ -230,7 +230,7 @@ def read_sweep_file(path) -> SweepFile | None:
     if bad:
         raise SweepError(f"{where}.protocol.{bad[0]}: unknown key; allowed: "
                          f"{', '.join(sorted(fields))}")
-    from ..templates import resolve_template
+    from ..io.templates import resolve_template
 
     return SweepFile(path=path, template=resolve_template(tpl, base=path.parent),
                      axes=tuple(parse_vary(v) for v in vary),
@@ -239,8 +239,8 @@ def read_sweep_file(path) -> SweepFile | None:
 
 
 def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    from ..inputs import read_regular
-    from ..outputs import inside, output_folder
+    from ..io.inputs import read_regular
+    from ..io.outputs import inside, output_folder
 
     output_folder(outdir)
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
@@ -369,7 +369,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     damaged: list = []
     folder = None
     if out is not None:
-        from ..outputs import inside, write_files
+        from ..io.outputs import inside, write_files
 
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
         write_files(out, {f"{_CHUNKS}/{_SPEC}": json.dumps(marker, indent=1,
@@ -505,12 +505,12 @@ def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
 
 
 def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
-    from ..outputs import write_files
+    from ..io.outputs import write_files
 
     out = result.outdir
     files = {"sweep.csv": result.table_csv()}
     if plots:
-        from ..viz import figure_png
+        from ..report.viz import figure_png
         from .plots import figures
 
         for name, fig in figures(result).items():

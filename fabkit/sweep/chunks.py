@@ -17,7 +17,7 @@ from typing import Annotated, Literal, Optional, Sequence
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import FabkitError, InputFileError
-from ..inputs import read_regular
+from ..io.inputs import read_regular
 from .model import Axis, Protocol, Status, SweepSpec, _jsonable
 from .point import evaluate_point
 
@@ -89,7 +89,7 @@ MAX_CHUNK_BYTES = 256 * 2**20
 
 def _write_chunk(out: Path, records: list) -> Path:
     """Write a chunk of records to ``out/chunks/`` through the output guard."""
-    from ..outputs import write_files
+    from ..io.outputs import write_files
 
     first, last = records[0]["index"], records[-1]["index"]
     text = json.dumps(records, default=_jsonable, allow_nan=False)
@@ -129,7 +129,7 @@ def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
                         for k, v in want.items()):
                     raise ValueError(f"point {i} carries other parameter values than the grid")
         except ValidationError as exc:
-            from ..schema import describe_validation_error
+            from ..io.schema import describe_validation_error
 
             why = describe_validation_error(exc, SweepRecord)
         except json.JSONDecodeError as exc:

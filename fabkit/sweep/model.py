@@ -296,6 +296,6 @@ def _jsonable(o):
 
 def _require_points(where: str, points: int) -> None:
     """Refuse a grid whose points would take more than a day, before making it."""
-    from ..workload import MAX_SWEEP_SECONDS, require
+    from ..io.workload import MAX_SWEEP_SECONDS, require
 
     require(where, ("sweep point", points), option=True, max_seconds=MAX_SWEEP_SECONDS)

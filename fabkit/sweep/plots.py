@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..viz import figure_kit
+from ..report.viz import figure_kit
 
 __all__ = ["figures", "bifurcation_figure", "heatmap_figure", "STATUS_STYLE"]
 

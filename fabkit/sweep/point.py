@@ -18,7 +18,7 @@ def _build(raw: dict, path: str):
     """Network of a (modified) parsed template, through the template's own builder."""
     import importlib
 
-    from ..templates import BUILDERS, TemplateContext
+    from ..io.templates import BUILDERS, TemplateContext
 
     ctx = TemplateContext(path, raw)
     key = next(k for k in BUILDERS if k in raw)
@@ -86,7 +86,7 @@ def _finite(o):
 
 def _measure(spec: SweepSpec, raw: dict, rec: dict) -> None:
     from ..maps import map_from_trajectory, module_map
-    from ..rigidity import count_modes
+    from ..model.rigidity import count_modes
 
     p = spec.protocol
     want = set(spec.measures)

@@ -14,7 +14,7 @@ from ..numerics import EDGE_RTOL, project_to_lengths
 from .behaviour import infer_behaviour
 from .criteria import judge_modules, judge_ports, judge_shape, profile_order
 from .horizon import MIN_MAP_STEPS, NEUTRAL_LYAPUNOV, lyapunov_estimate
-from ..workload import require
+from ..io.workload import require
 from .margin import (CURVE_SCALES, SCALE_BISECTIONS, critical_scales, keep_curve, margin_of,
                      margin_text)
 from .placement import (BUILD_RTOL, PROJECTED_SAMPLES_CAP, Driver, _chain_ports, _find_plan,
@@ -195,7 +195,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     Examples
     --------
-    >>> from fabkit.templates import load_template
+    >>> from fabkit.io.templates import load_template
     >>> from pathlib import Path
     >>> d = load_template(Path(__file__).parents[2] / "templates" / "fourbar.toml")
     >>> res = analyse_tolerance(d, tolerance_spec(d, samples=50), attribute=False)

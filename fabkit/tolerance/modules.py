@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConstructionError, FabkitError
-from ..network import Network
+from ..model.network import Network
 from .processes import (PROFILE_SAMPLES, BuildLengths, ProcessGeometry, interp_rows,
                         state_profile)
 

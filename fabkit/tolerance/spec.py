@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import SettingsError, TemplateError
 from ..numerics import TINY
-from ..schema import ToleranceSection, check_table
+from ..io.schema import ToleranceSection, check_table
 from .behaviour import STATE_FRACTION
 from .processes import PROCESSES, SOURCES, ProcessGeometry, sample_lengths
 
@@ -104,7 +104,7 @@ def key_process(key: str) -> str | None:
 def refuse_foreign(settings, process: str, name: str) -> None:
     """Refuse ``--set`` settings a tolerance analysis of ``process`` does not read: another
     process's section (``print`` under laser) or a tolerance key of another process
-    (``tolerance.xy_sigma`` under laser), in the one way of :func:`fabkit.schema.refuse_unused`.
+    (``tolerance.xy_sigma`` under laser), in the one way of :func:`fabkit.io.schema.refuse_unused`.
 
     Parameters
     ----------
@@ -120,7 +120,7 @@ def refuse_foreign(settings, process: str, name: str) -> None:
     UsageError
     """
     from ..errors import UsageError
-    from ..schema import refuse_unused
+    from ..io.schema import refuse_unused
 
     tol = (settings or {}).get("tolerance")
     if isinstance(tol, dict) and tol.get("process") in PROCESSES:
@@ -273,7 +273,7 @@ def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
 
     Examples
     --------
-    >>> from fabkit.templates import parse_template
+    >>> from fabkit.io.templates import parse_template
     >>> d = parse_template('[network]\\nnodes=[[0,0],[1,0],[0,1],[1,1]]\\n'
     ...                    'edges=[[0,1],[0,2],[1,3],[2,3]]\\nports={d1=[0,3]}\\n'
     ...                    '[fabrication.tolerance]\\nscale=20\\nsamples=10')
@@ -288,7 +288,7 @@ def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
     process = design_process(design)
     checked = []
     for where, source in sources:
-        try:  # types and ranges: the declared schema (fabkit.schema.ToleranceSection)
+        try:  # types and ranges: the declared schema (fabkit.io.schema.ToleranceSection)
             given = check_table(ToleranceSection, source, where).given()
         except SettingsError as exc:
             raise TemplateError(path, exc.key, exc.reason) from None

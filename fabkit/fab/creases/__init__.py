@@ -3,7 +3,7 @@
 The paper models creased paper as a linkage: every crease and boundary segment is a rigid edge,
 every crease intersection or corner a node. A :class:`CreasePattern` holds the flat pattern
 (vertices in the plane, edges with an assignment, faces); :func:`network_from_pattern` turns it
-into the :class:`~fabkit.network.Network` the simulator folds; :func:`fold_angles` reads the
+into the :class:`~fabkit.model.network.Network` the simulator folds; :func:`fold_angles` reads the
 signed fold angle of every crease off folded node positions.
 
 Rigid panels: a triangular panel is rigid by its three edges. A panel with n >= 4 vertices (a

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import FabricationError
-from ...network import Network
+from ...model.network import Network
 from ...numerics import rigid_fit
 
 # -- chains of sheets ----------------------------------------------------------------------------

@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import FabricationError, PatternError, SettingsError
-from ...schema import check_section
-from ...workload import require
-from ...network import Network
+from ...io.schema import check_section
+from ...io.workload import require
+from ...model.network import Network
 from .pattern import (
     ASSIGNMENTS,
     CreasePattern,

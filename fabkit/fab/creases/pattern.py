@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import PatternError
-from ...network import Network
+from ...model.network import Network
 from ...numerics import TINY
 
 ASSIGNMENTS = ("B", "M", "V", "F", "U", "C", "J")

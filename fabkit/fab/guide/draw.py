@@ -22,7 +22,7 @@ _JOINT_OFFSETS = ((0, 1), (1, 1), (-1, 1), (1, 0), (-1, 0), (0, -1), (1, -1), (-
 
 def layer_colour(layer: int):
     """The colour of a stacking layer (matplotlib's tab10, repeating)."""
-    from ...viz import figure_kit
+    from ...report.viz import figure_kit
 
     return figure_kit.get_cmap("tab10")(int(layer) % 10)
 

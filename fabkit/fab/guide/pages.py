@@ -328,7 +328,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
 
-    from ...viz import checked_png, clipped_texts, figure_kit
+    from ...report.viz import checked_png, clipped_texts, figure_kit
 
     s = plan.settings
     edges = np.asarray(plan.bars.edges)

@@ -47,7 +47,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import checked_png, figure_kit
+    from ...report.viz import checked_png, figure_kit
 
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
@@ -112,7 +112,7 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     stats : dict
         ``columns``, ``px_per_mm``, ``clipped`` (texts that do not fit in the picture).
     """
-    from ...viz import checked_png, figure_kit
+    from ...report.viz import checked_png, figure_kit
 
     s = plan.settings
     edges = np.asarray(plan.bars.edges)

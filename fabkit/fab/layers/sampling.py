@@ -215,7 +215,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
     Parameters
     ----------
     net : Network
-        A 2D chain built by :func:`fabkit.assemble.chain` (it remembers its layout).
+        A 2D chain built by :func:`fabkit.design.assemble.chain` (it remembers its layout).
     motion : Motion
         Drive ``d1``, no held ports.
     scale : float
@@ -235,7 +235,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         ``conflicts`` set and ``positions`` the chain's trace in mm; None when the network is
         not such a chain (then use :func:`sample_motion`).
     """
-    from ...assemble import chain
+    from ...design.assemble import chain
     from ...kinematics import trace
     from ...kinematics.constructive import place, plan_construction
 

@@ -1,0 +1,316 @@
+"""The bar-and-joint network: node coordinates, edges and named node pairs ("ports").
+
+A :class:`Network` is immutable and does no I/O. Everything else in fabkit (rigidity, motion,
+maps, fabrication) derives from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..errors import NetworkError
+
+__all__ = ["Network", "Assembly"]
+
+# Edges shorter than this fraction of the network's size are treated as zero-length.
+_ZERO_LENGTH_RTOL = 1e-12
+#: Coordinates beyond this (design units) are refused: their squares (every length, every
+#: rigidity row) would overflow or drown the rest of the network in round-off.
+MAX_COORDINATE = 1e9
+
+
+def _as_port(name: str, pair, n_nodes: int) -> tuple[int, int]:
+    try:
+        i, j = (int(v) for v in pair)
+        if any(float(v) != int(v) for v in pair):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise NetworkError(f"port {name!r} must be a pair of node indices, got {pair!r}",
+                           f"ports.{name}") from None
+    for v in (i, j):
+        if not 0 <= v < n_nodes:
+            raise NetworkError(
+                f"port {name!r} names node {v}, but the network has nodes 0..{n_nodes - 1}",
+                f"ports.{name}"
+            )
+    if i == j:
+        raise NetworkError(f"port {name!r} joins node {i} to itself", f"ports.{name}")
+    return (i, j)
+
+
+@dataclass(frozen=True, eq=False)
+class Assembly:
+    """How a network was assembled from modules, as :func:`fabkit.chain` records it.
+
+    Structure-aware algorithms read it instead of rediscovering it (e.g. a chain's construction
+    plan is its modules' plans one after the other); each checks that it still fits the network's
+    geometry before using it.
+
+    Attributes
+    ----------
+    copies : tuple of (Network, numpy.ndarray of int, bool)
+        Per module, in chain order: the module, where each of its nodes went in the assembled
+        network, and whether it was placed as a mirror image.
+    d_in : str
+        The module port driven by the previous module's output (the chain's input port name).
+    """
+
+    copies: tuple
+    d_in: str
+
+
+@dataclass(frozen=True, eq=False)
+class Network:
+    """A network of rigid edges (bars) joined at nodes (pin joints).
+
+    Parameters
+    ----------
+    nodes : array_like, shape (N, d)
+        Node coordinates in design units, d = 2 or 3.
+    edges : array_like of int, shape (E, 2)
+        Pairs of node indices joined by a rigid edge.
+    ports : mapping of str to (int, int), optional
+        Named node pairs whose distances are read or driven, e.g. ``{"d1": (0, 1)}``.
+    labels : sequence of str, optional
+        One label per node (for plots and reports).
+    assembly : Assembly, optional
+        How the network was assembled from modules (set by :func:`fabkit.chain`).
+
+    Raises
+    ------
+    NetworkError
+        Non-finite coordinates, wrong shapes, indices out of range, self-loops, duplicate edges or
+        zero-length edges; the message names the node or edge.
+
+    Examples
+    --------
+    >>> net = Network([[0, 0], [1, 0], [0, 1]], [[0, 1], [1, 2], [2, 0]], ports={"a": (0, 1)})
+    >>> net.dim, net.n_nodes, net.n_edges
+    (2, 3, 3)
+    >>> float(net.port_distance("a"))
+    1.0
+    """
+
+    nodes: np.ndarray
+    edges: np.ndarray
+    ports: Mapping[str, tuple[int, int]] = field(default_factory=dict)
+    labels: tuple[str, ...] | None = None
+    assembly: Assembly | None = None
+
+    def __post_init__(self):
+        try:
+            nodes = np.array(self.nodes, dtype=np.float64, copy=True)
+        except (TypeError, ValueError):
+            raise NetworkError("`nodes` must be an array of coordinates, shape (N, 2) or (N, 3) "
+                               f"(got {type(self.nodes).__name__} that is not one)",
+                               "nodes") from None
+        if nodes.ndim != 2 or nodes.shape[1] not in (2, 3):
+            raise NetworkError(f"`nodes` must have shape (N, 2) or (N, 3), got {nodes.shape}",
+                               "nodes")
+        if nodes.shape[0] < 2:
+            raise NetworkError(f"a network needs at least 2 nodes, got {nodes.shape[0]}", "nodes")
+        bad = ~np.isfinite(nodes).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise NetworkError(f"node {i} has a non-finite coordinate {nodes[i].tolist()}",
+                               f"nodes[{i}]")
+        far = (np.abs(nodes) > MAX_COORDINATE).any(axis=1)
+        if far.any():
+            i = int(np.flatnonzero(far)[0])
+            raise NetworkError(f"node {i} lies at {nodes[i].tolist()}, beyond ±{MAX_COORDINATE:g} "
+                               "design units (lengths squared would overflow); scale the "
+                               "design down", f"nodes[{i}]")
+        try:
+            raw_edges = np.asarray(self.edges)
+        except (TypeError, ValueError):
+            raise NetworkError("`edges` must be an array of node-index pairs, shape (E, 2)",
+                               "edges") from None
+        if raw_edges.size == 0:
+            raw_edges = raw_edges.reshape(0, 2)
+        if raw_edges.ndim != 2 or raw_edges.shape[1] != 2:
+            raise NetworkError(f"`edges` must have shape (E, 2), got {raw_edges.shape}", "edges")
+        if raw_edges.dtype.kind == "f":
+            frac = raw_edges != np.round(raw_edges)
+            if frac.any():
+                k = int(np.flatnonzero(frac.any(axis=1))[0])
+                raise NetworkError(f"edge {k} has a non-integer node index {raw_edges[k].tolist()}",
+                                   f"edges[{k}]")
+        elif raw_edges.dtype.kind not in "iu":
+            raise NetworkError("`edges` must hold integer node indices, got dtype "
+                               f"{raw_edges.dtype}",
+                               "edges")
+        edges = raw_edges.astype(np.int64)
+        n = nodes.shape[0]
+        out = (edges < 0) | (edges >= n)
+        if out.any():
+            k = int(np.flatnonzero(out.any(axis=1))[0])
+            raise NetworkError(
+                f"edge {k} {edges[k].tolist()} names a node outside 0..{n - 1}", f"edges[{k}]"
+            )
+        loops = edges[:, 0] == edges[:, 1]
+        if loops.any():
+            k = int(np.flatnonzero(loops)[0])
+            raise NetworkError(f"edge {k} joins node {edges[k, 0]} to itself", f"edges[{k}]")
+        key = np.sort(edges, axis=1)
+        _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+        if (counts > 1).any():
+            dup_key = key[first[counts > 1][0]]
+            where = np.flatnonzero((key == dup_key).all(axis=1))
+            raise NetworkError(
+                f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}",
+                f"edges[{where[0]}]"
+            )
+        lengths = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
+        scale = float(np.ptp(nodes, axis=0).max()) or 1.0
+        short = lengths <= _ZERO_LENGTH_RTOL * scale
+        if short.any():
+            k = int(np.flatnonzero(short)[0])
+            raise NetworkError(
+                f"edge {k} {edges[k].tolist()} has zero length: nodes {edges[k, 0]} and "
+                f"{edges[k, 1]} coincide", f"edges[{k}]"
+            )
+        if not isinstance(self.ports, Mapping):
+            raise NetworkError("`ports` must be a mapping of name to (i, j) node pair, got "
+                               f"{type(self.ports).__name__}", "ports")
+        ports = {str(name): _as_port(name, pair, n) for name, pair in dict(self.ports).items()}
+        labels = None
+        if self.labels is not None:
+            labels = tuple(str(s) for s in self.labels)
+            if len(labels) != n:
+                raise NetworkError(f"`labels` must have one entry per node ({n}), got "
+                                   f"{len(labels)}",
+                                   "labels")
+        if self.assembly is not None and not isinstance(self.assembly, Assembly):
+            raise NetworkError(f"`assembly` must be a fabkit.model.network.Assembly or None, got "
+                               f"{type(self.assembly).__name__}")
+        nodes.setflags(write=False)
+        edges.setflags(write=False)
+        lengths.setflags(write=False)
+        object.__setattr__(self, "nodes", nodes)
+        object.__setattr__(self, "edges", edges)
+        object.__setattr__(self, "ports", ports)
+        object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "_lengths", lengths)
+        # derived data that is costly to recompute (e.g. construction plans); the network is
+        # immutable, so entries never go stale
+        object.__setattr__(self, "_cache", {})
+
+    # -- sizes ---------------------------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        """Spatial dimension d (2 or 3)."""
+        return int(self.nodes.shape[1])
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes N."""
+        return int(self.nodes.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        """Number of edges E."""
+        return int(self.edges.shape[0])
+
+    @property
+    def size(self) -> float:
+        """Largest extent of the node set along a coordinate axis (design units)."""
+        return float(np.ptp(self.nodes, axis=0).max())
+
+    # -- geometry ------------------------------------------------------------------------------
+    @property
+    def edge_lengths(self) -> np.ndarray:
+        """Rest lengths of the edges in the reference configuration, shape (E,)."""
+        return self._lengths
+
+    def lengths_at(self, positions) -> np.ndarray:
+        """Edge lengths of a configuration.
+
+        Parameters
+        ----------
+        positions : array_like, shape (N, d) or (S, N, d)
+            One configuration or a stack of S configurations.
+
+        Returns
+        -------
+        numpy.ndarray, shape (E,) or (S, E)
+        """
+        x = np.asarray(positions, dtype=np.float64)
+        i, j = self.edges[:, 0], self.edges[:, 1]
+        return np.linalg.norm(x[..., i, :] - x[..., j, :], axis=-1)
+
+    def edge_error(self, positions) -> np.ndarray:
+        """Largest relative edge-length error ``max_e |l_e(x) - L_e| / L_e`` of configurations.
+
+        Parameters
+        ----------
+        positions : array_like, shape (N, d) or (S, N, d)
+
+        Returns
+        -------
+        float or numpy.ndarray of shape (S,)
+        """
+        if self.n_edges == 0:
+            x = np.asarray(positions)
+            return np.zeros(x.shape[:-2]) if x.ndim == 3 else 0.0
+        rel = np.abs(self.lengths_at(positions) / self._lengths - 1.0)
+        return rel.max(axis=-1)
+
+    def port(self, name: str) -> tuple[int, int]:
+        """The node pair of a named port.
+
+        Raises
+        ------
+        KeyError
+            With the list of known port names.
+        """
+        try:
+            return self.ports[name]
+        except KeyError:
+            known = ", ".join(sorted(self.ports)) or "none"
+            raise KeyError(f"unknown port {name!r}; this network has ports: {known}") from None
+
+    def port_distance(self, name: str, positions=None) -> np.ndarray:
+        """Distance between the two nodes of a port.
+
+        Parameters
+        ----------
+        name : str
+            Port name, e.g. ``"d1"``.
+        positions : array_like, shape (N, d) or (S, N, d), optional
+            Configurations; the reference configuration by default.
+
+        Returns
+        -------
+        float or numpy.ndarray of shape (S,)
+        """
+        i, j = self.port(name)
+        x = self.nodes if positions is None else np.asarray(positions, dtype=np.float64)
+        return np.linalg.norm(x[..., i, :] - x[..., j, :], axis=-1)
+
+    def port_distances(self, positions=None) -> dict[str, np.ndarray]:
+        """Distances of every port, as a dict name → value (or array over configurations)."""
+        return {name: self.port_distance(name, positions) for name in self.ports}
+
+    # -- derived networks ----------------------------------------------------------------------
+    def with_nodes(self, nodes) -> "Network":
+        """The same topology and ports with other reference coordinates (lengths re-measured)."""
+        return Network(nodes, self.edges, self.ports, self.labels)
+
+    def with_ports(self, ports: Mapping[str, tuple[int, int]]) -> "Network":
+        """The same network with other named ports (and the same assembly record)."""
+        return Network(self.nodes, self.edges, ports, self.labels, self.assembly)
+
+    def adjacency(self) -> list[list[int]]:
+        """Neighbour lists, one per node."""
+        nbrs: list[list[int]] = [[] for _ in range(self.n_nodes)]
+        for i, j in self.edges.tolist():
+            nbrs[i].append(j)
+            nbrs[j].append(i)
+        return nbrs
+
+    def __repr__(self) -> str:
+        ports = ", ".join(f"{k}={v}" for k, v in self.ports.items())
+        return f"Network(dim={self.dim}, nodes={self.n_nodes}, edges={self.n_edges}, ports=[{ports}])"

@@ -1,0 +1,294 @@
+"""The batch engine behind ``fabkit export``: many templates in, one folder per design out.
+
+Callable from Python::
+
+    from fabkit.pipeline import export_many
+    results = export_many(["templates/fourbar.toml"], outdir="out", jobs=2)
+    results[0].outcome        # Outcome.OK / FAILED / CHECK_FAILED / INTERRUPTED
+    results[0].formats["dxf"] # FormatResult(status=FormatStatus.EXPORTED, files=[...], ...)
+
+What it guarantees:
+
+- **Typed results.** Every design ends as a :class:`DesignResult` with an :class:`Outcome`; every
+  format as a :class:`FormatResult` with a :class:`FormatStatus`. The command line, report.json and
+  the tests read these fields; no decision anywhere reads the text of an error message.
+- **Atomic folders.** A design is computed completely in memory, written to a hidden staging folder
+  (each file through a temporary file and a rename), checked as built there, and swapped in place
+  of the previous export by two renames. Files in the old folder that the export did not write
+  (those of ``fabkit simulate``, ``map``, ``tolerance``, ``fold``) are carried over, so commands do
+  not delete each other's outputs.
+- **One export per folder.** A lock file ``<out>/.fabkit.lock`` (``flock``) makes a second export
+  into the same folder refuse with :class:`~fabkit.errors.LockedError`, or wait with ``wait=True``.
+- **Signals and processes.** Workers are spawned processes that die with their parent
+  (``PR_SET_PDEATHSIG`` on Linux, and a watchdog thread that polls the parent's pid); SIGINT and
+  SIGTERM in the parent stop every worker at once, and the staging folders of the designs in
+  flight are removed, so no partial file is left under any name.
+- **Workers that die.** Each worker gets one design at a time over its own pipe and leaves its
+  folder staged; the parent swaps it in once the worker has reported. A worker that dies at any
+  moment fails the design it was handed (``error_code = "worker"``, its exit status in
+  :attr:`DesignResult.worker_exit`), leaves no file, and is replaced while designs remain.
+- **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
+  worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
+  is loaded (:mod:`fabkit.io.templates`).
+- **Progress.** One line per design and stage on stdout (``[3/30  41.2s] chaotic_chain: check
+  (12.1 s in)``) whether or not it is a terminal: a design that takes more than two seconds
+  announces each stage as it starts, and every design says how it ended.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from ..errors import BoundsError, FabkitError
+from .design import export_one
+from .folders import OutputLock, prepare_outdir
+from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
+from .motion import traced_motion
+from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
+                      exit_code)
+from .stages import Artefacts, Checks, DesignReport, Level, Plan, Verdict, judge_design
+from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
+
+__all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
+           "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
+           "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
+           "OutputLock", "Progress", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
+           "DESIGN_TIMEOUT", "SILENCE", "FAULT_ENV"]
+
+
+# --- many designs ----------------------------------------------------------------------------
+
+class Progress:
+    """Progress on stdout: one line per design and stage, terminal or not (stderr is kept for
+    the one-line errors).
+
+    Parameters
+    ----------
+    total : int
+        Number of designs.
+    stream : file, optional
+        Default ``sys.stdout``.
+    quiet : bool
+        Print nothing.
+    after : float
+        A stage is shown once its design has run this many seconds (a design that is done
+        sooner shows one line, when it ends).
+    """
+
+    def __init__(self, total: int, stream=None, quiet=False, after=2.0):
+        self.stream = stream or sys.stdout
+        self.total = total
+        self.done = 0
+        self.quiet = quiet
+        self.after = after
+        self.t0 = time.perf_counter()
+        self.started: dict[str, float] = {}
+
+    def _line(self, text: str) -> None:
+        if self.quiet:
+            return
+        self.stream.write(f"[{self.done}/{self.total} {time.perf_counter() - self.t0:6.1f}s] "
+                          f"{text}\n")
+        self.stream.flush()
+
+    def stage(self, name: str, stage) -> None:
+        """A design starts a stage."""
+        now = time.perf_counter()
+        start = self.started.setdefault(name, now)
+        if now - start >= self.after:
+            self._line(f"{name}: {stage} ({now - start:.1f} s in)")
+
+    def finished(self, result: DesignResult) -> None:
+        """A design is done."""
+        self.done += 1
+        self._line(f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
+
+    def close(self) -> None:
+        pass
+
+
+def summary_table(results) -> str:
+    """The table printed at the end: one line per design."""
+    header = ("design", "status", "formats", "files", "time", "cpu", "output or error")
+    body = [(r.name, r.outcome.value, ",".join(r.exported_formats) or "-", str(r.files),
+             f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s", r.folder if r.ok else r.error)
+            for r in results]
+    widths = [max(len(x[i]) for x in [header, *body]) for i in range(6)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r[:6], widths)) + "  " + r[6]
+             for r in [header, *body]]
+    failed = sum(not r.ok for r in results)
+    lines.append(f"{len(results) - failed} exported, {failed} failed")
+    return "\n".join(lines)
+
+
+def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_samples) -> None:
+    """Refuse, before any work, ``--set`` sections that no design of this export reads: those
+    of processes whose formats are not made (``print`` with ``--to dxf``) and whose tolerance
+    analysis does not run (:func:`fabkit.io.schema.refuse_unused`)."""
+    from ..errors import UsageError
+    from ..io.schema import refuse_unused
+    from ..tolerance import key_process, made_process
+    from .formats import choose_formats
+
+    if not settings:
+        return
+    used, made, analysed = {"motion"}, set(), set()
+    tol = settings.get("tolerance") if isinstance(settings.get("tolerance"), dict) else {}
+    for design in designs:
+        chosen, _ = choose_formats(design, formats, exporters)
+        for fmt, module in chosen:
+            made.add(fmt)
+            used.update((fmt, *getattr(module, "READS", ())))
+        if tolerance_samples != 0:  # as the export will judge it: the process it makes
+            analysed.add(made_process(design, [f for f, _ in chosen], settings))
+    used.update(analysed | ({"tolerance"} if analysed else set()))
+    what = ", ".join(sorted(made)) or "no file"
+    if analysed:
+        what += f"; tolerance analysis as {'/'.join(sorted(analysed))}"
+    refuse_unused(settings, used, f"this export ({what}) reads "
+                                  f"{', '.join(sorted(used - {'motion'} - made))} settings only")
+    for key in tol:
+        owner = key_process(key)
+        if owner is not None and owner not in analysed:
+            raise UsageError("--set", f"tolerance.{key}: is a {owner} error; the designs here "
+                                      f"are analysed as {'/'.join(sorted(analysed))} (set "
+                                      f"tolerance.process = \"{owner}\" to change that)")
+
+
+def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, check=True,
+                tolerance_samples=None, progress=None, isolate=True, exporters=None,
+                previews=True, debug=False, wait=False, allow_large=False,
+                timeout: float | None = DESIGN_TIMEOUT,
+                silence: float = SILENCE) -> list[DesignResult]:
+    """Export many templates; one :class:`DesignResult` per template, in input order.
+
+    Parameters
+    ----------
+    paths : sequence of path
+        Template files.
+    formats : list of str or None
+        Formats to export (None: every format that applies to each design).
+    outdir : path
+        Output folder; each design goes to ``outdir/<name>/``.
+    settings : dict, optional
+        Fabrication setting overrides, nested by section.
+    jobs : int
+        Worker processes.
+    check : bool
+        Run the as-built check of the written files.
+    tolerance_samples : int or None
+        Monte Carlo builds (0: no tolerance analysis; None: the template's setting, else the
+        analysis's default).
+    progress : Progress, optional
+    isolate : bool
+        Export in fresh worker processes with a fixed hash seed (``PYTHONHASHSEED=0``), so that
+        no library's set or dict ordering can make two runs differ; False with ``jobs=1`` runs
+        in this process.
+    exporters : dict of str to str, optional
+        Format registry (default :data:`fabkit.export.EXPORTERS`, as it is now).
+    previews : bool
+        Draw the preview pictures.
+    debug : bool
+        Let internal errors raise with their traceback; implies one design at a time in this
+        process.
+    wait : bool
+        Wait for another export into the same folder to finish, instead of refusing.
+    allow_large : bool
+        Lift the size bounds.
+    timeout : float or None
+        Seconds one design may take in a worker process before it is stopped and failed
+        (None: no limit).
+    silence : float
+        Seconds a worker may say nothing (not even its heartbeat) before it counts as stopped
+        answering.
+
+    Returns
+    -------
+    list of DesignResult
+
+    Raises
+    ------
+    OutputError, LockedError
+        The output folder cannot be created or written, or another export holds it.
+    BoundsError
+        ``tolerance_samples`` above :data:`MAX_SAMPLES` without ``allow_large``.
+    Interrupted
+        SIGINT or SIGTERM: every worker is stopped and no partial file is left.
+
+    Notes
+    -----
+    Designs with the same name would share a folder: the later ones fail instead.
+    """
+    from ..export import EXPORTERS
+    from ..report.html import write_index
+    from ..io.templates import allow_large as large_allowed
+    from ..io.templates import load_template
+
+    allow_large = allow_large or large_allowed()
+    if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
+        raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
+                          MAX_SAMPLES, "fabkit --allow-large", option=True)
+    from ..export import check_export_settings
+
+    exporters = dict(EXPORTERS if exporters is None else exporters)
+    # before any design: one bad key fails them all alike
+    settings = check_export_settings(settings or {}, exporters)
+    paths = [Path(p) for p in paths]
+    results: list[DesignResult | None] = [None] * len(paths)
+    owners: dict[str, Path] = {}
+    names: dict[int, str] = {}
+    todo = []
+
+    def finished(i, res):
+        results[i] = res
+        if progress:
+            progress.finished(res)
+
+    cost, designs = {}, {}
+    for i, p in enumerate(paths):
+        try:
+            design = designs[i] = load_template(p)
+            name = design.name
+            cost[i] = design.network.n_edges
+        except FabkitError as exc:
+            # a template that does not even load needs no worker: report it here
+            finished(i, DesignResult(str(p), p.stem, error=str(exc), error_code=exc.code))
+            continue
+        if name in owners:
+            finished(i, DesignResult(str(p), name, error_code="template",
+                                     error=f"{p}: name: {name!r} is also the name of "
+                                           f"{owners[name]}; each design needs its own name "
+                                           "(its output folder)"))
+            continue
+        owners[name] = p
+        names[i] = name
+        todo.append(i)
+    if not todo:
+        return results  # type: ignore[return-value]
+    _refuse_unused_settings(settings, [designs[i] for i in todo], formats, exporters,
+                            tolerance_samples)
+    outdir = prepare_outdir(outdir)
+    kwargs = dict(check=check, tolerance_samples=tolerance_samples, exporters=exporters,
+                  previews=previews, debug=debug, allow_large=allow_large)
+    args = {i: (paths[i], formats, outdir, settings) for i in todo}
+    with OutputLock(outdir, wait=wait):
+        if (isolate or jobs > 1) and not debug:
+            # largest designs first (edges as the measure of work): a long design started last
+            # would run alone at the end while the other workers idle
+            order = sorted(todo, key=lambda i: (-cost.get(i, 0), i))
+            _run_pool(order, args, names, kwargs, jobs, outdir, progress, finished,
+                      timeout=timeout, silence=silence)
+        else:
+            stage_cb = progress.stage if progress else None
+            for i in todo:
+                finished(i, export_one(*args[i], progress=stage_cb, **kwargs))
+        cards = [r.card for r in results if r is not None and r.folder and r.card is not None]
+        if cards:
+            # index.html from the cards the exports handed back (no page is read back); the
+            # folders of earlier runs are linked by name
+            write_index(outdir, cards)
+    return results  # type: ignore[return-value]
+
+

@@ -1,0 +1,184 @@
+"""One design, start to end, through the typed stages (:mod:`fabkit.pipeline.stages`): load, trace
+the motion once, plan, compute every file in memory, stage, check, judge, report, swap in."""
+
+from __future__ import annotations
+
+import shutil
+import time
+from pathlib import Path
+
+from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
+from .folders import _staging_names, carry_over, check_replaceable, recover_folder, swap_in
+from .formats import make_artefacts, plan_design, run_checks
+from .results import DesignResult, FormatStatus, Outcome, Stage
+from .stages import Checks, DesignReport, judge_design
+
+
+# --- one design ------------------------------------------------------------------------------
+
+def report_dict(rep: DesignReport) -> dict:
+    """report.json of a design: its typed results as data (keys listed in docs/batch.md)."""
+    import fabkit
+
+    from .formats import motion_facts
+
+    out = {"design": rep.facts, "fabkit_version": fabkit.__version__,
+           "formats": {f: r.as_dict() for f, r in rep.formats.items()},
+           "errors": list(rep.errors), "ok": rep.outcome is Outcome.OK,
+           "outcome": rep.outcome.value, "files": sorted(rep.names), "report_version": 3,
+           "previews": list(rep.artefacts.previews), "process": rep.process,
+           "verdict": rep.verdict.as_dict()}
+    mo = motion_facts(rep.motion, rep.formats) if rep.motion is not None else None
+    if mo is not None:
+        out["motion"] = mo
+    if rep.tolerance is not None:
+        out["tolerance"] = rep.tolerance.as_dict()
+    return out
+
+
+def export_one(path, formats, outdir, settings, check=True, tolerance_samples=None,
+               exporters=None, previews=True, debug=False, progress=None,
+               allow_large=False, swap=True) -> DesignResult:
+    """Export one template into ``outdir/<name>/``; never raises for a bad design.
+
+    Parameters
+    ----------
+    path : path
+        The template.
+    formats, settings, tolerance_samples, exporters, previews, allow_large
+        See :func:`fabkit.pipeline.formats.build_outputs`.
+    outdir : path
+    check : bool
+        Run the as-built checks.
+    debug : bool
+        Let internal errors raise with their traceback.
+    progress : callable, optional
+        ``progress(name, stage)`` as each stage starts.
+    swap : bool
+        Swap the finished staging folder in place of ``outdir/<name>``. False leaves it complete
+        under the name in :attr:`DesignResult.staged` for the caller to swap in (a worker
+        process does so: the parent swaps only what it has heard of, so a worker that dies
+        at any moment leaves no new file).
+
+    Returns
+    -------
+    DesignResult
+    """
+    from ..export import write_atomic, write_outputs
+    from ..errors import UnsafeNameError, brief
+    from ..motion import trace_motion
+    from ..io.outputs import inside
+    from ..report.text import design_facts, report_json, report_markdown
+    from ..report.html import design_html, index_card, motion_frames
+    from ..io.templates import load_template, with_settings
+
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    res = DesignResult(path=str(path), name=Path(path).stem)
+    stage_dir = None
+    current = [None, t0]
+
+    def stage(s):
+        now = time.perf_counter()
+        if current[0] is not None:
+            res.stages[str(current[0])] = res.stages.get(str(current[0]), 0.0) + now - current[1]
+        current[:] = [s, now]
+        if progress is not None and s is not None:
+            progress(res.name, s)
+
+    try:
+        stage(Stage.LOAD)
+        design = with_settings(load_template(path), settings)  # --set motion.to=...
+        res.name = design.name
+        outdir = Path(outdir)
+        try:
+            folder = inside(outdir, design.name)  # before the work, not after it
+        except UnsafeNameError as exc:  # a Design made in code, not read from a template
+            raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
+        check_replaceable(folder)
+        _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
+        stage(Stage.MOTION)
+        motion = trace_motion(design)  # once: every later stage reads this one
+        plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
+                           allow_large=allow_large)
+        art = make_artefacts(design, plan, settings, motion, previews, stage=stage)
+        fmts = art.formats
+        stage(Stage.WRITE)
+        recover_folder(outdir, design.name)
+        stage_dir = _staging_names(outdir, design.name)[0]
+        stage_dir.mkdir(parents=True)
+        written = write_outputs(art.files, stage_dir)
+        outcome = Outcome.OK
+        by_format: dict = {}
+        if check:
+            stage(Stage.CHECK)
+            for chk in run_checks(written, design, settings, motion):
+                fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
+                if fmt is None:
+                    continue
+                fmts[fmt].checks.append(chk)
+                by_format.setdefault(fmt, []).append(chk)
+                if not chk.ok:
+                    fmts[fmt].status = FormatStatus.CHECK_FAILED
+                    outcome = Outcome.CHECK_FAILED
+        checks = Checks(by_format)
+        refused = [f"{f}: {v.detail}" for f, v in fmts.items()
+                   if v.status is FormatStatus.REFUSED]
+        if refused:  # asked for and not made: a failure with its reason, never "ok"
+            outcome = Outcome.REFUSED
+        names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
+        verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
+        rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
+                           outcome, tuple(f"{line} (format refused)" for line in refused),
+                           tuple(names))
+        # the reports, rendered from the typed results above (none is read back)
+        md, js = report_markdown(rep), report_json(report_dict(rep))
+        write_atomic(stage_dir / "report.md", md)
+        write_atomic(stage_dir / "report.json", js)
+        traj = motion.trajectory if motion.traced else None
+        frames = motion_frames(design, traj, fmts)
+        listing = {p.name: len(art.files[p.name]) for p in written}
+        listing.update({"report.md": len(md), "report.json": len(js)})
+        write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
+        res.card = index_card(rep, design.name, frames)
+        res.level, res.headline = str(verdict.level), verdict.headline
+        carry_over(folder, stage_dir)
+        if swap:
+            swap_in(stage_dir, folder)
+        else:
+            res.staged = str(stage_dir)
+        stage_dir = None
+        res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
+        if outcome is Outcome.REFUSED:
+            res.error = f"{path}: cannot produce {'; '.join(refused)}"
+            res.error_code = "refused"
+        elif outcome is Outcome.CHECK_FAILED:
+            bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
+            res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
+                         f"(see {folder / 'report.md'})")
+            res.error_code = "check"
+    except WriteError as exc:
+        res.error = (f"{path}: cannot write the export to {outdir}: {exc.reason} "
+                     f"({Path(exc.path).name}); nothing of it was written")
+        res.error_code = "output"
+    except FabkitError as exc:
+        res.error, res.error_code = str(exc), exc.code
+    except OSError as exc:
+        res.error = f"{path}: cannot write the export to {outdir}: {exc.strerror or exc}"
+        if getattr(exc, "filename", None):
+            res.error += f" ({Path(exc.filename).name})"
+        res.error_code = "output"
+    except (Interrupted, KeyboardInterrupt):
+        res.outcome, res.error, res.error_code = Outcome.INTERRUPTED, f"{path}: interrupted", \
+            "interrupted"
+        raise
+    except Exception as exc:  # a bug must not stop the other designs; say where it happened
+        if debug:
+            raise
+        res.error, res.error_code = f"{path}: {internal_error_line(exc)}", "internal"
+    finally:
+        if stage_dir is not None and stage_dir.exists():
+            shutil.rmtree(stage_dir, ignore_errors=True)
+        stage(None)
+        res.seconds = time.perf_counter() - t0
+        res.cpu_seconds = time.process_time() - cpu0
+    return res

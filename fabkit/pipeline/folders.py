@@ -1,0 +1,219 @@
+"""Output folders: staging, the swap into place, carrying other commands' files over, the lock."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+from ..errors import (LockedError, OutputError)
+
+
+def _safe(name: str) -> bool:
+    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.io.outputs`)."""
+    from ..errors import UnsafeNameError
+    from ..io.outputs import check_name
+
+    try:
+        check_name(name)
+    except UnsafeNameError:
+        return False
+    return True
+
+
+LOCK_NAME = ".fabkit.lock"
+
+
+
+
+# --- folders ---------------------------------------------------------------------------------
+
+def _staging_names(outdir: Path, name: str) -> tuple[Path, Path]:
+    """The staging and backup folders of design ``name``: missing, or folders of their own,
+    never a symbolic link (:func:`fabkit.io.outputs.own_entry` refuses one in one line)."""
+    from ..io.outputs import own_entry
+
+    # fixed names (no random part): paths that checkers quote stay the same from run to run
+    return (own_entry(outdir, f".{name}.staging"), own_entry(outdir, f".{name}.old"))
+
+
+def check_replaceable(folder: Path) -> None:
+    """Refuse to replace a folder that is not an earlier export or a folder of another fabkit
+    command (:class:`~fabkit.errors.OutputError`)."""
+    if folder.is_symlink() or (folder.exists() and not folder.is_dir()):
+        raise OutputError(folder, "exists and is not a folder; move it away or choose another "
+                                  "output folder with -o")
+
+
+def recover_folder(outdir: Path, name: str) -> None:
+    """Undo what a run killed between its two renames left: the old folder put back when the
+    new one never arrived, and the staging and old folders removed."""
+    from ..io.outputs import inside
+
+    folder = inside(outdir, name)
+    stage, old = _staging_names(outdir, name)
+    if old.is_dir() and not os.path.lexists(folder):
+        os.replace(old, folder)
+    for leftover in (stage, old):
+        if leftover.is_dir() and not leftover.is_symlink():
+            shutil.rmtree(leftover)
+
+
+def _export_manifest(folder: Path) -> set | None:
+    """Names the previous export wrote into ``folder`` (from its report.json), or None when the
+    folder holds no export report."""
+    import json
+
+    try:
+        old = json.loads((folder / "report.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(old, dict):
+        return None
+    names = set(old.get("files") or [])
+    for v in (old.get("formats") or {}).values():
+        if isinstance(v, dict):
+            names.update(v.get("files") or [])
+    names.update(old.get("previews") or [])
+    names.update(("report.json", "report.md", "motion.png", "map.png", "tolerance.png")
+                 if "files" not in old else ())
+    return names
+
+
+def carry_over(folder: Path, stage: Path) -> list[str]:
+    """Hard-link (or copy) into ``stage`` what another command wrote into ``folder``: every
+    entry the previous export did not write and the new one does not write either. Returns the
+    names carried over."""
+    import stat
+
+    if folder.is_symlink() or not folder.is_dir():  # a link is never followed, nor moved in
+        return []
+    mine = _export_manifest(folder) or set()
+    kept = []
+    for entry in sorted(folder.iterdir()):
+        if entry.name in mine or entry.name.startswith(".") or os.path.lexists(
+                stage / entry.name):
+            continue
+        target = stage / entry.name
+        mode = entry.lstat().st_mode
+        if stat.S_ISDIR(mode):
+            shutil.copytree(entry, target, symlinks=True, copy_function=_link_or_copy)
+        elif stat.S_ISREG(mode) or stat.S_ISLNK(mode):  # a link is carried as the link itself
+            _link_or_copy(entry, target)
+        else:
+            continue  # a FIFO, a socket, a device: no fabkit command writes one
+        kept.append(entry.name)
+    return kept
+
+
+def _link_or_copy(src, dst):
+    try:
+        os.link(src, dst, follow_symlinks=False)
+    except OSError:
+        shutil.copy2(src, dst, follow_symlinks=False)
+    return dst
+
+
+def swap_in(stage: Path, folder: Path) -> None:
+    """Replace ``folder`` by the complete ``stage`` folder with two renames; a reader sees the
+    old export or the new one, never a mix."""
+    if os.path.lexists(folder):
+        _, old = _staging_names(folder.parent, folder.name)
+        check_replaceable(folder)
+        os.replace(folder, old)
+        os.replace(stage, folder)
+        shutil.rmtree(old)
+    else:
+        os.replace(stage, folder)
+
+
+class OutputLock:
+    """An exclusive lock on an output folder: ``<out>/.fabkit.lock`` held with ``flock``.
+
+    The kernel drops the lock when the holder dies, even by SIGKILL, so a stale lock file never
+    blocks anyone; the file is removed on release.
+
+    Parameters
+    ----------
+    outdir : path
+    wait : bool
+        Wait for the other export to finish instead of refusing.
+    poll : float
+        Seconds between attempts while waiting (short, so that a signal stops the wait).
+    """
+
+    def __init__(self, outdir, wait=False, poll=0.2):
+        self.outdir = Path(outdir)
+        self.wait = wait
+        self.poll = poll
+        self.fd = None
+
+    def __enter__(self):
+        import fcntl
+
+        from ..io.outputs import open_own_file
+
+        path = self.outdir / LOCK_NAME
+        while True:
+            fd = open_own_file(path)  # never through a link, never blocked on a FIFO
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                pid = _read_pid(fd)
+                os.close(fd)
+                if not self.wait:
+                    raise LockedError(self.outdir, pid) from None
+                time.sleep(self.poll)
+                continue
+            # the holder before us may have removed the file after we opened it: lock the file
+            # that is at the path now
+            try:
+                same = os.fstat(fd).st_ino == os.lstat(path).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            self.fd = fd
+            return self
+
+    def __exit__(self, *exc):
+        if self.fd is not None:
+            path = self.outdir / LOCK_NAME
+            try:  # only the file this lock holds: not a link or a file put there since
+                if os.lstat(path).st_ino == os.fstat(self.fd).st_ino:
+                    os.unlink(path)
+            except FileNotFoundError:
+                pass
+            os.close(self.fd)  # closing drops the flock
+            self.fd = None
+        return False
+
+
+def _read_pid(fd) -> int | None:
+    try:
+        text = os.pread(fd, 32, 0).decode().strip()
+        return int(text) if text else None
+    except (OSError, ValueError):
+        return None
+
+
+def prepare_outdir(outdir) -> Path:
+    """Create the output folder; :class:`OutputError` (one line) when that is impossible."""
+    outdir = Path(outdir)
+    try:
+        if outdir.exists() and not outdir.is_dir():
+            raise OutputError(outdir, "exists and is not a folder; choose another output "
+                                      "folder with -o")
+        outdir.mkdir(parents=True, exist_ok=True)
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(outdir, f"cannot create the output folder: "
+                                  f"{exc.strerror or exc}") from None
+    if not os.access(outdir, os.W_OK | os.X_OK):
+        raise OutputError(outdir, "the output folder is not writable; choose another with -o")
+    return outdir
