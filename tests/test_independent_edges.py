@@ -12,7 +12,9 @@ from fabkit import Network, count_modes
 from fabkit.model import rigidity
 from fabkit.bench import large
 from fabkit.errors import KinematicsError, NetworkError
-from fabkit.model.rigidity import independent_edges, rigidity_matrix
+from fabkit.model import independent_edges as selection
+from fabkit.model.independent_edges import independent_edges
+from fabkit.model.rigidity import rigidity_matrix
 
 from conftest import TEMPLATES
 
@@ -155,8 +157,8 @@ def test_bad_input():
 
 def dense_selection(monkeypatch):
     """Make `projected` pick its edges by the dense column-pivoted QR (its former rule)."""
-    monkeypatch.setattr(rigidity, "independent_edges",
-                        functools.partial(rigidity.independent_edges, method="dense"))
+    monkeypatch.setattr(selection, "independent_edges",
+                        functools.partial(selection.independent_edges, method="dense"))
 
 
 def all_edge_error(net, positions):

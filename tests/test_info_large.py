@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from fabkit.model import rigidity
+from fabkit.model import matrix, rigidity
 from fabkit.cli import main
 from fabkit.errors import ResourceError
 
@@ -47,10 +47,10 @@ def test_info_refuses_a_dense_path_that_cannot_fit(tmp_path, capsys, monkeypatch
 
 
 def test_dense_memory_check_uses_the_available_memory(monkeypatch):
-    monkeypatch.setattr(rigidity, "available_memory", lambda: 10**6)
-    assert rigidity.require_dense_memory(100, 100) < 10**6
+    monkeypatch.setattr(matrix, "available_memory", lambda: 10**6)
+    assert matrix.require_dense_memory(100, 100) < 10**6
     with pytest.raises(ResourceError):
-        rigidity.require_dense_memory(1000, 1000)
+        matrix.require_dense_memory(1000, 1000)
     net = rigidity.Network([[0, 0], [1, 0], [0, 1]] * 1, [[0, 1], [1, 2], [0, 2]])
     assert rigidity.count_modes(net).total == 3
     with pytest.raises(ValueError):

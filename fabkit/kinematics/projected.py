@@ -157,9 +157,11 @@ class Projected(StepMethod):
 
     def _independent_rows(self, work, x0, gcols):
         """Edges whose rows of the rigidity matrix are independent at the start, dN - g - 1 of
-        them (a windowed selection along the band, see :func:`fabkit.model.rigidity.independent_edges`),
-        for a network with states of self-stress and one conformational motion."""
-        from ..model.rigidity import count_modes, independent_edges
+        them (a windowed selection along the band, see
+        :func:`fabkit.model.independent_edges.independent_edges`), for a network with states of
+        self-stress and one conformational motion."""
+        from ..model.independent_edges import independent_edges
+        from ..model.rigidity import count_modes
 
         m = count_modes(work, x0)
         if m.conformational != 1:

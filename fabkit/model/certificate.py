@@ -45,7 +45,7 @@ from .construction import (ConstructionPlan, EdgeLookup, PartialConstruction, Se
 from ..errors import ConstructionError
 from .network import Network
 from ..numerics import RANK_RTOL, TINY
-from .rigidity import AMBIGUOUS_GAP
+from .matrix import AMBIGUOUS_GAP, rank_dense, rigid_body_basis
 
 __all__ = ["Certificate", "certify", "construction_velocity", "intersection_sines", "MIN_SINE",
            "Uncertified"]
@@ -320,8 +320,6 @@ def _interface(parts: list[_Part], x, edges, taken, n) -> tuple[np.ndarray, int]
     """The interface matrix: the parts' motions (rigid, and the construction velocity where the
     part moves) and the nodes in no part as unknowns; rows for nodes shared by parts (they move
     together) and for the bars no part took (they keep their length)."""
-    from .rigidity import rigid_body_basis
-
     d = x.shape[1]
     owner: list[list[int]] = [[] for _ in range(n)]
     first_col, bases, rows_of = [], [], []
@@ -383,8 +381,6 @@ def _interface(parts: list[_Part], x, edges, taken, n) -> tuple[np.ndarray, int]
 
 
 def _substructure(net: Network, x, rtol: float, find: EdgeLookup):
-    from .rigidity import _rank_dense
-
     edges = net.edges
     n, d = x.shape
     e = edges.shape[0]
@@ -429,7 +425,7 @@ def _substructure(net: Network, x, rtol: float, find: EdgeLookup):
         raise Uncertified(f"the interface between {len(parts)} parts has {ncol} unknowns, more "
                           f"than {MAX_INTERFACE}")
     if mat.shape[0]:
-        rank, gap, smallest, note = _rank_dense(sp.csr_matrix(mat), rtol)
+        rank, gap, smallest, note = rank_dense(sp.csr_matrix(mat), rtol)
         if note or gap < AMBIGUOUS_GAP:
             raise Uncertified(f"the interface between {len(parts)} parts is near singular "
                               f"({note or f'rank gap {gap:.1e}'})")
@@ -440,8 +436,6 @@ def _substructure(net: Network, x, rtol: float, find: EdgeLookup):
 
 def _count(part: _Part, x) -> tuple[int, int]:
     """(zero modes, self-stresses) of a part that is the whole network."""
-    from .rigidity import rigid_body_basis
-
     rigid = rigid_body_basis(x).shape[1] if x.shape[1] == 3 else 3
     null = rigid + (0 if part.bar else 1)
     locked = 1 if (not part.bar and not part.moves) else 0

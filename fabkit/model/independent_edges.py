@@ -4,7 +4,6 @@ with a dense column-pivoted QR as the fallback for small networks.
 
 A network with states of self-stress has more edges than a square system has room for; the
 continuation (:mod:`fabkit.kinematics.projected`) keeps these and watches the others.
-:func:`independent_edges` is importable from :mod:`fabkit.model.rigidity` as before.
 """
 
 from __future__ import annotations
@@ -21,8 +20,9 @@ from . import rigidity
 from ..errors import KinematicsError, NetworkError
 from .network import Network
 from ..numerics import RANK_RTOL
-from .rigidity import (AMBIGUOUS_GAP, _smallest_singular, _sigma_max, _Undecided, count_modes,
-                       require_dense_memory, rigidity_matrix)
+from .matrix import (AMBIGUOUS_GAP, Undecided, require_dense_memory, rigidity_matrix, sigma_max,
+                     smallest_singular)
+from .rigidity import count_modes
 
 __all__ = ["independent_edges", "BLOCK_PER_BAND", "MIN_BLOCK", "DEFER_RTOL", "DEFER_BANDS"]
 
@@ -138,25 +138,25 @@ def _dense_rows(r: sp.csr_matrix, rank: int) -> np.ndarray:
 
 def _check_rows(r: sp.csr_matrix, keep: np.ndarray, rank: int, rtol: float) -> float:
     """σ_min of the kept rows, certified well above the rank threshold; raises
-    :class:`_Undecided` otherwise. Read from ``λ_min(R_S R_Sᵀ)`` (one sparse LU of a matrix of
+    :class:`Undecided` otherwise. Read from ``λ_min(R_S R_Sᵀ)`` (one sparse LU of a matrix of
     the kept edges' size): squaring resolves σ_min above about 1.5e-7·σ_max."""
     if keep.size != rank:
-        raise _Undecided(f"{keep.size} edges were found independent where the rank is {rank}",
+        raise Undecided(f"{keep.size} edges were found independent where the rank is {rank}",
                          keep.size)
     if rank == 0:
         return math.inf
     rs = r[keep]
-    smax = _sigma_max(rs)
+    smax = sigma_max(rs)
     tol = rtol * max(smax, 1.0)
     try:
         lu = spla.splu((rs @ rs.T).tocsc(), permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
-        raise _Undecided("the kept rows are exactly dependent", rank) from None
-    sigma = math.sqrt(_smallest_singular(lu.solve, lu.solve, rank))
+        raise Undecided("the kept rows are exactly dependent", rank) from None
+    sigma = math.sqrt(smallest_singular(lu.solve, lu.solve, rank))
     floor = math.sqrt(100 * np.finfo(float).eps) * smax
     margin = math.sqrt(AMBIGUOUS_GAP)
     if not (sigma >= margin * tol and sigma > floor):
-        raise _Undecided(f"the kept rows have a smallest singular value of {sigma:.1e}, not "
+        raise Undecided(f"the kept rows have a smallest singular value of {sigma:.1e}, not "
                          f"above {max(margin * tol, floor):.1e}", rank)
     return sigma
 
@@ -233,8 +233,9 @@ def independent_edges(net: Network, positions=None, *, rank: int | None = None,
     ill-conditioned (a direction of the complement lying almost entirely on dropped columns), so
     a nearly dependent row can pass the threshold, or the kept rows can be poorly conditioned
     although a better choice exists. The check catches both; ``"auto"`` then falls back to the
-    dense QR up to :data:`fabkit.model.rigidity.DENSE_LIMIT` coordinates and raises beyond. Short of failing, a choice
-    made along a sweep is worse conditioned than the dense QR's global one: on the k × k lattice
+    dense QR up to :data:`fabkit.model.rigidity.DENSE_LIMIT` coordinates and raises beyond.
+    Short of failing, a choice made along a sweep is worse conditioned than the dense QR's global
+    one: on the k × k lattice
     of 4-bars the smallest singular value of the kept rows is 4e-4 at k = 30 (dense QR: 6.5e-3,
     all rows: 6.1e-2) and 1.8e-5 at k = 100, the weakest direction lying where the sweep ends.
 
@@ -276,7 +277,7 @@ def independent_edges(net: Network, positions=None, *, rank: int | None = None,
                                   None if block is None else int(block))
             _check_rows(r, keep, rank, rtol)
         return keep
-    except _Undecided as exc:
+    except Undecided as exc:
         if method == "auto" and d * n <= rigidity.DENSE_LIMIT:
             return _dense_rows(r, rank)
         raise KinematicsError(f"no independent set of {rank} edges could be certified: "

@@ -1,18 +1,19 @@
-"""Rigidity analysis: the rigidity matrix, rigid-body motions and generalised Maxwell counting.
+"""Rigidity analysis: generalised Maxwell counting, zero modes and states of self-stress.
 
 For a configuration x (N nodes in d dimensions) the rigidity matrix R has one row per edge
 (i, j) holding ``(x_i - x_j)`` in node i's columns and ``(x_j - x_i)`` in node j's columns, so that
 ``R @ v = 0`` for every velocity v that keeps all edge lengths to first order. Its null space holds
 the rigid-body motions and the conformational motions; its left null space holds the states of
 self-stress. Generalised Maxwell counting: ``M = dN - E + S``. With states of self-stress some
-edges are redundant; :func:`independent_edges` picks a set of rank(R) edges whose rows are
-independent, without a dense factorisation.
+edges are redundant; :func:`fabkit.model.independent_edges.independent_edges` picks a set of
+rank(R) edges whose rows are independent, without a dense factorisation. The matrix itself and
+the singular-value helpers live in :mod:`fabkit.model.matrix`; the proof of a count from a
+construction order in :mod:`fabkit.model.certificate`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,9 +23,13 @@ import scipy.sparse.linalg as spla
 import threadpoolctl
 
 from .. import arguments
-from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError, ResourceError
+from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError
 from .network import Network
 from ..numerics import EDGE_RTOL, RANK_RTOL, TINY
+from .certificate import Uncertified, certify
+from .matrix import (AMBIGUOUS_GAP, Undecided, available_memory, orthonormal, rank_dense,
+                     require_dense_memory, rigid_body_basis, rigidity_matrix, sigma_max,
+                     smallest_singular)
 
 __all__ = [
     "rigidity_matrix",
@@ -33,7 +38,6 @@ __all__ = [
     "count_modes",
     "zero_modes",
     "self_stresses",
-    "independent_edges",
     "DENSE_LIMIT",
     "SPARSE_FROM",
     "AMBIGUOUS_GAP",
@@ -59,10 +63,6 @@ NUMERIC_CHECK_LIMIT = 100_000
 #: Largest number of zeros the sparse path looks for (block size of its subspace iteration).
 MAX_BLOCK = 64
 
-#: A rank decision whose gap (smallest singular value kept / largest dropped) is below this is
-#: reported as ambiguous.
-AMBIGUOUS_GAP = 1e3
-
 
 #: Shift of RᵀR in the normal-equations path, relative to σ_max²: above its round-off (~1e-16
 #: σ_max²), so K + μI is positive definite, and far below the squared threshold it resolves.
@@ -70,144 +70,6 @@ NORMAL_SHIFT = 1e-10
 #: A zero mode with less than this of its norm outside the rigid motions is rigid, not a
 #: conformational motion.
 CONFORMATIONAL_PART = 1e-8
-
-
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (``MemAvailable`` on Linux), or None when
-    the system does not say."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (AttributeError, ValueError, OSError):
-        return None
-
-
-def require_dense_memory(n_rows: int, n_cols: int, *, vectors: bool = False,
-                         what: str = "a dense SVD") -> int:
-    """Raise :class:`~fabkit.errors.ResourceError`, before anything is allocated, when a dense
-    SVD of an ``n_rows × n_cols`` matrix cannot fit in the available memory.
-
-    The estimate counts the dense copy, LAPACK's copy and workspace, and with ``vectors`` the
-    full square factors ``U`` (rows²) and ``Vᵀ`` (cols²), in float64.
-
-    Returns
-    -------
-    int
-        The estimated number of bytes.
-
-    Examples
-    --------
-    >>> require_dense_memory(10, 12) < 10_000
-    True
-    """
-    m, n = int(n_rows), int(n_cols)
-    need = 8 * (2 * m * n + 4 * min(m, n) ** 2 + 8 * max(m, n))
-    if vectors:
-        need += 8 * (m * m + n * n)
-    have = available_memory()
-    if have is not None and need > have:
-        raise ResourceError(
-            f"{what} of the {m} × {n} rigidity matrix needs about {need / 1e9:.1f} GB of memory; "
-            f"{have / 1e9:.1f} GB are available (use the sparse path, or a smaller network)"
-        )
-    return need
-
-
-def _positions(net_or_positions, positions=None) -> tuple[np.ndarray, np.ndarray]:
-    if isinstance(net_or_positions, Network):
-        net = net_or_positions
-        x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
-        return x, net.edges
-    raise TypeError("expected a Network")
-
-
-def rigidity_matrix(net: Network, positions=None, *, normalized: bool = False) -> sp.csr_matrix:
-    """Sparse rigidity matrix R of a configuration.
-
-    Parameters
-    ----------
-    net : Network
-        Topology (edges) and, by default, the configuration.
-    positions : array_like, shape (N, d), optional
-        Configuration at which R is evaluated; the reference configuration by default.
-    normalized : bool
-        Divide each row by its edge's current length, so that the entries are unit vectors and
-        the singular values do not depend on the size of the network.
-
-    Returns
-    -------
-    scipy.sparse.csr_matrix, shape (E, d·N)
-        Row e is ``(x_i - x_j)`` at columns ``d·i … d·i+d-1`` and ``(x_j - x_i)`` at node j's.
-        Coordinates are ordered node by node: ``[x_0, y_0, (z_0), x_1, ...]``.
-
-    Examples
-    --------
-    >>> net = Network([[0, 0], [1, 0]], [[0, 1]])
-    >>> rigidity_matrix(net).toarray()
-    array([[-1.,  0.,  1.,  0.]])
-    """
-    x, edges = _positions(net, positions)
-    n, d = x.shape
-    e = edges.shape[0]
-    diff = x[edges[:, 0]] - x[edges[:, 1]]
-    if normalized:
-        diff = diff / np.linalg.norm(diff, axis=1, keepdims=True)
-    rows = np.repeat(np.arange(e), 2 * d)
-    cols = np.concatenate(
-        [d * edges[:, [0]] + np.arange(d), d * edges[:, [1]] + np.arange(d)], axis=1
-    ).ravel()
-    vals = np.concatenate([diff, -diff], axis=1).ravel()
-    return sp.csr_matrix((vals, (rows, cols)), shape=(e, d * n))
-
-
-def rigid_body_basis(positions, *, rtol: float = 1e-10) -> np.ndarray:
-    """Orthonormal basis of the rigid-body velocities of a node set.
-
-    Translations along each axis and rotations (one in 2D, three in 3D) about the centroid,
-    orthonormalised; directions that vanish for the node set (a single node; rotation about the
-    line of collinear nodes in 3D) are dropped.
-
-    Parameters
-    ----------
-    positions : array_like, shape (N, d)
-    rtol : float
-        Singular values below ``rtol`` times the largest one count as absent motions.
-
-    Returns
-    -------
-    numpy.ndarray, shape (d·N, r)
-        r = 3 in 2D and 6 in 3D for a generic node set, fewer for degenerate ones.
-
-    Examples
-    --------
-    >>> rigid_body_basis([[0, 0], [1, 0]]).shape
-    (4, 3)
-    >>> rigid_body_basis([[0, 0, 0], [1, 0, 0], [2, 0, 0]]).shape
-    (9, 5)
-    """
-    x = np.asarray(positions, dtype=np.float64)
-    n, d = x.shape
-    c = x - x.mean(axis=0)
-    cols = []
-    for a in range(d):
-        t = np.zeros((n, d))
-        t[:, a] = 1.0
-        cols.append(t.ravel())
-    if d == 2:
-        cols.append(np.column_stack([-c[:, 1], c[:, 0]]).ravel())
-    else:
-        for axis in np.eye(3):
-            cols.append(np.cross(axis, c).ravel())
-    basis = np.column_stack(cols)
-    u, s, _ = np.linalg.svd(basis, full_matrices=False)
-    keep = s > rtol * s.max()
-    return u[:, keep]
 
 
 @dataclass(frozen=True)
@@ -291,43 +153,6 @@ class ModeCount:
         )
 
 
-def _singular_values_dense(r: sp.csr_matrix) -> np.ndarray:
-    require_dense_memory(*r.shape)
-    dense = r.toarray()
-    return scipy.linalg.svdvals(dense) if dense.size else np.zeros(0)
-
-
-def _rank_dense(r: sp.csr_matrix, rtol: float) -> tuple[int, float, float, str]:
-    s = _singular_values_dense(r)
-    if s.size == 0:
-        return 0, np.inf, np.inf, ""
-    tol = rtol * max(s[0], 1.0)
-    rank = int((s > tol).sum())
-    smallest = float(s[rank - 1]) if rank else 0.0
-    largest_zero = float(s[rank]) if rank < s.size else 0.0
-    gap = np.inf if largest_zero == 0.0 else smallest / largest_zero
-    margin = math.sqrt(AMBIGUOUS_GAP)
-    if rank and smallest < margin * tol:
-        return rank, gap, smallest, (f"smallest kept singular value {smallest:.1e} within a "
-                                     f"factor {margin:.0f} of the threshold {tol:.1e}")
-    if largest_zero > tol / margin:
-        return rank, gap, smallest, (f"largest dropped singular value {largest_zero:.1e} within "
-                                     f"a factor {margin:.0f} of the threshold {tol:.1e}")
-    return rank, gap, smallest, ""
-
-
-class _Undecided(Exception):
-    """The sparse rank decision could not be certified (see :func:`_rank_sparse`); carries the
-    counts found so far: ``rank`` is an upper bound (zero modes found are certainly there)."""
-
-    def __init__(self, reason: str, rank: int, gap: float = 0.0, smallest: float = 0.0):
-        super().__init__(reason)
-        self.reason, self.rank, self.gap, self.smallest = reason, rank, gap, smallest
-
-
-def _orthonormal(a: np.ndarray) -> np.ndarray:
-    return np.linalg.qr(a)[0] if a.shape[1] else a
-
 
 def _best_conditioned(q: np.ndarray) -> np.ndarray:
     """Rows of an orthonormal basis q (k columns) on which it is best conditioned: the first k
@@ -338,46 +163,14 @@ def _best_conditioned(q: np.ndarray) -> np.ndarray:
     return scipy.linalg.qr(q.T, pivoting=True, mode="r")[1][:k]
 
 
-def _sigma_max(r: sp.csr_matrix, iterations: int = 40, seed: int = 0) -> float:
-    """Largest singular value of R by power iteration on RᵀR (a few per cent is plenty: it only
-    scales the threshold)."""
-    v = np.random.default_rng(seed).standard_normal(r.shape[1])
-    s = 0.0
-    for _ in range(iterations):
-        w = r.T @ (r @ v)
-        s = float(np.linalg.norm(w))
-        if s == 0.0:
-            return 0.0
-        v = w / s
-    return math.sqrt(s)
-
-
-def _smallest_singular(solve, solve_t, size: int, block: int = 3, iterations: int = 6,
-                       seed: int = 1) -> float:
-    """Estimate of the smallest singular value of a square matrix A from its LU factors:
-    subspace iteration on (AᵀA)⁻¹ with a small block, then the smallest ``1/σ`` of the Ritz
-    values. It approaches σ_min from above, quickly when σ_min is separated."""
-    x = _orthonormal(np.random.default_rng(seed).standard_normal((size, block)))
-    for _ in range(iterations):
-        y = solve(solve_t(x))
-        if not np.isfinite(y).all():
-            return 0.0
-        x = _orthonormal(y)
-    z = solve_t(x)  # ‖A⁻ᵀ x‖ = 1/σ along the converged directions
-    if not np.isfinite(z).all():
-        return 0.0
-    big = float(np.linalg.svd(z, compute_uv=False)[0])
-    return 1.0 / big if big > 0 else math.inf
-
-
 def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int = 3):
     """Certified rank of a sparse R in near-linear time (see :func:`count_modes`, Notes).
 
-    Returns (rank, gap, smallest_nonzero); raises :class:`_Undecided` when the two bounds do not
+    Returns (rank, gap, smallest_nonzero); raises :class:`Undecided` when the two bounds do not
     bracket the threshold.
     """
     e, n = r.shape
-    smax = _sigma_max(r)
+    smax = sigma_max(r)
     tol = rtol * max(smax, 1.0)
     maxwell = n - e
     # 1. Shift-invert subspace iteration on B = [[0, R], [Rᵀ, 0]] (eigenvalues ±σ_i and one zero
@@ -392,13 +185,13 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
         lu_b = spla.splu((b - shift * sp.eye(e + n, format="csc")).tocsc(),
                          permc_spec="COLAMD")
     except RuntimeError:
-        raise _Undecided("the shifted matrix [[0, R], [Rᵀ, 0]] is exactly singular",
+        raise Undecided("the shifted matrix [[0, R], [Rᵀ, 0]] is exactly singular",
                          min(e, n)) from None
     rng = np.random.default_rng(0)
     while True:
-        x = _orthonormal(rng.standard_normal((e + n, block)))
+        x = orthonormal(rng.standard_normal((e + n, block)))
         for _ in range(iterations):
-            x = _orthonormal(lu_b.solve(x))
+            x = orthonormal(lu_b.solve(x))
         # k-th smallest singular value of B·X (X orthonormal) ≥ the k-th smallest |eigenvalue|
         # of B: counting those ≤ tol gives a lower bound on the number of zeros.
         _, s, wt = np.linalg.svd(np.asarray(b @ x), full_matrices=False)
@@ -407,7 +200,7 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
         if zeros < block or block >= e + n:
             break
         if block >= MAX_BLOCK:
-            raise _Undecided(f"more than {MAX_BLOCK} zero modes and states of self-stress",
+            raise Undecided(f"more than {MAX_BLOCK} zero modes and states of self-stress",
                              n - zeros)
         block *= 2  # every vector found was a zero: look for more
     z = x @ w[:, :zeros]
@@ -418,7 +211,7 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
     qu, qv = uu[:, su > 0.5], uv[:, sv > 0.5]
     modes, stresses = qv.shape[1], qu.shape[1]
     if modes - stresses != maxwell:
-        raise _Undecided(f"{modes} zero modes and {stresses} self-stresses found, which "
+        raise Undecided(f"{modes} zero modes and {stresses} self-stresses found, which "
                          f"contradicts dN - E = {maxwell}", min(e, n, n - modes, e - stresses))
     rho = max(np.linalg.norm(r @ qv, 2) if modes else 0.0,
               np.linalg.norm(r.T @ qu, 2) if stresses else 0.0)
@@ -434,14 +227,14 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
     try:
         lu_a = spla.splu(a, permc_spec="COLAMD")
     except RuntimeError:
-        raise _Undecided("the bordered matrix [[R, U], [Vᵀ, 0]] is exactly singular (more "
+        raise Undecided("the bordered matrix [[R, U], [Vᵀ, 0]] is exactly singular (more "
                          "zero modes than found?)", n - modes) from None
-    sigma_a = _smallest_singular(lu_a.solve, lambda v: lu_a.solve(v, trans="T"), a.shape[0])
+    sigma_a = smallest_singular(lu_a.solve, lambda v: lu_a.solve(v, trans="T"), a.shape[0])
     smallest = float(s[zeros])
     gap = math.inf if rho == 0.0 else sigma_a / rho
     margin = math.sqrt(AMBIGUOUS_GAP)
     if not (rho <= tol / margin and sigma_a >= margin * tol):
-        raise _Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_a:.1e} (smallest "
+        raise Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_a:.1e} (smallest "
                          f"non-zero) do not bracket the threshold {tol:.1e}", n - modes, gap,
                          smallest)
     return n - modes, gap, smallest, ""
@@ -456,30 +249,30 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     which the count is reported as ambiguous.
     """
     e, n = r.shape
-    smax = _sigma_max(r)
+    smax = sigma_max(r)
     tol = rtol * max(smax, 1.0)
     k = (r.T @ r).tocsc()
     mu = NORMAL_SHIFT * smax ** 2  # above the round-off of RᵀR, so K + μI is positive definite
     try:
         lu_k = spla.splu((k + mu * sp.eye(n, format="csc")).tocsc(), permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
-        raise _Undecided("RᵀR + μI is exactly singular", n) from None
+        raise Undecided("RᵀR + μI is exactly singular", n) from None
     rng = np.random.default_rng(0)
     while True:
-        x = _orthonormal(rng.standard_normal((n, block)))
+        x = orthonormal(rng.standard_normal((n, block)))
         for _ in range(iterations):
-            x = _orthonormal(lu_k.solve(x))
+            x = orthonormal(lu_k.solve(x))
         _, s, wt = np.linalg.svd(np.asarray(r @ x), full_matrices=False)
         s, w = s[::-1], wt[::-1].T
         modes = int((s <= tol).sum())
         if modes < block or block >= n:
             break
         if block >= MAX_BLOCK:
-            raise _Undecided(f"more than {MAX_BLOCK} zero modes", n - modes)
+            raise Undecided(f"more than {MAX_BLOCK} zero modes", n - modes)
         block *= 2
     stresses = modes - (n - e)
     if stresses < 0:
-        raise _Undecided(f"{modes} zero modes found, fewer than dN - E = {n - e}", n - modes)
+        raise Undecided(f"{modes} zero modes found, fewer than dN - E = {n - e}", n - modes)
     qv = x @ w[:, :modes]
     rho = float(s[modes - 1]) if modes else 0.0
     pins = _best_conditioned(qv)
@@ -487,15 +280,15 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     try:
         lu_c = spla.splu(kc, permc_spec="MMD_AT_PLUS_A")
     except RuntimeError:
-        raise _Undecided("RᵀR + VVᵀ is exactly singular (more zero modes than found?)",
+        raise Undecided("RᵀR + VVᵀ is exactly singular (more zero modes than found?)",
                          n - modes) from None
-    sigma_c = math.sqrt(_smallest_singular(lu_c.solve, lu_c.solve, n))
+    sigma_c = math.sqrt(smallest_singular(lu_c.solve, lu_c.solve, n))
     floor = math.sqrt(100 * np.finfo(float).eps) * smax
     smallest = float(s[modes])
     gap = math.inf if rho == 0.0 else sigma_c / rho
     margin = math.sqrt(AMBIGUOUS_GAP)
     if not (rho <= tol / margin and sigma_c >= margin * tol and sigma_c > floor):
-        raise _Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_c:.1e} (smallest "
+        raise Undecided(f"the bounds {rho:.1e} (largest zero) and {sigma_c:.1e} (smallest "
                          f"non-zero, resolved above {floor:.1e}) do not bracket the threshold "
                          f"{tol:.1e} with a factor {margin:.0f} to spare", n - modes, gap, smallest)
     return n - modes, gap, smallest, ""
@@ -655,8 +448,6 @@ def _count_modes(net: Network, x: np.ndarray, rtol: float, method: str) -> ModeC
     positions = None if x is net.nodes else x
     cert, why = None, ""
     if method in ("auto", "structure"):
-        from .certificate import Uncertified, certify
-
         try:
             cert = certify(net, positions, rtol=rtol)
         except Uncertified as exc:
@@ -705,7 +496,7 @@ def _numeric_rank(net: Network, x, rtol: float, method: str):
     note, requested = "", method
     if method == "dense" or method == "auto" and d * n <= min(SPARSE_FROM, DENSE_LIMIT):
         method = "dense"
-        rank, gap, smallest, note = _rank_dense(r, rtol)
+        rank, gap, smallest, note = rank_dense(r, rtol)
     else:
         method = "sparse"
         try:
@@ -717,10 +508,10 @@ def _numeric_rank(net: Network, x, rtol: float, method: str):
                     rank, gap, smallest, note = _rank_sparse_normal(r, rtol)
                 else:
                     rank, gap, smallest, note = _rank_sparse(r, rtol)
-        except _Undecided as exc:
+        except Undecided as exc:
             if requested == "auto" and d * n <= DENSE_LIMIT:  # small enough for the SVD
                 method = "dense"
-                rank, gap, smallest, note = _rank_dense(r, rtol)
+                rank, gap, smallest, note = rank_dense(r, rtol)
             else:
                 rank, gap, smallest, note = exc.rank, exc.gap, exc.smallest, exc.reason
     if not note and gap < AMBIGUOUS_GAP:
@@ -765,7 +556,3 @@ def self_stresses(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> n
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     return u[:, rank:]
-
-
-# the selection of independent edges lives in its own file; its name stays importable from here
-from .independent_edges import independent_edges  # noqa: E402
