@@ -35,6 +35,7 @@ from ..model.network import Network
 from ..numerics import START_RTOL, TINY, project_to_lengths
 from ..model.rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
 from .base import Mark, Method, Outcome, make_problem
+from .tracer import trace
 from .trajectory import EventKind, Trajectory
 
 __all__ = ["Branch", "Bifurcation", "analyze_bifurcation", "step_off", "fold_through",
@@ -444,8 +445,6 @@ def fold_through(net: Network, drive="d1", to=None, *, start=None, branch=None, 
     >>> traj.stats["branch"], str(traj.status)
     (2, 'finished')
     """
-    from . import trace
-
     if to is None:
         raise KinematicsError("`to` (the target value of the drive) is required")
     problem = make_problem(net, drive, to, start=start)
