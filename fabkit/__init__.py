@@ -1,7 +1,7 @@
 """fabkit: mechanical networks as iterated maps, from design to fabrication.
 
-The core (network, rigidity, kinematics, maps, design, assemble, templates) never imports the
-fabrication, export or command-line layers.
+The core (model, kinematics, maps, design, io) never imports the fabrication, export or
+command-line layers.
 """
 
 from .errors import (

@@ -7,6 +7,12 @@ final state follows a drawn curve (:func:`read_curve` reads SVG paths and CSV po
 Both check their result independently: the module's map is recomputed by
 :func:`fabkit.module_map` from the network the written template builds; the chain is traced to
 its final state and compared with the curve.
+
+The package holds every way fabkit designs: ``solution_space`` places the variable nodes of a
+module from what its designed nodes should do (positions, velocities, final positions);
+``module`` and ``wishes`` design a module from its map; ``assemble`` joins modules into chains,
+branches and tessellations; ``letters`` designs chains whose final states spell letters;
+``curve`` and its helpers follow a drawn curve.
 """
 
 from .curve import CurveDesign, design_curve_chain
