@@ -3,10 +3,10 @@
 Each mutant is a real file changed the way damaged and hostile files are: numbers replaced by
 extremes (1e300, nan, 10^23, text), attributes removed, elements repeated up to thousands of
 times, files cut short, bytes flipped, transforms and DTDs added. Every mutant is read as the
-command line reads it, in a child process held to its work estimate (:mod:`fabkit.pipeline.stoppable`:
-CPU seconds and memory from the estimate), and must end in a result or a fabkit error: no
-internal error (what the command line reports with exit status 70), and no run stopped at its
-limits. The mutants come from fixed seeds: a failure names the seed that makes it again.
+command line reads it, in a child process held to its work estimate
+(:mod:`fabkit.pipeline.stoppable`: CPU seconds and memory from the estimate), and must end in a
+result or a fabkit error: no internal error (what the command line reports with exit status 70),
+and no run stopped at its limits. The mutants come from fixed seeds: a failure names the seed that makes it again.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""fabkit.commands.progress: the one way long commands say how far they are (stage, count done of total,
-time left), on stderr, shown on a terminal, forced with --progress, silenced with -q."""
+"""fabkit.commands.progress: the one way long commands say how far they are (stage, count done of
+total, time left), on stderr, shown on a terminal, forced with --progress, silenced with -q."""
 
 from __future__ import annotations
 

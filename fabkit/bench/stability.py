@@ -239,7 +239,8 @@ def _physical_fourbar_at(d1: float):
 def and_gate(modules: int = 6):
     """Two super-stable chains, the far end of the first joined to the middle of the second.
 
-    Built by :func:`fabkit.design.assemble.branch` (the second chain is the trunk, the first the limb).
+    Built by :func:`fabkit.design.assemble.branch` (the second chain is the trunk, the first the
+    limb).
     Ports: ``d1`` (first branch's input), ``b1`` (second branch's input), ``out`` (the second
     branch's far end), ``joint`` (the shared pair). Of the four ways to join (mirror, swap), the
     one that keeps the limb's nodes farthest from the trunk's is taken.

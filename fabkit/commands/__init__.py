@@ -101,7 +101,8 @@ def add_progress_options(p) -> None:
 
 
 def progress_for(args, command: str):
-    """The :class:`~fabkit.commands.progress.Progress` of a command, as ``-q``/``--progress`` ask."""
+    """The :class:`~fabkit.commands.progress.Progress` of a command, as ``-q``/``--progress``
+    ask."""
     from .progress import Progress
 
     quiet, forced = getattr(args, "quiet", False), getattr(args, "progress", False)

@@ -117,7 +117,8 @@ def _name(args) -> str:
 
 def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
     """Write every file inside the output folder ``out``, all or nothing, refusing any name
-    that would leave it (the one place this command writes: :func:`fabkit.io.outputs.write_files`)."""
+    that would leave it (the one place this command writes:
+    :func:`fabkit.io.outputs.write_files`)."""
     from ..io.outputs import write_files as write_all
 
     return write_all(out, files)

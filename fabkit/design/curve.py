@@ -1,5 +1,5 @@
-"""A chain whose final state follows a drawn curve: the letters design (:mod:`fabkit.design.letters`)
-generalised to any curve, with curvature modules designed for it.
+"""A chain whose final state follows a drawn curve: the letters design
+(:mod:`fabkit.design.letters`) generalised to any curve, with curvature modules designed for it.
 
 The curve (mm) and the module size (mm per module along the curve) fix everything:
 

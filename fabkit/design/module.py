@@ -4,8 +4,9 @@ The paper's construction (supplement, "Elaborating on Single Module Design"): th
 0, 1, 2 form a triangle with d1 = |x0 - x1| and d2 = |x1 - x2|; at a wished fixed point D* both
 legs are D*. Their velocities there fix the slope of the map (d1 changes at rate 1, d2 at rate s);
 their positions at a second state (legs D2*, or the swapped legs of a 2-cycle) fix a second point
-of the map. Each specification puts a variable node on a conic (:mod:`fabkit.design.solution_space`); two
-variable nodes on the intersection of two conics meet both, two on one conic meet that one.
+of the map. Each specification puts a variable node on a conic
+(:mod:`fabkit.design.solution_space`); two variable nodes on the intersection of two conics meet
+both, two on one conic meet that one.
 
 What the construction leaves free is chosen for a module that can be built:
 
