@@ -162,6 +162,8 @@ def run(args) -> int:
     for r in results:  # the verdict of a design that is not plainly ok, in one line each
         if r.ok and r.level not in ("", "ok"):
             print(f"{r.name}: {r.headline}")
+        for note in r.notes:  # formats of earlier exports kept in the folder, or removed
+            print(f"{r.name}: {note}")
     index = Path(args.out_dir) / "index.html"
     if any(r.folder for r in results) and index.is_file():
         print(f"open {index} (every design's report)")

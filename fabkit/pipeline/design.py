@@ -9,9 +9,10 @@ from pathlib import Path
 
 from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
 from .folders import _staging_names, carry_over, check_replaceable, recover_folder, swap_in
-from .formats import make_artefacts, plan_design, run_checks
-from .results import DesignResult, FormatStatus, Outcome, Stage
-from .stages import Checks, DesignReport, judge_design
+from .formats import RESERVED, choose_formats, make_artefacts, plan_design, run_checks
+from .manifest import (MANIFEST, design_digest, new_manifest, read_manifest, sort_earlier)
+from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
+from .stages import Artefacts, Checks, DesignReport, judge_design
 
 
 # --- one design ------------------------------------------------------------------------------
@@ -25,15 +26,42 @@ def report_dict(rep: DesignReport) -> dict:
     out = {"design": rep.facts, "fabkit_version": fabkit.__version__,
            "formats": {f: r.as_dict() for f, r in rep.formats.items()},
            "errors": list(rep.errors), "ok": rep.outcome is Outcome.OK,
-           "outcome": rep.outcome.value, "files": sorted(rep.names), "report_version": 3,
+           "outcome": rep.outcome.value, "files": sorted(rep.names), "report_version": 4,
            "previews": list(rep.artefacts.previews), "process": rep.process,
-           "verdict": rep.verdict.as_dict()}
+           "verdict": rep.verdict.as_dict(),
+           "exports": {f: {"export": o.export, "when": o.when, "settings": o.settings,
+                           "fabkit_version": o.fabkit_version, "files": list(o.files),
+                           "kept": f in rep.kept}
+                       for f, o in sorted(rep.origins.items())},
+           "removed": list(rep.removed)}
     mo = motion_facts(rep.motion, rep.formats) if rep.motion is not None else None
     if mo is not None:
         out["motion"] = mo
     if rep.tolerance is not None:
         out["tolerance"] = rep.tolerance.as_dict()
     return out
+
+
+def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefacts:
+    """The Artefacts stage with the formats an earlier export left in ``folder`` added: their
+    files as they are (read back as data, to be written again, checked again as built and shown
+    in the report) and their results from the folder's record (:mod:`fabkit.pipeline.manifest`).
+    A kept file that this export also makes is this export's. The formats follow ``order``
+    (the registry's)."""
+    from ..io.inputs import read_regular
+    from .manifest import MAX_KEPT_BYTES
+
+    files, formats = dict(art.files), dict(art.formats)
+    for fmt, origin in sorted(kept.items()):
+        for name in origin.files:
+            if name not in files:
+                files[name] = read_regular(folder / name, MAX_KEPT_BYTES, what="kept file")
+        formats[fmt] = FormatResult(fmt, FormatStatus.EXPORTED, sorted(origin.files),
+                                    dict(origin.report), "")
+    rank = {f: i for i, f in enumerate(order)}
+    formats = {f: formats[f] for f in sorted(formats, key=lambda f: (rank.get(f, len(rank)), f))}
+    shown = tuple(sorted(n for n in files if n.endswith((".png", ".svg"))))
+    return Artefacts(files, formats, art.tolerance, shown)
 
 
 def export_one(path, formats, outdir, settings, check=True, tolerance_samples=None,
@@ -64,7 +92,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     -------
     DesignResult
     """
-    from ..export import write_atomic, write_outputs
+    from ..export import EXPORTERS, write_atomic, write_outputs
     from ..errors import UnsafeNameError, brief
     from ..motion import trace_motion
     from ..io.outputs import inside
@@ -87,7 +115,10 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
 
     try:
         stage(Stage.LOAD)
-        design = with_settings(load_template(path), settings)  # --set motion.to=...
+        loaded = load_template(path)
+        # what the files are made from, as the template says (--set is compared on its own)
+        digest = design_digest(loaded)
+        design = with_settings(loaded, settings)  # --set motion.to=...
         res.name = design.name
         outdir = Path(outdir)
         try:
@@ -96,11 +127,19 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
         check_replaceable(folder)
         _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
+        # what earlier exports left in the folder: formats still current stay, stale ones go
+        earlier = read_manifest(folder) if folder.is_dir() and not folder.is_symlink() else None
+        registry = dict(EXPORTERS if exporters is None else exporters)
+        made_now = [f for f, _ in choose_formats(design, formats, registry)[0]]
+        kept, removed = sort_earlier(folder, earlier, design, settings, made_now, registry,
+                                     digest)
         stage(Stage.MOTION)
         motion = trace_motion(design)  # once: every later stage reads this one
         plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
-                           allow_large=allow_large)
+                           allow_large=allow_large, kept=kept)
         art = make_artefacts(design, plan, settings, motion, previews, stage=stage)
+        if kept:
+            art = keep_formats(art, folder, kept, list(registry))
         fmts = art.formats
         stage(Stage.WRITE)
         recover_folder(outdir, design.name)
@@ -125,11 +164,15 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                    if v.status is FormatStatus.REFUSED]
         if refused:  # asked for and not made: a failure with its reason, never "ok"
             outcome = Outcome.REFUSED
-        names = [p.name for p in written] + ["report.json", "report.md", "report.html"]
+        record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry,
+                              digest, time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
+        write_atomic(stage_dir / MANIFEST, record.to_bytes())
+        names = [p.name for p in written] + [MANIFEST, "report.json", "report.md",
+                                             "report.html"]
         verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
         rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
                            outcome, tuple(f"{line} (format refused)" for line in refused),
-                           tuple(names))
+                           tuple(names), record.formats, removed)
         # the reports, rendered from the typed results above (none is read back)
         md, js = report_markdown(rep), report_json(report_dict(rep))
         write_atomic(stage_dir / "report.md", md)
@@ -137,17 +180,23 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         traj = motion.trajectory if motion.traced else None
         frames = motion_frames(design, traj, fmts)
         listing = {p.name: len(art.files[p.name]) for p in written}
-        listing.update({"report.md": len(md), "report.json": len(js)})
+        listing.update({"report.md": len(md), "report.json": len(js),
+                        MANIFEST: len(record.to_bytes())})
         write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
         res.card = index_card(rep, design.name, frames)
         res.level, res.headline = str(verdict.level), verdict.headline
-        carry_over(folder, stage_dir)
+        # files of other commands stay; those of earlier exports are ours to keep or drop
+        ours = None if earlier is None else (
+            {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
+        carry_over(folder, stage_dir, ours)
         if swap:
             swap_in(stage_dir, folder)
         else:
             res.staged = str(stage_dir)
         stage_dir = None
         res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
+        res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(
+            removed)
         if outcome is Outcome.REFUSED:
             res.error = f"{path}: cannot produce {'; '.join(refused)}"
             res.error_code = "refused"

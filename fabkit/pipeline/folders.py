@@ -81,15 +81,19 @@ def _export_manifest(folder: Path) -> set | None:
     return names
 
 
-def carry_over(folder: Path, stage: Path) -> list[str]:
+def carry_over(folder: Path, stage: Path, ours=None) -> list[str]:
     """Hard-link (or copy) into ``stage`` what another command wrote into ``folder``: every
-    entry the previous export did not write and the new one does not write either. Returns the
-    names carried over."""
+    entry the previous exports did not write and the new one does not write either. Returns the
+    names carried over.
+
+    ``ours``: the names earlier exports wrote (from the folder's export record,
+    :mod:`fabkit.pipeline.manifest`); None for a folder written before records were kept, whose
+    report.json lists them."""
     import stat
 
     if folder.is_symlink() or not folder.is_dir():  # a link is never followed, nor moved in
         return []
-    mine = _export_manifest(folder) or set()
+    mine = set(ours) if ours is not None else (_export_manifest(folder) or set())
     kept = []
     for entry in sorted(folder.iterdir()):
         if entry.name in mine or entry.name.startswith(".") or os.path.lexists(

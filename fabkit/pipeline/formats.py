@@ -12,7 +12,7 @@ from .stages import Artefacts, Plan
 
 #: Files the batch writes itself into every design folder (besides the exporters' files).
 RESERVED = ("report.json", "report.md", "report.html", "preview_motion.png", "preview_map.png",
-            "preview_tolerance.png")
+            "preview_tolerance.png", "exports.json")
 
 
 #: Largest number of Monte Carlo builds of the tolerance analysis without ``--allow-large``: each
@@ -118,7 +118,7 @@ def _tolerance_spec(design, settings, tolerance_samples, allow_large, process=No
 
 
 def plan_design(design, formats, settings, motion, tolerance_samples=None, exporters=None, *,
-                allow_large=False) -> Plan:
+                allow_large=False, kept=()) -> Plan:
     """The Plan stage: the formats a design gets, and the process its export is made by.
 
     Parameters
@@ -137,6 +137,9 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
         Format registry (default :data:`fabkit.export.EXPORTERS`).
     allow_large : bool
         Lift the bound on Monte Carlo samples.
+    kept : iterable of str
+        Formats an earlier export left in the design's folder that stay there: the folder's
+        process is decided by them too (one report covers every format in the folder).
 
     Returns
     -------
@@ -152,7 +155,7 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
 
     exporters = dict(EXPORTERS if exporters is None else exporters)
     chosen, skipped = choose_formats(design, formats, exporters)
-    process = made_process(design, [f for f, _ in chosen], settings)
+    process = made_process(design, [f for f, _ in chosen] + list(kept), settings)
     spec = None
     if motion.traced and tolerance_samples != 0:
         # settings and sizes are checked before any heavy work: a bad value fails at once

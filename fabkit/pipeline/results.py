@@ -140,6 +140,9 @@ class DesignResult:
         ``FLAG``, ``FAIL``), ``""`` when nothing was written.
     headline : str
         The verdict in one line (it heads report.md, report.html and the card).
+    notes : list of str
+        What happened to the formats earlier exports left in the folder: each kept or removed
+        (stale) format in one line.
     """
 
     path: str
@@ -158,6 +161,7 @@ class DesignResult:
     card: object = None
     level: str = ""
     headline: str = ""
+    notes: list = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -173,7 +177,7 @@ class DesignResult:
                 "folder": self.folder, "error": self.error, "error_code": self.error_code,
                 "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
                 "stages": dict(self.stages), "worker_exit": self.worker_exit,
-                "level": self.level, "headline": self.headline}
+                "level": self.level, "headline": self.headline, "notes": list(self.notes)}
 
 
 def exit_code(results) -> int:

@@ -252,6 +252,11 @@ class DesignReport:
     errors : list of str
     names : list of str
         Every file the export writes into the folder, the reports included.
+    origins : dict of str to FormatOrigin
+        Where each format in the folder came from: this export, or an earlier one whose files
+        stay (:mod:`fabkit.pipeline.manifest`).
+    removed : tuple of str
+        The stale formats of earlier exports removed from the folder, one line each with why.
     """
 
     design: object
@@ -264,6 +269,8 @@ class DesignReport:
     outcome: Outcome
     errors: tuple = ()
     names: tuple = ()
+    origins: dict = field(default_factory=dict)
+    removed: tuple = ()
 
     @property
     def process(self) -> str:
@@ -276,6 +283,13 @@ class DesignReport:
     @property
     def tolerance(self):
         return self.artefacts.tolerance
+
+    @property
+    def kept(self) -> set:
+        """Formats an earlier export made whose files stay in the folder (this export did not
+        make them again)."""
+        return {f for f, o in self.origins.items()
+                if f not in self.plan.formats and self.formats.get(f) is not None}
 
     def produced(self, fmt: str) -> bool:
         f = self.formats.get(fmt)

@@ -554,6 +554,7 @@ FILE_ROLES = (
     (r"preview_tolerance\.png", "picture: the tolerance analysis"),
     (r"report\.json", "this report as data"),
     (r"report\.md", "this report as text"),
+    (r"exports\.json", "which export made each format's files, and how (read by the next export)"),
 )
 
 
@@ -679,6 +680,26 @@ def _files_section(listing: dict, process: str | None) -> str:
     return ("<section id=files><h2>Files</h2><p>Every file written for this design, next to this "
             'page.</p><div class="scroll"><table><tr><th>file</th><th>size</th><th>what it is'
             "</th></tr>" + rows + "</table></div></section>")
+
+
+def _exports_section(report) -> str:
+    """Which export made each format's files in the folder, when and with what settings, and
+    the stale formats removed (:mod:`fabkit.pipeline.manifest`)."""
+    if not report.origins and not report.removed:
+        return ""
+    kept = report.kept
+    rows = "".join(
+        f"<tr><td>{_esc(f)}</td><td>{o.export}</td><td class=nowrap>{_esc(o.when)} UTC</td>"
+        f"<td>{_esc(o.line().split('settings: ', 1)[1])}</td>"
+        f"<td>{'kept, checked again' if f in kept else 'made now'}</td></tr>"
+        for f, o in sorted(report.origins.items()))
+    gone = "".join(f"<li>{_esc(r)}</li>" for r in report.removed)
+    return ("<section id=exports><h2>Exports in this folder</h2><p>A later export adds its "
+            "formats to those already here; an earlier format stays while it was made from the "
+            "same design, settings and fabkit version.</p><div class=\"scroll\"><table><tr>"
+            "<th>format</th><th>export</th><th>when</th><th>settings</th><th>here</th></tr>"
+            + rows + "</table></div>" + (f"<p>Removed (stale):</p><ul>{gone}</ul>" if gone
+                                         else "") + "</section>")
 
 
 def _laser_section(files: dict, ident: str = "laser") -> str:
@@ -862,7 +883,7 @@ def design_html(report, files: dict, listing: dict, frames: dict | None = None) 
             + (f" · {_esc(d['figure'])}" if d.get("figure") else "")
             + f" · fabkit {_esc(_version())}</p></header>")
     body = [_verdict_section(report), _lead_section(report, files),
-            _files_section(listing, report.process)]
+            _files_section(listing, report.process), _exports_section(report)]
     data = frames if frames is not None else _frames(report)
     motion = report.motion
     line = motion.line() if motion is not None and motion.status.value != "no target" else ""
@@ -927,6 +948,8 @@ class IndexCard:
         Why nothing (or nothing of its own process) was written, ``""`` otherwise.
     frames : dict or None
         The motion as drawing data (:func:`fabkit.report.html.motion_frames`).
+    exports : tuple of str
+        ``"dxf: export 1"`` for each format, when the folder holds more than one export's.
     """
 
     folder: str
@@ -939,6 +962,7 @@ class IndexCard:
     checked: int
     why_not: str = ""
     frames: dict | None = None
+    exports: tuple = ()
 
 
 def index_card(report, folder: str, frames: dict | None = None):
@@ -964,9 +988,14 @@ def index_card(report, folder: str, frames: dict | None = None):
         why = "; ".join(w for w in not_exported(report.formats)
                         if w.split(":")[0] in PROCESSES[report.process])
     data = frames if frames is not None else _frames(report)
+    origins = getattr(report, "origins", {}) or {}
+    exports = ()
+    if len({o.export for o in origins.values()}) > 1:
+        exports = tuple(f"{f}: export {o.export} ({o.when} UTC)"
+                        for f, o in sorted(origins.items()))
     return IndexCard(folder, report.facts["name"], report.facts.get("description", ""),
                      str(report.verdict.level), report.verdict.text, report.process, made,
-                     len(report.checks.results), why, data)
+                     len(report.checks.results), why, data, exports)
 
 
 def index_html(cards, earlier=()) -> bytes:
@@ -997,6 +1026,8 @@ def index_html(cards, earlier=()) -> bytes:
                          f"{_esc(', '.join(c.formats))}" + (
                              f" · {c.checked} file{'s' if c.checked != 1 else ''} read back"
                              if c.checked else " · no as-built check ran") + "</p>")
+            if c.exports:
+                lines.append(f"<p>from more than one export: {_esc('; '.join(c.exports))}</p>")
             if c.why_not:
                 lines.append(f'<p class="warn">No {_esc(c.process)} files: {_esc(c.why_not)}'
                              "</p>")

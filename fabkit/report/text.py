@@ -286,6 +286,14 @@ def _formats_markdown(report) -> list[str]:
     if not fmts:
         return []
     out = ["## Files", ""]
+    numbers = sorted({o.export for o in report.origins.values()})
+    if len(numbers) > 1:
+        out += ["This folder holds the files of more than one export: "
+                + "; ".join(f"export {n}: " + ", ".join(sorted(
+                    f for f, o in report.origins.items() if o.export == n)) for n in numbers)
+                + ".", ""]
+    if report.removed:
+        out += ["Removed from the folder (stale): " + "; ".join(report.removed) + ".", ""]
     if skipped:
         out += ["Not exported: " + ", ".join(
             f"{k} ({v.status}" + (f": {v.detail}" if v.detail else "") + ")"
@@ -295,6 +303,11 @@ def _formats_markdown(report) -> list[str]:
         out.append(f"### {name}: {f.status}")
         if f.status.produced:
             out.append(f"Made by the {_process_of(name)} process.")
+            origin = report.origins.get(name)
+            if origin is not None:
+                out.append(f"From {origin.line()}" + (
+                    "; kept from that export (same design, settings and fabkit version) and "
+                    "checked again as built." if name in report.kept else "."))
         elif f.detail:
             out.append(f"- {f.detail}")
         out.append("")
