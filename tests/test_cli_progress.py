@@ -83,6 +83,22 @@ def test_progress_goes_to_stderr_from_the_start_and_q_silences_it(name, kit, tmp
     assert quiet.out.strip() and len(quiet.out.splitlines()) == len(shown.out.splitlines())
 
 
+def test_a_single_design_export_counts_its_stages(tmp_path, capsys):
+    """One design: each stage says its place among the design's stages, after the first line
+    that comes before any work (the time left is the Progress tests' business: it depends on
+    the clock)."""
+    shown = _run(_argv("export", tmp_path) + ["--progress"], capsys)
+    lines = shown.err.splitlines()
+    assert lines[0].startswith("fabkit export [0/1 designs, ") and all(map(LINE.match, lines))
+    stages = [re.search(r"\[0/1 designs, (\d)/7 stages, .*\] fourbar: (\w+)$", x)
+              for x in lines[1:-1]]
+    assert all(stages), lines
+    # --no-previews and --tolerance-samples 0: those stages do not run, and are not counted
+    assert [(int(m[1]), m[2]) for m in stages] == [(0, "load"), (1, "motion"), (2, "export"),
+                                                   (5, "write"), (6, "check")]
+    assert lines[-1].startswith("fabkit export [1/1 designs, ") and "fourbar: ok in " in lines[-1]
+
+
 class _Stop(FabkitError):
     """Raised in place of a command's work, once the test has seen what was said before it."""
 

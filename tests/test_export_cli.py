@@ -17,7 +17,7 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.pipeline import Outcome, Progress, export_many
+from fabkit.pipeline import Outcome, export_many
 from fabkit.commands.export import parse_formats, parse_settings
 from fabkit.errors import UsageError
 from fabkit.io.templates import load_template
@@ -94,7 +94,8 @@ def test_export_writes_a_folder_per_design_with_reports_identically_twice(tmp_pa
                                                      "super_stable_chain8"]
 
     files = snapshot(out / "fourbar")
-    assert set(files) == {"fourbar_lengths.txt", "report.json", "report.md", "report.html",
+    assert set(files) == {"fourbar_lengths.txt", "exports.json", "report.json", "report.md",
+                          "report.html",
                           "preview_motion.png", "preview_map.png", "preview_tolerance.png"}
     for name in ("preview_motion.png", "preview_map.png", "preview_tolerance.png"):
         assert files[name][:8] == b"\x89PNG\r\n\x1a\n"
@@ -434,26 +435,40 @@ def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_progress_is_one_line_per_stage_also_off_a_terminal():
+def test_progress_counts_the_stages_of_the_one_design_in_hand():
+    """Said through the one progress of every command: a design alone in hand counts its
+    stages with the time left; designs side by side say each stage as it starts."""
     import io
 
+    from fabkit.commands.export import DesignProgress
+    from fabkit.commands.progress import Progress
     from fabkit.pipeline import DesignResult, Stage
 
-    stream = io.StringIO()  # not a terminal
-    bar = Progress(2, stream, after=0.0)
-    bar.stage("a", Stage.MOTION)
-    bar.stage("a", Stage.CHECK)
-    bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
-    bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    stream = io.StringIO()  # not a terminal: shown because asked (--progress)
+    ticks = iter([0, 0, 0, 2, 4, 5, 6, 7, 8, 9, 10])
+    bar = Progress("fabkit export", show=True, stream=stream, clock=ticks.__next__)
+    bar.stage("2 designs", total=2, unit="designs")
+    said = DesignProgress(bar)
+    said.stage("a", Stage.LOAD)
+    said.stage("a", Stage.MOTION)
+    said.stage("a", Stage.CHECK)
+    said.stage("b", Stage.LOAD)  # b starts beside a: stages are said, not counted
+    said.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
+    said.stage("b", Stage.MOTION)  # b alone again: counted
+    said.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
     lines = stream.getvalue().splitlines()
-    assert len(lines) == 4
-    assert lines[0].startswith("[0/2 ") and "] a: motion (0.0 s in)" in lines[0]
-    assert "] a: check (" in lines[1]
-    assert lines[2].startswith("[1/2 ") and lines[2].endswith("] a: ok in 1.2 s")
-    assert lines[3].startswith("[2/2 ") and lines[3].endswith("] b: failed in 0.5 s")
+    assert lines == [
+        "fabkit export [0/2 designs, 0.0 s] 2 designs",
+        "fabkit export [0/2 designs, 0/7 stages, 0.0 s] a: load",
+        "fabkit export [0/2 designs, 1/7 stages, 2.0 s, about 12 s left in this one] a: motion",
+        "fabkit export [0/2 designs, 6/7 stages, 4.0 s, about 0.7 s left in this one] a: check",
+        "fabkit export [0/2 designs, 5.0 s] b: load",
+        "fabkit export [1/2 designs, 6.0 s, about 6.0 s left] a: ok in 1.2 s",
+        "fabkit export [1/2 designs, 1/7 stages, 7.0 s, about 5.0 s left] b: motion",
+        "fabkit export [2/2 designs, 8.0 s] b: failed in 0.5 s"]
     silent = io.StringIO()
-    bar = Progress(1, silent, quiet=True, after=0.0)
-    bar.stage("a", Stage.LOAD)
+    bar = Progress("fabkit export", show=False, stream=silent)
+    DesignProgress(bar).stage("a", Stage.LOAD)
     assert silent.getvalue() == ""
 
 

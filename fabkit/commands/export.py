@@ -176,15 +176,56 @@ def run(args) -> int:
 class DesignProgress:
     """What :func:`fabkit.pipeline.export_many` reports (``stage(name, stage)`` as a design starts
     a stage, ``finished(result)`` as it ends), said through one
-    :class:`~fabkit.commands.progress.Progress` whose count is the designs."""
+    :class:`~fabkit.commands.progress.Progress` whose count is the designs.
+
+    While one design is in hand (a single design, or one at a time), its stages are counted
+    too (``[0/1 designs, 3/7 stages, 41 s, about 1 min left]``), with the time left at the rate
+    of the stages done so far; designs exported side by side say each stage as it starts.
+
+    Examples
+    --------
+    >>> import io
+    >>> from fabkit.commands.progress import Progress
+    >>> from fabkit.pipeline import DesignResult, Outcome, Stage
+    >>> out = io.StringIO()
+    >>> p = Progress("fabkit export", show=True, stream=out,
+    ...              clock=iter([0, 0, 1, 3, 9, 9]).__next__)
+    >>> p.stage("1 design", total=1, unit="designs")
+    >>> said = DesignProgress(p)
+    >>> said.stage("chain", Stage.LOAD)
+    >>> said.stage("chain", Stage.MOTION)
+    >>> said.stage("chain", Stage.EXPORT)
+    >>> said.finished(DesignResult("chain.toml", "chain", Outcome.OK, seconds=9.0))
+    >>> print(out.getvalue(), end="")
+    fabkit export [0/1 designs, 0.0 s] 1 design
+    fabkit export [0/1 designs, 0/7 stages, 1.0 s] chain: load
+    fabkit export [0/1 designs, 1/7 stages, 3.0 s, about 12 s left] chain: motion
+    fabkit export [0/1 designs, 2/7 stages, 9.0 s, about 20 s left] chain: export
+    fabkit export [1/1 designs, 9.0 s] chain: ok in 9.0 s
+    """
+
+    #: The stages of one design, in order: the count of its stages.
+    STAGES = ("load", "motion", "export", "previews", "tolerance", "write", "check")
 
     def __init__(self, progress):
         self.progress = progress
+        self.in_hand: set = set()
 
     def stage(self, name: str, stage) -> None:
-        self.progress.stage(f"{name}: {stage}")
+        text = f"{name}: {stage}"
+        if str(stage) == self.STAGES[0]:
+            self.in_hand.add(name)
+        if len(self.in_hand) <= 1 and str(stage) in self.STAGES:
+            self.progress.within(self.STAGES.index(str(stage)), len(self.STAGES), "stages",
+                                 text=text)
+        else:
+            self.progress.stage(text)
 
     def finished(self, result) -> None:
+        from pathlib import Path
+
+        # a design is named after its file until its template is read
+        self.in_hand.difference_update({result.name, Path(result.path).stem})
         self.progress.advance(text=f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
 
     def close(self) -> None:

@@ -3,7 +3,7 @@
 Callable from Python::
 
     from fabkit.pipeline import export_many
-    results = export_many(["templates/fourbar.toml"], outdir="out", jobs=2)
+    results = export_many(["fourbar", "templates/fourbar_chain.toml"], outdir="out", jobs=2)
     results[0].outcome        # Outcome.OK / FAILED / CHECK_FAILED / INTERRUPTED
     results[0].formats["dxf"] # FormatResult(status=FormatStatus.EXPORTED, files=[...], ...)
 
@@ -30,15 +30,13 @@ What it guarantees:
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
   is loaded (:mod:`fabkit.io.templates`).
-- **Progress.** One line per design and stage on stdout (``[3/30  41.2s] chaotic_chain: check
-  (12.1 s in)``) whether or not it is a terminal: a design that takes more than two seconds
-  announces each stage as it starts, and every design says how it ended.
+- **Progress.** ``progress`` hears each design's stages as they start and each design as it
+  ends; :class:`fabkit.commands.export.DesignProgress` says them through the one progress of
+  every command (:mod:`fabkit.commands.progress`: stderr, ``-q``, ``--progress``).
 """
 
 from __future__ import annotations
 
-import sys
-import time
 from pathlib import Path
 
 from ..errors import BoundsError, FabkitError
@@ -54,60 +52,11 @@ from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
-           "OutputLock", "Progress", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
+           "OutputLock", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
            "DESIGN_TIMEOUT", "SILENCE", "FAULT_ENV"]
 
 
 # --- many designs ----------------------------------------------------------------------------
-
-class Progress:
-    """Progress on stdout: one line per design and stage, terminal or not (stderr is kept for
-    the one-line errors).
-
-    Parameters
-    ----------
-    total : int
-        Number of designs.
-    stream : file, optional
-        Default ``sys.stdout``.
-    quiet : bool
-        Print nothing.
-    after : float
-        A stage is shown once its design has run this many seconds (a design that is done
-        sooner shows one line, when it ends).
-    """
-
-    def __init__(self, total: int, stream=None, quiet=False, after=2.0):
-        self.stream = stream or sys.stdout
-        self.total = total
-        self.done = 0
-        self.quiet = quiet
-        self.after = after
-        self.t0 = time.perf_counter()
-        self.started: dict[str, float] = {}
-
-    def _line(self, text: str) -> None:
-        if self.quiet:
-            return
-        self.stream.write(f"[{self.done}/{self.total} {time.perf_counter() - self.t0:6.1f}s] "
-                          f"{text}\n")
-        self.stream.flush()
-
-    def stage(self, name: str, stage) -> None:
-        """A design starts a stage."""
-        now = time.perf_counter()
-        start = self.started.setdefault(name, now)
-        if now - start >= self.after:
-            self._line(f"{name}: {stage} ({now - start:.1f} s in)")
-
-    def finished(self, result: DesignResult) -> None:
-        """A design is done."""
-        self.done += 1
-        self._line(f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
-
-    def close(self) -> None:
-        pass
-
 
 def summary_table(results) -> str:
     """The table printed at the end: one line per design."""
@@ -166,8 +115,9 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
 
     Parameters
     ----------
-    paths : sequence of path
-        Template files.
+    paths : sequence of path or str
+        Template files; a string without a folder part may also name a bundled template
+        (``"super_stable"``), as on the command line.
     formats : list of str or None
         Formats to export (None: every format that applies to each design).
     outdir : path
@@ -181,7 +131,10 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     tolerance_samples : int or None
         Monte Carlo builds (0: no tolerance analysis; None: the template's setting, else the
         analysis's default).
-    progress : Progress, optional
+    progress : object, optional
+        Told ``stage(name, stage)`` as a design starts a stage, ``stage_done(name, done, total)``
+        (when it has that method) as one ends, and ``finished(result)`` as a design ends:
+        :class:`fabkit.commands.export.DesignProgress` says them as ``fabkit export`` does.
     isolate : bool
         Export in fresh worker processes with a fixed hash seed (``PYTHONHASHSEED=0``), so that
         no library's set or dict ordering can make two runs differ; False with ``jobs=1`` runs
@@ -224,7 +177,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     from ..export import EXPORTERS
     from ..report.html import write_index
     from ..io.templates import allow_large as large_allowed
-    from ..io.templates import load_template
+    from ..io.templates import load_template, resolve_template
 
     allow_large = allow_large or large_allowed()
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
@@ -235,7 +188,9 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     exporters = dict(EXPORTERS if exporters is None else exporters)
     # before any design: one bad key fails them all alike
     settings = check_export_settings(settings or {}, exporters)
-    paths = [Path(p) for p in paths]
+    # a bare name is a bundled template, as on the command line (a file of that name in the
+    # current folder wins); a misspelt one fails its design with a "did you mean"
+    paths = [resolve_template(p) if isinstance(p, str) else Path(p) for p in paths]
     results: list[DesignResult | None] = [None] * len(paths)
     owners: dict[str, Path] = {}
     names: dict[int, str] = {}
