@@ -96,7 +96,7 @@ def test_a_worker_dying_at_any_moment_fails_only_its_design(tmp_path, lengths, m
     assert not any(VICTIM in k for k in files), sorted(files)
     assert sorted(k for k in files if not k.startswith("index")) == sorted(
         f"{n}/{f}" for n in DESIGNS if n != VICTIM
-        for f in (f"{n}_lengths.txt", "report.html", "report.json", "report.md"))
+        for f in (f"{n}_lengths.txt", "exports.json", "report.html", "report.json", "report.md"))
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
 
 

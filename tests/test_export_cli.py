@@ -145,8 +145,9 @@ def test_no_previews_leaves_the_pictures_out(tmp_path, lengths_format):
     out = tmp_path / "out"
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "-o", str(out), "--no-previews"])
     assert rc == 0
-    assert set(snapshot(out)) == {"fourbar/fourbar_lengths.txt", "fourbar/report.json",
-                                  "fourbar/report.md", "fourbar/report.html", "index.html"}
+    assert set(snapshot(out)) == {"fourbar/fourbar_lengths.txt", "fourbar/exports.json",
+                                  "fourbar/report.json", "fourbar/report.md",
+                                  "fourbar/report.html", "index.html"}
     report = json.loads((out / "fourbar" / "report.json").read_text())
     assert report["previews"] == [] and report["tolerance"]["samples"] == 200
 
@@ -201,8 +202,8 @@ def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, caps
     assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
     first = snapshot(out / "fourbar")
     assert {k: first[k] for k in others} == others  # byte for byte
-    assert set(first) == set(others) | {"fourbar_lengths.txt", "report.json", "report.md",
-                                        "report.html"}
+    assert set(first) == set(others) | {"fourbar_lengths.txt", "exports.json", "report.json",
+                                        "report.md", "report.html"}
     # export again with a format of another name: the old export file goes, the others stay
     source = (lengths_format / f"{FAKE_MODULE}.py").read_text()
     (lengths_format / "fabkit_test_widths_format.py").write_text(
@@ -211,10 +212,14 @@ def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, caps
     assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
     second = snapshot(out / "fourbar")
     assert {k: second[k] for k in others} == others
-    assert set(second) == set(others) | {"fourbar_widths.txt", "report.json", "report.md",
-                                         "report.html"}
+    assert set(second) == set(others) | {"fourbar_widths.txt", "exports.json", "report.json",
+                                         "report.md", "report.html"}
     report = json.loads(second["report.json"])
-    assert report["files"] == ["fourbar_widths.txt", "report.html", "report.json", "report.md"]
+    assert report["files"] == ["exports.json", "fourbar_widths.txt", "report.html", "report.json",
+                               "report.md"]
+    assert report["removed"] == ["lengths (fourbar_lengths.txt) from export 1 removed: its "
+                                 "exporter is not available: unknown export format 'lengths'; "
+                                 "valid: widths"]
     capsys.readouterr()
 
 
@@ -716,6 +721,7 @@ def test_a_worker_killed_by_the_system_fails_its_design_only(tmp_path, slow_expo
     assert "fourbar.toml: worker died (signal 9, SIGKILL) while exporting fourbar; nothing of " \
            "it was written" in err[0]
     files = snapshot(out)
-    assert sorted(files) == ["index.html", "super_stable_chain8/report.html",
+    assert sorted(files) == ["index.html", "super_stable_chain8/exports.json",
+                             "super_stable_chain8/report.html",
                              "super_stable_chain8/report.json", "super_stable_chain8/report.md",
                              "super_stable_chain8/super_stable_chain8.txt"]

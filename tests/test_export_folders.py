@@ -199,3 +199,43 @@ def test_export_many_takes_bundled_names_and_suggests_for_misspelt_ones(tmp_path
     rows = export_many(["fourbar"], ["dxf"], "out", isolate=False, tolerance_samples=0,
                        previews=False)
     assert rows[0].ok and rows[0].name == "my_fourbar"
+
+
+# --- the library's export: the same lock, and no second truth in a design folder --------------
+
+def test_a_library_export_into_a_locked_folder_fails_and_writes_nothing(tmp_path):
+    import fabkit
+    from fabkit.errors import LockedError
+    from fabkit.export import export
+    from fabkit.io.outputs import OutputLock
+
+    design = fabkit.load_template("fourbar")
+    out = tmp_path / "out"
+    out.mkdir()
+    with OutputLock(out):  # an export into out/ is running (it would write out/<name>/)
+        with pytest.raises(LockedError) as err:
+            export(design, "dxf", out / "kit")
+        assert err.value.path == str(out)
+        assert str(err.value).startswith(f"{out}: process ")
+        assert sorted(p.name for p in out.iterdir()) == [".fabkit.lock"]  # nothing written
+    paths, report = export(design, "dxf", out / "kit")  # the lock released: it goes through
+    assert (out / "kit" / "laser_sheet1.dxf") in paths and report["layers"]["count"] >= 1
+    assert sorted(p.name for p in out.iterdir()) == ["kit"]  # the lock file is gone with it
+
+
+def test_a_library_export_leaves_an_exported_design_folder_alone(tmp_path, capsys):
+    import fabkit
+    from fabkit.export import export
+
+    out = tmp_path / "out"
+    assert _export(TEMPLATES / "fourbar.toml", out, "--to", "dxf", capsys=capsys)[0] == 0
+    folder = out / "fourbar"
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    with pytest.raises(OutputError, match=r"holds the export of a design with its report "
+                                          r"\(exports.json\)"):
+        export(fabkit.load_template("fourbar"), "dxf", folder, laser={"kerf": 0.2})
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    # the way to add a kerf-0.2 kit beside it keeps one report: a folder of its own
+    paths, _ = export(fabkit.load_template("fourbar"), "dxf", out / "kerf_0.2",
+                      laser={"kerf": 0.2})
+    assert json.loads((out / "kerf_0.2" / "laser_bom.json").read_text())["kerf"]["kerf_mm"] == 0.2

@@ -102,7 +102,13 @@ def write_outputs(files: dict[str, bytes], outdir) -> list[Path]:
 def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     """Export a design in one format into ``outdir``.
 
-    All content is computed first; nothing is written when the exporter raises.
+    All content is computed first; nothing is written when the exporter raises. The files are
+    written under the lock ``fabkit export`` takes on the folder that holds ``outdir``
+    (``out/.fabkit.lock`` for ``out/kit``: ``outdir`` could be a design folder of an export into
+    ``out``), so the two never write into one folder at once. A design folder of ``fabkit
+    export`` (it holds ``exports.json``, or a ``report.json``) is refused: its report would no
+    longer say what its files are; add a format to it with ``fabkit export --to`` or
+    :func:`fabkit.pipeline.export_many`, which keep one report over every format.
 
     Parameters
     ----------
@@ -126,7 +132,10 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     ArgumentTypeError
         ``design`` is not a Design.
     OutputError
-        ``outdir`` is not a folder path, or cannot be created or written.
+        ``outdir`` is not a folder path, or cannot be created or written, or it is the design
+        folder of an export with its report.
+    LockedError
+        Another export holds the folder that holds ``outdir``; nothing is written.
     """
     from ..errors import ArgumentTypeError
     from ..io.outputs import output_folder
@@ -139,4 +148,32 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     module = get_exporter(fmt)
     outdir = output_folder(outdir, "outdir")  # a folder path that can be written, before work
     result: ExportResult = module.export_design(design, settings)
-    return write_outputs(result.files, outdir), result.report
+    with _folder_lock(outdir):
+        _refuse_export_folder(outdir)
+        return write_outputs(result.files, outdir), result.report
+
+
+def _folder_lock(outdir: Path):
+    """The lock of the folder that holds ``outdir``, as ``fabkit export -o`` that folder takes
+    it; none where no export could hold it (the folder does not exist, or cannot be written)."""
+    import contextlib
+    import os
+
+    from ..io.outputs import OutputLock
+
+    parent = outdir.absolute().parent
+    if parent.is_dir() and not parent.is_symlink() and os.access(parent, os.W_OK | os.X_OK):
+        return OutputLock(parent)
+    return contextlib.nullcontext()
+
+
+def _refuse_export_folder(outdir: Path) -> None:
+    from ..errors import OutputError
+
+    for name in ("exports.json", "report.json"):
+        if (outdir / name).is_file():
+            raise OutputError(outdir, f"holds the export of a design with its report ({name}); "
+                                      "files written beside them would not be in the report: "
+                                      "add a format with fabkit export --to FORMAT (or "
+                                      "fabkit.pipeline.export_many), or export into another "
+                                      "folder")

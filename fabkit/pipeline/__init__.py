@@ -14,9 +14,13 @@ What it guarantees:
   the tests read these fields; no decision anywhere reads the text of an error message.
 - **Atomic folders.** A design is computed completely in memory, written to a hidden staging folder
   (each file through a temporary file and a rename), checked as built there, and swapped in place
-  of the previous export by two renames. Files in the old folder that the export did not write
-  (those of ``fabkit simulate``, ``map``, ``tolerance``, ``fold``) are carried over, so commands do
-  not delete each other's outputs.
+  of the previous export by two renames. Files in the old folder that no export wrote (those of
+  ``fabkit simulate``, ``map``, ``tolerance``, ``fold``) are carried over, so commands do not
+  delete each other's outputs.
+- **Formats added, not swapped.** The formats an earlier export left in the folder stay while
+  they are current (same design, settings they read, fabkit version: ``exports.json``,
+  :mod:`fabkit.pipeline.manifest`) and are checked again; stale ones are removed, saying why.
+  The reports cover every format in the folder.
 - **One export per folder.** A lock file ``<out>/.fabkit.lock`` (``flock``) makes a second export
   into the same folder refuse with :class:`~fabkit.errors.LockedError`, or wait with ``wait=True``.
 - **Signals and processes.** Workers are spawned processes that die with their parent
