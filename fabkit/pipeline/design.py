@@ -127,6 +127,9 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
         check_replaceable(folder)
         _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
+        # a folder caught between the two renames of a killed run is put back first: its
+        # record says what it holds
+        recover_folder(outdir, design.name)
         # what earlier exports left in the folder: formats still current stay, stale ones go
         earlier = read_manifest(folder) if folder.is_dir() and not folder.is_symlink() else None
         registry = dict(EXPORTERS if exporters is None else exporters)
@@ -142,7 +145,6 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             art = keep_formats(art, folder, kept, list(registry))
         fmts = art.formats
         stage(Stage.WRITE)
-        recover_folder(outdir, design.name)
         stage_dir = _staging_names(outdir, design.name)[0]
         stage_dir.mkdir(parents=True)
         written = write_outputs(art.files, stage_dir)

@@ -76,9 +76,11 @@ class FormatOrigin:
             other.design_digest, _canonical(other.settings), other.fabkit_version)
 
     def line(self) -> str:
-        """``"export 2 (2026-11-28 08:30:00 UTC), settings: laser.kerf=0.2"``."""
-        said = ", ".join(f"{k}={json.dumps(v)}" for k, v in _flat(self.settings)) or "defaults"
-        return f"export {self.export} ({self.when} UTC), settings: {said}"
+        """``"export 2 (2026-11-28 08:30:00 UTC), settings: the template's, --set
+        laser.kerf=0.2"``."""
+        said = ", ".join(f"{k}={json.dumps(v)}" for k, v in _flat(self.settings))
+        return (f"export {self.export} ({self.when} UTC), settings: the template's"
+                + (f", --set {said}" if said else ""))
 
     def as_dict(self) -> dict:
         return {"files": list(self.files), "export": self.export, "when": self.when,

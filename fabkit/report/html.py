@@ -682,6 +682,11 @@ def _files_section(listing: dict, process: str | None) -> str:
             "</th></tr>" + rows + "</table></div></section>")
 
 
+def _kept_word(report, fmt: str) -> str:
+    f = report.formats.get(fmt)
+    return "kept, checked again" if f is not None and f.checks else "kept"
+
+
 def _exports_section(report) -> str:
     """Which export made each format's files in the folder, when and with what settings, and
     the stale formats removed (:mod:`fabkit.pipeline.manifest`)."""
@@ -691,7 +696,7 @@ def _exports_section(report) -> str:
     rows = "".join(
         f"<tr><td>{_esc(f)}</td><td>{o.export}</td><td class=nowrap>{_esc(o.when)} UTC</td>"
         f"<td>{_esc(o.line().split('settings: ', 1)[1])}</td>"
-        f"<td>{'kept, checked again' if f in kept else 'made now'}</td></tr>"
+        f"<td>{_kept_word(report, f) if f in kept else 'made now'}</td></tr>"
         for f, o in sorted(report.origins.items()))
     gone = "".join(f"<li>{_esc(r)}</li>" for r in report.removed)
     return ("<section id=exports><h2>Exports in this folder</h2><p>A later export adds its "

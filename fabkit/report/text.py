@@ -305,9 +305,10 @@ def _formats_markdown(report) -> list[str]:
             out.append(f"Made by the {_process_of(name)} process.")
             origin = report.origins.get(name)
             if origin is not None:
+                again = " and checked again as built" if f.checks else ""
                 out.append(f"From {origin.line()}" + (
-                    "; kept from that export (same design, settings and fabkit version) and "
-                    "checked again as built." if name in report.kept else "."))
+                    f"; kept from that export (same design, settings and fabkit version){again}."
+                    if name in report.kept else "."))
         elif f.detail:
             out.append(f"- {f.detail}")
         out.append("")
