@@ -166,8 +166,9 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
 
     Parameters
     ----------
-    paths : sequence of path
-        Template files.
+    paths : sequence of path or str
+        Template files, or bare names (``"super_stable"``): a template of that name in the
+        current folder, else the bundled one, as ``fabkit export NAME`` takes them.
     formats : list of str or None
         Formats to export (None: every format that applies to each design).
     outdir : path
@@ -224,7 +225,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     from ..export import EXPORTERS
     from ..report.html import write_index
     from ..io.templates import allow_large as large_allowed
-    from ..io.templates import load_template
+    from ..io.templates import load_template, resolve_template
 
     allow_large = allow_large or large_allowed()
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
@@ -235,7 +236,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     exporters = dict(EXPORTERS if exporters is None else exporters)
     # before any design: one bad key fails them all alike
     settings = check_export_settings(settings or {}, exporters)
-    paths = [Path(p) for p in paths]
+    # a bare name is a template of the current folder or a bundled one, as on the command line
+    paths = [resolve_template(p) for p in paths]
     results: list[DesignResult | None] = [None] * len(paths)
     owners: dict[str, Path] = {}
     names: dict[int, str] = {}
