@@ -17,7 +17,7 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.pipeline import Outcome, Progress, export_many
+from fabkit.pipeline import Outcome, export_many
 from fabkit.commands.export import parse_formats, parse_settings
 from fabkit.errors import UsageError
 from fabkit.io.templates import load_template
@@ -434,26 +434,32 @@ def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_progress_is_one_line_per_stage_also_off_a_terminal():
+def test_export_progress_is_the_commands_progress_one_line_per_stage():
+    """export_many's stages and ends reach the one progress of the command line (stderr, the
+    designs done of all, the time left) through DesignProgress; -q prints nothing."""
     import io
 
+    from fabkit.commands.export import DesignProgress
+    from fabkit.commands.progress import Progress
     from fabkit.pipeline import DesignResult, Stage
 
-    stream = io.StringIO()  # not a terminal
-    bar = Progress(2, stream, after=0.0)
+    stream = io.StringIO()  # not a terminal: shown because asked (--progress)
+    clock = iter([0.0, 0.0, 0.5, 1.0, 2.0, 4.0, 4.0]).__next__
+    progress = Progress("fabkit export", show=True, stream=stream, clock=clock)
+    progress.stage("2 designs into out, 1 at a time", total=2, unit="designs")
+    bar = DesignProgress(progress)
     bar.stage("a", Stage.MOTION)
-    bar.stage("a", Stage.CHECK)
     bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
     bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    bar.close()
     lines = stream.getvalue().splitlines()
-    assert len(lines) == 4
-    assert lines[0].startswith("[0/2 ") and "] a: motion (0.0 s in)" in lines[0]
-    assert "] a: check (" in lines[1]
-    assert lines[2].startswith("[1/2 ") and lines[2].endswith("] a: ok in 1.2 s")
-    assert lines[3].startswith("[2/2 ") and lines[3].endswith("] b: failed in 0.5 s")
+    assert lines[0] == "fabkit export [0/2 designs, 0.0 s] 2 designs into out, 1 at a time"
+    assert any(line.endswith("] a: motion") for line in lines), lines
+    assert any("[1/2 designs" in line and line.endswith("] a: ok in 1.2 s") for line in lines)
+    assert any("[2/2 designs" in line and line.endswith("] b: failed in 0.5 s") for line in lines)
     silent = io.StringIO()
-    bar = Progress(1, silent, quiet=True, after=0.0)
-    bar.stage("a", Stage.LOAD)
+    quiet = Progress("fabkit export", show=False, stream=silent)
+    DesignProgress(quiet).stage("a", Stage.LOAD)
     assert silent.getvalue() == ""
 
 

@@ -30,15 +30,14 @@ What it guarantees:
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
   is loaded (:mod:`fabkit.io.templates`).
-- **Progress.** One line per design and stage on stdout (``[3/30  41.2s] chaotic_chain: check
-  (12.1 s in)``) whether or not it is a terminal: a design that takes more than two seconds
-  announces each stage as it starts, and every design says how it ended.
+- **Progress.** :func:`export_many` tells a ``progress`` object (``stage(name, stage)`` as a
+  design starts a stage, ``finished(result)`` as it ends, ``close()``) and says nothing itself;
+  the command line's :class:`~fabkit.commands.export.DesignProgress` puts it into the one
+  progress of every command (stderr, the designs done of all and the time left, ``-q``).
 """
 
 from __future__ import annotations
 
-import sys
-import time
 from pathlib import Path
 
 from ..errors import BoundsError, FabkitError
@@ -54,60 +53,11 @@ from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
-           "OutputLock", "Progress", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
+           "OutputLock", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
            "DESIGN_TIMEOUT", "SILENCE", "FAULT_ENV"]
 
 
 # --- many designs ----------------------------------------------------------------------------
-
-class Progress:
-    """Progress on stdout: one line per design and stage, terminal or not (stderr is kept for
-    the one-line errors).
-
-    Parameters
-    ----------
-    total : int
-        Number of designs.
-    stream : file, optional
-        Default ``sys.stdout``.
-    quiet : bool
-        Print nothing.
-    after : float
-        A stage is shown once its design has run this many seconds (a design that is done
-        sooner shows one line, when it ends).
-    """
-
-    def __init__(self, total: int, stream=None, quiet=False, after=2.0):
-        self.stream = stream or sys.stdout
-        self.total = total
-        self.done = 0
-        self.quiet = quiet
-        self.after = after
-        self.t0 = time.perf_counter()
-        self.started: dict[str, float] = {}
-
-    def _line(self, text: str) -> None:
-        if self.quiet:
-            return
-        self.stream.write(f"[{self.done}/{self.total} {time.perf_counter() - self.t0:6.1f}s] "
-                          f"{text}\n")
-        self.stream.flush()
-
-    def stage(self, name: str, stage) -> None:
-        """A design starts a stage."""
-        now = time.perf_counter()
-        start = self.started.setdefault(name, now)
-        if now - start >= self.after:
-            self._line(f"{name}: {stage} ({now - start:.1f} s in)")
-
-    def finished(self, result: DesignResult) -> None:
-        """A design is done."""
-        self.done += 1
-        self._line(f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
-
-    def close(self) -> None:
-        pass
-
 
 def summary_table(results) -> str:
     """The table printed at the end: one line per design."""
@@ -182,7 +132,9 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     tolerance_samples : int or None
         Monte Carlo builds (0: no tolerance analysis; None: the template's setting, else the
         analysis's default).
-    progress : Progress, optional
+    progress : object, optional
+        Told ``stage(name, stage)`` as a design starts a stage and ``finished(result)`` as it
+        ends (the command line passes a :class:`~fabkit.commands.export.DesignProgress`).
     isolate : bool
         Export in fresh worker processes with a fixed hash seed (``PYTHONHASHSEED=0``), so that
         no library's set or dict ordering can make two runs differ; False with ``jobs=1`` runs
