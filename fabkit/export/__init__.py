@@ -8,6 +8,8 @@ and ``os.replace`` (:mod:`fabkit.io.outputs`), so that no half-written file is e
 
 from __future__ import annotations
 
+import contextlib
+
 import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,5 +140,54 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
                                           f"{type(design).__name__}")
     module = get_exporter(fmt)
     outdir = output_folder(outdir, "outdir")  # a folder path that can be written, before work
+    refuse_export_folder(outdir)
     result: ExportResult = module.export_design(design, settings)
-    return write_outputs(result.files, outdir), result.report
+    with export_locks(outdir):
+        refuse_export_folder(outdir)  # it may have become one while we computed
+        return write_outputs(result.files, outdir), result.report
+
+
+def refuse_export_folder(outdir: Path) -> None:
+    """Refuse a folder that holds the kit and report of a ``fabkit export``.
+
+    One format written there by hand would leave a folder whose report describes other files
+    (a DXF cut with kerf 0.2 beside a report that says 0.15); such a folder is rewritten only
+    by ``fabkit export``, which makes its report too.
+
+    Raises
+    ------
+    OutputError
+        ``outdir`` holds ``report.json``.
+    """
+    from ..errors import OutputError
+
+    if (outdir / "report.json").is_file():
+        raise OutputError(outdir, "holds the kit and report of a `fabkit export` (report.json): "
+                                  "write into another folder, or export again with `fabkit "
+                                  "export NAME --to FORMAT --set ...` so that the report "
+                                  "says what the files are")
+
+
+@contextlib.contextmanager
+def export_locks(outdir: Path):
+    """Hold the lock of ``outdir`` (created if need be) and, when ``fabkit export`` may be
+    writing into the folder above it (its lock file is there), that folder's lock too.
+
+    Raises
+    ------
+    LockedError
+        Another export holds either lock.
+    """
+    from ..errors import OutputError
+    from ..io.outputs import LOCK_NAME, OutputLock
+
+    with contextlib.ExitStack() as stack:
+        parent = outdir.resolve().parent
+        if (parent / LOCK_NAME).exists():
+            stack.enter_context(OutputLock(parent))
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(outdir, f"cannot be created ({exc.strerror})") from None
+        stack.enter_context(OutputLock(outdir))
+        yield

@@ -28,13 +28,15 @@ import os
 import re
 import stat
 import tempfile
+import time
 from pathlib import Path
 
-from ..errors import OutputError, UnsafeNameError, WriteError
+from ..errors import LockedError, OutputError, UnsafeNameError, WriteError
 from .inputs import file_kind
 
 __all__ = ["NAME_PATTERN", "MAX_NAME_LENGTH", "RESERVED_NAMES", "check_name", "output_folder",
-           "inside", "own_entry", "open_own_file", "write_files", "write_atomic"]
+           "inside", "own_entry", "open_own_file", "write_files", "write_atomic", "LOCK_NAME",
+           "OutputLock"]
 
 #: What a name fabkit writes may look like: letters, digits and ``_ . + -``, starting with a
 #: letter or digit (so never ``.``, ``..`` or a hidden file, and never an option like ``-x``).
@@ -392,3 +394,80 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+# --- the lock of an output folder ----------------------------------------------------------
+
+#: The lock file an export holds in its output folder while it writes.
+LOCK_NAME = ".fabkit.lock"
+
+
+class OutputLock:
+    """An exclusive lock on an output folder: ``<out>/.fabkit.lock`` held with ``flock``.
+
+    The kernel drops the lock when the holder dies, even by SIGKILL, so a stale lock file never
+    blocks anyone; the file is removed on release.
+
+    Parameters
+    ----------
+    outdir : path
+    wait : bool
+        Wait for the other export to finish instead of refusing.
+    poll : float
+        Seconds between attempts while waiting (short, so that a signal stops the wait).
+    """
+
+    def __init__(self, outdir, wait=False, poll=0.2):
+        self.outdir = Path(outdir)
+        self.wait = wait
+        self.poll = poll
+        self.fd = None
+
+    def __enter__(self):
+        import fcntl
+
+        path = self.outdir / LOCK_NAME
+        while True:
+            fd = open_own_file(path)  # never through a link, never blocked on a FIFO
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                pid = _lock_holder(fd)
+                os.close(fd)
+                if not self.wait:
+                    raise LockedError(self.outdir, pid) from None
+                time.sleep(self.poll)
+                continue
+            # the holder before us may have removed the file after we opened it: lock the file
+            # that is at the path now
+            try:
+                same = os.fstat(fd).st_ino == os.lstat(path).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            self.fd = fd
+            return self
+
+    def __exit__(self, *exc):
+        if self.fd is not None:
+            path = self.outdir / LOCK_NAME
+            try:  # only the file this lock holds: not a link or a file put there since
+                if os.lstat(path).st_ino == os.fstat(self.fd).st_ino:
+                    os.unlink(path)
+            except FileNotFoundError:
+                pass
+            os.close(self.fd)  # closing drops the flock
+            self.fd = None
+        return False
+
+
+def _lock_holder(fd) -> int | None:
+    try:
+        text = os.pread(fd, 32, 0).decode().strip()
+        return int(text) if text else None
+    except (OSError, ValueError):
+        return None

@@ -42,7 +42,8 @@ from pathlib import Path
 
 from ..errors import BoundsError, FabkitError
 from .design import export_one
-from .folders import OutputLock, prepare_outdir
+from ..io.outputs import OutputLock
+from .folders import prepare_outdir
 from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
 from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import os
 import shutil
-import time
 from pathlib import Path
 
-from ..errors import (LockedError, OutputError)
+from ..errors import OutputError
 
 
 def _safe(name: str) -> bool:
@@ -22,7 +21,6 @@ def _safe(name: str) -> bool:
     return True
 
 
-LOCK_NAME = ".fabkit.lock"
 
 
 
@@ -126,79 +124,6 @@ def swap_in(stage: Path, folder: Path) -> None:
         shutil.rmtree(old)
     else:
         os.replace(stage, folder)
-
-
-class OutputLock:
-    """An exclusive lock on an output folder: ``<out>/.fabkit.lock`` held with ``flock``.
-
-    The kernel drops the lock when the holder dies, even by SIGKILL, so a stale lock file never
-    blocks anyone; the file is removed on release.
-
-    Parameters
-    ----------
-    outdir : path
-    wait : bool
-        Wait for the other export to finish instead of refusing.
-    poll : float
-        Seconds between attempts while waiting (short, so that a signal stops the wait).
-    """
-
-    def __init__(self, outdir, wait=False, poll=0.2):
-        self.outdir = Path(outdir)
-        self.wait = wait
-        self.poll = poll
-        self.fd = None
-
-    def __enter__(self):
-        import fcntl
-
-        from ..io.outputs import open_own_file
-
-        path = self.outdir / LOCK_NAME
-        while True:
-            fd = open_own_file(path)  # never through a link, never blocked on a FIFO
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                pid = _read_pid(fd)
-                os.close(fd)
-                if not self.wait:
-                    raise LockedError(self.outdir, pid) from None
-                time.sleep(self.poll)
-                continue
-            # the holder before us may have removed the file after we opened it: lock the file
-            # that is at the path now
-            try:
-                same = os.fstat(fd).st_ino == os.lstat(path).st_ino
-            except FileNotFoundError:
-                same = False
-            if not same:
-                os.close(fd)
-                continue
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            self.fd = fd
-            return self
-
-    def __exit__(self, *exc):
-        if self.fd is not None:
-            path = self.outdir / LOCK_NAME
-            try:  # only the file this lock holds: not a link or a file put there since
-                if os.lstat(path).st_ino == os.fstat(self.fd).st_ino:
-                    os.unlink(path)
-            except FileNotFoundError:
-                pass
-            os.close(self.fd)  # closing drops the flock
-            self.fd = None
-        return False
-
-
-def _read_pid(fd) -> int | None:
-    try:
-        text = os.pread(fd, 32, 0).decode().strip()
-        return int(text) if text else None
-    except (OSError, ValueError):
-        return None
 
 
 def prepare_outdir(outdir) -> Path:
