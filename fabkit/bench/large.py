@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.toml_writer import TomlDocument
 from ..report.viz import figure_kit
 from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
@@ -351,7 +352,6 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
     from pathlib import Path
 
     from ..io.templates import bundled_template
-    from ..io.toml_writer import TomlDocument
 
     times, out, code = [], "", None
     with tempfile.TemporaryDirectory() as tmp:

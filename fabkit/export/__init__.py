@@ -14,8 +14,8 @@ import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FabkitError
-from ..io.outputs import write_atomic, write_files
+from ..errors import ArgumentTypeError, FabkitError, OutputError
+from ..io.outputs import LOCK_NAME, OutputLock, output_folder, write_atomic, write_files
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export", "check_export_settings"]
@@ -130,8 +130,6 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     OutputError
         ``outdir`` is not a folder path, or cannot be created or written.
     """
-    from ..errors import ArgumentTypeError
-    from ..io.outputs import output_folder
     from ..io.templates import Design
 
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
@@ -159,8 +157,6 @@ def refuse_export_folder(outdir: Path) -> None:
     OutputError
         ``outdir`` holds ``report.json``.
     """
-    from ..errors import OutputError
-
     if (outdir / "report.json").is_file():
         raise OutputError(outdir, "holds the kit and report of a `fabkit export` (report.json): "
                                   "write into another folder, or export again with `fabkit "
@@ -178,9 +174,6 @@ def export_locks(outdir: Path):
     LockedError
         Another export holds either lock.
     """
-    from ..errors import OutputError
-    from ..io.outputs import LOCK_NAME, OutputLock
-
     with contextlib.ExitStack() as stack:
         parent = outdir.resolve().parent
         if (parent / LOCK_NAME).exists():
