@@ -17,6 +17,7 @@ import pytest
 
 from fabkit.pipeline import FAULT_ENV, Outcome, Stage, exit_code, export_many
 from fabkit.cli import main
+from fabkit.io.templates import bundled_folder
 
 from conftest import TEMPLATES
 
@@ -201,3 +202,24 @@ def test_the_limits_judge_the_worker_not_the_machine():
     assert _why_stuck(w, 115.2, "a", **{**limits, "timeout": None}) == ""
     # several beats fit in any silence limit
     assert heartbeat_interval(120.0) == 1.0 and heartbeat_interval(3.0) == 0.5
+
+
+def test_export_many_takes_bare_names_like_the_command_line(tmp_path, monkeypatch):
+    """``export_many(["fourbar", ...])`` exports the bundled template of that name; a template of
+    the same name in the current folder wins; a misspelt name fails that design alone, with the
+    fix suggested, and writes nothing for it."""
+    monkeypatch.chdir(tmp_path)
+    own = tmp_path / "mine.toml"
+    own.write_text((TEMPLATES / "fourbar.toml").read_text().replace('name = "fourbar"',
+                                                                    'name = "mine"'))
+    results = export_many(["fourbar", "mine", "super_stabel"], ["dxf"], tmp_path / "out",
+                          check=False, isolate=False)
+    assert [r.name for r in results] == ["fourbar", "mine", "super_stabel"]
+    assert [r.outcome for r in results[:2]] == [Outcome.OK, Outcome.OK]
+    assert Path(results[0].path) == bundled_folder() / "fourbar.toml"
+    assert Path(results[1].path).resolve() == own.resolve()
+    assert "no such file, nor a bundled template" in results[2].error
+    assert "did you mean 'super_stable'?" in results[2].error
+    assert (tmp_path / "out" / "fourbar" / "laser_sheet1.dxf").is_file()
+    assert (tmp_path / "out" / "mine" / "laser_sheet1.dxf").is_file()
+    assert not (tmp_path / "out" / "super_stabel").exists()

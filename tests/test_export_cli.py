@@ -440,6 +440,35 @@ def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_export_progress_is_the_commands_progress_one_line_per_stage():
+    """export_many's stages and ends reach the one progress of the command line (stderr, the
+    designs done of all, the time left) through DesignProgress; -q prints nothing."""
+    import io
+
+    from fabkit.commands.export import DesignProgress
+    from fabkit.commands.progress import Progress
+    from fabkit.pipeline import DesignResult, Stage
+
+    stream = io.StringIO()  # not a terminal: shown because asked (--progress)
+    clock = iter([0.0, 0.0, 0.5, 1.0, 2.0, 4.0, 4.0]).__next__
+    progress = Progress("fabkit export", show=True, stream=stream, clock=clock)
+    progress.stage("2 designs into out, 1 at a time", total=2, unit="designs")
+    bar = DesignProgress(progress)
+    bar.stage("a", Stage.MOTION)
+    bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
+    bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    bar.close()
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "fabkit export [0/2 designs, 0.0 s] 2 designs into out, 1 at a time"
+    assert any(line.endswith("] a: motion") for line in lines), lines
+    assert any("[1/2 designs" in line and line.endswith("] a: ok in 1.2 s") for line in lines)
+    assert any("[2/2 designs" in line and line.endswith("] b: failed in 0.5 s") for line in lines)
+    silent = io.StringIO()
+    quiet = Progress("fabkit export", show=False, stream=silent)
+    DesignProgress(quiet).stage("a", Stage.LOAD)
+    assert silent.getvalue() == ""
+
+
 def test_progress_counts_the_stages_of_the_one_design_in_hand():
     """Said through the one progress of every command: a design alone in hand counts its
     stages with the time left; designs side by side say each stage as it starts."""

@@ -231,8 +231,7 @@ def test_a_library_export_leaves_an_exported_design_folder_alone(tmp_path, capsy
     assert _export(TEMPLATES / "fourbar.toml", out, "--to", "dxf", capsys=capsys)[0] == 0
     folder = out / "fourbar"
     before = {p.name: p.read_bytes() for p in folder.iterdir()}
-    with pytest.raises(OutputError, match=r"holds the export of a design with its report "
-                                          r"\(exports.json\)"):
+    with pytest.raises(OutputError, match=r"holds the kit and report of a `fabkit export`"):
         export(fabkit.load_template("fourbar"), "dxf", folder, laser={"kerf": 0.2})
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
     # the way to add a kerf-0.2 kit beside it keeps one report: a folder of its own

@@ -110,3 +110,58 @@ def test_few_modules_at_the_top():
     top = sorted(p.name for p in ROOT.glob("*.py"))
     assert "cli.py" in top and "errors.py" in top  # the walk sees the package's own top
     assert len(top) <= MAX_TOP_LEVEL, f"{len(top)} modules at the top of fabkit/: {top}"
+
+
+#: Imports of another fabkit module's ``_private`` names (dunders excluded). This only goes down:
+#: a name another module needs is public (no underscore) or lives in the module that uses it.
+MAX_UNDERSCORE_IMPORTS = 75
+
+#: Import statements of fabkit modules inside functions rather than at a module's top. This only
+#: goes down: hoist one when it makes no cycle and pulls no heavy library into ``fabkit.cli``.
+MAX_FUNCTION_LEVEL_IMPORTS = 559
+
+
+def _imports(mods: dict[str, Path]):
+    """Yield (module, path, line, target, name, at_top) for every ``from fabkit... import``."""
+    for m, path in mods.items():
+        package = m if path.name == "__init__.py" else m.rsplit(".", 1)[0]
+        tree = ast.parse(path.read_text(), str(path))
+        top = {id(n) for n in tree.body}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] != "fabkit":
+                continue
+            for a in node.names:
+                yield m, path, node.lineno, target, a.name, id(node) in top
+
+
+def _underscore_imports(mods: dict[str, Path]) -> list[str]:
+    found = []
+    for m, path, line, target, name, _ in _imports(mods):
+        private = name.startswith("_") and not name.startswith("__")
+        if private and target != m and f"{target}.{name}" not in mods:
+            found.append(f"{path.relative_to(ROOT.parent)}:{line} {name} from {target}")
+    return found
+
+
+def _function_level_imports(mods: dict[str, Path]) -> int:
+    return len({(path, line) for _, path, line, _, _, at_top in _imports(mods) if not at_top})
+
+
+def test_private_names_stay_in_their_module():
+    found = _underscore_imports(_modules())
+    assert len(found) <= MAX_UNDERSCORE_IMPORTS, (
+        f"{len(found)} imports of another module's private names (at most "
+        f"{MAX_UNDERSCORE_IMPORTS}):\n" + "\n".join(found))
+
+
+def test_function_level_imports_only_go_down():
+    count = _function_level_imports(_modules())
+    assert count <= MAX_FUNCTION_LEVEL_IMPORTS, (
+        f"{count} function-level fabkit imports, at most {MAX_FUNCTION_LEVEL_IMPORTS}")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.toml_writer import TomlDocument
 from ..report.viz import figure_kit
 from . import paper_module
 from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
@@ -355,10 +356,17 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
     times, out, code = [], "", None
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"mirrored_chain_{k}.toml"
-        path.write_text(
-            f'name = "mirrored_chain_{k}"\ndescription = "mirrored super-stable chain"\n'
-            f'[chain]\nmodule = "{bundled_template("super_stable").as_posix()}"\n'
-            f'copies = {k}\nmirror = "alternate"\n[motion]\ndrive = "d1"\nto = 1.0099505\n')
+        doc = TomlDocument()
+        doc.value("name", f"mirrored_chain_{k}")
+        doc.value("description", "mirrored super-stable chain")
+        doc.table("chain")
+        doc.value("module", bundled_template("super_stable").as_posix())
+        doc.value("copies", int(k))
+        doc.value("mirror", "alternate")
+        doc.table("motion")
+        doc.value("drive", "d1")
+        doc.value("to", 1.0099505)
+        path.write_text(doc.text())
         for _ in range(max(1, repeats)):
             t0 = time.perf_counter()
             try:

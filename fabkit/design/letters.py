@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import DesignError, FabkitError
+from ..io.toml_writer import TomlDocument
 from ..model.network import Network
 from ..numerics import TINY
 
@@ -467,35 +468,23 @@ def letter_template(fit: CurveFit, letter: str, word: str, final: float,
         TOML text: ``[chain]`` with ``modules`` and ``mirror = "alternate"``, ``[motion]`` from
         D1* to ``final``.
     """
-    rows, line = [], []
-    for name in fit.names:
-        line.append(f'"{module_files[name]}"')
-        if len(line) == 4:
-            rows.append("    " + ", ".join(line) + ",")
-            line = []
-    if line:
-        rows.append("    " + ", ".join(line) + ",")
     counts = {n: fit.names.count(n) for n in dict.fromkeys(fit.names)}
     summary = ", ".join(f"{c} {n}" for n, c in counts.items())
     height = float(np.ptp(fit.target[:, 1])) or 1.0
-    return "\n".join([
-        f"# Fig 4e-f: letter {letter} of {word}: a chain of curvature modules whose final state "
-        "follows the letter's stroke",
-        f'name = "{word.lower()}_{letter.lower()}"',
-        f'description = "letter {letter}: {len(fit.names)} curvature modules ({summary}); '
-        f'fit error rms {fit.rms_error / height:.4f}, max {fit.max_error / height:.4f} of the '
-        'letter height"',
-        'figure = "Fig 4e-f"',
-        "",
-        "[chain]",
-        "modules = [",
-        *rows,
-        "]",
-        'mirror = "alternate"',
-        "",
-        "[motion]",
-        'drive = "d1"',
-        f"to = {final!r}  # D2*: every module in its final shape",
-        'method = "constructive"',
-        "",
-    ])
+    doc = TomlDocument()
+    doc.comment(f"Fig 4e-f: letter {letter} of {word}: a chain of curvature modules whose final "
+                "state follows the letter's stroke")
+    doc.value("name", f"{word.lower()}_{letter.lower()}")
+    doc.value("description",
+              f"letter {letter}: {len(fit.names)} curvature modules ({summary}); fit error rms "
+              f"{fit.rms_error / height:.4f}, max {fit.max_error / height:.4f} of the letter "
+              "height")
+    doc.value("figure", "Fig 4e-f")
+    doc.table("chain")
+    doc.value("modules", [module_files[name] for name in fit.names], per_line=4)
+    doc.value("mirror", "alternate")
+    doc.table("motion")
+    doc.value("drive", "d1")
+    doc.value("to", float(final), note="D2*: every module in its final shape")
+    doc.value("method", "constructive")
+    return doc.text()

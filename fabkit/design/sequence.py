@@ -180,6 +180,36 @@ def rounded(target, max_curvature: float, spacing: float) -> np.ndarray:
     return out + (curve[-1] - out[-1]) * (s / s[-1])[:, None]
 
 
+def next_joints(q_prev, q_cur, apex, leg, k: int):
+    """The next joint of every chain for every module type: the apex step of module ``k``.
+
+    The leg from ``q_cur`` turns by pi - apex from the direction q_prev -> q_cur, to the right
+    for odd ``k`` and to the left for even ``k`` (mirrored modules alternate).
+
+    Parameters
+    ----------
+    q_prev, q_cur : ndarray, shape (B, 2)
+        The last two joints of each of B chains.
+    apex : ndarray, shape (T,)
+        Apex angle of each module type (radians).
+    leg : float or ndarray broadcastable to (B, T, 1)
+    k : int
+        Module number, from 1.
+
+    Returns
+    -------
+    ndarray, shape (B, T, 2)
+    """
+    sign = -1.0 if k % 2 == 1 else 1.0
+    u = q_cur - q_prev
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    ang = sign * (math.pi - apex)
+    c, sn = np.cos(ang), np.sin(ang)
+    nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
+                   u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
+    return q_cur[:, None, :] + leg * nu
+
+
 def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = BEAM_WIDTH,
           limit: int, max_curvature: float | None = None, stop=None) -> Track:
     """The sequence of apex angles whose zigzag follows ``target`` most closely.
@@ -241,14 +271,7 @@ def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = 
     for k in range(1, int(limit) + 1):
         if stop is not None:
             stop()
-        sign = -1.0 if k % 2 == 1 else 1.0
-        u = q_cur - q_prev
-        u = u / np.linalg.norm(u, axis=1, keepdims=True)
-        ang = sign * (math.pi - apex)
-        c, sn = np.cos(ang), np.sin(ang)
-        nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
-                       u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
-        q_next = q_cur[:, None, :] + leg * nu                        # (B, T, 2)
+        q_next = next_joints(q_prev, q_cur, apex, leg, k)            # (B, T, 2)
         m_old = 0.5 * (q_prev + q_cur)
         m_new = 0.5 * (q_cur[:, None, :] + q_next)
         step = m_new - m_old[:, None, :]
@@ -444,14 +467,7 @@ def follow(centre, bins_deg, leg: float, *, width: int = BEAM_WIDTH, stop=None) 
     for k in range(1, count + 1):
         if stop is not None:
             stop()
-        sign = -1.0 if k % 2 == 1 else 1.0
-        u = q_cur - q_prev
-        u = u / np.linalg.norm(u, axis=1, keepdims=True)
-        ang = sign * (math.pi - apex)
-        c, sn = np.cos(ang), np.sin(ang)
-        nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
-                       u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
-        q_next = q_cur[:, None, :] + leg * nu
+        q_next = next_joints(q_prev, q_cur, apex, leg, k)
         m_new = 0.5 * (q_cur[:, None, :] + q_next)
         step = m_new - 0.5 * (q_prev + q_cur)[:, None, :]
         want = steps[k - 1]

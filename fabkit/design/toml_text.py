@@ -7,21 +7,16 @@ import math
 
 import numpy as np
 
+from ..io.toml_writer import TomlDocument
 from .branch import MIN_BRANCH_MARGIN, on_branch
 
-__all__ = ["points_toml", "module_template", "toml_string", "curvature_template", "chain_template",
-           "fit_lines", "margin_lines", "builds_line"]
+__all__ = ["module_template", "curvature_template", "chain_template", "fit_lines",
+           "margin_lines", "builds_line"]
 
 
-def toml_string(text: str) -> str:
-    """A TOML basic string (quotes and backslashes escaped)."""
-    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def points_toml(key: str, points) -> list[str]:
-    """``key = [[x, y], ...]`` one point a line, floats written to round-trip exactly."""
-    rows = [f"    [{float(p[0])!r}, {float(p[1])!r}]," for p in np.asarray(points, dtype=float)]
-    return [f"{key} = [", *rows, "]"]
+def _points(points) -> list[list[float]]:
+    """Points as lists of floats (written one a line, to round-trip exactly)."""
+    return np.asarray(points, dtype=float).tolist()
 
 
 def _kind(slope: float) -> str:
@@ -88,14 +83,15 @@ def module_template(name: str, wish, cand, builds=None) -> str:
     spec, m = cand.spec, cand.metrics
     met = m["met"]
     ch = spec.choices
-    lines = [f"# Designed by `fabkit design {wish.options()}` from its map wishes.",
-             "# Construction (paper, supplement \"Elaborating on Single Module Design\"): the "
-             "designed nodes 0, 1, 2",
-             "# sit at the first wished state (d1 = |x0 - x1|, d2 = |x1 - x2|); their velocities "
-             "fix the slope there,",
-             "# their final positions a further point of the map; variable nodes 3 and 4 lie on "
-             "the solution spaces",
-             "# of these specifications, each joined to all three designed nodes."]
+    doc = TomlDocument()
+    doc.comment(f"Designed by `fabkit design {wish.options()}` from its map wishes.\n"
+                "Construction (paper, supplement \"Elaborating on Single Module Design\"): the "
+                "designed nodes 0, 1, 2\n"
+                "sit at the first wished state (d1 = |x0 - x1|, d2 = |x1 - x2|); their velocities "
+                "fix the slope there,\n"
+                "their final positions a further point of the map; variable nodes 3 and 4 lie on "
+                "the solution spaces\n"
+                "of these specifications, each joined to all three designed nodes.")
     free = [f"apex angle {ch['apex_deg']:.0f} deg at the first state"]
     if "apex_final_deg" in ch:
         free.append(f"{ch['apex_final_deg']:.0f} deg at the final state")
@@ -105,52 +101,57 @@ def module_template(name: str, wish, cand, builds=None) -> str:
         free.append(f"leg turn {ch['turn']:g}")
         if all(p.slope is None for p in wish.fixed_points[:1]):
             free.append(f"slope {ch['slope_designed']:g} (none was wished)")
-    lines.append("# Free choices, made for buildability: " + ", ".join(free) + ";")
-    lines.append(f"# variable nodes: points {cand.points[0]} and {cand.points[1]} of the "
-                 + ("intersection of the two solution spaces." if len(spec.finals)
-                    + (spec.velocities is not None) == 2 else "solution space (sampled)."))
+    doc.comment("Free choices, made for buildability: " + ", ".join(free) + ";")
+    doc.comment(f"variable nodes: points {cand.points[0]} and {cand.points[1]} of the "
+                + ("intersection of the two solution spaces." if len(spec.finals)
+                   + (spec.velocities is not None) == 2 else "solution space (sampled)."))
     worst = min(m["branch_margins"], key=lambda b: b["fraction"])
-    lines.append(f"# Buildability: bar-length ratio {m['bar_length_ratio']:.2f}, joints at least "
-                 f"{m['joint_separation']:.3f} apart, rigidity margin {m['rigidity_margin']:.3f} "
-                 f"along the motion, branch margin {worst['margin']:.4g} "
-                 f"({100 * worst['fraction']:.3g} % of {worst['value']:.6g}) to the nearest fold.")
-    lines += [f"#   {line}" for line in margin_lines(m["branch_margins"], on_branch(cand.fmap))]
+    doc.comment(f"Buildability: bar-length ratio {m['bar_length_ratio']:.2f}, joints at least "
+                f"{m['joint_separation']:.3f} apart, rigidity margin {m['rigidity_margin']:.3f} "
+                f"along the motion, branch margin {worst['margin']:.4g} "
+                f"({100 * worst['fraction']:.3g} % of {worst['value']:.6g}) to the nearest fold.")
+    for line in margin_lines(m["branch_margins"], on_branch(cand.fmap)):
+        doc.comment(f"  {line}")
     if builds is not None:
-        lines.append(f"#   {builds_line(builds)}")
-    lines.append("# Map recomputed by fabkit.module_map from this file:")
+        doc.comment(f"  {builds_line(builds)}")
+    doc.comment("Map recomputed by fabkit.module_map from this file:")
     for p in met["fixed_points"]:
-        lines.append(f"#   fixed point {p['value']:.10g}: |f(D) - D| = {p['residual']:.1e}, slope "
-                     f"{p['slope']:.10g} ({_kind(p['slope'])})")
+        doc.comment(f"  fixed point {p['value']:.10g}: |f(D) - D| = {p['residual']:.1e}, slope "
+                    f"{p['slope']:.10g} ({_kind(p['slope'])})")
     if met["cycle"] is not None:
         c = met["cycle"]
-        lines.append(f"#   2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residuals "
-                     f"{max(c['residuals']):.1e}, multiplier {c['multiplier']:.6g}")
-    description = f"module designed from its map: {wish.options().replace('--', '')}"
-    lines += [f"name = {toml_string(name)}", f"description = {toml_string(description)}", "",
-              "[design]", "# initial positions of the designed nodes"]
-    lines += points_toml("designed", spec.designed)
+        doc.comment(f"  2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residuals "
+                    f"{max(c['residuals']):.1e}, multiplier {c['multiplier']:.6g}")
+    doc.value("name", name)
+    doc.value("description", f"module designed from its map: {wish.options().replace('--', '')}")
+    doc.table("design")
+    doc.comment("initial positions of the designed nodes")
+    doc.value("designed", _points(spec.designed), per_line=1)
     if spec.velocities is not None:
         s = ch["slope_designed"]
-        lines.append(f"# velocities: d1 grows at rate 1, d2 at rate {s:g} (the slope at the first "
-                     "state); node 1 stands still")
-        lines += points_toml("velocities", spec.velocities)
+        doc.comment(f"velocities: d1 grows at rate 1, d2 at rate {s:g} (the slope at the first "
+                    "state); node 1 stands still")
+        doc.value("velocities", _points(spec.velocities), per_line=1)
     if spec.finals:
         f = spec.finals[0]
         d1, d2 = np.linalg.norm(f[0] - f[1]), np.linalg.norm(f[1] - f[2])
-        lines.append(f"# final positions: d1 = {d1:.10g}, d2 = {d2:.10g}")
-        lines += points_toml("final", f)
+        doc.comment(f"final positions: d1 = {d1:.10g}, d2 = {d2:.10g}")
+        doc.value("final", _points(f), per_line=1)
     if len(spec.finals) > 1:
         f = spec.finals[1]
-        lines.append("# (a second final state, d1 = d2 = "
-                     f"{np.linalg.norm(f[0] - f[1]):.10g}, also fixed the variable nodes: "
-                     "designed positions " + ", ".join(f"[{float(a):.10g}, {float(b):.10g}]"
-                                                       for a, b in f) + ")")
-    lines.append("# variable nodes, exact (checked against the solution spaces when loaded)")
-    lines += points_toml("variable", cand.variable)
-    lines += ["ports = { d1 = [0, 1], d2 = [1, 2] }", "", "[motion]", 'drive = "d1"']
+        doc.comment("(a second final state, d1 = d2 = "
+                    f"{np.linalg.norm(f[0] - f[1]):.10g}, also fixed the variable nodes: "
+                    "designed positions " + ", ".join(f"[{float(a):.10g}, {float(b):.10g}]"
+                                                      for a, b in f) + ")")
+    doc.comment("variable nodes, exact (checked against the solution spaces when loaded)")
+    doc.value("variable", _points(cand.variable), per_line=1)
+    doc.value("ports", {"d1": [0, 1], "d2": [1, 2]})
+    doc.table("motion")
+    doc.value("drive", "d1")
     target, why = _motion_target(wish, cand.fmap)
-    lines += [f"to = {target!r}  # {why}", 'method = "auto"', ""]
-    return "\n".join(lines)
+    doc.value("to", target, note=why)
+    doc.value("method", "auto")
+    return doc.text()
 
 
 def _motion_target(wish, fmap) -> tuple[float, str]:
@@ -180,35 +181,36 @@ def curvature_template(name: str, ctype) -> str:
 
     apex = math.degrees(ctype.apex)
     m = ctype.margins
-    lines = [
-        f"# Curvature module designed by `fabkit design --curve`: symmetric map d1 = d2 from "
-        f"D1* = 1 to D2* = {LEG_RATIO:g},",
-        f"# final apex angle {apex:.6g} deg (bottom distance {ctype.bottom:.10g} at D2*).",
-        f"# Designed nodes: apex {INITIAL_APEX_DEG:g} deg at the start (every module alike, so the "
-        "chain starts straight),",
-        "# the final triangle below; variable nodes: a mirror-symmetric pair on the displacement "
-        "solution space,",
-        "# chosen to stay inside the module's own triangle along the motion (modules of a chain "
-        "never sweep",
-        f"# over each other): margin {m['inside']:.3f}, variable nodes at least "
+    doc = TomlDocument()
+    doc.comment(
+        f"Curvature module designed by `fabkit design --curve`: symmetric map d1 = d2 from "
+        f"D1* = 1 to D2* = {LEG_RATIO:g},\n"
+        f"final apex angle {apex:.6g} deg (bottom distance {ctype.bottom:.10g} at D2*).\n"
+        f"Designed nodes: apex {INITIAL_APEX_DEG:g} deg at the start (every module alike, so the "
+        "chain starts straight),\n"
+        "the final triangle below; variable nodes: a mirror-symmetric pair on the displacement "
+        "solution space,\n"
+        "chosen to stay inside the module's own triangle along the motion (modules of a chain "
+        "never sweep\n"
+        f"over each other): margin {m['inside']:.3f}, variable nodes at least "
         f"{m['separation']:.3f} apart, rigidity margin {m['rigidity']:.3f}, "
-        f"bar-length ratio {m['bar_length_ratio']:.2f},",
-        f"# branch margin {m['branch_margin']:.4g} ({100 * m['branch_margin_fraction']:.3g} % of "
+        f"bar-length ratio {m['bar_length_ratio']:.2f},\n"
+        f"branch margin {m['branch_margin']:.4g} ({100 * m['branch_margin_fraction']:.3g} % of "
         f"the state) from D1* = 1 or D2* = {LEG_RATIO:g} to the nearer fold (the branch runs "
         f"from d1 = {m['branch'][0]:.6g} to {m['branch'][1]:.6g}; every state between is a "
-        "fixed point).",
-        f"name = {toml_string(name)}",
-        f"description = {toml_string(f'curvature module, final apex {apex:.4g} deg')}",
-        "",
-        "[design]",
-    ]
-    lines += points_toml("designed", ctype.designed)
-    lines += points_toml("final", ctype.final)
-    lines += points_toml("variable", ctype.variable)
-    lines += ["ports = { d1 = [0, 1], d2 = [1, 2], bottom = [0, 2] }", "", "[motion]",
-              'drive = "d1"', f"to = {float(LEG_RATIO)!r}  # D2*: the final shape",
-              'method = "constructive"', ""]
-    return "\n".join(lines)
+        "fixed point).")
+    doc.value("name", name)
+    doc.value("description", f"curvature module, final apex {apex:.4g} deg")
+    doc.table("design")
+    doc.value("designed", _points(ctype.designed), per_line=1)
+    doc.value("final", _points(ctype.final), per_line=1)
+    doc.value("variable", _points(ctype.variable), per_line=1)
+    doc.value("ports", {"d1": [0, 1], "d2": [1, 2], "bottom": [0, 2]})
+    doc.table("motion")
+    doc.value("drive", "d1")
+    doc.value("to", float(LEG_RATIO), note="D2*: the final shape")
+    doc.value("method", "constructive")
+    return doc.text()
 
 
 def fit_lines(errors: dict, props: dict) -> list[str]:
@@ -268,42 +270,29 @@ def chain_template(name: str, modules, scale: float, errors: dict, props: dict, 
     """
     from .curvature import LEG_RATIO
 
-    rows, line = [], []
-    for m in modules:
-        line.append(toml_string(m))
-        if len(line) == 3:
-            rows.append("    " + ", ".join(line) + ",")
-            line = []
-    if line:
-        rows.append("    " + ", ".join(line) + ",")
-    lines = [
-        f"# A chain of {len(modules)} curvature modules whose final state follows a drawn curve "
-        f"({curve.source}, {curve.length:.1f} mm),",
-        f"# designed by `fabkit design --curve` with modules of {module_size:g} mm; straight at "
-        "the start, the curve at the end.",
-        "# Checked by tracing the chain to its final state (constructive) and fitting it onto "
-        "the curve (best rigid fit):",
-        *[f"#   {line}" for line in fit_lines(errors, props)],
-        f"name = {toml_string(name)}",
-        "description = " + toml_string(
-            f"{len(modules)} curvature modules following a {curve.length:.0f} mm curve; fit error "
-            f"rms {errors['rms']:.2f} mm, max {errors['max']:.2f} mm, mean "
-            f"{100 * errors['mean_fraction']:.2g} % of its size, ends "
-            f"{100 * errors['start_fraction']:.2g} / {100 * errors['end_fraction']:.2g} %"),
-        "",
-        "[chain]",
-        "modules = [",
-        *rows,
-        "]",
-        'mirror = "alternate"',
-        "",
-        "[motion]",
-        'drive = "d1"',
-        f"to = {float(LEG_RATIO)!r}  # D2*: every module in its final shape",
-        'method = "constructive"',
-        "",
-        "[fabrication.laser]",
-        f"scale = {float(scale)!r}  # mm per design unit: the kit has the curve's size",
-        "",
-    ]
-    return "\n".join(lines)
+    doc = TomlDocument()
+    doc.comment(
+        f"A chain of {len(modules)} curvature modules whose final state follows a drawn curve "
+        f"({curve.source}, {curve.length:.1f} mm),\n"
+        f"designed by `fabkit design --curve` with modules of {module_size:g} mm; straight at "
+        "the start, the curve at the end.\n"
+        "Checked by tracing the chain to its final state (constructive) and fitting it onto "
+        "the curve (best rigid fit):")
+    for line in fit_lines(errors, props):
+        doc.comment(f"  {line}")
+    doc.value("name", name)
+    doc.value("description",
+              f"{len(modules)} curvature modules following a {curve.length:.0f} mm curve; fit "
+              f"error rms {errors['rms']:.2f} mm, max {errors['max']:.2f} mm, mean "
+              f"{100 * errors['mean_fraction']:.2g} % of its size, ends "
+              f"{100 * errors['start_fraction']:.2g} / {100 * errors['end_fraction']:.2g} %")
+    doc.table("chain")
+    doc.value("modules", list(modules), per_line=3)
+    doc.value("mirror", "alternate")
+    doc.table("motion")
+    doc.value("drive", "d1")
+    doc.value("to", float(LEG_RATIO), note="D2*: every module in its final shape")
+    doc.value("method", "constructive")
+    doc.table("fabrication.laser")
+    doc.value("scale", float(scale), note="mm per design unit: the kit has the curve's size")
+    return doc.text()

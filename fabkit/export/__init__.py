@@ -8,12 +8,14 @@ and ``os.replace`` (:mod:`fabkit.io.outputs`), so that no half-written file is e
 
 from __future__ import annotations
 
+import contextlib
+
 import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FabkitError
-from ..io.outputs import write_atomic, write_files
+from ..errors import ArgumentTypeError, FabkitError, OutputError
+from ..io.outputs import LOCK_NAME, OutputLock, output_folder, write_atomic, write_files
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export", "check_export_settings"]
@@ -102,13 +104,7 @@ def write_outputs(files: dict[str, bytes], outdir) -> list[Path]:
 def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     """Export a design in one format into ``outdir``.
 
-    All content is computed first; nothing is written when the exporter raises. The files are
-    written under the lock ``fabkit export`` takes on the folder that holds ``outdir``
-    (``out/.fabkit.lock`` for ``out/kit``: ``outdir`` could be a design folder of an export into
-    ``out``), so the two never write into one folder at once. A design folder of ``fabkit
-    export`` (it holds ``exports.json``, or a ``report.json``) is refused: its report would no
-    longer say what its files are; add a format to it with ``fabkit export --to`` or
-    :func:`fabkit.pipeline.export_many`, which keep one report over every format.
+    All content is computed first; nothing is written when the exporter raises.
 
     Parameters
     ----------
@@ -132,13 +128,8 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     ArgumentTypeError
         ``design`` is not a Design.
     OutputError
-        ``outdir`` is not a folder path, or cannot be created or written, or it is the design
-        folder of an export with its report.
-    LockedError
-        Another export holds the folder that holds ``outdir``; nothing is written.
+        ``outdir`` is not a folder path, or cannot be created or written.
     """
-    from ..errors import ArgumentTypeError
-    from ..io.outputs import output_folder
     from ..io.templates import Design
 
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
@@ -147,33 +138,49 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
                                           f"{type(design).__name__}")
     module = get_exporter(fmt)
     outdir = output_folder(outdir, "outdir")  # a folder path that can be written, before work
+    refuse_export_folder(outdir)
     result: ExportResult = module.export_design(design, settings)
-    with _folder_lock(outdir):
-        _refuse_export_folder(outdir)
+    with export_locks(outdir):
+        refuse_export_folder(outdir)  # it may have become one while we computed
         return write_outputs(result.files, outdir), result.report
 
 
-def _folder_lock(outdir: Path):
-    """The lock of the folder that holds ``outdir``, as ``fabkit export -o`` that folder takes
-    it; none where no export could hold it (the folder does not exist, or cannot be written)."""
-    import contextlib
-    import os
+def refuse_export_folder(outdir: Path) -> None:
+    """Refuse a folder that holds the kit and report of a ``fabkit export``.
 
-    from ..io.outputs import OutputLock
+    One format written there by hand would leave a folder whose report describes other files
+    (a DXF cut with kerf 0.2 beside a report that says 0.15); such a folder is rewritten only
+    by ``fabkit export``, which makes its report too.
 
-    parent = outdir.absolute().parent
-    if parent.is_dir() and not parent.is_symlink() and os.access(parent, os.W_OK | os.X_OK):
-        return OutputLock(parent)
-    return contextlib.nullcontext()
+    Raises
+    ------
+    OutputError
+        ``outdir`` holds ``report.json``.
+    """
+    if (outdir / "report.json").is_file():
+        raise OutputError(outdir, "holds the kit and report of a `fabkit export` (report.json): "
+                                  "write into another folder, or export again with `fabkit "
+                                  "export NAME --to FORMAT --set ...` so that the report "
+                                  "says what the files are")
 
 
-def _refuse_export_folder(outdir: Path) -> None:
-    from ..errors import OutputError
+@contextlib.contextmanager
+def export_locks(outdir: Path):
+    """Hold the lock of ``outdir`` (created if need be) and, when ``fabkit export`` may be
+    writing into the folder above it (its lock file is there), that folder's lock too.
 
-    for name in ("exports.json", "report.json"):
-        if (outdir / name).is_file():
-            raise OutputError(outdir, f"holds the export of a design with its report ({name}); "
-                                      "files written beside them would not be in the report: "
-                                      "add a format with fabkit export --to FORMAT (or "
-                                      "fabkit.pipeline.export_many), or export into another "
-                                      "folder")
+    Raises
+    ------
+    LockedError
+        Another export holds either lock.
+    """
+    with contextlib.ExitStack() as stack:
+        parent = outdir.resolve().parent
+        if (parent / LOCK_NAME).exists():
+            stack.enter_context(OutputLock(parent))
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise OutputError(outdir, f"cannot be created ({exc.strerror})") from None
+        stack.enter_context(OutputLock(outdir))
+        yield

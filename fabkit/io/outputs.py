@@ -396,9 +396,9 @@ def _umask() -> int:
     return mask
 
 
-# --- the lock on an output folder ------------------------------------------------------------
+# --- the lock of an output folder ----------------------------------------------------------
 
-#: The lock file of an output folder (:class:`OutputLock`).
+#: The lock file an export holds in its output folder while it writes.
 LOCK_NAME = ".fabkit.lock"
 
 
@@ -432,7 +432,7 @@ class OutputLock:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                pid = _read_pid(fd)
+                pid = _lock_holder(fd)
                 os.close(fd)
                 if not self.wait:
                     raise LockedError(self.outdir, pid) from None
@@ -465,7 +465,7 @@ class OutputLock:
         return False
 
 
-def _read_pid(fd) -> int | None:
+def _lock_holder(fd) -> int | None:
     try:
         text = os.pread(fd, 32, 0).decode().strip()
         return int(text) if text else None

@@ -34,9 +34,10 @@ What it guarantees:
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
   is loaded (:mod:`fabkit.io.templates`).
-- **Progress.** ``progress`` hears each design's stages as they start and each design as it
-  ends; :class:`fabkit.commands.export.DesignProgress` says them through the one progress of
-  every command (:mod:`fabkit.commands.progress`: stderr, ``-q``, ``--progress``).
+- **Progress.** :func:`export_many` tells a ``progress`` object (``stage(name, stage)`` as a
+  design starts a stage, ``finished(result)`` as it ends, ``close()``) and says nothing itself;
+  the command line's :class:`~fabkit.commands.export.DesignProgress` puts it into the one
+  progress of every command (stderr, the designs done of all and the time left, ``-q``).
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ from pathlib import Path
 
 from ..errors import BoundsError, FabkitError
 from .design import export_one
-from .folders import OutputLock, prepare_outdir
+from ..io.outputs import OutputLock
+from .folders import prepare_outdir
 from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
 from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
@@ -120,8 +122,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     Parameters
     ----------
     paths : sequence of path or str
-        Template files; a string without a folder part may also name a bundled template
-        (``"super_stable"``), as on the command line.
+        Template files, or bare names (``"super_stable"``): a template of that name in the
+        current folder, else the bundled one, as ``fabkit export NAME`` takes them.
     formats : list of str or None
         Formats to export (None: every format that applies to each design).
     outdir : path
@@ -136,9 +138,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
         Monte Carlo builds (0: no tolerance analysis; None: the template's setting, else the
         analysis's default).
     progress : object, optional
-        Told ``stage(name, stage)`` as a design starts a stage, ``stage_done(name, done, total)``
-        (when it has that method) as one ends, and ``finished(result)`` as a design ends:
-        :class:`fabkit.commands.export.DesignProgress` says them as ``fabkit export`` does.
+        Told ``stage(name, stage)`` as a design starts a stage and ``finished(result)`` as it
+        ends (the command line passes a :class:`~fabkit.commands.export.DesignProgress`).
     isolate : bool
         Export in fresh worker processes with a fixed hash seed (``PYTHONHASHSEED=0``), so that
         no library's set or dict ordering can make two runs differ; False with ``jobs=1`` runs
@@ -192,9 +193,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     exporters = dict(EXPORTERS if exporters is None else exporters)
     # before any design: one bad key fails them all alike
     settings = check_export_settings(settings or {}, exporters)
-    # a bare name is a bundled template, as on the command line (a file of that name in the
-    # current folder wins); a misspelt one fails its design with a "did you mean"
-    paths = [resolve_template(p) if isinstance(p, str) else Path(p) for p in paths]
+    # a bare name is a template of the current folder or a bundled one, as on the command line
+    paths = [resolve_template(p) for p in paths]
     results: list[DesignResult | None] = [None] * len(paths)
     owners: dict[str, Path] = {}
     names: dict[int, str] = {}

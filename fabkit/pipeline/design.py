@@ -8,9 +8,11 @@ import time
 from pathlib import Path
 
 from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
+from ..io.inputs import read_regular
 from .folders import _staging_names, carry_over, check_replaceable, recover_folder, swap_in
 from .formats import RESERVED, choose_formats, make_artefacts, plan_design, run_checks
-from .manifest import (MANIFEST, design_digest, new_manifest, read_manifest, sort_earlier)
+from .manifest import (MANIFEST, MAX_KEPT_BYTES, design_digest, new_manifest, read_manifest,
+                       sort_earlier)
 from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
 from .stages import Artefacts, Checks, DesignReport, judge_design
 
@@ -48,9 +50,6 @@ def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefact
     in the report) and their results from the folder's record (:mod:`fabkit.pipeline.manifest`).
     A kept file that this export also makes is this export's. The formats follow ``order``
     (the registry's)."""
-    from ..io.inputs import read_regular
-    from .manifest import MAX_KEPT_BYTES
-
     files, formats = dict(art.files), dict(art.formats)
     for fmt, origin in sorted(kept.items()):
         for name in origin.files:

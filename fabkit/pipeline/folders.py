@@ -7,8 +7,6 @@ import shutil
 from pathlib import Path
 
 from ..errors import OutputError
-# the lock lives beside the other guards of output folders, where a library export takes it too
-from ..io.outputs import LOCK_NAME, OutputLock  # noqa: F401  (still names of this module)
 
 
 def _safe(name: str) -> bool:

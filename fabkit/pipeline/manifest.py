@@ -23,7 +23,11 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import OutputError
+from .. import __version__
+from ..errors import FabkitError, OutputError
+from ..io.inputs import read_regular
+from ..report.text import jsonable
+from .formats import load_exporter
 
 __all__ = ["MANIFEST", "SCHEMA", "SCHEMA_VERSION", "FormatOrigin", "Manifest", "read_manifest",
            "design_digest", "format_settings", "stale_reason", "sort_earlier", "new_manifest"]
@@ -100,8 +104,6 @@ class Manifest:
         return max((o.export for o in self.formats.values()), default=0)
 
     def to_bytes(self) -> bytes:
-        from ..report.text import jsonable
-
         data = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "design": self.design,
                 "formats": {f: o.as_dict() for f, o in sorted(self.formats.items())}}
         return (json.dumps(jsonable(data), indent=1, sort_keys=True) + "\n").encode("utf-8")
@@ -117,8 +119,6 @@ def _flat(settings: dict, prefix: str = ""):
 
 
 def _canonical(value) -> str:
-    from ..report.text import jsonable
-
     return json.dumps(jsonable(value), sort_keys=True)
 
 
@@ -190,8 +190,6 @@ def read_manifest(folder) -> Manifest | None:
         The record is not a regular file, not JSON, not this schema and version, or has a field
         of the wrong type; the message names the file.
     """
-    from ..io.inputs import read_regular
-
     path = Path(folder) / MANIFEST
     if not path.exists() and not path.is_symlink():
         return None
@@ -231,13 +229,9 @@ def read_manifest(folder) -> Manifest | None:
 
 def _origin_now(fmt, files, design, settings, exporters, digest) -> FormatOrigin:
     """How format ``fmt`` would be made by this export (its number and time not yet given)."""
-    import fabkit
-
-    from .formats import load_exporter
-
     module = load_exporter(fmt, exporters)
     return FormatOrigin(fmt, tuple(files), 1, "", digest,
-                        format_settings(fmt, module, settings), fabkit.__version__)
+                        format_settings(fmt, module, settings), __version__)
 
 
 def sort_earlier(folder, earlier: Manifest | None, design, settings, made, exporters,
@@ -267,8 +261,6 @@ def sort_earlier(folder, earlier: Manifest | None, design, settings, made, expor
     removed : tuple of str
         One line per stale format: which, from which export, and why it goes.
     """
-    from ..errors import FabkitError
-
     kept, removed = {}, []
     if earlier is None:
         return kept, ()
