@@ -180,6 +180,43 @@ def rounded(target, max_curvature: float, spacing: float) -> np.ndarray:
     return out + (curve[-1] - out[-1]) * (s / s[-1])[:, None]
 
 
+def _apex_step(q_prev: np.ndarray, q_cur: np.ndarray, apex: np.ndarray, leg: float, k: int):
+    """One more leg of the zig-zag for every partial chain and every type: module ``k`` turns
+    the last leg by its apex, to the right when ``k`` is odd and to the left when even.
+
+    Parameters
+    ----------
+    q_prev, q_cur : numpy.ndarray, shape (B, 2)
+        The last two strip nodes of each of the B partial chains.
+    apex : numpy.ndarray, shape (T,)
+        The apex angle of each type, in radians.
+    leg : float
+        Length of a leg.
+    k : int
+        The module's number along the chain, from 1.
+
+    Returns
+    -------
+    q_next : numpy.ndarray, shape (B, T, 2)
+        The next strip node, per chain and type.
+    m_new : numpy.ndarray, shape (B, T, 2)
+        The new centre-line point (the middle of the new leg).
+    step : numpy.ndarray, shape (B, T, 2)
+        From the last centre-line point (the middle of the last leg) to ``m_new``.
+    """
+    sign = -1.0 if k % 2 == 1 else 1.0
+    u = q_cur - q_prev
+    u = u / np.linalg.norm(u, axis=1, keepdims=True)
+    ang = sign * (math.pi - apex)
+    c, sn = np.cos(ang), np.sin(ang)
+    nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
+                   u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
+    q_next = q_cur[:, None, :] + leg * nu
+    m_new = 0.5 * (q_cur[:, None, :] + q_next)
+    step = m_new - 0.5 * (q_prev + q_cur)[:, None, :]
+    return q_next, m_new, step
+
+
 def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = BEAM_WIDTH,
           limit: int, max_curvature: float | None = None, stop=None) -> Track:
     """The sequence of apex angles whose zigzag follows ``target`` most closely.
@@ -241,17 +278,7 @@ def track(target, apexes_deg, leg: float, *, reference_deg: float, width: int = 
     for k in range(1, int(limit) + 1):
         if stop is not None:
             stop()
-        sign = -1.0 if k % 2 == 1 else 1.0
-        u = q_cur - q_prev
-        u = u / np.linalg.norm(u, axis=1, keepdims=True)
-        ang = sign * (math.pi - apex)
-        c, sn = np.cos(ang), np.sin(ang)
-        nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
-                       u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
-        q_next = q_cur[:, None, :] + leg * nu                        # (B, T, 2)
-        m_old = 0.5 * (q_prev + q_cur)
-        m_new = 0.5 * (q_cur[:, None, :] + q_next)
-        step = m_new - m_old[:, None, :]
+        q_next, m_new, step = _apex_step(q_prev, q_cur, apex, leg, k)
         seg = np.linalg.norm(step, axis=-1)
         # closest curve point within the window around the last progress
         base = np.clip(np.rint(sigma / h).astype(int), 0, seg_count)
@@ -444,16 +471,7 @@ def follow(centre, bins_deg, leg: float, *, width: int = BEAM_WIDTH, stop=None) 
     for k in range(1, count + 1):
         if stop is not None:
             stop()
-        sign = -1.0 if k % 2 == 1 else 1.0
-        u = q_cur - q_prev
-        u = u / np.linalg.norm(u, axis=1, keepdims=True)
-        ang = sign * (math.pi - apex)
-        c, sn = np.cos(ang), np.sin(ang)
-        nu = np.stack([u[:, None, 0] * c - u[:, None, 1] * sn,
-                       u[:, None, 0] * sn + u[:, None, 1] * c], axis=-1)
-        q_next = q_cur[:, None, :] + leg * nu
-        m_new = 0.5 * (q_cur[:, None, :] + q_next)
-        step = m_new - 0.5 * (q_prev + q_cur)[:, None, :]
+        q_next, m_new, step = _apex_step(q_prev, q_cur, apex, leg, k)
         want = steps[k - 1]
         cross = step[..., 0] * want[1] - step[..., 1] * want[0]
         err = np.arctan2(cross, np.sum(step * want, axis=-1))
