@@ -8,7 +8,8 @@ A generated table sits between two marks in a page::
 
 ``python tools/docs_tables.py`` runs the commands behind every table and writes the tables into
 the pages; ``python tools/docs_tables.py --check`` writes nothing and exits 1 naming every table
-that differs from what the code gives (tests/test_docs_blocks.py runs the check).
+that differs from what the code gives (tests/test_docs_blocks.py runs the check: ``--fast`` in
+the fast suite, the tables of :data:`SLOW` in the slow one).
 """
 
 from __future__ import annotations
@@ -48,8 +49,27 @@ def letters_table() -> str:
     return "\n".join(rows)
 
 
+def paper_modules_table() -> str:
+    """The map of every paper module and its labels checked (tools/paper_modules_table.py)."""
+    from paper_modules_table import paper_modules_table as table
+
+    return table()
+
+
+def tolerance_table() -> str:
+    """The tolerance verdict of every bundled design (tools/tolerance_table.py)."""
+    from tolerance_table import tolerance_table as table
+
+    return table()
+
+
 #: table name -> (page, function making the table's markdown)
-TABLES = {"letters": ("docs/assembly.md", letters_table)}
+TABLES = {"letters": ("docs/assembly.md", letters_table),
+          "paper_modules": ("docs/maps.md", paper_modules_table),
+          "tolerance": ("docs/batch.md", tolerance_table)}
+
+#: Tables that take minutes to make (the slow suite checks them): ``--fast`` leaves them out.
+SLOW = {"tolerance"}
 
 _SPAN = r"(<!-- docs-table: {name} -->\n)(.*?)(\n<!-- /docs-table -->)"
 
@@ -79,10 +99,15 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if a page's table differs from the code's")
+    parser.add_argument("--fast", action="store_true",
+                        help=f"leave out the tables that take minutes ({', '.join(sorted(SLOW))})")
     parser.add_argument("names", nargs="*", help=f"tables (default: all of {sorted(TABLES)})")
     args = parser.parse_args(argv)
     stale = []
-    for name in args.names or sorted(TABLES):
+    unknown = [n for n in args.names if n not in TABLES]
+    if unknown:
+        parser.error(f"unknown table {unknown[0]!r}; known: {', '.join(sorted(TABLES))}")
+    for name in args.names or sorted(set(TABLES) - (SLOW if args.fast else set())):
         table = TABLES[name][1]()
         if table_in_page(name) == table:
             continue
