@@ -49,18 +49,25 @@ def letters_table() -> str:
     return "\n".join(rows)
 
 
+def _sibling(name: str):
+    """The module ``tools/<name>.py`` (tools/ is no package: loaded by its path)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # its dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
 def paper_modules_table() -> str:
     """The map of every paper module and its labels checked (tools/paper_modules_table.py)."""
-    from paper_modules_table import paper_modules_table as table
-
-    return table()
+    return _sibling("paper_modules_table").paper_modules_table()
 
 
 def tolerance_table() -> str:
     """The tolerance verdict of every bundled design (tools/tolerance_table.py)."""
-    from tolerance_table import tolerance_table as table
-
-    return table()
+    return _sibling("tolerance_table").tolerance_table()
 
 
 #: table name -> (page, function making the table's markdown)
