@@ -171,7 +171,12 @@ def run(args) -> int:
     final = designs["expand"].motion.to
     if final is None:
         raise FabkitError(f"{folder / MODULE_FILES['expand']}: [motion] has no `to` (D2*)")
-    modules = curvature_modules(nets, float(final))
+    try:
+        modules = curvature_modules(nets, float(final))
+    except FabkitError as exc:
+        if "to" in settings.get("motion", {}):  # the value given is not the modules' D2*
+            raise UsageError("--set", f"motion.to: {exc}") from None
+        raise
     progress.update(1, text=f"{word}: searching the chains")
     fits = design_word(word, modules, height=args.height, beam=args.beam,
                        progress=lambda done, total, letter: progress.update(
