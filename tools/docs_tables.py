@@ -49,6 +49,25 @@ def letters_table() -> str:
     return "\n".join(rows)
 
 
+def curvature_modules_table() -> str:
+    """The final shape of each bundled curvature module (``fabkit.design.letters.
+    curvature_modules`` at the D2* of ``curvature_expand.toml``, as ``fabkit letters`` uses
+    them): bottom distance and apex angle."""
+    import math
+
+    from fabkit.design.letters import curvature_modules
+    from fabkit.io.templates import bundled_folder, load_template
+
+    names = ("contract", "maintain", "expand")
+    designs = {n: load_template(bundled_folder() / f"curvature_{n}.toml") for n in names}
+    final = float(designs["expand"].motion.to)
+    modules = curvature_modules({n: d.network for n, d in designs.items()}, final)
+    rows = ["| module | final bottom | apex angle |", "|---|---|---|"]
+    for m in modules:
+        rows.append(f"| {m.name} | {m.bottom:.8f} | {math.degrees(m.apex):.1f}° |")
+    return "\n".join(rows)
+
+
 def _sibling(name: str):
     """The module ``tools/<name>.py`` (tools/ is no package: loaded by its path)."""
     import importlib.util
@@ -73,6 +92,7 @@ def tolerance_table() -> str:
 #: table name -> (page, function making the table's markdown)
 TABLES = {"letters": ("docs/assembly.md", letters_table),
           "paper_modules": ("docs/maps.md", paper_modules_table),
+          "curvature_modules": ("docs/assembly.md", curvature_modules_table),
           "tolerance": ("docs/batch.md", tolerance_table)}
 
 #: Tables that take minutes to make (the slow suite checks them): ``--fast`` leaves them out.
