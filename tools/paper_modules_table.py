@@ -31,10 +31,19 @@ EXTRA_BRANCHES = {"physical_fourbar": 1, "printed_planar": 1}
 IDENTITY_TOL = 1e-6
 
 
+#: Below this a slope or a residual is round-off, whose digits differ from one CPU or BLAS
+#: kernel to another: the table says "0" rather than a number that could not be checked
+#: elsewhere.
+ROUND_OFF = 1e-12
+
+
 def _num(x: float, digits: int = 4) -> str:
-    """A number for the table: ``digits`` significant digits, a true minus sign, ∞."""
+    """A number for the table: ``digits`` significant digits, a true minus sign, ∞, and 0 for
+    round-off."""
     if math.isinf(x):
         return "∞" if x > 0 else "−∞"
+    if abs(x) < ROUND_OFF:
+        return "0"
     text = f"{x:.{digits}g}"
     if "e" in text:
         mantissa, exp = text.split("e")
@@ -111,14 +120,16 @@ def _chaotic(c):
           and c.start_cycles[0].kind == "unstable" and abs(lyap.mean - label) <= 2 * lyap.std)
     return ok, (f"D* 1.5: {fp.kind if fp else 'none'}; 2-cycle "
                 f"{c.start_cycles[0].kind if c.start_cycles else 'none'}; λ = "
-                f"{lyap.mean:.4f} ± {lyap.std:.4f} ({lyap.values.size} orbits, {lyap.discard} "
-                f"discarded, {lyap.average} averaged)")
+                f"{lyap.mean:.3f} ± {lyap.std:.3f} ({lyap.values.size} orbits, {lyap.discard} "
+                f"discarded, {lyap.average} averaged; three digits: the fourth is at the "
+                "orbits' standard error)")
 
 
 def _identity(c):
     lo, hi = c.start.domain
     dev = _deviation(c.start, lo, hi)
-    return dev <= IDENTITY_TOL, f"f = id on the whole branch (f(d) = d to {_num(dev, 2)})"
+    to = "round-off" if dev < ROUND_OFF else _num(dev, 2)
+    return dev <= IDENTITY_TOL, f"f = id on the whole branch (f(d) = d to {to})"
 
 
 def _slope_at_sqrt3(label: float):
