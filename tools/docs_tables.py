@@ -72,6 +72,8 @@ def _sibling(name: str):
     """The module ``tools/<name>.py`` (tools/ is no package: loaded by its path)."""
     import importlib.util
 
+    if name in sys.modules:  # loaded for another table: its computations are cached
+        return sys.modules[name]
     spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module  # its dataclasses look their module up there
@@ -84,6 +86,11 @@ def paper_modules_table() -> str:
     return _sibling("paper_modules_table").paper_modules_table()
 
 
+def paper_notes_table() -> str:
+    """The paper's labels against the computed maps (tools/paper_modules_table.py)."""
+    return _sibling("paper_modules_table").paper_notes_table()
+
+
 def tolerance_table() -> str:
     """The tolerance verdict of every bundled design (tools/tolerance_table.py)."""
     return _sibling("tolerance_table").tolerance_table()
@@ -93,6 +100,7 @@ def tolerance_table() -> str:
 TABLES = {"letters": ("docs/assembly.md", letters_table),
           "paper_modules": ("docs/maps.md", paper_modules_table),
           "curvature_modules": ("docs/assembly.md", curvature_modules_table),
+          "paper_notes": ("docs/paper_notes.md", paper_notes_table),
           "tolerance": ("docs/batch.md", tolerance_table)}
 
 #: Tables that take minutes to make (the slow suite checks them): ``--fast`` leaves them out.

@@ -9,6 +9,7 @@ computed number.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -108,8 +109,8 @@ def _period_two(c):
     fp = _near(c.start_fixed, SQRT3)
     ok = fp is not None and fp.kind == "unstable" and len(c.start_cycles) == 1 \
         and c.start_cycles[0].kind == "stable"
-    return ok, f"D* {_value(SQRT3)}: {fp.kind if fp else 'none'}; " + (
-        ", ".join(f"2-cycle {c2.kind}" for c2 in c.start_cycles) or "no 2-cycle")
+    return ok, (_fixed_text(fp) if fp else "no fixed point at √3") + "; " + (
+        ", ".join(f"2-cycle {_cycle_text(c2)}" for c2 in c.start_cycles) or "no 2-cycle")
 
 
 def _chaotic(c):
@@ -118,8 +119,9 @@ def _chaotic(c):
     label = 0.312
     ok = (fp is not None and fp.kind == "unstable" and len(c.start_cycles) == 1
           and c.start_cycles[0].kind == "unstable" and abs(lyap.mean - label) <= 2 * lyap.std)
-    return ok, (f"D* 1.5: {fp.kind if fp else 'none'}; 2-cycle "
-                f"{c.start_cycles[0].kind if c.start_cycles else 'none'}; λ = "
+    return ok, ((_fixed_text(fp) if fp else "no fixed point at 1.5") + "; "
+                + (f"2-cycle {_cycle_text(c.start_cycles[0])}" if c.start_cycles
+                   else "no 2-cycle") + "; λ = "
                 f"{lyap.mean:.3f} ± {lyap.std:.3f} ({lyap.values.size} orbits, {lyap.discard} "
                 f"discarded, {lyap.average} averaged; three digits: the fourth is at the "
                 "orbits' standard error)")
@@ -232,26 +234,37 @@ def _domain(g) -> str:
     return f"[{lo:.6g}, {hi:.6g}]"
 
 
-def paper_modules_table() -> str:
-    """Markdown rows: the map of every paper module, and the paper's labels checked."""
-    modules = json.loads(PAPER_MODULES.read_text())["modules"]
-    rows = ["| module | branch | d1 domain | fixed points: value, slope (kind) | 2-cycles | "
-            "the paper says | computed |",
-            "|---|---|---|---|---|---|---|"]
-    for name, module in modules.items():
+@functools.lru_cache(maxsize=1)
+def _computed() -> list[tuple[str, dict, Computed, tuple[bool, str] | None]]:
+    """Every paper module: its name, its entry of the JSON, its maps and, where the paper
+    labels it, (agrees, what was found)."""
+    out = []
+    for name, module in json.loads(PAPER_MODULES.read_text())["modules"].items():
         f = _maps(module)
-        start = f.branch.index
         computed = Computed(f, f.fixed_points(), f.cycles(2))
         extra = EXTRA_BRANCHES.get(name)
         if extra is not None:
             computed.extra = f.on_branch(extra)
             computed.extra_fixed = computed.extra.fixed_points()
         label = LABELS.get(name)
-        if label is None:
+        out.append((name, module, computed, None if label is None else label.check(computed)))
+    return out
+
+
+def paper_modules_table() -> str:
+    """Markdown rows: the map of every paper module, and the paper's labels checked."""
+    rows = ["| module | branch | d1 domain | fixed points: value, slope (kind) | 2-cycles | "
+            "the paper says | computed |",
+            "|---|---|---|---|---|---|---|"]
+    for name, module, computed, checked in _computed():
+        f = computed.start
+        start = f.branch.index
+        extra = EXTRA_BRANCHES.get(name)
+        if checked is None:
             says = verdict = "—"
         else:
-            ok, found = label.check(computed)
-            says = label.says
+            ok, found = checked
+            says = LABELS[name].says
             verdict = ("agrees: " if ok else "**differs**: ") + found
         shown = f"{name} (3D)" if module.get("dim") == 3 else name
         rows.append(f"| {shown} | **{start}** | {_domain(f)} | "
@@ -262,6 +275,21 @@ def paper_modules_table() -> str:
             rows.append(f"| {shown} | {extra} | {_domain(g)} | "
                         f"{_fixed_column(g, computed.extra_fixed)} | "
                         f"{_cycles_column(g, g.cycles(2))} | | |")
+    return "\n".join(rows)
+
+
+def paper_notes_table() -> str:
+    """Markdown rows of docs/paper_notes.md: each label of the paper, what fabkit computes
+    and whether they agree."""
+    rows = ["| module (figure) | paper says | fabkit computes | verdict |", "|---|---|---|---|"]
+    for name, module, _, checked in _computed():
+        if checked is None:
+            continue
+        ok, found = checked
+        figure = module.get("figure", "").split(":")[0]
+        shown = f"{name} ({figure})" if figure else name
+        rows.append(f"| {shown} | {LABELS[name].says} | {found} | "
+                    f"{'agrees' if ok else '**differs**'} |")
     return "\n".join(rows)
 
 
