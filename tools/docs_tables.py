@@ -69,16 +69,13 @@ def curvature_modules_table() -> str:
 
 
 def _sibling(name: str):
-    """The module ``tools/<name>.py`` (tools/ is no package: loaded by its path)."""
-    import importlib.util
+    """The module ``tools/<name>.py`` (tools/ is no package: its folder joins the path)."""
+    import importlib
 
-    if name in sys.modules:  # loaded for another table: its computations are cached
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # its dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return importlib.import_module(name)
 
 
 def paper_modules_table() -> str:
@@ -91,6 +88,11 @@ def paper_notes_table() -> str:
     return _sibling("paper_modules_table").paper_notes_table()
 
 
+def fig3_design_table() -> str:
+    """Paper modules redesigned from their map wishes (tools/fig3_design_table.py)."""
+    return _sibling("fig3_design_table").fig3_design_table()
+
+
 def tolerance_table() -> str:
     """The tolerance verdict of every bundled design (tools/tolerance_table.py)."""
     return _sibling("tolerance_table").tolerance_table()
@@ -101,6 +103,7 @@ TABLES = {"letters": ("docs/assembly.md", letters_table),
           "paper_modules": ("docs/maps.md", paper_modules_table),
           "curvature_modules": ("docs/assembly.md", curvature_modules_table),
           "paper_notes": ("docs/paper_notes.md", paper_notes_table),
+          "fig3_design": ("docs/design.md", fig3_design_table),
           "tolerance": ("docs/batch.md", tolerance_table)}
 
 #: Tables that take minutes to make (the slow suite checks them): ``--fast`` leaves them out.

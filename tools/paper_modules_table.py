@@ -38,7 +38,7 @@ IDENTITY_TOL = 1e-6
 ROUND_OFF = 1e-12
 
 
-def _num(x: float, digits: int = 4) -> str:
+def number(x: float, digits: int = 4) -> str:
     """A number for the table: ``digits`` significant digits, a true minus sign, ∞, and 0 for
     round-off."""
     if math.isinf(x):
@@ -53,17 +53,17 @@ def _num(x: float, digits: int = 4) -> str:
 
 
 def _value(x: float) -> str:
-    return _num(x, 10)
+    return number(x, 10)
 
 
 def _fixed_text(p) -> str:
     end = ", at the end of the branch" if p.at_end else ""
-    return f"{_value(p.value)}: s = {_num(p.slope)} ({p.kind}{end})"
+    return f"{_value(p.value)}: s = {number(p.slope)} ({p.kind}{end})"
 
 
 def _cycle_text(c) -> str:
     values = ", ".join(_value(v) for v in c.values)
-    return f"({values}) μ = {_num(c.multiplier)} ({c.kind})"
+    return f"({values}) μ = {number(c.multiplier)} ({c.kind})"
 
 
 def _deviation(g, lo: float, hi: float, samples: int = 2001) -> float:
@@ -130,7 +130,7 @@ def _chaotic(c):
 def _identity(c):
     lo, hi = c.start.domain
     dev = _deviation(c.start, lo, hi)
-    to = "round-off" if dev < ROUND_OFF else _num(dev, 2)
+    to = "round-off" if dev < ROUND_OFF else number(dev, 2)
     return dev <= IDENTITY_TOL, f"f = id on the whole branch (f(d) = d to {to})"
 
 
@@ -139,7 +139,7 @@ def _slope_at_sqrt3(label: float):
         fp = _near(c.start_fixed, SQRT3)
         if fp is None:
             return False, "no fixed point at √3"
-        return abs(fp.slope - label) <= 0.01 * abs(label), f"s = {_num(fp.slope)} at √3"
+        return abs(fp.slope - label) <= 0.01 * abs(label), f"s = {number(fp.slope)} at √3"
     return check
 
 
@@ -157,7 +157,7 @@ def _second(points, first: float) -> float:
 
 def _curvature(c):
     dev = _deviation(c.start, SQRT3, 1.5 * SQRT3)
-    return dev <= IDENTITY_TOL, f"f(d) = d to {_num(dev, 2)} on [√3, 1.5√3]"
+    return dev <= IDENTITY_TOL, f"f(d) = d to {number(dev, 2)} on [√3, 1.5√3]"
 
 
 def _flat_then_stable(c):
@@ -176,7 +176,7 @@ def _super_stable_then_super_unstable(c):
     found = "; ".join(_fixed_text(p) for p in (d1, d2) if p is not None)
     if d2 is not None and d2.kind != "super-unstable":
         lo = min(c.extra.domain)
-        found += f" ({_num(d2.value - lo, 2)} above the turning point d1 = {_value(lo)})"
+        found += f" ({number(d2.value - lo, 2)} above the turning point d1 = {_value(lo)})"
     return ok, found
 
 

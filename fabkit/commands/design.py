@@ -288,7 +288,7 @@ def settings_toml(settings: dict) -> str:
 
     lines = []
     for section, table in settings.items():
-        lines += ["", f"# set by `fabkit design --set`: the simulated builds above used it, "
+        lines += ["", "# set by `fabkit design --set`: the simulated builds above used it, "
                       "and so does the export", f"[fabrication.{section}]"]
         lines += [f"{k} = {value(v)}" for k, v in table.items()]
     return "\n".join(lines) + ("\n" if lines else "")
