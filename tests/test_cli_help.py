@@ -19,7 +19,8 @@ LONG = {"export", "sweep", "bench", "tolerance", "design", "map", "simulate", "l
 #: Commands whose work runs in parallel processes.
 PARALLEL = {"export", "sweep"}
 #: Commands that read templates and apply settings to them.
-SETTINGS = {"export", "tolerance", "check", "simulate", "map", "fold"}
+SETTINGS = {"export", "tolerance", "check", "simulate", "map", "fold", "design", "sweep", "letters",
+            "info"}
 
 
 def _commands():

@@ -103,10 +103,48 @@ def test_block_runs_as_written(run, tmp_path):
             assert proc.returncode == 0, _fail_text(", ".join(b.name for b in what), proc)
 
 
+def _check_tables(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(ROOT / "tools" / "docs_tables.py"), "--check",
+                           *args], env=_environment(), capture_output=True, text=True,
+                          timeout=TIMEOUT)
+
+
 def test_tables_are_what_the_code_computes():
-    proc = subprocess.run([sys.executable, str(ROOT / "tools" / "docs_tables.py"), "--check"],
-                          env=_environment(), capture_output=True, text=True, timeout=TIMEOUT)
+    """The letters of docs/assembly.md and the paper modules of docs/maps.md."""
+    proc = _check_tables("--fast")
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+@pytest.mark.slow
+def test_tolerance_table_is_what_the_code_computes():
+    """docs/batch.md's verdict of every bundled design (``fabkit tolerance templates/*.toml``,
+    a minute or two)."""
+    proc = _check_tables("tolerance")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_a_table_that_drifted_is_named(tmp_path):
+    """The check compares a page's table with the code's: a row changed by hand is caught and
+    the table named, and the page is left as it was."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_tables", ROOT / "tools" / "docs_tables.py")
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+    page = tmp_path / "docs" / "maps.md"
+    page.parent.mkdir()
+    real = (ROOT / "docs" / "maps.md").read_text(encoding="utf-8")
+    drifted = real.replace("| slope_one_and_a_half | **0** | [1.62724, 2.36603] | "
+                           "1.732050808: s = 1.812", "| slope_one_and_a_half | **0** | "
+                           "[1.62724, 2.36603] | 1.732050808: s = 1.5")
+    assert drifted != real
+    page.write_text(drifted, encoding="utf-8")
+    tables.ROOT = tmp_path
+    assert tables.table_in_page("paper_modules") != tables.TABLES["paper_modules"][1]()
+    assert tables.main(["--check", "paper_modules"]) == 1
+    assert page.read_text(encoding="utf-8") == drifted
+    assert tables.main(["paper_modules"]) == 0
+    assert page.read_text(encoding="utf-8") == real
 
 
 def test_every_block_is_run_or_marked():

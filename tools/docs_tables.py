@@ -8,7 +8,8 @@ A generated table sits between two marks in a page::
 
 ``python tools/docs_tables.py`` runs the commands behind every table and writes the tables into
 the pages; ``python tools/docs_tables.py --check`` writes nothing and exits 1 naming every table
-that differs from what the code gives (tests/test_docs_blocks.py runs the check).
+that differs from what the code gives (tests/test_docs_blocks.py runs the check: ``--fast`` in
+the fast suite, the tables of :data:`SLOW` in the slow one).
 """
 
 from __future__ import annotations
@@ -48,8 +49,65 @@ def letters_table() -> str:
     return "\n".join(rows)
 
 
+def curvature_modules_table() -> str:
+    """The final shape of each bundled curvature module (``fabkit.design.letters.
+    curvature_modules`` at the D2* of ``curvature_expand.toml``, as ``fabkit letters`` uses
+    them): bottom distance and apex angle."""
+    import math
+
+    from fabkit.design.letters import curvature_modules
+    from fabkit.io.templates import bundled_folder, load_template
+
+    names = ("contract", "maintain", "expand")
+    designs = {n: load_template(bundled_folder() / f"curvature_{n}.toml") for n in names}
+    final = float(designs["expand"].motion.to)
+    modules = curvature_modules({n: d.network for n, d in designs.items()}, final)
+    rows = ["| module | final bottom | apex angle |", "|---|---|---|"]
+    for m in modules:
+        rows.append(f"| {m.name} | {m.bottom:.8f} | {math.degrees(m.apex):.1f}° |")
+    return "\n".join(rows)
+
+
+def _sibling(name: str):
+    """The module ``tools/<name>.py`` (tools/ is no package: its folder joins the path)."""
+    import importlib
+
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return importlib.import_module(name)
+
+
+def paper_modules_table() -> str:
+    """The map of every paper module and its labels checked (tools/paper_modules_table.py)."""
+    return _sibling("paper_modules_table").paper_modules_table()
+
+
+def paper_notes_table() -> str:
+    """The paper's labels against the computed maps (tools/paper_modules_table.py)."""
+    return _sibling("paper_modules_table").paper_notes_table()
+
+
+def fig3_design_table() -> str:
+    """Paper modules redesigned from their map wishes (tools/fig3_design_table.py)."""
+    return _sibling("fig3_design_table").fig3_design_table()
+
+
+def tolerance_table() -> str:
+    """The tolerance verdict of every bundled design (tools/tolerance_table.py)."""
+    return _sibling("tolerance_table").tolerance_table()
+
+
 #: table name -> (page, function making the table's markdown)
-TABLES = {"letters": ("docs/assembly.md", letters_table)}
+TABLES = {"letters": ("docs/assembly.md", letters_table),
+          "paper_modules": ("docs/maps.md", paper_modules_table),
+          "curvature_modules": ("docs/assembly.md", curvature_modules_table),
+          "paper_notes": ("docs/paper_notes.md", paper_notes_table),
+          "fig3_design": ("docs/design.md", fig3_design_table),
+          "tolerance": ("docs/batch.md", tolerance_table)}
+
+#: Tables that take minutes to make (the slow suite checks them): ``--fast`` leaves them out.
+SLOW = {"tolerance"}
 
 _SPAN = r"(<!-- docs-table: {name} -->\n)(.*?)(\n<!-- /docs-table -->)"
 
@@ -79,10 +137,15 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if a page's table differs from the code's")
+    parser.add_argument("--fast", action="store_true",
+                        help=f"leave out the tables that take minutes ({', '.join(sorted(SLOW))})")
     parser.add_argument("names", nargs="*", help=f"tables (default: all of {sorted(TABLES)})")
     args = parser.parse_args(argv)
     stale = []
-    for name in args.names or sorted(TABLES):
+    unknown = [n for n in args.names if n not in TABLES]
+    if unknown:
+        parser.error(f"unknown table {unknown[0]!r}; known: {', '.join(sorted(TABLES))}")
+    for name in args.names or sorted(set(TABLES) - (SLOW if args.fast else set())):
         table = TABLES[name][1]()
         if table_in_page(name) == table:
             continue

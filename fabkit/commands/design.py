@@ -71,6 +71,14 @@ def _whole(text):
     return int(text)
 
 
+#: The laser settings the simulated builds of a designed module read (its scale, the sheet
+#: thickness, the screw's hole play): :func:`fabkit.tolerance.spec.tolerance_spec`.
+LASER_KEYS = ("scale", "size", "thickness", "screw")
+#: The tolerance settings they read: the laser errors and the scale (the number of builds and
+#: their seed are fixed, :data:`fabkit.design.robustness.BUILDS`).
+TOLERANCE_KEYS = ("scale", "length_sigma", "kerf_sigma", "hole_clearance", "thickness",
+                  "thickness_sigma")
+
 #: Options that only apply to a curve, and their defaults.
 CURVE_OPTIONS = {"module_size": 50.0, "curve_scale": 1.0, "types": None}
 
@@ -94,8 +102,13 @@ def add_arguments(p):
                         "the fit)")
     p.add_argument("--name", action=_Once, default=None,
                    help="stem of the files written (default: module, or the curve file's stem)")
-    from . import add_out_dir, add_progress_options
+    from . import add_out_dir, add_progress_options, add_settings
 
+    add_settings(p, "a setting of the simulated laser builds a module's wishes are judged "
+                    "against, written into its template so that its export is judged the "
+                    "same way, e.g. --set tolerance.length_sigma=0.1 or --set laser.scale=50 "
+                    f"(reads laser.{', laser.'.join(LASER_KEYS)} and the laser keys of "
+                    "tolerance; a chain from --curve reads none)")
     add_out_dir(p, "out/design", "output folder (default: out/design)", action=_Once)
     add_progress_options(p)
 
@@ -179,8 +192,16 @@ def _check_curve_size(curve, module_size: float) -> None:
 def run(args) -> int:
     from ..report.viz import figure_png
 
+    from . import read_settings
+
     name = _name(args)
     out = Path(args.out_dir)
+    if args.curve is not None and args.settings:
+        read_settings(args, {}, "a chain designed from a curve reads no settings")
+    args.settings = read_settings(
+        args, {"laser": set(LASER_KEYS), "tolerance": set(TOLERANCE_KEYS)},
+        "a designed module reads the settings of its simulated laser builds only: laser."
+        + ", laser.".join(LASER_KEYS) + ", tolerance." + ", tolerance.".join(TOLERANCE_KEYS))
     if args.curve is not None:
         if args.fixed_point or args.cycle:
             raise UsageError("--curve", "designs a chain from a curve; give it without "
@@ -213,12 +234,13 @@ def _run_module(args, name, out, figure_png) -> int:
     progress = progress_for(args, NAME)
     progress.stage(f"{name}: a module from its map wishes, judged against simulated laser "
                    "builds")
+    settings = args.settings
     result = design_map(wishes, cycle, name=name, progress=progress.stage,
-                        sample_builds=laser_builds)
+                        sample_builds=lambda design: laser_builds(design, settings))
     progress.stage(f"{name}: drawing and writing")
     report = result.report
     files = {
-        f"{name}.toml": result.template.encode(),
+        f"{name}.toml": (result.template + settings_toml(settings)).encode(),
         f"{name}_design.json": (json.dumps(report, indent=1) + "\n").encode(),
         f"{name}_map.png": figure_png(module_design_figure(result), dpi=100),
     }
@@ -248,11 +270,41 @@ def _run_module(args, name, out, figure_png) -> int:
     return 0
 
 
-def laser_builds(design):
+def settings_toml(settings: dict) -> str:
+    """The ``--set`` settings as ``[fabrication.SECTION]`` tables to end a template with
+    (empty without settings)."""
+    from ..design.toml_text import toml_string
+
+    def value(v) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
+        return toml_string(v)
+
+    lines = []
+    for section, table in settings.items():
+        lines += ["", "# set by `fabkit design --set`: the simulated builds above used it, "
+                      "and so does the export", f"[fabrication.{section}]"]
+        lines += [f"{k} = {value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + ("\n" if lines else "")
+
+
+def laser_builds(design, settings=None):
     """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
     model (bar length, kerf, hole play, sheet thickness) at the scale the kit of this template
     is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.design.design_map` judges
     its wishes and suggestions against (``sample_builds``).
+
+    Parameters
+    ----------
+    design : Design
+    settings : dict, optional
+        ``--set`` overrides nested by section (``laser``, ``tolerance``), over the template's.
 
     Returns
     -------
@@ -269,7 +321,7 @@ def laser_builds(design):
     from ..tolerance import model_summary, tolerance_spec
     from ..tolerance.processes import ProcessGeometry, sample_lengths
 
-    spec = tolerance_spec(design, process="laser", samples=BUILDS, seed=0)
+    spec = tolerance_spec(design, settings, process="laser", samples=BUILDS, seed=0)
     net = design.network
     lengths = np.linalg.norm(net.nodes[net.edges[:, 0]] - net.nodes[net.edges[:, 1]], axis=1)
     geo = ProcessGeometry(nodes=net.nodes, edges=net.edges, lengths=lengths)

@@ -25,8 +25,10 @@ def add_arguments(p):
                         "proof only (structure); or the numeric rank by a dense SVD or the "
                         "certified sparse path; a dense SVD that cannot fit in memory is refused "
                         "before it starts")
-    from . import add_progress_options
+    from . import add_progress_options, add_settings
 
+    add_settings(p, "describe the motion as changed, e.g. --set motion.drive=d2 or "
+                    "--set motion.to=2.9 (info reads motion settings only)")
     add_progress_options(p)  # many templates, or one large network, take a while
 
 
@@ -75,13 +77,15 @@ def describe(design, rank_method: str = "auto") -> str:
 
 def run(args) -> int:
     from ..io.templates import load_template
-    from . import expand_templates, progress_for, short_list
+    from ..io.templates import with_settings
+    from . import expand_templates, progress_for, read_settings, short_list
 
+    settings = read_settings(args, {"motion": None}, "info reads motion settings only")
     found = expand_templates(args.templates)
     progress = progress_for(args, NAME)
     progress.stage(short_list(found), total=len(found), unit="templates")
     for path in found:
-        text = describe(load_template(path), args.rank_method)
+        text = describe(with_settings(load_template(path), settings), args.rank_method)
         progress.advance(text=f"{path.name}: described")
         print(text)
     progress.close()

@@ -30,7 +30,7 @@ MODULE_FILES = {
 
 
 def add_arguments(p):
-    from . import add_out_dir, add_progress_options
+    from . import add_out_dir, add_progress_options, add_settings
 
     p.add_argument("word", metavar="WORD", help="capital letters A-Z, e.g. NETWORK")
     add_out_dir(p, "out/letters", "output folder (default: out/letters)")
@@ -40,6 +40,9 @@ def add_arguments(p):
                    help="folder holding curvature_contract/maintain/expand.toml "
                         "(default: the bundled templates)")
     p.add_argument("--beam", type=int, default=96, help="beam width of the search (default 96)")
+    add_settings(p, "override the final state D2* the chains are designed for and traced to "
+                    "(the expand module's motion target), e.g. --set motion.to=2.6 (letters "
+                    "reads motion.to only)")
     add_progress_options(p)
 
 
@@ -136,7 +139,8 @@ def run(args) -> int:
 
     from ..errors import UsageError
     from ..io.outputs import write_files
-    from . import check_count, check_number, progress_for
+    from . import check_count, check_number, progress_for, read_settings
+    from ..io.templates import with_settings
 
     word = args.word
     if not word:
@@ -155,16 +159,24 @@ def run(args) -> int:
         raise UsageError("--height", f"--height must be positive, got {args.height}")
     check_number("--height", args.height)
     check_count("--beam", args.beam, 1, MAX_BEAM, "for the beam width")
+    settings = read_settings(args, {"motion": {"to"}}, "letters reads motion.to only (D2*, the "
+                                                       "final state of the chains)")
     progress = progress_for(args, NAME)
     steps = 1 + 2 * len(word)  # the modules, then a search and a trace per letter
     progress.stage(f"{word}: the curvature modules", total=steps, unit="steps")
     folder = _module_folder(args.modules)
-    designs = {name: load_template(folder / f) for name, f in MODULE_FILES.items()}
+    designs = {name: with_settings(load_template(folder / f), settings)
+               for name, f in MODULE_FILES.items()}
     nets = {name: d.network for name, d in designs.items()}
     final = designs["expand"].motion.to
     if final is None:
         raise FabkitError(f"{folder / MODULE_FILES['expand']}: [motion] has no `to` (D2*)")
-    modules = curvature_modules(nets, float(final))
+    try:
+        modules = curvature_modules(nets, float(final))
+    except FabkitError as exc:
+        if "to" in settings.get("motion", {}):  # the value given is not the modules' D2*
+            raise UsageError("--set", f"motion.to: {exc}") from None
+        raise
     progress.update(1, text=f"{word}: searching the chains")
     fits = design_word(word, modules, height=args.height, beam=args.beam,
                        progress=lambda done, total, letter: progress.update(

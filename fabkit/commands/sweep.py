@@ -1,4 +1,5 @@
-"""``fabkit sweep TEMPLATE --vary KEY=START:STOP:N``: a module family on a grid of parameters."""
+"""``fabkit sweep TEMPLATE --vary KEY=START:STOP:N [--set motion.to=VALUE]``: a module family on
+a grid of parameters."""
 
 from __future__ import annotations
 
@@ -36,7 +37,7 @@ MIN_SECONDS = 1e-9
 
 
 def add_arguments(p):
-    from . import add_jobs, add_out_dir, add_progress_options
+    from . import add_jobs, add_out_dir, add_progress_options, add_settings
 
     p.add_argument("template", metavar="TEMPLATE", help="module template, or a sweep spec file")
     p.add_argument("--vary", action="append", default=None, metavar="KEY=START:STOP:N",
@@ -45,6 +46,9 @@ def add_arguments(p):
     p.add_argument("--measure", default=None, metavar="LIST",
                    help="comma-separated: fixed_points,slopes,cycles,lyapunov,modes,attractor "
                         "(default: all)")
+    add_settings(p, "override the template's motion target at every point, e.g. "
+                    "--set motion.to=2.9: the branch measured, and the motion traced where "
+                    "the module has no construction (the sweep reads motion.to only)")
     add_out_dir(p, None, "output folder (default: out/sweep-<template name>)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="dask.distributed scheduler, e.g. tcp://10.0.0.5:8786 (default: "
@@ -99,13 +103,39 @@ class _Points:
             self.progress.update(done, total)
 
 
+def _with_target(design, settings, axes):
+    """The design with ``--set motion.to`` in its template's ``[motion]`` (the sweep rebuilds
+    every point from the template's table, so the value goes there); refused when a ``--vary``
+    axis varies that same key (one of them would be ignored)."""
+    import copy
+    from dataclasses import replace
+
+    from ..errors import UsageError
+    from ..sweep.model import _key_path, _path_text
+
+    target = settings.get("motion", {}).get("to")
+    if target is None:
+        return design
+    raw = copy.deepcopy(design.raw)
+    for axis in axes:
+        if _path_text(_key_path(axis.key, raw)) == "motion.to":
+            raise UsageError("--set", f"motion.to: --vary {axis.key} varies it already; give "
+                                      "one of the two")
+    if not isinstance(raw.get("motion"), dict):
+        raw["motion"] = {}
+    raw["motion"]["to"] = float(target)
+    return replace(design, raw=raw, motion=replace(design.motion, to=float(target)))
+
+
 def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..io.outputs import inside
-    from . import check_jobs, check_number, progress_for
+    from . import check_jobs, check_number, progress_for, read_settings
     from ..io.templates import load_template
 
+    settings = read_settings(args, {"motion": {"to"}}, "sweep reads motion.to only (the branch "
+                                                       "measured, the target of a traced motion)")
     try:
         spec_file = read_sweep_file(args.template)
         if spec_file is not None:
@@ -144,7 +174,7 @@ def run(args) -> int:
         for axis in axes:
             size *= len(axis.values)
         progress.stage(f"{template}: {size} points", total=size, unit="points")
-        design = load_template(template)
+        design = _with_target(load_template(template), settings, axes)
         outdir = (Path(args.out_dir) if args.out_dir
                   else inside(Path("out"), f"sweep-{design.name}"))
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
