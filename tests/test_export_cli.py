@@ -18,7 +18,8 @@ import pytest
 import fabkit.export
 from fabkit.cli import main
 from fabkit.pipeline import Outcome, export_many
-from fabkit.commands.export import parse_formats, parse_settings
+from fabkit.commands.export import parse_formats
+from fabkit.commands.settings import parse_settings
 from fabkit.errors import UsageError
 from fabkit.io.templates import load_template
 

@@ -16,7 +16,7 @@ from ..errors import FabkitError
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
-           "add_jobs", "add_settings", "read_settings", "add_progress_options", "progress_for",
+           "add_jobs", "add_settings", "add_progress_options", "progress_for",
            "short_list"]
 
 
@@ -86,48 +86,9 @@ def add_jobs(p, default, help: str) -> None:
 
 def add_settings(p, help: str) -> None:
     """``--set SECTION.KEY=VALUE`` (repeatable): settings over the template's, read as TOML
-    values (:func:`fabkit.commands.export.parse_settings`)."""
+    values (:func:`fabkit.commands.settings.parse_settings`)."""
     p.add_argument("--set", dest="settings", action="append", default=[],
                    metavar="SECTION.KEY=VALUE", help=help)
-
-
-def read_settings(args, reads: dict, why: str) -> dict:
-    """The ``--set`` settings of a command, parsed and checked as every command checks them
-    (:func:`fabkit.commands.export.parse_settings`: the schema, did-you-mean for a misspelt
-    section or key), then refused where this command does not read them, so that none is
-    accepted without effect.
-
-    Parameters
-    ----------
-    args : argparse.Namespace
-        With ``settings``, the ``--set`` items.
-    reads : dict
-        Section → the keys of it the command reads (None: every key).
-    why : str
-        What the command reads, for the message (``"sweep reads motion.to only"``).
-
-    Returns
-    -------
-    dict
-        The settings nested by section.
-
-    Raises
-    ------
-    UsageError
-        A malformed item, a key the schema does not know, or one the command does not read.
-    """
-    from ..errors import UsageError
-    from ..io.schema import refuse_unused
-    from .export import parse_settings
-
-    settings = parse_settings(args.settings)
-    refuse_unused(settings, set(reads), why)
-    for section, keys in reads.items():
-        unread = [k for k in settings.get(section, {}) if keys is not None and k not in keys]
-        if unread:
-            raise UsageError("--set", f"{section}.{unread[0]}: has no effect here: {why}; "
-                                      "remove it")
-    return settings
 
 
 def add_progress_options(p) -> None:

@@ -13,7 +13,7 @@ import json
 import sys
 import time
 
-from . import Example
+from . import add_out_dir, add_progress_options, check_count, check_number, Example, progress_for
 
 NAME = "bench"
 HELP = "speed against accuracy: work-precision and scaling charts, stability study"
@@ -56,8 +56,6 @@ MODES = {
 
 
 def add_arguments(p):
-    from . import add_out_dir, add_progress_options
-
     add_out_dir(p, "out", "output folder (default: out); results go to DIR/bench/")
     p.add_argument("--quick", action="store_true",
                    help="small sizes and budgets (about 40 s on a quiet 2-core machine)")
@@ -81,7 +79,6 @@ MAX_BENCH_MODULES = 10_000
 
 def _sizes(text):
     from ..errors import UsageError
-    from . import check_count
 
     try:
         sizes = tuple(int(v) for v in text.split(",") if v.strip())
@@ -165,7 +162,6 @@ def run(args) -> int:
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
     from ..io.outputs import inside, write_files
-    from . import check_number, progress_for
     from ..report.viz import figure_png
 
     import signal

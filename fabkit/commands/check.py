@@ -7,7 +7,8 @@ design. Prints one line per check; exits 1 when any check fails.
 
 from __future__ import annotations
 
-from . import Example
+from . import add_progress_options, add_settings, Example, progress_for
+from .settings import parse_settings
 
 NAME = "check"
 HELP = "as-built check of exported DXF / FOLD / STL files (optionally against their template)"
@@ -25,8 +26,6 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from . import add_progress_options, add_settings
-
     p.add_argument("files", nargs="+", metavar="FILE", help="exported file(s)")
     p.add_argument("--design", default=None, metavar="TEMPLATE",
                    help="the template the files were exported from")
@@ -63,8 +62,6 @@ def run(args) -> int:
     from ..report.text import jsonable
     from ..pipeline.stoppable import run_stoppable
     from ..io.templates import load_template, with_settings
-    from . import progress_for
-    from .export import parse_settings
 
     settings = parse_settings(args.settings)
     if settings:  # a section no check of these files reads would be accepted without effect

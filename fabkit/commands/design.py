@@ -8,7 +8,9 @@ import re
 from pathlib import Path
 
 from ..errors import InputFileError, UsageError
-from . import Example
+from ..io.toml_writer import TomlDocument
+from .settings import read_settings
+from . import add_out_dir, add_progress_options, add_settings, Example, progress_for
 
 NAME = "design"
 HELP = "design a module from map wishes (--fixed-point, --cycle) or a chain from a curve (--curve)"
@@ -102,7 +104,6 @@ def add_arguments(p):
                         "the fit)")
     p.add_argument("--name", action=_Once, default=None,
                    help="stem of the files written (default: module, or the curve file's stem)")
-    from . import add_out_dir, add_progress_options, add_settings
 
     add_settings(p, "a setting of the simulated laser builds a module's wishes are judged "
                     "against, written into its template so that its export is judged the "
@@ -192,8 +193,6 @@ def _check_curve_size(curve, module_size: float) -> None:
 def run(args) -> int:
     from ..report.viz import figure_png
 
-    from . import read_settings
-
     name = _name(args)
     out = Path(args.out_dir)
     if args.curve is not None and args.settings:
@@ -229,8 +228,6 @@ def _run_module(args, name, out, figure_png) -> int:
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
     cycle = parse_cycle(args.cycle) if args.cycle is not None else None
-    from . import progress_for
-
     progress = progress_for(args, NAME)
     progress.stage(f"{name}: a module from its map wishes, judged against simulated laser "
                    "builds")
@@ -273,25 +270,17 @@ def _run_module(args, name, out, figure_png) -> int:
 def settings_toml(settings: dict) -> str:
     """The ``--set`` settings as ``[fabrication.SECTION]`` tables to end a template with
     (empty without settings)."""
-    from ..design.toml_text import toml_string
-
-    def value(v) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + " }"
-        return toml_string(v)
-
-    lines = []
+    if not settings:
+        return ""
+    doc = TomlDocument()
+    doc.blank()
+    doc.comment("set by `fabkit design --set`: the simulated builds above used it, and so does "
+                "the export")
     for section, table in settings.items():
-        lines += ["", "# set by `fabkit design --set`: the simulated builds above used it, "
-                      "and so does the export", f"[fabrication.{section}]"]
-        lines += [f"{k} = {value(v)}" for k, v in table.items()]
-    return "\n".join(lines) + ("\n" if lines else "")
+        doc.table(f"fabrication.{section}")
+        for key, value in table.items():
+            doc.value(key, value)
+    return doc.text()
 
 
 def laser_builds(design, settings=None):
@@ -336,8 +325,6 @@ def _run_curve(args, name, out, figure_png) -> int:
     from ..design.curve import MAX_MODULES, scaled
     from ..design.toml_text import fit_lines
     from ..report.designplots import curve_design_figure
-
-    from . import progress_for
 
     progress = progress_for(args, NAME)
     progress.stage(f"{name}: reading {args.curve}")

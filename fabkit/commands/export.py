@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import sys
 
-from . import Example
+from .settings import parse_settings
+from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, Example,
+               expand_templates, progress_for)
 
 NAME = "export"
 HELP = "export templates (files, folders, globs) for fabrication, with reports and checks"
@@ -33,7 +35,6 @@ EXAMPLES = [
 
 def add_arguments(p):
     from ..tolerance.spec import ToleranceSpec
-    from . import add_jobs, add_out_dir, add_progress_options, add_settings
 
     p.add_argument("paths", nargs="+", metavar="PATH",
                    help="template files, folders of *.toml templates, or glob patterns")
@@ -62,55 +63,6 @@ def add_arguments(p):
 
 # --- command-line values ---------------------------------------------------------------------
 
-def parse_settings(items) -> dict:
-    """``["laser.kerf=0.2", "laser.scale=10"]`` → ``{"laser": {"kerf": 0.2, "scale": 10}}``.
-
-    Values are parsed as TOML values (numbers, booleans, quoted strings, arrays); anything that
-    is not valid TOML is kept as a plain string.
-
-    Raises
-    ------
-    UsageError
-        An item without ``=`` or without a dotted key, a key given twice, or settings that the
-        schema (:mod:`fabkit.io.schema`) refuses: an unknown section or key, a wrong type, a value
-        out of range.
-    """
-    from ..errors import UsageError
-    from ..io.templates import tomllib
-
-    out: dict = {}
-    for item in items:
-        key, eq, text = item.partition("=")
-        key = key.strip()
-        if not eq or not key:
-            raise UsageError("--set", f"{item!r}: expected SECTION.KEY=VALUE, e.g. "
-                                      "laser.kerf=0.2")
-        parts = key.split(".")
-        if len(parts) < 2 or not all(parts):
-            raise UsageError("--set", f"{item!r}: the key must name a section and a key, "
-                                      "e.g. laser.kerf")
-        try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
-        except (tomllib.TOMLDecodeError, RecursionError):
-            value = text.strip()
-        node = out
-        for part in parts[:-1]:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                raise UsageError("--set", f"{item!r}: {part!r} is already set to a value")
-        if parts[-1] in node:
-            raise UsageError("--set", f"{item!r}: {key} is given twice")
-        node[parts[-1]] = value
-    from ..errors import SettingsError
-    from ..export import check_export_settings
-
-    try:  # one declared schema: unknown sections and keys, types and ranges
-        check_export_settings(out)
-    except SettingsError as exc:
-        raise UsageError("--set", str(exc)) from None
-    return out
-
-
 def parse_formats(text: str | None) -> list[str] | None:
     """``"dxf,stl"`` → ``["dxf", "stl"]``; None stays None (every format that applies)."""
     from ..errors import UsageError
@@ -136,7 +88,6 @@ def run(args) -> int:
 
     from ..pipeline import exit_code, export_many, summary_table
     from ..errors import UsageError
-    from . import check_jobs, expand_templates, progress_for
 
     check_jobs("--jobs", args.jobs)
     if args.timeout is not None and not (args.timeout >= 0 and args.timeout < float("inf")):

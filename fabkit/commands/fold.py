@@ -11,7 +11,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import Example
+from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
+               Example, progress_for)
+from .settings import parse_settings
 
 NAME = "fold"
 HELP = "fold an origami template: bifurcation, branches, fold angles; -o writes SVG/FOLD/CP"
@@ -27,8 +29,6 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from . import add_out_dir, add_progress_options, add_settings
-
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="origami template file(s)")
     p.add_argument("--branch", type=int, default=None,
                    help="branch number to leave the flat state on (default: by assignment)")
@@ -81,13 +81,10 @@ def run(args) -> int:
     from ..fab.creases import fold_model, origami_model
     from ..io.outputs import inside
     from ..io.templates import load_template
-    from . import each_template
 
     from ..errors import UsageError
     from ..io.schema import refuse_unused
     from ..io.templates import with_settings
-    from . import check_number, progress_for
-    from .export import parse_settings
 
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from . import Example
+from . import (add_progress_options, add_settings, Example, expand_templates, progress_for,
+               short_list)
+from .settings import read_settings
 
 NAME = "info"
 HELP = "describe a template: sizes, mode count, self-stress, applicable methods"
@@ -25,7 +27,6 @@ def add_arguments(p):
                         "proof only (structure); or the numeric rank by a dense SVD or the "
                         "certified sparse path; a dense SVD that cannot fit in memory is refused "
                         "before it starts")
-    from . import add_progress_options, add_settings
 
     add_settings(p, "describe the motion as changed, e.g. --set motion.drive=d2 or "
                     "--set motion.to=2.9 (info reads motion settings only)")
@@ -78,7 +79,6 @@ def describe(design, rank_method: str = "auto") -> str:
 def run(args) -> int:
     from ..io.templates import load_template
     from ..io.templates import with_settings
-    from . import expand_templates, progress_for, read_settings, short_list
 
     settings = read_settings(args, {"motion": None}, "info reads motion settings only")
     found = expand_templates(args.templates)

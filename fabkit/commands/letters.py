@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError
-from . import Example
+from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number, Example,
+               progress_for)
+from .settings import read_settings
 
 NAME = "letters"
 HELP = "design one curvature chain per letter of WORD; writes templates, a PNG and the fit errors"
@@ -30,8 +32,6 @@ MODULE_FILES = {
 
 
 def add_arguments(p):
-    from . import add_out_dir, add_progress_options, add_settings
-
     p.add_argument("word", metavar="WORD", help="capital letters A-Z, e.g. NETWORK")
     add_out_dir(p, "out/letters", "output folder (default: out/letters)")
     p.add_argument("--height", type=float, default=40.0,
@@ -139,7 +139,6 @@ def run(args) -> int:
 
     from ..errors import UsageError
     from ..io.outputs import write_files
-    from . import check_count, check_number, progress_for, read_settings
     from ..io.templates import with_settings
 
     word = args.word

@@ -9,7 +9,10 @@ import numpy as np
 
 from ..errors import FabkitError, UsageError
 from ..numerics import DOMAIN_RTOL
-from . import Example
+from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
+               Example, progress_for)
+from .progress import Progress
+from .settings import parse_settings
 
 #: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
 #: on f composed m times, whose roots grow with m; orbits and iterations cost one map evaluation
@@ -40,8 +43,6 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from . import add_out_dir, add_progress_options, add_settings
-
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="module template file(s)")
     p.add_argument("--d1", default=None, metavar="VALUES",
                    help="comma-separated initial d1 values for the cobweb (default: the fixed "
@@ -141,7 +142,6 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     from ..report.viz import figure_png
 
     from ..io.outputs import inside, write_files
-    from .progress import Progress
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
@@ -220,8 +220,6 @@ def _json_default(o):
 def run(args) -> int:
     from ..io.schema import refuse_unused
     from ..io.templates import load_template, with_settings
-    from . import check_count, each_template, progress_for
-    from .export import parse_settings
 
     if args.steps < 1:
         raise UsageError("--steps", f"must be at least 1, got {args.steps}")

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import Example
+from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
+               Example, progress_for)
+from .settings import parse_settings
 
 NAME = "simulate"
 HELP = "trace a template's motion; writes trajectory.npz and motion.png"
@@ -25,7 +27,6 @@ EXAMPLES = [
 
 def add_arguments(p):
     from ..kinematics import METHODS
-    from . import add_out_dir, add_progress_options, add_settings
 
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
     p.add_argument("--method", default=None, metavar="METHOD",
@@ -87,8 +88,6 @@ def run(args) -> int:
     from ..io.schema import refuse_unused
     from ..io.suggest import did_you_mean
     from ..io.templates import load_template, with_settings
-    from . import check_number, each_template, progress_for
-    from .export import parse_settings
 
     valid = ["auto", *METHODS]
     if args.method is not None and args.method not in valid:

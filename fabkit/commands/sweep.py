@@ -7,7 +7,9 @@ import os
 import sys
 from pathlib import Path
 
-from . import Example
+from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
+               Example, progress_for)
+from .settings import read_settings
 
 NAME = "sweep"
 HELP = "sweep template keys on a grid: fixed points, cycles, λ per point; bifurcation diagram"
@@ -37,8 +39,6 @@ MIN_SECONDS = 1e-9
 
 
 def add_arguments(p):
-    from . import add_jobs, add_out_dir, add_progress_options, add_settings
-
     p.add_argument("template", metavar="TEMPLATE", help="module template, or a sweep spec file")
     p.add_argument("--vary", action="append", default=None, metavar="KEY=START:STOP:N",
                    help="vary a key over N evenly spaced values (repeatable: a grid); keys like "
@@ -111,14 +111,14 @@ def _with_target(design, settings, axes):
     from dataclasses import replace
 
     from ..errors import UsageError
-    from ..sweep.model import _key_path, _path_text
+    from ..sweep.model import key_path, path_text
 
     target = settings.get("motion", {}).get("to")
     if target is None:
         return design
     raw = copy.deepcopy(design.raw)
     for axis in axes:
-        if _path_text(_key_path(axis.key, raw)) == "motion.to":
+        if path_text(key_path(axis.key, raw)) == "motion.to":
             raise UsageError("--set", f"motion.to: --vary {axis.key} varies it already; give "
                                       "one of the two")
     if not isinstance(raw.get("motion"), dict):
@@ -131,7 +131,6 @@ def run(args) -> int:
     from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..io.outputs import inside
-    from . import check_jobs, check_number, progress_for, read_settings
     from ..io.templates import load_template
 
     settings = read_settings(args, {"motion": {"to"}}, "sweep reads motion.to only (the branch "

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from . import Example
+from . import add_out_dir, check_output_folder, Example
 
 NAME = "templates"
 HELP = ("list the bundled templates (or those in a folder), one line each; --copy NAME [DIR] "
@@ -47,7 +47,6 @@ def add_arguments(p):
     p.add_argument("--copy", metavar="NAME", default=None,
                    help="copy the bundled template NAME and the templates it refers to into "
                         "FOLDER, to edit")
-    from . import add_out_dir
 
     add_out_dir(p, None, "with --copy: the folder to copy into (as FOLDER; default: the "
                          "current folder)")
@@ -132,8 +131,6 @@ def copy_template(name: str, folder, force: bool = False) -> list[Path]:
 
 
 def _copy(args) -> int:
-    from . import check_output_folder
-
     folder = Path(args.folder) if args.folder else Path()
     check_output_folder(folder, "FOLDER")
     written = copy_template(args.copy, folder, force=args.force)

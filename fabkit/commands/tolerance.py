@@ -16,7 +16,9 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from . import Example
+from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
+               Example, progress_for)
+from .settings import parse_settings
 
 NAME = "tolerance"
 HELP = "Monte Carlo of manufacturing errors: the behaviour builds keep, the verdict's margin"
@@ -33,7 +35,6 @@ EXAMPLES = [
 
 def add_arguments(p):
     from ..tolerance.spec import ToleranceSpec
-    from . import add_out_dir, add_progress_options, add_settings
 
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
     add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
@@ -123,13 +124,10 @@ def run(args) -> int:
                              tolerance_figure, tolerance_spec)
     from ..report.viz import figure_png
     from ..io.outputs import inside, write_files
-    from . import each_template
     from ..pipeline import traced_motion
-    from .export import parse_settings
 
     from ..pipeline import MAX_SAMPLES
     from ..errors import UsageError
-    from . import check_count, progress_for
 
     if args.samples is not None and args.samples < 1:
         raise UsageError("--samples", f"must be at least 1, got {args.samples}")

@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import FabkitError
 from .chunks import _chunks, _read_chunks, _write_chunk, run_chunk
 from .model import (_CHUNKS, _SPEC, MEASURES, Axis, Protocol, Status, SweepError, SweepSpec,
-                    _jsonable, _key_path, _lookup, _path_text, _require_points, parse_vary)
+                    _jsonable, key_path, _lookup, path_text, _require_points, parse_vary)
 from .point import evaluate_point
 from .results import SweepResult
 
@@ -131,8 +131,8 @@ def make_spec(template, vary, measure=None, protocol: Protocol | None = None) ->
     axes = _axes_from(vary)
     seen = set()
     for ax in axes:
-        tokens = _key_path(ax.key, raw)
-        canon = _path_text(tokens)
+        tokens = key_path(ax.key, raw)
+        canon = path_text(tokens)
         if canon in seen:
             raise SweepError(f"--vary key {ax.key!r} names {canon}, which is already varied")
         seen.add(canon)

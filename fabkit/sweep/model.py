@@ -138,7 +138,7 @@ _TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_\-]*)|\[(\d+)\]|\.")
 _XYZ = {"x": 0, "y": 1, "z": 2}
 
 
-def _key_path(key: str, raw: dict) -> list:
+def key_path(key: str, raw: dict) -> list:
     """Tokens of a key path: ``"nodes[4].x"`` → ``["network", "nodes", 4, 0]``."""
     tokens: list = []
     pos = 0
@@ -167,7 +167,7 @@ def _key_path(key: str, raw: dict) -> list:
 def _lookup(raw: dict, tokens: list, key: str):
     node = raw
     for k, t in enumerate(tokens):
-        where = _path_text(tokens[:k + 1])
+        where = path_text(tokens[:k + 1])
         if isinstance(t, str):
             if not isinstance(node, dict) or t not in node:
                 raise SweepError(f"--vary key {key!r}: the template has no {where}")
@@ -175,14 +175,15 @@ def _lookup(raw: dict, tokens: list, key: str):
             if not isinstance(node, list) or not 0 <= t < len(node):
                 size = len(node) if isinstance(node, list) else 0
                 raise SweepError(f"--vary key {key!r}: the template has no {where} "
-                                 f"({_path_text(tokens[:k])} has {size} entries)")
+                                 f"({path_text(tokens[:k])} has {size} entries)")
         node = node[t]
     if isinstance(node, bool) or not isinstance(node, (int, float)):
-        raise SweepError(f"--vary key {key!r}: {_path_text(tokens)} is not a number")
+        raise SweepError(f"--vary key {key!r}: {path_text(tokens)} is not a number")
     return node
 
 
-def _path_text(tokens) -> str:
+def path_text(tokens) -> str:
+    """Tokens of a key path as text: ``["network", "nodes", 4, 0]`` → ``"network.nodes[4][0]"``."""
     out = ""
     for t in tokens:
         out += f"[{t}]" if isinstance(t, int) else (f".{t}" if out else t)

@@ -40,10 +40,10 @@ def figures(result) -> dict:
 
 def _template_value(result, key):
     """The value the template itself has at a varied key (where its own module sits)."""
-    from .model import _key_path, _lookup
+    from .model import key_path, _lookup
 
     raw = result.spec.raw
-    return float(_lookup(raw, _key_path(key, raw), key))
+    return float(_lookup(raw, key_path(key, raw), key))
 
 
 def _template_name(result) -> str:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError
 from .model import (_FLAT_RTOL, ATTRACTOR_RTOL, FLAT_NUDGE, Protocol, Status, SweepError,
-                    SweepSpec, _assign, _key_path, _lookup)
+                    SweepSpec, _assign, key_path, _lookup)
 
 # --------------------------------------------------------------------------------------------
 # One point
@@ -54,7 +54,7 @@ def evaluate_point(spec: SweepSpec, index: int) -> dict:
     rec = _empty_record(index, params)
     raw = copy.deepcopy(spec.raw)
     for key, value in params.items():
-        tokens = _key_path(key, raw)
+        tokens = key_path(key, raw)
         old = _lookup(raw, tokens, key)
         _assign(raw, tokens, int(round(value)) if isinstance(old, int) else float(value))
     try:
