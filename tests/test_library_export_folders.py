@@ -51,3 +51,27 @@ def test_export_refuses_a_folder_that_holds_an_exports_report(tmp_path, fourbar)
     with pytest.raises(OutputError, match=r"holds the kit and report of a `fabkit export`"):
         export(fourbar, "dxf", folder, laser={"kerf": 0.2})
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+
+@pytest.mark.parametrize("isolate", [False, True], ids=["in-process", "worker"])
+def test_the_batch_does_not_swap_a_folder_a_library_export_holds(tmp_path, fourbar, isolate):
+    out = tmp_path / "out"
+    folder = out / "fourbar"
+    export(fourbar, "dxf", folder)  # a library export's kit, no report: not the batch's
+    (folder / "notes.txt").write_text("mine")
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    with OutputLock(folder):  # that export() still at work
+        [result] = export_many(["fourbar"], ["dxf"], out, check=False, isolate=isolate,
+                               previews=False, tolerance_samples=0)
+    assert not result.ok
+    assert "is writing into this folder (it holds its .fabkit.lock)" in result.error
+    assert "nothing was swapped in" in result.error
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+    assert sorted(p.name for p in out.iterdir()) == ["fourbar"]  # no staging folder left
+    # once it has finished, the batch's export replaces the kit and keeps the other file
+    [result] = export_many(["fourbar"], ["dxf"], out, check=False, isolate=isolate,
+                           previews=False, tolerance_samples=0)
+    assert result.ok, result.error
+    assert (folder / "notes.txt").read_text() == "mine"
+    assert (folder / "report.json").is_file()
+    assert not (folder / LOCK_NAME).exists()

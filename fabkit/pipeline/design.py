@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
 from ..io.inputs import read_regular
-from .folders import _staging_names, carry_over, check_replaceable, recover_folder, swap_in
+from .folders import _staging_names, check_replaceable, recover_folder, swap_in
 from .formats import RESERVED, choose_formats, make_artefacts, plan_design, run_checks
 from .manifest import (MANIFEST, MAX_KEPT_BYTES, design_digest, new_manifest, read_manifest,
                        sort_earlier)
@@ -189,11 +189,11 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         # files of other commands stay; those of earlier exports are ours to keep or drop
         ours = None if earlier is None else (
             {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
-        carry_over(folder, stage_dir, ours)
         if swap:
-            swap_in(stage_dir, folder)
+            swap_in(stage_dir, folder, ours)
         else:
-            res.staged = str(stage_dir)
+            res.staged, res.earlier_files = str(stage_dir), (
+                None if ours is None else tuple(sorted(ours)))
         stage_dir = None
         res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
         res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(

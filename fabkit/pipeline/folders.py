@@ -6,7 +6,8 @@ import os
 import shutil
 from pathlib import Path
 
-from ..errors import OutputError
+from ..errors import LockedError, OutputError
+from ..io.outputs import LOCK_NAME, OutputLock
 
 
 def _safe(name: str) -> bool:
@@ -19,10 +20,6 @@ def _safe(name: str) -> bool:
     except UnsafeNameError:
         return False
     return True
-
-
-
-
 
 
 # --- folders ---------------------------------------------------------------------------------
@@ -117,17 +114,36 @@ def _link_or_copy(src, dst):
     return dst
 
 
-def swap_in(stage: Path, folder: Path) -> None:
+def swap_in(stage: Path, folder: Path, earlier_files=None) -> None:
     """Replace ``folder`` by the complete ``stage`` folder with two renames; a reader sees the
-    old export or the new one, never a mix."""
-    if os.path.lexists(folder):
-        _, old = _staging_names(folder.parent, folder.name)
-        check_replaceable(folder)
-        os.replace(folder, old)
+    old export or the new one, never a mix.
+
+    What other commands wrote into ``folder`` is carried over first (:func:`carry_over`, with
+    ``earlier_files`` as its ``ours``), under the folder's own lock: a library
+    :func:`fabkit.export.export` writing into it holds that lock, and the swap is then refused
+    rather than made under it.
+
+    Raises
+    ------
+    OutputError
+        ``folder`` is not a folder, or another process holds its lock; nothing was swapped.
+    """
+    if not os.path.lexists(folder):
         os.replace(stage, folder)
-        shutil.rmtree(old)
-    else:
-        os.replace(stage, folder)
+        return
+    check_replaceable(folder)
+    _, old = _staging_names(folder.parent, folder.name)
+    try:
+        with OutputLock(folder):
+            carry_over(folder, stage, earlier_files)
+            os.replace(folder, old)  # the lock file goes with the old folder
+            os.replace(stage, folder)
+    except LockedError as exc:
+        who = f"process {exc.pid}" if exc.pid else "another process"
+        raise OutputError(folder, f"{who} is writing into this folder (it holds its "
+                                  f"{LOCK_NAME}); nothing was swapped in: export the design "
+                                  "again when it has finished") from None
+    shutil.rmtree(old)
 
 
 def prepare_outdir(outdir) -> Path:

@@ -132,6 +132,10 @@ class DesignResult:
     staged : str
         The complete staging folder not yet swapped in (``export_one(..., swap=False)``);
         ``""`` once swapped in, or when nothing was written.
+    earlier_files : tuple of str or None
+        With ``staged``: the names earlier exports wrote into the design's folder, which the swap
+        does not carry over (:func:`fabkit.pipeline.folders.swap_in`); None for a folder without
+        an export record.
     card : IndexCard or None
         The design's card in index.html, made from its typed report (None when nothing was
         written).
@@ -158,6 +162,7 @@ class DesignResult:
     stages: dict = field(default_factory=dict)
     worker_exit: int | None = None
     staged: str = ""
+    earlier_files: tuple | None = None
     card: object = None
     level: str = ""
     headline: str = ""

@@ -358,7 +358,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                     continue
                 if res.staged:
                     try:
-                        swap_in(Path(res.staged), Path(res.folder))
+                        swap_in(Path(res.staged), Path(res.folder), res.earlier_files)
                     except (OSError, OutputError) as exc:
                         try:
                             recover_folder(outdir, names[i])
