@@ -349,3 +349,16 @@ def test_core_does_not_import_fabrication_layers():
             "'fabkit.check', 'fabkit.cli', 'fabkit.commands'))]\n"
             "assert not bad, bad\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_chains_load_without_the_designer():
+    # fabkit.design's names are imported on first use: chaining modules (fabkit.chain) does not
+    # load the map and curve designers, and every name the package lists is still there
+    code = ("import sys, fabkit.design.assemble, fabkit.design as d; "
+            "print(sorted(m for m in sys.modules if m.startswith('fabkit.design.'))); "
+            "print(all(callable(getattr(d, n)) for n in d.__all__)); "
+            "print(d.design_map.__module__)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert out[0] == "['fabkit.design.assemble']"
+    assert out[1:] == ["True", "fabkit.design.module"]

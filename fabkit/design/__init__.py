@@ -15,12 +15,28 @@ branches and tessellations; ``letters`` designs chains whose final states spell 
 ``curve`` and its helpers follow a drawn curve.
 """
 
-from .curve import CurveDesign, design_curve_chain
-from .curve_files import Curve, read_curve
-from .module import MapDesign, design_map
-from .wishes import (FixedPointWish, MapWish, WishError, check_wish, parse_cycle, parse_decimal,
-                     parse_fixed_point)
+import importlib
+
+# Names of the modules below, imported on first use: ``fabkit.design.assemble`` (chains, used by
+# fabkit.chain) then loads without the designer's modules.
+_LAZY = {
+    "design_curve_chain": "curve", "CurveDesign": "curve",
+    "read_curve": "curve_files", "Curve": "curve_files",
+    "design_map": "module", "MapDesign": "module",
+    **{name: "wishes" for name in ("FixedPointWish", "MapWish", "WishError", "check_wish",
+                                   "parse_cycle", "parse_decimal", "parse_fixed_point")},
+}
 
 __all__ = ["design_map", "MapDesign", "design_curve_chain", "CurveDesign", "read_curve", "Curve",
            "WishError", "FixedPointWish", "MapWish", "check_wish", "parse_fixed_point",
            "parse_cycle", "parse_decimal"]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
