@@ -43,7 +43,7 @@ from ..errors import DesignError, FabkitError
 from ..model.network import Network
 from .curvature import (APEX_RANGE_DEG, GRID_SLACK_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG,
                         design_curvature_type, lowest_apex)
-from .curve_files import Curve
+from .curve_files import Curve, resampled_curve
 from .fit import describe_curve, fit_to_curve, polyline_distance
 from .sequence import (BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline,
                        track)
@@ -490,9 +490,7 @@ def _round_up(x: float) -> float:
 
 def _check_arguments(curve, module_size, types) -> Curve:
     if not isinstance(curve, Curve):
-        from .curve_files import _resampled
-
-        curve = _resampled(np.asarray(curve, dtype=np.float64), "points", 1)
+        curve = resampled_curve(np.asarray(curve, dtype=np.float64), "points", 1)
     if not (isinstance(module_size, (int, float)) and math.isfinite(module_size)
             and module_size > 0):
         raise WishError(f"--module-size {module_size}", "must be a positive number of mm")

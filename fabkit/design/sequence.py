@@ -39,7 +39,7 @@ import numpy as np
 
 from ..numerics import TINY
 from .curvature import MIN_PAIR_APEX_DEG
-from .fit import arclength, point_at
+from .fit import arclength, closest_on_curve, point_at
 
 __all__ = ["Track", "track", "rounded", "refine", "bin_apexes", "follow", "refit_bins",
            "centre_of", "neighbours_ok", "strip_centreline", "BEAM_WIDTH", "PAIR_SLACK_DEG"]
@@ -397,8 +397,6 @@ def refine(target, apexes_deg, leg: float, *, low_deg: float, high_deg: float,
     """
     from scipy.optimize import least_squares
 
-    from .fit import _project
-
     target = np.asarray(target, dtype=np.float64)
     a0 = np.radians(np.clip(np.asarray(apexes_deg, dtype=np.float64), low_deg, high_deg))
     start = target[0]
@@ -418,7 +416,7 @@ def refine(target, apexes_deg, leg: float, *, low_deg: float, high_deg: float,
         if stop is not None:
             stop()
         m = centre_of(x[1:], x[0], start, leg)
-        _, near, match = _project(m[1:], target, s_nodes, near, AHEAD * step)
+        _, near, match = closest_on_curve(m[1:], target, s_nodes, near, AHEAD * step)
 
         def residuals(v, match=match):
             c = centre_of(v[1:], v[0], start, leg)
@@ -506,8 +504,6 @@ def refit_bins(target, bins_deg, types, leg: float, *, low_deg: float, high_deg:
     """
     from scipy.optimize import least_squares
 
-    from .fit import _project
-
     target = np.asarray(target, dtype=np.float64)
     types = np.asarray(types, dtype=int)
     t_count = len(bins_deg)
@@ -532,7 +528,7 @@ def refit_bins(target, bins_deg, types, leg: float, *, low_deg: float, high_deg:
         if stop is not None:
             stop()
         m = centre_of(A @ x[1:], x[0], start, leg)
-        _, near, match = _project(m[1:], target, s_nodes, near, AHEAD * step)
+        _, near, match = closest_on_curve(m[1:], target, s_nodes, near, AHEAD * step)
 
         def residuals(v, match=match):
             c = centre_of(A @ v[1:], v[0], start, leg)
