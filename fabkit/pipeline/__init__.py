@@ -53,7 +53,7 @@ from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
                       exit_code)
 from .stages import Artefacts, Checks, DesignReport, Level, Plan, Verdict, judge_design
-from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
+from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, run_pool
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
@@ -237,8 +237,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             # largest designs first (edges as the measure of work): a long design started last
             # would run alone at the end while the other workers idle
             order = sorted(todo, key=lambda i: (-cost.get(i, 0), i))
-            _run_pool(order, args, names, kwargs, jobs, outdir, progress, finished,
-                      timeout=timeout, silence=silence)
+            run_pool(order, args, names, kwargs, jobs, outdir, progress, finished,
+                     timeout=timeout, silence=silence)
         else:
             stage_cb = progress.stage if progress else None
             for i in todo:

@@ -6,14 +6,23 @@ import os
 import shutil
 from pathlib import Path
 
-from ..errors import OutputError
+from ..errors import OutputError, UnsafeNameError
+from ..io.outputs import check_name, inside, own_entry
 
 
-def _safe(name: str) -> bool:
-    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.io.outputs`)."""
-    from ..errors import UnsafeNameError
-    from ..io.outputs import check_name
+def is_safe_name(name: str) -> bool:
+    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.io.outputs`).
 
+    Parameters
+    ----------
+    name : str
+        A design's name.
+
+    Returns
+    -------
+    bool
+        False where :func:`fabkit.io.outputs.check_name` refuses it.
+    """
     try:
         check_name(name)
     except UnsafeNameError:
@@ -27,11 +36,22 @@ def _safe(name: str) -> bool:
 
 # --- folders ---------------------------------------------------------------------------------
 
-def _staging_names(outdir: Path, name: str) -> tuple[Path, Path]:
+def staging_folders(outdir: Path, name: str) -> tuple[Path, Path]:
     """The staging and backup folders of design ``name``: missing, or folders of their own,
-    never a symbolic link (:func:`fabkit.io.outputs.own_entry` refuses one in one line)."""
-    from ..io.outputs import own_entry
+    never a symbolic link (:func:`fabkit.io.outputs.own_entry` refuses one in one line).
 
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        The output folder.
+    name : str
+        The design's name (its folder under ``outdir``).
+
+    Returns
+    -------
+    (pathlib.Path, pathlib.Path)
+        ``outdir/.NAME.staging`` and ``outdir/.NAME.old``.
+    """
     # fixed names (no random part): paths that checkers quote stay the same from run to run
     return (own_entry(outdir, f".{name}.staging"), own_entry(outdir, f".{name}.old"))
 
@@ -47,10 +67,8 @@ def check_replaceable(folder: Path) -> None:
 def recover_folder(outdir: Path, name: str) -> None:
     """Undo what a run killed between its two renames left: the old folder put back when the
     new one never arrived, and the staging and old folders removed."""
-    from ..io.outputs import inside
-
     folder = inside(outdir, name)
-    stage, old = _staging_names(outdir, name)
+    stage, old = staging_folders(outdir, name)
     if old.is_dir() and not os.path.lexists(folder):
         os.replace(old, folder)
     for leftover in (stage, old):
@@ -121,7 +139,7 @@ def swap_in(stage: Path, folder: Path) -> None:
     """Replace ``folder`` by the complete ``stage`` folder with two renames; a reader sees the
     old export or the new one, never a mix."""
     if os.path.lexists(folder):
-        _, old = _staging_names(folder.parent, folder.name)
+        _, old = staging_folders(folder.parent, folder.name)
         check_replaceable(folder)
         os.replace(folder, old)
         os.replace(stage, folder)
