@@ -24,7 +24,7 @@ import numpy as np
 from ..io.toml_writer import TomlDocument
 from ..report.viz import figure_kit
 from . import paper_module
-from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
+from .workprecision import SKIPPED, STOPPED, default_chain_target, fit_exponent, run_budgeted
 
 __all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "lattice_points", "lattice",
            "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
@@ -414,9 +414,7 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     dict
         ``counts``, ``info``, ``traces``, ``projected``, ``bundled``: lists of rows.
     """
-    from .workprecision import _default_target
-
-    to = _default_target()
+    to = default_chain_target()
     out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": []}
 
     def note(kind, pt):
