@@ -40,6 +40,7 @@ import numpy as np
 from ..numerics import TINY
 from .curvature import MIN_PAIR_APEX_DEG
 from .fit import arclength, closest_on_curve, point_at
+from .letters import strip_model
 
 __all__ = ["Track", "track", "rounded", "refine", "bin_apexes", "follow", "refit_bins",
            "centre_of", "neighbours_ok", "strip_centreline", "BEAM_WIDTH", "PAIR_SLACK_DEG"]
@@ -86,8 +87,6 @@ def neighbours_ok(apex_a_deg: float, apex_b_deg: float) -> bool:
 def strip_centreline(apexes_deg, leg: float, start=(0.0, 0.0), heading: float = 0.0):
     """Centre line (K + 1, 2) of the zigzag of these final apex angles: its first step heads
     along ``heading`` from ``start``."""
-    from .letters import strip_model
-
     a = np.radians(np.asarray(apexes_deg, dtype=np.float64))
     mods = [_Apex(float(v), leg) for v in a]
     h0 = heading + 0.5 * (math.pi - float(a[0]))

@@ -44,11 +44,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import BoundsError, FabkitError
+from ..errors import BoundsError, FabkitError, UsageError
+from ..io.schema import refuse_unused
+from ..tolerance import key_process, made_process
 from .design import export_one
 from ..io.outputs import OutputLock
 from .folders import prepare_outdir
-from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
+from .formats import MAX_SAMPLES, RESERVED, build_outputs, choose_formats, run_checks
 from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
                       exit_code)
@@ -82,11 +84,6 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
     """Refuse, before any work, ``--set`` sections that no design of this export reads: those
     of processes whose formats are not made (``print`` with ``--to dxf``) and whose tolerance
     analysis does not run (:func:`fabkit.io.schema.refuse_unused`)."""
-    from ..errors import UsageError
-    from ..io.schema import refuse_unused
-    from ..tolerance import key_process, made_process
-    from .formats import choose_formats
-
     if not settings:
         return
     used, made, analysed = {"motion"}, set(), set()
