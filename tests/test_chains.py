@@ -428,7 +428,7 @@ def test_and_gate_junction_moves_only_when_both_inputs_collapse():
 
 
 def test_chain_records_its_assembly_and_the_plan_is_tiled_from_it(module):
-    from fabkit.kinematics.constructive import _tiled_chain_plan
+    from fabkit.model.construction import _tiled_chain_plan
 
     m = module("super_stable")
     net = chain(m, copies=50)

@@ -301,7 +301,7 @@ def test_search_reaches_the_clique_bound_where_colourings_stop_one_layer_above()
 
 
 def test_shorter_screws_keep_every_rule_and_the_layer_count():
-    from fabkit.fab.layers import _search_layers, _shorten_screws
+    from fabkit.fab.layers.search import _search_layers, _shorten_screws
 
     net, s, sweep, st = _chain_stacking("slope_one_and_a_half_chain")
     edges = np.asarray(net.edges)
@@ -396,7 +396,7 @@ def test_stacking_gaps_measure_the_true_minimum_between_coarse_samples():
 
 
 def test_a_small_neighbourhood_proves_the_count_of_the_super_stable_chain():
-    from fabkit.fab.layers import _colourings, _milp_layers, _neighbourhood
+    from fabkit.fab.layers.search import _colourings, _milp_layers, _neighbourhood
 
     net, s, sweep, st = _chain_stacking("super_stable_chain8")
     # the clique says 6, the column rules force a 7th: proven on 16 bars around the clique
@@ -418,7 +418,7 @@ def test_layer_search_budget_bounds_backtracking_not_length():
     """A long chain of conflicts: one pass places every bar, whatever the backtracking budget."""
     from types import SimpleNamespace
 
-    from fabkit.fab.layers import _search_layers
+    from fabkit.fab.layers.search import _search_layers
 
     n = 5000
     none = np.zeros((0, 2), dtype=np.int64)
@@ -432,7 +432,7 @@ def test_layer_search_budget_bounds_backtracking_not_length():
 
 def test_class_score_counts_as_the_full_score():
     """Scoring permutations of colour classes over distinct colour sets = scoring every bar."""
-    from fabkit.fab.layers import _ClassScore, _score
+    from fabkit.fab.layers.search import _ClassScore, _score
 
     rng = np.random.default_rng(11)
     n_bars, k = 300, 5

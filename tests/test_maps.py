@@ -288,13 +288,13 @@ def test_lyapunov_table_matches_the_exact_map(module):
 
 def test_general_evaluator_agrees_with_the_planar_one(module):
     # the any-dimension path (kinematics.place + implicit slopes) on a planar module
-    from fabkit.maps.evaluate import _Constructive2D, _ConstructiveGeneral
+    from fabkit.maps.evaluate import Constructive2D, ConstructiveGeneral
 
     net = module("period_two")
     plan = plan_construction(net, (0, 1))
     d = np.linspace(1.3, 2.2, 31)
-    f2, df2, m2, _ = _Constructive2D(plan, (1, 2))(d, tuple(plan.signs))
-    fg, dfg, mg, _ = _ConstructiveGeneral(plan, net, (0, 1), (1, 2))(d, tuple(plan.signs))
+    f2, df2, m2, _ = Constructive2D(plan, (1, 2))(d, tuple(plan.signs))
+    fg, dfg, mg, _ = ConstructiveGeneral(plan, net, (0, 1), (1, 2))(d, tuple(plan.signs))
     assert np.max(np.abs(f2 - fg)) < 1e-12 and np.max(np.abs(df2 - dfg)) < 1e-9
     assert np.allclose(m2, mg, atol=1e-12)
 

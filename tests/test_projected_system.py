@@ -6,7 +6,7 @@ import pytest
 
 import fabkit
 from fabkit.kinematics.base import align_to_gauge
-from fabkit.kinematics.bordered import _BandLU, _System, gauge_rows
+from fabkit.kinematics.bordered import _BandLU, BorderedSystem, gauge_rows
 from fabkit.kinematics.record import edge_errors
 from fabkit.numerics import rigid_fit
 
@@ -15,7 +15,7 @@ def _system(net):
     x0 = np.asarray(net.nodes, dtype=np.float64)
     gcols = gauge_rows(x0, (0, 1))
     n, d = x0.shape
-    sys_ = _System(net.edges, net.edge_lengths ** 2, n, d, gcols, x0.ravel()[gcols], None)
+    sys_ = BorderedSystem(net.edges, net.edge_lengths ** 2, n, d, gcols, x0.ravel()[gcols], None)
     return sys_, x0
 
 

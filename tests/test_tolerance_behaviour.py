@@ -233,11 +233,11 @@ def test_intent_in_the_template_says_what_cannot_be_inferred():
 def test_a_sheet_is_made_flat_and_a_print_straight():
     sheet = load_template(TEMPLATES / "origami_sheet.toml")
     res = analyse_tolerance(sheet, tolerance_spec(sheet, samples=5), attribute=False)
-    from fabkit.tolerance.placement import _process_geometry
+    from fabkit.tolerance.placement import process_geometry
     from fabkit.kinematics import make_problem
 
     m = sheet.motion
-    geo = _process_geometry(sheet, res.spec, make_problem(sheet.network, m.drive, m.to),
+    geo = process_geometry(sheet, res.spec, make_problem(sheet.network, m.drive, m.to),
                             res.behaviour.end_config)
     assert geo.sheets is not None and geo.sheets[0].creases.shape == (4, 4)
     builds = sample_builds(geo, replace(res.spec, samples=20), np.random.default_rng(3))

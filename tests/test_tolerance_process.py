@@ -14,7 +14,7 @@ from fabkit.errors import TemplateError
 from fabkit.kinematics import make_problem, place
 from fabkit.io.templates import load_template
 from fabkit.tolerance import ToleranceSpec, analyse_tolerance, design_process, tolerance_spec
-from fabkit.tolerance.placement import _find_plan, _place_builds
+from fabkit.tolerance.placement import find_plan, _place_builds
 from fabkit.tolerance.processes import ProcessGeometry, sample_lengths
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
@@ -98,7 +98,7 @@ def test_builds_are_placed_by_the_one_placement_with_radii_per_column(name):
     d = load_template(TEMPLATES / f"{name}.toml")
     m = d.motion
     problem = make_problem(d.network, m.drive, m.to, hold=m.hold)
-    plan = _find_plan(problem, d.trace())
+    plan = find_plan(problem, d.trace())
     eidx = plan.edge_index(problem.work)
     values = np.linspace(problem.start_drive, m.to, 7)
     # the plan's own radii given per column: the same bits as the plain placement

@@ -21,10 +21,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..design.assemble import chain, tessellate
+from ..errors import FabkitError
+from ..io.templates import bundled_folder, bundled_template
 from ..io.toml_writer import TomlDocument
+from ..model.rigidity import SPARSE_FROM, count_modes
 from ..report.viz import figure_kit
 from . import paper_module
-from .workprecision import SKIPPED, STOPPED, fit_exponent, run_budgeted
+from .workprecision import SKIPPED, STOPPED, default_chain_target, fit_exponent, run_budgeted
 
 __all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "lattice_points", "lattice",
            "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
@@ -73,9 +77,6 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
         ``counts`` (total, rigid, conformational, self-stress), ``gap``, ``smallest_nonzero``,
         ``ambiguous``.
     """
-    from ..design.assemble import chain
-    from ..model.rigidity import count_modes
-
     module = paper_module("super_stable")
     points, dense_stopped = [], False
     for k in sizes:
@@ -153,8 +154,6 @@ def fourbar_chain_points(sizes, *, budget: float = 30.0, repeats: int = 3, to: f
                          progress=None) -> list[dict]:
     """``constructive`` (101 samples) and ``projected`` (defaults) on k-module 4-bar chains
     driven from d1 = 2 to ``to``."""
-    from ..design.assemble import chain
-
     points = []
     for k in sizes:
         net = chain(paper_module("fourbar"), copies=int(k))
@@ -170,8 +169,6 @@ def fourbar_chain_points(sizes, *, budget: float = 30.0, repeats: int = 3, to: f
 def lattice(k: int):
     """A k × k square lattice of the paper's 4-bar (Fig. 2a), cells joined side to side and
     top to bottom: one conformational motion and (for k ≥ 3) states of self-stress."""
-    from ..design.assemble import tessellate
-
     m = paper_module("fourbar")
     m = m.with_ports({**m.ports, "b": (0, 2), "t": (1, 3)})
     return tessellate(m, (int(k), int(k)), y_join=("t", "b"))
@@ -240,8 +237,6 @@ def large_figure(modes, chains, lattice_pts):
     """Two panels: count_modes time against nodes (as called, and dense SVD forced); time per
     configuration of ``projected`` on 4-bar chains and on the 2D lattice (``constructive`` on the
     chains for reference), with fitted exponents."""
-    from ..model.rigidity import SPARSE_FROM
-
     fig, (ax1, ax2) = figure_kit.subplots(1, 2, figsize=(13, 5.2))
 
     def draw(ax, rows, key, style, color, label):
@@ -296,8 +291,6 @@ def large_figure(modes, chains, lattice_pts):
 def mirrored_chain(k: int):
     """The bundled super-stable module chained k times, every second one mirrored (the straight
     chain of the paper's Fig. 3f, ``fabkit.chain(super_stable, copies=k, mirror="alternate")``)."""
-    from ..design.assemble import chain
-
     return chain(paper_module("super_stable"), copies=int(k), mirror="alternate")
 
 
@@ -306,7 +299,7 @@ def bundled_modules() -> list[str]:
     :func:`fabkit.chain` chains port to port. (The origami sheet is joined by three corners,
     :func:`fabkit.fab.creases.chains.sheet_chain`; chained by its d2/d1 pair alone each join is
     a hinge, a network of a thousand motions at its flat state.)"""
-    from ..io.templates import bundled_folder, load_template
+    from ..io.templates import load_template
 
     names = []
     for path in sorted(bundled_folder().glob("*.toml")):
@@ -327,8 +320,6 @@ def _cold(net, fn):
 
 
 def _count_row(net, budget, repeats) -> dict:
-    from ..model.rigidity import count_modes
-
     def evaluate(m):
         return {"counts": [m.total, m.rigid, m.conformational, m.self_stress],
                 "certificate": m.certificate, "margin": m.margin, "ambiguous": m.ambiguous,
@@ -350,8 +341,6 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
     import tempfile
     import time
     from pathlib import Path
-
-    from ..io.templates import bundled_template
 
     times, out, code = [], "", None
     with tempfile.TemporaryDirectory() as tmp:
@@ -414,9 +403,7 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     dict
         ``counts``, ``info``, ``traces``, ``projected``, ``bundled``: lists of rows.
     """
-    from .workprecision import _default_target
-
-    to = _default_target()
+    to = default_chain_target()
     out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": []}
 
     def note(kind, pt):
@@ -445,9 +432,6 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
             pt["modules"] = int(projected)
             note("projected", pt)
     if bundled:
-        from ..design.assemble import chain
-        from ..errors import FabkitError
-
         for name in bundled_modules():
             for mirror in (None, "alternate"):
                 try:

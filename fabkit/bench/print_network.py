@@ -37,6 +37,12 @@ def printed_module() -> Network:
     return Network(m["nodes"], m["edges"], ports={"d1": m["d1"], "d2": m["d2"]})
 
 
+def _frame_offset(net, s):
+    """Design (scaled) coordinates minus print-frame coordinates (see ``print_geometry``)."""
+    p = net.nodes * s.scale
+    return 0.5 * (p.min(0) + p.max(0))
+
+
 def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: float = 4.0,
                     settings: dict | None = None) -> dict:
     """Time building and verifying a printed chain of about ``triangles`` triangles.
@@ -72,7 +78,7 @@ def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: f
     from scipy.spatial import cKDTree
 
     from ..design.assemble import chain
-    from ..check.stl import (_frame_offset, as_built_tolerance, check_mesh, module_fixed_points,
+    from ..check.stl import (as_built_tolerance, check_mesh, module_fixed_points,
                              rebuild_linkage, sequential_transition, slab_sections)
     from ..export.stl import binary_stl
     from ..fab.hinges import print_geometry, print_solid, solid_mesh

@@ -169,14 +169,21 @@ def chain_problem(k: int, module: str = "super_stable", target: float | None = N
     if target is None:
         if module != "super_stable":
             raise ValueError("give `target` for modules other than super_stable")
-        target = _default_target()
+        target = default_chain_target()
     return ChainProblem(module, int(k), chain(mod, int(k)), float(target), ModuleMap(mod))
 
 
 _TARGET_CACHE: list = []
 
 
-def _default_target() -> float:
+def default_chain_target() -> float:
+    """The drive's target of a super-stable chain: :data:`TARGET_PAST` above its collapsed
+    fixed point (:func:`collapsed_fixed_point`, computed once per process).
+
+    Returns
+    -------
+    float
+    """
     if not _TARGET_CACHE:
         _TARGET_CACHE.append(collapsed_fixed_point() + TARGET_PAST)
     return _TARGET_CACHE[0]

@@ -582,12 +582,6 @@ def hinge_strain(arms: dict, positions, hinge_width: float):
     return turn, hinge_width * turn / (2.0 * free)
 
 
-def _frame_offset(net, s):
-    """Design (scaled) coordinates minus print-frame coordinates (see ``print_geometry``)."""
-    p = net.nodes * s.scale
-    return 0.5 * (p.min(0) + p.max(0))
-
-
 def _module_of(design):
     """(module network, copies) of a design: a [chain] of one module template, or the design."""
     raw = design.raw or {}

@@ -40,11 +40,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DesignError, FabkitError
+from ..io.templates import parse_template
 from ..model.network import Network
+from .assemble import chain
 from .curvature import (APEX_RANGE_DEG, GRID_SLACK_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG,
                         design_curvature_type, lowest_apex)
-from .curve_files import Curve
-from .fit import describe_curve, fit_to_curve, polyline_distance
+from .curve_files import Curve, resampled_curve
+from .letters import chain_centerline, curvature_modules
+from .fit import arclength, describe_curve, fit_to_curve, point_at, polyline_distance
 from .sequence import (BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline,
                        track)
 from .toml_text import chain_template, curvature_template
@@ -354,8 +357,6 @@ def _binned(curve, plan, target, centre, bins, beam, stop) -> _Model | None:
 def _first_heading(target, apexes) -> float:
     """The start heading that lays a chain's first point on the curve's start and its second
     near the curve (the fit moves it onto the curve anyway)."""
-    from .fit import arclength, point_at
-
     first = strip_centreline(apexes[:2], LEG_RATIO)
     r = float(np.linalg.norm(first[1] - first[0]))
     p = point_at(target, arclength(target), r) - target[0]
@@ -490,9 +491,7 @@ def _round_up(x: float) -> float:
 
 def _check_arguments(curve, module_size, types) -> Curve:
     if not isinstance(curve, Curve):
-        from .curve_files import _resampled
-
-        curve = _resampled(np.asarray(curve, dtype=np.float64), "points", 1)
+        curve = resampled_curve(np.asarray(curve, dtype=np.float64), "points", 1)
     if not (isinstance(module_size, (int, float)) and math.isfinite(module_size)
             and module_size > 0):
         raise WishError(f"--module-size {module_size}", "must be a positive number of mm")
@@ -538,10 +537,7 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
         follows it within the tolerance; the nearest module size (or enlargement of the
         drawing) that builds is named.
     """
-    from .assemble import chain
-    from ..kinematics import trace
-    from .letters import chain_centerline, curvature_modules
-    from ..io.templates import parse_template
+    from ..kinematics import trace  # looked up at call time: tests count the traces
 
     start = time.perf_counter()
     curve = _check_arguments(curve, module_size, types)

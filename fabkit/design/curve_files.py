@@ -167,7 +167,7 @@ def curve_from_svg(data: bytes, name: str = "curve.svg") -> Curve:
     if not strokes:
         raise FabkitError(f"{name}: no path or shape of at least {MIN_LENGTH_MM:g} mm to follow")
     best = max(strokes, key=_polyline_length)
-    return _resampled(best, "svg", len(strokes), name)
+    return resampled_curve(best, "svg", len(strokes), name)
 
 
 def curve_from_csv(data: bytes, name: str = "curve.csv") -> Curve:
@@ -203,7 +203,7 @@ def curve_from_csv(data: bytes, name: str = "curve.csv") -> Curve:
     pts = np.array(rows, dtype=np.float64).reshape(-1, 2)
     if pts.shape[0] < 2 or _polyline_length(pts) < MIN_LENGTH_MM:
         raise FabkitError(f"{name}: needs at least two points spanning {MIN_LENGTH_MM:g} mm")
-    return _resampled(pts, "csv", 1, name)
+    return resampled_curve(pts, "csv", 1, name)
 
 
 class CurveFileError(FabkitError):
@@ -220,7 +220,32 @@ def _in_range(p: np.ndarray, name: str) -> None:
                              "not finite: not a drawing fabkit can follow")
 
 
-def _resampled(p: np.ndarray, source: str, strokes: int, name: str = "curve") -> Curve:
+def resampled_curve(p: np.ndarray, source: str, strokes: int, name: str = "curve") -> Curve:
+    """A polyline as a :class:`Curve`, resampled evenly along its arclength.
+
+    Repeated points are dropped; the curve gets :data:`SAMPLES_PER_MM` points a millimetre,
+    at least :data:`MIN_SAMPLES` and at most :data:`MAX_SAMPLES`.
+
+    Parameters
+    ----------
+    p : numpy.ndarray, shape (M, 2)
+        The polyline (mm).
+    source : str
+        Where it came from (a file's kind, or ``"points"``), kept on the curve.
+    strokes : int
+        Strokes the drawing had, kept on the curve.
+    name : str
+        Named in the error.
+
+    Returns
+    -------
+    Curve
+
+    Raises
+    ------
+    CurveFileError
+        Coordinates that are not finite or lie beyond :data:`MAX_COORDINATE_MM`.
+    """
     _in_range(p, name)
     seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
     keep = np.concatenate([[True], seg > 0])

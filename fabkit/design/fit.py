@@ -53,9 +53,30 @@ def point_at(points, s_nodes, s) -> np.ndarray:
     return np.stack([np.interp(s, s_nodes, p[:, 0]), np.interp(s, s_nodes, p[:, 1])], axis=-1)
 
 
-def _project(points, curve, s_nodes, near, window):
+def closest_on_curve(points, curve, s_nodes, near, window):
     """Closest points of ``curve`` to ``points`` among the segments within ``window`` of
-    arclength around ``near``: (distance, arclength of the closest point, the point)."""
+    arclength around ``near``.
+
+    Parameters
+    ----------
+    points : numpy.ndarray, shape (P, 2)
+        The points to project.
+    curve : numpy.ndarray, shape (K + 1, 2)
+        The curve's polyline.
+    s_nodes : numpy.ndarray, shape (K + 1,)
+        Arclength at each of its vertices (:func:`arclength`).
+    near : numpy.ndarray, shape (P,)
+        Arclength around which each point's closest point is sought.
+    window : float
+        Arclength on either side of ``near`` searched.
+
+    Returns
+    -------
+    distance : numpy.ndarray, shape (P,)
+    s : numpy.ndarray, shape (P,)
+        Arclength of each closest point.
+    closest : numpy.ndarray, shape (P, 2)
+    """
     n = len(curve) - 1
     lo = np.searchsorted(s_nodes, near - window, side="right") - 1
     hi = np.searchsorted(s_nodes, near + window, side="left")
@@ -192,7 +213,7 @@ def fit_to_curve(points, curve, *, rounds: int = ICP_ROUNDS) -> CurveFit:
     for _ in range(int(rounds) + 1):
         move = rigid_fit(np.r_[src, src[ends]], np.r_[dst, end_targets], handedness="proper")
         moved = apply_fit(move, src)
-        _, near_new, dst = _project(moved, crv, s_curve, near, window)
+        _, near_new, dst = closest_on_curve(moved, crv, s_curve, near, window)
         if np.allclose(near_new, near, atol=SETTLED_RTOL * length, rtol=0.0):
             break
         near = near_new

@@ -39,7 +39,8 @@ import numpy as np
 
 from ..numerics import TINY
 from .curvature import MIN_PAIR_APEX_DEG
-from .fit import arclength, point_at
+from .fit import arclength, closest_on_curve, point_at
+from .letters import strip_model
 
 __all__ = ["Track", "track", "rounded", "refine", "bin_apexes", "follow", "refit_bins",
            "centre_of", "neighbours_ok", "strip_centreline", "BEAM_WIDTH", "PAIR_SLACK_DEG"]
@@ -86,8 +87,6 @@ def neighbours_ok(apex_a_deg: float, apex_b_deg: float) -> bool:
 def strip_centreline(apexes_deg, leg: float, start=(0.0, 0.0), heading: float = 0.0):
     """Centre line (K + 1, 2) of the zigzag of these final apex angles: its first step heads
     along ``heading`` from ``start``."""
-    from .letters import strip_model
-
     a = np.radians(np.asarray(apexes_deg, dtype=np.float64))
     mods = [_Apex(float(v), leg) for v in a]
     h0 = heading + 0.5 * (math.pi - float(a[0]))
@@ -397,8 +396,6 @@ def refine(target, apexes_deg, leg: float, *, low_deg: float, high_deg: float,
     """
     from scipy.optimize import least_squares
 
-    from .fit import _project
-
     target = np.asarray(target, dtype=np.float64)
     a0 = np.radians(np.clip(np.asarray(apexes_deg, dtype=np.float64), low_deg, high_deg))
     start = target[0]
@@ -418,7 +415,7 @@ def refine(target, apexes_deg, leg: float, *, low_deg: float, high_deg: float,
         if stop is not None:
             stop()
         m = centre_of(x[1:], x[0], start, leg)
-        _, near, match = _project(m[1:], target, s_nodes, near, AHEAD * step)
+        _, near, match = closest_on_curve(m[1:], target, s_nodes, near, AHEAD * step)
 
         def residuals(v, match=match):
             c = centre_of(v[1:], v[0], start, leg)
@@ -506,8 +503,6 @@ def refit_bins(target, bins_deg, types, leg: float, *, low_deg: float, high_deg:
     """
     from scipy.optimize import least_squares
 
-    from .fit import _project
-
     target = np.asarray(target, dtype=np.float64)
     types = np.asarray(types, dtype=int)
     t_count = len(bins_deg)
@@ -532,7 +527,7 @@ def refit_bins(target, bins_deg, types, leg: float, *, low_deg: float, high_deg:
         if stop is not None:
             stop()
         m = centre_of(A @ x[1:], x[0], start, leg)
-        _, near, match = _project(m[1:], target, s_nodes, near, AHEAD * step)
+        _, near, match = closest_on_curve(m[1:], target, s_nodes, near, AHEAD * step)
 
         def residuals(v, match=match):
             c = centre_of(A @ v[1:], v[0], start, leg)

@@ -22,7 +22,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
 
-__all__ = ["BAND_LIMIT", "gauge_rows", "permutation_parity"]
+__all__ = ["BAND_LIMIT", "BorderedSystem", "gauge_rows", "permutation_parity"]
 
 def permutation_parity(perm: np.ndarray) -> int:
     """+1 for an even permutation, -1 for an odd one: parity = (n - number of cycles) mod 2,
@@ -127,8 +127,30 @@ class _SuperLU:
         return s * permutation_parity(self.lu.perm_r) * permutation_parity(self.lu.perm_c)
 
 
-class _System:
-    """The square sparse system A = [R; gauge rows; last row] and its factorisation."""
+class BorderedSystem:
+    """The square sparse system A = [R; gauge rows; last row] and its factorisation.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+        The bars' end nodes.
+    rest2 : numpy.ndarray, shape (E,)
+        The bars' squared rest lengths.
+    n, d : int
+        Number of nodes and dimension.
+    gcols : numpy.ndarray of int
+        Flat coordinate indices held by the gauge rows (:func:`gauge_rows`).
+    gvals : numpy.ndarray
+        The values those coordinates are held at.
+    rows_keep : numpy.ndarray of int or None
+        The bars whose rows make the system square (the others are redundant at the start);
+        None: all of them.
+
+    Raises
+    ------
+    KinematicsError
+        When the rows kept and the gauge rows do not make the system square.
+    """
 
     def __init__(self, edges: np.ndarray, rest2: np.ndarray, n: int, d: int, gcols: np.ndarray,
                  gvals: np.ndarray, rows_keep: np.ndarray | None):

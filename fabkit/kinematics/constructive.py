@@ -13,8 +13,8 @@ import numpy as np
 
 # the construction order lives below kinematics (mode counting proves counts from it too); its
 # names stay importable from here
-from ..model.construction import (ON_AXIS_RTOL, ConstructionPlan, _tiled_chain_plan,  # noqa: F401
-                            cached_plan, plan_construction)
+from ..model.construction import (ON_AXIS_RTOL, ConstructionPlan, cached_plan,  # noqa: F401
+                                  plan_construction)
 from ..errors import KinematicsError
 from ..numerics import COLLINEAR_PARENTS_RTOL, rigid_fit
 from .base import Mark, Method, Outcome

@@ -50,7 +50,7 @@ import threadpoolctl
 from ..errors import KinematicsError
 from ..numerics import START_RTOL
 from .base import choose_gauge
-from .bordered import _System, gauge_rows, permutation_parity  # noqa: F401 (re-exported)
+from .bordered import BorderedSystem, gauge_rows, permutation_parity  # noqa: F401 (re-exported)
 from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 
@@ -143,7 +143,7 @@ class Projected(StepMethod):
         rows_keep = None
         if e + gcols.size + 1 != d * n:
             rows_keep = self._independent_rows(work, x0, gcols)
-        self.sys = _System(work.edges, rest2, n, d, gcols, x0.ravel()[gcols], rows_keep)
+        self.sys = BorderedSystem(work.edges, rest2, n, d, gcols, x0.ravel()[gcols], rows_keep)
         # Edges left out of the square system because they were redundant at the start (a state
         # of self-stress) are still watched: if the self-stress does not persist along the
         # motion, they would break silently.

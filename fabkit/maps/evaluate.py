@@ -8,6 +8,7 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ArgumentTypeError, KinematicsError
+from ..kinematics import place
 from ..model.network import Network
 from ..numerics import FLAT_RTOL
 
@@ -17,13 +18,25 @@ from ..numerics import FLAT_RTOL
 SLOPE_SOLVE_RTOL = 1e-8
 
 
-class _Constructive2D:
+class Constructive2D:
     """Values and exact derivatives of d_out(d_in) by the circle-intersection formulas.
 
     Works in the frame of the paper's analytic map: node a at the origin, node b at (d, 0), so a
     node placed from a and b needs no rotation (x = (d² + r_a² - r_b²) / 2d). The derivative is
     carried alongside every quantity (forward mode), so f' is exact to round-off. Iterating a
     map calls this in a tight loop (Lyapunov exponents), hence the lean arithmetic.
+
+    Parameters
+    ----------
+    plan : fabkit.kinematics.ConstructionPlan
+        The construction order from the input pair (its ``seed``), 2D.
+    out_pair : tuple of int
+        The nodes whose distance is d_out.
+
+    Calling it with ``(d, signs, derivative=True, margins=True)`` gives ``(f, df, margin,
+    worst)``: d_out, its derivative (None without ``derivative``), the smallest squared
+    triangle height of the placements relative to the squared radius and the step where it
+    occurs (None without ``margins``), each shaped like ``d``.
     """
 
     def __init__(self, plan, out_pair):
@@ -100,9 +113,21 @@ class _Constructive2D:
         return f, df, h2min, worst
 
 
-class _ConstructiveGeneral:
+class ConstructiveGeneral:
     """Any dimension: positions by :func:`fabkit.kinematics.place`, slopes by implicit
-    differentiation (:func:`slope_at`)."""
+    differentiation (:func:`slope_at`).
+
+    Parameters
+    ----------
+    plan : fabkit.kinematics.ConstructionPlan
+        The construction order from the input pair.
+    net : Network
+        The network the plan places.
+    in_pair, out_pair : tuple of int
+        The nodes whose distances are d_in and d_out.
+
+    Called like :class:`Constructive2D`, with the margins of :func:`fabkit.kinematics.place`.
+    """
 
     def __init__(self, plan, net, in_pair, out_pair):
         self.plan = plan
@@ -111,8 +136,6 @@ class _ConstructiveGeneral:
         self.out = out_pair
 
     def __call__(self, d, signs, derivative=True, margins=True):
-        from ..kinematics import place
-
         d = np.asarray(d, dtype=np.float64)
         shape = d.shape
         plan = dataclasses.replace(self.plan, signs=np.asarray(signs, dtype=np.float64))
@@ -175,8 +198,8 @@ def slope_at(net: Network, positions, d_in="d1", d_out="d2", *, strict: bool = T
         if finite.any():
             s[finite] = slope_at(net, X[finite], d_in, d_out, strict=strict)
         return s[0] if single else s
-    a, b = _pair(net, d_in)
-    i, j = _pair(net, d_out)
+    a, b = port_pair(net, d_in)
+    i, j = port_pair(net, d_out)
     e = net.edges
     m = e.shape[0]
     # Rows: edge constraints (x_i - x_j).(v_i - v_j) = 0, then d(d_in)/dt = 1.
@@ -210,7 +233,26 @@ def slope_at(net: Network, positions, d_in="d1", d_out="d2", *, strict: bool = T
     return s[0] if single else s
 
 
-def _pair(net: Network, spec) -> tuple[int, int]:
+def port_pair(net: Network, spec) -> tuple[int, int]:
+    """The two nodes of a port, given by name or as a pair of node indices.
+
+    Parameters
+    ----------
+    net : Network
+    spec : str or (int, int)
+        A port name of ``net`` or two distinct node indices.
+
+    Returns
+    -------
+    (int, int)
+
+    Raises
+    ------
+    KinematicsError
+        An unknown port name, or indices that are not two distinct nodes of ``net``.
+    ArgumentTypeError
+        Anything else than a name or a pair.
+    """
     if isinstance(spec, str):
         if spec not in net.ports:
             known = ", ".join(sorted(net.ports)) or "none"

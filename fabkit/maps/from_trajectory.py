@@ -6,10 +6,10 @@ import numpy as np
 
 from ..errors import KinematicsError
 from ..numerics import project_to_lengths
-from .evaluate import _pair, slope_at
+from .evaluate import port_pair, slope_at
 from .map1d import Map1D
 from .results import Branch
-from .walk import _label
+from .walk import port_label
 
 
 def _correct(net, X0, pair, targets):
@@ -45,8 +45,8 @@ def map_from_trajectory(traj, d_in="d1", d_out="d2", name: str | None = None) ->
         When d_in is not monotone along the trajectory.
     """
     net = traj.network
-    a, b = _pair(net, d_in)
-    out = _pair(net, d_out)
+    a, b = port_pair(net, d_in)
+    out = port_pair(net, d_out)
     P = traj.positions
     din = np.linalg.norm(P[:, a] - P[:, b], axis=1)
     inc = np.diff(din)
@@ -71,4 +71,4 @@ def map_from_trajectory(traj, d_in="d1", d_out="d2", name: str | None = None) ->
 
     br = Branch(0, float(din[0]), float(din[-1]), (), ("end of the trajectory",) * 2)
     return Map1D(fun=fun, domain=(float(din[0]), float(din[-1])), branches=[br], branch=br,
-                 source="trajectory", name=name or f"{_label(net, d_in)} -> {_label(net, d_out)}")
+                 source="trajectory", name=name or f"{port_label(net, d_in)} -> {port_label(net, d_out)}")

@@ -9,9 +9,10 @@ from scipy.optimize import brentq
 
 from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
+from ..kinematics import place, plan_construction
 from ..model.network import Network
 from ..numerics import DOMAIN_RTOL, FLAT_RTOL, TINY
-from .evaluate import _Constructive2D, _ConstructiveGeneral, _pair
+from .evaluate import Constructive2D, ConstructiveGeneral, port_pair
 from .map1d import Map1D
 from .results import Branch
 
@@ -28,8 +29,8 @@ ON_BRANCH_RTOL = 1e-9
 
 def _evaluator(net, plan, in_pair, out_pair):
     if net.dim == 2:
-        return _Constructive2D(plan, out_pair)
-    return _ConstructiveGeneral(plan, net, in_pair, out_pair)
+        return Constructive2D(plan, out_pair)
+    return ConstructiveGeneral(plan, net, in_pair, out_pair)
 
 
 def _turning_point(ev, signs, inside, outside):
@@ -170,16 +171,14 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     >>> round(f(2.5), 12), round(f.derivative(2.5), 12)
     (1.6, -0.64)
     """
-    from ..kinematics import place, plan_construction
-
     arguments.network("net", net)
     if toward is not None:
         toward = arguments.real("toward", toward, positive=True)
     if branch is not None:
         branch = arguments.whole("branch", branch, minimum=0)
     max_branches = arguments.whole("max_branches", max_branches, minimum=1)
-    a, b = _pair(net, d_in)
-    out = _pair(net, d_out)
+    a, b = port_pair(net, d_in)
+    out = port_pair(net, d_out)
     x = net.nodes if reference is None else np.asarray(reference, dtype=np.float64)
     d0 = float(np.linalg.norm(x[a] - x[b]))
     size = float(max(net.size, d0))
@@ -264,7 +263,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
         signed = dataclasses.replace(plan, signs=np.asarray(br.signs, dtype=np.float64))
         return place(signed, np.atleast_1d(np.asarray(d, dtype=np.float64)))[0]
 
-    label = name or f"{_label(net, d_in)} -> {_label(net, d_out)}"
+    label = name or f"{port_label(net, d_in)} -> {port_label(net, d_out)}"
     return Map1D(fun=fun_for(chosen), domain=(chosen.lo, chosen.hi), branches=branches,
                  branch=chosen, source="constructive", name=label, curve_fun=curve_fun,
                  configuration_fun=configuration,
@@ -291,5 +290,18 @@ def _walk_from_end(ev, signs, d_end, size, samples):
     return d_end, d_end, -1, -1
 
 
-def _label(net, spec):
+def port_label(net, spec):
+    """A port as the name of a map: its name, or ``|xi - xj|`` for a pair of nodes.
+
+    Parameters
+    ----------
+    net : Network
+        The network (unused; kept beside :func:`~fabkit.maps.evaluate.port_pair`'s order).
+    spec : str or (int, int)
+        A port name or two node indices.
+
+    Returns
+    -------
+    str
+    """
     return spec if isinstance(spec, str) else f"|x{spec[0]} - x{spec[1]}|"

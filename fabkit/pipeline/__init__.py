@@ -44,16 +44,18 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import BoundsError, FabkitError
+from ..errors import BoundsError, FabkitError, UsageError
+from ..io.schema import refuse_unused
+from ..tolerance import key_process, made_process
 from .design import export_one
 from ..io.outputs import OutputLock
 from .folders import prepare_outdir
-from .formats import MAX_SAMPLES, RESERVED, build_outputs, run_checks
+from .formats import MAX_SAMPLES, RESERVED, build_outputs, choose_formats, run_checks
 from .motion import traced_motion
 from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
                       exit_code)
 from .stages import Artefacts, Checks, DesignReport, Level, Plan, Verdict, judge_design
-from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, _run_pool
+from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, run_pool
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
@@ -82,11 +84,6 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
     """Refuse, before any work, ``--set`` sections that no design of this export reads: those
     of processes whose formats are not made (``print`` with ``--to dxf``) and whose tolerance
     analysis does not run (:func:`fabkit.io.schema.refuse_unused`)."""
-    from ..errors import UsageError
-    from ..io.schema import refuse_unused
-    from ..tolerance import key_process, made_process
-    from .formats import choose_formats
-
     if not settings:
         return
     used, made, analysed = {"motion"}, set(), set()
@@ -237,8 +234,8 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             # largest designs first (edges as the measure of work): a long design started last
             # would run alone at the end while the other workers idle
             order = sorted(todo, key=lambda i: (-cost.get(i, 0), i))
-            _run_pool(order, args, names, kwargs, jobs, outdir, progress, finished,
-                      timeout=timeout, silence=silence)
+            run_pool(order, args, names, kwargs, jobs, outdir, progress, finished,
+                     timeout=timeout, silence=silence)
         else:
             stage_cb = progress.stage if progress else None
             for i in todo:

@@ -7,10 +7,13 @@ import shutil
 import time
 from pathlib import Path
 
-from ..errors import (FabkitError, Interrupted, TemplateError, WriteError, internal_error_line)
+from ..errors import (FabkitError, Interrupted, TemplateError, UnsafeNameError, WriteError, brief,
+                      internal_error_line)
 from ..io.inputs import read_regular
-from .folders import _staging_names, check_replaceable, recover_folder, swap_in
-from .formats import RESERVED, choose_formats, make_artefacts, plan_design, run_checks
+from ..io.outputs import inside
+from .folders import check_replaceable, recover_folder, staging_folders, swap_in
+from .formats import (RESERVED, choose_formats, make_artefacts, motion_facts, plan_design,
+                      run_checks)
 from .manifest import (MANIFEST, MAX_KEPT_BYTES, design_digest, new_manifest, read_manifest,
                        sort_earlier)
 from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
@@ -22,8 +25,6 @@ from .stages import Artefacts, Checks, DesignReport, judge_design
 def report_dict(rep: DesignReport) -> dict:
     """report.json of a design: its typed results as data (keys listed in docs/batch.md)."""
     import fabkit
-
-    from .formats import motion_facts
 
     out = {"design": rep.facts, "fabkit_version": fabkit.__version__,
            "formats": {f: r.as_dict() for f, r in rep.formats.items()},
@@ -92,9 +93,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     from ..export import EXPORTERS, write_atomic, write_outputs
-    from ..errors import UnsafeNameError, brief
     from ..motion import trace_motion
-    from ..io.outputs import inside
     from ..report.text import design_facts, report_json, report_markdown
     from ..report.html import design_html, index_card, motion_frames
     from ..io.templates import load_template, with_settings
@@ -125,7 +124,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
         except UnsafeNameError as exc:  # a Design made in code, not read from a template
             raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
         check_replaceable(folder)
-        _staging_names(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
+        staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
         # a folder caught between the two renames of a killed run is put back first: its
         # record says what it holds
         recover_folder(outdir, design.name)
@@ -144,7 +143,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
             art = keep_formats(art, folder, kept, list(registry))
         fmts = art.formats
         stage(Stage.WRITE)
-        stage_dir = _staging_names(outdir, design.name)[0]
+        stage_dir = staging_folders(outdir, design.name)[0]
         stage_dir.mkdir(parents=True)
         written = write_outputs(art.files, stage_dir)
         outcome = Outcome.OK

@@ -6,15 +6,23 @@ import os
 import shutil
 from pathlib import Path
 
-from ..errors import LockedError, OutputError
-from ..io.outputs import LOCK_NAME, OutputLock
+from ..errors import LockedError, OutputError, UnsafeNameError
+from ..io.outputs import LOCK_NAME, OutputLock, check_name, inside, own_entry
 
 
-def _safe(name: str) -> bool:
-    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.io.outputs`)."""
-    from ..errors import UnsafeNameError
-    from ..io.outputs import check_name
+def is_safe_name(name: str) -> bool:
+    """True when ``name`` can be a folder under the output folder (:mod:`fabkit.io.outputs`).
 
+    Parameters
+    ----------
+    name : str
+        A design's name.
+
+    Returns
+    -------
+    bool
+        False where :func:`fabkit.io.outputs.check_name` refuses it.
+    """
     try:
         check_name(name)
     except UnsafeNameError:
@@ -24,11 +32,22 @@ def _safe(name: str) -> bool:
 
 # --- folders ---------------------------------------------------------------------------------
 
-def _staging_names(outdir: Path, name: str) -> tuple[Path, Path]:
+def staging_folders(outdir: Path, name: str) -> tuple[Path, Path]:
     """The staging and backup folders of design ``name``: missing, or folders of their own,
-    never a symbolic link (:func:`fabkit.io.outputs.own_entry` refuses one in one line)."""
-    from ..io.outputs import own_entry
+    never a symbolic link (:func:`fabkit.io.outputs.own_entry` refuses one in one line).
 
+    Parameters
+    ----------
+    outdir : pathlib.Path
+        The output folder.
+    name : str
+        The design's name (its folder under ``outdir``).
+
+    Returns
+    -------
+    (pathlib.Path, pathlib.Path)
+        ``outdir/.NAME.staging`` and ``outdir/.NAME.old``.
+    """
     # fixed names (no random part): paths that checkers quote stay the same from run to run
     return (own_entry(outdir, f".{name}.staging"), own_entry(outdir, f".{name}.old"))
 
@@ -44,10 +63,8 @@ def check_replaceable(folder: Path) -> None:
 def recover_folder(outdir: Path, name: str) -> None:
     """Undo what a run killed between its two renames left: the old folder put back when the
     new one never arrived, and the staging and old folders removed."""
-    from ..io.outputs import inside
-
     folder = inside(outdir, name)
-    stage, old = _staging_names(outdir, name)
+    stage, old = staging_folders(outdir, name)
     if old.is_dir() and not os.path.lexists(folder):
         os.replace(old, folder)
     for leftover in (stage, old):
@@ -132,7 +149,7 @@ def swap_in(stage: Path, folder: Path, earlier_files=None) -> None:
         os.replace(stage, folder)
         return
     check_replaceable(folder)
-    _, old = _staging_names(folder.parent, folder.name)
+    _, old = staging_folders(folder.parent, folder.name)
     try:
         with OutputLock(folder):
             carry_over(folder, stage, earlier_files)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..errors import (Interrupted, OutputError)
 from .design import export_one
-from .folders import _safe, recover_folder, swap_in
+from .folders import is_safe_name, recover_folder, swap_in
 from .results import DesignResult, Outcome
 
 
@@ -299,8 +299,8 @@ def _died_message(path, name: str, code) -> str:
     return f"{path}: worker died ({how}) while exporting {name}; nothing of it was written"
 
 
-def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
-              timeout=None, silence=SILENCE) -> None:
+def run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
+             timeout=None, silence=SILENCE) -> None:
     """Export the designs ``todo`` (in this order) in ``jobs`` worker processes.
 
     The parent hands a design to an idle worker and remembers it until the worker reports it
@@ -385,7 +385,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
         i = w.task
         if i is not None and i in pending:
             pending.discard(i)
-            if _safe(names[i]):
+            if is_safe_name(names[i]):
                 try:  # its staging folder, whatever it holds
                     recover_folder(outdir, names[i])
                 except (OSError, OutputError):  # pragma: no cover - the next run removes it
@@ -429,7 +429,7 @@ def _run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
         # a worker killed between two writes leaves its staging folder: remove those of the
         # designs in flight, and put back an old folder caught between the two renames
         for i in pending:
-            if _safe(names[i]):
+            if is_safe_name(names[i]):
                 try:
                     recover_folder(outdir, names[i])
                 except (OSError, OutputError):

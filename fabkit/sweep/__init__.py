@@ -31,9 +31,10 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import FabkitError
-from .chunks import _chunks, _read_chunks, _write_chunk, run_chunk
-from .model import (_CHUNKS, _SPEC, MEASURES, Axis, Protocol, Status, SweepError, SweepSpec,
-                    _jsonable, key_path, _lookup, path_text, _require_points, parse_vary)
+from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
+from .model import (CHUNKS_FOLDER, MEASURES, SPEC_FILE, Axis, Protocol, Status, SweepError,
+                    SweepSpec, json_default, key_path, lookup_number, parse_vary, path_text,
+                    require_points)
 from .point import evaluate_point
 from .results import SweepResult
 
@@ -136,11 +137,11 @@ def make_spec(template, vary, measure=None, protocol: Protocol | None = None) ->
         if canon in seen:
             raise SweepError(f"--vary key {ax.key!r} names {canon}, which is already varied")
         seen.add(canon)
-        old = _lookup(raw, tokens, ax.key)
+        old = lookup_number(raw, tokens, ax.key)
         if isinstance(old, int) and any(v != round(v) for v in ax.values):
             raise SweepError(f"--vary key {ax.key!r}: {canon} is an integer; give values that "
                              "are whole numbers")
-    _require_points("sweep", int(np.prod([len(a.values) for a in axes], dtype=float)))
+    require_points("sweep", int(np.prod([len(a.values) for a in axes], dtype=float)))
     protocol = protocol or Protocol()
     for port in (protocol.d_in, protocol.d_out):
         if port not in design.network.ports:
@@ -244,7 +245,7 @@ def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
 
     output_folder(outdir)
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
-    marker = inside(outdir, _CHUNKS, _SPEC, replace_last=True)
+    marker = inside(outdir, CHUNKS_FOLDER, SPEC_FILE, replace_last=True)
     if os.path.lexists(marker):
         try:  # a FIFO or a device there is refused, never waited on
             old = json.loads(read_regular(marker, MAX_SPEC_BYTES)).get("fingerprint")
@@ -253,7 +254,7 @@ def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
         if old != spec.fingerprint():
             raise FabkitError(f"{outdir} holds the chunks of a different sweep (another template, "
                               "grid, measure or protocol); choose another -o or delete "
-                              f"{outdir / _CHUNKS}")
+                              f"{outdir / CHUNKS_FOLDER}")
 
 
 def _connect(scheduler, timeout: float):
@@ -372,10 +373,10 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
         from ..io.outputs import inside, write_files
 
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
-        write_files(out, {f"{_CHUNKS}/{_SPEC}": json.dumps(marker, indent=1,
-                                                          default=_jsonable).encode()})
-        folder = inside(out, _CHUNKS)
-        done, damaged = _read_chunks(folder, spec)
+        write_files(out, {f"{CHUNKS_FOLDER}/{SPEC_FILE}": json.dumps(
+            marker, indent=1, default=json_default).encode()})
+        folder = inside(out, CHUNKS_FOLDER)
+        done, damaged = read_chunks(folder, spec)
     todo = [i for i in range(spec.size) if i not in done]
     if client is not None:
         workers = max(1, sum(client.nthreads().values()))
@@ -385,7 +386,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
         workers = max(1, min(workers, len(todo) or 1))
         where = "in-process" if workers == 1 else "processes"
     size = int(chunk_size) if chunk_size else max(1, min(32, math.ceil(len(todo) / (4 * workers))))
-    chunks = _chunks(todo, size)
+    chunks = split_chunks(todo, size)
     payload = spec.as_dict()
     total = spec.size
     if progress:
@@ -396,7 +397,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     def arrived(chunk):
         records = chunk["records"]
         if folder is not None:
-            _write_chunk(out, records)
+            write_chunk(out, records)
         for r in records:
             done[r["index"]] = r
         cpu[0] += chunk["cpu"]
@@ -463,14 +464,14 @@ def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
 
 def _stopped_chunk(payload: dict, chunk, point_timeout: float) -> dict:
     """The records of a chunk whose worker stopped answering: every point failed, with why."""
-    from .point import _empty_record
+    from .point import failed_record
 
     spec = SweepSpec(template=payload["template"], raw=payload["raw"],
                      axes=tuple(Axis(a["key"], tuple(a["values"])) for a in payload["axes"]),
                      measures=tuple(payload["measures"]))
     records = []
     for i in chunk:
-        rec = _empty_record(int(i), spec.point(int(i)))
+        rec = failed_record(int(i), spec.point(int(i)))
         rec["reason"] = (f"stopped answering: the worker ran past {point_timeout:g} s a point "
                          "and was stopped")
         records.append(rec)
@@ -517,7 +518,7 @@ def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
             files[name] = figure_png(fig)
     summary = result.summary()
     summary["files"] = sorted(files) + ["sweep.json"]
-    files["sweep.json"] = (json.dumps(summary, indent=1, default=_jsonable, allow_nan=False)
+    files["sweep.json"] = (json.dumps(summary, indent=1, default=json_default, allow_nan=False)
                            + "\n").encode()
     written = tuple(write_files(out, files))
     return dataclasses.replace(result, files=written)

@@ -18,7 +18,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import FabkitError, InputFileError
 from ..io.inputs import read_regular
-from .model import Axis, Protocol, Status, SweepSpec, _jsonable
+from ..io.outputs import write_files
+from .model import Axis, Protocol, Status, SweepSpec, json_default
 from .point import evaluate_point
 
 _Real = Optional[float]
@@ -78,7 +79,20 @@ def _spec_from_dict(d: dict) -> SweepSpec:
                      measures=tuple(d["measures"]), protocol=Protocol(**d["protocol"]))
 
 
-def _chunks(indices: list, size: int) -> list:
+def split_chunks(indices: list, size: int) -> list:
+    """Consecutive pieces of ``size`` indices (the last may be shorter).
+
+    Parameters
+    ----------
+    indices : list of int
+        The points to compute, in order.
+    size : int
+        Points per chunk.
+
+    Returns
+    -------
+    list of list of int
+    """
     return [indices[k:k + size] for k in range(0, len(indices), size)]
 
 
@@ -87,16 +101,27 @@ def _chunks(indices: list, size: int) -> list:
 MAX_CHUNK_BYTES = 256 * 2**20
 
 
-def _write_chunk(out: Path, records: list) -> Path:
-    """Write a chunk of records to ``out/chunks/`` through the output guard."""
-    from ..io.outputs import write_files
+def write_chunk(out: Path, records: list) -> Path:
+    """Write a chunk of records to ``out/chunks/`` through the output guard.
 
+    Parameters
+    ----------
+    out : pathlib.Path
+        The sweep's output folder.
+    records : list of dict
+        The chunk's records, in index order (the file is named after the first and last).
+
+    Returns
+    -------
+    pathlib.Path
+        The chunk file written.
+    """
     first, last = records[0]["index"], records[-1]["index"]
-    text = json.dumps(records, default=_jsonable, allow_nan=False)
+    text = json.dumps(records, default=json_default, allow_nan=False)
     return write_files(out, {f"chunks/chunk-{first:07d}-{last:07d}.json": text.encode()})[0]
 
 
-def _read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
+def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
     """Records already on disk, by index, and the chunks that were damaged.
 
     A chunk cut off mid-write never exists (writes are atomic), but a chunk can still be

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..errors import FabkitError
+from ..io.workload import MAX_SWEEP_SECONDS, require
 
 #: What a sweep can measure at every point; all of them by default.
 MEASURES = ("fixed_points", "slopes", "cycles", "lyapunov", "modes", "attractor")
@@ -26,14 +27,18 @@ COLUMNS = {
     "modes": ("modes_conformational", "modes_self_stress"),
     "attractor": ("attractor_period", "attractor_min", "attractor_max"),
 }
-_COMMON = ("index",)
-_TAIL = ("status", "domain_lo", "domain_hi", "reference", "reason")
+#: Columns of the table before the swept parameters.
+HEAD_COLUMNS = ("index",)
+#: Columns of the table after the measures.
+TAIL_COLUMNS = ("status", "domain_lo", "domain_hi", "reference", "reason")
 
-_CHUNKS = "chunks"
-_SPEC = "spec.json"
-# A reference this close (relative to the module's size) to an end of its branch is a turning
-# point of d1: the start is a flat state.
-_FLAT_RTOL = 1e-9
+#: Folder of a sweep's output that holds its chunks of records (and the spec marker).
+CHUNKS_FOLDER = "chunks"
+#: The spec marker in :data:`CHUNKS_FOLDER`: the grid whose points the chunks hold.
+SPEC_FILE = "spec.json"
+#: A reference this close (relative to the module's size) to an end of its branch is a turning
+#: point of d1: the start is a flat state.
+FLAT_START_RTOL = 1e-9
 
 
 #: A start that is flat gets this nudge (relative to the network, every node) to tell flatness
@@ -102,7 +107,7 @@ class Axis:
         if start == stop and num > 1:
             raise SweepError(f"{key}: START = STOP = {start:g} gives {num} equal values; give "
                              "different ends, or N = 1 for one value")
-        _require_points(f"--vary {key}", int(num))  # before the values are made
+        require_points(f"--vary {key}", int(num))  # before the values are made
         return cls(key, tuple(float(v) for v in np.linspace(start, stop, int(num))))
 
     def as_dict(self) -> dict:
@@ -164,7 +169,28 @@ def key_path(key: str, raw: dict) -> list:
     return tokens
 
 
-def _lookup(raw: dict, tokens: list, key: str):
+def lookup_number(raw: dict, tokens: list, key: str):
+    """The number a key path points at in a template's raw tables.
+
+    Parameters
+    ----------
+    raw : dict
+        The template's tables as read.
+    tokens : list of str or int
+        The key path (:func:`key_path`).
+    key : str
+        The ``--vary`` key as the user wrote it, for the error message.
+
+    Returns
+    -------
+    int or float
+
+    Raises
+    ------
+    SweepError
+        When the template has no such entry, or the entry is not a number (one line naming the
+        path).
+    """
     node = raw
     for k, t in enumerate(tokens):
         where = path_text(tokens[:k + 1])
@@ -190,7 +216,18 @@ def path_text(tokens) -> str:
     return out
 
 
-def _assign(raw: dict, tokens: list, value) -> None:
+def assign_value(raw: dict, tokens: list, value) -> None:
+    """Set the entry a key path points at (checked before by :func:`lookup_number`).
+
+    Parameters
+    ----------
+    raw : dict
+        The template's tables, changed in place.
+    tokens : list of str or int
+        The key path (:func:`key_path`).
+    value
+        The new value.
+    """
     node = raw
     for t in tokens[:-1]:
         node = node[t]
@@ -281,11 +318,27 @@ class SweepSpec:
         body = self.as_dict()
         body.pop("template")
         body["fabkit"] = __version__
-        text = json.dumps(body, sort_keys=True, separators=(",", ":"), default=_jsonable)
+        text = json.dumps(body, sort_keys=True, separators=(",", ":"), default=json_default)
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def _jsonable(o):
+def json_default(o):
+    """``default`` of :func:`json.dumps` for a sweep's files: numpy scalars and arrays, dates.
+
+    Parameters
+    ----------
+    o : object
+        A value :mod:`json` cannot write itself.
+
+    Returns
+    -------
+    int, float, list or str
+
+    Raises
+    ------
+    TypeError
+        For any other type (as :func:`json.dumps` expects).
+    """
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
     if isinstance(o, np.ndarray):
@@ -295,8 +348,19 @@ def _jsonable(o):
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def _require_points(where: str, points: int) -> None:
-    """Refuse a grid whose points would take more than a day, before making it."""
-    from ..io.workload import MAX_SWEEP_SECONDS, require
+def require_points(where: str, points: int) -> None:
+    """Refuse a grid whose points would take more than a day, before making it.
 
+    Parameters
+    ----------
+    where : str
+        What asks for the points (``"sweep"``, ``"--vary KEY"``), named in the refusal.
+    points : int
+        Number of grid points.
+
+    Raises
+    ------
+    fabkit.io.workload.BoundsError
+        When the points would take too long (:func:`fabkit.io.workload.require`).
+    """
     require(where, ("sweep point", points), option=True, max_seconds=MAX_SWEEP_SECONDS)

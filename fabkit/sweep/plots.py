@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..report.viz import figure_kit
+from .model import COLUMNS, MEASURES, key_path, lookup_number
 
 __all__ = ["figures", "bifurcation_figure", "heatmap_figure", "STATUS_STYLE"]
 
@@ -40,10 +41,8 @@ def figures(result) -> dict:
 
 def _template_value(result, key):
     """The value the template itself has at a varied key (where its own module sits)."""
-    from .model import key_path, _lookup
-
     raw = result.spec.raw
-    return float(_lookup(raw, key_path(key, raw), key))
+    return float(lookup_number(raw, key_path(key, raw), key))
 
 
 def _template_name(result) -> str:
@@ -185,8 +184,6 @@ _DISCRETE = {
 
 
 def _heat_columns(result):
-    from .model import COLUMNS, MEASURES
-
     return [c for m in MEASURES if m in result.spec.measures for c in COLUMNS[m]
             if np.isfinite(result.column(c)).any()]
 

@@ -3,23 +3,24 @@
 from __future__ import annotations
 
 import copy
+import importlib
 import math
 
 import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError
-from .model import (_FLAT_RTOL, ATTRACTOR_RTOL, FLAT_NUDGE, Protocol, Status, SweepError,
-                    SweepSpec, _assign, key_path, _lookup)
+from ..io.templates import BUILDERS, TemplateContext
+from ..kinematics import plan_construction
+from ..maps import map_from_trajectory, module_map
+from ..model.rigidity import count_modes
+from .model import (ATTRACTOR_RTOL, FLAT_NUDGE, FLAT_START_RTOL, Protocol, Status, SweepError,
+                    SweepSpec, assign_value, key_path, lookup_number)
 
 # --------------------------------------------------------------------------------------------
 # One point
 # --------------------------------------------------------------------------------------------
 def _build(raw: dict, path: str):
     """Network of a (modified) parsed template, through the template's own builder."""
-    import importlib
-
-    from ..io.templates import BUILDERS, TemplateContext
-
     ctx = TemplateContext(path, raw)
     key = next(k for k in BUILDERS if k in raw)
     module_name, func_name = BUILDERS[key].split(":")
@@ -27,7 +28,22 @@ def _build(raw: dict, path: str):
     return builder(raw[key], ctx)
 
 
-def _empty_record(index: int, params: dict) -> dict:
+def failed_record(index: int, params: dict) -> dict:
+    """A point's record before (or without) its measures: failed, with no domain yet.
+
+    Parameters
+    ----------
+    index : int
+        The point's index in the grid.
+    params : dict
+        The point's parameter values, by ``--vary`` key.
+
+    Returns
+    -------
+    dict
+        A record that :class:`~fabkit.sweep.chunks.SweepRecord` accepts, status ``failed`` and
+        an empty reason.
+    """
     return {"index": int(index), "params": params, "status": Status.FAILED.value, "reason": "",
             "domain_lo": None, "domain_hi": None, "reference": None}
 
@@ -51,12 +67,12 @@ def evaluate_point(spec: SweepSpec, index: int) -> dict:
         and reason say why.
     """
     params = spec.point(index)
-    rec = _empty_record(index, params)
+    rec = failed_record(index, params)
     raw = copy.deepcopy(spec.raw)
     for key, value in params.items():
         tokens = key_path(key, raw)
-        old = _lookup(raw, tokens, key)
-        _assign(raw, tokens, int(round(value)) if isinstance(old, int) else float(value))
+        old = lookup_number(raw, tokens, key)
+        assign_value(raw, tokens, int(round(value)) if isinstance(old, int) else float(value))
     try:
         _measure(spec, raw, rec)
     except FabkitError as exc:  # the geometry at this point cannot be evaluated as asked
@@ -85,9 +101,6 @@ def _finite(o):
 
 
 def _measure(spec: SweepSpec, raw: dict, rec: dict) -> None:
-    from ..maps import map_from_trajectory, module_map
-    from ..model.rigidity import count_modes
-
     p = spec.protocol
     want = set(spec.measures)
     net = _build(raw, spec.template)
@@ -135,7 +148,7 @@ def _measure(spec: SweepSpec, raw: dict, rec: dict) -> None:
     lo, hi = fmap.domain
     rec["domain_lo"], rec["domain_hi"], rec["reference"] = float(lo), float(hi), d0
     size = max(float(net.size), d0)
-    if min(abs(d0 - lo), abs(d0 - hi)) <= _FLAT_RTOL * size:
+    if min(abs(d0 - lo), abs(d0 - hi)) <= FLAT_START_RTOL * size:
         status = Status.FLAT
         rec["reason"] = (f"the start d1 = {d0:.10g} is a turning point of d1 (a flat state); "
                          "measures are those of the branch toward motion.to")
@@ -185,8 +198,6 @@ def _measure(spec: SweepSpec, raw: dict, rec: dict) -> None:
 def _flat_start(net, pair) -> bool:
     """True when the start has no construction order only because it is flat: a slightly
     moved copy of it (1e-7 of the size, every node) has one."""
-    from ..kinematics import plan_construction
-
     x = net.nodes
     rng = np.random.default_rng(0)
     nudged = x + FLAT_NUDGE * max(float(net.size), 1.0) * rng.standard_normal(x.shape)

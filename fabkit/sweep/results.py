@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import _COMMON, _TAIL, COLUMNS, MEASURES, Status, SweepSpec
+from .model import COLUMNS, HEAD_COLUMNS, MEASURES, TAIL_COLUMNS, Status, SweepSpec
 
 # --------------------------------------------------------------------------------------------
 # Results
@@ -56,11 +56,11 @@ class SweepResult:
     @property
     def columns(self) -> tuple:
         """Names of the table's columns."""
-        cols = list(_COMMON) + [a.key for a in self.spec.axes]
+        cols = list(HEAD_COLUMNS) + [a.key for a in self.spec.axes]
         for m in MEASURES:
             if m in self.spec.measures:
                 cols.extend(COLUMNS[m])
-        return tuple(cols) + _TAIL
+        return tuple(cols) + TAIL_COLUMNS
 
     def column(self, name: str) -> np.ndarray:
         """One column as an array (float with NaN for missing values; object for text).

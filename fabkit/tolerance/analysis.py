@@ -9,16 +9,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import FabkitError, KinematicsError, TemplateError
+from ..kinematics import make_problem, place
 from ..kinematics.trajectory import EventKind
 from ..numerics import EDGE_RTOL, project_to_lengths
 from .behaviour import infer_behaviour
-from .criteria import judge_modules, judge_ports, judge_shape, profile_order
+from .criteria import Judged, judge_modules, judge_ports, judge_shape, profile_order
 from .horizon import MIN_MAP_STEPS, NEUTRAL_LYAPUNOV, lyapunov_estimate
 from ..io.workload import require
 from .margin import (CURVE_SCALES, SCALE_BISECTIONS, critical_scales, keep_curve, margin_of,
                      margin_text)
-from .placement import (BUILD_RTOL, PROJECTED_SAMPLES_CAP, Driver, _chain_ports, _find_plan,
-                        _process_geometry, _to_drive_frame)
+from .modules import ModuleMaps
+from .placement import (BUILD_RTOL, PROJECTED_SAMPLES_CAP, Driver, chain_ports, find_plan,
+                        process_geometry, to_drive_frame)
 from .processes import SOURCES, sample_builds
 from .result import ToleranceResult
 from .spec import ToleranceSpec, tolerance_spec
@@ -57,8 +59,6 @@ class _Constructive:
 
     def __init__(self, design, spec, behaviour, plan, problem, pairs, geo, grid, limit_mm,
                  clearance_mm):
-        from .modules import ModuleMaps
-
         self.spec, self.behaviour, self.geo = spec, behaviour, geo
         self.limit_mm = limit_mm
         b = behaviour
@@ -121,8 +121,7 @@ class _Projected:
         self.pairs, self.limit_mm = pairs, limit_mm
 
     def __call__(self, gains, rows, sources=None, observe=False) -> _Run:
-        from ..kinematics import trace
-        from .criteria import Judged
+        from ..kinematics import trace  # looked up at call time: tests count the traces
 
         g = np.ones(self.spec.samples)
         g[rows] = gains
@@ -202,8 +201,6 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     >>> res.keep_fraction, res.flagged, res.margin["value"] >= 1
     (1.0, False, True)
     """
-    from ..kinematics import make_problem, place
-
     path = design.path or design.name
     spec = spec or tolerance_spec(design)
     net = design.network
@@ -228,13 +225,13 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
         m = replace(m, to=float(trajectory.drive[-1]))
         design = replace(design, motion=m)
     problem = make_problem(net, m.drive, m.to, hold=m.hold)
-    ports = _chain_ports(net)
+    ports = chain_ports(net)
     pairs = np.array([net.port(p) for p in ports])
     chain_cols = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
     a, b = problem.drive
     n_chain = len(chain_cols)
     end_nodes = sorted(set(pairs[max(n_chain, 1) - 1].tolist()))
-    plan = _find_plan(problem, trajectory)
+    plan = find_plan(problem, trajectory)
     if plan is None:
         spec = replace(spec, samples=min(spec.samples, PROJECTED_SAMPLES_CAP))
     # the module size: the mean port distance at the target; in a chain of modules, of the
@@ -247,7 +244,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     size_mm = float(np.mean(at_target)) * spec.scale
     limit_mm = spec.limit if spec.limit is not None else spec.limit_fraction * size_mm
     behaviour = infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs, limit_mm)
-    geo = _process_geometry(design, spec, problem, behaviour.end_config)
+    geo = process_geometry(design, spec, problem, behaviour.end_config)
     clearance_mm = 2 * spec.hole_clearance if spec.process == "laser" else limit_mm
     if plan is not None:
         method = "constructive"
@@ -295,8 +292,8 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
             near = np.abs(driven.stop - behaviour.end_drive) <= limit_mm / spec.scale
             reached = near & driven.closed
             ref_dir = (plan.reference[b] - plan.reference[a])[:2]
-            framed = _to_drive_frame(driven.final, a, b, ref_dir)
-            nominal_framed = _to_drive_frame(behaviour.end_config[None], a, b, ref_dir)[0]
+            framed = to_drive_frame(driven.final, a, b, ref_dir)
+            nominal_framed = to_drive_frame(behaviour.end_config[None], a, b, ref_dir)[0]
             end_offsets = framed[:, end_nodes] - nominal_framed[None, end_nodes]
         else:
             reached = np.isfinite(dist).all(axis=1)

@@ -6,8 +6,10 @@ import re
 
 import numpy as np
 
-from ..errors import KinematicsError
-from .placement import _chain_ports
+from ..errors import ConstructionError, DesignError, KinematicsError
+from ..kinematics import make_problem, place, plan_construction
+from ..maps import module_map
+from .placement import chain_ports
 
 #: |λ| below this (per module) counts as a neutral map: no exponential growth or decay.
 NEUTRAL_LYAPUNOV = 1e-6
@@ -46,11 +48,8 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
         ``lyapunov`` (per module), ``source`` ("chain gains" / "iterated module map"),
         ``steps``; None when the design has no construction order or no d1/d2 ports.
     """
-    from ..errors import ConstructionError, DesignError
-    from ..kinematics import make_problem, place, plan_construction
-
     net = design.network
-    chain = [p for p in _chain_ports(net) if re.fullmatch(r"d\d+", p)]
+    chain = [p for p in chain_ports(net) if re.fullmatch(r"d\d+", p)]
     if len(chain) < 2 or design.motion.drive != chain[0] or design.motion.to is None:
         return None
     problem = make_problem(net, design.motion.drive, design.motion.to, hold=design.motion.hold)
@@ -74,8 +73,6 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
                 "steps": int(logs.size), "local": logs.tolist()}
     # a single module: the module's exact map (fabkit.maps), a bundle of orbits started next to
     # the target; orbits that leave the map's domain are dropped
-    from ..maps import module_map
-
     try:
         fmap = module_map(net, chain[0], chain[1])
         d0 = np.clip(to * (1.0 + 1e-3 * np.linspace(-1.0, 1.0, orbits)), *fmap.domain)

@@ -7,8 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConstructionError, FabricationError
+from ..kinematics import place, plan_construction
+from ..kinematics.constructive import cached_plan
 from ..numerics import EDGE_RTOL
-from .processes import PROFILE_SAMPLES, ProcessGeometry, interp_rows
+from .processes import PROFILE_SAMPLES, ProcessGeometry, Sheet, interp_rows, state_profile
 
 #: Builds whose lengths must be realised and traced one by one (no construction order) are
 #: slow; their number is capped at this.
@@ -23,15 +26,39 @@ LOCK_BISECTIONS = 18
 BUILD_RTOL = 1e-9
 
 
-def _chain_ports(net) -> list[str]:
-    """Ports named d1, d2, ... in order, followed by the other ports."""
+def chain_ports(net) -> list[str]:
+    """Ports named d1, d2, ... in order, followed by the other ports.
+
+    Parameters
+    ----------
+    net : fabkit.model.network.Network
+
+    Returns
+    -------
+    list of str
+        ``["d1", "d2", ..., "d10", ...]`` by number, then the other port names sorted.
+    """
     chain = sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
     return chain + sorted(p for p in net.ports if p not in chain)
 
 
-def _to_drive_frame(x, a, b, ref_dir) -> np.ndarray:
-    """Rigidly move configurations (..., N, 2) so node a is at the origin and a→b along ref_dir
-    (2D only; 3D configurations are returned relative to node a)."""
+def to_drive_frame(x, a, b, ref_dir) -> np.ndarray:
+    """Rigidly move configurations so node a is at the origin and a→b along ``ref_dir``.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., N, d)
+        Configurations.
+    a, b : int
+        The drive's nodes.
+    ref_dir : array_like, shape (2,)
+        The direction a→b is turned to (2D).
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., N, d)
+        In 2D rotated and translated; in 3D only translated (relative to node a).
+    """
     x = np.asarray(x) - np.asarray(x)[..., a:a + 1, :]
     if x.shape[-1] != 2:
         return x
@@ -60,8 +87,6 @@ def _place_builds(plan, values, radii) -> tuple[np.ndarray, np.ndarray]:
         Smallest ``h² / r²`` over the intersections; negative where one does not exist.
     """
     m, g = values.shape
-    from ..kinematics import place
-
     x, margin, _ = place(plan, values.reshape(m * g), radii=np.repeat(radii, g, axis=0))
     return x.reshape((m, g) + x.shape[1:]), margin.reshape(m, g)
 
@@ -84,7 +109,24 @@ def _joint_turn(net, start, final) -> np.ndarray:
     return np.where(np.isfinite(hi), np.minimum(hi - lo, 2 * np.pi), 0.0)
 
 
-def _process_geometry(design, spec, problem, final) -> ProcessGeometry:
+def process_geometry(design, spec, problem, final) -> ProcessGeometry:
+    """What a process's error model needs of a design besides its bars.
+
+    Parameters
+    ----------
+    design : fabkit.io.templates.Design
+    spec : fabkit.tolerance.spec.ToleranceSpec
+        The process (``"print"``: the joints' turns over the motion; ``"origami"``: the cut
+        boundary and the sheets of the flat pattern).
+    problem : fabkit.kinematics.Problem
+        The motion's problem (its start configuration).
+    final : numpy.ndarray or None
+        The nominal end configuration, shape (N, d); None: no joint turns.
+
+    Returns
+    -------
+    ProcessGeometry
+    """
     net = design.network
     turn = boundary = None
     if spec.process == "print" and final is not None:
@@ -104,9 +146,7 @@ def _process_geometry(design, spec, problem, final) -> ProcessGeometry:
 
 def _sheets(design):
     """The sheets of an origami design, each with its flat pattern (None without one)."""
-    from ..errors import FabricationError
     from ..fab.creases import origami_model
-    from .processes import Sheet
 
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
@@ -151,10 +191,6 @@ def _sheets(design):
 def find_plan(problem, trajectory):
     """The cached construction plan from the start; from the target's sides when the start is a
     flat state (a flat origami sheet); None when there is no construction order."""
-    from ..errors import ConstructionError
-    from ..kinematics import plan_construction
-    from ..kinematics.constructive import cached_plan
-
     try:
         return cached_plan(problem.work, problem.drive, problem.start)
     except ConstructionError:
@@ -166,10 +202,6 @@ def find_plan(problem, trajectory):
         return plan_construction(problem.work, problem.drive, final)
     except ConstructionError:
         return None
-
-
-#: The name the tolerance analysis imports.
-_find_plan = find_plan
 
 
 @dataclass
@@ -233,9 +265,6 @@ class Driver:
 
     def _table(self):
         """The state profile along the nominal motion, tabulated (None: none)."""
-        from ..kinematics import place
-        from .processes import state_profile
-
         grid = np.linspace(self.valid[0], self.valid[1], PROFILE_SAMPLES)
         x, margin, _ = place(self.plan, grid)
         ok = np.flatnonzero(margin >= 0)
@@ -279,8 +308,6 @@ class Driver:
         -------
         Driven
         """
-        from ..kinematics import place
-
         m = builds.base.shape[0]
         values = np.broadcast_to(np.asarray(values, dtype=np.float64), (m, np.shape(values)[-1]))
         v = values.shape[1]

@@ -30,7 +30,7 @@ import numpy as np
 from .draw import (Labeller, best_rows, draw_bars, extent, label_bars, label_joints,
                    layer_colour, page_brackets, row_axes)
 from .flow import MIN_PT, STYLES, column_lines
-from .plan import ROOM_PT, GuidePlan, _mods, bar_name, frame_caption
+from .plan import ROOM_PT, GuidePlan, bar_name, frame_caption, modules_text
 
 __all__ = ["A4", "render_pages", "BOTTOM_IN"]
 
@@ -101,7 +101,7 @@ def _title(gp: GuidePlan, sheet) -> str:
     what = {"overview": "overview", "method": "how to build", "motion": "motion test",
             "pictures": "motion test, pictures"}
     if sheet.kind == "module":
-        text = f"{gp.name}: page {sheet.number} of {gp.n_pages}, {_mods(sheet.page)}"
+        text = f"{gp.name}: page {sheet.number} of {gp.n_pages}, {modules_text(sheet.page)}"
     else:
         text = f"{gp.name}: page {sheet.number} of {gp.n_pages}: {what[sheet.kind]}"
     if not sheet.first:

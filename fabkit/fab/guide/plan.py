@@ -18,7 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...errors import FabkitError, FabricationError
+from ...kinematics import place, plan_construction
 from ...numerics import MM_SLACK
+from .flow import Block, block_height, flow
 
 __all__ = ["MODULES_PER_PAGE", "GuidePlan", "GuidePage", "MotionTest", "Sheet", "guide_plan",
            "screw_part", "page_groups", "frame_caption", "MEASURABLE_MM", "bar_name",
@@ -380,9 +383,6 @@ def _dense_motion(plan):
     geometrically towards the target (a sequential collapse happens close to it), placed by
     construction; None when the network cannot be placed so or the placement leaves the traced
     motion (then the traced samples are used)."""
-    from ...errors import FabkitError
-    from ...kinematics import place, plan_construction
-
     net, motion = plan.design.network, plan.design.motion
     start, to = float(net.port_distance(motion.drive)), float(motion.to)
     q = np.unique(np.concatenate([np.linspace(0.0, 1.0, 41),
@@ -495,7 +495,18 @@ def stack_row(js, page: GuidePage, fastener: str) -> str:
     return f"J{js.joint}: {' / '.join(seq)}  | {fastener}"
 
 
-def _mods(page: GuidePage) -> str:
+def modules_text(page: GuidePage) -> str:
+    """The modules a page builds, in words: ``"modules 3-7"``, ``"module 2"``, or the part of
+    a network without modules.
+
+    Parameters
+    ----------
+    page : GuidePage
+
+    Returns
+    -------
+    str
+    """
     if not page.modules:
         return ("the whole network" if page.part[1] <= 1 else
                 f"part {page.part[0]} of {page.part[1]} of the network")
@@ -504,8 +515,6 @@ def _mods(page: GuidePage) -> str:
 
 
 def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
-    from .flow import Block
-
     rows = []
     for j in page.closes:
         js = stacks[j]
@@ -523,15 +532,13 @@ def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
 
 
 def _overview_blocks(pages: list, totals: list) -> list:
-    from .flow import Block
-
     joins = []
     for p in pages:
         later: dict = {}
         for j, q in sorted(p.open_joints.items()):
             later.setdefault(q, []).append(f"J{j}")
         how = "; ".join(f"leaves {', '.join(v)} loose for p{q}" for q, v in sorted(later.items()))
-        joins.append(f"p{p.number}: {_mods(p)}" + (f"; {how}" if how else ""))
+        joins.append(f"p{p.number}: {modules_text(p)}" + (f"; {how}" if how else ""))
     return [Block("How the pages join" if len(pages) > 1 else "Pages", tuple(joins),
                   columns=2 if len(joins) > 8 else 1),
             Block("Kit contents (as laser_bom.md lists them)",
@@ -539,8 +546,6 @@ def _overview_blocks(pages: list, totals: list) -> list:
 
 
 def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: str) -> list:
-    from .flow import Block
-
     first, last = pages[0].number, pages[-1].number
     if len(pages) > 1:
         order = (f"Work from page {first} to page {last}, left to right. Each page closes the "
@@ -575,7 +580,7 @@ def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: s
          f"its engraved L<layer>).{motion}"),
     ]
     blocks = [Block(head, (text,), style="body") for head, text in sections]
-    rows = [f"p{p.number}: {_mods(p)}, {len(p.bars)} bars, {len(p.closes)} screws"
+    rows = [f"p{p.number}: {modules_text(p)}, {len(p.bars)} bars, {len(p.closes)} screws"
             for p in pages]
     blocks.append(Block("Pages", tuple(rows), columns=2 if len(rows) > 10 else 1))
     return blocks
@@ -624,8 +629,6 @@ def motion_words(m: MotionTest, barrel: float) -> str:
 
 
 def _motion_blocks(m: MotionTest, barrel: float) -> list:
-    from .flow import Block
-
     rows = [f"{p[0]:>4}: {p[1]:7.1f} → {p[2]:7.1f} mm" + (" (pushed)" if p[0] == m.drive else "")
             for p in m.ports]
     return [Block(None, (motion_words(m, barrel),), style="body"),
@@ -650,8 +653,6 @@ def motion_sheets(m: MotionTest, barrel: float, number: int) -> list:
     -------
     list of Sheet
     """
-    from .flow import block_height, flow
-
     parts = flow(_motion_blocks(m, barrel), ROOM_PT["motion"], ROOM_PT["continued"])
     room = ROOM_PT["motion"] if len(parts) == 1 else ROOM_PT["continued"]
     own = room - sum(block_height(b) for b in parts[-1]) < PICTURES_MIN_PT
@@ -681,9 +682,6 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     -------
     GuidePlan
     """
-    from ...errors import FabricationError
-    from .flow import flow
-
     net = plan.design.network
     s = plan.settings
     edges = np.asarray(plan.bars.edges)

@@ -14,8 +14,8 @@ bars share one, so the layers are found in two steps: a graph colouring of the c
 (networkx greedy strategies; the fewest colours wins, the largest clique is a lower bound), then
 the order of the colour classes that breaks no column rule and needs the shortest screws.
 When that breaks a column rule or uses more layers than the clique bound, the whole problem
-is solved as a mixed-integer program (:func:`_milp_layers`), which either proves the layer
-count minimal or reports the best count found with a proven lower bound.
+is solved as a mixed-integer program (:mod:`fabkit.fab.layers.search`), which either proves
+the layer count minimal or reports the best count found with a proven lower bound.
 
 Sampling guarantee. The motion is sampled (adaptively, see :func:`sample_motion`) so that no
 node moves more than ``h = clearance / 2`` between consecutive samples. Every point of a bar is
@@ -43,9 +43,6 @@ from .distances import point_segment_distance, segment_distance
 from .gaps import stacking_gaps
 from .sampling import Sweep, sample_chain, sample_motion
 from .search import JointStack, Stacking, plan_layers
-# private names the tests reach for
-from .search import (_ClassScore, _colourings, _milp_layers, _neighbourhood,  # noqa: F401
-                     _score, _search_layers, _shorten_screws)
 
 __all__ = ["Sweep", "sample_motion", "sample_chain", "segment_distance", "point_segment_distance",
            "Conflicts", "find_conflicts", "JointStack", "Stacking", "plan_layers",

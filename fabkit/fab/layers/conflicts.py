@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...numerics import MM_SLACK
-from .distances import (_bar_bar, _box_pairs, _incidence, _joint_pairs, _pruned_min,
-                        _share_joint, point_segment_distance)
+from .distances import (bar_distance_kernel, bars_sharing_joints, box_pairs, incidence,
+                        point_segment_distance, pruned_min_over_samples, share_joint)
 
 @dataclass(frozen=True, eq=False)
 class Conflicts:
@@ -82,9 +82,9 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     edges = np.asarray(edges, dtype=np.int64)
     x = np.asarray(positions, dtype=np.float64)
     n_nodes = x.shape[1]
-    inc = _incidence(edges, n_nodes)
+    inc = incidence(edges, n_nodes)
     # bars that share a joint always conflict (from the joints' bar lists: O(bars))
-    ja, jb = _joint_pairs(edges, n_nodes)
+    ja, jb = bars_sharing_joints(edges, n_nodes)
     # Only pairs whose swept boxes (over the whole motion) come within reach need the scan,
     # and only those are ever formed (sort and sweep: linear in the kit, not quadratic).
     lo_n, hi_n = x.min(axis=0), x.max(axis=0)                      # (N, 2) each
@@ -92,11 +92,12 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     reach = 0.5 * width + clearance + r_col
     bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]]) - reach
     bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]]) + reach
-    fa, fb = _box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, 0.0, same=True)
-    keep = ~_share_joint(edges, fa, fb)
+    fa, fb = box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, 0.0, same=True)
+    keep = ~share_joint(edges, fa, fb)
     fa, fb = fa[keep], fb[keep]
     if fa.size:
-        seg_gap, where = _pruned_min(_bar_bar(edges), x, width + clearance, fa, fb)
+        seg_gap, where = pruned_min_over_samples(bar_distance_kernel(edges), x, width + clearance,
+                                                 fa, fb)
     else:
         seg_gap, where = np.zeros(0), np.zeros(0, dtype=np.int64)
     gap = seg_gap - width
@@ -110,12 +111,12 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     screw_joints = (np.flatnonzero(degree >= 2) if screw_joints is None
                     else np.asarray(screw_joints, dtype=np.int64))
     # bar vs screw column at a joint the bar does not belong to (near ones only)
-    bb, jk = _box_pairs(bar_lo, bar_hi, lo_n[screw_joints], hi_n[screw_joints], reach)
+    bb, jk = box_pairs(bar_lo, bar_hi, lo_n[screw_joints], hi_n[screw_joints], reach)
     jj = screw_joints[jk]
     keep = ~inc[jj, bb]
     bb, jj = bb[keep], jj[keep]
     if bb.size:
-        d, _ = _pruned_min(
+        d, _ = pruned_min_over_samples(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]),
             x, 0.5 * width + r_col + clearance, bb, jj)
@@ -128,9 +129,9 @@ def find_conflicts(edges, positions, *, width: float, clearance: float,
     # screw column vs screw column
     if screw_joints.size >= 2:
         sl, sh = lo_n[screw_joints], hi_n[screw_joints]
-        ia, ib = _box_pairs(sl, sh, sl, sh, 2 * reach, same=True)
+        ia, ib = box_pairs(sl, sh, sl, sh, 2 * reach, same=True)
         ia, ib = screw_joints[ia], screw_joints[ib]
-        d, _ = _pruned_min(
+        d, _ = pruned_min_over_samples(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)),
             x, 2.0 * r_col + clearance, ia, ib)
         near = closer_than(d - 2.0 * r_col, clearance)

@@ -3,31 +3,34 @@
 from __future__ import annotations
 
 
-# Samples per block when scanning pairs over the motion (bounds memory to ~block x pairs).
-_BLOCK = 256
+#: Samples per block when scanning pairs over the motion (bounds memory to ~block x pairs).
+BLOCK_SAMPLES = 256
 #: Largest (samples x pairs) block measured at once: 2^20 doubles (8 MB) per array, so the
 #: kernels' temporaries stay near 100 MB however many pairs a kit has.
-_BLOCK_ELEMENTS = 2**20
-# Refuse motions that need more samples than this to meet the step bound.
-_MAX_SAMPLES = 200_000
-# Time limit of the exact layer search (s); past it the best stacking found and the solver's
-# proven lower bound are reported.
-_MILP_SECONDS = 20.0
-# Larger problems get their bound from a neighbourhood of the largest clique only.
-_MILP_BARS = 60
-# Smaller neighbourhoods tried first when a valid stacking is at hand (each proves a bound for
-# the whole; the bundled chains' counts are proven on 16 bars in a fifth of the time of 60),
-# and the time limit of each (s).
-_MILP_STEPS = (16, 32)
-_MILP_STEP_SECONDS = 5.0
+BLOCK_ELEMENTS = 2**20
+#: Refuse motions that need more samples than this to meet the step bound.
+MAX_SAMPLES = 200_000
+#: Time limit of the exact layer search (s); past it the best stacking found and the solver's
+#: proven lower bound are reported.
+MILP_SECONDS = 20.0
+#: Larger problems get their bound from a neighbourhood of the largest clique only.
+MILP_BARS = 60
+#: Smaller neighbourhoods tried first when a valid stacking is at hand (each proves a bound for
+#: the whole; the bundled chains' counts are proven on 16 bars in a fifth of the time of 60).
+MILP_STEPS = (16, 32)
+#: The time limit of each of the :data:`MILP_STEPS` (s).
+MILP_STEP_SECONDS = 5.0
 
-# The deep search (fabkit.fab.layers.propagate) tries layer counts up to this, whatever the cap
-# (96 mm of 3 mm sheet, deeper than any kit a maker would stack), each with a budget of
+# The deep search (fabkit.fab.layers.propagate) tries layer counts up to DEEP_LAYERS, whatever
+# the cap (96 mm of 3 mm sheet, deeper than any kit a maker would stack), each with a budget of
 # branches and all of them with a total (about 15 000 branches a second on one core): the
 # bundled deep kits' proofs take 10 500 (and_gate, 12 layers) and 11 200 (curvature_chain, 15).
-_DEEP_LAYERS = 32
-_DEEP_NODES = 12_000
-_DEEP_TOTAL_NODES = 80_000
+#: Most layers the deep search tries.
+DEEP_LAYERS = 32
+#: Branches the deep search may take per layer count.
+DEEP_NODES = 12_000
+#: Branches the deep search may take over all layer counts.
+DEEP_TOTAL_NODES = 80_000
 
 
 #: A sampled step may exceed its limit by this relative amount (round-off of the bisection).

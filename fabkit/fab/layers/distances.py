@@ -6,19 +6,30 @@ import math
 
 import numpy as np
 
-from .constants import _BLOCK, _BLOCK_ELEMENTS
+from .constants import BLOCK_ELEMENTS, BLOCK_SAMPLES
 
 # -- distances ------------------------------------------------------------------------------
 
-def _node_steps(x: np.ndarray) -> np.ndarray:
-    """Largest node displacement between consecutive configurations, shape (S-1,).
+def node_steps(x: np.ndarray) -> np.ndarray:
+    """Largest node displacement between consecutive configurations.
 
     Blocked over samples so that no second array of all positions is made (a long chain's
-    sampled motion is the largest array of the laser kit)."""
+    sampled motion is the largest array of the laser kit).
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (S, N, d)
+        Sampled configurations of the motion.
+
+    Returns
+    -------
+    numpy.ndarray, shape (S-1,)
+        The largest distance any node moves from sample k to sample k + 1 (empty for S < 2).
+    """
     if x.shape[0] < 2:
         return np.zeros(0)
     out = np.empty(x.shape[0] - 1)
-    block = int(max(1, _BLOCK_ELEMENTS // max(1, x.shape[1])))
+    block = int(max(1, BLOCK_ELEMENTS // max(1, x.shape[1])))
     for start in range(0, x.shape[0] - 1, block):
         stop = min(start + block, x.shape[0] - 1)
         d = x[start + 1:stop + 1] - x[start:stop]
@@ -77,8 +88,26 @@ def segment_distance(p1, q1, p2, q2) -> np.ndarray:
     return np.where(crossing, 0.0, d)
 
 
-def _min_over_samples(func, positions, *index_arrays):
-    """Minimum over samples (and the sample where it occurs) of ``func(x, *index_arrays)``."""
+def min_over_samples(func, positions, *index_arrays):
+    """Minimum over samples (and the sample where it occurs) of ``func(x, *index_arrays)``.
+
+    Parameters
+    ----------
+    func : callable
+        Kernel ``func(x, *index_arrays)`` giving an array (block, n) for a block ``x`` of
+        samples, e.g. :func:`bar_distance_kernel`.
+    positions : numpy.ndarray, shape (S, N, d)
+        Sampled configurations, measured a block of samples at a time.
+    *index_arrays : numpy.ndarray, shape (n,)
+        Index arrays handed to ``func`` (the pairs measured).
+
+    Returns
+    -------
+    best : numpy.ndarray, shape (n,)
+        The minimum of each pair over all samples (``inf`` for none).
+    where : numpy.ndarray of int, shape (n,)
+        The sample where it occurs.
+    """
     n = index_arrays[0].shape[0]
     best = np.full(n, np.inf)
     where = np.zeros(n, dtype=np.int64)
@@ -86,7 +115,7 @@ def _min_over_samples(func, positions, *index_arrays):
         return best, where
     # samples per block so that one (block, n) array stays within the budget: the kernels make
     # about a dozen of them, and n (pairs) grows with the square of the kit
-    block = int(max(1, min(_BLOCK, _BLOCK_ELEMENTS // n)))
+    block = int(max(1, min(BLOCK_SAMPLES, BLOCK_ELEMENTS // n)))
     for start in range(0, positions.shape[0], block):
         x = positions[start:start + block]
         d = func(x, *index_arrays)  # (block, n)
@@ -98,8 +127,8 @@ def _min_over_samples(func, positions, *index_arrays):
     return best, where
 
 
-def _pruned_min(func, positions, threshold: float, *index_arrays, stride: int = 32):
-    """Like :func:`_min_over_samples`, but scans every sample only for index pairs that can come
+def pruned_min_over_samples(func, positions, threshold: float, *index_arrays, stride: int = 32):
+    """Like :func:`min_over_samples`, but scans every sample only for index pairs that can come
     below ``threshold``.
 
     Between a sample and the nearest of every ``stride``-th sample each point moves at most
@@ -107,18 +136,32 @@ def _pruned_min(func, positions, threshold: float, *index_arrays, stride: int = 
     be at most ``stride x`` the largest node step smaller than at that coarse sample. Pairs whose
     coarse minimum exceeds ``threshold`` by that much are left out of the full scan (their
     reported minimum is the coarse one, an upper bound above the threshold).
+
+    Parameters
+    ----------
+    func, positions, *index_arrays
+        As in :func:`min_over_samples`.
+    threshold : float
+        Pairs that can come below this are measured at every sample.
+    stride : int
+        Every ``stride``-th sample is measured for all pairs first.
+
+    Returns
+    -------
+    best, where : numpy.ndarray, shape (n,)
+        As in :func:`min_over_samples`: exact below ``threshold``, an upper bound above it.
     """
     n = index_arrays[0].shape[0]
     s = positions.shape[0]
     if n == 0 or s <= 2 * stride:
-        return _min_over_samples(func, positions, *index_arrays)
-    step = float(_node_steps(positions).max())
+        return min_over_samples(func, positions, *index_arrays)
+    step = float(node_steps(positions).max())
     coarse_idx = np.unique(np.r_[np.arange(0, s, stride), s - 1])
-    best, where = _min_over_samples(func, positions[coarse_idx], *index_arrays)
+    best, where = min_over_samples(func, positions[coarse_idx], *index_arrays)
     where = coarse_idx[where]
     maybe = np.flatnonzero(best - stride * step < threshold)
     if maybe.size:
-        b2, w2 = _min_over_samples(func, positions, *(a[maybe] for a in index_arrays))
+        b2, w2 = min_over_samples(func, positions, *(a[maybe] for a in index_arrays))
         best[maybe], where[maybe] = b2, w2
     return best, where
 
@@ -127,10 +170,10 @@ def _least(func, positions, offset, *index_arrays, stride: int = 32):
     """The smallest ``func - offset`` over samples and index pairs, exactly, and where.
 
     Every pair is first measured at every ``stride``-th sample; between those a distance can
-    shrink by at most ``stride x`` the largest node step (see :func:`_pruned_min`), so only the
-    pairs whose coarse minimum comes that close to the smallest coarse minimum of all can hold
-    the overall minimum, and only they are measured at every sample. The result is the full
-    scan's (:func:`_min_over_samples`).
+    shrink by at most ``stride x`` the largest node step (see :func:`pruned_min_over_samples`),
+    so only the pairs whose coarse minimum comes that close to the smallest coarse minimum of
+    all can hold the overall minimum, and only they are measured at every sample. The result is
+    the full scan's (:func:`min_over_samples`).
 
     Returns
     -------
@@ -146,34 +189,73 @@ def _least(func, positions, offset, *index_arrays, stride: int = 32):
     if s <= 2 * stride:
         maybe = np.arange(n)
     else:
-        step = float(_node_steps(positions).max())
+        step = float(node_steps(positions).max())
         coarse_idx = np.unique(np.r_[np.arange(0, s, stride), s - 1])
-        coarse, _ = _min_over_samples(func, positions[coarse_idx], *index_arrays)
+        coarse, _ = min_over_samples(func, positions[coarse_idx], *index_arrays)
         coarse = coarse - offset
         maybe = np.flatnonzero(coarse - stride * step <= coarse.min())
-    best, where = _min_over_samples(func, positions, *(a[maybe] for a in index_arrays))
+    best, where = min_over_samples(func, positions, *(a[maybe] for a in index_arrays))
     best = best - offset[maybe]
     k = int(np.argmin(best))
     return float(best[k]), int(maybe[k]), int(where[k])
 
 
-def _bar_bar(edges):
-    """Kernel: segment distance between bars a and b at every sample of a block."""
+def bar_distance_kernel(edges):
+    """Kernel of the segment distance between bars, for :func:`min_over_samples`.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+        The bars' end nodes.
+
+    Returns
+    -------
+    callable
+        ``kernel(x, a, b)``: the distance between bars ``a[k]`` and ``b[k]`` (centre lines) at
+        every sample of a block ``x`` of shape (block, N, d), shape (block, n).
+    """
     def kernel(x, a, b):
         return segment_distance(x[:, edges[a, 0]], x[:, edges[a, 1]],
                                 x[:, edges[b, 0]], x[:, edges[b, 1]])
     return kernel
 
 
-def _incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
+def incidence(edges: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Node-bar incidence matrix.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+        The bars' end nodes.
+    n_nodes : int
+        Number of nodes N.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N, E)
+        True where node i is an end of bar e.
+    """
     inc = np.zeros((n_nodes, edges.shape[0]), dtype=bool)
     inc[edges[:, 0], np.arange(edges.shape[0])] = True
     inc[edges[:, 1], np.arange(edges.shape[0])] = True
     return inc
 
 
-def _joint_pairs(edges: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair (a < b) of bars that share a joint, in the order of ``np.triu_indices``."""
+def bars_sharing_joints(edges: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair (a < b) of bars that share a joint, in the order of ``np.triu_indices``.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+        The bars' end nodes.
+    n_nodes : int
+        Number of nodes.
+
+    Returns
+    -------
+    a, b : numpy.ndarray of int, shape (P,)
+        The bars of each pair, ``a < b``.
+    """
     ends = np.concatenate([edges[:, 0], edges[:, 1]])
     bars = np.concatenate([np.arange(edges.shape[0])] * 2)
     order = np.lexsort((bars, ends))
@@ -193,14 +275,28 @@ def _joint_pairs(edges: np.ndarray, n_nodes: int) -> tuple[np.ndarray, np.ndarra
     return key // edges.shape[0], key % edges.shape[0]
 
 
-def _share_joint(edges: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """True where bars a[k] and b[k] share a joint (from their ends: O(pairs), where an
-    incidence-matrix product would hold nodes x pairs booleans)."""
+def share_joint(edges: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """True where bars a[k] and b[k] share a joint.
+
+    Read from the bars' ends: O(pairs), where an incidence-matrix product would hold
+    nodes x pairs booleans.
+
+    Parameters
+    ----------
+    edges : numpy.ndarray of int, shape (E, 2)
+        The bars' end nodes.
+    a, b : numpy.ndarray of int, shape (n,)
+        The bars of each pair.
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (n,)
+    """
     e0, e1 = edges[:, 0], edges[:, 1]
     return (e0[a] == e0[b]) | (e0[a] == e1[b]) | (e1[a] == e0[b]) | (e1[a] == e1[b])
 
 
-def _box_pairs(lo_a, hi_a, lo_b, hi_b, reach: float, *, same: bool = False):
+def box_pairs(lo_a, hi_a, lo_b, hi_b, reach: float, *, same: bool = False):
     """Index pairs (i, j) whose boxes ``[lo_a[i], hi_a[i]]`` and ``[lo_b[j], hi_b[j]]`` come
     within ``reach`` of each other in x and in y (``same``: one set, i < j).
 
@@ -208,6 +304,22 @@ def _box_pairs(lo_a, hi_a, lo_b, hi_b, reach: float, *, same: bool = False):
     ``[lo_a[i] - reach - W, hi_a[i] + reach]`` with W the widest box of set b, so each box meets
     its neighbours along x, not the whole set: linear in the kit for chains and lattices,
     where the pairs of all bars grow with its square.
+
+    Parameters
+    ----------
+    lo_a, hi_a : array_like, shape (A, 2)
+        Lower and upper corners of the boxes of set a.
+    lo_b, hi_b : array_like, shape (B, 2)
+        Lower and upper corners of the boxes of set b.
+    reach : float
+        Boxes this far apart (in x and in y) still count as near.
+    same : bool
+        Sets a and b are one set: each pair once, ``i < j``.
+
+    Returns
+    -------
+    i, j : numpy.ndarray of int
+        The pairs of near boxes, sorted by ``i`` then ``j``.
     """
     lo_a, hi_a = np.asarray(lo_a, dtype=np.float64), np.asarray(hi_a, dtype=np.float64)
     lo_b, hi_b = np.asarray(lo_b, dtype=np.float64), np.asarray(hi_b, dtype=np.float64)
@@ -231,7 +343,7 @@ def _box_pairs(lo_a, hi_a, lo_b, hi_b, reach: float, *, same: bool = False):
     return i[order], j[order]
 
 
-def _exact_least(func, x, offset, pairs_within, lower_bound_reach, start_reach: float,
+def exact_least(func, x, offset, pairs_within, lower_bound_reach, start_reach: float,
                  limit_reach: float):
     """The smallest ``func - offset`` over samples and pairs, exactly, looking only at pairs
     whose swept boxes come within a reach that grows until it provably holds the minimum.
@@ -241,10 +353,27 @@ def _exact_least(func, x, offset, pairs_within, lower_bound_reach, start_reach: 
     do better (a distance is never below its boxes' distance). Stops when the found minimum
     lies within the reach searched, or when the reach covers everything (``limit_reach``).
 
+    Parameters
+    ----------
+    func : callable
+        Kernel as in :func:`min_over_samples`.
+    x : numpy.ndarray, shape (S, N, d)
+        Sampled configurations.
+    offset : float, array_like or callable
+        Subtracted from each pair's distance (e.g. the bar width); a callable gets the index
+        arrays and returns the offsets.
+    pairs_within : callable
+        ``pairs_within(reach)``: the index arrays of the pairs within ``reach``.
+    lower_bound_reach : callable
+        ``lower_bound_reach(value)``: the reach beyond which no pair can go below ``value``.
+    start_reach, limit_reach : float
+        The first reach searched (multiplied by 4 each round) and the reach that covers all.
+
     Returns
     -------
-    (value, k, sample, arrays) : the minimum, the pair, the sample, and the index arrays
-    searched last (``k`` indexes them); ``(inf, -1, -1, arrays)`` when there is no pair.
+    (value, k, sample, arrays) : (float, int, int, tuple)
+        The minimum, the pair, the sample, and the index arrays searched last (``k`` indexes
+        them); ``(inf, -1, -1, arrays)`` when there is no pair.
     """
     reach = start_reach
     while True:

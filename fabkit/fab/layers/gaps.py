@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from .distances import (_bar_bar, _box_pairs, _exact_least, _incidence, _share_joint, point_segment_distance)
+from .distances import (bar_distance_kernel, box_pairs, exact_least, incidence,
+                        point_segment_distance, share_joint)
 
 def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slots: int = 1,
                   column_radius: float = 0.0, spacer_radius: float | None = None) -> dict:
@@ -38,7 +39,7 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
     edges = np.asarray(edges, dtype=np.int64)
     layer = np.asarray(layer)
     x = np.asarray(positions, dtype=np.float64)
-    inc = _incidence(edges, x.shape[1])
+    inc = incidence(edges, x.shape[1])
     out = {"bar_gap": math.inf, "bar_pair": None, "sample": None,
            "screw_gap": math.inf, "column_gap": math.inf}
     # Only the smallest gap of each kind is reported, exactly: pairs are taken from their swept
@@ -51,11 +52,11 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
     whole = float(np.hypot(*(hi_n.max(axis=0) - lo_n.min(axis=0)))) + 1.0
 
     def bar_pairs(reach):
-        a, b = _box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, reach, same=True)
-        keep = (layer[a] == layer[b]) & ~_share_joint(edges, a, b)
+        a, b = box_pairs(bar_lo, bar_hi, bar_lo, bar_hi, reach, same=True)
+        keep = (layer[a] == layer[b]) & ~share_joint(edges, a, b)
         return a[keep], b[keep]
 
-    gap, k, where, (a, b) = _exact_least(_bar_bar(edges), x, width, bar_pairs,
+    gap, k, where, (a, b) = exact_least(bar_distance_kernel(edges), x, width, bar_pairs,
                                          lambda g: g + width, 2.0 * width, whole)
     if k >= 0:
         out.update(bar_gap=gap, bar_pair=[int(a[k]), int(b[k])], sample=where)
@@ -68,7 +69,7 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
         jlo, jhi = lo_n[jid], hi_n[jid]
 
         def screw_pairs(reach):  # a bar and a column whose layers it occupies, near ones only
-            bb, jk = _box_pairs(bar_lo, bar_hi, jlo, jhi, reach)
+            bb, jk = box_pairs(bar_lo, bar_hi, jlo, jhi, reach)
             keep = (layer[bb] >= z0[jk]) & (layer[bb] <= z1[jk]) & ~inc[jid[jk], bb]
             return bb[keep], jk[keep]
 
@@ -81,18 +82,18 @@ def stacking_gaps(edges, layer, positions, *, width: float, joints=(), head_slot
                 radius[inner] = max(column_radius, spacer_radius)
             return 0.5 * width + radius
 
-        out["screw_gap"], _, _, _ = _exact_least(
+        out["screw_gap"], _, _, _ = exact_least(
             lambda xs, bi, ki: point_segment_distance(xs[:, jid[ki]], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]),
             x, screw_offset, screw_pairs, lambda g: g + 0.5 * width + r_max,
             1.5 * width + r_max, whole)
 
         def column_pairs(reach):  # two columns that share a layer, near ones only
-            ia, ib = _box_pairs(jlo, jhi, jlo, jhi, reach, same=True)
+            ia, ib = box_pairs(jlo, jhi, jlo, jhi, reach, same=True)
             keep = (z0[ia] <= z1[ib]) & (z0[ib] <= z1[ia])
             return ia[keep], ib[keep]
 
-        out["column_gap"], _, _, _ = _exact_least(
+        out["column_gap"], _, _, _ = exact_least(
             lambda xs, i1, i2: np.sqrt(((xs[:, jid[i1]] - xs[:, jid[i2]]) ** 2).sum(-1)), x,
             2.0 * column_radius, column_pairs, lambda g: g + 2.0 * column_radius,
             2.0 * width + 2.0 * column_radius, whole)

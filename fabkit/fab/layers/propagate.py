@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .constants import _DEEP_NODES, _DEEP_TOTAL_NODES
+from .constants import DEEP_NODES, DEEP_TOTAL_NODES
 
 __all__ = ["DeepSearch", "deep_search", "propagate_layers", "PROPAGATE_BARS"]
 
@@ -96,7 +96,7 @@ class _Rules:
                              for j in self.joints_of[b]) for b in range(self.n)]
 
 
-def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=_DEEP_NODES):
+def propagate_layers(n_bars, conf, joint_bars, head, layers, node_limit=DEEP_NODES):
     """A stacking with at most ``layers`` layers meeting every rule, by complete search.
 
     Parameters
@@ -277,8 +277,8 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     return None, nodes[0], nodes[0] <= node_limit
 
 
-def deep_search(n_bars, conf, joint_bars, head, counts, *, node_limit=_DEEP_NODES,
-                total_limit=_DEEP_TOTAL_NODES) -> DeepSearch:
+def deep_search(n_bars, conf, joint_bars, head, counts, *, node_limit=DEEP_NODES,
+                total_limit=DEEP_TOTAL_NODES) -> DeepSearch:
     """The fewest layers among ``counts`` (ascending) for which a stacking exists.
 
     ``counts[0]`` must itself be a proven lower bound (the largest clique of the conflict

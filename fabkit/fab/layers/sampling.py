@@ -6,10 +6,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...design.assemble import chain
 from ...errors import FabricationError
+from ...kinematics.base import align_to_gauge, make_problem
+from ...kinematics.constructive import place, plan_construction
 from .conflicts import Conflicts, closer_than, find_conflicts
-from .constants import _MAX_SAMPLES, STEP_RTOL
-from .distances import _bar_bar, _min_over_samples, _node_steps, point_segment_distance
+from .constants import MAX_SAMPLES, STEP_RTOL
+from .distances import bar_distance_kernel, min_over_samples, node_steps, point_segment_distance
 
 @dataclass(frozen=True, eq=False)
 class Sweep:
@@ -85,9 +88,7 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
     FabricationError
         No motion target, or the bound cannot be met within 200 000 samples.
     """
-    from ...kinematics import trace
-    from ...kinematics.base import align_to_gauge, make_problem
-    from ...kinematics.constructive import place, plan_construction
+    from ...kinematics import trace  # looked up at call time: tests count the traces
 
     if motion.to is None:
         raise FabricationError("the template gives no [motion] target (motion.to): the stacking "
@@ -118,12 +119,12 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
             opts[key] = step
             traj = trace(net, drive=motion.drive, to=motion.to, method=traj.method,
                          hold=motion.hold, **opts)
-            worst = float(_node_steps(traj.positions).max(initial=0.0))
+            worst = float(node_steps(traj.positions).max(initial=0.0))
             if worst <= limit:
                 break
             step *= 0.9 * limit / worst
         x, drive = traj.positions, traj.drive
-    steps = _node_steps(x)
+    steps = node_steps(x)
     max_step = float(steps.max() * scale) if steps.size else 0.0
     if max_step > max(step_limit, floor_limit or 0.0) * (1 + STEP_RTOL):
         raise FabricationError(
@@ -144,7 +145,7 @@ def _refine(placer, values, limit: float, scale: float, floor_limit, drive_name:
     """
     x = placer(values)
     for _ in range(80):
-        steps = _node_steps(x)
+        steps = node_steps(x)
         bad = np.flatnonzero(steps > limit)
         if bad.size == 0:
             return values, x
@@ -165,10 +166,10 @@ def _refine(placer, values, limit: float, scale: float, floor_limit, drive_name:
                 f"the motion passes a flat state at {drive_name} = {values[k]:.10g} where "
                 f"nodes move {steps[k] * scale:.3g} mm while the drive stands still; the "
                 "collision check cannot sample it: end the motion before it (motion.to)")
-        if values.size + bad.size > _MAX_SAMPLES:
+        if values.size + bad.size > MAX_SAMPLES:
             raise FabricationError(
                 f"sampling the motion to {limit * scale:g} mm steps needs more than "
-                f"{_MAX_SAMPLES} samples; raise the clearance or check the motion")
+                f"{MAX_SAMPLES} samples; raise the clearance or check the motion")
         # only the new midpoints are placed (each configuration is placed on its own, so the
         # samples are the same as placing all of them again)
         mids = 0.5 * (values[bad] + values[bad + 1])
@@ -235,9 +236,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         ``conflicts`` set and ``positions`` the chain's trace in mm; None when the network is
         not such a chain (then use :func:`sample_motion`).
     """
-    from ...design.assemble import chain
-    from ...kinematics import trace
-    from ...kinematics.constructive import place, plan_construction
+    from ...kinematics import trace  # looked up at call time: tests count the traces
 
     layout = net.assembly
     if (layout is None or net.dim != 2 or motion.drive != "d1" or motion.hold
@@ -290,7 +289,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
 
         values, x = _refine(placer, values, limit, scale, floor_limit, "d")
         n_samples += values.size
-        steps = _node_steps(x)
+        steps = node_steps(x)
         max_step = max(max_step, float(steps.max() * scale) if steps.size else 0.0)
         xs = x * scale
         # window -> chain numbering, the same for every window of this kind
@@ -346,7 +345,7 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         screw_joints=np.flatnonzero(degree >= 2),
         keepout_span=_unique_rows(np.concatenate(keep_span + [np.zeros((0, 2), np.int64)])
                                   ).astype(np.int64))
-    steps = _node_steps(traj.positions)
+    steps = node_steps(traj.positions)
     return Sweep(positions=np.ascontiguousarray(xg), drive=np.asarray(traj.drive),
                  step_limit=float(step_limit), max_step=max_step, method="module windows",
                  status=str(traj.status), message=traj.message, conflicts=conflicts,
@@ -395,7 +394,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
         pa.append(g1.ravel())
         pb.append(g2.ravel())
     pa, pb = np.concatenate(pa), np.concatenate(pb)
-    d, _ = _min_over_samples(_bar_bar(edges), x, pa, pb)
+    d, _ = min_over_samples(bar_distance_kernel(edges), x, pa, pb)
     close = closer_than(d - width, clearance)
     pairs = np.stack([pa[close], pb[close]], 1)
     is_screw = np.zeros(x.shape[1], dtype=bool)
@@ -410,7 +409,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
     bj, jj = np.concatenate(bj), np.concatenate(jj)
     keep = np.zeros((0, 2), dtype=np.int64)
     if bj.size:
-        d, _ = _min_over_samples(
+        d, _ = min_over_samples(
             lambda xs, bi, ji: point_segment_distance(xs[:, ji], xs[:, edges[bi, 0]],
                                                       xs[:, edges[bi, 1]]), x, bj, jj)
         near = closer_than(d - 0.5 * width - column_radius, clearance)
@@ -425,7 +424,7 @@ def _far_field(edges, x, module_of_edge, w, *, width, clearance, column_radius, 
     ja, jb = np.concatenate(ja), np.concatenate(jb)
     jp = np.zeros((0, 2), dtype=np.int64)
     if ja.size:
-        d, _ = _min_over_samples(
+        d, _ = min_over_samples(
             lambda xs, i1, i2: np.sqrt(((xs[:, i1] - xs[:, i2]) ** 2).sum(-1)), x, ja, jb)
         near = closer_than(d - 2.0 * column_radius, clearance)
         jp = np.stack([ja[near], jb[near]], 1)

@@ -12,10 +12,10 @@ import numpy as np
 
 from ...errors import FabricationError
 from .conflicts import Conflicts, find_conflicts
-from .constants import (_DEEP_LAYERS, _DEEP_NODES, _DEEP_TOTAL_NODES, _MILP_BARS,
-                        _MILP_SECONDS, _MILP_STEP_SECONDS, _MILP_STEPS, DUAL_BOUND_SLACK,
-                        HEAD_LAYERS_SLACK)
-from .distances import _incidence
+from .constants import (DEEP_LAYERS, DEEP_NODES, DEEP_TOTAL_NODES, DUAL_BOUND_SLACK,
+                        HEAD_LAYERS_SLACK, MILP_BARS, MILP_SECONDS, MILP_STEP_SECONDS,
+                        MILP_STEPS)
+from .distances import incidence
 from .propagate import PROPAGATE_BARS, added_span, deep_search
 from .sampling import Sweep
 
@@ -365,7 +365,7 @@ def _shorten_screws(layer, conf, joint_bars, jpos, head, max_rounds=100):
     """Shorter screws for a valid stacking without adding layers (deterministic descent).
 
     First the best order of its layers (as for colour classes), then the single move (a bar to
-    another layer) or, up to :data:`_MILP_BARS` bars, the swap of two bars' layers that shortens
+    another layer) or, up to :data:`MILP_BARS` bars, the swap of two bars' layers that shortens
     the screws most, until none does. Every candidate is checked against every rule, so the
     result is as valid as ``layer`` and has no more layers.
     """
@@ -382,7 +382,7 @@ def _shorten_screws(layer, conf, joint_bars, jpos, head, max_rounds=100):
                       conf.keepout_span)
     best = int(span0[0])
     bar_v, val_v = np.repeat(np.arange(n_bars), k), np.tile(np.arange(k), n_bars)
-    sa, sb = np.triu_indices(n_bars, k=1) if n_bars <= _MILP_BARS else (np.zeros(0, int),) * 2
+    sa, sb = np.triu_indices(n_bars, k=1) if n_bars <= MILP_BARS else (np.zeros(0, int),) * 2
     for _ in range(max_rounds):
         # conflict partners of every bar on every layer: a bar may go where it has none
         within = adj @ (layer[:, None] == np.arange(k)[None]).astype(np.int64)  # (E, k)
@@ -599,7 +599,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         column_radius=column_radius, spacer_radius=spacer_radius)
     head = int(math.ceil(s.screw.head_height / s.thickness - HEAD_LAYERS_SLACK))
     n_bars = edges.shape[0]
-    inc = _incidence(edges, sweep.positions.shape[1])
+    inc = incidence(edges, sweep.positions.shape[1])
     joint_bars = [np.flatnonzero(inc[j]) for j in conf.screw_joints]
     jpos = np.full(sweep.positions.shape[1], -1, dtype=np.int64)
     jpos[conf.screw_joints] = np.arange(conf.screw_joints.size)
@@ -629,8 +629,8 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             # backtracking below in a tenth of its time or less, and finds the deep kits
             # (columns standing on one another) that the backtracking gives up on.
             deep = deep_search(n_bars, conf, joint_bars, head,
-                               range(max(int(clique), 1), _DEEP_LAYERS + 1),
-                               node_limit=_DEEP_NODES, total_limit=_DEEP_TOTAL_NODES)
+                               range(max(int(clique), 1), DEEP_LAYERS + 1),
+                               node_limit=DEEP_NODES, total_limit=DEEP_TOTAL_NODES)
             if deep.layer is not None:
                 layer = _shorten_screws(deep.layer, conf, joint_bars, jpos, head)
                 strategy, viol, k = "propagation", 0, int(layer.max()) + 1
@@ -656,22 +656,22 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         # Colouring ignores the column rules and the search stops at its budget: ask the exact
         # solver for a stacking with fewer layers; its dual bound is a proven lower bound.
         fewer = s.max_layers if viol else k - 1
-        for size in () if viol else _MILP_STEPS:
-            if size >= min(n_bars, _MILP_BARS) or k <= bound:
+        for size in () if viol else MILP_STEPS:
+            if size >= min(n_bars, MILP_BARS) or k <= bound:
                 break
             sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, size)
-            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_STEP_SECONDS)
+            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=MILP_STEP_SECONDS)
             bound = max(bound, sub_bound)
         if viol or k > bound:  # not proven by a small neighbourhood
-            if n_bars > _MILP_BARS:
+            if n_bars > MILP_BARS:
                 # A few bars around the largest clique with only the rules among them: a
                 # relaxation of the whole problem, so its proven bound holds for the whole.
-                sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, _MILP_BARS)
-                _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=_MILP_SECONDS)
+                sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, MILP_BARS)
+                _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=MILP_SECONDS)
                 bound = max(bound, sub_bound)
             else:
                 found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head,
-                                                          fewer, time_limit=_MILP_SECONDS)
+                                                          fewer, time_limit=MILP_SECONDS)
                 if found is not None:
                     layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
                 bound = max(bound, milp_bound)
@@ -681,7 +681,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         d0 = np.sqrt(((x0[:, None] - x0[None]) ** 2).sum(-1))
         np.fill_diagonal(d0, np.inf)
         i, j = np.unravel_index(np.argmin(d0), d0.shape) if d0.size else (0, 0)
-        where = (f"up to {_DEEP_LAYERS} layers" if deep is not None else
+        where = (f"up to {DEEP_LAYERS} layers" if deep is not None else
                  f"max_layers = {s.max_layers}")
         if d0.size and d0[i, j] < 2 * column_radius:
             ji, jj = int(conf.screw_joints[i]), int(conf.screw_joints[j])
@@ -695,7 +695,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
         fewer = ("fewer are ruled out by complete search" if deep.bound > clique else
                  "the largest clique of the conflict graph")
         raise FabricationError(
-            f"no stacking of these bars found with up to {_DEEP_LAYERS} layers; at least "
+            f"no stacking of these bars found with up to {DEEP_LAYERS} layers; at least "
             f"{deep.bound} are needed ({fewer}): "
             + _violation_message(layer, joint_bars, conf, head, edges))
     if viol:
@@ -705,7 +705,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
                 f"search), more than max_layers = {s.max_layers}: "
                 + _violation_message(layer, joint_bars, conf, head, edges))
         raise FabricationError(
-            f"no stacking found within max_layers = {s.max_layers} in the {_MILP_SECONDS:g} s "
+            f"no stacking found within max_layers = {s.max_layers} in the {MILP_SECONDS:g} s "
             f"exact search (at least {bound} layers are needed): "
             + _violation_message(layer, joint_bars, conf, head, edges))
     if k > s.max_layers:
