@@ -31,6 +31,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import FabkitError
+from ..executor import Ending, LocalExecutor, Task
 from .chunks import _chunks, _read_chunks, _write_chunk, run_chunk
 from .model import (_CHUNKS, _SPEC, MEASURES, Axis, Protocol, Status, SweepError, SweepSpec,
                     _jsonable, key_path, _lookup, path_text, _require_points, parse_vary)
@@ -92,8 +93,6 @@ def _axes_from(vary) -> tuple:
 #: Seconds a point of a sweep may run on a worker process before it counts as stopped
 #: answering (the bundled sweeps take about 0.4 s a point).
 POINT_TIMEOUT = 600.0
-#: How often the parent looks at the running chunks (seconds).
-HANG_POLL = 0.5
 #: Largest ``chunks/spec.json`` read back (fabkit writes a few kB).
 MAX_SPEC_BYTES = 16 * 2**20
 
@@ -407,9 +406,6 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     if chunks:
         if client is not None:
             _run_dask(client, payload, chunks, spec.fingerprint(), arrived)
-        elif workers == 1:
-            for c in chunks:
-                arrived(run_chunk(payload, c))
         else:
             _run_processes(workers, payload, chunks, arrived, point_timeout)
     seconds = time.perf_counter() - t0
@@ -423,46 +419,46 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
 
 
 def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
-    """Chunks on local worker processes; a chunk that runs past its time (``point_timeout``
-    per point) has stopped answering: the pool is stopped, the chunk's points are recorded as
-    failed, and the chunks that were still running or waiting go on in a fresh pool."""
-    import concurrent.futures as cf
+    """Chunks on local worker processes (:class:`fabkit.executor.LocalExecutor`), or one after
+    the other in this process for one worker. A chunk that runs past its time
+    (``point_timeout`` per point, from the moment a worker takes it) has stopped answering: its
+    worker is killed and its points are recorded as failed, and so are those of a chunk whose
+    worker died; the other chunks go on."""
+    tasks = [Task(run_chunk, (payload, c), timeout=point_timeout * len(c)) for c in chunks]
+    # no silence limit: a chunk's time limit is the bound (a point may hold the interpreter
+    # lock for long); the BLAS threads of the workers share the cores
+    with LocalExecutor(workers, silence=None, name="fabkit-sweep",
+                       in_process=workers == 1) as pool:
+        for end in pool.run(tasks):
+            if end.ending is Ending.DONE:
+                arrived(end.value)
+            elif end.ending is Ending.RAISED:
+                raise end.value  # as it would have been raised in this process
+            elif end.stopped:
+                arrived(_stopped_chunk(payload, chunks[end.index],
+                                       f"stopped answering: the worker ran past "
+                                       f"{point_timeout:g} s a point and was stopped"))
+            else:
+                arrived(_stopped_chunk(payload, chunks[end.index],
+                                       f"the worker process died ({_how(end.exitcode)}) "
+                                       "while computing this point"))
 
-    todo = list(chunks)
-    while todo:
-        pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)))
-        futures = {pool.submit(run_chunk, payload, c): c for c in todo}
-        todo, started = [], {}
+
+def _how(exitcode) -> str:
+    """How a process ended, from its exit code (negative: the signal)."""
+    import signal
+
+    if exitcode is not None and exitcode < 0:
         try:
-            pending = set(futures)
-            while pending:
-                finished, pending = cf.wait(pending, timeout=HANG_POLL,
-                                            return_when=cf.FIRST_COMPLETED)
-                for fut in finished:
-                    arrived(fut.result())
-                now = time.monotonic()
-                hung = None
-                for fut in pending:
-                    if fut.running():
-                        t0 = started.setdefault(fut, now)
-                        if now - t0 > point_timeout * len(futures[fut]):
-                            hung = fut
-                            break
-                if hung is not None:
-                    c = futures[hung]
-                    arrived(_stopped_chunk(payload, c, point_timeout))
-                    todo = [futures[f] for f in pending if f is not hung]
-                    _stop_pool(pool)
-                    break
-        except BaseException:
-            # Ctrl-C or a failed write: drop what has not started, keep what is on disk
-            _stop_pool(pool)
-            raise
-        pool.shutdown()
+            return f"signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"signal {-exitcode}"
+    return f"exit code {exitcode}"
 
 
-def _stopped_chunk(payload: dict, chunk, point_timeout: float) -> dict:
-    """The records of a chunk whose worker stopped answering: every point failed, with why."""
+def _stopped_chunk(payload: dict, chunk, reason: str) -> dict:
+    """The records of a chunk whose worker stopped answering or died: every point failed, with
+    the reason."""
     from .point import _empty_record
 
     spec = SweepSpec(template=payload["template"], raw=payload["raw"],
@@ -471,18 +467,9 @@ def _stopped_chunk(payload: dict, chunk, point_timeout: float) -> dict:
     records = []
     for i in chunk:
         rec = _empty_record(int(i), spec.point(int(i)))
-        rec["reason"] = (f"stopped answering: the worker ran past {point_timeout:g} s a point "
-                         "and was stopped")
+        rec["reason"] = reason
         records.append(rec)
     return {"records": records, "cpu": 0.0}
-
-
-def _stop_pool(pool) -> None:
-    """Kill a pool's workers at once (one of them may never return) and drop its queue."""
-    for proc in list(getattr(pool, "_processes", {}).values()):
-        if proc.is_alive():
-            proc.kill()
-    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
