@@ -4,7 +4,8 @@
 grid, evaluates every point with the cheapest adequate model — the module's map d2 = f(d1)
 (:func:`fabkit.maps.module_map`) — and measures fixed points, slopes, cycles, the attractor of the
 iterated map, its Lyapunov exponent and the mode count. Points are independent: they run in
-chunks on local processes or on a dask.distributed cluster, every finished chunk is written to
+chunks on local processes (:mod:`fabkit.executor`) or on a dask.distributed cluster (the
+``cluster`` extra), every finished chunk is written to
 disk at once (``DIR/chunks``), and a sweep that is interrupted and started again computes only
 the points that are not on disk yet. Every point gets a typed :class:`Status`: a geometry that is
 rigid, starts in a flat state, has a motion that does not move d1, or whose orbits all leave the
@@ -259,9 +260,9 @@ def _connect(scheduler, timeout: float):
     """A dask.distributed Client for an address (or the Client given)."""
     try:
         from distributed import Client
-    except ImportError:  # pragma: no cover - a declared dependency
-        raise FabkitError("running on a cluster needs dask.distributed: pip install "
-                          "'dask[distributed]'") from None
+    except ImportError:  # an optional dependency: local processes need nothing more
+        raise FabkitError("running on a cluster (--scheduler) needs dask.distributed, which "
+                          "this installation lacks: pip install 'fabkit[cluster]'") from None
     if isinstance(scheduler, Client):
         return scheduler, False
     try:
@@ -305,6 +306,8 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
         workers. Default: this machine.
     jobs : int or None
         Local processes when there is no scheduler (1: in this process; None: one per core).
+        They are spawned (:class:`fabkit.executor.LocalExecutor`): a script that calls this
+        with more than one needs the ``if __name__ == "__main__":`` guard.
     chunk_size : int, optional
         Points per task (default: about four tasks per worker, at most 32 points).
     protocol : Protocol, optional
@@ -316,8 +319,9 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
         Seconds to wait for the scheduler.
     point_timeout : float
         Seconds a point may take on a worker process before it counts as stopped answering
-        (a chunk gets this times its points): its worker is killed, its points are recorded
-        as ``failed`` with the reason, and the sweep goes on. Points run in this process
+        (a chunk gets this times its points, from the moment a worker takes it): its worker is
+        killed, its points are recorded as ``failed`` with the reason, and the sweep goes on
+        (so do the points of a chunk whose worker died). Points run in this process
         (``jobs=1``) cannot be stopped this way.
 
     Returns
