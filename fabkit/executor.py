@@ -382,6 +382,8 @@ class LocalExecutor:
         exception while it runs, stops the workers.
         """
         tasks = list(tasks)
+        if not tasks:
+            return
         if self.in_process:
             yield from self._run_here(tasks)
             return
