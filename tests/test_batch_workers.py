@@ -178,28 +178,28 @@ def test_a_fault_for_another_design_or_moment_changes_nothing(tmp_path, lengths,
 def test_the_limits_judge_the_worker_not_the_machine():
     """The parent's judgement on a fake clock: a starting worker is not silent, silence counts
     from the last word, the design's time limit from the moment the worker took the design."""
-    from fabkit.pipeline.workers import _why_stuck, _Worker, heartbeat_interval
+    from fabkit.executor import overdue, heartbeat_interval
+    from fabkit.pipeline.workers import _stuck_reason
 
-    w = _Worker(proc=None, conn=None)
-    w.born = 100.0
     limits = {"silence": 3.0, "timeout": 4.0, "startup": 120.0}
+
+    def why(now, heard=None, since=None, **other):
+        stop = overdue(now, born=100.0, heard=heard, since=since, **{**limits, **other})
+        return "" if stop is None else _stuck_reason(*stop, "a")
+
     # starting (an interpreter importing numpy and scipy): not a word yet, for a long time
-    assert _why_stuck(w, 100.0 + 119.0, "a", **limits) == ""
-    assert _why_stuck(w, 100.0 + 121.0, "a", **limits) == (
+    assert why(100.0 + 119.0) == ""
+    assert why(100.0 + 121.0) == (
         "the worker did not start within 120 s (it was to export a), and was stopped")
     # its first word at 110: silent only 3 s after its last word, whatever came before
-    w.heard = 110.0
-    assert _why_stuck(w, 112.9, "a", **limits) == ""
-    assert _why_stuck(w, 113.1, "a", **limits).startswith(
+    assert why(112.9, heard=110.0) == ""
+    assert why(113.1, heard=110.0).startswith(
         "the worker stopped answering (no word for 3 s) while exporting a")
     # it took the design at 111 and goes on beating: the time limit runs from 111
-    w.since = 111.0
-    w.heard = 114.9
-    assert _why_stuck(w, 114.9, "a", **limits) == ""
-    w.heard = 115.2
-    assert _why_stuck(w, 115.2, "a", **limits) == (
+    assert why(114.9, heard=114.9, since=111.0) == ""
+    assert why(115.2, heard=115.2, since=111.0) == (
         "exporting a ran past the time limit of 4 s (--timeout), and was stopped")
-    assert _why_stuck(w, 115.2, "a", **{**limits, "timeout": None}) == ""
+    assert why(115.2, heard=115.2, since=111.0, timeout=None) == ""
     # several beats fit in any silence limit
     assert heartbeat_interval(120.0) == 1.0 and heartbeat_interval(3.0) == 0.5
 

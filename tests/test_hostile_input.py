@@ -13,7 +13,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import ezdxf
@@ -307,23 +306,37 @@ def test_a_resumed_sweep_sets_damaged_chunks_aside(tmp_path, capsys):
     assert (chunks / "chunk-0000001-0000001.json.damaged").exists()
 
 
-def test_a_sweep_point_that_stops_answering_is_recorded_and_the_rest_goes_on(monkeypatch):
-    import fabkit.sweep.chunks as chunks
+STUCK_SOURCE = """
+import time
 
-    real = chunks.evaluate_point
+from fabkit.sweep.chunks import run_chunk
 
-    def stuck_at_one(spec, i):
-        if i == 1:
-            time.sleep(3600)
-        return real(spec, i)
 
-    # worker processes are forked from this one and inherit the stuck point
-    monkeypatch.setattr(chunks, "evaluate_point", stuck_at_one)
+def stuck_at_one(spec_dict, indices):
+    if 1 in indices:
+        time.sleep(3600)
+    return run_chunk(spec_dict, indices)
+"""
+
+
+def test_a_sweep_point_that_stops_answering_is_recorded_and_the_rest_goes_on(tmp_path,
+                                                                            monkeypatch):
+    # the worker processes are spawned: the stuck chunk is a module file they import too
+    mods = tmp_path / "mods"
+    mods.mkdir()
+    (mods / "fabkit_test_stuck_chunk.py").write_text(STUCK_SOURCE)
+    monkeypatch.syspath_prepend(str(mods))
+    monkeypatch.setenv("PYTHONPATH", str(mods) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    import fabkit_test_stuck_chunk
+
+    monkeypatch.setattr(sys.modules["fabkit.sweep"], "run_chunk",
+                        fabkit_test_stuck_chunk.stuck_at_one)
     r = fabkit.sweep("chaotic", {"nodes[4].x": (-0.4, -0.3, 4)}, measure="fixed_points",
                      jobs=2, chunk_size=1, point_timeout=2.0, plots=False)
     assert r.counts() == {"ok": 3, "failed": 1}
     failed = [rec for rec in r.records if rec["status"] == "failed"]
-    assert failed[0]["index"] == 1 and "stopped answering" in failed[0]["reason"]
+    assert failed[0]["index"] == 1 and failed[0]["reason"] == (
+        "stopped answering: the worker ran past 2 s a point and was stopped")
 
 
 # --- settings that were silently ignored -----------------------------------------------------

@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1] / "fabkit"
 #: Rank of each top-level part of the package; an import must not go to a higher rank.
 LAYERS = {
     "errors": 0,
+    "executor": 0,
     "io": 0,
     "io.outputs": 0,
     "pipeline.stoppable": 0,

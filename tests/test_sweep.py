@@ -270,7 +270,8 @@ def test_local_processes_give_identical_numbers(tmp_path, reference_run):
 
 
 def test_local_cluster_with_two_workers_gives_identical_numbers(tmp_path, reference_run):
-    from distributed import LocalCluster
+    LocalCluster = pytest.importorskip("distributed", reason="the cluster extra: pip install "
+                                       "'fabkit[cluster]'").LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                       dashboard_address=None) as cluster:
@@ -371,7 +372,8 @@ def test_unreachable_scheduler(tmp_path, capsys):
 
 
 def test_a_scheduler_without_workers(tmp_path, capsys):
-    from distributed import LocalCluster
+    LocalCluster = pytest.importorskip("distributed", reason="the cluster extra: pip install "
+                                       "'fabkit[cluster]'").LocalCluster
 
     out = tmp_path / "o"
     with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster:
@@ -381,6 +383,26 @@ def test_a_scheduler_without_workers(tmp_path, capsys):
     assert rc == 1
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "has no workers" in line
+    assert not out.exists()
+
+
+def test_without_the_cluster_extra_local_sweeps_run_and_a_cluster_names_it(tmp_path, capsys,
+                                                                            monkeypatch):
+    """dask is an optional extra: without it (its imports fail here) a sweep on this machine
+    runs as before, and one on a cluster is refused in one line that names the extra."""
+    for name in ("dask", "distributed"):
+        monkeypatch.setitem(sys.modules, name, None)  # import dask -> ImportError
+    grid = ["--vary", "nodes[4].x=-0.3:-0.2:2", "--measure", "fixed_points"]
+    assert main(["sweep", str(TEMPLATES / "chaotic.toml"), *grid, "-o", str(tmp_path / "here"),
+                 "--jobs", "1", "--no-plots", "-q"]) == 0
+    assert (tmp_path / "here" / "sweep.csv").is_file()
+    out = tmp_path / "o"
+    rc = main(["sweep", str(TEMPLATES / "chaotic.toml"), *grid, "-o", str(out),
+               "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "1"])
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert rc == 1 and line == (
+        "fabkit: error: running on a cluster (--scheduler) needs dask.distributed, which this "
+        "installation lacks: pip install 'fabkit[cluster]'")
     assert not out.exists()
 
 

@@ -8,10 +8,13 @@ mesh, trimesh splitting a million triangles into bodies, for minutes. The work e
 
 :func:`run_stoppable` therefore runs such a step in a forked child process. The parent only
 waits, so a signal reaches it at once: it kills the child and raises
-:class:`~fabkit.errors.Interrupted`. Inside the child, :func:`keep_to` turns each estimate into
-limits the kernel enforces: CPU seconds (``RLIMIT_CPU``) and address space (``RLIMIT_AS``), a
-few times the estimate. A step that runs past them is stopped and reported in one line, never
-left running. Called outside such a child (the Python API), :func:`keep_to` does nothing.
+:class:`~fabkit.errors.Interrupted`. (A fork, not a worker of :mod:`fabkit.executor`: the step's
+function and arguments, closures and meshes among them, need not pickle, and the child starts in
+milliseconds with everything already imported; it dies with its parent as the workers do.)
+Inside the child, :func:`keep_to` turns each estimate into limits the kernel enforces: CPU
+seconds (``RLIMIT_CPU``) and address space (``RLIMIT_AS``), a few times the estimate. A step
+that runs past them is stopped and reported in one line, never left running. Called outside
+such a child (the Python API), :func:`keep_to` does nothing.
 
 Examples
 --------
@@ -27,6 +30,7 @@ import signal
 import sys
 
 from ..errors import FabkitError
+from ..executor import die_with_parent
 
 __all__ = ["run_stoppable", "keep_to", "TIME_FACTOR", "MIN_SECONDS", "MEMORY_FACTOR",
            "MIN_BYTES", "StepLimitError"]
@@ -262,7 +266,7 @@ def _child_main(conn, parent_pid, func, args, kwargs) -> None:
     _to_parent = conn
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_DFL)  # the parent decides; the child just ends
-    _die_with_parent(parent_pid)
+    die_with_parent(parent_pid)
     try:
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))  # a stopped step leaves no core file
     except (ValueError, OSError):  # pragma: no cover
@@ -291,16 +295,3 @@ def _describe_limit() -> str:
 
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     return describe_bytes(soft) if soft != resource.RLIM_INFINITY else "the machine's memory"
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """End this child when its parent ends, however it ends (Linux: ``PR_SET_PDEATHSIG``)."""
-    if sys.platform.startswith("linux"):
-        try:
-            import ctypes
-
-            ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL), 0, 0, 0)
-        except (OSError, AttributeError):  # pragma: no cover
-            pass
-    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
-        os._exit(1)

@@ -4,7 +4,8 @@
 grid, evaluates every point with the cheapest adequate model — the module's map d2 = f(d1)
 (:func:`fabkit.maps.module_map`) — and measures fixed points, slopes, cycles, the attractor of the
 iterated map, its Lyapunov exponent and the mode count. Points are independent: they run in
-chunks on local processes or on a dask.distributed cluster, every finished chunk is written to
+chunks on local processes (:mod:`fabkit.executor`) or on a dask.distributed cluster (the
+``cluster`` extra), every finished chunk is written to
 disk at once (``DIR/chunks``), and a sweep that is interrupted and started again computes only
 the points that are not on disk yet. Every point gets a typed :class:`Status`: a geometry that is
 rigid, starts in a flat state, has a motion that does not move d1, or whose orbits all leave the
@@ -31,6 +32,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import FabkitError
+from ..executor import Ending, LocalExecutor, Task
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
 from .model import (CHUNKS_FOLDER, MEASURES, SPEC_FILE, Axis, Protocol, Status, SweepError,
                     SweepSpec, json_default, key_path, lookup_number, parse_vary, path_text,
@@ -93,8 +95,6 @@ def _axes_from(vary) -> tuple:
 #: Seconds a point of a sweep may run on a worker process before it counts as stopped
 #: answering (the bundled sweeps take about 0.4 s a point).
 POINT_TIMEOUT = 600.0
-#: How often the parent looks at the running chunks (seconds).
-HANG_POLL = 0.5
 #: Largest ``chunks/spec.json`` read back (fabkit writes a few kB).
 MAX_SPEC_BYTES = 16 * 2**20
 
@@ -261,9 +261,9 @@ def _connect(scheduler, timeout: float):
     """A dask.distributed Client for an address (or the Client given)."""
     try:
         from distributed import Client
-    except ImportError:  # pragma: no cover - a declared dependency
-        raise FabkitError("running on a cluster needs dask.distributed: pip install "
-                          "'dask[distributed]'") from None
+    except ImportError:  # an optional dependency: local processes need nothing more
+        raise FabkitError("running on a cluster (--scheduler) needs dask.distributed, which "
+                          "this installation lacks: pip install 'fabkit[cluster]'") from None
     if isinstance(scheduler, Client):
         return scheduler, False
     try:
@@ -307,6 +307,8 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
         workers. Default: this machine.
     jobs : int or None
         Local processes when there is no scheduler (1: in this process; None: one per core).
+        They are spawned (:class:`fabkit.executor.LocalExecutor`): a script that calls this
+        with more than one needs the ``if __name__ == "__main__":`` guard.
     chunk_size : int, optional
         Points per task (default: about four tasks per worker, at most 32 points).
     protocol : Protocol, optional
@@ -318,8 +320,9 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
         Seconds to wait for the scheduler.
     point_timeout : float
         Seconds a point may take on a worker process before it counts as stopped answering
-        (a chunk gets this times its points): its worker is killed, its points are recorded
-        as ``failed`` with the reason, and the sweep goes on. Points run in this process
+        (a chunk gets this times its points, from the moment a worker takes it): its worker is
+        killed, its points are recorded as ``failed`` with the reason, and the sweep goes on
+        (so do the points of a chunk whose worker died). Points run in this process
         (``jobs=1``) cannot be stopped this way.
 
     Returns
@@ -408,9 +411,6 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     if chunks:
         if client is not None:
             _run_dask(client, payload, chunks, spec.fingerprint(), arrived)
-        elif workers == 1:
-            for c in chunks:
-                arrived(run_chunk(payload, c))
         else:
             _run_processes(workers, payload, chunks, arrived, point_timeout)
     seconds = time.perf_counter() - t0
@@ -424,46 +424,46 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
 
 
 def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
-    """Chunks on local worker processes; a chunk that runs past its time (``point_timeout``
-    per point) has stopped answering: the pool is stopped, the chunk's points are recorded as
-    failed, and the chunks that were still running or waiting go on in a fresh pool."""
-    import concurrent.futures as cf
+    """Chunks on local worker processes (:class:`fabkit.executor.LocalExecutor`), or one after
+    the other in this process for one worker. A chunk that runs past its time
+    (``point_timeout`` per point, from the moment a worker takes it) has stopped answering: its
+    worker is killed and its points are recorded as failed, and so are those of a chunk whose
+    worker died; the other chunks go on."""
+    tasks = [Task(run_chunk, (payload, c), timeout=point_timeout * len(c)) for c in chunks]
+    # no silence limit: a chunk's time limit is the bound (a point may hold the interpreter
+    # lock for long); the BLAS threads of the workers share the cores
+    with LocalExecutor(workers, silence=None, name="fabkit-sweep",
+                       in_process=workers == 1) as pool:
+        for end in pool.run(tasks):
+            if end.ending is Ending.DONE:
+                arrived(end.value)
+            elif end.ending is Ending.RAISED:
+                raise end.value  # as it would have been raised in this process
+            elif end.stopped:
+                arrived(_stopped_chunk(payload, chunks[end.index],
+                                       f"stopped answering: the worker ran past "
+                                       f"{point_timeout:g} s a point and was stopped"))
+            else:
+                arrived(_stopped_chunk(payload, chunks[end.index],
+                                       f"the worker process died ({_how(end.exitcode)}) "
+                                       "while computing this point"))
 
-    todo = list(chunks)
-    while todo:
-        pool = cf.ProcessPoolExecutor(max_workers=min(workers, len(todo)))
-        futures = {pool.submit(run_chunk, payload, c): c for c in todo}
-        todo, started = [], {}
+
+def _how(exitcode) -> str:
+    """How a process ended, from its exit code (negative: the signal)."""
+    import signal
+
+    if exitcode is not None and exitcode < 0:
         try:
-            pending = set(futures)
-            while pending:
-                finished, pending = cf.wait(pending, timeout=HANG_POLL,
-                                            return_when=cf.FIRST_COMPLETED)
-                for fut in finished:
-                    arrived(fut.result())
-                now = time.monotonic()
-                hung = None
-                for fut in pending:
-                    if fut.running():
-                        t0 = started.setdefault(fut, now)
-                        if now - t0 > point_timeout * len(futures[fut]):
-                            hung = fut
-                            break
-                if hung is not None:
-                    c = futures[hung]
-                    arrived(_stopped_chunk(payload, c, point_timeout))
-                    todo = [futures[f] for f in pending if f is not hung]
-                    _stop_pool(pool)
-                    break
-        except BaseException:
-            # Ctrl-C or a failed write: drop what has not started, keep what is on disk
-            _stop_pool(pool)
-            raise
-        pool.shutdown()
+            return f"signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"signal {-exitcode}"
+    return f"exit code {exitcode}"
 
 
-def _stopped_chunk(payload: dict, chunk, point_timeout: float) -> dict:
-    """The records of a chunk whose worker stopped answering: every point failed, with why."""
+def _stopped_chunk(payload: dict, chunk, reason: str) -> dict:
+    """The records of a chunk whose worker stopped answering or died: every point failed, with
+    the reason."""
     from .point import failed_record
 
     spec = SweepSpec(template=payload["template"], raw=payload["raw"],
@@ -472,18 +472,9 @@ def _stopped_chunk(payload: dict, chunk, point_timeout: float) -> dict:
     records = []
     for i in chunk:
         rec = failed_record(int(i), spec.point(int(i)))
-        rec["reason"] = (f"stopped answering: the worker ran past {point_timeout:g} s a point "
-                         "and was stopped")
+        rec["reason"] = reason
         records.append(rec)
     return {"records": records, "cpu": 0.0}
-
-
-def _stop_pool(pool) -> None:
-    """Kill a pool's workers at once (one of them may never return) and drop its queue."""
-    for proc in list(getattr(pool, "_processes", {}).values()):
-        if proc.is_alive():
-            proc.kill()
-    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:

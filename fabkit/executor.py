@@ -1,0 +1,557 @@
+"""Local parallel work: picklable tasks in spawned worker processes that a signal or a time
+limit stops, and that never outlive this process.
+
+:class:`LocalExecutor` is the one way fabkit runs work on local processes (``fabkit export
+--jobs``, ``fabkit sweep --jobs``; a dask cluster is the way to other machines). It hands the
+tasks out in the order given, one at a time to each idle worker, and yields each task's
+:class:`TaskEnd` as it arrives, so that the caller can show progress and write results at once.
+What it guarantees:
+
+- a task that raises is reported as raised (its exception), and the other tasks go on;
+- a task that runs past its time limit (counted from the moment its worker took it) has its
+  worker killed, is reported as timed out, and a new worker takes the dead one's place while
+  tasks remain; so does a worker that stops answering (every worker says it is alive several
+  times within the silence limit, from a thread of its own) or dies (killed by the system, a
+  crash);
+- SIGINT or SIGTERM (as :class:`~fabkit.errors.Interrupted` or KeyboardInterrupt in this
+  process), or any exception while the tasks run, stops every worker within a second (SIGTERM,
+  which unwinds the task in hand, then SIGKILL) before it propagates; and a worker ends with
+  this process however that ends, SIGKILL included (Linux: ``PR_SET_PDEATHSIG``; elsewhere a
+  thread that watches the parent).
+
+Workers are fresh interpreters (the ``spawn`` start method: no state inherited from a parent
+that may hold locks or threads), started with ``PYTHONHASHSEED=0`` so that their results do
+not depend on the run, and with their BLAS threads capped so that the workers together use the
+machine's cores once. A script that runs tasks needs the ``if __name__ == "__main__":`` guard,
+since each worker imports it.
+
+Examples
+--------
+>>> import math
+>>> tasks = [Task(math.factorial, (n,)) for n in (3, 4, 5)]
+>>> with LocalExecutor(jobs=1, in_process=True) as pool:
+...     sorted((end.index, end.value) for end in pool.run(tasks))
+[(0, 6), (1, 24), (2, 120)]
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any, Callable, Iterable, Iterator
+
+from .errors import FabkitError, Interrupted, internal_error_line
+
+__all__ = ["Task", "TaskEnd", "TaskError", "Ending", "LocalExecutor", "report", "overdue",
+           "heartbeat_interval", "die_with_parent", "HEARTBEAT", "SILENCE", "STARTUP", "GRACE"]
+
+#: Longest interval between two "alive" messages of a worker process; shorter silence limits
+#: get a faster heartbeat (:func:`heartbeat_interval`).
+HEARTBEAT = 1.0
+#: A worker silent for this long has stopped answering (it is stopped, or stuck somewhere not
+#: even its heartbeat thread runs): longer than the longest call that holds the interpreter
+#: lock (the layer solver's time limit is 20 s).
+SILENCE = 120.0
+#: A new worker must say its first word within this many seconds (or the silence limit, when
+#: that is longer). Until then it is starting, not silent: a fresh interpreter importing numpy,
+#: scipy and fabkit takes about a second on a quiet 2-core machine and several beside four busy
+#: processes, more than a short silence limit.
+STARTUP = 120.0
+#: Seconds the workers have to unwind after SIGTERM when the run is stopped, before SIGKILL (a
+#: worker inside a C call never does).
+GRACE = 0.5
+#: Longest wait of the parent between two looks at its workers (seconds): the time limits are
+#: judged at least this often.
+POLL = 1.0
+
+
+@dataclass(frozen=True)
+class Task:
+    """``func(*args, **kwargs)``, to run in a worker; every part must pickle (``func`` by its
+    module-level name).
+
+    Attributes
+    ----------
+    timeout : float or None
+        Seconds the task may run, from the moment a worker takes it (None: no limit).
+    """
+
+    func: Callable
+    args: tuple = ()
+    kwargs: dict = field(default_factory=dict)
+    timeout: float | None = None
+
+
+class Ending(str, Enum):
+    """How a task ended."""
+
+    DONE = "done"  #: it returned: :attr:`TaskEnd.value` is what it returned
+    RAISED = "raised"  #: it raised: :attr:`TaskEnd.value` is the exception
+    DIED = "died"  #: its worker ended while it ran (killed by the system, a crash)
+    TIMED_OUT = "timed_out"  #: it ran past its time limit; its worker was killed
+    SILENT = "silent"  #: its worker stopped answering; it was killed
+    NOT_STARTED = "not_started"  #: its worker did not start in time; it was killed
+
+
+@dataclass
+class TaskEnd:
+    """The end of one task, as :meth:`LocalExecutor.run` reports it.
+
+    Attributes
+    ----------
+    index : int
+        The task's position in the list given to :meth:`LocalExecutor.run`.
+    ending : Ending
+    value : object
+        What the task returned (``DONE``) or the exception it raised (``RAISED``); else None.
+    exitcode : int or None
+        How the worker ended when the task ended with it (negative: the signal), else None.
+    limit : float or None
+        The limit that stopped it, in seconds (``TIMED_OUT``, ``SILENT``, ``NOT_STARTED``).
+    pid : int or None
+        The worker process that ran the task (None: run in this process).
+    """
+
+    index: int
+    ending: Ending
+    value: Any = None
+    exitcode: int | None = None
+    limit: float | None = None
+    pid: int | None = None
+
+    @property
+    def stopped(self) -> bool:
+        """True when the executor killed the worker for a limit."""
+        return self.ending in (Ending.TIMED_OUT, Ending.SILENT, Ending.NOT_STARTED)
+
+
+class TaskError(FabkitError):
+    """A task's exception that cannot travel back from its worker, carried as its one line."""
+
+    code = "internal"
+
+    def __init__(self, line: str):
+        self.internal_line = line
+        super().__init__(line)
+
+    def __reduce__(self):
+        return (type(self), (self.internal_line,))
+
+
+def heartbeat_interval(silence: float | None) -> float:
+    """Seconds between two "alive" messages of a worker under the silence limit ``silence``:
+    :data:`HEARTBEAT`, or a sixth of the limit when that is shorter, so that a worker counts
+    as silent only after several beats in a row went missing (one beat late on a busy machine
+    is not a stopped worker).
+
+    Examples
+    --------
+    >>> heartbeat_interval(120.0), heartbeat_interval(3.0), heartbeat_interval(None)
+    (1.0, 0.5, 1.0)
+    """
+    return HEARTBEAT if silence is None else min(HEARTBEAT, silence / 6.0)
+
+
+def overdue(now: float, *, born: float, heard: float | None, since: float | None,
+            silence: float | None, timeout: float | None,
+            startup: float) -> tuple[Ending, float] | None:
+    """Whether a worker holding a task is to be stopped at time ``now``, and why.
+
+    A worker that has not said a word yet (``heard`` None) is starting, allowed ``startup``
+    seconds from its start ``born``; one that has spoken may stay silent ``silence`` seconds
+    (None: for ever); its task may run ``timeout`` seconds (None: no limit) from the moment
+    ``since`` the worker took it. Times are those of :func:`time.monotonic` (any clock, for the
+    tests).
+
+    Returns
+    -------
+    (Ending, float) or None
+        The ending (``NOT_STARTED``, ``SILENT`` or ``TIMED_OUT``) and the limit passed, or None
+        while the worker is within its limits.
+    """
+    if heard is None:
+        return (Ending.NOT_STARTED, startup) if now - born > startup else None
+    if silence is not None and now - heard > silence:
+        return Ending.SILENT, silence
+    if timeout is not None and since is not None and now - since > timeout:
+        return Ending.TIMED_OUT, timeout
+    return None
+
+
+# --- in the worker ----------------------------------------------------------------------------
+
+#: In a worker: sends one message to the parent, tagged with the task in hand (else None).
+_to_parent: Callable | None = None
+
+
+def report(*payload) -> None:
+    """Send ``payload`` (picklable) from the task running in a worker to the ``on_event`` of
+    its :class:`LocalExecutor`, at once; in any other process, or in a task run in process,
+    hand it to ``on_event`` directly (or do nothing without one)."""
+    if _to_parent is not None:
+        _to_parent(payload)
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Make this process end when its parent ``parent_pid`` does, however the parent ends (even
+    SIGKILL).
+
+    Linux: ``prctl(PR_SET_PDEATHSIG, SIGKILL)``. Everywhere: a daemon thread that polls the
+    parent's pid and exits at once when it changes (the process was re-parented)."""
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+        except (OSError, AttributeError):  # pragma: no cover - a libc without prctl
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the prctl took effect
+        os._exit(1)
+
+    def watch():
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="fabkit-parent-watch").start()
+
+
+def _travelling(exc: BaseException) -> BaseException:
+    """``exc`` if it survives the trip to the parent (pickled and rebuilt), else its one line."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:  # noqa: BLE001 - any exception class may refuse to be rebuilt
+        return TaskError(internal_error_line(exc))
+
+
+def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -> None:
+    """A worker process: run the tasks it is sent on ``conn`` until it gets None.
+
+    Everything goes back on the same pipe with blocking sends (no feeder thread), so what the
+    parent reads was sent, and a task it has sent and not heard back about is known to be in
+    the hands of this worker whatever the moment it dies. The heartbeat says "alive" as soon as
+    the worker runs and then every ``beat`` seconds; a task is acknowledged with "taken" as it
+    arrives, which starts its time limit.
+    """
+    global _to_parent
+
+    die_with_parent(parent_pid)
+    if blas_threads is not None:
+        import threadpoolctl
+
+        # parallelism is across tasks: oversubscribed BLAS threads slow dense work down several
+        # times (a dense SVD of 882 coordinates: 0.15 s on one thread, seconds when they contend)
+        threadpoolctl.threadpool_limits(blas_threads)  # for the life of the worker
+    # Ctrl-C in a terminal reaches the whole process group: the parent alone decides, and stops
+    # the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def on_term(signum, frame):
+        raise Interrupted(signum)
+
+    signal.signal(signal.SIGTERM, on_term)
+    lock = threading.Lock()
+
+    def send(message):
+        with lock:  # the heartbeat thread writes to the same pipe
+            conn.send(message)
+
+    def heartbeat():
+        while True:
+            try:
+                send(("alive",))
+            except (OSError, ValueError):  # the parent is gone or the pipe is closed
+                return
+            time.sleep(beat)
+
+    threading.Thread(target=heartbeat, daemon=True, name="fabkit-heartbeat").start()
+    try:
+        while True:
+            try:
+                task = conn.recv()
+            except EOFError:  # the parent closed its end
+                return
+            if task is None:
+                return
+            index, func, args, kwargs = task
+            send(("taken", index))
+            _to_parent = lambda payload, index=index: send(("event", index, payload))  # noqa: E731
+            try:
+                message = ("done", index, func(*args, **kwargs))
+            except Exception as exc:  # noqa: BLE001 - reported as this task's ending
+                message = ("raised", index, _travelling(exc))
+            finally:
+                _to_parent = None
+            try:
+                send(message)
+            except Exception as exc:  # noqa: BLE001 - a result that does not pickle
+                send(("raised", index, TaskError(internal_error_line(exc))))
+    except Interrupted as exc:
+        # the task in hand has been unwound; end by the signal itself, so that the parent
+        # (when it did not send it) reports how this worker ended
+        signal.signal(exc.signum, signal.SIG_DFL)
+        os.kill(os.getpid(), exc.signum)
+
+
+# --- in the parent ----------------------------------------------------------------------------
+
+class _Worker:
+    """One worker process, the parent's end of its pipe, and the task it was handed."""
+
+    def __init__(self, proc, conn):
+        self.proc = proc
+        self.conn = conn
+        self.task: int | None = None  # index of the task sent and not reported back
+        self.born = time.monotonic()  # when it was started
+        self.heard: float | None = None  # when it last said anything (None: not a word yet)
+        self.since: float | None = None  # when it took the task in hand (its "taken")
+        self.stopped: tuple[Ending, float] | None = None  # why the parent killed it
+
+
+class LocalExecutor:
+    """Run :class:`Task` lists in ``jobs`` spawned worker processes (see the module's text).
+
+    Use it as a context manager: leaving the block by an exception stops the workers at once
+    (:data:`GRACE`), leaving it otherwise ends them in order.
+
+    Parameters
+    ----------
+    jobs : int
+        Worker processes at most (never more than tasks remain).
+    silence : float or None
+        Seconds a worker may say nothing before it counts as stopped (None: no limit; the
+        tasks' time limits still hold).
+    startup : float
+        Seconds a new worker has to say its first word (at least ``silence``).
+    on_event : callable, optional
+        ``on_event(index, payload)`` in this process for every :func:`report` of task
+        ``index``, as it arrives.
+    blas_threads : int or None, optional
+        BLAS threads of each worker (default: the machine's cores shared among the workers).
+    name : str
+        Prefix of the workers' process names.
+    in_process : bool
+        Run the tasks one after the other in this process instead (no time limits: a task
+        cannot be stopped here); ``jobs`` is then ignored.
+    """
+
+    def __init__(self, jobs: int, *, silence: float | None = SILENCE, startup: float = STARTUP,
+                 on_event: Callable | None = None, blas_threads: int | None = None,
+                 name: str = "fabkit-worker", in_process: bool = False):
+        if isinstance(jobs, bool) or int(jobs) < 1:
+            raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+        self.jobs = int(jobs)
+        self.silence = silence
+        self.startup = max(startup, silence or 0.0)
+        self.on_event = on_event
+        self.blas_threads = blas_threads
+        self.name = name
+        self.in_process = in_process
+        self.workers: list[_Worker] = []
+        self._ctx = None
+        self._started = 0
+
+    def __enter__(self) -> "LocalExecutor":
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        if kind is not None:
+            self.stop()
+        self.close()
+
+    @property
+    def pids(self) -> list[int]:
+        """The worker processes running now."""
+        return [w.proc.pid for w in self.workers]
+
+    # --- the run ---------------------------------------------------------------------------
+
+    def run(self, tasks: Iterable[Task]) -> Iterator[TaskEnd]:
+        """Run ``tasks`` (handed out in this order) and yield each one's end as it arrives.
+
+        Every task gets exactly one :class:`TaskEnd`. Stopping the iteration early, or any
+        exception while it runs, stops the workers.
+        """
+        tasks = list(tasks)
+        if not tasks:
+            return
+        if self.in_process:
+            yield from self._run_here(tasks)
+            return
+        from multiprocessing.connection import wait
+
+        queue = list(range(len(tasks)))
+        pending = set(queue)
+        wanted = max(1, min(self.jobs, len(tasks)))
+        try:
+            while len(self.workers) < wanted:
+                self._spawn()
+            while pending:
+                for w in self.workers:
+                    # only a worker seen alive gets a task (one that ended after finishing its
+                    # last task is buried below without one)
+                    if w.task is None and queue and w.proc.is_alive():
+                        self._dispatch(w, queue.pop(0), tasks)
+                ready = set(wait([w.conn for w in self.workers] +
+                                 [w.proc.sentinel for w in self.workers], timeout=POLL))
+                ends: list[TaskEnd] = []
+                for w in list(self.workers):
+                    # every worker's pipe is read, ready or not: what arrived since the wait
+                    # counts, and a worker is judged silent only after its pipe was read
+                    open_ = self._receive(w, ends)
+                    if w.task is not None and w.proc.is_alive() and not w.stopped:
+                        w.stopped = overdue(time.monotonic(), born=w.born, heard=w.heard,
+                                            since=w.since, silence=self.silence,
+                                            timeout=tasks[w.task].timeout,
+                                            startup=self.startup)
+                        if w.stopped:
+                            w.proc.kill()
+                            w.proc.join()
+                    if w.proc.sentinel in ready or not open_ or not w.proc.is_alive():
+                        self._receive(w, ends)  # what it sent before it ended counts
+                        if not open_ and w.proc.is_alive():
+                            w.proc.kill()  # a broken pipe: this worker can no longer report
+                        end = self._bury(w)
+                        if end is not None:
+                            ends.append(end)
+                        pending.difference_update(e.index for e in ends)
+                        if queue and len(self.workers) < min(self.jobs, len(pending)):
+                            self._spawn()  # in the dead one's place
+                pending.difference_update(e.index for e in ends)
+                for end in ends:
+                    yield end
+        except BaseException:  # an interrupt, an error of the caller, or the run left early
+            self.stop()
+            raise
+
+    def _run_here(self, tasks: list) -> Iterator[TaskEnd]:
+        global _to_parent
+
+        for i, t in enumerate(tasks):
+            if self.on_event is not None:
+                _to_parent = lambda payload, i=i: self.on_event(i, payload)  # noqa: E731
+            try:
+                end = TaskEnd(i, Ending.DONE, t.func(*t.args, **t.kwargs))
+            except Exception as exc:  # noqa: BLE001 - reported as this task's ending
+                end = TaskEnd(i, Ending.RAISED, exc)
+            finally:
+                _to_parent = None
+            yield end
+
+    def _spawn(self) -> _Worker:
+        """Start one more worker."""
+        import multiprocessing
+
+        if self._ctx is None:
+            self._ctx = multiprocessing.get_context("spawn")  # fresh interpreters
+        blas = self.blas_threads
+        if blas is None:
+            blas = max(1, (os.cpu_count() or 1) // self.jobs)
+        saved = os.environ.get("PYTHONHASHSEED")
+        os.environ["PYTHONHASHSEED"] = "0"  # read by each worker when it starts
+        mine, theirs = self._ctx.Pipe(duplex=True)
+        try:
+            proc = self._ctx.Process(target=_worker_main, daemon=True,
+                                     args=(os.getpid(), theirs, blas,
+                                           heartbeat_interval(self.silence)),
+                                     name=f"{self.name}-{self._started}")
+            proc.start()
+        finally:
+            theirs.close()  # the worker's end lives in the worker: its death closes the pipe
+            if saved is None:
+                os.environ.pop("PYTHONHASHSEED", None)
+            else:
+                os.environ["PYTHONHASHSEED"] = saved
+        self._started += 1
+        worker = _Worker(proc, mine)
+        self.workers.append(worker)
+        return worker
+
+    @staticmethod
+    def _dispatch(w: _Worker, i: int, tasks: list) -> None:
+        t = tasks[i]
+        w.task = i  # handed over from here on, whatever happens to the send
+        w.since = None  # its time limit starts when the worker takes it
+        try:
+            w.conn.send((i, t.func, t.args, t.kwargs))
+        except OSError:
+            pass  # the worker is gone: its death ends the task
+
+    def _receive(self, w: _Worker, ends: list) -> bool:
+        """Handle every message waiting from ``w``; False when its pipe is closed."""
+        try:
+            while w.conn.poll():
+                event = w.conn.recv()
+                w.heard = time.monotonic()
+                kind = event[0]
+                if kind == "alive":
+                    continue
+                if kind == "taken":
+                    if event[1] == w.task:
+                        w.since = w.heard
+                    continue
+                if kind == "event":
+                    if self.on_event is not None:
+                        self.on_event(event[1], event[2])
+                    continue
+                _, i, value = event
+                if i != w.task:  # pragma: no cover - every task is sent once
+                    continue
+                w.task, w.since = None, None
+                ending = Ending.DONE if kind == "done" else Ending.RAISED
+                ends.append(TaskEnd(i, ending, value, pid=w.proc.pid))
+        except (EOFError, OSError):  # closed, or cut off mid-message by the worker's death
+            return False
+        return True
+
+    def _bury(self, w: _Worker) -> TaskEnd | None:
+        """The worker ``w`` has ended: the end of the task it held, if any."""
+        w.proc.join()
+        self.workers.remove(w)
+        w.conn.close()
+        if w.task is None:
+            return None
+        if w.stopped:
+            ending, limit = w.stopped
+            return TaskEnd(w.task, ending, exitcode=w.proc.exitcode, limit=limit,
+                           pid=w.proc.pid)
+        return TaskEnd(w.task, Ending.DIED, exitcode=w.proc.exitcode, pid=w.proc.pid)
+
+    # --- the end ---------------------------------------------------------------------------
+
+    def stop(self, grace: float = GRACE) -> None:
+        """SIGTERM every live worker, wait up to ``grace`` seconds, then SIGKILL."""
+        procs = [w.proc for w in self.workers]
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        deadline = time.monotonic() + grace
+        for p in procs:
+            p.join(max(0.0, deadline - time.monotonic()))
+        for p in procs:
+            if p.is_alive():
+                p.kill()
+                p.join(1.0)
+
+    def close(self) -> None:
+        """Tell every worker to end, wait for them, and stop those that do not."""
+        for w in self.workers:
+            try:
+                w.conn.send(None)
+            except OSError:  # it is gone already
+                pass
+        for w in self.workers:
+            w.proc.join(5.0)
+        self.stop(grace=1.0)
+        for w in self.workers:
+            w.conn.close()
+        self.workers = []
