@@ -24,14 +24,13 @@ import math
 import numbers
 
 from .errors import ArgumentTypeError, ArgumentValueError
+from .model.network import Network
 
 __all__ = ["network", "whole", "real", "choice", "port", "names"]
 
 
 def network(name: str, value):
     """``value`` when it is a :class:`fabkit.Network`."""
-    from .model.network import Network
-
     if not isinstance(value, Network):
         raise ArgumentTypeError(name, f"must be a fabkit.Network, got {_kind(value)}")
     return value

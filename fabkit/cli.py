@@ -20,7 +20,10 @@ import signal
 import sys
 from enum import IntEnum
 
-from .errors import FabkitError, Interrupted, internal_error_line
+from . import commands
+from .commands import check_output_folder, examples_epilog
+from .errors import FabkitError, internal_error_line, Interrupted
+from .io.suggest import did_you_mean
 
 __all__ = ["main", "entry", "ExitCode"]
 
@@ -34,8 +37,6 @@ class ExitCode(IntEnum):
 
 
 def _commands():
-    from . import commands
-
     found = []
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
@@ -58,7 +59,6 @@ class _Parser(argparse.ArgumentParser):
 
     def _check_value(self, action, value):
         # argparse's own check, with the nearest valid choice named (a command, --rank-method)
-        from .io.suggest import did_you_mean
 
         if action.choices is not None and value not in action.choices:
             hint = did_you_mean(value, [str(c) for c in action.choices])
@@ -78,8 +78,6 @@ class _Parser(argparse.ArgumentParser):
 
     def option_hint(self, extra) -> str:
         """``"; did you mean '--jobs'?"`` for the first unknown option in ``extra``."""
-        from .io.suggest import did_you_mean
-
         known = [o for a in self._actions if a.help is not argparse.SUPPRESS
                  for o in a.option_strings]
         for word in extra:
@@ -121,8 +119,6 @@ Progress of long commands goes to stderr, shown when it is a terminal (--progres
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .commands import examples_epilog
-
     parser = _Parser(
         prog="fabkit",
         description="Design mechanical networks as iterated maps, simulate their motion, and "
@@ -213,8 +209,6 @@ OUTPUT_DESTS = ("out_dir",)
 
 
 def _check_output_option(args) -> None:
-    from .commands import check_output_folder
-
     if getattr(args, "no_files", False):
         return
     for dest in OUTPUT_DESTS:

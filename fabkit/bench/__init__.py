@@ -18,6 +18,7 @@ import platform
 
 import numpy as np
 
+from ..kinematics import place, plan_construction
 from ..model.network import Network
 
 __all__ = ["paper_module", "ModuleMap", "machine_info", "single_thread_blas",
@@ -76,8 +77,6 @@ class ModuleMap:
     """
 
     def __init__(self, module: Network):
-        from ..kinematics import plan_construction, place
-
         self._place = place
         self.plan = plan_construction(module, module.port("d1"))
         self.out = module.port("d2")

@@ -25,10 +25,11 @@ from ..design.assemble import chain, tessellate
 from ..errors import FabkitError
 from ..io.templates import bundled_folder, bundled_template
 from ..io.toml_writer import TomlDocument
-from ..model.rigidity import SPARSE_FROM, count_modes
+from ..kinematics import trace
+from ..model.rigidity import count_modes, SPARSE_FROM
 from ..report.viz import figure_kit
 from . import paper_module
-from .workprecision import SKIPPED, STOPPED, default_chain_target, fit_exponent, run_budgeted
+from .workprecision import default_chain_target, fit_exponent, run_budgeted, SKIPPED, STOPPED
 
 __all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "lattice_points", "lattice",
            "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
@@ -125,8 +126,6 @@ def edge_floor(net) -> float:
 
 
 def _trace_point(net, drive, to, method, budget, repeats, cold=False, **options) -> dict:
-    from ..kinematics import trace
-
     def evaluate(traj):
         return {"status": str(traj.status), "message": traj.message,
                 "configurations": int(traj.n_steps),

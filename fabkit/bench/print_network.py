@@ -15,7 +15,12 @@ import time
 
 import numpy as np
 
+from ..check.stl import (as_built_tolerance, check_mesh, module_fixed_points, rebuild_linkage,
+                         sequential_transition, slab_sections)
+from ..design.assemble import chain
+from ..export.stl import binary_stl
 from ..model.network import Network
+from ..model.rigidity import count_modes
 
 __all__ = ["PRINTED_MODULE", "printed_module", "benchmark_print"]
 
@@ -77,13 +82,8 @@ def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: f
     import trimesh
     from scipy.spatial import cKDTree
 
-    from ..design.assemble import chain
-    from ..check.stl import (as_built_tolerance, check_mesh, module_fixed_points,
-                             rebuild_linkage, sequential_transition, slab_sections)
-    from ..export.stl import binary_stl
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
     from ..fab.printing import print_settings
-    from ..model.rigidity import count_modes
 
     copies = max(1, math.ceil(triangles / 4))
     seconds = {}

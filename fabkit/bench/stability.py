@@ -21,8 +21,13 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
+from ..design.assemble import branch, chain
+from ..errors import FabkitError
+from ..kinematics import align_to_gauge, METHODS, place, trace
+from ..model.rigidity import count_modes
 from ..report.viz import figure_kit
 from . import ModuleMap, paper_module
+from .workprecision import collapsed_fixed_point
 
 __all__ = [
     "CLASSES",
@@ -81,8 +86,6 @@ LOG_FLOOR_ERROR = 1e-18
 
 def study_methods() -> dict:
     """Every registered tracing method with the options the study uses."""
-    from ..kinematics import METHODS
-
     return {name: dict(METHOD_OPTIONS.get(name, {})) for name in METHODS}
 
 
@@ -211,13 +214,10 @@ def _domain_end(fmap: ModuleMap, inside: float, outside: float, iterations: int 
 
 def _module_at(name: str, d1: float, nodes=None):
     """The module moved along its motion to d1 (same branch), as a new reference."""
-    from ..kinematics import place
-
     mod = paper_module(name, nodes)
     x, margin, _ = place(ModuleMap(mod).plan, [d1])
     if margin[0] < 0:
         raise ValueError(f"module {name} has no configuration with d1 = {d1}")
-    from ..kinematics import align_to_gauge
 
     x = align_to_gauge(x, mod.nodes, (0, 1))[0]
     return paper_module(name, x)
@@ -245,8 +245,6 @@ def and_gate(modules: int = 6):
     branch's far end), ``joint`` (the shared pair). Of the four ways to join (mirror, swap), the
     one that keeps the limb's nodes farthest from the trunk's is taken.
     """
-    from ..design.assemble import branch, chain
-
     ss = paper_module("super_stable")
     trunk = chain(ss, modules)
     limb = chain(ss, modules)
@@ -266,8 +264,6 @@ def and_gate(modules: int = 6):
 
 def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20) -> list[Case]:
     """The cases of the study (see the module docstring and docs/bench.md)."""
-    from ..design.assemble import chain
-
     cases = []
     fb = paper_module("fourbar")
     fmap = ModuleMap(fb)
@@ -309,7 +305,6 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
 
     ss = paper_module("super_stable")
     k = int(super_stable_modules)
-    from .workprecision import collapsed_fixed_point
 
     d2star = collapsed_fixed_point()
     cases.append(Case(
@@ -361,8 +356,6 @@ def stability_cases(*, chaotic_modules: int = 30, super_stable_modules: int = 20
 
 
 def _modes(net):
-    from ..model.rigidity import count_modes
-
     return count_modes(net)
 
 
@@ -390,8 +383,6 @@ def run_case(case: Case, method: str, options=None, *, budget: float = 60.0) -> 
         ``ref_error``, ``stop_drive``, ``stop_error``, ``class``, and ``drive``/``port`` arrays
         (the plotted distance along the trace, as lists).
     """
-    from ..errors import FabkitError
-    from ..kinematics import trace
     from .workprecision import STOPPED, run_budgeted
 
     options = dict(METHOD_OPTIONS.get(method, {}) if options is None else options)
@@ -588,8 +579,6 @@ def predictability_horizon(k: int = 200, *, d1: float = 0.9, delta: float = 1e-8
         extrapolated one with ``extrapolated: true``), ``growth_rate`` (fitted slope of log
         error), and the pairwise disagreement horizons.
     """
-    from ..design.assemble import chain
-    from ..kinematics import trace
     from .workprecision import run_budgeted
 
     module = _module_at("chaotic", d1)

@@ -10,7 +10,9 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-from ..errors import FabkitError
+from ..errors import FabkitError, InputFileError
+from ..io.inputs import file_kind, read_regular
+from ..io.workload import require
 
 __all__ = ["CHECKERS", "checker_for", "check_file", "read_set", "require_files",
            "require_checked"]
@@ -54,9 +56,6 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     import os
     import stat
 
-    from ..errors import InputFileError
-    from ..io.workload import require
-
     module = checker_for(path)
     try:
         st = os.stat(path)
@@ -76,7 +75,6 @@ def require_checked(where: str, *parts):
     """Estimate the work of a check from counts read in the file, refuse it past the bounds,
     and hold the check to it (:func:`fabkit.pipeline.stoppable.keep_to`); returns the estimate."""
     from ..pipeline.stoppable import keep_to
-    from ..io.workload import require
 
     est = require(where, *parts)
     keep_to(est)
@@ -97,9 +95,6 @@ def require_files(paths) -> None:
     """
     import os
     import stat
-
-    from ..errors import InputFileError
-    from ..io.inputs import file_kind
 
     total = 0
     for p in paths:
@@ -125,7 +120,6 @@ def read_set(paths) -> dict:
     InputFileError, BoundsError
         As :func:`require_files`.
     """
-    from ..io.inputs import read_regular
     from ..io.workload import MAX_BYTES
 
     require_files(paths)

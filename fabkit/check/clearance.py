@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabkitError
+from ..kinematics import place, plan_construction, trace
 
 __all__ = ["FineMotion", "fine_motion", "same_layer_gaps", "segment_gap", "point_gap"]
 
@@ -92,8 +93,6 @@ def fine_motion(net, motion, scale: float, limit: float, *, floor: float | None 
         No target; a state the drive cannot parametrise (joints jump while the drive stands
         still); more than :data:`MAX_SAMPLES` samples.
     """
-    from ..kinematics import trace
-
     if motion.to is None:
         raise FabkitError("the design gives no motion target (motion.to): nothing to sample")
     traj = trace(net, drive=motion.drive, to=motion.to, method=motion.method, hold=motion.hold,
@@ -123,7 +122,6 @@ def fine_motion(net, motion, scale: float, limit: float, *, floor: float | None 
 
 def _placed_fine(net, motion, traj, bound: float, floor: float) -> np.ndarray:
     """Exact placements at drive values bisected until joints move at most ``bound``."""
-    from ..kinematics import place, plan_construction
     from ..kinematics.base import align_to_gauge, make_problem
 
     problem = make_problem(net, motion.drive, motion.to, hold=motion.hold)

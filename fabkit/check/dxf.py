@@ -36,8 +36,16 @@ from typing import Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..errors import FabkitError
+from ..errors import FabkitError, FabricationError
+from ..fab.hardware import fit_fastener
+from ..fab.laser import laser_overrides, laser_settings
+from ..io.schema import describe_validation_error
+from ..model.network import Network
+from ..model.rigidity import count_modes
 from ..numerics import MM_SLACK, project_to_lengths
+from . import require_files
+from .clearance import fine_motion, same_layer_gaps
+from .motion import compare_motion, design_window
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
 
@@ -172,8 +180,6 @@ def _part_tags(tags: list):
 def _header_values(head: dict):
     """The FABKIT_* header variables as numbers, or why they cannot be read (a sentence)."""
     from pydantic import ValidationError
-
-    from ..io.schema import describe_validation_error
 
     if "FABKIT_BARS" not in head:
         return "the sheets carry no fabkit header (FABKIT_*): not written by fabkit"
@@ -399,8 +405,6 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
     design) the same width, hole, ring and kerf as the kit those settings make."""
     from pydantic import ValidationError
 
-    from ..io.schema import describe_validation_error
-
     try:
         v = CouponHeader.model_validate(head).model_dump()
     except ValidationError as exc:
@@ -459,12 +463,6 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     catalogue entry) and the window of the motion the kit follows; ``motion`` (the pipeline's
     :class:`fabkit.motion.TracedMotion`) gives that window's motion, traced once.
     """
-    from ..fab.laser import laser_overrides, laser_settings
-    from ..model.network import Network
-    from ..model.rigidity import count_modes
-    from .clearance import fine_motion, same_layer_gaps
-    from .motion import compare_motion, design_window
-
     s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                        network_size=design.network.size)
     # the motion the kit follows (motion_from / _to), from the Motion stage: traced once
@@ -556,9 +554,6 @@ def _screws_close(edges, layer, s, thickness: float) -> dict:
     The catalogue (:func:`fabkit.fab.hardware.fit_fastener`: the posts, extensions and shims as
     sold) is asked afresh for the stack read back; the fasteners the writer chose are not
     consulted (the DXF holds none)."""
-    from ..errors import FabricationError
-    from ..fab.hardware import fit_fastener
-
     spans: dict[int, list[int]] = {}
     for b, (i, j) in enumerate(edges.tolist()):
         for v in (i, j):
@@ -624,7 +619,6 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     path = Path(path)
     if not path.is_file():
         raise FabkitError(f"{path}: no such file")
-    from . import require_files
 
     sheets = _sheet_set(path)
     require_files(sheets)  # every sibling sheet counted before any is read

@@ -24,7 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabkitError, FabricationError
-from ..numerics import FLAT_RTOL
+from ..kinematics import place, plan_construction
+from ..model.network import Network
+from ..numerics import apply_fit, FLAT_RTOL, rigid_fit
+from . import require_files
 
 FORMAT = "fold"
 #: The sections of ``--set`` this check reads (any other has no effect on it).
@@ -72,7 +75,6 @@ def structure_problems(doc: dict) -> list[str]:
 def model_from_fold(doc: dict, name: str = "fold"):
     """Rebuild an :class:`~fabkit.fab.creases.OrigamiModel` from a FOLD document (design units)."""
     from ..fab.creases import (CreasePattern, OrigamiModel, Sheet, network_from_pattern)
-    from ..model.network import Network
 
     scale = float(doc["fabkit:scale"])
     x = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
@@ -101,8 +103,6 @@ def model_from_fold(doc: dict, name: str = "fold"):
 
 def _map_at(model, fold, drive: str, values: np.ndarray) -> dict:
     """Port distances of the re-folded network at given drive values (exact placement)."""
-    from ..kinematics import place, plan_construction
-
     net = model.network
     ref = fold.positions[1] if model.flat_start else net.nodes
     plan = plan_construction(net, net.port(drive), ref)
@@ -125,9 +125,6 @@ def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
     the map's slope at every sheet), so a chain is checked where it is well-conditioned: sheet
     by sheet, each rebuilt from the file alone and folded at the stored input distances.
     """
-    from ..kinematics import place, plan_construction
-    from ..model.network import Network
-
     net = model.network
     worst, n = 0.0, 0
     for k, sh in enumerate(sheets):
@@ -158,7 +155,6 @@ def _design_checks(checks, doc, model, design, drive, values, stored, sheets, na
     gives the map the file stores. Returns the largest map difference, None when the file is
     another design's."""
     from ..fab.creases import fold_model
-    from ..numerics import apply_fit, rigid_fit
 
     net = design.network
     scale = float(doc["fabkit:scale"])
@@ -220,8 +216,6 @@ def check_file(path, design=None, settings=None) -> dict:
     """
     from ..fab.creases import flat_foldability, fold_model
     from ..model.rigidity import count_modes
-
-    from . import require_files
 
     require_files([path])  # the check is held to the work its size allows
     doc = read_fold(path)

@@ -18,7 +18,7 @@ from typing import Annotated, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import BoundsError
-from ..io.schema import MAX_SAMPLES_SETTING
+from ..io.schema import describe_validation_error, MAX_SAMPLES_SETTING
 
 __all__ = ["FoldFile", "fold_problems"]
 
@@ -152,6 +152,4 @@ def fold_problems(doc: dict) -> list[str]:
 
 def _sentence(exc: ValidationError) -> str:
     """The first error of a FOLD document as ``key[index].key: must be ..., got ...``."""
-    from ..io.schema import describe_validation_error
-
     return describe_validation_error(exc, FoldFile, "", aliases=True)

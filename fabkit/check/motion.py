@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kinematics import trace
+from ..motion import motion_for, MotionStatus
+
 __all__ = ["compare_motion", "design_window"]
 
 
@@ -38,8 +41,6 @@ def design_window(design, start, to, motion=None, process: str = "laser"):
     FabkitError
         The design has no motion, its motion does not reach ``start``, or it cannot be traced.
     """
-    from ..motion import MotionStatus, motion_for
-
     kit = motion_for(design, motion).window_motion(start, to, process)
     if kit.trajectory is None and kit.status is not MotionStatus.NO_TARGET:
         kit.require()  # the motion's typed failure
@@ -67,8 +68,6 @@ def compare_motion(design, built, rtol: float, reference) -> dict:
         units), ``port`` (where), ``limit``, ``same_end`` (both traces end alike, with as many
         steps), ``status`` (the rebuilt network's).
     """
-    from ..kinematics import trace
-
     net, m = design.network, design.motion
     ref = reference
     got = trace(built, drive=m.drive, to=m.to, method=ref.method, hold=m.hold, **m.options)

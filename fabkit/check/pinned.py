@@ -39,6 +39,14 @@ import math
 import numpy as np
 
 from ..errors import FabkitError
+from ..model.network import Network
+from ..model.rigidity import count_modes
+from ..numerics import project_to_lengths
+from .beds import split_bodies
+from .clearance import fine_motion, point_gap, same_layer_gaps
+from .motion import compare_motion, design_window
+from .register import pieces_of, place_pieces
+from .sections import section as _section
 
 __all__ = ["check_pinned", "read_bar", "NODE_TOL_MM", "LENGTH_TOL_MM"]
 
@@ -100,8 +108,6 @@ def read_bar(body, s) -> dict:
     """
     import shapely
 
-    from .sections import section as _section
-
     z = np.asarray(body.vertices)[:, 2]
     z0 = float(z.min())
     levels = np.unique(np.round(z, 4))
@@ -133,7 +139,6 @@ def read_bar(body, s) -> dict:
         return out
     a, b = ends
     ext = np.asarray(poly.exterior.coords)[:-1, :2]
-    from .clearance import point_gap
 
     d = point_gap(ext, a[None], b[None])
     out["width"] = 2.0 * float(np.max(d))
@@ -144,8 +149,6 @@ def _gap_probe(carrier, centre, z, s) -> float:
     """How far from the pin's axis the carrier's body reaches at height ``z`` near the pin (mm);
     0 when it has nothing there."""
     import shapely
-
-    from .sections import section as _section
 
     reach = 0.0
     disc = shapely.Point(*centre).buffer(0.5 * s.cap_diameter + s.nozzle_width)
@@ -160,8 +163,6 @@ def _gap_probe(carrier, centre, z, s) -> float:
 
 def _bodies(meshes):
     """Every body read back, with its bed: (bed, trimesh.Trimesh) in bed coordinates."""
-    from .beds import split_bodies
-
     return [(b, body) for b, mesh in enumerate(meshes) for body in split_bodies(mesh)]
 
 
@@ -208,8 +209,6 @@ def _place(joints, bar_joints, design, s):
         ``node`` (design node of each joint, -1 where its piece fits nowhere), ``deviation``
         (mm), ``piece`` (of each joint), ``edge`` (design edge of each bar, -1: none).
     """
-    from .register import pieces_of, place_pieces
-
     net = design.network
     centres = np.array([np.mean([f[2] for f in jf], axis=0) for jf in joints]).reshape(-1, 2)
     pieces = pieces_of(len(joints), bar_joints)
@@ -267,8 +266,6 @@ def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
     -------
     dict
     """
-    from .motion import design_window
-
     try:
         # the linkage is judged against the design as it prints: its motion from motion_from
         # to motion_to, where the template sets them (the Motion stage's window, traced once)
@@ -411,8 +408,6 @@ def _cap(carrier, centre, s) -> tuple[float, float, float]:
     carrier's cross-section half a layer below the top); radii 0 when there is none."""
     import shapely
 
-    from .sections import section as _section
-
     v = np.asarray(carrier.vertices)
     near = np.hypot(*(v[:, :2] - centre).T) <= 0.5 * s.cap_diameter + MEASURE_TOL_MM
     top = float(v[near, 2].max())
@@ -506,8 +501,6 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
     """The rebuilt network's joints (mm): the design's where the read-back lengths are the
     design's to the files' resolution (a refit would only add the files' rounding), else the
     design's joints refitted to the read-back lengths."""
-    from ..numerics import project_to_lengths
-
     x_mm = net.nodes * s.scale
     err = np.abs(np.linalg.norm(x_mm[net.edges[:, 0]] - x_mm[net.edges[:, 1]], axis=1) - lengths)
     if err.max() > FILE_RESOLUTION_MM:  # not the design's lengths: the joints as read back
@@ -519,11 +512,6 @@ def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[di
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts. ``reference``: the design's motion as the
     Motion stage traced it."""
-    from ..model.network import Network
-    from ..model.rigidity import count_modes
-    from .clearance import fine_motion, same_layer_gaps
-    from .motion import compare_motion
-
     net = design.network
     out = []
     built = Network(x_mm / s.scale, net.edges, net.ports, net.labels)

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import apply_fit, rigid_fit
+
 __all__ = ["Placement", "place_pieces", "pieces_of"]
 
 #: Anchor bars tried per piece (its longest), so that one wrong bar does not lose the piece.
@@ -63,8 +65,6 @@ def pieces_of(n_joints: int, bars) -> list[np.ndarray]:
 def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
     """Candidate places of one piece: (joints within ``reach``, rms, Placement), best first."""
     from scipy.spatial import cKDTree
-
-    from ..numerics import apply_fit, rigid_fit
 
     tree = cKDTree(design_xy)
     d_len = np.linalg.norm(design_xy[design_edges[:, 0]] - design_xy[design_edges[:, 1]], axis=1)

@@ -28,9 +28,15 @@ import dataclasses
 
 import numpy as np
 
+from ..design.assemble import chain
 from ..errors import FabkitError, FabricationError
+from ..kinematics import trace
 from ..model.network import Network
+from ..model.rigidity import count_modes
 from ..numerics import START_RTOL
+from . import read_set, require_checked
+from .beds import bed_set
+from .register import pieces_of, place_pieces
 from .sections import plane_segments, section
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_meshes", "check_mesh", "slab_sections",
@@ -411,9 +417,6 @@ def sequential_transition(net: Network, module: Network, copies: int, fixed: dic
         ``max_deviation`` from D2*, ``order`` (arclength at which each d_k passes halfway from
         D1* to D2*; increasing = sequential), ``sequential``, ``max_edge_error``.
     """
-    from ..design.assemble import chain
-    from ..kinematics import trace
-
     d1s, d2s = fixed["D1"], fixed["D2"]
     final_module = module.with_nodes(fixed["positions"])
     final = final_module if copies == 1 else chain(final_module, copies)
@@ -625,9 +628,6 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     FabricationError
         A file cannot be read as an STL mesh.
     """
-    from . import read_set, require_checked
-    from .beds import bed_set
-
     paths = bed_set(path)
     data = read_set(paths)
     require_checked(f"{path}", ("placed triangle",
@@ -688,8 +688,6 @@ def _check_hinge_beds(meshes, names, design, s, report) -> dict:
     """The hinge print's beds: every piece rebuilt from the solid, laid onto the design by its
     own geometry (:mod:`fabkit.check.register`), and checked against the part of the design
     it builds; a print of one piece is also driven through its transition."""
-    from .register import pieces_of, place_pieces
-
     net = design.network
     checks, found = [], []  # found: (bed, sections, rebuilt linkage, its nodes in one piece)
     for b, mesh in enumerate(meshes):
@@ -752,8 +750,6 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
                        transition: bool) -> list[dict]:
     """One piece rebuilt from a bed: its nodes and edges against the part of the design it
     lies on, its modes, and (with ``transition``) the D1* -> D2* transition."""
-    from ..model.rigidity import count_modes
-
     net = design.network
     if place is None:
         return [_check("rebuilt nodes match the design", False, value=None, limit=NODE_TOL_MM,

@@ -21,6 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabricationError
+from ..fab.slicer import FILAMENTS
+from . import read_set, require_checked
+from .beds import bed_set
+from .stl import check_meshes, MAX_COORDINATE_MM
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "read_package"]
 
@@ -107,8 +111,6 @@ def _parse_package(path, data: bytes) -> dict:
     """The package's parts, parsed and checked, nothing placed yet: ``meshes`` (object id ->
     vertices mm, faces, name), ``items`` (object id, 12-number transform or None), ``xml``
     (the inflated parts by name), ``lower`` (lower-case name -> name), ``scale``."""
-    from . import require_checked
-
     try:
         z = zipfile.ZipFile(io.BytesIO(data))
         infos = {i.filename: i for i in z.infolist()}
@@ -174,8 +176,6 @@ def _place(path, parsed: dict) -> dict:
     """The parsed package as :func:`read_package` returns it: every build item placed."""
     import trimesh
 
-    from .stl import MAX_COORDINATE_MM
-
     meshes, scale, lower, xml = parsed["meshes"], parsed["scale"], parsed["lower"], parsed["xml"]
     placed = []
     for k, (oid, matrix) in enumerate(parsed["items"]):
@@ -234,8 +234,6 @@ def read_package(path, data: bytes | None = None) -> dict:
     BoundsError
         Inflated XML or placed triangles past the bounds.
     """
-    from . import require_checked
-
     path = Path(path)
     if data is None:
         try:
@@ -264,7 +262,6 @@ def _settings_check(packages, names, design, settings) -> dict:
     The values are compared as numbers with the template's print settings; what else the
     writer chose to tell the slicer (perimeters, supports, skirt) is its own business."""
     from ..fab.printing import design_print_settings
-    from ..fab.slicer import FILAMENTS
 
     s = design_print_settings(design, settings)
     layer = float(s.layer_height)
@@ -316,11 +313,6 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     FabricationError
         A file that is not a readable 3MF.
     """
-    from .beds import bed_set
-    from .stl import check_meshes
-
-    from . import read_set, require_checked
-
     paths = bed_set(path)
     parsed = {p: _parse_package(p, data) for p, data in read_set(paths).items()}
     # every bed's build items place their objects: all of them counted before any is placed

@@ -12,7 +12,10 @@ import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import FabkitError
+from ..errors import BoundsError, FabkitError, InputFileError, UsageError
+from ..io.outputs import output_folder
+from ..io.templates import allow_large, resolve_template
+from .progress import Progress
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
@@ -104,8 +107,6 @@ def add_progress_options(p) -> None:
 def progress_for(args, command: str):
     """The :class:`~fabkit.commands.progress.Progress` of a command, as ``-q``/``--progress``
     ask."""
-    from .progress import Progress
-
     quiet, forced = getattr(args, "quiet", False), getattr(args, "progress", False)
     return Progress(f"fabkit {command}", show=False if quiet else True if forced else None)
 
@@ -118,9 +119,6 @@ def expand_templates(paths) -> list[Path]:
     bundled templates (``fourbar``; a file of that name in the current folder wins, see
     :func:`fabkit.io.templates.resolve_template`), in order."""
     import glob
-
-    from ..errors import InputFileError
-    from ..io.templates import resolve_template
 
     out: list[Path] = []
     for raw in paths:
@@ -213,8 +211,6 @@ def check_output_folder(path, option: str = "-o") -> Path:
     ------
     OutputError
     """
-    from ..io.outputs import output_folder
-
     return output_folder(path, option)
 
 
@@ -222,9 +218,6 @@ def check_count(option: str, value, minimum: int = 1, maximum: int | None = None
                 quantity: str = "") -> None:
     """A whole-number option within ``[minimum, maximum]``: UsageError below, BoundsError above
     (unless ``fabkit --allow-large``)."""
-    from ..errors import BoundsError, UsageError
-    from ..io.templates import allow_large
-
     if value is None:
         return
     if value < minimum:
@@ -250,8 +243,6 @@ def check_jobs(option: str, value) -> None:
 def check_number(option: str, value, *, positive: bool = True) -> None:
     """A finite (and, by default, positive) number option; UsageError otherwise."""
     import math
-
-    from ..errors import UsageError
 
     if value is None:
         return

@@ -13,6 +13,12 @@ import json
 import sys
 import time
 
+from ..bench import finite, machine_info, stability as stab
+from ..bench.stability import stability_table
+from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
+from ..errors import UsageError
+from ..io.outputs import inside, write_files
+from ..report.viz import figure_png
 from . import add_out_dir, add_progress_options, check_count, check_number, Example, progress_for
 
 NAME = "bench"
@@ -78,8 +84,6 @@ MAX_BENCH_MODULES = 10_000
 
 
 def _sizes(text):
-    from ..errors import UsageError
-
     try:
         sizes = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
@@ -104,8 +108,6 @@ def comparison_at(k, points, settings, budget, repeats, rk4_step):
     the evaluations of its largest finished run with the same step (the count depends on the
     step and the arclength, which for the super-stable chain does not grow with k).
     """
-    from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
-
     problem = chain_problem(k)
     best = None
     for s in settings:
@@ -146,8 +148,6 @@ PARTS = ("workprecision", "targets", "stability", "large")
 
 
 def _parts(text):
-    from ..errors import UsageError
-
     parts = [v.strip() for v in text.split(",") if v.strip()]
     bad = [v for v in parts if v not in PARTS]
     if bad or not parts:
@@ -156,13 +156,9 @@ def _parts(text):
 
 
 def run(args) -> int:
-    from ..bench import finite, machine_info
-    from ..bench import stability as stab
     from ..bench.workprecision import (FULL_SETTINGS, QUICK_SETTINGS, lyapunov_protocol,
                                        maps_lyapunov, profile_method, scaling, scaling_figure,
                                        targets, work_precision, work_precision_figure)
-    from ..io.outputs import inside, write_files
-    from ..report.viz import figure_png
 
     import signal
 
@@ -336,8 +332,6 @@ def _short(v):
 
 
 def _stability_markdown(study, horizon) -> str:
-    from ..bench.stability import stability_table
-
     lines = ["# Stability study", "", stability_table(study), "## Predictability horizon of the "
              "chaotic chain", "",
              f"{horizon['modules']} chaotic modules built at d1 = {horizon['d1']}, driven by "

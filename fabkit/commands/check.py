@@ -7,6 +7,9 @@ design. Prints one line per check; exits 1 when any check fails.
 
 from __future__ import annotations
 
+from ..check import check_file
+from ..errors import FabkitError
+from ..report.text import jsonable
 from . import add_progress_options, add_settings, Example, progress_for
 from .settings import parse_settings
 
@@ -57,9 +60,6 @@ def run(args) -> int:
     import json
     from pathlib import Path
 
-    from ..check import check_file
-    from ..errors import FabkitError
-    from ..report.text import jsonable
     from ..pipeline.stoppable import run_stoppable
     from ..io.templates import load_template, with_settings
 

@@ -7,10 +7,20 @@ import json
 import re
 from pathlib import Path
 
-from ..errors import InputFileError, UsageError
+from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal,
+                      parse_fixed_point, read_curve)
+from ..design.robustness import BUILDS
+from ..design.toml_text import builds_line, fit_lines, margin_lines
+from ..errors import BoundsError, InputFileError, UsageError
+from ..io.inputs import read_regular
+from ..io.outputs import write_files as write_all
+from ..io.templates import bundled_folder
 from ..io.toml_writer import TomlDocument
-from .settings import read_settings
+from ..io.workload import require
+from ..report.designplots import curve_design_figure, module_design_figure
+from ..report.viz import figure_png
 from . import add_out_dir, add_progress_options, add_settings, Example, progress_for
+from .settings import read_settings
 
 NAME = "design"
 HELP = "design a module from map wishes (--fixed-point, --cycle) or a chain from a curve (--curve)"
@@ -53,8 +63,6 @@ class _Once(argparse.Action):
 def _decimal(option: str, *, positive: bool = True):
     """argparse type: a decimal number as typed (see :func:`fabkit.design.parse_decimal`)."""
     def convert(text):
-        from ..design import parse_decimal
-
         try:
             value = parse_decimal(text)
         except ValueError as exc:
@@ -133,8 +141,6 @@ def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
     """Write every file inside the output folder ``out``, all or nothing, refusing any name
     that would leave it (the one place this command writes:
     :func:`fabkit.io.outputs.write_files`)."""
-    from ..io.outputs import write_files as write_all
-
     return write_all(out, files)
 
 
@@ -144,18 +150,12 @@ def _curve_path(path: str) -> Path:
     p = Path(path)
     if p.exists() or p.name != str(path):
         return p
-    from ..io.templates import bundled_folder
 
     bundled = bundled_folder() / "curves" / p.name
     return bundled if bundled.is_file() else p
 
 
 def _read_curve_file(path: str):
-    from ..design import read_curve
-    from ..errors import BoundsError
-    from ..io.inputs import read_regular
-    from ..io.workload import require
-
     p = _curve_path(path)
     if not p.exists():
         raise InputFileError(p, "no such curve file (give an .svg or a .csv)")
@@ -191,8 +191,6 @@ def _check_curve_size(curve, module_size: float) -> None:
 
 
 def run(args) -> int:
-    from ..report.viz import figure_png
-
     name = _name(args)
     out = Path(args.out_dir)
     if args.curve is not None and args.settings:
@@ -221,9 +219,6 @@ def run(args) -> int:
 
 
 def _run_module(args, name, out, figure_png) -> int:
-    from ..design import design_map, parse_cycle, parse_fixed_point
-    from ..design.toml_text import builds_line, margin_lines
-    from ..report.designplots import module_design_figure
     from ..maps import classify_slope
 
     wishes = [parse_fixed_point(v) for v in args.fixed_point]
@@ -306,7 +301,6 @@ def laser_builds(design, settings=None):
     """
     import numpy as np
 
-    from ..design.robustness import BUILDS
     from ..tolerance import model_summary, tolerance_spec
     from ..tolerance.processes import ProcessGeometry, sample_lengths
 
@@ -321,10 +315,7 @@ def laser_builds(design, settings=None):
 def _run_curve(args, name, out, figure_png) -> int:
     import numpy as np
 
-    from ..design import design_curve_chain
     from ..design.curve import MAX_MODULES, scaled
-    from ..design.toml_text import fit_lines
-    from ..report.designplots import curve_design_figure
 
     progress = progress_for(args, NAME)
     progress.stage(f"{name}: reading {args.curve}")

@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import sys
 
-from .settings import parse_settings
+from ..errors import UsageError
 from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, Example,
                expand_templates, progress_for)
+from .settings import parse_settings
 
 NAME = "export"
 HELP = "export templates (files, folders, globs) for fabrication, with reports and checks"
@@ -65,7 +66,6 @@ def add_arguments(p):
 
 def parse_formats(text: str | None) -> list[str] | None:
     """``"dxf,stl"`` → ``["dxf", "stl"]``; None stays None (every format that applies)."""
-    from ..errors import UsageError
     from ..export import EXPORTERS
 
     if text is None:
@@ -87,7 +87,6 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..pipeline import exit_code, export_many, summary_table
-    from ..errors import UsageError
 
     check_jobs("--jobs", args.jobs)
     if args.timeout is not None and not (args.timeout >= 0 and args.timeout < float("inf")):

@@ -11,6 +11,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import FabkitError, UsageError
+from ..fab.creases import fold_model, origami_model
+from ..io.outputs import inside
+from ..io.schema import refuse_unused
+from ..io.templates import with_settings
 from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
                Example, progress_for)
 from .settings import parse_settings
@@ -77,14 +82,7 @@ def describe(design, model, fold) -> str:
 def run(args) -> int:
     from dataclasses import replace
 
-    from ..errors import FabkitError
-    from ..fab.creases import fold_model, origami_model
-    from ..io.outputs import inside
     from ..io.templates import load_template
-
-    from ..errors import UsageError
-    from ..io.schema import refuse_unused
-    from ..io.templates import with_settings
 
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")

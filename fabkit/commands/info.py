@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from ..errors import ConstructionError
+from ..io.templates import with_settings
+from ..kinematics.constructive import cached_plan
+from ..model.rigidity import count_modes
 from . import (add_progress_options, add_settings, Example, expand_templates, progress_for,
                short_list)
 from .settings import read_settings
@@ -34,10 +38,6 @@ def add_arguments(p):
 
 
 def describe(design, rank_method: str = "auto") -> str:
-    from ..errors import ConstructionError
-    from ..kinematics.constructive import cached_plan
-    from ..model.rigidity import count_modes
-
     net = design.network
     m = count_modes(net, method=rank_method)
     lines = [f"{design.name}: {design.description}".rstrip(": ")]
@@ -78,7 +78,6 @@ def describe(design, rank_method: str = "auto") -> str:
 
 def run(args) -> int:
     from ..io.templates import load_template
-    from ..io.templates import with_settings
 
     settings = read_settings(args, {"motion": None}, "info reads motion settings only")
     found = expand_templates(args.templates)

@@ -7,7 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FabkitError
+from ..design.assemble import chain
+from ..design.letters import (chain_centerline, curvature_modules, design_word, GLYPHS,
+                              letter_template, polyline_distance)
+from ..errors import FabkitError, UsageError
+from ..io.outputs import write_files
+from ..io.templates import with_settings
+from ..kinematics import trace
+from ..report.viz import draw_network, figure_kit, figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number, Example,
                progress_for)
 from .settings import read_settings
@@ -76,10 +83,6 @@ def simulate_letter(fit, modules_by_name, final):
     -------
     dict with the network, trajectory, the final positions in the target's frame and the errors.
     """
-    from ..design.assemble import chain
-    from ..kinematics import trace
-    from ..design.letters import chain_centerline, polyline_distance
-
     net = chain([modules_by_name[n] for n in fit.names], mirror="alternate")
     traj = trace(net, "d1", to=final, method="constructive", samples=5)
     if str(traj.status) != "finished":
@@ -101,8 +104,6 @@ def simulate_letter(fit, modules_by_name, final):
 
 def word_figure(word, fits, sims):
     """Initial (straight) and final states of every letter's chain, side by side."""
-    from ..report.viz import draw_network, figure_kit
-
     fig, (top, ax) = figure_kit.subplots(2, 1, figsize=(2.4 * len(word) + 1, 8.5),
                                   gridspec_kw={"height_ratios": [1.3, 3]})
     x0 = 0.0
@@ -133,13 +134,7 @@ MAX_BEAM = 5_000
 
 
 def run(args) -> int:
-    from ..design.letters import GLYPHS, curvature_modules, design_word, letter_template
     from ..io.templates import load_template
-    from ..report.viz import figure_png
-
-    from ..errors import UsageError
-    from ..io.outputs import write_files
-    from ..io.templates import with_settings
 
     word = args.word
     if not word:

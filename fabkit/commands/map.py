@@ -7,8 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FabkitError, UsageError
+from ..errors import ConstructionError, DesignError, FabkitError, UsageError
+from ..io.outputs import inside, write_files
+from ..io.schema import refuse_unused
+from ..io.workload import require
 from ..numerics import DOMAIN_RTOL
+from ..report.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
 from .progress import Progress
@@ -92,7 +96,6 @@ def parse_values(text: str) -> list[float]:
 def design_map(design, d_in="d1", d_out="d2"):
     """The map of a loaded template: constructive where possible, else read off a projected
     trace of the template's motion."""
-    from ..errors import ConstructionError, DesignError
     from ..maps import map_from_trajectory, module_map
 
     net = design.network
@@ -139,9 +142,6 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     """Compute everything for one template and write its files; returns the summary.
     ``progress``: a :class:`~fabkit.commands.progress.Progress` told each stage."""
     from ..report.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
-    from ..report.viz import figure_png
-
-    from ..io.outputs import inside, write_files
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
@@ -218,7 +218,6 @@ def _json_default(o):
 
 
 def run(args) -> int:
-    from ..io.schema import refuse_unused
     from ..io.templates import load_template, with_settings
 
     if args.steps < 1:
@@ -242,7 +241,6 @@ def run(args) -> int:
     if d1 is not None:
         check_count("--d1", len(d1), 1, MAX_D1, "values")
     # the options multiply: one estimate of the whole work, before any of it
-    from ..io.workload import require
 
     lyap = ("map evaluation", args.orbits * (args.discard + args.average) if args.lyapunov
             else 0)

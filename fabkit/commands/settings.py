@@ -7,6 +7,7 @@ same schema check (:mod:`fabkit.io.schema`) and the same did-you-mean for a miss
 from __future__ import annotations
 
 from ..errors import SettingsError, UsageError
+from ..export import check_export_settings
 from ..io.schema import refuse_unused
 from ..io.templates import tomllib
 
@@ -48,7 +49,6 @@ def parse_settings(items) -> dict:
         if parts[-1] in node:
             raise UsageError("--set", f"{item!r}: {key} is given twice")
         node[parts[-1]] = value
-    from ..export import check_export_settings
 
     try:  # one declared schema: unknown sections and keys, types and ranges
         check_export_settings(out)

@@ -8,6 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import UsageError
+from ..io.outputs import inside, write_files
+from ..io.schema import refuse_unused
+from ..io.suggest import did_you_mean
+from ..kinematics import METHODS, Status
+from ..motion import judge_ends
+from ..report.viz import figure_png, motion_figure
 from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
                Example, progress_for)
 from .settings import parse_settings
@@ -26,8 +33,6 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from ..kinematics import METHODS
-
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
     p.add_argument("--method", default=None, metavar="METHOD",
                    help=f"{', '.join(['auto', *METHODS])} (default: the template's)")
@@ -57,9 +62,6 @@ def trajectory_npz(traj) -> bytes:
 
 
 def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None):
-    from ..io.outputs import inside, write_files
-    from ..report.viz import figure_png, motion_figure
-
     say = progress.stage if progress is not None else (lambda text: None)
 
     overrides = {}
@@ -83,10 +85,6 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
 
 
 def run(args) -> int:
-    from ..errors import UsageError
-    from ..kinematics import METHODS, Status
-    from ..io.schema import refuse_unused
-    from ..io.suggest import did_you_mean
     from ..io.templates import load_template, with_settings
 
     valid = ["auto", *METHODS]
@@ -101,8 +99,6 @@ def run(args) -> int:
 
     def one(path) -> bool:
         from dataclasses import replace
-
-        from ..motion import judge_ends
 
         design = with_settings(load_template(path), settings)
         traj, folder = simulate_design(design, Path(args.out_dir), args.method, args.to,

@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+from ..errors import FabkitError, UsageError
+from ..io.outputs import inside
 from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
                Example, progress_for)
 from .settings import read_settings
@@ -70,8 +72,6 @@ def add_arguments(p):
 
 def _usage(message: str):
     """A bad request of the command line: one line, exit status 2."""
-    from ..errors import UsageError
-
     raise UsageError("", message)
 
 
@@ -110,7 +110,6 @@ def _with_target(design, settings, axes):
     import copy
     from dataclasses import replace
 
-    from ..errors import UsageError
     from ..sweep.model import key_path, path_text
 
     target = settings.get("motion", {}).get("to")
@@ -128,9 +127,7 @@ def _with_target(design, settings, axes):
 
 
 def run(args) -> int:
-    from ..errors import FabkitError
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
-    from ..io.outputs import inside
     from ..io.templates import load_template
 
     settings = read_settings(args, {"motion": {"to"}}, "sweep reads motion.to only (the branch "

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..errors import FabkitError, OutputError, UsageError
+from ..io.outputs import write_files
+from ..io.templates import bundled_folder, resolve_template
 from . import add_out_dir, check_output_folder, Example
 
 NAME = "templates"
@@ -26,7 +29,6 @@ EXAMPLES = [
 
 def template_line(path: Path, width: int = 28) -> str:
     """``name  [figure]  description`` for a template; the reason instead when it is invalid."""
-    from ..errors import FabkitError
     from ..io.templates import load_template
 
     try:
@@ -66,7 +68,6 @@ def template_files(name: str) -> dict[str, Path]:
         A referenced template lies outside the bundled folder (it could not be copied with the
         same relative path).
     """
-    from ..errors import FabkitError, UsageError
     from ..io.templates import bundled_folder, bundled_template, load_template
 
     try:
@@ -111,9 +112,6 @@ def copy_template(name: str, folder, force: bool = False) -> list[Path]:
     OutputError
         A file exists (without ``force``), or is not a regular file.
     """
-    from ..errors import OutputError
-    from ..io.outputs import write_files
-
     files = template_files(name)
     folder = Path(folder)
     targets = {rel: folder / rel for rel in files}
@@ -141,9 +139,6 @@ def _copy(args) -> int:
 
 
 def _list_bundled() -> int:
-    from ..errors import FabkitError
-    from ..io.templates import bundled_folder, resolve_template
-
     folder = bundled_folder()
     paths = sorted(folder.glob("*.toml"))
     if not paths:
@@ -163,8 +158,6 @@ def _list_bundled() -> int:
 
 
 def run(args) -> int:
-    from ..errors import FabkitError, UsageError
-
     if args.out_dir is not None:
         if args.copy is None:
             raise UsageError("-o", "is the folder --copy copies into; give it with --copy NAME")

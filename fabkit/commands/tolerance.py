@@ -16,6 +16,10 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..errors import FabkitError, UsageError
+from ..io.outputs import inside, write_files
+from ..report.text import report_json
+from ..report.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
 from .settings import parse_settings
@@ -117,17 +121,12 @@ def describe(result) -> str:
 
 
 def run(args) -> int:
-    from ..errors import FabkitError
-    from ..report.text import report_json
     from ..io.templates import load_template, with_settings
     from ..tolerance import (analyse_tolerance, design_process, refuse_foreign,
                              tolerance_figure, tolerance_spec)
-    from ..report.viz import figure_png
-    from ..io.outputs import inside, write_files
     from ..pipeline import traced_motion
 
     from ..pipeline import MAX_SAMPLES
-    from ..errors import UsageError
 
     if args.samples is not None and args.samples < 1:
         raise UsageError("--samples", f"must be at least 1, got {args.samples}")

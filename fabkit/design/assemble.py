@@ -27,9 +27,10 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError, FabkitError, KinematicsError
-from ..model.network import Assembly, Network
-from ..numerics import DOMAIN_RTOL, TINY, rigid_fit
 from ..io.workload import require
+from ..kinematics.constructive import place, plan_construction
+from ..model.network import Assembly, Network
+from ..numerics import DOMAIN_RTOL, rigid_fit, TINY
 
 __all__ = [
     "chain",
@@ -300,8 +301,6 @@ def branch(trunk: Network, limb: Network, *, at: str, end: str, mirror: bool = F
 
 def _module_at(module: Network, d_in: str, value: float, plan_cache: dict) -> np.ndarray:
     """Module configuration with its input distance at ``value`` (same branch as its reference)."""
-    from ..kinematics.constructive import place, plan_construction
-
     ref = plan_cache.get("ref")
     if ref is None:
         ref = plan_cache["ref"] = float(module.port_distance(d_in))

@@ -26,13 +26,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from .solution_space import displacement_space
 from ..errors import DesignError, FabkitError
 from ..model.network import Network
+from ..model.rigidity import count_modes
 from ..numerics import TINY
-from .geometry import (MODULE_EDGES, bar_clearance, bar_lengths, branch_signs, inside_margin,
-                       joint_separation, module_motion, module_positions, rigidity_margin,
-                       triangle)
+from .geometry import (bar_clearance, bar_lengths, branch_signs, inside_margin, joint_separation,
+                       MODULE_EDGES, module_motion, module_positions, rigidity_margin, triangle)
+from .solution_space import displacement_space
 
 __all__ = ["CurvatureType", "design_curvature_type", "joint_room", "lowest_apex",
            "INITIAL_APEX_DEG", "LEG_RATIO", "APEX_RANGE_DEG", "MIN_PAIR_APEX_DEG"]
@@ -234,7 +234,6 @@ def design_curvature_type(apex_deg: float, min_joint: float = 0.0) -> CurvatureT
     70.0
     """
     from ..maps import module_map
-    from ..model.rigidity import count_modes
 
     s = _screen(round(float(apex_deg), 9))
     score = np.where(s.ok & (s.joints >= min_joint), s.score, 0.0)

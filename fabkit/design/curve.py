@@ -41,15 +41,15 @@ import numpy as np
 
 from ..errors import DesignError, FabkitError
 from ..io.templates import parse_template
+from ..kinematics import trace
 from ..model.network import Network
 from .assemble import chain
-from .curvature import (APEX_RANGE_DEG, GRID_SLACK_DEG, LEG_RATIO, MIN_PAIR_APEX_DEG,
-                        design_curvature_type, lowest_apex)
+from .curvature import (APEX_RANGE_DEG, design_curvature_type, GRID_SLACK_DEG, LEG_RATIO,
+                        lowest_apex, MIN_PAIR_APEX_DEG)
 from .curve_files import Curve, resampled_curve
-from .letters import chain_centerline, curvature_modules
 from .fit import arclength, describe_curve, fit_to_curve, point_at, polyline_distance
-from .sequence import (BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline,
-                       track)
+from .letters import chain_centerline, curvature_modules
+from .sequence import BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline, track
 from .toml_text import chain_template, curvature_template
 from .wishes import WishError
 
@@ -537,8 +537,6 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
         follows it within the tolerance; the nearest module size (or enlargement of the
         drawing) that builds is named.
     """
-    from ..kinematics import trace  # looked up at call time: tests count the traces
-
     start = time.perf_counter()
     curve = _check_arguments(curve, module_size, types)
     pts = curve.points

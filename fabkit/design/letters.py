@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import DesignError, FabkitError
 from ..io.toml_writer import TomlDocument
+from ..kinematics.constructive import place, plan_construction
 from ..model.network import Network
 from ..numerics import TINY
 
@@ -91,8 +92,6 @@ def curvature_modules(networks: dict, final: float, templates: dict | None = Non
         A module that cannot reach ``final`` or for which ``final`` is not a fixed point
         (d2 ≠ d1 there, to 1e-9): the chain would not end in the designed shapes.
     """
-    from ..kinematics.constructive import place, plan_construction
-
     out = []
     for name, net in networks.items():
         for p in ("d1", "d2"):

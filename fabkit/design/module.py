@@ -32,15 +32,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .solution_space import displacement_space, velocity_space
 from ..errors import DesignError, FabkitError
+from ..io.templates import parse_template
 from ..model.network import Network
 from ..numerics import TINY
-from .branch import MIN_BRANCH_MARGIN, branch_margins, on_branch
-from .geometry import (MODULE_EDGES, bar_lengths, branch_signs, fixed_point_gain,
-                       joint_separation, module_positions, rigidity_margin, slope_velocities,
-                       triangle)
-from .wishes import FixedPointWish, MapWish, WishError, check_wish
+from .branch import branch_margins, MIN_BRANCH_MARGIN, on_branch
+from .geometry import (bar_lengths, branch_signs, fixed_point_gain, joint_separation, MODULE_EDGES,
+                       module_positions, rigidity_margin, slope_velocities, triangle)
+from .robustness import check_builds
+from .solution_space import displacement_space, velocity_space
+from .toml_text import module_template
+from .wishes import check_wish, FixedPointWish, MapWish, WishError
 
 __all__ = ["MapDesign", "design_map", "branch_margins", "on_branch", "APEX_DEGREES", "TURNS", "FREE_SLOPES",
            "MIN_BRANCH_MARGIN"]
@@ -439,10 +441,6 @@ def _relaxed(wish: MapWish) -> list[MapWish]:
 
 
 def _parsed(wish: MapWish, best, name: str, builds=None):
-    from ..io.templates import parse_template
-
-    from .toml_text import module_template
-
     text = module_template(name, wish, best, builds)
     return text, parse_template(text, f"<{name}.toml>")
 
@@ -452,7 +450,6 @@ def _builds(design, wish: MapWish, sample_builds):
     sampler of builds."""
     if sample_builds is None:
         return None
-    from .robustness import check_builds
 
     built, scale, model = sample_builds(design)
     net = design.network

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import DesignError
 from ..model.network import Network
+from ..model.rigidity import count_modes
 from ..numerics import TINY
 
 __all__ = ["SolutionSpace", "DesignReport", "velocity_space", "displacement_space",
@@ -595,8 +596,6 @@ def design_module(designed, *, velocities=None, final=None, variable=None, near=
     >>> r.meets, r.modes.conformational
     ({'velocity': True, 'displacement': True}, 1)
     """
-    from ..model.rigidity import count_modes
-
     x0 = _as_points(designed, "designed")
     n, d = x0.shape
     spaces = []

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..io.toml_writer import TomlDocument
 from .branch import MIN_BRANCH_MARGIN, on_branch
+from .curvature import INITIAL_APEX_DEG, LEG_RATIO
 
 __all__ = ["module_template", "curvature_template", "chain_template", "fit_lines",
            "margin_lines", "builds_line"]
@@ -177,8 +178,6 @@ def curvature_template(name: str, ctype) -> str:
     name : str
     ctype : CurvatureType
     """
-    from .curvature import INITIAL_APEX_DEG, LEG_RATIO
-
     apex = math.degrees(ctype.apex)
     m = ctype.margins
     doc = TomlDocument()
@@ -268,8 +267,6 @@ def chain_template(name: str, modules, scale: float, errors: dict, props: dict, 
     curve : Curve
     module_size : float
     """
-    from .curvature import LEG_RATIO
-
     doc = TomlDocument()
     doc.comment(
         f"A chain of {len(modules)} curvature modules whose final state follows a drawn curve "

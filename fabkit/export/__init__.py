@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ArgumentTypeError, FabkitError, OutputError
-from ..io.outputs import LOCK_NAME, OutputLock, output_folder, write_atomic, write_files
+from ..io.outputs import LOCK_NAME, output_folder, OutputLock, write_atomic, write_files
+from ..io.templates import Design
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export", "check_export_settings"]
@@ -130,8 +131,6 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     OutputError
         ``outdir`` is not a folder path, or cannot be created or written.
     """
-    from ..io.templates import Design
-
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
     if not isinstance(design, Design):
         raise ArgumentTypeError("design", "must be a fabkit Design (fabkit.load_template), got "

@@ -34,8 +34,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
-from ..fab.laser import kerf_note
+from ..fab.bars import bar_set, bulge_primitives
+from ..fab.coupon import COUPON_NAME, coupon_sheet, COUPON_SPACING, coupon_text
+from ..fab.guide import assembly_picture, guide_pages, motion_picture
+from ..fab.hardware import MAX_AXIAL_PLAY, part_family, part_lines, spares
+from ..fab.laser import kerf_note, laser_overrides, laser_settings
+from ..fab.layers import plan_layers, sample_chain, sample_motion
+from ..fab.nest import label_outlines, make_parts, nest_parts, place_like, utilisation
+from ..motion import motion_for
 from . import ExportResult
+from .laser_svg import sheet_svg
 
 __all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
            "bill_of_materials", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
@@ -101,12 +109,6 @@ def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
         Bad settings, bars that cannot be cut, no collision-free stacking, parts larger than
         a sheet; one line each with a suggested fix.
     """
-    from ..fab.bars import bar_set
-    from ..fab.laser import laser_overrides, laser_settings
-    from ..fab.layers import plan_layers, sample_chain, sample_motion
-    from ..fab.nest import make_parts, nest_parts
-    from ..motion import motion_for
-
     net = design.network
     if net.dim != 2:
         raise FabricationError(f"laser-cut bars need a 2D network; {design.name} is {net.dim}D")
@@ -139,9 +141,6 @@ def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
 def coupon_files(plan: LaserPlan) -> dict:
     """The kerf and fit test coupon: ``laser_coupon.dxf`` and ``.svg`` (the kit's bar pair
     and spacer ring, drawn as on its sheets) and ``laser_coupon.md`` (what to check)."""
-    from ..fab.coupon import COUPON_NAME, COUPON_SPACING, coupon_sheet, coupon_text
-    from .laser_svg import sheet_svg
-
     s = plan.settings
     sheet = coupon_sheet(s)
     header = {"FABKIT_COUPON": COUPON_NAME, "FABKIT_DESIGN": plan.design.name,
@@ -158,9 +157,6 @@ def uncompensated_plan(plan: LaserPlan) -> LaserPlan:
     """The same kit drawn at true size (kerf 0), every part where it was nested, for a
     cutting service that compensates kerf itself."""
     from dataclasses import replace
-
-    from ..fab.bars import bar_set
-    from ..fab.nest import make_parts, place_like
 
     s = replace(plan.settings, kerf=0.0)
     bars = bar_set(plan.bars.lengths, plan.bars.edges, s, scale=s.scale)
@@ -206,9 +202,6 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
     """
     import ezdxf
     from ezdxf.enums import TextEntityAlignment
-
-    from ..fab.bars import bulge_primitives
-    from ..fab.nest import label_outlines
 
     s = plan.settings
     with _fixed_metadata():
@@ -313,9 +306,6 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
     """Parts, sheets and hardware to buy, screws by length, spacer rings and the stack at
     every joint (JSON-able). Every piece of hardware is named as a shop lists it
     (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
-    from ..fab.hardware import MAX_AXIAL_PLAY, part_family, part_lines, spares
-    from ..fab.nest import utilisation
-
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
     fasteners = [js.fastener for js in st.joints]
@@ -524,8 +514,6 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
     >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
     ['laser_assembly.png', 'laser_bom.json']
     """
-    from .laser_svg import sheet_svg
-
     plan = laser_plan(design, settings, motion)
     files: dict[str, bytes] = {}
     n = len(plan.sheets)
@@ -538,7 +526,6 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
             files[f"laser_sheet{sheet.index}_uncompensated.dxf"] = sheet_dxf(sheet, raw, n)
             files[f"laser_sheet{sheet.index}_uncompensated.svg"] = sheet_svg(sheet, raw.settings)
     files.update(coupon_files(plan))
-    from ..fab.guide import assembly_picture, guide_pages, motion_picture
 
     names = sorted([*files, "laser_assembly.png", "laser_layers_motion.png", "laser_guide.pdf",
                     "laser_guide_page1.png", "laser_bom.json", "laser_bom.md"])

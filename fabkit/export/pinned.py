@@ -23,8 +23,12 @@ import math
 import numpy as np
 
 from ..errors import FabricationError
+from ..fab.slicer import slicer_settings
 from ..numerics import MM_SLACK
+from ..report.viz import figure_kit
 from . import ExportResult
+from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
+from .threemf import threemf_package
 
 __all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED", "print_bom",
            "BOLT_LENGTHS", "STL_NOTE"]
@@ -87,8 +91,6 @@ def preview_figure(plan, title: str):
     import textwrap
 
     from matplotlib.collections import PatchCollection, PolyCollection
-
-    from ..report.viz import figure_kit
 
     s = plan.settings
     printer = s.printer_profile()
@@ -237,8 +239,6 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
         coordinates are rounded to float32.
     """
     from ..fab.pinned import pinned_print
-    from ..fab.slicer import slicer_settings
-    from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 
     plan = pinned_print(design, s, motion)
     meshes = body_meshes(plan)
@@ -331,8 +331,6 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
 
 
 def _threemf(objects, slicer, title: str) -> bytes:
-    from .threemf import threemf_package
-
     return threemf_package(None, None, objects=objects, project=slicer.project,
                            per_object=slicer.per_object,
                            title=f"fabkit print settings for {title}")

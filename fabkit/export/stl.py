@@ -33,8 +33,14 @@ import re
 import numpy as np
 
 from ..errors import FabricationError
-from . import ExportResult
+from ..fab.printers import split_to_fit
+from ..fab.slicer import slicer_settings
+from ..model.network import Network
+from ..motion import motion_for, MotionStatus
 from ..numerics import MM_SLACK
+from ..report.viz import figure_kit, figure_png
+from . import ExportResult
+from .pinned import bed_file_names
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
@@ -60,8 +66,6 @@ JOIN = ("each cut port's two hinge hubs are printed on both pieces: lay the late
 
 def piece_network(net, nodes):
     """The sub-network on ``nodes`` (renumbered in their order) that a split piece prints."""
-    from ..model.network import Network
-
     keep = np.zeros(net.n_nodes, dtype=bool)
     keep[nodes] = True
     index = np.cumsum(keep) - 1
@@ -103,7 +107,6 @@ def hinge_layout(design, s, geo=None):
         A piece (or the whole part, if it is not a chain) fits the bed in no orientation.
     """
     from ..fab.hinges import print_geometry
-    from ..fab.printers import split_to_fit
 
     net = design.network
     whole = geo if geo is not None else print_geometry(net, s)
@@ -147,9 +150,6 @@ def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]
     FabricationError
         A piece (or the whole part, if it is not a chain) fits the bed in no orientation.
     """
-    from ..fab.slicer import slicer_settings
-    from .pinned import bed_file_names
-
     printer = s.printer_profile()
     xy = np.asarray(verts)[:, :2]
     w, h = np.ptp(xy, axis=0)
@@ -196,8 +196,6 @@ def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]
 
 
 def _preview_png(geo, title: str) -> bytes:
-    from ..report.viz import figure_png, figure_kit
-
     from matplotlib.collections import PolyCollection
 
     w, h, _ = geo.size
@@ -227,7 +225,6 @@ def _safe(name: str) -> str:
 def _hinge_report(design, geo, motion) -> dict:
     """Largest hinge rotation along the design's motion and the bending strain it means."""
     from ..fab.hinges import hinge_bending
-    from ..motion import MotionStatus
 
     s = geo.settings
     if design.motion.to is None:
@@ -298,7 +295,6 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
         files[f"{name}_print.png"] = _preview_png(geo, design.name)
-    from ..motion import motion_for
 
     hinges = _hinge_report(design, geo, motion_for(design, motion))
     warnings = []
@@ -314,7 +310,6 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
         layout["note"] = (f"the part is {size[0]:.0f} x {size[1]:.0f} mm: as designed it does "
                           f"not fit the {layout['printer']['name']} bed; "
                           f"{', '.join(layout['files'])} holds it {how}")
-    from ..fab.slicer import slicer_settings
 
     report = {
         "linkage": "hinges",

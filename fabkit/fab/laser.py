@@ -15,9 +15,10 @@ import math
 from dataclasses import asdict, dataclass, field
 
 from ..errors import FabricationError
+from ..io.schema import check_section, LaserSection, section_of
 from ..numerics import MM_SLACK
-from ..io.schema import LaserSection, check_section, section_of
-from .hardware import ScrewSpec, screw_spec
+from .hardware import screw_spec, ScrewSpec
+from .window import motion_window
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "DEFAULT_SCALE",
            "DEFAULT_MAX_LAYERS", "LASER_KEYS", "kerf_note"]
@@ -251,8 +252,6 @@ def kit_design(design, settings: LaserSettings):
     FabricationError
         See :func:`fabkit.fab.window.motion_window`.
     """
-    from .window import motion_window
-
     return motion_window(design, settings.motion_from, settings.motion_to, "laser")
 
 

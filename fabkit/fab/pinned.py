@@ -33,7 +33,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import FabricationError
+from ..io.workload import require
+from ..motion import motion_for, trace_motion
+from .bars import stadium_polygon
+from .hardware import ScrewSpec
+from .hinges import manifold3d
+from .laser import LaserSettings
+from .layers import plan_layers, sample_chain, sample_motion
+from .printers import split_to_fit
 from .printing import PrintSettings
+from .window import motion_window
 
 __all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "printed_design", "stack_settings", "bar_body",
            "pin_profile", "polygon_area", "circle_polygon"]
@@ -77,9 +86,6 @@ def stack_settings(s: PrintSettings):
     gap above the top bar), the collar the spacer ring; a printed pin has whatever length its
     stack needs, so every multiple of the pitch is a "post length".
     """
-    from .hardware import ScrewSpec
-    from .laser import LaserSettings
-
     pitch = s.layer_pitch
     pin = ScrewSpec(name="printed pin", barrel_diameter=s.pin_diameter,
                     hole_diameter=s.hole_diameter, head_diameter=s.cap_diameter,
@@ -200,8 +206,6 @@ class PinnedPrint:
 
     def bar_outline(self, bar: int) -> np.ndarray:
         """The bar's round-ended outline (counter-clockwise, mm, print frame)."""
-        from .bars import stadium_polygon
-
         i, j = self.edges[bar]
         return stadium_polygon(self.positions[i], self.positions[j], 0.5 * self.settings.bar_width,
                                n=CIRCLE_SEGMENTS // 2 + 1)
@@ -258,17 +262,12 @@ def printed_design(design, s: PrintSettings):
     FabricationError
         See :func:`fabkit.fab.window.motion_window`.
     """
-    from .window import motion_window
-
     return motion_window(design, s.motion_from, s.motion_to, "print")
 
 
 def _sweep(design, s: PrintSettings, kit=None):
     """The linkage's motion sampled for its stacking: along the kit's traced motion (the
     design's, or its window's), traced here only when none is given."""
-    from ..motion import trace_motion
-    from .layers import sample_chain, sample_motion
-
     kit = kit if kit is not None else trace_motion(design, judge=False)
     traj = kit.planning_trajectory()
     net = design.network
@@ -349,10 +348,6 @@ def pinned_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
 
 
 def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
-    from ..motion import motion_for
-    from .layers import plan_layers
-    from .printers import split_to_fit
-
     kit = None
     if motion is not None:  # the pipeline's motion: its window traced once for every process
         kit = motion_for(design, motion).window_motion(s.motion_from, s.motion_to, "print")
@@ -367,7 +362,6 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
         raise FabricationError("a print-in-place linkage is stacked over the design's motion; "
                                "the template has no [motion] to")
     _check_bars(net, s)
-    from ..io.workload import require
 
     require(f"{design.path or design.name}: print-in-place linkage", ("printed bar", net.n_edges))
     sweep = _sweep(design, s, kit)
@@ -380,8 +374,6 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     half = 0.5 * s.bar_width
 
     def outline(nodes):
-        from .bars import stadium_polygon
-
         keep = np.zeros(net.n_nodes, dtype=bool)
         keep[nodes] = True
         bars = np.flatnonzero(keep[edges].all(axis=1))
@@ -421,8 +413,6 @@ def bar_body(plan: PinnedPrint, bar: int):
     FabricationError
         manifold3d is missing, or the body is not a valid manifold.
     """
-    from .hinges import manifold3d
-
     mf = manifold3d()
     s = plan.settings
     rings = [np.ascontiguousarray(plan.bar_outline(bar))]

@@ -19,8 +19,10 @@ import math
 from dataclasses import asdict, dataclass
 
 from ..errors import FabricationError
+from ..io.schema import check_section, HINGE_STYLES, section_of
 from ..numerics import MM_SLACK
-from ..io.schema import HINGE_STYLES, check_section, section_of
+from .printers import DEFAULT_PRINTER, printer_profile
+from .triangles import rigid_triangles
 
 __all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "PIN_DEFAULTS", "print_settings",
            "design_print_settings", "default_linkage"]
@@ -164,8 +166,6 @@ class PrintSettings:
 
     def printer_profile(self):
         """The :class:`~fabkit.fab.printers.Printer` these settings print on."""
-        from .printers import printer_profile
-
         return printer_profile(self.printer, self.bed, margin=self.bed_margin)
 
     @property
@@ -324,8 +324,6 @@ def print_settings(table: dict | None = None, overrides: dict | None = None,
 
 
 def _printer_flags(given: dict, where: str) -> tuple[dict, object]:
-    from .printers import DEFAULT_PRINTER, printer_profile
-
     bed = given.get("bed")
     printer = printer_profile(given.get("printer", DEFAULT_PRINTER), bed, where,
                               margin=given.get("bed_margin"))
@@ -407,8 +405,6 @@ def _pin_settings(given: dict, where: str) -> PrintSettings:
 
 def default_linkage(network) -> str:
     """``"hinges"`` for a planar network made of rigid triangles, else ``"pins"``."""
-    from .triangles import rigid_triangles
-
     try:
         rigid_triangles(network)
     except FabricationError:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..errors import FabricationError
+from ..model.network import Network
 
 __all__ = ["motion_window"]
 
@@ -37,8 +38,6 @@ def motion_window(design, start, to, process: str):
         leave a motion between them.
     """
     from dataclasses import replace
-
-    from ..model.network import Network
 
     if start is None and to is None:
         return design

@@ -31,7 +31,8 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
 
-from ..errors import SettingsError
+from ..errors import SettingsError, UsageError
+from .suggest import did_you_mean
 
 __all__ = ["Section", "LaserSection", "ScrewSection", "PrintSection", "OrigamiSection",
            "ToleranceSection", "MotionSection", "FABRICATION_SECTIONS", "OVERRIDE_SECTIONS",
@@ -423,8 +424,6 @@ def refuse_unused(settings, used, why: str) -> None:
     ------
     UsageError
     """
-    from ..errors import UsageError
-
     for section, table in (settings or {}).items():
         if section in used:
             continue
@@ -436,8 +435,6 @@ def refuse_unused(settings, used, why: str) -> None:
 
 def _hint(name, known) -> str:
     """``"; did you mean 'kerf'?"`` for a misspelt section or key, else ``""``."""
-    from .suggest import did_you_mean
-
     hint = did_you_mean(name, sorted(known))
     return f"; {hint}" if hint else ""
 

@@ -41,8 +41,13 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from ..errors import BoundsError, FabkitError, InputFileError, NetworkError, TemplateError
+from ..errors import (BoundsError, brief, FabkitError, InputFileError, NetworkError, SettingsError,
+                      TemplateError, UnsafeNameError)
+from ..kinematics import METHODS, trace
 from ..model.network import Network
+from .outputs import check_name
+from .suggest import close_names, nearest_file
+from .workload import require
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
            "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
@@ -176,8 +181,6 @@ class Design:
 
     def trace(self, **overrides):
         """Trace the template's motion (keywords override ``method``, ``to``, options)."""
-        from ..kinematics import trace
-
         m = self.motion
         to = overrides.pop("to", m.to)
         method = overrides.pop("method", m.method)
@@ -248,8 +251,6 @@ class TemplateContext:
         """Add the nodes of a network about to be built to those of every network built for
         the same template (its references included), and refuse the total past the bounds of
         :func:`fabkit.io.workload.require` before building."""
-        from .workload import require
-
         total = self.loading.nodes + int(nodes)
         require(f"{self.path}: {key}", ("node", total))
         self.loading.nodes = total
@@ -360,7 +361,6 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
     if to is not None and to <= 0:
         raise ctx.error("motion.to", f"must be a positive distance, got {to}")
     method = ctx.get(section, "method", "motion", str, required=False, default="auto")
-    from ..kinematics import METHODS
 
     if method != "auto" and method not in METHODS:
         raise ctx.error("motion.method",
@@ -401,7 +401,6 @@ def _check_fabrication(ctx, fabrication: dict) -> None:
     """Every ``[fabrication]`` table against the declared schema (:mod:`fabkit.io.schema`), when
     the template is read: a misspelt section or key, a wrong type or a value out of range is
     refused before any work, by every command."""
-    from ..errors import SettingsError
     from .schema import check_fabrication
 
     try:
@@ -445,9 +444,6 @@ def _design_name(ctx, raw, path: Path) -> str:
     A ``name`` set in the template is checked as written; without one, the file's stem is used
     with every character that cannot be in a folder name replaced by ``_``.
     """
-    from ..errors import UnsafeNameError, brief
-    from .outputs import check_name
-
     if "name" in raw:
         name = ctx.get(raw, "name", "", str)
         key = "name"
@@ -593,8 +589,6 @@ def _nearest_template(name) -> str:
     """``"; did you mean 'super_stable'?"`` for a misspelt template: among the bundled names and
     the templates of the current folder for a bare name, among the templates beside it for a
     path; ``""`` when none is alike."""
-    from .suggest import close_names, nearest_file
-
     if is_template_name(str(name)):  # a name, or a path as plain as one
         stem = str(name).removesuffix(".toml")
         if stem in bundled_names():  # a path on purpose (./fourbar): no other name was meant

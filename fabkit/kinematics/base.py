@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import arguments
-from ..errors import ArgumentTypeError, KinematicsError
+from ..errors import ArgumentTypeError, ArgumentValueError, KinematicsError, SettingsError
 from ..model.network import Network
-from ..numerics import START_RTOL, TARGET_AT_TURN_RTOL, TINY, rigid_fit
-from .record import Record, edge_errors, keep_rule, record_positions
+from ..numerics import rigid_fit, START_RTOL, TARGET_AT_TURN_RTOL, TINY
+from .record import edge_errors, keep_rule, Record, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
 
 __all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
@@ -356,7 +356,6 @@ def check_option(method: str, name: str, value) -> None:
     :class:`~fabkit.errors.ArgumentError` naming it (a NaN ``max_step`` once ended a trace
     after three samples); NumPy scalars count as the Python numbers they hold. Options of a
     method of one's own, and undeclared ones (``plan``), are the method's to check."""
-    from ..errors import ArgumentValueError, SettingsError
     from ..io.schema import check_method_options
 
     plain = value.item() if isinstance(value, np.generic) else value

@@ -48,9 +48,10 @@ import numpy as np
 import threadpoolctl
 
 from ..errors import KinematicsError
+from ..model.rigidity import count_modes
 from ..numerics import START_RTOL
 from .base import choose_gauge
-from .bordered import BorderedSystem, gauge_rows, permutation_parity  # noqa: F401 (re-exported)
+from .bordered import BorderedSystem, gauge_rows, permutation_parity
 from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 
@@ -161,7 +162,6 @@ class Projected(StepMethod):
         :func:`fabkit.model.independent_edges.independent_edges`), for a network with states of
         self-stress and one conformational motion."""
         from ..model.independent_edges import independent_edges
-        from ..model.rigidity import count_modes
 
         m = count_modes(work, x0)
         if m.conformational != 1:

@@ -4,9 +4,10 @@ of the cheapest adequate method (:func:`select_method`)."""
 from __future__ import annotations
 
 from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError, KinematicsError
+from ..io.workload import require
 from ..model.network import Network
-from .base import Method, check_option, make_problem
-from .constructive import Constructive, cached_plan
+from .base import check_option, make_problem, Method
+from .constructive import cached_plan, Constructive
 from .projected import Projected
 from .rk4_nullspace import RK4Nullspace
 from .trajectory import Trajectory
@@ -134,7 +135,5 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
 def _require_samples(net: Network, samples: int) -> None:
     """A sampled trace holds every sample's configuration while it computes: refused, before
     it starts, past the bounds of :func:`fabkit.io.workload.require`."""
-    from ..io.workload import require
-
     require(f"trace: samples = {samples:,} on {net.n_nodes:,} nodes",
             ("trace configuration node", samples * net.n_nodes), ("stored value", samples))

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError, TemplateError
+from ..kinematics import place
 
 __all__ = ["PortEnd", "MotionEnds", "judge_ends", "stated_ends"]
 
@@ -181,7 +182,6 @@ def judge_ends(design, trajectory) -> MotionEnds | None:
     TemplateError
         ``[motion] ends`` names a port the network does not have.
     """
-    from ..kinematics import place
     from ..tolerance.behaviour import (STATE_FRACTION, end_fixed_point, map_fixed_points,
                                        nominal_lock, template_intent)
     from ..tolerance.spec import ToleranceSpec

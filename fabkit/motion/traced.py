@@ -16,6 +16,10 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from ..errors import ArgumentValueError, FabkitError, MotionError, SingularStartError
+from ..fab.window import motion_window
+from ..io.templates import BUILDERS
+from ..kinematics import Status
+from ..model.rigidity import count_modes
 
 __all__ = ["MotionStatus", "TracedMotion", "trace_motion", "motion_for"]
 
@@ -147,8 +151,6 @@ class TracedMotion:
         FabricationError
             See :func:`fabkit.fab.window.motion_window`.
         """
-        from ..fab.window import motion_window
-
         if start is None and to is None:
             return self
         key = (None if start is None else float(start), None if to is None else float(to))
@@ -181,8 +183,6 @@ def motion_for(design, motion):
 
 
 def _builder_key(design) -> str:
-    from ..io.templates import BUILDERS
-
     return next((k for k in BUILDERS if k in design.raw), "network")
 
 
@@ -218,8 +218,6 @@ def trace_motion(design, *, judge: bool = True, **overrides) -> TracedMotion:
 
 
 def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  # noqa: C901
-    from ..kinematics import Status
-    from ..model.rigidity import count_modes
 
     path = design.path or design.name
     target = overrides.get("to", design.motion.to)

@@ -45,17 +45,20 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import BoundsError, FabkitError, UsageError
+from ..export import check_export_settings
+from ..io.outputs import OutputLock
 from ..io.schema import refuse_unused
+from ..io.templates import allow_large as large_allowed
+from ..report.html import write_index
 from ..tolerance import key_process, made_process
 from .design import export_one
-from ..io.outputs import OutputLock
 from .folders import prepare_outdir
-from .formats import MAX_SAMPLES, RESERVED, build_outputs, choose_formats, run_checks
+from .formats import build_outputs, choose_formats, MAX_SAMPLES, RESERVED, run_checks
 from .motion import traced_motion
-from .results import (CheckResult, DesignResult, FormatResult, FormatStatus, Outcome, Stage,
-                      exit_code)
-from .stages import Artefacts, Checks, DesignReport, Level, Plan, Verdict, judge_design
-from .workers import DESIGN_TIMEOUT, FAULT_ENV, SILENCE, run_pool
+from .results import (CheckResult, DesignResult, exit_code, FormatResult, FormatStatus, Outcome,
+                      Stage)
+from .stages import Artefacts, Checks, DesignReport, judge_design, Level, Plan, Verdict
+from .workers import DESIGN_TIMEOUT, FAULT_ENV, run_pool, SILENCE
 
 __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
            "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
@@ -177,15 +180,12 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     Designs with the same name would share a folder: the later ones fail instead.
     """
     from ..export import EXPORTERS
-    from ..report.html import write_index
-    from ..io.templates import allow_large as large_allowed
     from ..io.templates import load_template, resolve_template
 
     allow_large = allow_large or large_allowed()
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
         raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
                           MAX_SAMPLES, "fabkit --allow-large", option=True)
-    from ..export import check_export_settings
 
     exporters = dict(EXPORTERS if exporters is None else exporters)
     # before any design: one bad key fails them all alike

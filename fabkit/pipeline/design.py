@@ -7,14 +7,17 @@ import shutil
 import time
 from pathlib import Path
 
-from ..errors import (FabkitError, Interrupted, TemplateError, UnsafeNameError, WriteError, brief,
-                      internal_error_line)
+from ..errors import (brief, FabkitError, internal_error_line, Interrupted, TemplateError,
+                      UnsafeNameError, WriteError)
 from ..io.inputs import read_regular
 from ..io.outputs import inside
+from ..motion import trace_motion
+from ..report.html import design_html, index_card, motion_frames
+from ..report.text import design_facts, report_json, report_markdown
 from .folders import check_replaceable, recover_folder, staging_folders, swap_in
-from .formats import (RESERVED, choose_formats, make_artefacts, motion_facts, plan_design,
+from .formats import (choose_formats, make_artefacts, motion_facts, plan_design, RESERVED,
                       run_checks)
-from .manifest import (MANIFEST, MAX_KEPT_BYTES, design_digest, new_manifest, read_manifest,
+from .manifest import (design_digest, MANIFEST, MAX_KEPT_BYTES, new_manifest, read_manifest,
                        sort_earlier)
 from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
 from .stages import Artefacts, Checks, DesignReport, judge_design
@@ -93,9 +96,6 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     from ..export import EXPORTERS, write_atomic, write_outputs
-    from ..motion import trace_motion
-    from ..report.text import design_facts, report_json, report_markdown
-    from ..report.html import design_html, index_card, motion_frames
     from ..io.templates import load_template, with_settings
 
     t0, cpu0 = time.perf_counter(), time.process_time()

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..check import CHECKERS
 from ..errors import BoundsError, FabkitError, TemplateError, UnavailableError
+from ..export import skip_reason
+from ..motion import MotionStatus, trace_motion
+from ..report.text import design_facts
+from ..report.viz import figure_png, motion_figure
+from ..tolerance import made_process, stated_process, tolerance_spec
 from .motion import map_figure, motion_report
 from .results import CheckResult, FormatResult, FormatStatus, Stage
 from .stages import Artefacts, Plan
@@ -74,8 +80,6 @@ def choose_formats(design, formats, exporters) -> tuple[list, dict]:
     asked for by name that cannot be produced is :attr:`FormatStatus.REFUSED` with the reason;
     without ``formats`` those that do not apply are listed as such.
     """
-    from ..export import skip_reason
-
     asked = formats is not None
     chosen, skipped = [], {}
     for fmt in (formats if asked else list(exporters)):
@@ -103,8 +107,6 @@ def choose_formats(design, formats, exporters) -> tuple[list, dict]:
 
 
 def _tolerance_spec(design, settings, tolerance_samples, allow_large, process=None):
-    from ..tolerance import stated_process, tolerance_spec
-
     extra = {} if tolerance_samples is None else {"samples": tolerance_samples}
     if process is not None and stated_process(design, settings) is None:
         extra["process"] = process  # the process whose files are made judges them
@@ -151,7 +153,6 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
         Bad tolerance settings, too many samples.
     """
     from ..export import EXPORTERS
-    from ..tolerance import made_process
 
     exporters = dict(EXPORTERS if exporters is None else exporters)
     chosen, skipped = choose_formats(design, formats, exporters)
@@ -202,9 +203,6 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
     FabkitError
         An exporter's refusal (one line), or the motion's typed failure.
     """
-    from ..motion import MotionStatus
-    from ..report.viz import figure_png, motion_figure
-
     stage = stage or (lambda s: None)
     path = design.path or design.name
     files: dict[str, bytes] = {}
@@ -260,8 +258,6 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
 
 def motion_facts(motion, formats) -> dict | None:
     """The ``motion`` part of report.json from the Motion stage's result."""
-    from ..motion import MotionStatus
-
     if motion.status is MotionStatus.SINGULAR_START:
         return {"status": "singular start", "message": motion.error.reason,
                 "resolved_by": sorted(f for f, v in formats.items() if v.status.produced)}
@@ -302,9 +298,6 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
     FabkitError
         Bad template content, impossible motion, or an exporter's refusal (one line).
     """
-    from ..motion import trace_motion
-    from ..report.text import design_facts
-
     stage = stage or (lambda s: None)
     stage(Stage.MOTION)
     motion = trace_motion(design)
@@ -322,8 +315,6 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
 
 def _load_checker(suffix: str):
     import importlib
-
-    from ..check import CHECKERS
 
     try:
         return importlib.import_module(CHECKERS[suffix])
@@ -352,8 +343,6 @@ def run_checks(paths, design, settings, motion=None) -> list[CheckResult]:
     -------
     list of CheckResult
     """
-    from ..check import CHECKERS
-
     results, covered = [], set()
     for p in paths:
         suffix = p.suffix.lower().lstrip(".")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import re
 
 from ..errors import FabkitError
+from ..motion import MotionStatus, trace_motion
+from ..report.viz import figure_kit, set_margins
 
 
 # --- the motion ------------------------------------------------------------------------------
@@ -36,8 +38,6 @@ def traced_motion(design, *, allow_singular_start=False, **overrides):
     MotionError
         The motion is impossible, or its trace does not reach the target.
     """
-    from ..motion import MotionStatus, trace_motion
-
     motion = trace_motion(design, judge=False, **overrides)
     if motion.status is MotionStatus.NO_TARGET:
         return None
@@ -57,8 +57,6 @@ def map_figure(traj, design):
     distances d_1, d_2, ... at the start and at the end of the motion, over the identity line.
     """
     import numpy as np
-
-    from ..report.viz import set_margins, figure_kit
 
     ports = _chain_port_names(traj.network)
     if len(ports) < 2:

@@ -24,6 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from ..motion import MotionStatus
 from .results import FormatStatus, Outcome
 
 __all__ = ["Plan", "Artefacts", "Checks", "Level", "Finding", "Verdict", "DesignReport",
@@ -175,8 +176,6 @@ def judge_design(outcome, formats: dict, checks: Checks, motion, tolerance,
     -------
     Verdict
     """
-    from ..motion import MotionStatus
-
     found = []
     for line in refused:
         found.append(Finding(Level.FAIL, "format", f"cannot produce {line}"))

@@ -26,7 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .text import MADE_FOR
+from ..errors import FabkitError
+from ..export import write_atomic
+from .text import jsonable, MADE_FOR
 
 __all__ = ["design_html", "index_html", "index_card", "write_index", "motion_frames",
            "keep_chart_svg", "describe_file", "not_exported", "image_size", "PROCESSES",
@@ -195,8 +197,6 @@ def _edge_colours(design, formats: dict) -> tuple[list, list]:
 
 def _faces(design) -> tuple[list, str]:
     """Filled polygons of the drawing: the rigid plates of a print, the panels of a sheet."""
-    from ..errors import FabkitError
-
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     try:
         if "origami" in fab:
@@ -473,8 +473,6 @@ def keep_chart_svg(tol: dict) -> str:
 
 
 def _tolerance_section(report, files: dict) -> str:
-    from .text import jsonable
-
     if report.tolerance is None:
         return ""
     tol = jsonable(report.tolerance.as_dict())
@@ -1062,8 +1060,6 @@ def write_index(outdir, cards) -> Path:
     -------
     pathlib.Path
     """
-    from ..export import write_atomic
-
     outdir = Path(outdir)
     cards = list(cards)
     mine = {c.folder for c in cards}

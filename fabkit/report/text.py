@@ -18,6 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.rigidity import count_modes
+from ..motion import MotionStatus
+
 __all__ = ["jsonable", "report_json", "report_markdown", "tolerance_markdown", "file_digest",
            "design_facts", "MADE_FOR"]
 
@@ -71,8 +74,6 @@ def file_digest(data: bytes) -> str:
 
 def design_facts(design) -> dict:
     """Name, description, template file name and digest, sizes and mode count of a design."""
-    from ..model.rigidity import count_modes
-
     net = design.network
     modes = count_modes(net)
     facts = {
@@ -237,8 +238,6 @@ def report_markdown(report) -> bytes:
 
 
 def _motion_markdown(report) -> list[str]:
-    from ..motion import MotionStatus
-
     motion = report.motion
     if motion is None or motion.status is MotionStatus.NO_TARGET:
         return []

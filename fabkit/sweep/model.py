@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from .. import __version__
 from ..errors import FabkitError
 from ..io.workload import MAX_SWEEP_SECONDS, require
 
@@ -313,8 +314,6 @@ class SweepSpec:
 
     def fingerprint(self) -> str:
         """Hash of what decides the numbers (not of the template's path)."""
-        from .. import __version__
-
         body = self.as_dict()
         body.pop("template")
         body["fabkit"] = __version__

@@ -9,21 +9,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..errors import FabkitError, KinematicsError, TemplateError
-from ..kinematics import make_problem, place
+from ..io.workload import require
+from ..kinematics import make_problem, place, trace
 from ..kinematics.trajectory import EventKind
 from ..numerics import EDGE_RTOL, project_to_lengths
 from .behaviour import infer_behaviour
-from .criteria import Judged, judge_modules, judge_ports, judge_shape, profile_order
-from .horizon import MIN_MAP_STEPS, NEUTRAL_LYAPUNOV, lyapunov_estimate
-from ..io.workload import require
-from .margin import (CURVE_SCALES, SCALE_BISECTIONS, critical_scales, keep_curve, margin_of,
-                     margin_text)
+from .criteria import judge_modules, judge_ports, judge_shape, Judged, profile_order
+from .horizon import lyapunov_estimate, MIN_MAP_STEPS, NEUTRAL_LYAPUNOV
+from .margin import (critical_scales, CURVE_SCALES, keep_curve, margin_of, margin_text,
+                     SCALE_BISECTIONS)
 from .modules import ModuleMaps
-from .placement import (BUILD_RTOL, PROJECTED_SAMPLES_CAP, Driver, chain_ports, find_plan,
-                        process_geometry, to_drive_frame)
-from .processes import SOURCES, sample_builds
+from .placement import (BUILD_RTOL, chain_ports, Driver, find_plan, process_geometry,
+                        PROJECTED_SAMPLES_CAP, to_drive_frame)
+from .processes import sample_builds, SOURCES
 from .result import ToleranceResult
-from .spec import ToleranceSpec, tolerance_spec
+from .spec import tolerance_spec, ToleranceSpec
 
 __all__ = ["analyse_tolerance"]
 
@@ -121,8 +121,6 @@ class _Projected:
         self.pairs, self.limit_mm = pairs, limit_mm
 
     def __call__(self, gains, rows, sources=None, observe=False) -> _Run:
-        from ..kinematics import trace  # looked up at call time: tests count the traces
-
         g = np.ones(self.spec.samples)
         g[rows] = gains
         net, m = self.design.network, self.design.motion

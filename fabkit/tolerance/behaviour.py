@@ -37,6 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConstructionError, DesignError, KinematicsError, TemplateError
+from ..kinematics import place
+from ..maps import module_map
+from .modules import chain_modules
 
 __all__ = ["Behaviour", "Crystal", "infer_behaviour", "map_fixed_points", "end_fixed_point",
            "nominal_lock", "template_intent", "INTENTS", "STATE_FRACTION"]
@@ -207,8 +210,6 @@ def _ports(x, pairs) -> np.ndarray:
 
 def nominal_lock(plan, to: float, start: float, reach: float) -> float | None:
     """Where the nominal motion, continued past the target, locks, if within ``reach`` of it."""
-    from ..kinematics import place
-
     sgn = 1.0 if to >= start else -1.0
     values = to + sgn * reach * np.linspace(0.0, 1.0, 65)
     _, margin, _ = place(plan, values)
@@ -262,8 +263,6 @@ def end_fixed_point(fixed, end_ports, limit: float):
 
 def _order(plan, chain_pairs, start, end, d_start, d_end) -> tuple[int, float]:
     """Direction of the nominal front (+1, -1, 0) and the largest span of the profile."""
-    from ..kinematics import place
-
     q = np.concatenate([np.linspace(start, end, ORDER_SAMPLES),
                         end + (start - end) * 0.5 ** np.arange(1, ORDER_GEOMETRIC + 1)])
     x, margin, _ = place(plan, q)
@@ -324,10 +323,6 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
     TemplateError
         An unknown ``[motion] intent``.
     """
-    from ..kinematics import place
-    from ..maps import module_map
-    from .modules import chain_modules
-
     intent = template_intent(design)
     scale = spec.scale
     limit = limit_mm / scale

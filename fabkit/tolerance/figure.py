@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report.viz import plain_log_ticks, set_margins
+from ..report.viz import figure_kit, plain_log_ticks, set_margins
 from .result import ToleranceResult
 
 __all__ = ["tolerance_figure", "keep_chart"]
@@ -53,8 +53,6 @@ def keep_chart(result: ToleranceResult, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from ..report.viz import figure_kit
-
     fig, ax = figure_kit.subplots(figsize=(6.4, 4.2))
     _chart(ax, result)
     if title:
@@ -71,8 +69,6 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from ..report.viz import figure_kit
-
     import textwrap
 
     head = textwrap.wrap(f"{title + ': ' if title else ''}{result.verdict}", TITLE_CHARS)

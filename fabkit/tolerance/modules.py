@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConstructionError, FabkitError
+from ..kinematics import place, plan_construction
 from ..model.network import Network
-from .processes import (PROFILE_SAMPLES, BuildLengths, ProcessGeometry, interp_rows,
-                        state_profile)
+from .processes import BuildLengths, interp_rows, ProcessGeometry, PROFILE_SAMPLES, state_profile
 
 __all__ = ["Module", "chain_modules", "ModuleMaps"]
 
@@ -107,8 +107,6 @@ def chain_modules(design, references) -> list[Module] | None:
         None when the design records no modules, a module does not hold its ports d_k and
         d_{k+1}, or a module has no construction order from d_k.
     """
-    from ..kinematics import plan_construction
-
     net = design.network
     sets = _node_sets(design)
     if not sets:
@@ -179,8 +177,6 @@ class ModuleMaps:
 
     def _table(self, module: Module, domain) -> tuple[np.ndarray, np.ndarray]:
         """:func:`state_profile` of the module's bars along its nominal branch, tabulated."""
-        from ..kinematics import place
-
         inset = PROFILE_END_INSET * (domain[1] - domain[0])
         grid = np.linspace(domain[0] + inset, domain[1] - inset, PROFILE_SAMPLES)
         x, margin, _ = place(module.plan, grid)
@@ -222,8 +218,6 @@ class ModuleMaps:
         margin : numpy.ndarray, shape (M, n, Q)
             Smallest intersection margin (negative: no configuration).
         """
-        from ..kinematics import place
-
         m, n = builds.base.shape[0], len(self.modules)
         v = np.asarray(values, dtype=np.float64)
         q = v.shape[-1]

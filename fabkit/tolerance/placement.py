@@ -8,10 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConstructionError, FabricationError
+from ..fab.creases import origami_model
 from ..kinematics import place, plan_construction
 from ..kinematics.constructive import cached_plan
 from ..numerics import EDGE_RTOL
-from .processes import PROFILE_SAMPLES, ProcessGeometry, Sheet, interp_rows, state_profile
+from .processes import interp_rows, ProcessGeometry, PROFILE_SAMPLES, Sheet, state_profile
 
 #: Builds whose lengths must be realised and traced one by one (no construction order) are
 #: slow; their number is capped at this.
@@ -146,8 +147,6 @@ def process_geometry(design, spec, problem, final) -> ProcessGeometry:
 
 def _sheets(design):
     """The sheets of an origami design, each with its flat pattern (None without one)."""
-    from ..fab.creases import origami_model
-
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
         return None

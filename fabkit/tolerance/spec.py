@@ -6,11 +6,14 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from ..errors import SettingsError, TemplateError
+from ..errors import FabricationError, SettingsError, TemplateError, UsageError
+from ..fab.creases import origami_model
+from ..fab.laser import laser_settings
+from ..fab.printing import design_print_settings
+from ..io.schema import check_table, refuse_unused, ToleranceSection
 from ..numerics import TINY
-from ..io.schema import ToleranceSection, check_table
 from .behaviour import STATE_FRACTION
-from .processes import PROCESSES, SOURCES, ProcessGeometry, sample_lengths
+from .processes import PROCESSES, ProcessGeometry, sample_lengths, SOURCES
 
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
 #: typical figures quoted by filament makers for parts that the slicer does not compensate.
@@ -119,9 +122,6 @@ def refuse_foreign(settings, process: str, name: str) -> None:
     ------
     UsageError
     """
-    from ..errors import UsageError
-    from ..io.schema import refuse_unused
-
     tol = (settings or {}).get("tolerance")
     if isinstance(tol, dict) and tol.get("process") in PROCESSES:
         process = tol["process"]
@@ -200,9 +200,6 @@ def made_process(design, formats, settings=None) -> str:
 
 def _laser_defaults(design, settings) -> dict:
     """Scale, thickness and hole clearance from the laser settings."""
-    from ..errors import FabricationError
-    from ..fab.laser import laser_settings
-
     laser = design.fabrication.get("laser") if isinstance(design.fabrication, dict) else None
     try:
         s = laser_settings(laser if isinstance(laser, dict) else {},
@@ -219,9 +216,6 @@ def _laser_defaults(design, settings) -> dict:
 
 def _print_defaults(design, settings) -> dict:
     """Scale, hinge length and the material's shrinkage from the print settings."""
-    from ..errors import FabricationError
-    from ..fab.printing import design_print_settings
-
     try:
         s = design_print_settings(design, settings)
     except FabricationError as exc:
@@ -233,9 +227,6 @@ def _print_defaults(design, settings) -> dict:
 
 def _origami_defaults(design, settings) -> dict:
     """Scale from the sheet size of the [fabrication.origami] table (150 mm when absent)."""
-    from ..errors import FabricationError
-    from ..fab.creases import origami_model
-
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
         return {"scale": 150.0 / max(float(design.network.size), TINY)}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import FabricationError
+from ...kinematics import place, plan_construction
 from ...model.network import Network
 from ...numerics import rigid_fit
 
@@ -61,8 +62,6 @@ def sheet_chain(sheet: Network, copies: int, at: float, *, reference=None) -> tu
     FabricationError
         ``at`` is not a fixed point of the sheet's map, or the sheets do not fit.
     """
-    from ...kinematics import place, plan_construction
-
     ref = sheet.nodes if reference is None else np.asarray(reference, dtype=np.float64)
     plan = plan_construction(sheet, sheet.port("d1"), ref)
     x, margin, _ = place(plan, [at])

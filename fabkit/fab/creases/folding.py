@@ -7,19 +7,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import FabricationError, PatternError, SettingsError
+from ...errors import FabricationError, KinematicsError, PatternError, SettingsError
 from ...io.schema import check_section
 from ...io.workload import require
+from ...kinematics import place, plan_construction
+from ...kinematics.base import align_to_gauge
+from ...kinematics.branching import analyze_bifurcation, fold_through
 from ...model.network import Network
-from .pattern import (
-    ASSIGNMENTS,
-    CreasePattern,
-    assignment_score,
-    fold_angles,
-    network_from_pattern,
-    planar_faces,
-)
-from ...numerics import FLAT_SHEET_RTOL, TINY, canonical_frame
+from ...numerics import canonical_frame, FLAT_SHEET_RTOL, TINY
+from .pattern import (assignment_score, ASSIGNMENTS, CreasePattern, fold_angles,
+                      network_from_pattern, planar_faces)
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
 
@@ -341,11 +338,6 @@ def fold_model(model: OrigamiModel, drive: str, to: float, samples=None) -> Fold
     FabricationError
         No target, or the motion cannot be traced (with the simulator's reason).
     """
-    from ...errors import KinematicsError
-    from ...kinematics import place, plan_construction
-    from ...kinematics.base import align_to_gauge
-    from ...kinematics.branching import analyze_bifurcation, fold_through
-
     s = model.settings
     if to is None:
         raise FabricationError(f"{model.name}: motion.to (how far to fold) is not given")
@@ -416,8 +408,6 @@ def _relay(model, pos, relay: str, to: float, samples: int):
     way, the remaining frames are placed from the relay port instead, where the map contracts
     the other way and the end of the motion is resolved to round-off.
     """
-    from ...kinematics import place, plan_construction
-
     net = model.network
     if relay not in net.ports:
         raise _err(model.name, "relay", f"unknown port {relay!r}")

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...numerics import MM_SLACK
+from ...report.viz import figure_kit
+from ..bars import stadium_polygon
 
 __all__ = ["Labeller", "draw_bars", "label_joints", "label_bars", "layer_colour",
            "split_evenly", "extent", "best_rows", "row_axes", "page_brackets"]
@@ -22,8 +24,6 @@ _JOINT_OFFSETS = ((0, 1), (1, 1), (-1, 1), (1, 0), (-1, 0), (0, -1), (1, -1), (-
 
 def layer_colour(layer: int):
     """The colour of a stacking layer (matplotlib's tab10, repeating)."""
-    from ...report.viz import figure_kit
-
     return figure_kit.get_cmap("tab10")(int(layer) % 10)
 
 
@@ -138,8 +138,6 @@ def draw_bars(ax, x, edges, bars, layers, radius, *, ghost=False, alpha=0.45, lw
     ``ghost`` bars (of another page) are drawn paler with dashed outlines.
     """
     from matplotlib.collections import PolyCollection
-
-    from ..bars import stadium_polygon
 
     bars = np.asarray(bars, dtype=np.int64)
     if bars.size == 0:

@@ -27,10 +27,11 @@ import textwrap
 
 import numpy as np
 
-from .draw import (Labeller, best_rows, draw_bars, extent, label_bars, label_joints,
-                   layer_colour, page_brackets, row_axes)
-from .flow import MIN_PT, STYLES, column_lines
-from .plan import ROOM_PT, GuidePlan, bar_name, frame_caption, modules_text
+from ...report.viz import checked_png, clipped_texts, figure_kit
+from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
+                   page_brackets, row_axes)
+from .flow import column_lines, MIN_PT, STYLES
+from .plan import bar_name, frame_caption, GuidePlan, modules_text, ROOM_PT
 
 __all__ = ["A4", "render_pages", "BOTTOM_IN"]
 
@@ -327,8 +328,6 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.text import Text
-
-    from ...report.viz import checked_png, clipped_texts, figure_kit
 
     s = plan.settings
     edges = np.asarray(plan.bars.edges)

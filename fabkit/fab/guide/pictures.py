@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .draw import (Labeller, best_rows, draw_bars, extent, label_bars, label_joints,
-                   layer_colour, page_brackets, row_axes)
-from .plan import GuidePlan, bar_name, frame_caption
+from ...report.viz import checked_png, figure_kit
+from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
+                   page_brackets, row_axes)
+from .plan import bar_name, frame_caption, GuidePlan
 
 __all__ = ["assembly_picture", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
 
@@ -47,8 +48,6 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
     """
-    from ...report.viz import checked_png, figure_kit
-
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     x = plan.design.network.nodes * s.scale
@@ -112,8 +111,6 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     stats : dict
         ``columns``, ``px_per_mm``, ``clipped`` (texts that do not fit in the picture).
     """
-    from ...report.viz import checked_png, figure_kit
-
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
     r = 0.5 * s.bar_width

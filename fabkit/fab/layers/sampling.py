@@ -8,9 +8,10 @@ import numpy as np
 
 from ...design.assemble import chain
 from ...errors import FabricationError
+from ...kinematics import trace
 from ...kinematics.base import align_to_gauge, make_problem
 from ...kinematics.constructive import place, plan_construction
-from .conflicts import Conflicts, closer_than, find_conflicts
+from .conflicts import closer_than, Conflicts, find_conflicts
 from .constants import MAX_SAMPLES, STEP_RTOL
 from .distances import bar_distance_kernel, min_over_samples, node_steps, point_segment_distance
 
@@ -88,8 +89,6 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
     FabricationError
         No motion target, or the bound cannot be met within 200 000 samples.
     """
-    from ...kinematics import trace  # looked up at call time: tests count the traces
-
     if motion.to is None:
         raise FabricationError("the template gives no [motion] target (motion.to): the stacking "
                                "layers are planned over the motion, so it must be known")
@@ -236,8 +235,6 @@ def sample_chain(net, motion, scale: float, step_limit: float, *, width: float,
         ``conflicts`` set and ``positions`` the chain's trace in mm; None when the network is
         not such a chain (then use :func:`sample_motion`).
     """
-    from ...kinematics import trace  # looked up at call time: tests count the traces
-
     layout = net.assembly
     if (layout is None or net.dim != 2 or motion.drive != "d1" or motion.hold
             or motion.to is None):
