@@ -22,6 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..design.assemble import chain
+from ..kinematics import trace
+from ..kinematics.rk4_nullspace import conformational_velocity
 from ..report.viz import figure_kit
 from . import ModuleMap, paper_module, single_thread_blas
 
@@ -163,8 +166,6 @@ def chain_problem(k: int, module: str = "super_stable", target: float | None = N
         through about 20 modules (the distance to D2* grows by the slope ≈ 4 per module): the
         whole soliton.
     """
-    from ..design.assemble import chain
-
     mod = paper_module(module)
     if target is None:
         if module != "super_stable":
@@ -289,8 +290,6 @@ def run_budgeted(fn, evaluate, budget: float, repeats: int = 3, grace: float = 3
 
 # -- one point of the chart ---------------------------------------------------------------------
 def _trace_fn(problem: ChainProblem, setting: Setting):
-    from ..kinematics import trace
-
     if setting.method == "map":
         samples = int(setting.options.get("samples", 101))
         values = np.linspace(problem.start, problem.target, samples)
@@ -532,8 +531,6 @@ def rk4_estimate(k: int, step: float, evaluations: int, *, module: str = "super_
         ``modules``, ``nodes``, ``step``, ``evaluations``, ``evaluation_s`` (median),
         ``estimated_time_s``.
     """
-    from ..kinematics.rk4_nullspace import conformational_velocity
-
     problem = chain_problem(k, module)
     net = problem.network
     x = net.nodes.ravel()
@@ -623,8 +620,6 @@ def profile_method(k: int, method: str = "projected", top: int = 25, **options) 
     import cProfile
     import io
     import pstats
-
-    from ..kinematics import trace
 
     problem = chain_problem(k)
     prof = cProfile.Profile()

@@ -31,6 +31,7 @@ import sys
 
 from ..errors import FabkitError
 from ..executor import die_with_parent
+from ..io.workload import describe_bytes, estimate as combine
 
 __all__ = ["run_stoppable", "keep_to", "TIME_FACTOR", "MIN_SECONDS", "MEMORY_FACTOR",
            "MIN_BYTES", "StepLimitError"]
@@ -91,7 +92,6 @@ def keep_to(estimate) -> None:
     """
     if _to_parent is None or os.environ.get("FABKIT_ALLOW_LARGE", "") == "1":
         return
-    from ..io.workload import estimate as combine
 
     if not _held["parts"]:
         used = resource.getrusage(resource.RUSAGE_SELF)
@@ -291,7 +291,5 @@ def _child_main(conn, parent_pid, func, args, kwargs) -> None:
 
 
 def _describe_limit() -> str:
-    from ..io.workload import describe_bytes
-
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     return describe_bytes(soft) if soft != resource.RLIM_INFINITY else "the machine's memory"

@@ -31,13 +31,16 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from ..errors import FabkitError
+from ..errors import BoundsError, FabkitError, InputFileError
 from ..executor import Ending, LocalExecutor, Task
+from ..io.inputs import read_regular
+from ..io.outputs import inside, output_folder, write_files
+from ..io.templates import MAX_FILE_BYTES, resolve_template
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
-from .model import (CHUNKS_FOLDER, MEASURES, SPEC_FILE, Axis, Protocol, Status, SweepError,
-                    SweepSpec, json_default, key_path, lookup_number, parse_vary, path_text,
-                    require_points)
-from .point import evaluate_point
+from .model import (Axis, CHUNKS_FOLDER, json_default, key_path, lookup_number, MEASURES,
+                    parse_vary, path_text, Protocol, require_points, SPEC_FILE, Status, SweepError,
+                    SweepSpec)
+from .point import evaluate_point, failed_record
 from .results import SweepResult
 
 
@@ -189,9 +192,6 @@ def read_sweep_file(path) -> SweepFile | None:
         import tomllib
     else:  # pragma: no cover - Python 3.10
         import tomli as tomllib
-    from ..errors import BoundsError, InputFileError
-    from ..io.inputs import read_regular
-    from ..io.templates import MAX_FILE_BYTES
 
     path = Path(path)
     try:  # a FIFO or a device given as the template is refused here, never waited on
@@ -231,7 +231,6 @@ def read_sweep_file(path) -> SweepFile | None:
     if bad:
         raise SweepError(f"{where}.protocol.{bad[0]}: unknown key; allowed: "
                          f"{', '.join(sorted(fields))}")
-    from ..io.templates import resolve_template
 
     return SweepFile(path=path, template=resolve_template(tpl, base=path.parent),
                      axes=tuple(parse_vary(v) for v in vary),
@@ -240,9 +239,6 @@ def read_sweep_file(path) -> SweepFile | None:
 
 
 def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    from ..io.inputs import read_regular
-    from ..io.outputs import inside, output_folder
-
     output_folder(outdir)
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
     marker = inside(outdir, CHUNKS_FOLDER, SPEC_FILE, replace_last=True)
@@ -464,8 +460,6 @@ def _how(exitcode) -> str:
 def _stopped_chunk(payload: dict, chunk, reason: str) -> dict:
     """The records of a chunk whose worker stopped answering or died: every point failed, with
     the reason."""
-    from .point import failed_record
-
     spec = SweepSpec(template=payload["template"], raw=payload["raw"],
                      axes=tuple(Axis(a["key"], tuple(a["values"])) for a in payload["axes"]),
                      measures=tuple(payload["measures"]))
@@ -497,8 +491,6 @@ def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
 
 
 def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
-    from ..io.outputs import write_files
-
     out = result.outdir
     files = {"sweep.csv": result.table_csv()}
     if plots:
