@@ -14,6 +14,7 @@ import pytest
 from fabkit.cli import main
 from fabkit.errors import TemplateError
 from fabkit.io.templates import load_template, parse_template
+from fabkit.tolerance.processes import ProcessGeometry, sample_builds
 from fabkit.tolerance import (
     ToleranceSpec,
     analyse_tolerance,
@@ -48,28 +49,24 @@ def test_length_error_alone_has_the_given_sigma():
     assert abs(err_mm.mean()) < 0.002
 
 
-def test_joint_play_spreads_as_the_difference_of_two_points_in_discs():
-    # barrel uniform in a disc of radius R = c/2 at each end: var of one axial offset is R^2/4,
-    # of the bar's change 2 R^2 / 4, so std = c / (2 sqrt 2); a thick sheet makes tilt negligible
+def test_joint_play_is_room_not_a_length_error():
+    """A barrel sits where the assembly pushes it: hole play adds no length error, it gives each
+    bar the sum of its two holes' radial clearances as room (c/2 + c/2 = c), widened or
+    tightened by uneven kerf (σ of the room: kerf σ / √2, never below zero)."""
     c = 0.2
     spec = ToleranceSpec(scale=50.0, samples=20000, length_sigma=0.0, kerf_sigma=0.0,
-                         hole_clearance=c, thickness=1e6, thickness_sigma=0.0)
-    built, _ = perturbed_lengths([2.0], spec, np.random.default_rng(2))
-    err_mm = (built[:, 0] - 2.0) * spec.scale
-    assert err_mm.std() == pytest.approx(c / (2 * math.sqrt(2)), rel=0.03)
-    assert np.abs(err_mm).max() <= c + 1e-12
-
-
-def test_tilt_in_the_holes_shortens_bars_on_average():
-    # θ uniform in [0, atan(c/t)]: mean shortening L (1 - sin θm / θm); the play averages out
-    c, t, length_mm = 0.2, 3.0, 100.0
-    spec = ToleranceSpec(scale=50.0, samples=40000, length_sigma=0.0, kerf_sigma=0.0,
-                         hole_clearance=c, thickness=t, thickness_sigma=0.0)
-    built, thick = perturbed_lengths([length_mm / 50.0], spec, np.random.default_rng(3))
-    theta = math.atan(c / t)
-    expected = -length_mm * (1 - math.sin(theta) / theta)
-    assert (built[:, 0] * 50.0 - length_mm).mean() == pytest.approx(expected, rel=0.03)
-    assert np.all(thick == t)
+                         hole_clearance=c, thickness_sigma=0.3)
+    geo = ProcessGeometry(np.zeros((2, 2)), np.array([[0, 1]]), np.array([2.0]))
+    builds = sample_builds(geo, spec, np.random.default_rng(2))
+    assert np.all(builds.base == 2.0)  # neither the play nor the sheet's thickness moves a pin
+    assert np.allclose(builds.room * spec.scale, c)
+    kerf = sample_builds(geo, replace(spec, kerf_sigma=0.03), np.random.default_rng(2))
+    room_mm = kerf.room[:, 0] * spec.scale
+    assert room_mm.mean() == pytest.approx(c, abs=0.002)
+    assert room_mm.std() == pytest.approx(0.03 / math.sqrt(2), rel=0.03)
+    tight = sample_builds(geo, replace(spec, hole_clearance=0.0, kerf_sigma=0.03),
+                          np.random.default_rng(2))
+    assert tight.room.min() >= 0.0 and (tight.room == 0).mean() > 0.2
 
 
 # --- exact builds -----------------------------------------------------------------------------

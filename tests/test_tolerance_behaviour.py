@@ -111,7 +111,11 @@ def test_the_chaotic_chain_stays_flagged():
     assert b.end == "ports" and b.chaos["lyapunov"] == pytest.approx(0.312, abs=0.02)
     assert res.flagged and res.margin["value"] < 1.0
     hz = res.horizon
-    assert hz["limit_modules"] < 12  # past the horizon before the far end
+    # the bars' 0.05 mm length errors alone (the play is a freedom, not an error) outgrow the
+    # limit after ln(limit / error) / λ modules: about the chain's length
+    assert hz["limit_modules"] == pytest.approx(
+        np.log(res.limits[0] / hz["error_mm"]) / b.chaos["lyapunov"], rel=1e-9)
+    assert hz["limit_modules"] < 16
     p95 = np.asarray(res.judged["end ports"].detail["p95_by_port_mm"])
     assert p95[res.ports.index("d13")] > 10 * res.limits[0]
     # among the builds that get to the target, errors grow along the chain past the limit
@@ -193,13 +197,14 @@ def test_every_source_has_its_own_curve_and_margin():
     d = load_template(TEMPLATES / "super_stable_chain8.toml")
     res = analyse_tolerance(d, tolerance_spec(d, samples=40))
     curves = res.margin["curves"]
-    assert set(curves) == {"scales", "all", "bar length", "kerf", "hole play", "sheet thickness"}
+    # the laser's error sources; its hole play is a freedom of the assembly, not an error
+    assert set(curves) == {"scales", "all", "bar length", "kerf"}
     assert curves["scales"][0] == pytest.approx(0.1) and curves["scales"][-1] == pytest.approx(10)
-    for name in ("all", "bar length", "kerf", "hole play", "sheet thickness"):
+    for name in ("all", "bar length", "kerf"):
         y = np.asarray(curves[name])
         assert np.all(np.diff(y) <= 0) and 0.0 <= y.min() <= y.max() <= 1.0
     svg = keep_chart_svg(res.as_dict())
-    assert svg.count("<polyline") == 5 and svg.startswith("<svg")
+    assert svg.count("<polyline") == 3 and svg.startswith("<svg")
 
 
 # --- the pieces -----------------------------------------------------------------------------

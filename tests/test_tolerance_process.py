@@ -148,7 +148,8 @@ def test_verdicts_name_the_source_that_stops_the_design():
     alone = res.margin["sources"]
     assert res.flagged and res.margin["value"] < 1
     assert alone["bar length"]["value"] < 1
-    assert all(alone[n]["value"] >= 1 for n in ("kerf", "hole play", "sheet thickness"))
+    assert set(alone) == {"bar length", "kerf"}  # hole play is a freedom, not an error
+    assert alone["kerf"]["value"] >= 1
     # each source's curve falls where its margin says (fraction of builds kept at scale 1)
     curves = res.margin["curves"]
     one = curves["scales"].index(1.0) if 1.0 in curves["scales"] else \

@@ -60,6 +60,10 @@ def describe(result) -> str:
     b = d.get("behaviour") or {}
     lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
              f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS"]
+    if d.get("assembly"):
+        lines.append(f"  assembly      {d['assembly']['sentence']}")
+    if d.get("slop"):
+        lines.append(f"  slop          {d['slop']['sentence']}")
     if b:
         how = "stated in the template" if b["intent"] != "auto" else "inferred"
         lines.append(f"  behaviour     {', '.join(b['criteria'])} ({how}; the end: "

@@ -238,6 +238,7 @@ class ToleranceSection(Section):
     hole_clearance: Optional[float] = _mm("hole play (laser)", ge=0)
     thickness: Optional[float] = _mm("sheet thickness (laser)", gt=0)
     thickness_sigma: Optional[float] = _mm("sheet thickness error (laser)", ge=0)
+    bar_width: Optional[float] = _mm("bar width (laser): the bars' section", gt=0)
     xy_sigma: Optional[float] = _mm("xy accuracy (print)", ge=0)
     shrinkage: Optional[float] = Field(None, ge=0, le=1, description="shrinkage (print)")
     shrinkage_sigma: Optional[float] = _mm("shrinkage spread (print)", ge=0)
@@ -280,6 +281,7 @@ class _ProjectedOptions(Section):
     contraction: Optional[float] = Field(None, gt=0, lt=1)
     max_angle: Optional[float] = Field(None, gt=0, le=90)
     detect_branch_points: Optional[bool] = None
+    redundant_rtol: Optional[float] = Field(None, gt=0, lt=1)
 
 
 class _ConstructiveOptions(Section):

@@ -108,6 +108,11 @@ class Projected(StepMethod):
         Largest turn of the tangent in one step, degrees (default 30).
     detect_branch_points : bool
         Watch the sign of det [J; tᵀ] (default True).
+    redundant_rtol : float
+        How far (relative) a bar left out of the square system as redundant at the start (a
+        state of self-stress) may stray from its length before the trace stops there (default
+        1e-9: a rigid bar). A build with joint play traces with its play here (its loops close
+        within the play as they change along the motion).
     """
 
     name = "projected"
@@ -122,6 +127,7 @@ class Projected(StepMethod):
         "contraction": 0.4,
         "max_angle": 30.0,
         "detect_branch_points": True,
+        "redundant_rtol": 1e-9,
     }
 
     def solve(self):
@@ -561,10 +567,12 @@ class Projected(StepMethod):
                 f"by {err:.1e} (relative) beyond {p.drive_name} = {self._drive(x_last):.10g}: the "
                 "self-stress does not persist there, so the network cannot follow this drive")
 
-    def _broken_dropped(self, xf, limit: float = 1e-9):
-        """(index, relative error) of the worst dropped edge beyond ``limit``, else None."""
+    def _broken_dropped(self, xf, limit: float | None = None):
+        """(index, relative error) of the worst dropped edge beyond ``limit`` (the
+        ``redundant_rtol`` option), else None."""
         if self.dropped.size == 0:
             return None
+        limit = self.opts["redundant_rtol"] if limit is None else limit
         x = xf.reshape(self.n, self.d)
         diff = x[self.dropped_edges[:, 0]] - x[self.dropped_edges[:, 1]]
         rel = np.abs(np.sqrt(np.einsum("ij,ij->i", diff, diff) / self.dropped_rest2) - 1.0)

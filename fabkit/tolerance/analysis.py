@@ -11,8 +11,10 @@ import numpy as np
 from ..errors import FabkitError, KinematicsError, TemplateError
 from ..io.workload import require
 from ..kinematics import make_problem, place, trace
-from ..kinematics.trajectory import EventKind
+from ..kinematics.trajectory import EventKind, Status
 from ..numerics import EDGE_RTOL, project_to_lengths
+from ..builds.closure import play_ratio, self_stress_basis
+from .assembled import Assemblies, assemble_builds, MODEL_NAMES, slop_summary
 from .behaviour import infer_behaviour
 from .criteria import judge_modules, judge_ports, judge_shape, Judged, profile_order
 from .horizon import lyapunov_estimate, MIN_MAP_STEPS, NEUTRAL_LYAPUNOV
@@ -47,11 +49,13 @@ OBSERVE_GEOMETRIC = 30
 
 @dataclass
 class _Run:
-    """One Monte Carlo run: which builds keep the behaviour, judged how."""
+    """One Monte Carlo run: which builds keep the behaviour, judged how, and how they went
+    together (None where the network has no state of self-stress or the process no play)."""
 
     keep: np.ndarray
     judged: dict
     driven: object = None
+    assembly: Assemblies | None = None
 
 
 class _Constructive:
@@ -124,28 +128,70 @@ class _Projected:
         g = np.ones(self.spec.samples)
         g[rows] = gains
         net, m = self.design.network, self.design.motion
-        built = sample_builds(self.geo, self.spec, np.random.default_rng(self.spec.seed), sources,
-                              gain=g).select(rows).base
+        builds = sample_builds(self.geo, self.spec, np.random.default_rng(self.spec.seed),
+                               sources, gain=g).select(rows)
+        assembly = None
+        if builds.room is not None:
+            # a kit of parts: each build put together with its play, forced where it must be
+            assembly = assemble_builds(net, builds, self.spec, net.nodes)
+            starts = [assembly.positions[s] if assembly.buildable[s] else None
+                      for s in range(len(rows))]
+        else:
+            starts = []
+            for s in range(len(rows)):
+                proj = project_to_lengths(net.edges, builds.base[s], net.nodes, rtol=BUILD_RTOL,
+                                          max_iter=30)
+                starts.append(proj.positions if proj.converged else None)
         dist = np.full((len(rows), self.pairs.shape[0]), np.nan)
-        for s in range(len(rows)):
-            proj = project_to_lengths(net.edges, built[s], net.nodes, rtol=BUILD_RTOL,
-                                      max_iter=30)
-            if not proj.converged:
+        jammed, why = 0, ""
+        for s, x in enumerate(starts):
+            if x is None:
                 continue
+            # the build moves with the lengths it was put together with; where it has play,
+            # the bars its loops make redundant may stray within it as the loops change along
+            # the motion (checked again, first order over every bar's play, where it ends)
+            opts = {} if builds.room is None else {"redundant_rtol": self._slack(builds, s)}
             try:
-                tr = trace(net.with_nodes(proj.positions), drive=m.drive, to=m.to,
-                           method="projected", hold=m.hold)
+                tr = trace(net.with_nodes(x), drive=m.drive, to=m.to, method="projected",
+                           hold=m.hold, **opts)
             except (KinematicsError, FabkitError):
                 continue
-            if tr.success:
+            stopped = tr.status is Status.FAILED
+            if builds.room is not None and (stopped
+                                            or not self._still_closes(net, tr.final, builds, s)):
+                jammed += 1
+                why = why or tr.message
+                continue
+            # a build that locks short of the target (its own turning point: a built module's
+            # crystal a little off the designed one) is judged where it locks, as a maker
+            # pushing the drive until it stops would find it
+            locked = bool(tr.events) and tr.events[-1].kind is EventKind.TURNING_POINT
+            if tr.success or locked:
                 dist[s] = np.linalg.norm(tr.final[self.pairs[:, 0]] - tr.final[self.pairs[:, 1]],
                                          axis=-1)
         err = np.abs(dist - self.behaviour.end_ports[None]) * self.spec.scale
         worst = np.nan_to_num(err, nan=np.inf).max(axis=1)
-        j = Judged("end ports", worst <= self.limit_mm, worst, self.limit_mm,
-                   {"assembled": int(np.isfinite(dist).all(axis=1).sum())})
+        detail = {"assembled": int(sum(x is not None for x in starts)),
+                  "moved": int(np.isfinite(dist).all(axis=1).sum()),
+                  "jammed": jammed, "jam_reason": why}
+        j = Judged("end ports", worst <= self.limit_mm, worst, self.limit_mm, detail,
+                   per_part=err)
         driven = _Traced(dist)
-        return _Run(j.ok, {"end ports": j}, driven)
+        return _Run(j.ok, {"end ports": j}, driven, assembly)
+
+
+    @staticmethod
+    def _slack(builds, s) -> float:
+        """How far (relative) a redundant bar of build ``s`` may stray: its tightest bar's room
+        over its length, below 1e-9 never (a rigid bar)."""
+        return float(max(np.min(builds.room[s] / builds.base[s]), 1e-9))
+
+    @staticmethod
+    def _still_closes(net, final, builds, s) -> bool:
+        """The build's loops still close within its play where its motion ends (first order)."""
+        gap = net.lengths_at(final) - builds.base[s]
+        w = self_stress_basis(net, final)
+        return bool(play_ratio(w, gap, builds.room[s]) <= 1.0)
 
 
 @dataclass
@@ -312,9 +358,19 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
                                          else PROJECTED_SOURCE_SAMPLES) if attribute else 0}
     verdict = _verdict(spec, behaviour, main.judged, frac, flagged, margin, bound,
                        source_margins, horizon, ports)
+    assembly = _assembly_summary(spec, main, run, M)
+    if assembly is not None and assembly["model"] != "rigid":
+        verdict += f"; {assembly['sentence']}"
+    held = [problem.drive] + [net.port(h) for h in (m.hold or ())]
+    states = {"start": problem.start}
+    if behaviour.end_config is not None:
+        states["end"] = behaviour.end_config
+    slop = slop_summary(net, spec, ports, pairs, held, states)
     extra = {"drive": m.drive, "target": float(m.to), "requested_target": requested,
              "module_size_mm": size_mm,
-             "end_drive": behaviour.end_drive, "end_at": behaviour.end_at}
+             "end_drive": behaviour.end_drive, "end_at": behaviour.end_at,
+             "model_level": (assembly or {}).get("model", "rigid"),
+             "assembly": assembly, "slop": slop}
     if observed is not None:
         extra["observed_order"] = observed
     return ToleranceResult(spec=spec, method=method, ports=ports, nominal=nominal, distances=dist,
@@ -323,6 +379,27 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
                            limits=np.full(len(ports), limit_mm), horizon=horizon,
                            flagged=flagged, verdict=verdict, behaviour=behaviour,
                            judged=main.judged, margin=margin_info, critical=crit, extra=extra)
+
+
+def _assembly_summary(spec, main: _Run, run, samples: int) -> dict | None:
+    """How the main run's builds went together (laser kits only: prints and sheets are made in
+    one piece)."""
+    if main.assembly is not None:
+        return main.assembly.as_dict()
+    if spec.process != "laser":
+        return None
+    unused = getattr(getattr(run, "driver", None), "unused", np.zeros(0))
+    closed = getattr(main.driven, "closed", None)
+    if not len(unused) or closed is None:
+        return {"model": "rigid", "model_name": MODEL_NAMES["rigid"], "self_stresses": 0,
+                "builds": samples, "assemble": samples, "forced": 0, "not_buildable": 0,
+                "sentence": f"all {samples} builds go together: the network has no state of "
+                            "self-stress, so any bar lengths fit (model: rigid bars)"}
+    n = int(np.sum(closed))
+    return {"model": "play", "model_name": MODEL_NAMES["play"], "builds": samples,
+            "assemble": n, "forced": 0, "not_buildable": samples - n,
+            "sentence": f"{n} of {samples} builds assemble within their play (first order over "
+                        f"the states of self-stress; model: {MODEL_NAMES['play']})"}
 
 
 def _horizon(design, plan, dist, reached, ports, length_rms, size_mm, limit_mm, behaviour):
@@ -394,16 +471,26 @@ def _failure(name, j, spec, behaviour, ports) -> str:
                 f"builds; allowed {j.limit_mm:.3g} mm)")
     # end ports: the worst port
     if j.detail.get("assembled") == 0:
-        return (f"none of the {j.ok.size} builds assembles: rigid bars with their own length "
-                "errors cannot all take their lengths at once (an over-constrained network, a "
-                "state of self-stress), and the model has no joint play to take that up")
+        return (f"none of the {j.ok.size} builds goes together, even forced within the "
+                "material's allowable stress")
+    jam = ""
+    if j.detail.get("jammed"):
+        jam = (f"{j.detail['jammed']} of {j.ok.size} builds, put together, stop before the "
+               f"target (the first: {j.detail.get('jam_reason') or 'its loops leave its play'})")
+    if j.detail.get("moved") == 0:
+        return jam or f"none of the {j.ok.size} builds, as put together, moves to the target"
     where = "at the target" if behaviour.end_at == "target" else "where the motion locks"
     by_port = np.asarray(j.detail.get("p95_by_port_mm", [p95]))
+    if j.per_part is not None and j.per_part.size:  # the worst port among builds that moved
+        moved = np.isfinite(j.per_part).all(axis=1)
+        if moved.any():
+            by_port = np.percentile(j.per_part[moved], 95, axis=0, method="higher")
     k = int(np.argmax(by_port))
     name = ports[k] if k < len(ports) else "a port"
     worst = float(by_port[k])
     off = "cannot be reached" if not math.isfinite(worst) else f"is off by up to {worst:.3g} mm"
-    return (f"{name} {where} {off} (95% of builds; allowed {j.limit_mm:.3g} mm)")
+    text = f"{name} {where} {off} (95% of builds that get there; allowed {j.limit_mm:.3g} mm)"
+    return f"{jam}; {text}" if jam else text
 
 
 def _verdict(spec, behaviour, judged, frac, flagged, margin, bound, source_margins, horizon,

@@ -8,10 +8,11 @@ parameters are millimetres; ``scale`` (mm per design unit) converts.
 Laser (acrylic bars and Chicago screws; defaults from docs/fabrication notes)
     ``bar length``: hole-to-hole length ``N(0, length_sigma)`` per bar (laser positioning);
     ``kerf``: each hole's diameter ``N(0, kerf_sigma)`` off (uneven kerf), which widens or
-    tightens its play; ``hole play``: the barrel sits anywhere in a hole ``hole_clearance`` wider
-    than it (uniform over the disc), moving the bar's end along its axis; ``sheet thickness``:
-    ``N(thickness, thickness_sigma)`` per build, a bar tilts in its holes by up to
-    ``atan(clearance / thickness)``, which shortens it by ``L (1 - cos θ)``.
+    tightens its play. The play itself is a freedom, not an error (:mod:`fabkit.builds`): a
+    barrel sits where the assembly pushes it in a hole ``hole_clearance`` wider than it, so the
+    distance between a bar's two pins may be anything within ``room`` of its own length, the
+    sum of its two holes' radial clearances (:attr:`BuildLengths.room`). The sheet's thickness
+    only lets a bar tilt within that same play, and sets the stack and the screw lengths.
 
 Print (triangle plates joined by flexure hinges, printed flat in one piece)
     ``xy accuracy``: every joint printed ``N(0, xy_sigma)`` off per in-plane coordinate (typical
@@ -52,15 +53,14 @@ import numpy as np
 from ..numerics import TINY
 from .canonical import canonical_frame, canonical_order, canonical_scalars, canonical_vectors
 
-__all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "ProcessGeometry", "Sheet", "BuildLengths",
+__all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "PROCESS_EXTRA_KEYS", "ProcessGeometry", "Sheet", "BuildLengths",
            "sample_lengths", "sample_builds", "hinge_shortening", "state_profile",
            "joint_turns", "PROFILE_SAMPLES", "interp_rows"]
 
 #: The processes and, for each, its error sources (names used in verdicts) with the spec keys
 #: each one reads.
 SOURCES: dict[str, dict[str, tuple[str, ...]]] = {
-    "laser": {"bar length": ("length_sigma",), "kerf": ("kerf_sigma",),
-              "hole play": ("hole_clearance",), "sheet thickness": ("thickness_sigma",)},
+    "laser": {"bar length": ("length_sigma",), "kerf": ("kerf_sigma",)},
     "print": {"xy accuracy": ("xy_sigma",), "shrinkage": ("shrinkage", "shrinkage_sigma"),
               "line width": ("line_width_sigma",), "hinge flexure": ("hinge_length",)},
     "origami": {"crease position": ("crease_sigma",), "cut": ("cut_sigma",),
@@ -71,10 +71,19 @@ PROCESSES = tuple(SOURCES)
 
 #: Quantities of a process that do not move a joint in the rigid-bar model, and why.
 NOT_KINEMATIC = {
+    "laser": {"hole play": "a freedom, not an error: the barrel sits where the assembly pushes "
+                           "it, so each bar's pin distance may take any value within its room "
+                           "(the assembly with play, fabkit.builds); it is what lets an "
+                           "over-constrained kit go together, and what gives the ports their slop",
+              "sheet thickness": "sets the stack height and the screw lengths (the BOM); a bar's "
+                                 "tilt in its holes uses the same play, not more"},
     "print": {"layer height": "sets the hinge thickness (whole layers): stiffness and strain, "
                               "checked by the print export, not the joint positions",
               "hinge thickness": "stiffness and bending strain only (print export's check)"},
 }
+
+#: Spec keys of a process that belong to no error source (the freedoms and the section).
+PROCESS_EXTRA_KEYS = {"laser": ("hole_clearance", "thickness", "thickness_sigma", "bar_width")}
 
 
 #: Below this half-angle (radians) sin(x)/x is 1 to round-off (its error is x²/6).
@@ -156,38 +165,23 @@ def _gain(gain, m: int) -> np.ndarray:
     return np.array(g)
 
 
-def _laser(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.ndarray]:
+def _laser(geo: ProcessGeometry, spec, rng, on: set, g):
     L = np.asarray(geo.lengths, dtype=np.float64)
     m, e = spec.samples, L.size
-    L_mm = L * spec.scale
-    g1, g2, g3 = g[:, None], g[:, None, None], g
-    t = np.maximum(spec.thickness + g3 * spec.thickness_sigma * rng.standard_normal(m),
-                   0.1 * spec.thickness)
-    length_err = g1 * spec.length_sigma * rng.standard_normal((m, e))
-    kerf = g2 * spec.kerf_sigma * rng.standard_normal((m, e, 2))
-    radius_u = np.sqrt(rng.random((m, e, 2)))
-    angle_u = rng.random((m, e, 2))
-    tilt_u = rng.random((m, e))
-    hole = g2 * spec.hole_clearance
-    play = (hole if "hole play" in on else 0.0) + (kerf if "kerf" in on else np.zeros_like(kerf))
-    clearance = np.maximum(play, 0.0)
-    out = np.zeros((m, e))
-    if "bar length" in on:
-        out += length_err
-    # barrel position in each hole: uniform over the disc of radius clearance / 2
-    along = 0.5 * clearance * radius_u * np.cos(2.0 * np.pi * angle_u)
-    out += along[..., 1] - along[..., 0]
-    if "hole play" in on or "sheet thickness" in on:
-        # tilt in the holes, bounded by the tighter hole of the bar; the nominal sheet when its
-        # thickness is not a source, the nominal hole when its play is not
-        tt = t if "sheet thickness" in on else np.full(m, spec.thickness)
-        room = clearance if "hole play" in on else np.broadcast_to(hole, clearance.shape)
-        tilt = np.arctan(room.min(axis=2) / tt[:, None]) * tilt_u
-        out -= L_mm[None, :] * (1.0 - np.cos(tilt))
-    return L[None, :] + out / spec.scale, np.zeros((m, e))
+    # the sheet's thickness is drawn first (perturbed_lengths replays it), then the errors
+    rng.standard_normal(m)
+    length_err = g[:, None] * spec.length_sigma * rng.standard_normal((m, e))
+    kerf = g[:, None, None] * spec.kerf_sigma * rng.standard_normal((m, e, 2))
+    out = length_err if "bar length" in on else np.zeros((m, e))
+    # each hole's diametral clearance over its barrel; a bar's pins may be that much apart
+    # over both its holes' radial clearances together
+    clear = np.maximum(spec.hole_clearance + (kerf if "kerf" in on else np.zeros_like(kerf)),
+                       0.0)
+    room = 0.5 * clear.sum(axis=2)
+    return L[None, :] + out / spec.scale, np.zeros((m, e)), room / spec.scale
 
 
-def _print(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.ndarray]:
+def _print(geo: ProcessGeometry, spec, rng, on: set, g):
     x = geo.nodes * spec.scale
     m = spec.samples
     # each joint's error attached to the design (canonical order and frame): the same builds
@@ -209,10 +203,10 @@ def _print(geo: ProcessGeometry, spec, rng, on: set, g) -> tuple[np.ndarray, np.
         bend = 0.5 * (ell - spec.hinge_length)  # the line width's share only
     else:
         bend = np.zeros(m)
-    return L / spec.scale, np.repeat((bend / spec.scale)[:, None], geo.edges.shape[0], axis=1)
+    return L / spec.scale, np.repeat((bend / spec.scale)[:, None], geo.edges.shape[0], axis=1), None
 
 
-def _origami(geo: ProcessGeometry, spec, rng, on: set, gain) -> tuple[np.ndarray, np.ndarray]:
+def _origami(geo: ProcessGeometry, spec, rng, on: set, gain):
     if geo.sheets:
         return _origami_sheets(geo, spec, rng, on, gain)
     x = geo.nodes * spec.scale
@@ -234,7 +228,7 @@ def _origami(geo: ProcessGeometry, spec, rng, on: set, gain) -> tuple[np.ndarray
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "crease compliance" in on:
         L = L - gain[:, None] * spec.compliance_sigma * bow
-    return L / spec.scale, np.zeros((m, i.size))
+    return L / spec.scale, np.zeros((m, i.size)), None
 
 
 def _origami_sheets(geo: ProcessGeometry, spec, rng, on: set, gain):
@@ -283,7 +277,7 @@ def _origami_sheets(geo: ProcessGeometry, spec, rng, on: set, gain):
     shortening = -fold / np.maximum(count, 1.0)
     if "crease compliance" in on:
         shortening = shortening + gain[:, None] * spec.compliance_sigma * bow
-    return L / spec.scale, shortening / spec.scale
+    return L / spec.scale, shortening / spec.scale, None
 
 
 _MODELS = {"laser": _laser, "print": _print, "origami": _origami}
@@ -302,10 +296,15 @@ class BuildLengths:
         unit of profile (design units): half the free hinge length of a print (a hinge bent by
         θ shortens each bar at it by ``bend * (1 - sinc(θ/2))``), the bowing of a folded sheet's
         panels less the offset of its hinge lines; zero for laser-cut bars.
+    room : numpy.ndarray, shape (M, E) or None
+        Each bar's axial room (design units): its pin distance may be anything within this of
+        its length at no force (laser: the sum of its two holes' radial clearances). None where
+        joints have no play (flexure hinges, creases).
     """
 
     base: np.ndarray
     bend: np.ndarray
+    room: np.ndarray | None = None
 
     def at(self, shortening=None) -> np.ndarray:
         """Lengths in one state per build.
@@ -341,7 +340,8 @@ class BuildLengths:
 
     def select(self, rows) -> "BuildLengths":
         """The builds ``rows`` only."""
-        return BuildLengths(self.base[rows], self.bend[rows])
+        return BuildLengths(self.base[rows], self.bend[rows],
+                            None if self.room is None else self.room[rows])
 
 
 def hinge_shortening(edges, turn) -> np.ndarray:
@@ -498,8 +498,8 @@ def sample_builds(geo: ProcessGeometry, spec, rng, sources=None, gain=None) -> B
     BuildLengths
     """
     g = _gain(gain, spec.samples)
-    base, bend = _MODELS[spec.process](geo, spec, rng, _active(spec, sources), g)
-    return BuildLengths(base, bend)
+    base, bend, room = _MODELS[spec.process](geo, spec, rng, _active(spec, sources), g)
+    return BuildLengths(base, bend, room)
 
 
 def sample_lengths(geo: ProcessGeometry, spec, rng, sources=None) -> np.ndarray:

@@ -13,7 +13,7 @@ from ..fab.printing import design_print_settings
 from ..io.schema import check_table, refuse_unused, ToleranceSection
 from ..numerics import TINY
 from .behaviour import STATE_FRACTION
-from .processes import PROCESSES, ProcessGeometry, sample_lengths, SOURCES
+from .processes import PROCESS_EXTRA_KEYS, PROCESSES, ProcessGeometry, sample_lengths, SOURCES
 
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
 #: typical figures quoted by filament makers for parts that the slicer does not compensate.
@@ -33,8 +33,12 @@ class ToleranceSpec:
         mm per design unit (default: the process's own scale).
     length_sigma, kerf_sigma, hole_clearance, thickness, thickness_sigma : float
         Laser: bar-length σ (0.05 mm, laser positioning), hole-diameter σ from uneven kerf
-        (0.03 mm), hole minus barrel diameter (the screw's 4.2 - 4.0 = 0.2 mm), sheet thickness
-        and its build-to-build σ (3.0 ± 0.15 mm: extruded acrylic, ~5 %).
+        (0.03 mm), hole minus barrel diameter (the screw's 4.2 - 4.0 = 0.2 mm: the joints' play,
+        a freedom of the assembly rather than an error), sheet thickness and its build-to-build
+        σ (3.0 ± 0.15 mm: extruded acrylic, ~5 %).
+    bar_width : float
+        Laser: the bars' width (mm; the laser settings'), with ``thickness`` their section for
+        the elastic level (a build forced together, :mod:`fabkit.builds`).
     xy_sigma, shrinkage, shrinkage_sigma, line_width_sigma, hinge_length : float
         Print: joint position σ per coordinate (0.1 mm, typical FDM accuracy), shrinkage
         fraction and its σ (by material, :data:`SHRINKAGE`), extrusion-width σ (0.03 mm), the
@@ -69,6 +73,7 @@ class ToleranceSpec:
     hole_clearance: float = 0.2
     thickness: float = 3.0
     thickness_sigma: float = 0.15
+    bar_width: float = 14.5
     xy_sigma: float = 0.1
     shrinkage: float = 0.003
     shrinkage_sigma: float = 0.001
@@ -88,14 +93,12 @@ class ToleranceSpec:
     def process_keys(self) -> tuple[str, ...]:
         """The spec fields that belong to this process (its error sources' parameters)."""
         keys = [k for src in SOURCES[self.process].values() for k in src]
-        if self.process == "laser":
-            keys.insert(keys.index("thickness_sigma"), "thickness")
-        return tuple(keys)
+        return tuple(keys) + PROCESS_EXTRA_KEYS.get(self.process, ())
 
 
 TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)}
 _OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k in src}
-_OWNER["thickness"] = "laser"
+_OWNER.update({k: proc for proc, keys in PROCESS_EXTRA_KEYS.items() for k in keys})
 
 
 def key_process(key: str) -> str | None:
@@ -207,7 +210,8 @@ def _laser_defaults(design, settings) -> dict:
                            network_size=float(design.network.size))
     except FabricationError as exc:
         raise TemplateError(design.path or design.name, "fabrication.laser", str(exc)) from None
-    out = {"scale": float(s.scale), "thickness": float(s.thickness)}
+    out = {"scale": float(s.scale), "thickness": float(s.thickness),
+           "bar_width": float(s.bar_width)}
     screw = getattr(s, "screw", None)
     if screw is not None:
         out["hole_clearance"] = float(screw.hole_diameter - screw.barrel_diameter)
@@ -347,7 +351,7 @@ def model_summary(spec: ToleranceSpec) -> str:
     """
     if spec.process == "laser":
         parts = [f"bar length σ {spec.length_sigma:g} mm", f"kerf σ {spec.kerf_sigma:g} mm",
-                 f"hole play {spec.hole_clearance:g} mm",
+                 f"hole play {spec.hole_clearance:g} mm (a freedom)",
                  f"sheet {spec.thickness:g} ± {spec.thickness_sigma:g} mm"]
     elif spec.process == "print":
         parts = [f"xy accuracy σ {spec.xy_sigma:g} mm",

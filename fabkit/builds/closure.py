@@ -1,0 +1,138 @@
+"""First-order test of whether a build's bars go together within their joints' play.
+
+Bars with lengths ``L + δL`` (``δL``: the build's length errors) fit a network whose nominal
+configuration realises ``L`` when some change of the pin distances ``s`` within the play,
+``|s_e| <= c_e``, makes ``δL + s`` a compatible length change: one that a motion of the nodes
+makes, ``R u = δL + s``. By the fundamental theorem of linear algebra that holds exactly when
+``δL + s`` is orthogonal to every state of self-stress (the left null space ``W`` of the rigidity
+matrix ``R``): ``Wᵀ (δL + s) = 0``.
+
+The test here gives, per build, the **play ratio** ``τ``: the smallest factor on every bar's
+room with which such an ``s`` exists. ``τ <= 1``: the build closes within its play (to first
+order); ``τ > 1``: it does not, and the play would have to grow by ``τ``. With one state of
+self-stress ``w`` this is ``|w·δL| / Σ|w_e| c_e`` (the play of every bar in the loop adds up);
+with several it is a small linear program per build.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linprog
+
+from ..model.rigidity import self_stresses
+
+__all__ = ["self_stress_basis", "play_ratio"]
+
+#: Entries of a state of self-stress below this fraction of its largest are round-off of the SVD
+#: (bars outside the loop), and are dropped so the play of bars outside the loop never counts.
+STRESS_SUPPORT_RTOL = 1e-9
+
+
+def self_stress_basis(net, positions=None) -> np.ndarray:
+    """States of self-stress of a network at a configuration, cleaned of round-off.
+
+    Parameters
+    ----------
+    net : fabkit.Network
+    positions : array_like, shape (N, d), optional
+        The configuration (default: the network's own).
+
+    Returns
+    -------
+    numpy.ndarray, shape (E, S)
+        Orthonormal columns (tensions per unit length, normalised rigidity matrix); S = 0 for a
+        network without self-stress.
+
+    Examples
+    --------
+    >>> from fabkit import Network
+    >>> square = Network([[0, 0], [1, 0], [1, 1], [0, 1]],
+    ...                  [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2], [1, 3]])
+    >>> w = self_stress_basis(square)[:, 0]
+    >>> bool(np.allclose(np.abs(w / w[0]), [1, 1, 1, 1, np.sqrt(2), np.sqrt(2)]))
+    True
+    """
+    w = np.array(self_stresses(net, positions), dtype=np.float64)
+    if w.size:
+        big = np.abs(w).max(axis=0, keepdims=True)
+        w[np.abs(w) < STRESS_SUPPORT_RTOL * big] = 0.0
+    return w
+
+
+def play_ratio(stresses, gap, room) -> np.ndarray:
+    """Per build, the smallest factor on the play with which its bars close (first order).
+
+    Parameters
+    ----------
+    stresses : array_like, shape (E, S)
+        States of self-stress (:func:`self_stress_basis`).
+    gap : array_like, shape (E,) or (M, E)
+        Each bar's length error ``δL`` (built minus the length the configuration realises).
+    room : array_like, shape (E,) or (M, E)
+        Each bar's axial room ``c_e >= 0`` (same unit as ``gap``).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M,) (or a float array of shape () for one build)
+        ``τ``: 0 without self-stress or when the errors are compatible; ``<= 1`` when the build
+        closes within its play; ``inf`` when no play can close it (the loop's bars have none).
+
+    Examples
+    --------
+    A braced square: one state of self-stress, tensions 1 on the sides and -√2 on the
+    diagonals. A side 0.1 too long needs 0.1 of room over the whole loop:
+
+    >>> from fabkit import Network
+    >>> sq = Network([[0, 0], [1, 0], [1, 1], [0, 1]],
+    ...              [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2], [1, 3]])
+    >>> w = self_stress_basis(sq)
+    >>> gap = [0.1, 0, 0, 0, 0, 0]
+    >>> room = 0.1 / (4 + 2 * np.sqrt(2)) * np.ones(6)   # exactly enough, spread over the loop
+    >>> float(play_ratio(w, gap, room).round(12))
+    1.0
+    """
+    w = np.asarray(stresses, dtype=np.float64)
+    g = np.asarray(gap, dtype=np.float64)
+    single = g.ndim == 1
+    g = np.atleast_2d(g)
+    c = np.broadcast_to(np.asarray(room, dtype=np.float64), g.shape)
+    if w.ndim != 2 or w.shape[0] != g.shape[1]:
+        raise ValueError(f"`stresses` must have shape ({g.shape[1]}, S), got {w.shape}")
+    if not np.all(np.isfinite(c)) or np.any(c < 0):
+        raise ValueError("`room` must be finite and >= 0")
+    m, s = g.shape[0], w.shape[1]
+    if s == 0:
+        out = np.zeros(m)
+    elif s == 1:
+        need = np.abs(g @ w[:, 0])
+        have = (np.abs(w[:, 0]) * c).sum(axis=1)
+        tiny = 1e-15 * np.maximum(np.abs(g).max(axis=1), 1e-300)
+        out = np.where(need <= tiny, 0.0,
+                       np.where(have > 0, need / np.where(have > 0, have, 1.0), np.inf))
+    else:
+        out = np.array([_ratio_lp(w, g[k], c[k]) for k in range(m)])
+    return out[0] if single else out
+
+
+def _ratio_lp(w, g, c) -> float:
+    """min τ subject to Wᵀ s = -Wᵀ g and |s_e| <= τ c_e (variables s, τ)."""
+    rhs = -(w.T @ g)
+    if np.abs(rhs).max() <= 1e-15 * max(np.abs(g).max(), 1e-300):
+        return 0.0
+    free = c > 0
+    if not free.any():
+        return np.inf
+    wf, cf = w[free], c[free]
+    k = wf.shape[0]
+    cost = np.zeros(k + 1)
+    cost[-1] = 1.0
+    eye = np.eye(k)
+    a_ub = np.block([[eye, -cf[:, None]], [-eye, -cf[:, None]]])
+    a_eq = np.hstack([wf.T, np.zeros((w.shape[1], 1))])
+    res = linprog(cost, A_ub=a_ub, b_ub=np.zeros(2 * k), A_eq=a_eq, b_eq=rhs,
+                  bounds=[(None, None)] * k + [(0, None)], method="highs")
+    if res.status == 2:  # the loop's own bars cannot take the incompatibility: no play helps
+        return np.inf
+    if res.status != 0:
+        raise RuntimeError(f"play ratio: the linear program ended with {res.message}")
+    return float(res.x[-1])

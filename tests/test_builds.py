@@ -1,0 +1,186 @@
+"""Builds with joint play and elastic bars (fabkit.builds), against hand formulas and against
+each other: the first-order self-stress test against the nonlinear assembly on random draws, the
+elastic stress of a forced bar against σ = E ε, and the AND gate's kit as it goes together."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.builds.assembly import assemble, bar_stress
+from fabkit.builds.closure import play_ratio, self_stress_basis
+from fabkit.builds.materials import MATERIALS, bar_stiffness, process_material
+from fabkit.model.network import Network
+from fabkit.tolerance import analyse_tolerance, tolerance_spec
+from fabkit.tolerance.assembled import assemble_builds
+from fabkit.tolerance.placement import process_geometry
+from fabkit.tolerance.processes import sample_builds
+
+#: A braced square, 100 mm a side: one state of self-stress through all six bars.
+SQUARE = np.array([[0, 0], [100, 0], [100, 100], [0, 100]], float)
+BRACED = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 2], [1, 3]])
+
+
+def _lengths(x, edges):
+    return np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+
+
+def test_one_self_stress_closes_exactly_when_the_hand_criterion_holds():
+    """|w·δL| <= Σ|w_e| c_e decides, checked against the nonlinear assembly on random draws."""
+    net = Network(SQUARE, BRACED)
+    w = self_stress_basis(net)
+    assert w.shape == (6, 1)
+    wv = w[:, 0]
+    # the hand formula: sides and diagonals of a braced square carry tensions 1 : -√2
+    assert np.allclose(np.abs(wv / wv[0]), [1, 1, 1, 1, np.sqrt(2), np.sqrt(2)])
+    rng = np.random.default_rng(7)
+    L = _lengths(SQUARE, BRACED)
+    checked = agree = 0
+    for _ in range(300):
+        dl = 0.05 * rng.standard_normal(6)
+        room = rng.uniform(0.0, 0.03, 6)
+        hand = abs(wv @ dl) / (np.abs(wv) @ room)
+        if abs(hand - 1.0) < 0.05:  # within second-order terms of the edge: either answer holds
+            continue
+        assert play_ratio(w, dl, room) == pytest.approx(hand, rel=1e-9)
+        a = assemble(BRACED, L + dl, room, SQUARE)
+        checked += 1
+        agree += a.closes == (hand <= 1.0)
+        if a.closes:  # every bar within its own room of its own length
+            assert np.all(np.abs(a.lengths - (L + dl)) <= room + 1e-7 * L)
+    assert checked > 200 and agree == checked
+
+
+def test_several_self_stresses_need_a_linear_program():
+    """Two braced squares side by side (two states of self-stress): the ratio from the linear
+    program closes the build exactly at τ = 1 on the nonlinear network (scaled room)."""
+    x = np.vstack([SQUARE, SQUARE[[1, 2]] + [100, 0]])
+    edges = np.vstack([BRACED, [[1, 4], [4, 5], [5, 2], [1, 5], [2, 4]]])
+    net = Network(x, edges)
+    w = self_stress_basis(net)
+    assert w.shape[1] == 2
+    L = _lengths(x, edges)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        dl = 0.05 * rng.standard_normal(edges.shape[0])
+        room = np.full(edges.shape[0], 0.01)
+        tau = float(play_ratio(w, dl, room))
+        assert 0 < tau < np.inf
+        assert assemble(edges, L + dl, room * tau * 1.05, x).closes
+        assert not assemble(edges, L + dl, room * tau * 0.95, x).closes
+
+
+def test_a_forced_bar_carries_e_times_its_strain():
+    """A bar 0.1 mm too long forced between two corners of a rigid frame (the other five bars a
+    million times stiffer): σ = E ε = E · 0.1 / L, compressive."""
+    L = _lengths(SQUARE, BRACED)
+    rest = L.copy()
+    rest[0] += 0.1
+    acrylic = MATERIALS["acrylic"]
+    k = bar_stiffness(acrylic, 14.5 * 3.0, rest)
+    k[1:] *= 1e6
+    a = assemble(BRACED, rest, 0.0, SQUARE, stiffness=k)
+    assert not a.closes
+    sigma = bar_stress(a, rest, acrylic.youngs_mpa)
+    hand = -acrylic.youngs_mpa * 0.1 / rest[0]
+    assert sigma[0] == pytest.approx(hand, rel=1e-4)
+    assert np.all(np.abs(sigma[1:]) < 1e-4 * abs(hand))  # the stiff frame carries it unstrained
+    # the force is the same on both sides: the frame's bars carry k ε with their tiny strain
+    assert a.energy == pytest.approx(0.5 * k[0] * (0.1 * rest[0] / rest[0]) ** 2, rel=1e-3)
+
+
+def test_forced_stresses_match_the_first_order_self_stress():
+    """With equal play of zero and bars of equal section, the least-energy assembly's tensions
+    are t = τ w with τ = -(w·δL) / Σ(w_e² / k_e) (first order)."""
+    L = _lengths(SQUARE, BRACED)
+    w = self_stress_basis(Network(SQUARE, BRACED))[:, 0]
+    dl = np.array([0.02, -0.01, 0.005, 0.0, 0.01, -0.02])
+    k = bar_stiffness(MATERIALS["acrylic"], 14.5 * 3.0, L + dl)
+    a = assemble(BRACED, L + dl, 0.0, SQUARE, stiffness=k)
+    tension = k * a.excess
+    tau = -(w @ dl) / np.sum(w ** 2 / k)
+    assert np.allclose(tension, tau * w, rtol=2e-3, atol=1e-6 * np.abs(tau * w).max())
+
+
+def test_a_network_without_self_stress_takes_its_own_lengths():
+    """No loop to close: every build goes together with each bar at its own length (the play is
+    not used to pull the build back to the design)."""
+    net = fabkit.load_template("fourbar").network
+    x = net.nodes * 100.0
+    L = net.edge_lengths * 100.0
+    assert self_stress_basis(net).shape[1] == 0
+    dl = np.array([0.05, -0.08, 0.02, 0.1])
+    a = assemble(net.edges, L + dl, 0.2, x)
+    assert a.closes
+    assert np.allclose(a.lengths, L + dl, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def and_gate():
+    return fabkit.load_template("and_gate")
+
+
+def _builds(design, **overrides):
+    spec = tolerance_spec(design, samples=40, **overrides)
+    geo = process_geometry(design, spec, None, None)
+    return spec, sample_builds(geo, spec, np.random.default_rng(spec.seed))
+
+
+def test_the_and_gate_kit_goes_together_with_its_play(and_gate):
+    spec, builds = _builds(and_gate)
+    asm = assemble_builds(and_gate.network, builds, spec, and_gate.network.nodes)
+    assert asm.self_stresses == 1
+    assert asm.closes.mean() >= 0.95
+    assert asm.model == "play"
+    assert asm.sentence().startswith(f"{int(asm.closes.sum())} of 40 builds assemble")
+    assert asm.loop_nodes == [20, 23, 25, 97]
+
+
+def test_small_play_agrees_with_the_first_order_criterion(and_gate):
+    """Bar-length errors only, 0.02 mm of play: the nonlinear assembly closes the builds the
+    self-stress criterion closes (the fraction within the Monte Carlo's noise, build by build
+    here); with no play none closes and the stress it takes is named in MPa."""
+    spec, builds = _builds(and_gate, kerf_sigma=0.0, hole_clearance=0.02)
+    asm = assemble_builds(and_gate.network, builds, spec, and_gate.network.nodes)
+    first = asm.ratio <= 1.0
+    assert 0.2 < first.mean() < 0.9
+    assert abs(asm.closes.mean() - first.mean()) <= 2 * np.sqrt(0.25 / 40)
+    assert np.mean(asm.closes == first) >= 0.95
+    spec0, builds0 = _builds(and_gate, kerf_sigma=0.0, hole_clearance=0.0)
+    none = assemble_builds(and_gate.network, builds0, spec0, and_gate.network.nodes)
+    assert not none.closes.any()
+    assert none.model == "elastic"
+    assert (none.stress_mpa > 0).all() and (none.stress_mpa < 15.0).all()
+    assert "MPa" in none.sentence() and "0 of 40 builds assemble" in none.sentence()
+
+
+def test_the_tolerance_analysis_reports_assembly_and_slop(and_gate):
+    res = analyse_tolerance(and_gate, tolerance_spec(and_gate, samples=20), attribute=False)
+    d = res.as_dict()
+    assert d["assembly"]["assemble"] >= 19 and d["assembly"]["self_stresses"] == 1
+    assert "builds assemble within their play" in d["verdict"]
+    assert d["model_level"] == "play"
+
+
+def test_fourbar_chain_reports_its_slop_at_the_far_end():
+    """Four crossed 4-bars, 0.2 mm of play per bar, drive held at the start: each module adds
+    0.2·(2 + 2√2) mm at its far port (the closed form of tests/test_slop.py), 3.86 mm at d5."""
+    d = fabkit.load_template("fourbar_chain")
+    res = analyse_tolerance(d, tolerance_spec(d, samples=10), attribute=False)
+    slop = res.as_dict()["slop"]
+    assert slop["output"] == "d5"
+    assert slop["output_start_mm"] == pytest.approx(4 * 0.2 * (2 + 2 * np.sqrt(2)), rel=1e-9)
+    assert slop["growth_mm_per_module"] == pytest.approx(0.2 * (2 + 2 * np.sqrt(2)), rel=1e-6)
+    assert res.as_dict()["assembly"]["model"] == "rigid"
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="room"):
+        assemble(BRACED, _lengths(SQUARE, BRACED), -0.1, SQUARE)
+    with pytest.raises(ValueError, match="x0"):
+        assemble(BRACED, _lengths(SQUARE, BRACED), 0.1, SQUARE[:, :1])
+    with pytest.raises(ValueError, match="room"):
+        play_ratio(np.ones((6, 1)), np.zeros(6), np.full(6, np.nan))
+    with pytest.raises(ValueError, match="no bar material"):
+        process_material("origami")
