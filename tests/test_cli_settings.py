@@ -29,8 +29,8 @@ def _error(capsys) -> str:
     (DESIGN + ["--set", "laser.scale=-3"],
      "fabkit: error: --set: laser.scale: must be > 0, got -3 (mm per design unit)"),
     (DESIGN + ["--set", "tolerance.length_sigam=0.1"],
-     "fabkit: error: --set: tolerance.length_sigam: unknown key; known: compliance_sigma, "
-     "crease_sigma, cut_sigma, hinge_length, hole_clearance, kerf_sigma, length_sigma, limit, "
+     "fabkit: error: --set: tolerance.length_sigam: unknown key; known: bar_width, "
+     "compliance_sigma, crease_sigma, cut_sigma, hinge_length, hole_clearance, kerf_sigma, length_sigma, limit, "
      "limit_fraction, line_width_sigma, min_reached, paper_thickness, process, samples, scale, "
      "seed, shrinkage, shrinkage_sigma, state_fraction, thickness, thickness_sigma, xy_sigma; "
      "did you mean 'length_sigma'?"),

@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..numerics import TINY
+
 __all__ = ["Assembled", "assemble", "bar_stress", "CLOSE_RTOL"]
 
 #: A build closes within its play when no bar is strained past its play by more than this
@@ -50,6 +52,13 @@ STEP_RTOL = 1e-13
 #: The solver narrows every play by this fraction of the bar's rest length (a quarter of
 #: :data:`CLOSE_RTOL`), so that a bar pulled back to its play lands inside rather than on its edge.
 INSIDE = 0.25e-7
+
+#: The line search gives up halving a step below this fraction of it.
+MIN_LINE_STEP = 1e-8
+
+#: A flat loop (bars along one line) gives way only to second order: the solver stops after
+#: three steps that lower the energy by less than this fraction.
+STALL_RTOL = 1e-6
 
 #: Above this many unknowns the steps are solved sparse (SuperLU) rather than dense.
 DENSE_MAX_UNKNOWNS = 600
@@ -206,7 +215,7 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     penalty = 0.0
     it = stall = 0
     for it in range(1, max_iterations + 1):
-        u = diff / np.maximum(ell, 1e-300)[:, None]
+        u = diff / np.maximum(ell, TINY)[:, None]
         active = excess != 0.0
         # a bar past its play is a spring; within it, a spring INNER_STIFFNESS as stiff
         sk = np.sqrt(k * np.where(active, 1.0, INNER_STIFFNESS))
@@ -215,7 +224,7 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         pull = np.where(active, excess, ell - r)
         grad = jac.T @ (sk * pull) + mu * (x - x_ref).ravel()
         hess = (jac.T @ jac + (mu + damping) * sp.identity(nx)).tocsr()
-        hu = hd / np.maximum(hl, 1e-300)[:, None]
+        hu = hd / np.maximum(hl, TINY)[:, None]
         cons = sp.csr_matrix((np.concatenate([hu, -hu], axis=1).ravel(), (held_rows, held_cols)),
                              shape=(p, nx))
         kkt = sp.bmat([[hess, cons.T], [cons, None]], format="csc")
@@ -223,14 +232,14 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         sol = (np.linalg.solve(kkt.toarray(), rhs) if dense else spla.spsolve(kkt, rhs))
         dx = sol[:nx].reshape(n, d)
         if p:
-            penalty = max(penalty, 2.0 * float(np.abs(sol[nx:]).max()) + 1e-12)
+            penalty = max(penalty, 2.0 * float(np.abs(sol[nx:]).max()) + TINY)
         if not np.all(np.isfinite(dx)):
             break
         old = merit(energy, hl, penalty)
         t = 1.0
         while True:
             trial = state(x + t * dx)
-            if merit(trial[5], trial[4], penalty) <= old or t < 1e-8:
+            if merit(trial[5], trial[4], penalty) <= old or t < MIN_LINE_STEP:
                 break
             t *= 0.5
         x = x + t * dx
@@ -238,9 +247,7 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         damping = max(mu, damping / 4.0) if t == 1.0 else min(damping * 4.0, 1e6 * k.max())
         if t * float(np.abs(dx).max()) <= step_tol:
             break
-        # a flat loop (bars along one line) gives way only to second order: stop once the
-        # energy no longer falls by a millionth per step
-        stall = stall + 1 if old - merit(energy, hl, penalty) <= 1e-6 * abs(old) else 0
+        stall = stall + 1 if old - merit(energy, hl, penalty) <= STALL_RTOL * abs(old) else 0
         if stall >= 3:
             break
     delta = ell - r

@@ -20,12 +20,18 @@ import numpy as np
 from scipy.optimize import linprog
 
 from ..model.rigidity import self_stresses
+from ..numerics import TINY
 
 __all__ = ["self_stress_basis", "play_ratio"]
 
 #: Entries of a state of self-stress below this fraction of its largest are round-off of the SVD
 #: (bars outside the loop), and are dropped so the play of bars outside the loop never counts.
 STRESS_SUPPORT_RTOL = 1e-9
+
+
+#: Errors whose projection on the states of self-stress is below this fraction of the largest
+#: error are compatible already (round-off of the projection): they need no play.
+COMPATIBLE_RTOL = 1e-15
 
 
 def self_stress_basis(net, positions=None) -> np.ndarray:
@@ -106,7 +112,7 @@ def play_ratio(stresses, gap, room) -> np.ndarray:
     elif s == 1:
         need = np.abs(g @ w[:, 0])
         have = (np.abs(w[:, 0]) * c).sum(axis=1)
-        tiny = 1e-15 * np.maximum(np.abs(g).max(axis=1), 1e-300)
+        tiny = COMPATIBLE_RTOL * np.maximum(np.abs(g).max(axis=1), TINY)
         out = np.where(need <= tiny, 0.0,
                        np.where(have > 0, need / np.where(have > 0, have, 1.0), np.inf))
     else:
@@ -117,7 +123,7 @@ def play_ratio(stresses, gap, room) -> np.ndarray:
 def _ratio_lp(w, g, c) -> float:
     """min τ subject to Wᵀ s = -Wᵀ g and |s_e| <= τ c_e (variables s, τ)."""
     rhs = -(w.T @ g)
-    if np.abs(rhs).max() <= 1e-15 * max(np.abs(g).max(), 1e-300):
+    if np.abs(rhs).max() <= COMPATIBLE_RTOL * max(np.abs(g).max(), TINY):
         return 0.0
     free = c > 0
     if not free.any():

@@ -29,6 +29,10 @@ from .spec import tolerance_spec, ToleranceSpec
 
 __all__ = ["analyse_tolerance"]
 
+#: How far (relative) a redundant bar without play may stray along a build's trace: the
+#: projected tracer's own default for a rigid bar.
+RIGID_BAR_RTOL = 1e-9
+
 #: Builds per error source in the chart's curves (the first ones of the sample, same draws):
 #: the curves show where each source starts to matter; the margin itself uses every build.
 SOURCE_SAMPLES = 32
@@ -184,7 +188,7 @@ class _Projected:
     def _slack(builds, s) -> float:
         """How far (relative) a redundant bar of build ``s`` may stray: its tightest bar's room
         over its length, below 1e-9 never (a rigid bar)."""
-        return float(max(np.min(builds.room[s] / builds.base[s]), 1e-9))
+        return float(max(np.min(builds.room[s] / builds.base[s]), RIGID_BAR_RTOL))
 
     @staticmethod
     def _still_closes(net, final, builds, s) -> bool:

@@ -21,6 +21,7 @@ from ..builds.assembly import assemble, bar_stress
 from ..builds.closure import play_ratio, self_stress_basis
 from ..builds.materials import bar_stiffness, Material, process_material
 from ..builds.slop import port_slop
+from ..numerics import TINY
 
 __all__ = ["Assemblies", "assemble_builds", "slop_summary", "MODEL_NAMES"]
 
@@ -179,7 +180,7 @@ def assemble_builds(net, builds, spec, start) -> Assemblies:
     needed = None
     if w.shape[1] == 1 and m:
         wv = w[:, 0]
-        need = np.abs((rest - nominal[None, :]) @ wv) / max(float(np.abs(wv).sum()), 1e-300)
+        need = np.abs((rest - nominal[None, :]) @ wv) / max(float(np.abs(wv).sum()), TINY)
         needed = float(np.percentile(need, 95))
     model = "rigid" if w.shape[1] == 0 else ("play" if closes.all() else "elastic")
     return Assemblies(model, int(w.shape[1]), np.asarray(ratio, dtype=float), closes, stress,
@@ -221,9 +222,14 @@ def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
     if not named:
         return None
     out = {p: {} for p in named}
+    # first order says nothing past the network's own size: there the drive no longer holds
+    # the network (a module at a turning point, a flat state), and the slop is unbounded to
+    # first order
+    size_mm = float(net.size) * spec.scale
     for state, x in states.items():
         for r in port_slop(net, np.asarray(x) * spec.scale, room, held=list(held), ports=named):
-            out[r.port][f"{state}_mm"] = r.largest if r.bounded else None
+            out[r.port][f"{state}_mm"] = r.largest if r.bounded and r.largest <= size_mm \
+                else None
     chain = [p for p in named if p[:1] == "d" and p[1:].isdigit()]
     output = chain[-1] if chain else list(named)[-1]
     rows = [{"port": p, **v} for p, v in out.items()]
