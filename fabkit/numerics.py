@@ -466,3 +466,25 @@ def canonical_frame(points, edges) -> np.ndarray:
     if d == 3:
         axes.append(np.cross(axes[0], axes[1]))
     return np.array(axes)
+
+
+#: Printed numbers below this magnitude are round-off (1e-16 to 1e-15 of their scale) and differ
+#: between CPUs' floating-point kernels: they are printed as round-off, never as digits, so that
+#: every machine prints the same line.
+ROUNDOFF_PRINT = 1e-12
+
+
+def printed(value: float, spec: str = ".6g") -> str:
+    """``value`` formatted with ``spec``, or ``"0 (round-off)"`` below :data:`ROUNDOFF_PRINT`.
+
+    Examples
+    --------
+    >>> printed(-8.8e-16), printed(3.150961, ".4g")
+    ('0 (round-off)', '3.151')
+    """
+    return "0 (round-off)" if abs(value) < ROUNDOFF_PRINT else format(value, spec)
+
+
+def printed_residual(value: float) -> str:
+    """A residual as ``"= 3.1e-09"``, or ``"< 1e-12"`` below :data:`ROUNDOFF_PRINT`."""
+    return f"< {ROUNDOFF_PRINT:g}" if abs(value) < ROUNDOFF_PRINT else f"= {value:.1e}"

@@ -12,6 +12,7 @@ from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal
 from ..design.robustness import BUILDS
 from ..design.toml_text import builds_line, fit_lines, margin_lines
 from ..errors import BoundsError, InputFileError, UsageError
+from ..numerics import printed, printed_residual
 from ..io.inputs import read_regular
 from ..io.outputs import write_files as write_all
 from ..io.templates import bundled_folder
@@ -242,8 +243,8 @@ def _run_module(args, name, out, figure_png) -> int:
     met = report["wishes_met"]
     for p in met["fixed_points"]:
         wished = "" if p["wished_slope"] is None else f"; wished {p['wished_slope']:g}"
-        print(f"  fixed point {p['value']:.10g}: |f(D) - D| = {p['residual']:.1e}, slope "
-              f"{p['slope']:.6g} ({classify_slope(p['slope'])}{wished})")
+        print(f"  fixed point {p['value']:.10g}: |f(D) - D| {printed_residual(p['residual'])}, "
+              f"slope {printed(p['slope'])} ({classify_slope(p['slope'])}{wished})")
     if met["cycle"] is not None:
         c = met["cycle"]
         print(f"  2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residual "

@@ -8,6 +8,7 @@ import math
 import numpy as np
 
 from ..io.toml_writer import TomlDocument
+from ..numerics import printed, printed_residual
 from .branch import MIN_BRANCH_MARGIN, on_branch
 from .curvature import INITIAL_APEX_DEG, LEG_RATIO
 
@@ -46,7 +47,7 @@ def margin_lines(margins, branch: dict) -> list[str]:
                    f"({100 * m['fraction']:.3g} % of the state) to the fold at {m['fold']:.6g}")
     fps = branch["fixed_points"]
     out.append("fixed points on the branch: " + ("none" if not fps else ", ".join(
-        f"{p['value']:.7g} (slope {p['slope']:.4g}, {p['kind']}; {100 * p['branch_margin_fraction']:.3g} % "
+        f"{p['value']:.7g} (slope {printed(p['slope'], '.4g')}, {p['kind']}; {100 * p['branch_margin_fraction']:.3g} % "
         "from a fold)" for p in fps)))
     cycles = branch["cycles"]
     out.append("2-cycles on the branch: " + ("none" if not cycles else ", ".join(
@@ -117,8 +118,9 @@ def module_template(name: str, wish, cand, builds=None) -> str:
         doc.comment(f"  {builds_line(builds)}")
     doc.comment("Map recomputed by fabkit.module_map from this file:")
     for p in met["fixed_points"]:
-        doc.comment(f"  fixed point {p['value']:.10g}: |f(D) - D| = {p['residual']:.1e}, slope "
-                    f"{p['slope']:.10g} ({_kind(p['slope'])})")
+        doc.comment(f"  fixed point {p['value']:.10g}: |f(D) - D| "
+                    f"{printed_residual(p['residual'])}, slope {printed(p['slope'], '.10g')} "
+                    f"({_kind(p['slope'])})")
     if met["cycle"] is not None:
         c = met["cycle"]
         doc.comment(f"  2-cycle {c['values'][0]:.10g} <-> {c['values'][1]:.10g}: residuals "
