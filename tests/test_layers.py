@@ -36,6 +36,7 @@ LAYERS = {
     "model.certificate": 2,
     "model.independent_edges": 2,
     "kinematics": 3,
+    "builds": 3,
     "maps": 4,
     "design.solution_space": 4,
     "design.assemble": 5,

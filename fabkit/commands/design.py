@@ -281,7 +281,8 @@ def settings_toml(settings: dict) -> str:
 
 def laser_builds(design, settings=None):
     """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
-    model (bar length, kerf, hole play, sheet thickness) at the scale the kit of this template
+    model (bar length and kerf errors; hole play is the joints' freedom, not a length error)
+    at the scale the kit of this template
     is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.design.design_map` judges
     its wishes and suggestions against (``sample_builds``).
 
