@@ -161,6 +161,51 @@ def test_the_tolerance_analysis_reports_assembly_and_slop(and_gate):
     assert d["assembly"]["assemble"] >= 19 and d["assembly"]["self_stresses"] == 1
     assert "builds assemble within their play" in d["verdict"]
     assert d["model_level"] == "play"
+    # put together, every build collapses its branch (to the target, or until its loop runs
+    # out of play: a lock) while the trunk stays still: the gate is judged by that switch
+    assert d["behaviour"]["criteria"] == ["driven state", "still ports"]
+    assert not res.flagged and res.keep_fraction == 1.0
+    state = res.judged["driven state"]
+    assert state.detail["designed"] == 13
+    assert 0 < min(state.detail["switched"]) <= max(state.detail["switched"]) <= 13
+    assert "the driven chain's front ends" in d["verdict"]
+    assert float(np.max(res.judged["still ports"].value_mm)) < 1e-9
+
+
+def test_an_and_gate_cut_twenty_times_worse_is_flagged_for_the_builds_it_cannot_force(and_gate):
+    # bar lengths to σ 1 mm: the loop's misfit outgrows 0.2 mm of play, and some builds need
+    # more than acrylic's 15 MPa to be forced together
+    spec = tolerance_spec(and_gate, {"tolerance": {"length_sigma": 1.0}}, samples=10)
+    res = analyse_tolerance(and_gate, spec, attribute=False)
+    a = res.as_dict()["assembly"]
+    assert res.flagged and a["not_buildable"] > 0 and a["model"] == "elastic"
+    assert f"{a['not_buildable']} cannot be put together" in res.verdict
+    assert res.keep_fraction <= 1 - a["not_buildable"] / 10
+
+
+def test_port_states_are_judged_from_hand_numbers():
+    from fabkit.tolerance.criteria import judge_port_states
+
+    # ports: driven d1_b (1.7 -> 1.0), d2_b of the driven chain (free), trunk d1 (kept still);
+    # 10 mm per unit, limit 1 mm, state tolerance 2 mm
+    start = np.array([1.7, 1.7, 1.2])
+    end = np.array([1.0, 1.5, 1.2])
+    starts = np.array([[1.7, 1.7, 1.2], [1.7, 1.7, 1.2], [1.7, 1.7, 1.2], [np.nan] * 3])
+    finals = np.array([[1.05, 1.0, 1.25],   # 0.5 mm off its end state; trunk moved 0.5 mm
+                       [1.3, 1.75, 1.2],    # stopped 3 mm short
+                       [1.0, 1.0, 1.35],    # trunk moved 1.5 mm
+                       [np.nan] * 3])       # never got there
+    state, still = judge_port_states(starts, finals, start, end, 0, [True, True, False], 10.0,
+                                     1.0, 2.0)
+    assert state.value_mm[:3] == pytest.approx([0.5, 3.0, 0.0])
+    assert state.ok.tolist() == [True, False, True, False]
+    assert still.value_mm[:3] == pytest.approx([0.5, 0.0, 1.5])
+    assert still.ok.tolist() == [True, True, False, False]
+    assert still.detail["still_columns"] == [2]
+    # ports that move in the design (travel > limit): d1_b and d2_b; each build's count at
+    # their end state (within 2 mm): d2_b ends at 1.0, 5 mm from its designed 1.5
+    assert state.detail["designed"] == 2
+    assert state.detail["switched"] == [1, 0, 1, -1]
 
 
 def test_fourbar_chain_reports_its_slop_at_the_far_end():
@@ -173,6 +218,15 @@ def test_fourbar_chain_reports_its_slop_at_the_far_end():
     assert slop["output_start_mm"] == pytest.approx(4 * 0.2 * (2 + 2 * np.sqrt(2)), rel=1e-9)
     assert slop["growth_mm_per_module"] == pytest.approx(0.2 * (2 + 2 * np.sqrt(2)), rel=1e-6)
     assert res.as_dict()["assembly"]["model"] == "rigid"
+
+
+def test_a_super_stable_chain_keeps_each_modules_slop_its_own():
+    # slope 0 at the start crystal: a module's play does not reach the next module's port
+    d = fabkit.load_template("super_stable_chain")
+    res = analyse_tolerance(d, tolerance_spec(d, samples=4), attribute=False)
+    slop = res.as_dict()["slop"]
+    assert "it does not grow along the chain" in slop["sentence"]
+    assert abs(slop["growth_mm_per_module"]) * slop["modules"] < 0.01 * slop["chain_slop_mm"]
 
 
 def test_bad_input_is_named():

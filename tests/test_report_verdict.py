@@ -64,23 +64,27 @@ def _head(html: str) -> tuple[str, str]:
     return badge, first
 
 
-def test_and_gate_heads_with_its_flag_on_every_page(pages):
+def test_and_gate_is_judged_as_built_with_its_play(pages):
+    # the gate's one state of self-stress closes within 0.2 mm of hole play in every build;
+    # put together, each build's branch collapses until the target or until its loops run out
+    # of play (a lock, where a maker's pull stops), and the trunk stays still: its verdict is
+    # ok, by the switch it makes, and every page heads with it
     out = pages
     report = json.loads(_read(out, "and_gate", "and_gate", "report.json"))
-    assert report["tolerance"]["flagged"] is True
-    assert report["verdict"]["level"] == "FLAG"
-    assert report["verdict"]["text"].startswith("tolerance as laser builds: margin < 0.1")
+    tol = report["tolerance"]
+    assert tol["flagged"] is False
+    assert tol["behaviour"]["criteria"] == ["driven state", "still ports"]
+    assert tol["assembly"]["assemble"] == 10 and tol["assembly"]["model"] == "play"
+    kept = {c["criterion"]: c["kept_fraction"] for c in tol["criteria"]}
+    assert kept == {"driven state": 1.0, "still ports": 1.0}
+    assert report["verdict"]["level"] == "ok"
+    assert report["verdict"]["text"].startswith("tolerance as laser builds: ok, margin")
     badge, first = _head(_read(out, "and_gate", "and_gate", "report.html"))
-    assert badge == "FLAG"
-    assert first.startswith('<section id=verdict class="verdict FLAG"><h2>Verdict: '
-                            '<span class="bad">FLAG</span></h2>')
-    assert "none of the 10 builds assembles" in first
-    md = _read(out, "and_gate", "and_gate", "report.md").splitlines()
-    assert md[0] == "# and_gate"
-    assert md[2].startswith("**FLAG**: tolerance as laser builds: margin < 0.1")
-    card = _card(out, "and_gate", "and_gate")
-    assert '<p class="verdict-line"><span class="bad">FLAG</span>: tolerance as laser builds' in card
-    assert "pass" not in card and 'class="ok"' not in card
+    assert badge == "ok"
+    md = _read(out, "and_gate", "and_gate", "report.md")
+    assert md.splitlines()[2].startswith("**ok**: tolerance as laser builds: ok, margin")
+    assert "10 of 10 builds assemble within their play" in md
+    assert "the driven chain's front ends" in md
 
 
 def test_a_flag_is_never_shown_under_a_pass(pages):

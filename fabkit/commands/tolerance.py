@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
+from ..numerics import printed
 from ..report.text import report_json
 from ..report.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
@@ -94,11 +95,13 @@ def describe(result) -> str:
                     f"{c['limit_mm']:.3g} mm")
         else:
             text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g} mm (95%: "
-                    f"{c['p95_mm']:.3g} mm, worst {c['worst_mm']:.3g} mm)")
+                    f"{printed(c['p95_mm'], '.3g')} mm, worst {printed(c['worst_mm'], '.3g')} mm)")
             slopes = (c["detail"] or {}).get("slopes")
             if isinstance(slopes, list):
                 text += f"; built slopes {slopes[0]:.3g}..{slopes[1]:.3g}"
         lines.append(f"  {c['criterion']:<13} {text}")
+        if (c["detail"] or {}).get("front"):
+            lines.append(f"  front         {c['detail']['front']}")
     if d.get("ports_judged"):
         for p in d["ports"]:
             if p["mean"] is None:

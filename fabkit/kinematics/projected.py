@@ -507,7 +507,7 @@ class Projected(StepMethod):
                 frac = -f_prev / (f_new - f_prev) if f_new != f_prev else 1.0
                 landed = self._land(x + frac * (x_new - x))
                 if landed is not None and self._broken_dropped(landed) is not None:
-                    return Stop(Status.FAILED, self._locked_message(landed, x))
+                    return self._stop_locked(landed, x)
                 if landed is not None and (g_new > 0 or g_prev > 0):
                     return Stop(Status.FINISHED, self.finished_message(), append=(landed,))
                 if landed is None:
@@ -530,7 +530,7 @@ class Projected(StepMethod):
                     return Stop(Status.FINISHED, self.finished_message(), append=(landed,))
                 return self._stop_at_turning(x, t, lu, j, h, g_prev)
             if self._broken_dropped(x_new) is not None:
-                return Stop(Status.FAILED, self._locked_message(x_new, x))
+                return self._stop_locked(x_new, x)
             step = float(np.linalg.norm(x_new - x))
             self.curvature = (t_new - t) / step if step > 0 else None
             self.state = (t_new, lu_p, j_new, tau_new, f_new, g_new)
@@ -558,6 +558,12 @@ class Projected(StepMethod):
 
     def _stats(self) -> dict:
         return {**self.counts, "factorizations": self.n_factor}
+
+    def _stop_locked(self, x_bad, x_last) -> Stop:
+        """The trace ends at ``x_last``: beyond it a redundant edge would break."""
+        return Stop(Status.FAILED, self._locked_message(x_bad, x_last),
+                    event=EventKind.SELF_STRESS_LOST,
+                    detail="a state of self-stress vanishes: the network locks here")
 
     def _locked_message(self, x_bad, x_last) -> str:
         k, err = self._broken_dropped(x_bad)
@@ -614,7 +620,10 @@ class Projected(StepMethod):
         lo, glo, hi, ghi = 0.0, g0, h, None
         best = None
         for _ in range(40):
-            mid = 0.5 * (lo + hi) if ghi is None else lo + (hi - lo) * glo / (glo - ghi)
+            # secant on the drive's rate; halving where it cannot (no bracket yet, or equal
+            # rates at both ends)
+            mid = 0.5 * (lo + hi) if ghi is None or ghi == glo else \
+                lo + (hi - lo) * glo / (glo - ghi)
             if not lo < mid < hi:
                 mid = 0.5 * (lo + hi)
             pt = self._point_at(x, t, lu, j, mid)

@@ -31,6 +31,9 @@ class EventKind(str, Enum):
     TURNING_POINT = "turning_point"  #: the drive reaches an extremum (d(drive)/ds changes sign)
     BRANCH_POINT = "branch_point"    #: the bordered Jacobian's determinant changes sign
     BIFURCATION = "bifurcation"      #: the trace left a singular state on a chosen branch
+    #: a state of self-stress the motion relied on vanishes: an edge it made redundant would
+    #: have to change length to go on, so the network locks there (a maker's pull stops)
+    SELF_STRESS_LOST = "self_stress_lost"
 
     def __str__(self) -> str:
         return self.value

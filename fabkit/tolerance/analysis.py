@@ -4,19 +4,23 @@ margin."""
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.linalg
 
 from ..errors import FabkitError, KinematicsError, TemplateError
 from ..io.workload import require
 from ..kinematics import make_problem, place, trace
 from ..kinematics.trajectory import EventKind, Status
-from ..numerics import EDGE_RTOL, project_to_lengths
+from ..model.network import Network
+from ..numerics import EDGE_RTOL, printed, project_to_lengths
 from ..builds.closure import play_ratio, self_stress_basis
 from .assembled import Assemblies, assemble_builds, MODEL_NAMES, slop_summary
 from .behaviour import infer_behaviour
-from .criteria import judge_modules, judge_ports, judge_shape, Judged, profile_order
+from .criteria import (judge_modules, judge_port_states, judge_ports, judge_shape, Judged,
+                       profile_order)
 from .horizon import lyapunov_estimate, MIN_MAP_STEPS, NEUTRAL_LYAPUNOV
 from .margin import (critical_scales, CURVE_SCALES, keep_curve, margin_of, margin_text,
                      SCALE_BISECTIONS)
@@ -29,9 +33,10 @@ from .spec import tolerance_spec, ToleranceSpec
 
 __all__ = ["analyse_tolerance"]
 
-#: How far (relative) a redundant bar without play may stray along a build's trace: the
-#: projected tracer's own default for a rigid bar.
-RIGID_BAR_RTOL = 1e-9
+#: A build's loops run out of play where its play ratio passes 1 (or its start's, for a build
+#: forced together) by more than this (round-off of the ratio along a traced motion, whose other
+#: bars keep their lengths to the tracer's tolerance).
+PLAY_RTOL = 1e-6
 
 #: Builds per error source in the chart's curves (the first ones of the sample, same draws):
 #: the curves show where each source starts to matter; the margin itself uses every build.
@@ -121,12 +126,35 @@ class _Constructive:
                 "worst_lead": float(np.max(lead)), "samples": int(sampled.shape[1])}
 
 
-class _Projected:
-    """Runs of builds realised one by one (Gauss-Newton) and traced by projected continuation."""
+#: A chain's port name: ``d`` and the module number, then the chain's suffix (``_b``) if any.
+_CHAIN_PORT = re.compile(r"d(\d+)(_\w+)?")
 
-    def __init__(self, design, spec, behaviour, geo, pairs, limit_mm):
+
+class _Projected:
+    """Runs of builds realised one by one (Gauss-Newton) and traced by projected continuation.
+
+    A motion that switches its driven port between two states (the AND gate's branch
+    collapsing) is judged by ``driven state`` and ``still ports``; any other by ``end ports``.
+    """
+
+    def __init__(self, design, spec, behaviour, geo, ports, pairs, limit_mm):
         self.design, self.spec, self.behaviour, self.geo = design, spec, behaviour, geo
         self.pairs, self.limit_mm = pairs, limit_mm
+        self.free = _same_chain(ports, design.motion.drive)
+        net = design.network
+        self.nominal_start = _port_lengths(net.nodes, pairs)
+        # a kit with play: its builds are traced without the edges the design's states of
+        # self-stress make redundant, and the loops' play is watched along the motion instead
+        self.stresses = self_stress_basis(net, net.nodes)
+        self.loop_free = None
+        if self.stresses.shape[1]:
+            keep = np.ones(net.n_edges, dtype=bool)
+            keep[_redundant_edges(self.stresses)] = False
+            self.loop_free = net.edges[keep]
+        self.states = behaviour.end == "switch"
+        if self.states:
+            drive = tuple(sorted(net.port(design.motion.drive)))
+            self.driven = [tuple(sorted(map(int, p))) for p in pairs].index(drive)
 
     def __call__(self, gains, rows, sources=None, observe=False) -> _Run:
         g = np.ones(self.spec.samples)
@@ -147,55 +175,109 @@ class _Projected:
                                           max_iter=30)
                 starts.append(proj.positions if proj.converged else None)
         dist = np.full((len(rows), self.pairs.shape[0]), np.nan)
-        jammed, why = 0, ""
+        began = np.full_like(dist, np.nan)
+        jammed, locked_count, why = 0, 0, ""
         for s, x in enumerate(starts):
             if x is None:
                 continue
-            # the build moves with the lengths it was put together with; where it has play,
-            # the bars its loops make redundant may stray within it as the loops change along
-            # the motion (checked again, first order over every bar's play, where it ends)
-            opts = {} if builds.room is None else {"redundant_rtol": self._slack(builds, s)}
+            played = builds.room is not None and self.loop_free is not None
+            # a build with play moves without the bars its loops make redundant; they take
+            # their lengths within the loops' play until it runs out (checked below)
+            moving = Network(x, self.loop_free, net.ports) if played else net.with_nodes(x)
             try:
-                tr = trace(net.with_nodes(x), drive=m.drive, to=m.to, method="projected",
-                           hold=m.hold, **opts)
+                tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold)
             except (KinematicsError, FabkitError):
                 continue
-            stopped = tr.status is Status.FAILED
-            if builds.room is not None and (stopped
-                                            or not self._still_closes(net, tr.final, builds, s)):
+            # a build that locks short of the target is judged where it locks, as a maker
+            # pushing the drive until it stops would find it: at its own turning point (a
+            # built module's crystal a little off the designed one), where a state of
+            # self-stress it moved with vanishes, or where its loops run out of play (the AND
+            # gate's branch collapsed up to the junction)
+            last = tr.events[-1].kind if tr.events else None
+            locked = last in (EventKind.TURNING_POINT, EventKind.SELF_STRESS_LOST)
+            if tr.status is Status.FAILED and last is not EventKind.SELF_STRESS_LOST:
                 jammed += 1
                 why = why or tr.message
                 continue
-            # a build that locks short of the target (its own turning point: a built module's
-            # crystal a little off the designed one) is judged where it locks, as a maker
-            # pushing the drive until it stops would find it
-            locked = bool(tr.events) and tr.events[-1].kind is EventKind.TURNING_POINT
+            final = tr.final
+            if played:
+                stop = self._play_runs_out(net, tr.positions, builds, s)
+                if stop == 0:
+                    jammed += 1
+                    why = why or "its loops leave their play as it starts to move"
+                    continue
+                if stop is not None:
+                    final, locked = tr.positions[stop - 1], True
             if tr.success or locked:
-                dist[s] = np.linalg.norm(tr.final[self.pairs[:, 0]] - tr.final[self.pairs[:, 1]],
-                                         axis=-1)
+                locked_count += int(locked)
+                began[s] = _port_lengths(x, self.pairs)
+                dist[s] = _port_lengths(final, self.pairs)
+        detail = {"assembled": int(sum(x is not None for x in starts)),
+                  "moved": int(np.isfinite(dist).all(axis=1).sum()), "locked": locked_count,
+                  "jammed": jammed, "jam_reason": why}
+        driven = _Traced(dist)
+        if self.states:
+            state, still = judge_port_states(began, dist, self.nominal_start,
+                                             self.behaviour.end_ports, self.driven, self.free,
+                                             self.spec.scale, self.limit_mm,
+                                             self.behaviour.state_tol * self.spec.scale)
+            state.detail.update(detail)
+            state.detail["front"] = _front_sentence(state.detail)
+            still.detail.update(detail)
+            judged = {"driven state": state, "still ports": still}
+            return _Run(state.ok & still.ok, judged, driven, assembly)
         err = np.abs(dist - self.behaviour.end_ports[None]) * self.spec.scale
         worst = np.nan_to_num(err, nan=np.inf).max(axis=1)
-        detail = {"assembled": int(sum(x is not None for x in starts)),
-                  "moved": int(np.isfinite(dist).all(axis=1).sum()),
-                  "jammed": jammed, "jam_reason": why}
         j = Judged("end ports", worst <= self.limit_mm, worst, self.limit_mm, detail,
                    per_part=err)
-        driven = _Traced(dist)
         return _Run(j.ok, {"end ports": j}, driven, assembly)
 
+    def _play_runs_out(self, net, positions, builds, s) -> int | None:
+        """Index of the first configuration of a build's motion where its loops no longer close
+        within its play (first order over the design's states of self-stress), else None.
 
-    @staticmethod
-    def _slack(builds, s) -> float:
-        """How far (relative) a redundant bar of build ``s`` may stray: its tightest bar's room
-        over its length, below 1e-9 never (a rigid bar)."""
-        return float(max(np.min(builds.room[s] / builds.base[s]), RIGID_BAR_RTOL))
+        The play the build used to go together counts: the ratio is of each bar's length
+        there against the length it was cut to. A build forced together (ratio > 1 at the
+        start) runs out where its ratio grows past the start's."""
+        gap = net.lengths_at(positions) - builds.base[s][None, :]
+        ratio = play_ratio(self.stresses, gap, builds.room[s])
+        over = np.flatnonzero(ratio > max(1.0, float(ratio[0])) * (1.0 + PLAY_RTOL))
+        return int(over[0]) if over.size else None
 
-    @staticmethod
-    def _still_closes(net, final, builds, s) -> bool:
-        """The build's loops still close within its play where its motion ends (first order)."""
-        gap = net.lengths_at(final) - builds.base[s]
-        w = self_stress_basis(net, final)
-        return bool(play_ratio(w, gap, builds.room[s]) <= 1.0)
+
+def _redundant_edges(stresses) -> np.ndarray:
+    """One edge per state of self-stress, together independent (column-pivoted QR of the
+    basis): with them left out the network has none."""
+    _, _, piv = scipy.linalg.qr(np.asarray(stresses).T, pivoting=True, mode="economic")
+    return np.sort(piv[:stresses.shape[1]])
+
+
+def _front_sentence(detail: dict) -> str:
+    """How far the driven chain's front got, over the builds that moved."""
+    got = [k for k in detail["switched"] if k >= 0]
+    if not got:
+        return "no build moved"
+    span = f"{min(got)}" if min(got) == max(got) else f"{min(got)} to {max(got)}"
+    locked = detail.get("locked", 0)
+    return (f"the driven chain's front ends {span} ports along ({detail['designed']} move in the "
+            f"design, to its target); {locked} of {len(got)} builds lock before the target, "
+            "where a maker's pull stops")
+
+
+def _same_chain(ports, drive: str) -> np.ndarray:
+    """Ports of the chain the drive port belongs to (``d3_b`` with ``d1_b``: the same suffix
+    after the module number), as a mask over ``ports``; only the drive itself when its name
+    is not a chain port's."""
+    m = _CHAIN_PORT.fullmatch(drive)
+    if m is None:
+        return np.array([p == drive for p in ports], dtype=bool)
+    return np.array([(q := _CHAIN_PORT.fullmatch(p)) is not None and q.group(2) == m.group(2)
+                     for p in ports], dtype=bool)
+
+
+def _port_lengths(x, pairs) -> np.ndarray:
+    """Distances of the port pairs in configuration ``x``."""
+    return np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=-1)
 
 
 @dataclass
@@ -300,7 +382,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
                             clearance_mm)
     else:
         method = "projected"
-        run = _Projected(design, spec, behaviour, geo, pairs, limit_mm)
+        run = _Projected(design, spec, behaviour, geo, ports, pairs, limit_mm)
 
     M = spec.samples
     rows = np.arange(M)
@@ -445,8 +527,44 @@ def _horizon(design, plan, dist, reached, ports, length_rms, size_mm, limit_mm, 
     return out
 
 
-def _failure(name, j, spec, behaviour, ports) -> str:
-    """A clause for a criterion that some builds fail."""
+def _switch_failure(name, j, ports) -> str | None:
+    """The clause of ``driven state`` or ``still ports``: builds that never reach an end (said
+    once, with the driven state), then those that end wrong."""
+    d, v = j.detail, j.value_mm
+    there = np.isfinite(v)
+    wrong = there & ~j.ok
+    clauses = []
+    if name == "driven state" and (~there).any():
+        unbuilt = j.ok.size - d.get("assembled", j.ok.size)
+        jammed = d.get("jammed", 0)
+        parts = []
+        if unbuilt:
+            parts.append(f"{unbuilt} cannot be put together, even forced within the material's "
+                         "allowable stress")
+        if jammed:
+            parts.append(f"{jammed} jam (the first: {d.get('jam_reason') or 'its loops leave their play'})")
+        rest = int((~there).sum()) - unbuilt - jammed
+        if rest > 0:
+            parts.append(f"{rest} cannot be traced from where they go together")
+        clauses.append(f"{int((~there).sum())} of {j.ok.size} builds never reach an end: "
+                       + "; ".join(parts))
+    if wrong.any():
+        p95 = float(np.percentile(v[there], 95, method="higher"))
+        share = 100.0 * float(wrong.mean())
+        if name == "driven state":
+            clauses.append(f"{share:.1f}% of builds stop short of the driven port's end state, "
+                           f"up to {p95:.3g} mm from it (95% of those that end; allowed "
+                           f"{j.limit_mm:.3g} mm)")
+        else:
+            k = int(np.argmax(np.percentile(j.per_part[there], 95, axis=0, method="higher")))
+            clauses.append(f"{share:.1f}% of builds move {ports[d['still_columns'][k]]}, which "
+                           f"the design keeps still, by up to {p95:.3g} mm (95% of those that "
+                           f"end; allowed {j.limit_mm:.3g} mm)")
+    return "; ".join(clauses) or None
+
+
+def _failure(name, j, spec, behaviour, ports) -> str | None:
+    """A clause for a criterion that some builds fail (None: said by another's clause)."""
     lost = 100.0 * (1.0 - float(j.ok.mean()))
     v = j.value_mm
     p95 = float(np.percentile(v, 95, method="higher")) if v.size else math.inf
@@ -473,6 +591,8 @@ def _failure(name, j, spec, behaviour, ports) -> str:
     if name == "end shape":
         return (f"the end shape is off by up to {p95:.3g} mm after the best rigid fit (95% of "
                 f"builds; allowed {j.limit_mm:.3g} mm)")
+    if name in ("driven state", "still ports"):
+        return _switch_failure(name, j, ports)
     # end ports: the worst port
     if j.detail.get("assembled") == 0:
         return (f"none of the {j.ok.size} builds goes together, even forced within the "
@@ -509,8 +629,9 @@ def _verdict(spec, behaviour, judged, frac, flagged, margin, bound, source_margi
             if name == "order" or not fin.size:
                 parts.append(name)
             else:
-                parts.append(f"{name} within {np.percentile(j.value_mm, 95):.3g} of "
-                             f"{j.limit_mm:.3g} mm")
+                front = f", {j.detail['front']}" if "front" in j.detail else ""
+                parts.append(f"{name} within {printed(np.percentile(j.value_mm, 95), '.3g')} "
+                             f"of {j.limit_mm:.3g} mm{front}")
         return (f"ok, margin {head_margin}: {100 * frac:.1f}% of {unit} keep the behaviour "
                 f"({'; '.join(parts)})")
     shrink = "" if bound == "below" else f"; errors must shrink to {margin:.2g}×"
@@ -518,6 +639,7 @@ def _verdict(spec, behaviour, judged, frac, flagged, margin, bound, source_margi
         shrink = "; errors must shrink more than tenfold"
     clauses = [_failure(n, judged[n], spec, behaviour, ports) for n in names
                if not judged[n].ok.all()]
+    clauses = [c for c in clauses if c]
     if behaviour.chaos is not None and horizon and horizon.get("limit_modules") is not None:
         lam = behaviour.chaos["lyapunov"]
         clauses.append(f"chaotic (λ = {lam:.2f} per module): a {horizon['error_mm']:.3g} mm "

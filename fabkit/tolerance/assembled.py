@@ -25,6 +25,10 @@ from ..numerics import TINY
 
 __all__ = ["Assemblies", "assemble_builds", "slop_summary", "MODEL_NAMES"]
 
+#: A chain's slop "does not grow" when its fitted growth over the whole chain is below this
+#: fraction of the largest port's slop (a super-stable chain: each module's play stays local).
+FLAT_SLOP_FRACTION = 0.01
+
 #: What each level of model is called in verdicts and reports.
 MODEL_NAMES = {"rigid": "rigid bars (no state of self-stress: any lengths go together)",
                "play": "rigid bars with joint play",
@@ -242,6 +246,8 @@ def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
         good = np.isfinite(v)
         if good.sum() >= 2:
             res["growth_mm_per_module"] = float(np.polyfit(k[good], v[good], 1)[0])
+            res["chain_slop_mm"] = float(np.max(v[good]))
+            res["modules"] = int(k[good].max() - k[good].min())
     res["sentence"] = _slop_sentence(res)
     return res
 
@@ -252,6 +258,9 @@ def _slop_sentence(res) -> str:
             math.isfinite(v) else f"±{v:.3g} mm"
     text = (f"slop at {res['output']} with the drive held: {mm(res['output_start_mm'])} at the "
             f"start, {mm(res['output_end_mm'])} at the end ({res['room_mm']:g} mm hole play)")
-    if res.get("growth_mm_per_module") is not None:
-        text += f"; it grows by {res['growth_mm_per_module']:.3g} mm per module along the chain"
+    g = res.get("growth_mm_per_module")
+    if g is not None and abs(g) * res["modules"] < FLAT_SLOP_FRACTION * res["chain_slop_mm"]:
+        text += "; it does not grow along the chain (each module's slop stays its own)"
+    elif g is not None:
+        text += f"; it grows by {g:.3g} mm per module along the chain"
     return text

@@ -9,7 +9,8 @@ A design's nominal motion and its module map (:mod:`fabkit.tolerance.modules`) s
   module that ends at a crystal, or a chain whose front ends where its first module locks, ends
   in a *state* of its modules; a chain whose module map is the identity over the motion (d1 = d2
   throughout: curvature designs) ends in a *shape*; anything else ends at the *port distances*
-  of that end, today's measure;
+  of that end, today's measure; a network without module maps (traced build by build) whose
+  driven port switches between two states ends in that *switch*, with what it keeps still;
 - **order**: in a chain, the modules' progress from start to end is monotone along the chain at
   every instant of the motion (a front runs left to right, or right to left), one front;
 - **chaos**: the module map has a positive Lyapunov exponent, so errors grow as e^{λk} along the
@@ -118,7 +119,8 @@ class Behaviour:
     intent : str
         The template's ``[motion] intent`` (``"auto"`` when not given).
     end : str
-        ``"state"``, ``"ports"`` or ``"shape"``: what is judged at the end.
+        ``"state"``, ``"ports"``, ``"shape"`` or ``"switch"`` (the driven port's end state and
+        the ports kept still, of builds traced one by one): what is judged at the end.
     end_at : str
         ``"target"`` or ``"lock"``: where the motion ends.
     end_drive : float
@@ -177,6 +179,8 @@ class Behaviour:
             out.append("crystals")
         if self.order:
             out.append("order")
+        if self.end == "switch":
+            return out + ["driven state", "still ports"]
         out.append({"state": "end state", "ports": "end ports", "shape": "end shape"}[self.end])
         return out
 
@@ -423,6 +427,20 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
         end = "state"
     else:
         end = "ports"
+    if end == "ports" and plan is None and intent in ("auto", "state"):
+        # builds traced one by one have no module maps: a motion that switches its driven
+        # port between two states (the AND gate's branch collapsing) is judged by that switch
+        # and by what it keeps still, not by port distances at a target tuned to round-off
+        drive = tuple(sorted(design.network.port(design.motion.drive)))
+        rows = [tuple(sorted(map(int, p))) for p in pairs]
+        if drive in rows:
+            k = rows.index(drive)
+            moved = abs(float(end_ports[k]) - float(_ports(x_start, pairs[k:k + 1])[0]))
+            if moved > limit:
+                end = "switch"
+                notes = [t for t in notes if not t.startswith("intent = state")]
+                travel = moved
+                state_tol = max(spec.state_fraction * moved, limit)
     if order and (not transit or not transit[3]):
         order = 0  # a front without states to run between: judged by its end alone
     if end == "ports" and n >= 2 and fmap is not None:

@@ -16,7 +16,15 @@ number it was judged on (mm, the worst of its modules or ports):
 - ``end ports``: every port distance where the build ends (the target, or where it locks) lies
   within the limit of the design's;
 - ``end shape``: every node, after the best rigid fit of the built end state onto the design's,
-  lies within the shape limit.
+  lies within the shape limit;
+- ``driven state`` and ``still ports`` (a network traced build by build, whose motion switches
+  the driven port between two states: the AND gate's branch collapsing while the trunk and the
+  junction stay still): where the build ends (the target, or where it locks as a maker's pull
+  stops), the driven port is within the state tolerance of its designed end state, and every
+  port off the driven chain that the design keeps still (it moves less than the limit) has
+  moved less than the limit from where the build started. How far the driven chain's front got
+  (its ports that changed state) is reported, not judged: next to a super-stable state it
+  depends on the built fixed point, not on the design's target.
 """
 
 from __future__ import annotations
@@ -27,7 +35,8 @@ import numpy as np
 
 from ..numerics import FIXED_POINT_RTOL, rigid_fit
 
-__all__ = ["Judged", "judge_modules", "judge_ports", "judge_shape", "profile_order"]
+__all__ = ["Judged", "judge_modules", "judge_ports", "judge_port_states", "judge_shape",
+           "profile_order"]
 
 #: d_in values per window around a state (a crystal or a lock), across twice the state
 #: tolerance: roots of f(d) - d are bracketed between them and placed by linear interpolation.
@@ -179,6 +188,60 @@ def judge_ports(behaviour, driven, limit_mm: float) -> "Judged":
     worst = err.max(axis=1)
     return Judged("end ports", worst <= limit_mm, worst, limit_mm,
                   {"p95_by_port_mm": np.percentile(err, 95, axis=0, method="higher").tolist()}, err)
+
+
+def judge_port_states(starts, finals, nominal_start, nominal_end, driven: int, free,
+                      scale: float, limit_mm: float,
+                      state_mm: float) -> tuple["Judged", "Judged"]:
+    """``driven state`` and ``still ports`` of builds traced one by one.
+
+    Parameters
+    ----------
+    starts, finals : numpy.ndarray, shape (M, P)
+        Each build's port distances where it was put together and where its motion ended
+        (design units; NaN: the build did not get there).
+    nominal_start, nominal_end : numpy.ndarray, shape (P,)
+        The design's.
+    driven : int
+        Column of the driven port.
+    free : numpy.ndarray of bool, shape (P,)
+        Ports whose state may switch: the driven chain's (its front may run on past where the
+        design's target stops it, up to where the build locks). Every other port the design
+        keeps still must stay still.
+    scale : float
+        mm per design unit.
+    limit_mm, state_mm : float
+        The limit (still ports) and the state tolerance (the driven port's end state).
+
+    Returns
+    -------
+    (Judged, Judged)
+        ``driven state``: distance of the driven port from its designed end (mm); ``still
+        ports``: the largest motion of a port the design keeps still (mm; per port in
+        ``per_part``, the columns ``detail["still_columns"]``). Both carry ``detail["switched"]``, the ports per build that ended in
+        their designed end state (within the state tolerance), and ``detail["designed"]``,
+        those of the design.
+    """
+    starts = np.asarray(starts, dtype=np.float64)
+    finals = np.asarray(finals, dtype=np.float64)
+    there = np.isfinite(finals).all(axis=1) & np.isfinite(starts).all(axis=1)
+    off = np.abs(finals[:, driven] - nominal_end[driven]) * scale
+    off = np.where(there, off, np.inf)
+    travel = np.abs(nominal_end - nominal_start) * scale
+    free = np.asarray(free, dtype=bool)
+    still = (travel <= limit_mm) & ~free
+    moved = np.abs(finals - starts) * scale
+    moved = np.where(there[:, None], moved, np.inf)[:, still]
+    worst = moved.max(axis=1) if moved.shape[1] else np.where(there, 0.0, np.inf)
+    # a port ends in the designed end state when it lies nearer to it than the state tolerance
+    switching = travel > limit_mm
+    at_end = np.abs(finals - nominal_end[None, :]) * scale <= state_mm
+    switched = np.where(there, np.sum(at_end & switching[None, :], axis=1), -1)
+    designed = int(np.sum(switching))
+    detail = {"switched": switched.tolist(), "designed": designed}
+    return (Judged("driven state", off <= state_mm, off, state_mm, dict(detail)),
+            Judged("still ports", worst <= limit_mm, worst, limit_mm,
+                   {**detail, "still_columns": np.flatnonzero(still).tolist()}, moved))
 
 
 def judge_shape(behaviour, driven) -> "Judged":
