@@ -14,22 +14,30 @@ from ..io.schema import refuse_unused
 from ..io.suggest import did_you_mean
 from ..kinematics import METHODS, Status
 from ..motion import judge_ends
-from ..report.viz import figure_png, motion_figure
-from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
-               Example, progress_for)
+from ..motion.elastic import DEFAULT_STEPS, elastic_motion
+from ..report.viz import elastic_figure, figure_png, motion_figure
+from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number,
+               each_template, Example, progress_for)
 from .settings import parse_settings
+
+#: Most quasi-static steps of ``--model elastic`` (each one a least-energy assembly).
+MAX_STEPS = 10_000
 
 NAME = "simulate"
 HELP = "trace a template's motion; writes trajectory.npz and motion.png"
 
 EXAMPLES = [
-    Example("fabkit simulate fourbar --method projected",
-            "trace the 4-bar with the continuation method; out/fourbar/trajectory.npz, motion.png"),
     Example("fabkit simulate super_stable_chain8 --gif --set motion.to=1.5",
             "the chain driven part of the way (d1 = 1.5), with an animated motion.gif"),
     Example("fabkit simulate origami_sheet --method branch -o out/sim",
             "leave the flat sheet on a branch (the bifurcation method)"),
+    Example("fabkit simulate super_stable_chain8 --model elastic --to 1.0",
+            "push the laser kit 1 mm past where it locks: energy and the largest bar stress "
+            "(MPa) along the drive; out/<name>/elastic.npz, elastic.png"),
 ]
+
+#: Values of ``--model``: the rigid kinematic model, or bars as springs with the joints' play.
+MODELS = ("rigid", "elastic")
 
 
 def add_arguments(p):
@@ -41,6 +49,12 @@ def add_arguments(p):
     add_settings(p, "override a motion setting, e.g. --set motion.to=1.5 or "
                     "--set motion.method=projected (repeatable)")
     p.add_argument("--gif", action="store_true", help="also write an animated motion.gif")
+    p.add_argument("--model", default="rigid", metavar="MODEL",
+                   help="rigid (default: bars keep their lengths) or elastic (the build's bars "
+                        "as springs with its joints' play, driven in quasi-static steps to the "
+                        "target: energy and the largest stress; writes elastic.npz, elastic.png)")
+    p.add_argument("--steps", type=int, default=None,
+                   help=f"quasi-static steps of --model elastic (default: {DEFAULT_STEPS})")
     add_progress_options(p)
 
 
@@ -61,7 +75,11 @@ def trajectory_npz(traj) -> bytes:
     return buf.getvalue()
 
 
-def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None):
+def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None,
+                    elastic=None):
+    """Trace a design's motion and write its files; with ``elastic`` (``{"steps": K,
+    "settings": {...}}``) also drive its build with elastic bars. Returns (trajectory, folder,
+    elastic run or None)."""
     say = progress.stage if progress is not None else (lambda text: None)
 
     overrides = {}
@@ -80,8 +98,17 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
 
         say(f"{design.name}: animating motion.gif")
         files["motion.gif"] = motion_gif(traj)
+    run = None
+    if elastic is not None:
+        say(f"{design.name}: driving the build with elastic bars")
+        run = elastic_motion(design, to=to, steps=elastic["steps"],
+                             settings=elastic.get("settings"))
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **run.arrays())
+        files["elastic.npz"] = buf.getvalue()
+        files["elastic.png"] = figure_png(elastic_figure(run, title=f"{design.name}, elastic"))
     write_files(folder, files)
-    return traj, folder
+    return traj, folder, run
 
 
 def run(args) -> int:
@@ -93,17 +120,40 @@ def run(args) -> int:
         raise UsageError("--method", f"unknown method {args.method!r}; "
                                      + (f"{hint} " if hint else "") + f"valid: {', '.join(valid)}")
     check_number("--to", args.to)
+    if args.model not in MODELS:
+        hint = did_you_mean(args.model, MODELS)
+        raise UsageError("--model", f"unknown model {args.model!r}; "
+                                    + (f"{hint} " if hint else "") + f"valid: {', '.join(MODELS)}")
+    elastic = args.model == "elastic"
+    if args.steps is not None and not elastic:
+        raise UsageError("--steps", "counts the quasi-static steps of --model elastic")
+    steps = DEFAULT_STEPS if args.steps is None else args.steps
+    check_count("--steps", steps, 2, MAX_STEPS, "quasi-static steps")
     settings = parse_settings(args.settings)
-    refuse_unused(settings, {"motion"}, "simulate reads motion settings only")
+    if elastic:
+        refuse_unused(settings, {"motion", "laser", "print", "tolerance"},
+                      "simulate --model elastic reads motion, laser, print and tolerance "
+                      "settings only")
+    else:
+        refuse_unused(settings, {"motion"}, "simulate reads motion settings only")
     progress = progress_for(args, NAME)
 
     def one(path) -> bool:
         from dataclasses import replace
 
         design = with_settings(load_template(path), settings)
-        traj, folder = simulate_design(design, Path(args.out_dir), args.method, args.to,
-                                       args.gif, progress)
+        traj, folder, run = simulate_design(
+            design, Path(args.out_dir), args.method, args.to, args.gif, progress,
+            {"steps": steps, "settings": settings} if elastic else None)
         print(f"== {design.name} -> {folder}")
+        if run is not None:
+            # the elastic model answers: the rigid trace is shown, its stop is no failure
+            print(traj.summary())
+            print("\n".join(run.summary()))
+            over = run.over()
+            if over is not None:
+                print(f"fabkit: error: {path}: motion: {over}", file=sys.stderr)
+            return over is not None
         ends = None
         if traj.success:
             # reaching the target is not the design happening: every designed end, judged

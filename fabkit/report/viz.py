@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["draw_network", "motion_figure", "figure_png", "checked_png", "clipped_texts",
+from ..model.network import Network
+
+__all__ = ["draw_network", "motion_figure", "elastic_figure", "figure_png", "checked_png", "clipped_texts",
            "layout_faults", "set_margins", "plain_log_ticks", "figure_kit"]
 
 
@@ -148,6 +150,43 @@ def motion_figure(traj, *, frames: int = 3, title: str | None = None):
     ax2b.semilogy(traj.arclength, err, ".", color="C3", ms=3)
     plain_log_ticks(ax2b.yaxis)
     ax2b.set_ylabel("max relative edge error", color="C3")
+    set_margins(fig, left=0.55, right=1.2, bottom=0.55, top=0.35, gap=0.85)
+    return fig
+
+
+def elastic_figure(run, *, title: str | None = None):
+    """A build driven with elastic bars: its start and end, and the elastic energy and the
+    largest bar stress (against the material's allowable) along the drive.
+
+    Parameters
+    ----------
+    run : fabkit.motion.elastic.ElasticRun
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    m = run.motion
+    fig, (ax, ax2) = figure_kit.subplots(1, 2, figsize=(11, 4.8),
+                                         gridspec_kw={"width_ratios": [2, 1]})
+    net = Network(m.positions[0], run.edges)
+    draw_network(ax, net, m.positions[0], color="0.6", lw=1.0)
+    peak = m.peak_stress
+    draw_network(ax, net, m.positions[-1], color="C3" if peak[-1] > run.material.allowable_mpa
+                 else "C0", lw=1.6)
+    ax.set_title(title or "driven with elastic bars: grey = start, coloured = end")
+    ax2.plot(m.drive, peak, "-", color="C3", label="largest stress")
+    ax2.axhline(run.material.allowable_mpa, color="C3", ls="--", lw=0.8,
+                label=f"{run.material.name} allows")
+    ax2.set_xlabel(f"{run.drive} (mm)")
+    ax2.set_ylabel("largest |stress| (MPa)", color="C3")
+    ax2.legend(loc="upper left", fontsize=8)
+    ax2b = ax2.twinx()
+    ax2b.plot(m.drive, m.energy, ".", color="C0", ms=3)
+    ax2b.set_ylabel("elastic energy (mJ)", color="C0")
+    if m.drive[-1] < m.drive[0]:
+        ax2.invert_xaxis()  # the drive's own direction, start on the left
+    ax2.set_title("quasi-static steps")
     set_margins(fig, left=0.55, right=1.2, bottom=0.55, top=0.35, gap=0.85)
     return fig
 
