@@ -23,8 +23,11 @@ from __future__ import annotations
 import math
 import numbers
 
+import numpy as np
+
 from .errors import ArgumentTypeError, ArgumentValueError
 from .model.network import Network
+from .numerics import EDGE_RTOL, TINY
 
 __all__ = ["network", "whole", "real", "choice", "port", "names"]
 
@@ -92,6 +95,31 @@ def names(name: str, value, net) -> tuple:
     if not isinstance(value, (list, tuple)):
         raise ArgumentTypeError(name, f"must be a list of port names, got {_show(value)}")
     return tuple(port(f"{name}[{i}]", v, net) for i, v in enumerate(value))
+
+
+def positions(name: str, value, net) -> np.ndarray:
+    """A configuration of ``net``: an (N, d) array of finite coordinates in which every edge
+    has a length (beyond round-off of the coordinates; an edge of no length has no direction).
+    """
+    try:
+        x = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ArgumentTypeError(name, "must be an array of node coordinates, got "
+                                      f"{type(value).__name__}") from None
+    if x.shape != net.nodes.shape:
+        raise ArgumentValueError(name, f"must have shape {net.nodes.shape} (one row per node), "
+                                       f"got {x.shape}")
+    if not np.isfinite(x).all():
+        i = int(np.flatnonzero(~np.isfinite(x).all(axis=1))[0])
+        raise ArgumentValueError(name, f"must be finite, got {x[i].tolist()} for node {i}")
+    if net.n_edges:
+        lengths = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
+        short = np.flatnonzero(lengths <= EDGE_RTOL * max(float(np.abs(x).max()), TINY))
+        if short.size:
+            a, b = (int(v) for v in net.edges[short[0]])
+            raise ArgumentValueError(name, f"puts nodes {a} and {b} of edge {int(short[0])} at "
+                                           "one point; every edge needs a length")
+    return x
 
 
 def _kind(value) -> str:

@@ -184,7 +184,7 @@ def port_slop(net: Network, positions, room, *, held=(), ports=None) -> list[Por
     [('d1', inf, False), ('d2', inf, False)]
     """
     arguments.network("net", net)
-    x = _checked_positions(positions, net)
+    x = arguments.positions("positions", positions, net)
     c = _checked_room(room, net)
     held_pairs = _checked_pairs("held", held, x)
     if ports is None:
@@ -250,28 +250,6 @@ def _pair_rows(x: np.ndarray, pairs: np.ndarray) -> sp.csr_matrix:
                           axis=1).ravel()
     vals = np.concatenate([diff, -diff], axis=1).ravel()
     return sp.csr_matrix((vals, (rows, cols)), shape=(k, d * n))
-
-
-def _checked_positions(positions, net: Network) -> np.ndarray:
-    try:
-        x = np.asarray(positions, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ArgumentTypeError("positions", "must be an array of node coordinates, got "
-                                             f"{type(positions).__name__}") from None
-    if x.shape != net.nodes.shape:
-        raise ArgumentValueError("positions", f"must have shape {net.nodes.shape} (one row per "
-                                              f"node), got {x.shape}")
-    if not np.isfinite(x).all():
-        i = int(np.flatnonzero(~np.isfinite(x).all(axis=1))[0])
-        raise ArgumentValueError("positions", f"must be finite, got {x[i].tolist()} for node {i}")
-    if net.n_edges:
-        lengths = np.linalg.norm(x[net.edges[:, 0]] - x[net.edges[:, 1]], axis=1)
-        zero = np.flatnonzero(lengths == 0.0)
-        if zero.size:
-            a, b = (int(v) for v in net.edges[zero[0]])
-            raise ArgumentValueError("positions", f"puts nodes {a} and {b} of bar {int(zero[0])} "
-                                                  "at one point; every bar needs a length")
-    return x
 
 
 def _checked_room(room, net: Network) -> np.ndarray:

@@ -23,9 +23,9 @@ import scipy.sparse.linalg as spla
 import threadpoolctl
 
 from .. import arguments
-from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError
+from ..errors import ConstructionError
 from .network import Network
-from ..numerics import EDGE_RTOL, RANK_RTOL, TINY
+from ..numerics import RANK_RTOL
 from .certificate import Uncertified, certify
 from .matrix import (AMBIGUOUS_GAP, Undecided, available_memory, orthonormal, rank_dense,
                      require_dense_memory, rigid_body_basis, rigidity_matrix, sigma_max,
@@ -294,29 +294,6 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     return n - modes, gap, smallest, ""
 
 
-def _checked_positions(positions, net: Network) -> np.ndarray:
-    """``positions`` as an (N, d) array of the network's shape (an ArgumentError otherwise)."""
-    try:
-        x = np.asarray(positions, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ArgumentTypeError("positions", "must be an array of node coordinates, got "
-                                             f"{type(positions).__name__}") from None
-    if x.shape != net.nodes.shape:
-        raise ArgumentValueError("positions", f"must have shape {net.nodes.shape} (one row per "
-                                              f"node), got {x.shape}")
-    if not np.isfinite(x).all():
-        raise ArgumentValueError("positions", "holds non-finite coordinates")
-    if net.n_edges:
-        lengths = np.linalg.norm(x[net.edges[:, 1]] - x[net.edges[:, 0]], axis=1)
-        # an edge within round-off of no length has no direction: no rigidity matrix row
-        short = np.flatnonzero(lengths <= EDGE_RTOL * max(float(np.abs(x).max()), TINY))
-        if short.size:
-            a, b = (int(v) for v in net.edges[short[0]])
-            raise ArgumentValueError("positions", f"puts nodes {a} and {b} of edge {int(short[0])} "
-                                                  "at one point; every edge needs a length")
-    return x
-
-
 def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
                 method: str = "auto") -> ModeCount:
     """Count zero modes, rigid motions, conformational motions and states of self-stress.
@@ -434,7 +411,7 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     arguments.network("net", net)
     arguments.choice("method", method, ("auto", "structure", "dense", "sparse"))
     if positions is not None:
-        return _count_modes(net, _checked_positions(positions, net), rtol, method)
+        return _count_modes(net, arguments.positions("positions", positions, net), rtol, method)
     # the reference configuration's count is remembered on the (immutable) network: an export
     # asks for it when it traces, reports and checks the design
     key = ("count_modes", float(rtol), method)
