@@ -284,3 +284,26 @@ def test_library_lyapunov_is_timed():
     assert res is not None  # fabkit.maps is part of the package: the bench must time it
     assert res["outcome"] == "ok" and res["time_s"] > 0
     assert res["exponent"] == pytest.approx(0.312, abs=0.02)  # the paper's λ ≈ 0.312
+
+
+def test_cli_levels_part_compares_the_levels_of_a_build(tmp_path, capsys):
+    # the first-order test (basis and sparse LP) against the nonlinear assembly on the AND gate
+    # and 3x3, 10x10, 30x30 lattices: the same verdict on every build; the elastic level forces
+    # every build together and names its stress
+    rc = main(["bench", "--quick", "--parts", "levels", "-o", str(tmp_path)])
+    assert rc == 0
+    out = tmp_path / "bench"
+    assert sorted(p.name for p in out.iterdir()) == ["bench.json", "levels.png"]
+    doc = json.loads((out / "bench.json").read_text())
+    points = doc["levels"]["points"]
+    assert {p["case"] for p in points} == {"AND gate", "lattice 3x3", "lattice 10x10",
+                                          "lattice 30x30"}
+    first = [p for p in points if p["level"].startswith("first order") and p["builds"]]
+    assert first and all(p["agrees"] == 1.0 for p in first)
+    # the dense basis is left out where its SVD alone would pass the budget (30x30: 2730 bars)
+    skipped = [p for p in points if p["seconds_per_build"] is None]
+    assert [(p["case"], p["level"]) for p in skipped] == [("lattice 30x30", "first order (basis)")]
+    gate = {p["level"]: p for p in points if p["case"] == "AND gate"}
+    assert gate["first order (basis)"]["self_stresses"] == 1
+    assert 0 < gate["elastic, no play"]["max_stress_mpa"] < 15
+    assert "levels  AND gate" in capsys.readouterr().out

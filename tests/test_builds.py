@@ -238,3 +238,24 @@ def test_bad_input_is_named():
         play_ratio(np.ones((6, 1)), np.zeros(6), np.full(6, np.nan))
     with pytest.raises(ValueError, match="no bar material"):
         process_material("origami")
+
+
+def test_the_sparse_first_order_test_is_the_basis_test():
+    # the LP in (u, s, t) without the basis gives the same play ratio as |w·δL| / Σ|w_e| c_e
+    # (one state, the AND gate) and as the LP over 72 states (a 10 x 10 4-bar lattice)
+    from fabkit.bench.large import lattice
+    from fabkit.builds.closure import play_ratio_sparse
+
+    rng = np.random.default_rng(3)
+    for net in (fabkit.load_template("and_gate").network, lattice(10)):
+        L = net.edge_lengths
+        gap = rng.normal(0.0, 5e-4, (4, L.size)) * L
+        room = 1e-3 * L
+        basis = play_ratio(self_stress_basis(net), gap, room)
+        assert play_ratio_sparse(net, gap, room) == pytest.approx(basis, rel=1e-6)
+    # no room where the misfit is: no play closes it
+    sq = Network(SQUARE, BRACED)
+    assert play_ratio_sparse(sq, [1.0, 0, 0, 0, 0, 0], 0.0) == np.inf
+    assert play_ratio_sparse(sq, [0.0] * 6, 0.0) == 0.0
+    with pytest.raises(ValueError, match="gap"):
+        play_ratio_sparse(sq, [0.0] * 5, 0.1)

@@ -13,7 +13,7 @@ import json
 import sys
 import time
 
-from ..bench import finite, machine_info, stability as stab
+from ..bench import finite, levels as lv, machine_info, stability as stab
 from ..bench.stability import stability_table
 from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
 from ..errors import UsageError
@@ -48,7 +48,8 @@ MODES = {
                         # one repeat; the 10⁵-module traces and the projected comparison are
                         # the full bench's (about a minute on their own)
                         "certified": {"counts": (10000, 100000), "traces": (10000,),
-                                      "projected": None, "bundled": 100, "repeats": 1}}},
+                                      "projected": None, "bundled": 100, "repeats": 1}},
+              "levels": {"sizes": (3, 10, 30), "builds": 10}},
     "full": {"sizes": (10, 100, 1000, 10000), "budget": 30.0, "repeats": 3,
              "compare_modules": 300,
              "lyapunov": (1000, 500, 2000), "stability": {}, "rk4_step": 0.02,
@@ -57,7 +58,9 @@ MODES = {
                        "chains": (10, 100, 1000, 10000),
                        "lattice": (3, 10, 20, 30, 50, 70, 100),
                        "certified": {"counts": (10000, 100000), "traces": (10000, 100000),
-                                     "projected": 10000, "bundled": 100000}}},
+                                     "projected": 10000, "bundled": 100000}},
+             # k = 100: the 10⁴-cell lattice (one sparse LP a build takes about a minute)
+             "levels": {"sizes": (3, 10, 30, 100), "builds": 10}},
 }
 
 
@@ -69,11 +72,13 @@ def add_arguments(p):
                    help="seconds allowed per method, setting and size (default 30; quick 8)")
     p.add_argument("--sizes", default=None,
                    help="comma-separated numbers of modules (default 10,100,1000,10000)")
-    p.add_argument("--parts", default="workprecision,targets,stability,large",
+    p.add_argument("--parts", default="workprecision,targets,stability,large,levels",
                    help="comma-separated parts to run: workprecision (charts), targets (rk4 "
                         "comparison at 300 modules, Lyapunov protocol), stability (table, "
                         "failure cases, horizon), large (mode counting and projected on large "
-                        "chains and a 2D lattice); default all")
+                        "chains and a 2D lattice), levels (a build's levels of model: first "
+                        "order, assembly with play, elastic; the AND gate and 4-bar lattices); "
+                        "default all")
     p.add_argument("--profile", action="store_true",
                    help="also profile 'projected' on the largest chain (profile.txt)")
     add_progress_options(p)
@@ -144,7 +149,7 @@ def comparison_at(k, points, settings, budget, repeats, rk4_step):
             "rk4_evaluation_exponent_largest": fit_last[0] if fit_last else None}
 
 
-PARTS = ("workprecision", "targets", "stability", "large")
+PARTS = ("workprecision", "targets", "stability", "large", "levels")
 
 
 def _parts(text):
@@ -265,6 +270,17 @@ def run(args) -> int:
             doc["targets"].update(large.certified_targets(cert))
         files["large_networks.png"] = figure_png(large.large_figure(modes, chains, lattice))
 
+    levels = None
+    if "levels" in parts:
+        vcfg = cfg["levels"]
+        cases = lv.level_cases(vcfg["sizes"])
+        say.stage("levels of model: first order, assembly with play, elastic",
+                  total=len(cases) * len(lv.LEVELS), unit="runs")
+        levels = lv.levels_points(cases, builds=vcfg["builds"], budget=budget,
+                                  progress=lambda p: say.advance(text=lv.levels_line(p)))
+        doc["levels"] = {"points": levels, "builds": vcfg["builds"]}
+        files["levels.png"] = figure_png(lv.levels_figure(levels))
+
     if args.profile:
         k = max(sizes) if args.sizes else cfg["profile_modules"]
         say.stage(f"profiling projected on {k} modules")
@@ -298,6 +314,8 @@ def run(args) -> int:
         verdict = "met" if g["met"] else (
             "NOT met" if any(v is not None for v in figures.values()) else "not measured")
         print(f"  target    {name:<22} {verdict}: {g['target']} [{shown}]")
+    for p in levels or ():
+        print("  levels  " + lv.levels_line(p).strip())
     if study is not None:
         counts = {}
         for r in study["rows"]:

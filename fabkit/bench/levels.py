@@ -1,0 +1,174 @@
+"""The levels of a build's model, speed against accuracy: the first-order test over the states
+of self-stress (from the dense basis, or one sparse linear program), the nonlinear assembly with
+joint play, and elastic relaxation without play.
+
+Each case is a network with states of self-stress, built many times with bar-length errors
+(σ ``sigma_mm``) and a little play (``room_mm`` a bar, 0.05 mm: small enough that some builds
+close and some do not, on the AND gate and on lattices of 100 to 900 cells alike), the drive
+port held. Per level and case: the seconds a build takes, and what the
+level says; the first-order verdicts are compared with the nonlinear assembly's (the reference:
+the same question without linearisation), and the elastic level gives the energy and the largest
+stress of a build forced together without play. The cases: the AND gate (98 nodes, one state of
+self-stress) and k × k lattices of the paper's 4-bar (:func:`fabkit.bench.large.lattice`, about
+k² states of self-stress; 10⁴ cells at k = 100).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..builds.assembly import assemble, bar_stress
+from ..builds.closure import play_ratio, play_ratio_sparse, self_stress_basis
+from ..builds.materials import bar_stiffness, MATERIALS
+from ..io.templates import load_template
+from ..report.viz import figure_kit, set_margins
+from .large import dense_svd_seconds, lattice
+
+__all__ = ["level_cases", "levels_points", "levels_figure", "levels_line", "LEVELS"]
+
+#: The levels, in order of cost.
+LEVELS = ("first order (basis)", "first order (sparse LP)", "assembly with play",
+          "elastic, no play")
+
+#: mm per design unit of every case (the laser kit's default scale).
+SCALE_MM = 100.0
+
+#: A laser-cut acrylic bar: 14.5 mm wide, 3 mm thick.
+SECTION_MM2 = 14.5 * 3.0
+
+
+def level_cases(sizes) -> list[tuple[str, object, str]]:
+    """(name, network, drive port) of the AND gate and of a k × k 4-bar lattice per size."""
+    cases = [("AND gate", load_template("and_gate").network, "d1_b")]
+    for k in sizes:
+        cases.append((f"lattice {k}x{k}", lattice(int(k)), "d1_0_0"))
+    return cases
+
+
+def levels_points(cases, *, builds: int = 5, sigma_mm: float = 0.05, room_mm: float = 0.05,
+                  budget: float = 30.0, seed: int = 0, progress=None) -> list[dict]:
+    """Every level on every case: seconds per build and what it says.
+
+    Parameters
+    ----------
+    cases : list of (str, Network, str)
+        From :func:`level_cases`.
+    builds : int
+        Builds per case (each level stops early once it has spent ``budget`` seconds).
+    sigma_mm, room_mm : float
+        Bar-length error σ and each bar's play.
+    budget : float
+        Seconds per level and case; the dense basis is skipped where its SVD alone is
+        estimated to take longer (:func:`fabkit.bench.large.dense_svd_seconds`).
+    seed : int
+    progress : callable, optional
+        ``progress(point)`` after each level of each case.
+
+    Returns
+    -------
+    list of dict
+        One per case and level: ``case``, ``level``, ``nodes``, ``edges``, ``self_stresses``
+        (where known), ``builds`` (measured), ``seconds_per_build`` (None: skipped) and the
+        level's figures: ``closes`` (fraction), ``agrees`` (first order against the assembly),
+        ``energy_mj`` and ``max_stress_mpa`` (elastic).
+    """
+    rng = np.random.default_rng(seed)
+    acrylic = MATERIALS["acrylic"]
+    points = []
+    for name, net, drive in cases:
+        rest0 = net.edge_lengths * SCALE_MM
+        rests = rest0[None, :] + rng.normal(0.0, sigma_mm, (builds, rest0.size))
+        gap = rests - rest0[None, :]
+        x0 = net.nodes * SCALE_MM
+        held = [net.port(drive)]
+        base = {"case": name, "nodes": int(net.n_nodes), "edges": int(net.n_edges)}
+        closes_ref = []
+
+        def record(level, seconds, done, **figures):
+            pt = {**base, "level": level, "builds": done,
+                  "seconds_per_build": None if seconds is None else seconds / max(done, 1),
+                  **figures}
+            points.append(pt)
+            if progress:
+                progress(pt)
+            return pt
+
+        # the nonlinear assembly first: the reference the first-order levels are judged by
+        t0, done = time.perf_counter(), 0
+        for k in range(builds):
+            a = assemble(net.edges, rests[k], room_mm, x0,
+                         stiffness=bar_stiffness(acrylic, SECTION_MM2, rests[k]), held=held)
+            closes_ref.append(a.closes)
+            done += 1
+            if time.perf_counter() - t0 > budget:
+                break
+        ref = np.array(closes_ref)
+        record("assembly with play", time.perf_counter() - t0, done,
+               closes=float(ref.mean()))
+
+        est = dense_svd_seconds(net.n_edges, net.n_nodes * net.dim)
+        if est > budget:
+            record("first order (basis)", None, 0, skipped=f"dense SVD estimated {est:.0f} s")
+        else:
+            t0 = time.perf_counter()
+            w = self_stress_basis(net, net.nodes)
+            tau = play_ratio(w, gap[:done] * 1.0, room_mm)
+            base["self_stresses"] = int(w.shape[1])
+            record("first order (basis)", time.perf_counter() - t0, done,
+                   closes=float(np.mean(tau <= 1.0)),
+                   agrees=float(np.mean((tau <= 1.0) == ref)))
+            points[-2]["self_stresses"] = base["self_stresses"]
+
+        t0, taus = time.perf_counter(), []
+        for k in range(done):
+            taus.append(float(play_ratio_sparse(net, gap[k], room_mm)))
+            if time.perf_counter() - t0 > budget:
+                break
+        tau = np.array(taus)
+        record("first order (sparse LP)", time.perf_counter() - t0, tau.size,
+               closes=float(np.mean(tau <= 1.0)),
+               agrees=float(np.mean((tau <= 1.0) == ref[:tau.size])))
+
+        t0, energy, stress, done_e = time.perf_counter(), [], [], 0
+        for k in range(done):
+            a = assemble(net.edges, rests[k], 0.0, x0,
+                         stiffness=bar_stiffness(acrylic, SECTION_MM2, rests[k]), held=held)
+            energy.append(a.energy)
+            stress.append(float(np.abs(bar_stress(a, rests[k], acrylic.youngs_mpa)).max()))
+            done_e += 1
+            if time.perf_counter() - t0 > budget:
+                break
+        record("elastic, no play", time.perf_counter() - t0, done_e,
+               energy_mj=float(np.mean(energy)), max_stress_mpa=float(np.max(stress)))
+    return points
+
+
+def levels_line(p: dict) -> str:
+    """One progress line for a measured point."""
+    t = "skipped" if p["seconds_per_build"] is None else f"{p['seconds_per_build']:.3g} s/build"
+    says = ""
+    if p.get("agrees") is not None:
+        says = f"closes {100 * p['closes']:.0f}%, agrees with the assembly {100 * p['agrees']:.0f}%"
+    elif p.get("closes") is not None:
+        says = f"closes {100 * p['closes']:.0f}%"
+    elif p.get("max_stress_mpa") is not None:
+        says = f"forced: {p['energy_mj']:.3g} mJ, up to {p['max_stress_mpa']:.3g} MPa"
+    return f"  {p['case']:<16} {p['level']:<24} {t:>16}  {says}"
+
+
+def levels_figure(points):
+    """Seconds per build against the network's edges, one line per level."""
+    fig, ax = figure_kit.subplots(figsize=(7.5, 4.8))
+    for k, level in enumerate(LEVELS):
+        rows = [p for p in points if p["level"] == level and p["seconds_per_build"]]
+        if rows:
+            ax.loglog([p["edges"] for p in rows], [p["seconds_per_build"] for p in rows], "o-",
+                      color=f"C{k}", label=level)
+    ax.set_xlabel("bars (edges)")
+    ax.set_ylabel("seconds per build")
+    ax.set_title("levels of model: AND gate and k x k 4-bar lattices")
+    ax.legend(loc="upper left", fontsize=8)
+    set_margins(fig, left=0.8, right=0.2, bottom=0.6, top=0.35)
+    return fig
