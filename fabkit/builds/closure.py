@@ -67,7 +67,7 @@ def self_stress_basis(net, positions=None) -> np.ndarray:
     return w
 
 
-def play_ratio(stresses, gap, room) -> np.ndarray:
+def play_ratio(stresses, gap, room, *, time_limit: float | None = None) -> np.ndarray:
     """Per build, the smallest factor on the play with which its bars close (first order).
 
     Parameters
@@ -78,12 +78,25 @@ def play_ratio(stresses, gap, room) -> np.ndarray:
         Each bar's length error ``δL`` (built minus the length the configuration realises).
     room : array_like, shape (E,) or (M, E)
         Each bar's axial room ``c_e >= 0`` (same unit as ``gap``).
+    time_limit : float, optional
+        Seconds each build's linear program may take (several states of self-stress).
 
     Returns
     -------
     numpy.ndarray, shape (M,) (or a float array of shape () for one build)
         ``τ``: 0 without self-stress or when the errors are compatible; ``<= 1`` when the build
         closes within its play; ``inf`` when no play can close it (the loop's bars have none).
+
+    Raises
+    ------
+    TimeoutError
+        A build's linear program passed ``time_limit``.
+
+    Notes
+    -----
+    With many states of self-stress the program over the dense basis grows as S × E: on a
+    30 × 30 4-bar lattice (812 states, 2730 bars) it takes minutes a build where
+    :func:`play_ratio_sparse` takes a quarter of a second (``fabkit bench --parts levels``).
 
     Examples
     --------
@@ -118,11 +131,12 @@ def play_ratio(stresses, gap, room) -> np.ndarray:
         out = np.where(need <= tiny, 0.0,
                        np.where(have > 0, need / np.where(have > 0, have, 1.0), np.inf))
     else:
-        out = np.array([_ratio_lp(w, g[k], c[k]) for k in range(m)])
+        out = np.array([_ratio_lp(w, g[k], c[k], time_limit) for k in range(m)])
     return out[0] if single else out
 
 
-def play_ratio_sparse(net, gap, room, positions=None) -> np.ndarray:
+def play_ratio_sparse(net, gap, room, positions=None, *,
+                      time_limit: float | None = None) -> np.ndarray:
     """The play ratio without the self-stress basis: one sparse linear program per build.
 
     ``τ = min t`` subject to ``R u - s = δL`` and ``|s_e| <= t c_e``, in the nodes' motion ``u``,
@@ -137,10 +151,17 @@ def play_ratio_sparse(net, gap, room, positions=None) -> np.ndarray:
     room : array_like, shape (E,) or (M, E)
     positions : array_like, shape (N, d), optional
         The configuration (default: the network's own).
+    time_limit : float, optional
+        Seconds each build's linear program may take.
 
     Returns
     -------
     numpy.ndarray, shape (M,) (or shape () for one build)
+
+    Raises
+    ------
+    TimeoutError
+        A build's linear program passed ``time_limit``.
 
     Examples
     --------
@@ -177,9 +198,13 @@ def play_ratio_sparse(net, gap, room, positions=None) -> np.ndarray:
         # interior point: on k x k 4-bar lattices 5x faster than the dual simplex at k = 30
         # (0.22 s against 1.1 s) and at k = 100 a minute where the simplex took over 12
         res = linprog(cost, A_ub=a_ub, b_ub=np.zeros(2 * e), A_eq=a_eq, b_eq=g[k],
-                      bounds=bounds, method="highs-ipm")
+                      bounds=bounds, method="highs-ipm",
+                      options={} if time_limit is None else {"time_limit": float(time_limit)})
         if res.status == 2:  # no play closes it: the incompatible bars have none
             out[k] = np.inf
+        elif res.status == 1 and time_limit is not None:
+            raise TimeoutError(f"play ratio: a build's linear program passed its time limit of "
+                               f"{time_limit:g} s")
         elif res.status != 0:
             raise RuntimeError(f"play ratio: the linear program ended with {res.message}")
         else:
@@ -187,7 +212,7 @@ def play_ratio_sparse(net, gap, room, positions=None) -> np.ndarray:
     return out[0] if single else out
 
 
-def _ratio_lp(w, g, c) -> float:
+def _ratio_lp(w, g, c, time_limit=None) -> float:
     """min τ subject to Wᵀ s = -Wᵀ g and |s_e| <= τ c_e (variables s, τ)."""
     rhs = -(w.T @ g)
     if np.abs(rhs).max() <= COMPATIBLE_RTOL * max(np.abs(g).max(), TINY):
@@ -199,13 +224,19 @@ def _ratio_lp(w, g, c) -> float:
     k = wf.shape[0]
     cost = np.zeros(k + 1)
     cost[-1] = 1.0
-    eye = np.eye(k)
-    a_ub = np.block([[eye, -cf[:, None]], [-eye, -cf[:, None]]])
+    # the bounds |s_e| <= τ c_e as a sparse block: dense, it grows as the square of the bars
+    eye = sp.identity(k, format="csr")
+    col = sp.csr_matrix(-cf[:, None])
+    a_ub = sp.vstack([sp.hstack([eye, col]), sp.hstack([-eye, col])], format="csr")
     a_eq = np.hstack([wf.T, np.zeros((w.shape[1], 1))])
     res = linprog(cost, A_ub=a_ub, b_ub=np.zeros(2 * k), A_eq=a_eq, b_eq=rhs,
-                  bounds=[(None, None)] * k + [(0, None)], method="highs")
+                  bounds=[(None, None)] * k + [(0, None)], method="highs",
+                  options={} if time_limit is None else {"time_limit": float(time_limit)})
     if res.status == 2:  # the loop's own bars cannot take the incompatibility: no play helps
         return np.inf
+    if res.status == 1 and time_limit is not None:
+        raise TimeoutError(f"play ratio: a build's linear program passed its time limit of "
+                           f"{time_limit:g} s")
     if res.status != 0:
         raise RuntimeError(f"play ratio: the linear program ended with {res.message}")
     return float(res.x[-1])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..builds.assembly import assemble, bar_stress
-from ..builds.closure import play_ratio, self_stress_basis
+from ..builds.closure import play_ratio, play_ratio_sparse, self_stress_basis
 from ..builds.materials import bar_stiffness, Material, process_material
 from ..builds.slop import port_slop
 from ..numerics import TINY
@@ -159,7 +159,11 @@ def assemble_builds(net, builds, spec, start) -> Assemblies:
     x0 = np.asarray(start, dtype=np.float64) * s
     nominal = net.edge_lengths * s
     w = self_stress_basis(net, start)
-    ratio = play_ratio(w, rest - nominal[None, :], room) if m else np.zeros(0)
+    # one state: the closed form; several: the sparse program, which needs no basis and stays
+    # fast where the program over a dense basis of many states does not
+    ratio = np.zeros(0) if not m else play_ratio(w, rest - nominal[None, :], room) \
+        if w.shape[1] <= 1 else play_ratio_sparse(net.with_nodes(x0), rest - nominal[None, :],
+                                                  room)
     material = process_material(spec.process)
     area = spec.bar_width * spec.thickness
     closes = np.ones(m, dtype=bool)
