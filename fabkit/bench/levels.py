@@ -95,6 +95,23 @@ def levels_points(cases, *, builds: int = 5, sigma_mm: float = 0.05, room_mm: fl
                 progress(pt)
             return pt
 
+        def first_order(level, t0, ratio, why):
+            """Play ratios build by build within the budget, judged against the assembly."""
+            taus = []
+            try:
+                for k in range(done):
+                    taus.append(float(ratio(k)))
+                    if time.perf_counter() - t0 > budget:
+                        break
+            except TimeoutError:
+                pass
+            tau = np.array(taus)
+            if not tau.size:
+                return record(level, None, 0, skipped=why)
+            return record(level, time.perf_counter() - t0, tau.size,
+                          closes=float(np.mean(tau <= 1.0)),
+                          agrees=float(np.mean((tau <= 1.0) == ref[:tau.size])))
+
         # the nonlinear assembly first: the reference the first-order levels are judged by
         t0, done = time.perf_counter(), 0
         for k in range(builds):
@@ -116,40 +133,14 @@ def levels_points(cases, *, builds: int = 5, sigma_mm: float = 0.05, room_mm: fl
             w = self_stress_basis(net, net.nodes)
             base["self_stresses"] = int(w.shape[1])
             points[-1]["self_stresses"] = base["self_stresses"]
-            taus = []
-            try:
-                for k in range(done):
-                    taus.append(float(play_ratio(w, gap[k], room_mm, time_limit=budget)))
-                    if time.perf_counter() - t0 > budget:
-                        break
-            except TimeoutError:
-                pass
-            tau = np.array(taus)
-            if tau.size:
-                record("first order (basis)", time.perf_counter() - t0, tau.size,
-                       closes=float(np.mean(tau <= 1.0)),
-                       agrees=float(np.mean((tau <= 1.0) == ref[:tau.size])))
-            else:
-                record("first order (basis)", None, 0,
-                       skipped=f"{w.shape[1]} states of self-stress: one build's LP over the "
-                               f"basis passed the {budget:g} s budget")
+            first_order("first order (basis)", t0,
+                        lambda k: play_ratio(w, gap[k], room_mm, time_limit=budget),
+                        f"{w.shape[1]} states of self-stress: one build's LP over the basis "
+                        f"passed the {budget:g} s budget")
 
-        t0, taus = time.perf_counter(), []
-        try:
-            for k in range(done):
-                taus.append(float(play_ratio_sparse(net, gap[k], room_mm, time_limit=budget)))
-                if time.perf_counter() - t0 > budget:
-                    break
-        except TimeoutError:
-            pass
-        tau = np.array(taus)
-        if tau.size:
-            record("first order (sparse LP)", time.perf_counter() - t0, tau.size,
-                   closes=float(np.mean(tau <= 1.0)),
-                   agrees=float(np.mean((tau <= 1.0) == ref[:tau.size])))
-        else:
-            record("first order (sparse LP)", None, 0,
-                   skipped=f"one build's LP passed the {budget:g} s budget")
+        first_order("first order (sparse LP)", time.perf_counter(),
+                    lambda k: play_ratio_sparse(net, gap[k], room_mm, time_limit=budget),
+                    f"one build's LP passed the {budget:g} s budget")
 
         t0, energy, stress, done_e = time.perf_counter(), [], [], 0
         for k in range(done):
