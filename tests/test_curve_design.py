@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import shlex
 
 import numpy as np
 import pytest
@@ -190,10 +191,29 @@ def test_too_tight_a_curve_names_a_wish_that_builds(tmp_path, capsys):
     # (apex angles 54/86: the widest pair whose mean keeps the neighbour rule)
     assert "turns by 57.3 deg within two modules" in line and "at most 32 deg" in line
     assert not (tmp_path / "o").exists()
-    option, value = line.rsplit("nearest feasible: ", 1)[1].split()[:2]
-    assert option in ("--module-size", "--curve-scale")
-    code, out, err = run_cli(["design", "--curve", src, option, value, "-o", tmp_path / "o"],
-                             capsys)
+    # the suggestion is the whole option set: pasted alone, it designs the curve
+    options = shlex.split(line.rsplit("nearest feasible: ", 1)[1])
+    assert options[:2] == ["--curve", str(src)]
+    assert {"--curve-scale", "--module-size"} <= set(options)
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+
+
+def test_a_suggested_scale_is_absolute_not_a_factor_of_the_one_given(tmp_path, capsys):
+    # the quarter circle of r = 100 mm given --curve-scale 1.1 is still too tight; the scale
+    # suggested is the one to type (from the drawing as drawn), and pasted alone it designs
+    src = tmp_path / "tight.svg"
+    src.write_text(QUARTER.replace(f"A {R:g} {R:g}", "A 100 100").replace("M 275 275",
+                                                                          "M 125 125"))
+    code, out, err = run_cli(["design", "--curve", src, "--curve-scale", "1.1", "-o",
+                              tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    options = shlex.split(line.rsplit("nearest feasible: ", 1)[1])
+    assert options[:2] == ["--curve", str(src)]
+    if "--curve-scale" in options:
+        assert float(options[options.index("--curve-scale") + 1]) >= 1.1
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
     assert code == 0, err
 
 
@@ -233,7 +253,7 @@ def test_a_one_mm_curve_is_a_refusal_like_any_other(tmp_path, capsys):
     (line,) = err.strip().splitlines()
     assert "the curve (1 mm) is shorter than two modules" in line
     assert "even the smallest modules (15.3 mm) need a curve of at least 30.6 mm" in line
-    assert line.endswith("nearest feasible: --curve-scale 100 (the drawing 100x larger)")
+    assert line.endswith(f"nearest feasible: --curve {src} --curve-scale 100 --module-size 50")
     assert not (tmp_path / "o").exists()
     code, out, err = run_cli(["design", "--curve", src, "--curve-scale", "100", "-o",
                               tmp_path / "o"], capsys)

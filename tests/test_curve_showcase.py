@@ -184,7 +184,8 @@ def test_quadrifolium_refused_with_a_scale_that_builds(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     (line,) = err.strip().splitlines()
-    assert "nearest feasible: --curve-scale 70" in line
+    # the whole option set, pasteable: the file, the absolute scale, the module size
+    assert "nearest feasible: --curve " in line and " --curve-scale 70 --module-size " in line
     test_quadrifolium_at_the_suggested_scale(tmp_path, capsys)
 
 
@@ -194,7 +195,7 @@ def test_spiral_refused_with_a_suggestion_that_builds(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     (line,) = err.strip().splitlines()
-    assert line.endswith("nearest feasible: --curve-scale 2.2 (the drawing 2.2x larger)")
+    assert "nearest feasible: --curve " in line and " --curve-scale 2.2 --module-size " in line
     assert not out.exists()
 
 

@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import shlex
 from pathlib import Path
 
 from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal,
-                      parse_fixed_point, read_curve)
+                      parse_fixed_point, read_curve, WishError)
 from ..design.robustness import BUILDS
 from ..design.toml_text import builds_line, fit_lines, margin_lines
 from ..errors import BoundsError, InputFileError, UsageError
@@ -314,6 +315,25 @@ def laser_builds(design, settings=None):
     return built, float(spec.scale), model_summary(spec)
 
 
+def _pasteable(nearest: str | None, args) -> str | None:
+    """A curve's suggestion as the whole option set that designs it: the file, the scale of
+    the drawing (absolute, not a factor of the scale given) and the module size, so that pasted
+    alone it works."""
+    if not nearest:
+        return nearest
+    words = nearest.split()
+    scale, size = args.curve_scale, args.module_size
+    if words[:1] == ["--curve-scale"]:
+        scale = float(f"{args.curve_scale * float(words[1]):.6g}")
+    elif words[:1] == ["--module-size"]:
+        size = float(words[1])
+    else:
+        return nearest
+    tail = f" --types {args.types}" if args.types is not None else ""
+    return (f"--curve {shlex.quote(str(args.curve))} --curve-scale {scale:g} --module-size "
+            f"{size:g}{tail}")
+
+
 def _run_curve(args, name, out, figure_png) -> int:
     import numpy as np
 
@@ -336,8 +356,11 @@ def _run_curve(args, name, out, figure_png) -> int:
         with np.errstate(over="ignore", invalid="ignore"):
             curve = scaled(curve, args.curve_scale)
     _check_curve_size(curve, args.module_size)
-    result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
-                                name=name, progress=progress.stage)
+    try:
+        result = design_curve_chain(curve, module_size=args.module_size, types=args.types,
+                                    name=name, progress=progress.stage)
+    except WishError as exc:
+        raise WishError(exc.wish, exc.reason, _pasteable(exc.nearest, args)) from None
     progress.stage(f"{name}: drawing and writing")
     report = result.report
     rows = "\n".join(f"{x:.6f},{y:.6f}" for x, y in np.asarray(result.centerline))
