@@ -143,18 +143,21 @@ def test_a_print_only_export_is_reported_and_judged_as_a_print(pages):
     assert report["process"] == "print"
     tol = report["tolerance"]
     assert tol["process"] == "print" and tol["scale_mm"] == 50.0
-    assert tol["model"].startswith("print: xy accuracy σ 0.1 mm")
+    # bars printed in place on pins: judged with their pins' play, not a flexure's bending
+    assert tol["model"].startswith("print (pin-jointed): xy accuracy σ 0.1 mm")
+    assert "pin play 0.3 mm radial" in tol["model"] and "hinge flexure" not in tol["model"]
+    assert "radial pin play" in tol["slop"]["sentence"]
     page = _text(_read(out, "print", "super_stable", "report.html"))
     assert "<h2>Made for a 3D print</h2>" in page
     assert ("Printed in place: 6 bars in 3 layers on 5 printed pins (PLA), 50 mm a design unit, "
             "0.3 mm pin clearance, 0.5 mm between bars.") in page
     assert "Nothing to build was written" not in page and "laser-cut acrylic" not in page
     assert "hole play" not in page and "100 mm" not in page
-    assert "Judged as a 3D print: print: xy accuracy" in page
+    assert "Judged as a 3D print: print (pin-jointed): xy accuracy" in page
     md = _read(out, "print", "super_stable", "report.md")
     assert "- export: **ok**; made for a 3D print" in md
     assert md.splitlines()[2].startswith("**ok**: every as-built check passed (2 files read "
                                          "back); tolerance as print builds: ok")
-    assert "error model of the process: print: xy accuracy σ 0.1 mm" in md
+    assert "error model of the process: print (pin-jointed): xy accuracy σ 0.1 mm" in md
     card = _card(out, "print", "super_stable")
     assert "made for a 3D print · formats: stl · 2 files read back" in card

@@ -60,6 +60,11 @@ MIN_LINE_STEP = 1e-8
 #: three steps that lower the energy by less than this fraction.
 STALL_RTOL = 1e-6
 
+#: Cap on the steps. A kit whose loops run through bars without play (a print's bar that
+#: carries both its pins) closes slowly, its bars at the edges of their play trading places in
+#: the steps: the AND gate printed on pins needs up to ~210 where a laser kit needs ~10.
+MAX_STEPS = 400
+
 #: Above this many unknowns the steps are solved sparse (SuperLU) rather than dense.
 DENSE_MAX_UNKNOWNS = 600
 
@@ -127,7 +132,7 @@ def _check(edges, rest, room, x0, stiffness):
 
 
 def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
-             max_iterations: int = 100) -> Assembled:
+             max_iterations: int = MAX_STEPS) -> Assembled:
     """Put a build together: the least-energy placement of pins whose bars have play.
 
     Parameters

@@ -61,6 +61,8 @@ def describe(result) -> str:
     b = d.get("behaviour") or {}
     lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
              f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS"]
+    if d.get("play_note"):
+        lines.append(f"  pins          {d['play_note']}")
     if d.get("assembly"):
         lines.append(f"  assembly      {d['assembly']['sentence']}")
     if d.get("slop"):

@@ -19,6 +19,8 @@ from ..builds.quasistatic import drive_elastically, ElasticMotion
 from ..errors import TemplateError
 from ..fab.printing import design_print_settings
 from ..kinematics import make_problem
+from ..tolerance.pins import pin_play
+from ..tolerance.processes import nominal_room_mm
 from ..tolerance.spec import design_process, stated_process, tolerance_spec
 
 __all__ = ["ElasticRun", "elastic_motion", "DEFAULT_STEPS"]
@@ -42,7 +44,8 @@ class ElasticRun:
     process : str
     section_mm2 : float
     room_mm : float
-        Each bar's axial play.
+        A bar's axial play (mm): the median over the bars (a print's bar that carries a pin
+        has play at its other end only).
     """
 
     motion: ElasticMotion
@@ -98,26 +101,26 @@ class ElasticRun:
                 "material": np.array(self.material.name)}
 
 
-def _bars(design, settings) -> tuple[str, float, Material, float, float]:
-    """(process, scale, material, section mm², play mm) of a design's bars."""
+def _bars(design, settings) -> tuple[str, float, Material, float, np.ndarray]:
+    """(process, scale, material, section mm², each bar's play mm) of a design's bars: the
+    tolerance settings' (one resolution of the process's settings, the print's pins from its
+    plan)."""
     path = design.path or design.name
     process = stated_process(design, settings) or design_process(design)
-    if process == "laser":
-        spec = tolerance_spec(design, settings)
-        return (process, float(spec.scale), process_material("laser"),
-                float(spec.bar_width * spec.thickness), float(spec.hole_clearance))
-    if process == "print":
-        s = design_print_settings(design, settings)
-        if s.linkage != "pins":
-            raise TemplateError(path, "fabrication.print.linkage",
-                                "--model elastic drives bars; this print is triangles joined by "
-                                "flexure hinges, which bend rather than stretch (print it with "
-                                "linkage = \"pins\", or export the laser kit)")
-        return (process, float(s.scale), process_material("print", s.material),
-                float(s.bar_width * s.bar_thickness), float(2.0 * s.pin_clearance))
-    raise TemplateError(path, "fabrication", f"--model elastic drives bars; this design is "
-                                             f"made by {process}, whose creases bend rather "
-                                             "than stretch")
+    if process == "print" and design_print_settings(design, settings).linkage != "pins":
+        raise TemplateError(path, "fabrication.print.linkage",
+                            "--model elastic drives bars; this print is triangles joined by "
+                            "flexure hinges, which bend rather than stretch (print it with "
+                            "linkage = \"pins\", or export the laser kit)")
+    if process not in ("laser", "print"):
+        raise TemplateError(path, "fabrication", f"--model elastic drives bars; this design is "
+                                                 f"made by {process}, whose creases bend rather "
+                                                 "than stretch")
+    spec = tolerance_spec(design, settings, process=process)
+    ends = pin_play(design, spec.print_settings).ends if process == "print" else None
+    room = nominal_room_mm(spec, design.network.n_edges, ends)
+    return (process, float(spec.scale), process_material(process, spec.material),
+            float(spec.section_mm2), np.zeros(design.network.n_edges) if room is None else room)
 
 
 def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
@@ -165,4 +168,5 @@ def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
     held = [net.port(h) for h in (m.hold or ())]
     motion = drive_elastically(net.edges, net.edge_lengths * scale, room, net.nodes * scale,
                                (a, b), values, material, section, held=held)
-    return ElasticRun(motion, np.asarray(net.edges), m.drive, scale, process, section, room)
+    return ElasticRun(motion, np.asarray(net.edges), m.drive, scale, process, section,
+                      float(np.median(room)) if room.size else 0.0)

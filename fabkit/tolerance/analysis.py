@@ -27,7 +27,8 @@ from .margin import (critical_scales, CURVE_SCALES, keep_curve, margin_of, margi
 from .modules import ModuleMaps
 from .placement import (BUILD_RTOL, chain_ports, Driver, find_plan, process_geometry,
                         PROJECTED_SAMPLES_CAP, to_drive_frame)
-from .processes import sample_builds, SOURCES
+from .pins import pin_play
+from .processes import nominal_room_mm, sample_builds, spec_sources
 from .result import ToleranceResult
 from .spec import tolerance_spec, ToleranceSpec
 
@@ -165,7 +166,7 @@ class _Projected:
         assembly = None
         if builds.room is not None:
             # a kit of parts: each build put together with its play, forced where it must be
-            assembly = assemble_builds(net, builds, self.spec, net.nodes)
+            assembly = assemble_builds(net, builds, self.spec, net.nodes, self.geo.play_ends)
             starts = [assembly.positions[s] if assembly.buildable[s] else None
                       for s in range(len(rows))]
         else:
@@ -333,11 +334,12 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     """
     path = design.path or design.name
     spec = spec or tolerance_spec(design)
+    given = design  # the design its process's plan was made for (shared with the export)
     net = design.network
     m = design.motion
     # builds x nodes over every run (main, the margin's bisections, each source's own): one
     # estimate of the work before any of it
-    sources = len(SOURCES[spec.process]) if attribute else 0
+    sources = len(spec_sources(spec)) if attribute else 0
     builds = (spec.samples + SOURCE_SAMPLES * sources) * (2 + SCALE_BISECTIONS)
     require(f"{path}: tolerance ({spec.samples} builds)", ("build node", builds * net.n_nodes))
     if m.to is None:
@@ -375,7 +377,13 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     limit_mm = spec.limit if spec.limit is not None else spec.limit_fraction * size_mm
     behaviour = infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs, limit_mm)
     geo = process_geometry(design, spec, problem, behaviour.end_config)
-    clearance_mm = 2 * spec.hole_clearance if spec.process == "laser" else limit_mm
+    play_note = ""
+    if spec.process == "print" and spec.linkage == "pins" and spec.print_settings is not None:
+        # the print's plan (shared with its export) says which bar carries each pin
+        pins = pin_play(given, spec.print_settings)
+        geo, play_note = replace(geo, play_ends=pins.ends), pins.note
+    room = nominal_room_mm(spec, net.n_edges, geo.play_ends)
+    clearance_mm = 2 * float(room.max()) if room is not None and room.size else limit_mm
     if plan is not None:
         method = "constructive"
         run = _Constructive(design, spec, behaviour, plan, problem, pairs, geo, grid, limit_mm,
@@ -386,7 +394,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     M = spec.samples
     rows = np.arange(M)
-    names = list(SOURCES[spec.process])
+    names = list(spec_sources(spec))
     steps = 3 + (len(names) if attribute else 0)
     say = progress or (lambda done, total, what: None)
     say(0, steps, f"{M} builds ({method})")
@@ -451,12 +459,14 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     states = {"start": problem.start}
     if behaviour.end_config is not None:
         states["end"] = behaviour.end_config
-    slop = slop_summary(net, spec, ports, pairs, held, states)
+    slop = slop_summary(net, spec, ports, pairs, held, states, geo.play_ends)
     extra = {"drive": m.drive, "target": float(m.to), "requested_target": requested,
              "module_size_mm": size_mm,
              "end_drive": behaviour.end_drive, "end_at": behaviour.end_at,
              "model_level": (assembly or {}).get("model", "rigid"),
              "assembly": assembly, "slop": slop}
+    if play_note:
+        extra["play_note"] = play_note
     if observed is not None:
         extra["observed_order"] = observed
     return ToleranceResult(spec=spec, method=method, ports=ports, nominal=nominal, distances=dist,
@@ -468,11 +478,11 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
 
 def _assembly_summary(spec, main: _Run, run, samples: int) -> dict | None:
-    """How the main run's builds went together (laser kits only: prints and sheets are made in
-    one piece)."""
+    """How the main run's builds went together (kits of parts with play only: a laser kit, a
+    pin-jointed print; a hinge print and a sheet are made in one piece)."""
     if main.assembly is not None:
         return main.assembly.as_dict()
-    if spec.process != "laser":
+    if nominal_room_mm(spec, 0) is None:
         return None
     unused = getattr(getattr(run, "driver", None), "unused", np.zeros(0))
     closed = getattr(main.driven, "closed", None)

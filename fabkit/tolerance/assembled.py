@@ -22,6 +22,7 @@ from ..builds.closure import play_ratio, play_ratio_sparse, self_stress_basis
 from ..builds.materials import bar_stiffness, Material, process_material
 from ..builds.slop import port_slop
 from ..numerics import TINY
+from .processes import bar_play_ends, nominal_room_mm
 
 __all__ = ["Assemblies", "assemble_builds", "slop_summary", "MODEL_NAMES"]
 
@@ -67,6 +68,10 @@ class Assemblies:
     needed_room_mm : float or None
         The room per bar with which 95 % of the builds would close (first order, one state of
         self-stress), None otherwise.
+    joint_kind : str
+        ``"hole"`` (a laser kit's screws in holes) or ``"pin"`` (a print's pins).
+    turning_ends : float
+        Pins: the mean number of a loop bar's ends that turn on a pin.
     """
 
     model: str
@@ -82,6 +87,8 @@ class Assemblies:
     loop_nodes: list
     room_mm: float
     needed_room_mm: float | None
+    joint_kind: str = "hole"
+    turning_ends: float = 2.0
 
     @property
     def forced(self) -> np.ndarray:
@@ -113,8 +120,14 @@ class Assemblies:
             tail.append(f"{over} would need up to {self.stress_mpa[k].max():.3g} MPa, over the "
                         f"{self.allowable_mpa:g} MPa {self.material.name} allows")
         if (forced or over) and self.needed_room_mm is not None and self.loop_nodes:
-            tail.append(f"ream the holes at joints {', '.join(map(str, self.loop_nodes))} to "
-                        f"{self.needed_room_mm:.2g} mm over the barrel and 95% close")
+            joints = ", ".join(map(str, self.loop_nodes))
+            if self.joint_kind == "pin":
+                tail.append(f"print the pins at joints {joints} with "
+                            f"{self.needed_room_mm / self.turning_ends:.2g} mm radial clearance "
+                            "(print.pin_clearance) and 95% close")
+            else:
+                tail.append(f"ream the holes at joints {joints} to {self.needed_room_mm:.2g} mm "
+                            "over the barrel and 95% close")
         return head + ("; " + "; ".join(tail) if tail else "")
 
     def as_dict(self) -> dict:
@@ -125,7 +138,7 @@ class Assemblies:
                 "not_buildable": int((~self.buildable).sum()),
                 "first_order_close": int((self.ratio <= 1.0).sum()),
                 "first_order_agrees": int(((self.ratio <= 1.0) == self.closes).sum()),
-                "play_ratio_p95": float(np.percentile(self.ratio, 95)) if self.ratio.size
+                "play_ratio_p95": float(np.percentile(self.ratio, 95, method="higher")) if self.ratio.size
                 else None,
                 "worst_stress_mpa": float(self.stress_mpa.max()) if self.stress_mpa.size else 0.0,
                 "worst_joint_force_n": float(self.force_n.max()) if self.force_n.size else 0.0,
@@ -135,7 +148,7 @@ class Assemblies:
                 "sentence": self.sentence()}
 
 
-def assemble_builds(net, builds, spec, start) -> Assemblies:
+def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
     """Put every build together with its play; force it where the play does not close it.
 
     Parameters
@@ -147,6 +160,9 @@ def assemble_builds(net, builds, spec, start) -> Assemblies:
         Scale (mm per unit), the bars' section (``bar_width`` × ``thickness``) and process.
     start : numpy.ndarray, shape (N, d)
         The nominal configuration the builds are put together around (design units).
+    play_ends : numpy.ndarray, shape (E,), optional
+        A pin-jointed print: per bar, its ends that turn on a pin (what clearance to print
+        follows from the room a loop needs).
 
     Returns
     -------
@@ -164,8 +180,8 @@ def assemble_builds(net, builds, spec, start) -> Assemblies:
     ratio = np.zeros(0) if not m else play_ratio(w, rest - nominal[None, :], room) \
         if w.shape[1] <= 1 else play_ratio_sparse(net.with_nodes(x0), rest - nominal[None, :],
                                                   room)
-    material = process_material(spec.process)
-    area = spec.bar_width * spec.thickness
+    material = process_material(spec.process, spec.material)
+    area = spec.section_mm2
     closes = np.ones(m, dtype=bool)
     stress = np.zeros(m)
     force = np.zeros(m)
@@ -193,18 +209,29 @@ def assemble_builds(net, builds, spec, start) -> Assemblies:
     model = "rigid" if w.shape[1] == 0 else ("play" if closes.all() else "elastic")
     return Assemblies(model, int(w.shape[1]), np.asarray(ratio, dtype=float), closes, stress,
                       force, joint, positions, material, material.allowable_mpa, loop,
-                      nominal_room, needed)
+                      nominal_room, needed, *_joints(spec, net, support, play_ends))
 
 
-def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
+def _joints(spec, net, support, play_ends) -> tuple[str, float]:
+    """The kind of the kit's joints and, for pins, the mean number of a loop bar's ends that
+    turn on one (a bar's room over it is the radial clearance to print)."""
+    if spec.process != "print":
+        return "hole", 2.0
+    ends = bar_play_ends(play_ends, net.n_edges)
+    return "pin", max(float(np.mean(ends[support])) if len(support) else 2.0, 1.0)
+
+
+def slop_summary(net, spec, ports, pairs, held, states, play_ends=None) -> dict | None:
     """The slop of every port with the drive held, at the start and the end of the motion.
 
     Parameters
     ----------
     net : fabkit.Network
     spec : ToleranceSpec
-        Laser: every bar's axial room is ``hole_clearance`` (both its holes' radial clearance);
-        other processes have no play (None is returned).
+        Every bar's axial room is its ends' radial play
+        (:func:`fabkit.tolerance.processes.nominal_room_mm`: a laser kit's ``hole_clearance``,
+        a pin-jointed print's ``pin_clearance`` per end that turns on a pin); joints without
+        play (flexures, creases) have no slop (None is returned).
     ports : list of str
     pairs : numpy.ndarray of int, shape (P, 2)
         Their node pairs.
@@ -212,6 +239,8 @@ def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
         The drive's pair and any held ports.
     states : dict of str to numpy.ndarray (N, d)
         Configurations by name (``"start"``, ``"end"``), design units.
+    play_ends : numpy.ndarray, shape (E,), optional
+        A pin-jointed print: per bar, its ends that turn on a pin.
 
     Returns
     -------
@@ -221,9 +250,9 @@ def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
         ``output_start_mm``, ``output_end_mm``, ``growth_mm_per_module`` (chains), ``room_mm``,
         ``sentence``.
     """
-    if spec.process != "laser" or spec.hole_clearance <= 0:
+    room = nominal_room_mm(spec, net.n_edges, play_ends)
+    if room is None or not room.any():
         return None
-    room = np.full(net.n_edges, spec.hole_clearance)
     heldset = {tuple(sorted(map(int, h))) for h in held}
     named = {p: (int(a), int(b)) for p, (a, b) in zip(ports, pairs.tolist())
              if tuple(sorted((int(a), int(b)))) not in heldset}
@@ -241,17 +270,23 @@ def slop_summary(net, spec, ports, pairs, held, states) -> dict | None:
     chain = [p for p in named if p[:1] == "d" and p[1:].isdigit()]
     output = chain[-1] if chain else list(named)[-1]
     rows = [{"port": p, **v} for p, v in out.items()]
-    res = {"ports": rows, "output": output, "room_mm": float(spec.hole_clearance),
+    pins = spec.process == "print"
+    res = {"ports": rows, "output": output,
+           "room_mm": float(spec.pin_clearance if pins else spec.hole_clearance),
+           "play": "radial pin play" if pins else "hole play",
            "output_start_mm": out[output].get("start_mm"),
            "output_end_mm": out[output].get("end_mm")}
-    if len(chain) >= 2:
-        k = np.array([int(p[1:]) for p in chain], dtype=float)
-        v = np.array([out[p].get("start_mm") for p in chain], dtype=float)
-        good = np.isfinite(v)
-        if good.sum() >= 2:
-            res["growth_mm_per_module"] = float(np.polyfit(k[good], v[good], 1)[0])
-            res["chain_slop_mm"] = float(np.max(v[good]))
-            res["modules"] = int(k[good].max() - k[good].min())
+    k = np.array([int(p[1:]) for p in chain], dtype=float)
+    for state in states if len(chain) >= 2 else ():
+        # how it grows: in the first state where every port of the chain is bounded (a fit
+        # over the few ports a near-singular state leaves bounded would say nothing)
+        v = np.array([out[p].get(f"{state}_mm") for p in chain], dtype=float)
+        if np.isfinite(v).all():
+            res["growth_mm_per_module"] = float(np.polyfit(k, v, 1)[0])
+            res["growth_state"] = state
+            res["chain_slop_mm"] = float(np.max(v))
+            res["modules"] = int(k.max() - k.min())
+            break
     res["sentence"] = _slop_sentence(res)
     return res
 
@@ -261,10 +296,12 @@ def _slop_sentence(res) -> str:
         return "unbounded to first order (a singular state)" if v is None or not \
             math.isfinite(v) else f"±{v:.3g} mm"
     text = (f"slop at {res['output']} with the drive held: {mm(res['output_start_mm'])} at the "
-            f"start, {mm(res['output_end_mm'])} at the end ({res['room_mm']:g} mm hole play)")
+            f"start, {mm(res['output_end_mm'])} at the end ({res['room_mm']:g} mm {res['play']})")
     g = res.get("growth_mm_per_module")
+    where = "" if res.get("growth_state") == "start" else f" (at the {res.get('growth_state')})"
     if g is not None and abs(g) * res["modules"] < FLAT_SLOP_FRACTION * res["chain_slop_mm"]:
-        text += "; it does not grow along the chain (each module's slop stays its own)"
+        text += f"; it does not grow along the chain{where} (each module's slop stays its own)"
     elif g is not None:
-        text += f"; it grows by {g:.3g} mm per module along the chain"
+        text += f"; it {'grows' if g > 0 else 'falls'} by {abs(g):.3g} mm per module along " \
+                f"the chain{where}"
     return text

@@ -14,7 +14,8 @@ Laser (acrylic bars and Chicago screws; defaults from docs/fabrication notes)
     sum of its two holes' radial clearances (:attr:`BuildLengths.room`). The sheet's thickness
     only lets a bar tilt within that same play, and sets the stack and the screw lengths.
 
-Print (triangle plates joined by flexure hinges, printed flat in one piece)
+Print, ``linkage = "hinges"`` (triangle plates joined by flexure hinges, printed flat in one
+piece)
     ``xy accuracy``: every joint printed ``N(0, xy_sigma)`` off per in-plane coordinate (typical
     FDM dimensional accuracy 0.1-0.2 mm); ``shrinkage``: the part shrinks by a fraction
     ``N(shrinkage, shrinkage_sigma)`` per build as it cools (material default; 0 if the slicer
@@ -27,6 +28,16 @@ Print (triangle plates joined by flexure hinges, printed flat in one piece)
     Layer height and hinge thickness (a whole number of layers) set the hinges' stiffness and
     strain, not the joint-to-joint geometry: they are checked by the print export's strain
     check, not here.
+
+Print, ``linkage = "pins"`` (bars printed in place on pins, :mod:`fabkit.fab.pinned`)
+    ``xy accuracy`` and ``shrinkage`` as above: a pin and the holes round it are printed at one
+    place of the bed, in one print, so they err together; ``line width``: extrusion
+    ``N(0, line_width_sigma)`` wider than the nozzle makes every pin that much thicker and
+    every hole that much narrower, so each hole's radial play shrinks by it. The play is a
+    freedom, as a laser kit's is: a bar end that turns on a pin (every end but the one whose
+    body carries the pin, :attr:`ProcessGeometry.play_ends`) may sit anywhere within
+    ``pin_clearance`` of it, so a bar's pin distance may take any value within ``room``, the
+    sum of its ends' radial play. No flexure bends: no hinge flexure source.
 
 Origami (sheets of paper, the paper's bar-and-joint idealisation: creases and boundary edges
 are rigid bars, crease intersections are joints). A sheet is made flat: its vertex errors lie in
@@ -55,7 +66,8 @@ from .canonical import canonical_frame, canonical_order, canonical_scalars, cano
 
 __all__ = ["PROCESSES", "SOURCES", "NOT_KINEMATIC", "PROCESS_EXTRA_KEYS", "ProcessGeometry", "Sheet", "BuildLengths",
            "sample_lengths", "sample_builds", "hinge_shortening", "state_profile",
-           "joint_turns", "PROFILE_SAMPLES", "interp_rows"]
+           "joint_turns", "PROFILE_SAMPLES", "interp_rows", "spec_sources", "not_kinematic",
+           "nominal_room_mm", "bar_play_ends", "PIN_SOURCES_LEFT_OUT"]
 
 #: The processes and, for each, its error sources (names used in verdicts) with the spec keys
 #: each one reads.
@@ -82,8 +94,91 @@ NOT_KINEMATIC = {
               "hinge thickness": "stiffness and bending strain only (print export's check)"},
 }
 
+#: What a pin-jointed print's play and bars are (its joints are not flexures).
+NOT_KINEMATIC_PINS = {
+    "pin play": "a freedom, not an error: a bar end turning on a printed pin sits where the "
+                "assembly pushes it within the pin's clearance, so each bar's pin distance may "
+                "take any value within its room; it gives the ports their slop",
+    "layer height": "sets the bars' and gaps' heights (whole layers), not the joint positions"}
+
+#: Error sources of the hinge print that a print-in-place bar linkage does not have.
+PIN_SOURCES_LEFT_OUT = ("hinge flexure",)
+
 #: Spec keys of a process that belong to no error source (the freedoms and the section).
 PROCESS_EXTRA_KEYS = {"laser": ("hole_clearance", "thickness", "thickness_sigma", "bar_width")}
+
+#: The same for a pin-jointed print (set in its ``[fabrication.print]`` table, not here).
+PIN_EXTRA_KEYS = ("pin_clearance", "bar_width", "bar_thickness")
+
+
+def _pins(spec) -> bool:
+    return spec.process == "print" and getattr(spec, "linkage", "hinges") == "pins"
+
+
+def spec_sources(spec) -> dict[str, tuple[str, ...]]:
+    """The error sources of the process a spec analyses, with the keys each reads: those of
+    :data:`SOURCES`, less a flexure hinge's where a print's joints are pins.
+
+    Examples
+    --------
+    >>> from fabkit.tolerance import ToleranceSpec
+    >>> list(spec_sources(ToleranceSpec(process="print", linkage="pins")))
+    ['xy accuracy', 'shrinkage', 'line width']
+    """
+    out = dict(SOURCES[spec.process])
+    if _pins(spec):
+        for name in PIN_SOURCES_LEFT_OUT:
+            out.pop(name)
+    return out
+
+
+def not_kinematic(spec) -> dict[str, str]:
+    """Quantities of the spec's process that move no joint of the rigid-bar model, and why."""
+    return dict(NOT_KINEMATIC_PINS) if _pins(spec) else dict(NOT_KINEMATIC.get(spec.process, {}))
+
+
+def nominal_room_mm(spec, n_edges: int, play_ends=None) -> np.ndarray | None:
+    """Every bar's axial room (mm) with nominal clearances: the sum of its ends' radial play.
+
+    Parameters
+    ----------
+    spec : ToleranceSpec
+    n_edges : int
+    play_ends : array_like, shape (E,), optional
+        A pin-jointed print: per bar, its ends that turn on a pin (:mod:`fabkit.tolerance.pins`);
+        two where not given.
+
+    Returns
+    -------
+    numpy.ndarray, shape (E,) or None
+        Laser: ``hole_clearance`` (two holes, each half of it radially); a pin-jointed print:
+        ``pin_clearance`` times the bar's ends that turn on a pin; None for joints without play
+        (flexure hinges, creases) or a clearance of zero.
+
+    Examples
+    --------
+    >>> from fabkit.tolerance import ToleranceSpec
+    >>> spec = ToleranceSpec(process="print", linkage="pins", pin_clearance=0.3)
+    >>> nominal_room_mm(spec, 3, [1, 2, 0]).tolist()
+    [0.3, 0.6, 0.0]
+    """
+    if spec.process == "laser" and spec.hole_clearance > 0:
+        return np.full(n_edges, float(spec.hole_clearance))
+    if _pins(spec) and spec.pin_clearance > 0:
+        return bar_play_ends(play_ends, n_edges) * float(spec.pin_clearance)
+    return None
+
+
+def bar_play_ends(play_ends, n_edges: int) -> np.ndarray:
+    """Per bar, its ends that turn on a pin with play, as floats, shape (E,): ``play_ends``,
+    or two per bar where it is None."""
+    if play_ends is None:
+        return np.full(n_edges, 2.0)
+    ends = np.asarray(play_ends, dtype=np.float64)
+    if ends.shape != (n_edges,):
+        raise ValueError(f"play_ends must hold one count per bar ({n_edges}), got shape "
+                         f"{ends.shape}")
+    return ends
 
 
 #: Below this half-angle (radians) sin(x)/x is 1 to round-off (its error is x²/6).
@@ -107,6 +202,9 @@ class ProcessGeometry:
         Origami: nodes on the sheet's cut boundary.
     sheets : tuple of Sheet or None
         Origami: every sheet of paper with its flat pattern (the state it is made in).
+    play_ends : numpy.ndarray, shape (E,) or None
+        A pin-jointed print: per bar, its ends that turn on a pin with play
+        (:mod:`fabkit.tolerance.pins`); None: two per bar.
     """
 
     nodes: np.ndarray
@@ -115,6 +213,7 @@ class ProcessGeometry:
     joint_turn: np.ndarray | None = None
     boundary: np.ndarray | None = None
     sheets: tuple | None = None
+    play_ends: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -144,7 +243,7 @@ class Sheet:
 
 
 def _active(spec, sources) -> set:
-    names = set(SOURCES[spec.process])
+    names = set(spec_sources(spec))
     return names if sources is None else names & set(sources)
 
 
@@ -181,7 +280,9 @@ def _laser(geo: ProcessGeometry, spec, rng, on: set, g):
     return L[None, :] + out / spec.scale, np.zeros((m, e)), room / spec.scale
 
 
-def _print(geo: ProcessGeometry, spec, rng, on: set, g):
+def _printed(geo: ProcessGeometry, spec, rng, on: set, g):
+    """What every print draws: its lengths (mm) with the joints' errors and the shrinkage, and
+    each build's extra line width (mm)."""
     x = geo.nodes * spec.scale
     m = spec.samples
     # each joint's error attached to the design (canonical order and frame): the same builds
@@ -193,10 +294,18 @@ def _print(geo: ProcessGeometry, spec, rng, on: set, g):
     L = _moved(geo, pos / spec.scale) * spec.scale
     if "shrinkage" in on:
         L = L * (1.0 - shrink[:, None])
+    return L, width if "line width" in on else np.zeros(m)
+
+
+def _print(geo: ProcessGeometry, spec, rng, on: set, g):
+    if _pins(spec):
+        return _print_pins(geo, spec, rng, on, g)
+    m = spec.samples
+    L, width = _printed(geo, spec, rng, on, g)
     # the plates grow by half the extra width on each side: a shorter free hinge length; a hinge
     # bent by θ then shortens each bar at it by half its free length times (1 - sinc(θ/2))
     hinge = g * spec.hinge_length if "hinge flexure" in on else np.full(m, spec.hinge_length)
-    ell = np.maximum(hinge - (width if "line width" in on else 0.0), 0.0)
+    ell = np.maximum(hinge - width, 0.0)
     if "hinge flexure" in on:
         bend = 0.5 * ell
     elif "line width" in on:
@@ -204,6 +313,17 @@ def _print(geo: ProcessGeometry, spec, rng, on: set, g):
     else:
         bend = np.zeros(m)
     return L / spec.scale, np.repeat((bend / spec.scale)[:, None], geo.edges.shape[0], axis=1), None
+
+
+def _print_pins(geo: ProcessGeometry, spec, rng, on: set, g):
+    """A print-in-place bar linkage: the hinge print's joint errors and shrinkage (the same
+    draws), no flexure; the extra line width narrows every pin's play."""
+    e = geo.edges.shape[0]
+    L, width = _printed(geo, spec, rng, on, g)
+    # a pin w thicker and its hole w narrower (each by w/2 a side): w less radial play
+    play = np.maximum(spec.pin_clearance - width, 0.0)
+    room = play[:, None] * bar_play_ends(geo.play_ends, e)[None, :]
+    return L / spec.scale, np.zeros((spec.samples, e)), room / spec.scale
 
 
 def _origami(geo: ProcessGeometry, spec, rng, on: set, gain):
@@ -298,8 +418,9 @@ class BuildLengths:
         panels less the offset of its hinge lines; zero for laser-cut bars.
     room : numpy.ndarray, shape (M, E) or None
         Each bar's axial room (design units): its pin distance may be anything within this of
-        its length at no force (laser: the sum of its two holes' radial clearances). None where
-        joints have no play (flexure hinges, creases).
+        its length at no force (laser: the sum of its two holes' radial clearances; a
+        pin-jointed print: of its ends' radial play on their pins). None where joints have no
+        play (flexure hinges, creases).
     """
 
     base: np.ndarray

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .processes import NOT_KINEMATIC
+from .processes import not_kinematic
 from .spec import ToleranceSpec, model_summary
 
 
@@ -157,11 +157,13 @@ class ToleranceResult:
             "limit_fraction": spec.limit_fraction,
             "errors": {k: getattr(spec, k) for k in spec.process_keys()},
             "model": model_summary(spec),
-            "not_kinematic": NOT_KINEMATIC.get(spec.process, {}),
+            "not_kinematic": not_kinematic(spec),
         }
         if spec.process == "laser":  # the laser's keys under their historical names
             out.update({f"{k}_mm": getattr(spec, k) for k in (
                 "length_sigma", "kerf_sigma", "hole_clearance", "thickness", "thickness_sigma")})
+        if spec.process == "print":
+            out["linkage"] = spec.linkage
         if self.end_offsets is not None and self.reached.any():
             r = np.linalg.norm(self.end_offsets[self.reached], axis=-1) * self.spec.scale
             out["end_position_p95_mm"] = float(np.percentile(r, 95))

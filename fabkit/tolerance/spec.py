@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -13,7 +13,8 @@ from ..fab.printing import design_print_settings
 from ..io.schema import check_table, refuse_unused, ToleranceSection
 from ..numerics import TINY
 from .behaviour import STATE_FRACTION
-from .processes import PROCESS_EXTRA_KEYS, PROCESSES, ProcessGeometry, sample_lengths, SOURCES
+from .processes import (PIN_EXTRA_KEYS, PROCESS_EXTRA_KEYS, PROCESSES, ProcessGeometry,
+                        sample_lengths, SOURCES, spec_sources)
 
 #: Linear shrinkage after cooling, mean and standard deviation (fractions), by print material:
 #: typical figures quoted by filament makers for parts that the slicer does not compensate.
@@ -43,6 +44,15 @@ class ToleranceSpec:
         Print: joint position σ per coordinate (0.1 mm, typical FDM accuracy), shrinkage
         fraction and its σ (by material, :data:`SHRINKAGE`), extrusion-width σ (0.03 mm), the
         hinges' free length (the print settings').
+    linkage, material : str
+        Print: ``"hinges"`` (triangle plates on flexures) or ``"pins"`` (bars printed in place
+        on pins), and the material (the print settings').
+    pin_clearance, bar_thickness : float
+        A pin-jointed print: each hole's radial play round its pin, and the bars' height (with
+        ``bar_width`` their section for the elastic level); the print settings'.
+    print_settings : PrintSettings or None
+        The print's settings as resolved (template, then command line): a pin-jointed print's
+        plan says which bar carries each pin (:mod:`fabkit.tolerance.pins`).
     crease_sigma, cut_sigma, paper_thickness, compliance_sigma : float
         Origami: crease-vertex position σ (0.5 mm, folding by hand on a printed line), boundary
         σ (0.2 mm, knife or cutter), paper thickness (0.1 mm, 80 g/m² copy paper), panel bowing
@@ -79,6 +89,11 @@ class ToleranceSpec:
     shrinkage_sigma: float = 0.001
     line_width_sigma: float = 0.03
     hinge_length: float = 6.0
+    linkage: str = "hinges"
+    material: str = "PLA"
+    pin_clearance: float = 0.3
+    bar_thickness: float = 2.4
+    print_settings: object = field(default=None, repr=False)
     crease_sigma: float = 0.5
     cut_sigma: float = 0.2
     paper_thickness: float = 0.1
@@ -92,11 +107,20 @@ class ToleranceSpec:
 
     def process_keys(self) -> tuple[str, ...]:
         """The spec fields that belong to this process (its error sources' parameters)."""
-        keys = [k for src in SOURCES[self.process].values() for k in src]
+        keys = [k for src in spec_sources(self).values() for k in src]
+        if self.process == "print" and self.linkage == "pins":
+            return tuple(keys) + PIN_EXTRA_KEYS
         return tuple(keys) + PROCESS_EXTRA_KEYS.get(self.process, ())
 
+    @property
+    def section_mm2(self) -> float:
+        """A bar's cross-section (mm²) for the elastic level: laser ``bar_width`` ×
+        ``thickness``, a pin-jointed print ``bar_width`` × ``bar_thickness``."""
+        return self.bar_width * (self.bar_thickness if self.process == "print"
+                                 else self.thickness)
 
-TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)}
+
+TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)} - {"print_settings"}
 _OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k in src}
 _OWNER.update({k: proc for proc, keys in PROCESS_EXTRA_KEYS.items() for k in keys})
 
@@ -225,8 +249,12 @@ def _print_defaults(design, settings) -> dict:
     except FabricationError as exc:
         raise TemplateError(design.path or design.name, "fabrication.print", str(exc)) from None
     mean, sd = SHRINKAGE.get(s.material, SHRINKAGE["PLA"])
-    return {"scale": float(s.scale), "hinge_length": float(s.hinge_length), "shrinkage": mean,
-            "shrinkage_sigma": sd}
+    out = {"scale": float(s.scale), "hinge_length": float(s.hinge_length), "shrinkage": mean,
+           "shrinkage_sigma": sd, "linkage": s.linkage, "material": s.material}
+    if s.linkage == "pins":
+        out.update({"pin_clearance": float(s.pin_clearance), "bar_width": float(s.bar_width),
+                    "bar_thickness": float(s.bar_thickness), "print_settings": s})
+    return out
 
 
 def _origami_defaults(design, settings) -> dict:
@@ -353,6 +381,12 @@ def model_summary(spec: ToleranceSpec) -> str:
         parts = [f"bar length σ {spec.length_sigma:g} mm", f"kerf σ {spec.kerf_sigma:g} mm",
                  f"hole play {spec.hole_clearance:g} mm (a freedom)",
                  f"sheet {spec.thickness:g} ± {spec.thickness_sigma:g} mm"]
+    elif spec.process == "print" and spec.linkage == "pins":
+        parts = [f"xy accuracy σ {spec.xy_sigma:g} mm",
+                 f"shrinkage {100 * spec.shrinkage:g} ± {100 * spec.shrinkage_sigma:g} %",
+                 f"line width σ {spec.line_width_sigma:g} mm",
+                 f"pin play {spec.pin_clearance:g} mm radial (a freedom)",
+                 f"{spec.material} bars {spec.bar_width:g} x {spec.bar_thickness:g} mm"]
     elif spec.process == "print":
         parts = [f"xy accuracy σ {spec.xy_sigma:g} mm",
                  f"shrinkage {100 * spec.shrinkage:g} ± {100 * spec.shrinkage_sigma:g} %",
@@ -362,4 +396,6 @@ def model_summary(spec: ToleranceSpec) -> str:
         parts = [f"crease position σ {spec.crease_sigma:g} mm", f"cut σ {spec.cut_sigma:g} mm",
                  f"paper {spec.paper_thickness:g} mm thick",
                  f"crease compliance σ {spec.compliance_sigma:g} mm"]
-    return f"{spec.process}: " + ", ".join(parts) + f" (scale {spec.scale:.4g} mm per unit)"
+    kind = f"{spec.process} (pin-jointed)" if spec.process == "print" and \
+        spec.linkage == "pins" else spec.process
+    return f"{kind}: " + ", ".join(parts) + f" (scale {spec.scale:.4g} mm per unit)"
