@@ -14,6 +14,7 @@ from ..io.schema import refuse_unused
 from ..io.suggest import did_you_mean
 from ..kinematics import METHODS, Status
 from ..motion import judge_ends
+from ..motion.spread import module_spread, shape_missed
 from ..motion.elastic import DEFAULT_STEPS, elastic_motion
 from ..report.viz import elastic_figure, figure_png, motion_figure
 from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number,
@@ -154,19 +155,33 @@ def run(args) -> int:
             if over is not None:
                 print(f"fabkit: error: {path}: motion: {over}", file=sys.stderr)
             return over is not None
-        ends = None
+        ends = spread = None
         if traj.success:
-            # reaching the target is not the design happening: every designed end, judged
+            # reaching the target is not the design happening: every designed end, judged,
+            # and how far each module of a chain went
             traced = replace(design, motion=replace(design.motion, to=float(traj.target)))
             ends = judge_ends(traced, traj)
+            spread = module_spread(traced, traj)
+        where = "" if spread is None else \
+            f"\nmodules       {spread.strip()}  {spread.sentence()} (each module's output: how " \
+            "far it went, of the drive's travel)"
         if ends is not None and not ends.reached:  # the trace finished, the design did not
             print(traj.summary(status="ends missed", message=(
                 f"the drive reached {design.motion.drive} = {traj.target:.10g}, "
-                "the designed ends were not")))
+                "the designed ends were not")) + where)
             print(f"fabkit: error: {path}: motion.ends: target {design.motion.drive} = "
                   f"{traj.target:.10g} is reached, but {ends.reason}", file=sys.stderr)
             return True
-        print(traj.summary())
+        missed = shape_missed(design, spread) if traj.success else ""
+        if missed:
+            print(traj.summary(status="shape missed", message=(
+                f"the drive reached {design.motion.drive} = {traj.target:.10g}; "
+                f"{spread.sentence()}")) + where)
+            print(f"fabkit: error: {path}: motion: target {design.motion.drive} = "
+                  f"{traj.target:.10g} is reached, but {missed}", file=sys.stderr)
+            return True
+        local = f"; {spread.sentence()}" if spread is not None and spread.localised else ""
+        print(traj.summary(message=f"{traj.message}{local}" if local else None) + where)
         if traj.success:
             if ends is not None:
                 print(f"designed ends: every one reached ({ends.basis})")

@@ -20,6 +20,7 @@ from ..fab.window import motion_window
 from ..io.templates import BUILDERS
 from ..kinematics import Status
 from ..model.rigidity import count_modes
+from .spread import module_spread, shape_missed
 
 __all__ = ["MotionStatus", "TracedMotion", "trace_motion", "motion_for"]
 
@@ -73,6 +74,8 @@ class TracedMotion:
         The designed end of every port that has one, judged (:func:`fabkit.motion.ends.judge_ends`).
     window : tuple or None
         ``(start, to)`` of a kit's window, None for the design's own motion.
+    spread : ModuleSpread or None
+        A driven chain: how far each module moved (:func:`fabkit.motion.spread.module_spread`).
     """
 
     design: object
@@ -82,6 +85,7 @@ class TracedMotion:
     error: FabkitError | None = None
     ends: object = None
     window: tuple | None = None
+    spread: object = None
     _windows: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -122,8 +126,12 @@ class TracedMotion:
 
     def line(self) -> str:
         """The motion in one line, as the command line and the reports say it."""
+        local = f"; {self.spread.sentence()}" if self.spread is not None and \
+            self.spread.localised and self.status is MotionStatus.FINISHED else ""
         if self.status is MotionStatus.FINISHED and self.ends is not None:
-            return f"{self.reason}; every designed end reached ({self.ends.basis})"
+            return f"{self.reason}{local}; every designed end reached ({self.ends.basis})"
+        if local:
+            return f"{self.reason}{local}"
         if self.status is MotionStatus.ENDS_MISSED:
             return f"{self.status}: {self.reason}"
         return self.reason if self.status is MotionStatus.FINISHED else \
@@ -251,17 +259,22 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
         status = MotionStatus.SINGULAR_START if singular else MotionStatus.REFUSED
         return TracedMotion(design, status, error.reason, error=error, window=window)
     if traj.success:
-        ends = None
+        ends = spread = None
         if judge:
             from .ends import judge_ends
 
             ends = judge_ends(design, traj)
+            spread = module_spread(design, traj)
         if ends is not None and not ends.reached:
             return TracedMotion(design, MotionStatus.ENDS_MISSED,
                                 f"{traj.message}, but {ends.reason}", traj, ends=ends,
-                                window=window)
+                                window=window, spread=spread)
+        missed = shape_missed(design, spread)
+        if missed:
+            return TracedMotion(design, MotionStatus.ENDS_MISSED, f"{traj.message}, but {missed}",
+                                traj, ends=ends, window=window, spread=spread)
         return TracedMotion(design, MotionStatus.FINISHED, traj.message, traj, ends=ends,
-                            window=window)
+                            window=window, spread=spread)
     at_start = traj.n_steps <= 1
     if singular and at_start:
         error = SingularStartError(path, nodes_key, f"target {design.motion.drive} = "

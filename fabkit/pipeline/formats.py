@@ -264,6 +264,8 @@ def motion_facts(motion, formats) -> dict | None:
     if not motion.traced:
         return None
     out = motion_report(motion.trajectory)
+    if motion.spread is not None:
+        out["spread"] = motion.spread.as_dict()
     if motion.ends is not None:
         out["status"] = str(motion.status)
         out["ends"] = motion.ends.as_dict()

@@ -59,6 +59,8 @@ h2{font-size:18px;margin:4px 0 10px}table{border-collapse:collapse;margin:6px 0;
 td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;vertical-align:top}
 th{background:#f0f0f0}.ok{color:#1b5e20;font-weight:600}.bad{color:#b71c1c;font-weight:600}
 .warn{color:#e65100}.note{color:#5d4037;font-weight:600}.lead{border-left:5px solid #263238}
+.strip i{display:inline-block;width:.7em;height:1.1em;margin-right:1px;border:1px solid;
+vertical-align:middle}
 .lead p{margin:4px 0}.verdict{border-left:5px solid #1b5e20}.verdict.FLAG,.verdict.FAIL{
 border-left-color:#b71c1c}.verdict.by-design{border-left-color:#8d6e63}
 .nowrap{white-space:nowrap}
@@ -348,6 +350,18 @@ def _pass(ok) -> str:
     return '<span class="ok">pass</span>' if ok else '<span class="bad">FAIL</span>'
 
 
+def _spread_strip(spread) -> str:
+    """The chain's modules as a strip of cells, each as dark as far as its output went (of
+    the drive's travel; a module past the state tolerance is outlined)."""
+    cells = []
+    for k, (r, moved) in enumerate(zip(spread.reach.tolist(), spread.moved.tolist()), 1):
+        light = 92 - 62 * min(max(r, 0.0), 1.0)
+        edge = "#263238" if moved else "#cfd8dc"
+        cells.append(f'<i style="background:hsl(210,60%,{light:.0f}%);border-color:{edge}" '
+                     f'title="module {k}: {r:.2g} of the drive\'s travel"></i>')
+    return f'<span class="strip">{"".join(cells)}</span>'
+
+
 def _level(level) -> str:
     """A verdict level as a word in its colour."""
     word = "flagged by design" if str(level) == "by design" else str(level)
@@ -387,10 +401,20 @@ def _checks_section(report) -> str:
         rows.append(f"<tr><th colspan=5>tolerance</th></tr><tr><td>as built</td>"
                     f"<td>{_level(level)}</td><td colspan=3>{_esc(tol.verdict)}</td></tr>")
     motion = report.motion
+    spread = getattr(motion, "spread", None) if motion is not None else None
+    if motion is not None and (motion.ends is not None or spread is not None):
+        rows.append("<tr><th colspan=5>motion</th></tr>")
     if motion is not None and motion.ends is not None:
-        rows.append(f"<tr><th colspan=5>motion</th></tr><tr><td>designed ends</td>"
+        rows.append(f"<tr><td>designed ends</td>"
                     f"<td>{_pass(motion.ends.reached)}</td>"
                     f"<td colspan=3>{_esc(motion.ends.reason or motion.ends.basis)}</td></tr>")
+    if spread is not None:
+        word = '<span class="note">localised</span>' if spread.localised else \
+            '<span class="ok">spread</span>'
+        rows.append(f"<tr><td>modules moved</td><td>{word}"
+                    f"</td><td>{int(spread.moved.sum())} of {spread.modules}</td>"
+                    f"<td>{_fmt(spread.tolerance)}</td><td>{_spread_strip(spread)} "
+                    f"{_esc(spread.sentence())}</td></tr>")
     for e in report.errors:
         rows.append(f'<tr><td colspan=5 class="bad">{_esc(e)}</td></tr>')
     if not rows:
