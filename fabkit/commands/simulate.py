@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UsageError
+from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
 from ..io.schema import refuse_unused
 from ..io.suggest import did_you_mean
@@ -30,8 +30,8 @@ HELP = "trace a template's motion; writes trajectory.npz and motion.png"
 EXAMPLES = [
     Example("fabkit simulate super_stable_chain8 --gif --set motion.to=1.5",
             "the chain driven part of the way (d1 = 1.5), with an animated motion.gif"),
-    Example("fabkit simulate origami_sheet --method branch -o out/sim",
-            "leave the flat sheet on a branch (the bifurcation method)"),
+    Example("fabkit simulate physical_fourbar --set motion.drive=d1 --to 1.9 --branch 2",
+            "drive d1 from the flat start on the mirror branch (node 2 on the side of node 3)"),
     Example("fabkit simulate super_stable_chain8 --model elastic --to 1.0",
             "push the laser kit 1 mm past where it locks: energy and the largest bar stress "
             "(MPa) along the drive; out/<name>/elastic.npz, elastic.png"),
@@ -49,6 +49,10 @@ def add_arguments(p):
     add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
     add_settings(p, "override a motion setting, e.g. --set motion.to=1.5 or "
                     "--set motion.method=projected (repeatable)")
+    p.add_argument("--branch", type=int, default=None, metavar="N",
+                   help="at a singular start or one where the drive turns (a flat state), "
+                        "leave on branch N (the branches and the one taken are named in the "
+                        "output; default: the first that moves the drive towards the target)")
     p.add_argument("--gif", action="store_true", help="also write an animated motion.gif")
     p.add_argument("--model", default="rigid", metavar="MODEL",
                    help="rigid (default: bars keep their lengths) or elastic (the build's bars "
@@ -77,10 +81,12 @@ def trajectory_npz(traj) -> bytes:
 
 
 def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progress=None,
-                    elastic=None):
+                    elastic=None, branch=None):
     """Trace a design's motion and write its files; with ``elastic`` (``{"steps": K,
-    "settings": {...}}``) also drive its build with elastic bars. Returns (trajectory, folder,
-    elastic run or None)."""
+    "settings": {...}}``) also drive its build with elastic bars; with ``branch``, leave a
+    singular or turning start on that branch. A start where the drive turns (a flat state)
+    that the method asked for cannot leave is left on its first branch, and the trace says
+    which. Returns (trajectory, folder, elastic run or None)."""
     say = progress.stage if progress is not None else (lambda text: None)
 
     overrides = {}
@@ -88,9 +94,19 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
         overrides["method"] = method
     if to is not None:
         overrides["to"] = to
+    if branch is not None:
+        overrides.update(method="branch", branch=branch)
     folder = inside(outdir, design.name)  # before the work
     say(f"{design.name}: tracing the motion")
     traj = design.trace(**overrides)
+    if branch is None and not traj.success and traj.n_steps <= 1 and \
+            traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT):
+        # stuck at its start: a turning point of the drive or a bifurcation has branches
+        # that leave it; take the first that moves the drive towards the target, and say so
+        try:
+            traj = design.trace(**{**overrides, "method": "branch"})
+        except FabkitError:
+            pass
     say(f"{design.name}: drawing")
     files = {"trajectory.npz": trajectory_npz(traj),
              "motion.png": figure_png(motion_figure(traj, title=design.name))}
@@ -128,6 +144,12 @@ def run(args) -> int:
     elastic = args.model == "elastic"
     if args.steps is not None and not elastic:
         raise UsageError("--steps", "counts the quasi-static steps of --model elastic")
+    if args.branch is not None:
+        if args.branch < 1:
+            raise UsageError("--branch", f"numbers branches from 1, got {args.branch}")
+        if args.method is not None and args.method != "branch":
+            raise UsageError("--branch", f"leaves a singular start by the branch method; "
+                                         f"--method {args.method} does not take it")
     steps = DEFAULT_STEPS if args.steps is None else args.steps
     check_count("--steps", steps, 2, MAX_STEPS, "quasi-static steps")
     settings = parse_settings(args.settings)
@@ -145,7 +167,7 @@ def run(args) -> int:
         design = with_settings(load_template(path), settings)
         traj, folder, run = simulate_design(
             design, Path(args.out_dir), args.method, args.to, args.gif, progress,
-            {"steps": steps, "settings": settings} if elastic else None)
+            {"steps": steps, "settings": settings} if elastic else None, args.branch)
         print(f"== {design.name} -> {folder}")
         if run is not None:
             # the elastic model answers: the rigid trace is shown, its stop is no failure

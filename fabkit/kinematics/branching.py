@@ -39,7 +39,7 @@ from .tracer import trace
 from .trajectory import EventKind, Trajectory
 
 __all__ = ["Branch", "Bifurcation", "analyze_bifurcation", "step_off", "fold_through",
-           "BranchSwitch"]
+           "BranchSwitch", "turning_branches", "side_words"]
 
 #: Largest number of first-order motions for which branches are enumerated.
 MAX_MODES = 8
@@ -60,6 +60,9 @@ SAME_LINE = 1e-8
 #: A branch's direction is oriented by its largest component; components within this fraction of
 #: the largest count as tied (mirror-symmetric networks have several), and the first one wins.
 ORIENT_TIE = 1e-6
+#: Three nodes lie on one line (a flat triple) when twice their triangle's area is below this
+#: fraction of the network's size squared.
+FLAT_SINE = 1e-9
 #: A candidate stepped off the branch point must move the drive by more than this (relative)
 #: in the asked direction: round-off moves it by ~1e-16.
 STEP_OFF_RTOL = 1e-14
@@ -83,6 +86,9 @@ class Branch:
         First and second derivative of every port distance along ``s ↦ x0 + s v + s²/2 a``.
     residual : float
         Largest ``|cᵀ H_k c|`` relative to ``max ‖H_k‖`` (how exactly the test is met).
+    words : str
+        Where the branch goes, in words, when its ports' rates do not tell it from another
+        (the two ways out of a turning point: :func:`side_words`).
     """
 
     index: int
@@ -91,9 +97,12 @@ class Branch:
     curvature: np.ndarray
     port_rates: dict
     residual: float
+    words: str = ""
 
     def describe(self) -> str:
         """One line: which port distances change on this branch and which stay put."""
+        if self.words:
+            return f"branch {self.index}: {self.words}"
         moving = {k: v[1] for k, v in self.port_rates.items() if abs(v[1]) > RATE_ZERO or abs(v[0]) > RATE_ZERO}
         still = sorted(k for k in self.port_rates if k not in moving)
         parts = [f"branch {self.index}:"]
@@ -293,6 +302,127 @@ def analyze_bifurcation(net: Network, positions=None) -> Bifurcation:
     return Bifurcation(x, modes, True, w, z, forms, tuple(branches), msg)
 
 
+def turning_branches(net: Network, positions, drive) -> Bifurcation | None:
+    """The two ways out of a start where the drive is stationary on a regular motion.
+
+    A network with one first-order motion and no state of self-stress moves along one curve;
+    where the drive is at its least or greatest value along it (the physical 4-bar's flat
+    state, a minimum of d1), both directions of that curve move the drive the same way, to
+    second order: two branches, mirror images of each other at a flat state. Branch 1 is the
+    way that opens a flat state away from the rest of the network (a node leaving the line of
+    its neighbours to the side where no other node lies; else the tangent oriented by its
+    largest component, as for bifurcations), branch 2 its mirror image.
+
+    Parameters
+    ----------
+    net : Network
+    positions : array_like, shape (N, d)
+    drive : (int, int)
+
+    Returns
+    -------
+    Bifurcation or None
+        ``singular`` False, two branches; None where the start is not such a turning point
+        (the drive moves to first order, or the motion is not one curve).
+
+    Examples
+    --------
+    >>> import fabkit
+    >>> d = fabkit.load_template("physical_fourbar")
+    >>> turn = turning_branches(d.network, d.network.nodes, d.network.port("d1"))
+    >>> [b.index for b in turn.branches], side_words(d.network, turn.positions,
+    ...                                              turn.branches[0].tangent)
+    ([1, 2], 'node 2 leaves the line 0–1 to its right (away from node 3)')
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    modes = count_modes(net, x)
+    if modes.conformational != 1 or modes.self_stress:
+        return None
+    z = zero_modes(net, x)
+    if z.shape[1] != 1:
+        return None
+    v = z[:, 0] / np.linalg.norm(z[:, 0])
+    big = np.abs(v)
+    if v[int(np.flatnonzero(big >= (1.0 - ORIENT_TIE) * big.max())[0])] < 0:
+        v = -v
+    n, d = x.shape
+    vv = v.reshape(n, d)
+    i, j = net.edges[:, 0], net.edges[:, 1]
+    q = np.einsum("ed,ed->e", vv[i] - vv[j], vv[i] - vv[j])
+    a = np.linalg.lstsq(rigidity_matrix(net, x).toarray(), -q, rcond=None)[0]
+    ports = {**net.ports, "drive": tuple(int(k) for k in drive)}
+    rates = _port_rates(Network(x, net.edges, ports), x, v, a)
+    first, second = rates.pop("drive")
+    if abs(first) > RATE_ZERO or abs(second) <= RATE_ZERO:
+        return None
+    mirror = _port_rates(Network(x, net.edges, net.ports), x, -v, a)
+    # the way that opens the flat state away from the rest of the network first (it unfolds
+    # rather than folds onto itself, as a maker pulling a flat linkage open does)
+    found = _leaving(net, x, v)
+    if found is not None and found[5]:
+        v, rates, mirror = -v, mirror, rates
+    branches = (Branch(1, np.array([1.0]), v, a, rates, 0.0, side_words(net, x, v)),
+                Branch(2, np.array([-1.0]), -v, a, mirror, 0.0, side_words(net, x, -v)))
+    what = "least" if second > 0 else "greatest"
+    return Bifurcation(x, modes, False, np.zeros((net.n_edges, 0)), z, np.zeros((0, 1, 1)),
+                       branches, f"the drive is at its {what} value along the motion here (a "
+                                 "turning point): both ways along it move the drive the same "
+                                 "way, two branches")
+
+
+def _leaving(net: Network, x, v):
+    """``(node, p, q, rate, other, same)`` of a 2D motion leaving a flat state: the node that
+    leaves the line of two of its neighbours fastest (``rate``: the signed area's derivative,
+    positive to the left of p → q), and the first node off that line with whether it lies on
+    that side (None without one); None in 3D or without a flat triple."""
+    if x.shape[1] != 2:
+        return None
+    v = np.asarray(v, dtype=np.float64).reshape(x.shape)
+    size = max(float(np.ptp(x, axis=0).max()), TINY)
+    neigh = {k: set() for k in range(x.shape[0])}
+    for a_, b_ in net.edges.tolist():
+        neigh[a_].add(b_)
+        neigh[b_].add(a_)
+
+    def cross(u, w):
+        return float(u[0] * w[1] - u[1] * w[0])
+
+    best = None
+    for k, ns in neigh.items():
+        ns = sorted(ns)
+        for ii in range(len(ns)):
+            for jj in range(ii + 1, len(ns)):
+                p, q = ns[ii], ns[jj]
+                if abs(cross(x[q] - x[p], x[k] - x[p])) > FLAT_SINE * size ** 2:
+                    continue
+                rate = cross(v[q] - v[p], x[k] - x[p]) + cross(x[q] - x[p], v[k] - v[p])
+                if best is None or abs(rate) > abs(best[3]):
+                    best = (k, p, q, rate)
+    if best is None or abs(best[3]) <= RATE_ZERO * size:
+        return None
+    k, p, q, rate = best
+    others = [m for m in range(x.shape[0]) if m not in (k, p, q)
+              and abs(cross(x[q] - x[p], x[m] - x[p])) > FLAT_SINE * size ** 2]
+    if not others:
+        return k, p, q, rate, None, None
+    m = others[0]
+    return k, p, q, rate, m, cross(x[q] - x[p], x[m] - x[p]) * rate > 0
+
+
+def side_words(net: Network, positions, tangent) -> str:
+    """Where a 2D motion leaving a flat state goes, in words: the node that leaves the line of
+    two of its neighbours fastest, and to which side (with a node that lies on that side, or
+    away from one); ``""`` in 3D or without a flat triple."""
+    found = _leaving(net, np.asarray(positions, dtype=np.float64), tangent)
+    if found is None:
+        return ""
+    k, p, q, rate, m, same = found
+    text = f"node {k} leaves the line {p}–{q} to its {'left' if rate > 0 else 'right'}"
+    if m is not None:
+        text += f" ({'the side of' if same else 'away from'} node {m})"
+    return text
+
+
 def _project(net: Network, xf: np.ndarray) -> np.ndarray:
     """Minimum-norm Gauss-Newton back onto the constraint set ``|x_i - x_j| = L``."""
     proj = project_to_lengths(net.edges, net.edge_lengths, xf.reshape(net.nodes.shape))
@@ -354,8 +484,8 @@ def _choose(net, bif, drive, direction, branch, sign, score, size):
             cands.append((b.index, sg))
     if branch is not None:
         if not 1 <= int(branch) <= len(bif.branches):
-            raise KinematicsError(f"no branch {branch}: the second-order test found "
-                                  f"{len(bif.branches)} branch(es)")
+            raise KinematicsError(f"no branch {branch}: the start has {len(bif.branches)} "
+                                  f"branch(es) ({'; '.join(b.describe() for b in bif.branches)})")
         cands = [c for c in cands if c[0] == int(branch)]
     if sign is not None:
         cands = [c for c in cands if c[1] == (1.0 if sign >= 0 else -1.0)]
@@ -450,8 +580,14 @@ def fold_through(net: Network, drive="d1", to=None, *, start=None, branch=None, 
     problem = make_problem(net, drive, to, start=start)
     work = problem.work
     bif = analyze_bifurcation(work, problem.start)
+    turning = None
     if not bif.singular:
-        return trace(net, drive=drive, to=to, method=method, start=start, **options)
+        turning = turning_branches(work, problem.start, problem.drive)
+        if turning is None:
+            return trace(net, drive=drive, to=to, method=method, start=start, **options)
+        # each way out is its own branch (the two are mirror images): the first unless named
+        bif, sign = turning, 1.0
+        branch = 1 if branch is None else branch
     if not bif.branches:
         raise KinematicsError(bif.message)
     direction = 1.0 if problem.target >= problem.start_drive else -1.0
@@ -467,18 +603,29 @@ def fold_through(net: Network, drive="d1", to=None, *, start=None, branch=None, 
         except ConstructionError:
             method = "projected"
             options.pop("samples", None)
-    traj = trace(work, drive=problem.drive, to=to, method=method, start=cand.positions, **options)
+    named = problem.drive_name if problem.drive_name in work.ports else problem.drive
+    traj = trace(work, drive=named, to=to, method=method, start=cand.positions, **options)
     x0 = bif.positions
     pos = np.concatenate([x0[None], traj.positions], axis=0)
-    detail = (f"left the singular state ({bif.modes.self_stress} self-stress, "
-              f"{bif.modes.conformational} first-order motions, {len(bif.branches)} branches) on "
-              f"branch {cand.branch} in direction {'+' if cand.sign > 0 else '-'}")
+    if turning is not None:
+        taken = turning.branches[cand.branch - 1]
+        other = turning.branches[2 - cand.branch]
+        detail = (f"left the start, a turning point of {problem.drive_name}, on branch "
+                  f"{cand.branch} of 2" + (f" ({taken.words})" if taken.words else "")
+                  + f"; branch {other.index} is its mirror image"
+                  + (f" ({other.words})" if other.words else ""))
+    else:
+        detail = (f"left the singular state ({bif.modes.self_stress} self-stress, "
+                  f"{bif.modes.conformational} first-order motions, {len(bif.branches)} "
+                  f"branches) on branch {cand.branch} in direction "
+                  f"{'+' if cand.sign > 0 else '-'}")
     marks = [Mark(EventKind.BIFURCATION, 0, detail)]
     marks += [Mark(e.kind, e.index + 1, e.detail) for e in traj.events]
     step = float(np.linalg.norm(traj.positions[0] - x0))
     arclength = np.concatenate([[0.0], step + traj.arclength])
     stats = {**traj.stats, "branch": cand.branch, "sign": int(cand.sign),
-             "branches": [b.describe() for b in bif.branches], "step_off": step}
+             "branches": [b.describe() for b in bif.branches], "step_off": step,
+             "turning_start": turning is not None}
     return problem.trajectory(pos, f"branch/{traj.method}", traj.status,
                               f"{detail}; then {traj.message}", marks, stats, arclength)
 
@@ -510,7 +657,8 @@ class BranchSwitch(Method):
         sign = o["sign"]
         if sign is None and o["branch"] is not None:
             sign = 1
-        traj = fold_through(p.work, p.drive, p.target, start=p.start, branch=o["branch"],
+        drive = p.drive_name if p.drive_name in p.work.ports else p.drive
+        traj = fold_through(p.work, drive, p.target, start=p.start, branch=o["branch"],
                             sign=sign, step_off_size=o["step_off"], method=o["then"], **extra)
         method = traj.method if traj.method.startswith(self.name) else f"{self.name}/{traj.method}"
         marks = tuple(Mark(e.kind, e.index, e.detail) for e in traj.events)
