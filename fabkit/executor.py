@@ -21,9 +21,11 @@ What it guarantees:
 
 Workers are fresh interpreters (the ``spawn`` start method: no state inherited from a parent
 that may hold locks or threads), started with ``PYTHONHASHSEED=0`` so that their results do
-not depend on the run, and with their BLAS threads capped so that the workers together use the
-machine's cores once. A script that runs tasks needs the ``if __name__ == "__main__":`` guard,
-since each worker imports it.
+not depend on the run. Each caps the threads of its BLAS and OpenMP libraries to its share of
+the cores (``cpu_count // jobs``, at least one), so that the workers together use the machine's
+cores once, except a library whose threads the user set in the environment
+(:data:`THREAD_VARIABLES`, :func:`blas_limits`): that one keeps the user's count. A script that
+runs tasks needs the ``if __name__ == "__main__":`` guard, since each worker imports it.
 
 Examples
 --------
@@ -49,7 +51,8 @@ from typing import Any, Callable, Iterable, Iterator
 from .errors import FabkitError, Interrupted, internal_error_line
 
 __all__ = ["Task", "TaskEnd", "TaskError", "Ending", "LocalExecutor", "report", "overdue",
-           "heartbeat_interval", "die_with_parent", "HEARTBEAT", "SILENCE", "STARTUP", "GRACE"]
+           "heartbeat_interval", "die_with_parent", "blas_limits", "user_thread_variables",
+           "HEARTBEAT", "SILENCE", "STARTUP", "GRACE", "THREAD_VARIABLES"]
 
 #: Longest interval between two "alive" messages of a worker process; shorter silence limits
 #: get a faster heartbeat (:func:`heartbeat_interval`).
@@ -69,6 +72,21 @@ GRACE = 0.5
 #: Longest wait of the parent between two looks at its workers (seconds): the time limits are
 #: judged at least this often.
 POLL = 1.0
+#: The environment variables through which a user sets the threads of each library a worker
+#: would cap, by threadpoolctl's name of the library (``internal_api``); each library reads them
+#: once, as it loads. OpenBLAS reads OPENBLAS_NUM_THREADS, then GOTO_NUM_THREADS, then
+#: OMP_NUM_THREADS (numpy's and scipy's wheels bundle OpenBLAS); MKL reads MKL_NUM_THREADS (and
+#: MKL_DOMAIN_NUM_THREADS) before OMP_NUM_THREADS; BLIS reads BLIS_NUM_THREADS before
+#: OMP_NUM_THREADS; an OpenMP runtime reads OMP_NUM_THREADS. A library not listed here
+#: (FlexiBLAS hands the count to the backend it loads) counts as set by any of them. Accelerate
+#: (VECLIB_MAXIMUM_THREADS) and numexpr (NUMEXPR_NUM_THREADS) are not among them: threadpoolctl
+#: does not limit them, so a worker never changes what their variables say.
+THREAD_VARIABLES = {
+    "openblas": ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS"),
+    "mkl": ("MKL_NUM_THREADS", "MKL_DOMAIN_NUM_THREADS", "OMP_NUM_THREADS"),
+    "blis": ("BLIS_NUM_THREADS", "OMP_NUM_THREADS"),
+    "openmp": ("OMP_NUM_THREADS",),
+}
 
 
 @dataclass(frozen=True)
@@ -224,6 +242,73 @@ def die_with_parent(parent_pid: int) -> None:
     threading.Thread(target=watch, daemon=True, name="fabkit-parent-watch").start()
 
 
+def user_thread_variables(internal_api: str, environ=None) -> list[str]:
+    """The thread variables of one library that the user set (not empty) in ``environ``.
+
+    Parameters
+    ----------
+    internal_api : str
+        The library as threadpoolctl names it (``"openblas"``, ``"mkl"``, ``"blis"``,
+        ``"openmp"``, ...); one not in :data:`THREAD_VARIABLES` counts as set by any of
+        their variables.
+    environ : mapping, optional
+        The environment (default: this process's).
+
+    Returns
+    -------
+    list of str
+        The names set, in the order of :data:`THREAD_VARIABLES` (empty: the user left the
+        library's threads alone).
+
+    Examples
+    --------
+    >>> user_thread_variables("openblas", {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "2"})
+    ['OMP_NUM_THREADS']
+    >>> user_thread_variables("mkl", {"OPENBLAS_NUM_THREADS": "1"})
+    []
+    """
+    environ = os.environ if environ is None else environ
+    names = THREAD_VARIABLES.get(internal_api)
+    if names is None:
+        names = tuple(dict.fromkeys(v for group in THREAD_VARIABLES.values() for v in group))
+    return [v for v in names if environ.get(v, "").strip()]
+
+
+def blas_limits(threads: int, info: list[dict], environ=None) -> dict[str, int]:
+    """The thread limits a worker sets: ``threads`` for every library in ``info`` whose threads
+    the user did not set in the environment (:func:`user_thread_variables`).
+
+    A library whose variable is set has read it when it loaded and runs with the user's count;
+    the worker leaves it so. The others get ``threads``, the worker's share of the cores.
+
+    Parameters
+    ----------
+    threads : int
+        The worker's share of the cores.
+    info : list of dict
+        ``threadpoolctl.threadpool_info()`` (each with ``filepath`` and ``internal_api``).
+    environ : mapping, optional
+        The environment (default: this process's).
+
+    Returns
+    -------
+    dict
+        ``{filepath: threads}``, for ``threadpoolctl.threadpool_limits``; empty when the user
+        set every library's threads.
+
+    Examples
+    --------
+    >>> libs = [{"filepath": "/a/libopenblas.so", "internal_api": "openblas"},
+    ...         {"filepath": "/b/libgomp.so", "internal_api": "openmp"}]
+    >>> blas_limits(2, libs, {"OPENBLAS_NUM_THREADS": "1"})
+    {'/b/libgomp.so': 2}
+    >>> blas_limits(2, libs, {"OMP_NUM_THREADS": "1"})
+    {}
+    """
+    return {lib["filepath"]: int(threads) for lib in info
+            if not user_thread_variables(lib.get("internal_api", ""), environ)}
+
+
 def _travelling(exc: BaseException) -> BaseException:
     """``exc`` if it survives the trip to the parent (pickled and rebuilt), else its one line."""
     try:
@@ -249,8 +334,11 @@ def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -
         import threadpoolctl
 
         # parallelism is across tasks: oversubscribed BLAS threads slow dense work down several
-        # times (a dense SVD of 882 coordinates: 0.15 s on one thread, seconds when they contend)
-        threadpoolctl.threadpool_limits(blas_threads)  # for the life of the worker
+        # times (a dense SVD of 882 coordinates: 0.15 s on one thread, seconds when they contend);
+        # but a library whose threads the user set (OPENBLAS_NUM_THREADS=1, ...) keeps them
+        limits = blas_limits(blas_threads, threadpoolctl.threadpool_info())
+        if limits:
+            threadpoolctl.threadpool_limits(limits)  # for the life of the worker
     # Ctrl-C in a terminal reaches the whole process group: the parent alone decides, and stops
     # the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -336,7 +424,9 @@ class LocalExecutor:
         ``on_event(index, payload)`` in this process for every :func:`report` of task
         ``index``, as it arrives.
     blas_threads : int or None, optional
-        BLAS threads of each worker (default: the machine's cores shared among the workers).
+        BLAS and OpenMP threads of each worker (default: the machine's cores shared among the
+        workers, ``cpu_count // jobs`` and at least one). A library whose threads the user set
+        in the environment (:data:`THREAD_VARIABLES`) keeps the user's count either way.
     name : str
         Prefix of the workers' process names.
     in_process : bool

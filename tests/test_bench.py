@@ -1,5 +1,7 @@
 """`fabkit bench`: the work-precision study at tiny sizes, the budget, the classification of
-outcomes on cases whose truth is known, and the predictability horizon. No timing assertions."""
+outcomes on cases whose truth is known, and the predictability horizon. No timing assertions:
+budgets, skips and targets are judged in CPU time, which the tests check by the figures each
+measured item carries and by a CPU clock made to run fast, never by how long anything took."""
 
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import pytest
 from fabkit.bench import ModuleMap, finite, paper_module
 from fabkit.bench import stability as stab
 from fabkit.bench.workprecision import (SKIPPED, STOPPED, Setting, fit_exponent, run_budgeted,
-                                        scaling, work_precision)
+                                        scaling, targets, work_precision)
 from fabkit.cli import main
 
 
@@ -54,8 +56,15 @@ SETTINGS = (
     Setting("rk4-nullspace", {"step": 0.1}),
 )
 POINT_KEYS = {"method", "options", "label", "modules", "nodes", "coordinates", "outcome", "status",
-              "time_s", "times", "repeats", "configurations", "time_per_configuration_s",
-              "max_edge_error", "d_last_error", "d_last_final_error", "budget_s"}
+              "time_s", "times", "wall_s", "wall_times", "repeats", "configurations",
+              "time_per_configuration_s", "max_edge_error", "d_last_error", "d_last_final_error",
+              "budget_s"}
+
+
+def _both_clocks(item, cpu="time_s", wall="wall_s"):
+    """A measured item carries its CPU seconds and its wall seconds, both real numbers."""
+    assert isinstance(item[cpu], float) and item[cpu] >= 0, item
+    assert isinstance(item[wall], float) and item[wall] >= 0, item
 
 
 @pytest.fixture(scope="module")
@@ -69,6 +78,10 @@ def test_points_have_every_field_and_real_errors(points):
         assert POINT_KEYS <= set(p), p["label"]
         assert p["outcome"] == "ok" and p["status"] == "finished", (p["label"], p.get("message"))
         assert 1 <= p["repeats"] <= 2 and p["time_s"] == pytest.approx(np.median(p["times"]))
+        # CPU seconds judged, wall seconds beside them: one of each per repeat
+        _both_clocks(p)
+        assert len(p["wall_times"]) == len(p["times"])
+        assert p["wall_s"] == pytest.approx(np.median(p["wall_times"]))
     by = {(p["method"], p["modules"]): p for p in points}
     for k in (2, 4):
         # exact methods keep edges and d_{k+1} to round-off ...
@@ -106,21 +119,77 @@ def test_over_budget_runs_are_skipped_with_the_estimate():
         assert pts[1]["estimated_time_s"] > 1e-4
 
 
-def test_a_run_over_budget_is_killed_and_marked(tmp_path):
+def test_a_run_over_its_cpu_budget_is_killed_and_marked(tmp_path):
     pid_file = tmp_path / "pid"
 
     def endless():
         pid_file.write_text(str(os.getpid()))
         while True:
-            time.sleep(3600)
+            pass
 
-    outcome, times, info = run_budgeted(endless, lambda r: {}, budget=0.3, grace=0.2)
-    assert outcome == STOPPED and times == [] and "budget" in info
+    # a wall limit no busy machine reaches here: only the CPU budget can stop the run
+    outcome, times, info = run_budgeted(endless, lambda r: {}, budget=0.3, grace=0.2, wall=600)
+    assert outcome == STOPPED and times == [] and "CPU budget" in info, info
     # not waited on: the run never ends by itself, and it is gone when run_budgeted returns
     pid = int(pid_file.read_text())
     assert pid != os.getpid()
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_a_run_that_waits_is_stopped_by_the_wall_clock(tmp_path):
+    # asleep, a run uses no CPU time: the wall limit is what ends it
+    pid_file = tmp_path / "pid"
+
+    def asleep():
+        pid_file.write_text(str(os.getpid()))
+        time.sleep(3600)
+
+    outcome, times, info = run_budgeted(asleep, lambda r: {}, budget=600, wall=0.5)
+    assert outcome == STOPPED and times == [] and "wall time" in info, info
+    with pytest.raises(ProcessLookupError):
+        os.kill(int(pid_file.read_text()), 0)
+
+
+class _FastCPUClock:
+    """The bench's CPU clock running ``per_call`` seconds ahead at every reading: a machine on
+    which the same work costs thousands of times more CPU, while the wall clock runs as usual."""
+
+    def __init__(self, real, per_call):
+        self.real, self.per_call, self.calls = real, per_call, 0
+
+    def __call__(self):
+        self.calls += 1
+        return self.real() + self.per_call * self.calls
+
+
+def test_budgets_and_skips_follow_the_cpu_clock_not_the_wall_clock(monkeypatch):
+    settings = [Setting("constructive", {"samples": 5})]
+    quiet = work_precision([2, 3], settings, budget=20, repeats=3)
+    assert [p["outcome"] for p in quiet] == ["ok", "ok"]
+    # the same work with a CPU clock that says each run took 50 s: one repeat (a second would
+    # pass half the budget), and the larger chain is skipped by its estimate from the smaller
+    # one; the wall clock (small) decides nothing. The measuring child is forked: it has the
+    # same clock.
+    from fabkit.bench import own_cpu_seconds, workprecision
+
+    monkeypatch.setattr(workprecision, "own_cpu_seconds", _FastCPUClock(own_cpu_seconds, 50.0))
+    costly = work_precision([2, 3], settings, budget=20, repeats=3)
+    first, second = costly
+    assert first["outcome"] == "ok" and first["repeats"] == 1
+    assert first["time_s"] >= 50  # judged: the CPU seconds; the wall seconds stand beside them
+    _both_clocks(first)
+    assert second["outcome"] == SKIPPED and second["estimated_time_s"] > 20
+    assert "estimated" in second["message"]
+
+
+def test_targets_judge_the_cpu_seconds_not_the_wall_seconds():
+    slow_cpu = {**_pt("constructive", 10000, 5.0, 1e-15), "wall_s": 0.5}
+    slow_wall = {**_pt("constructive", 10000, 0.5, 1e-15), "wall_s": 5.0}
+    goal = targets([slow_cpu], {})["largest_chain"]
+    assert not goal["met"] and (goal["time_s"], goal["wall_s"]) == (5.0, 0.5)
+    goal = targets([slow_wall], {})["largest_chain"]
+    assert goal["met"] and (goal["time_s"], goal["wall_s"]) == (0.5, 5.0)
 
 
 def test_an_error_in_a_run_is_reported_not_raised():
@@ -189,6 +258,9 @@ def test_stability_table_lists_every_row(cases):
     study = stab.stability_study(["constructive"], cases=[cases["fourbar_flat"]], budget=600)
     text = stab.stability_table(study)
     assert "| fourbar_flat | constructive | **stopped with a correct report** |" in text
+    (row,) = study["rows"]
+    _both_clocks(row)
+    assert "| CPU s (wall s) |" in text
     json.dumps(finite(study), allow_nan=False)
 
 
@@ -234,6 +306,14 @@ def test_cli_workprecision_part_writes_charts_and_json(tmp_path):
     assert doc["sizes"] == [2, 3]
     assert {p["modules"] for p in doc["points"]} == {2, 3}
     assert doc["machine"]["cpu_count"] >= 1
+    # every measured point: its CPU seconds (judged) and its wall seconds (information)
+    measured = [p for p in doc["points"] if p["outcome"] == "ok"]
+    assert measured
+    for p in measured:
+        _both_clocks(p)
+    assert {"time_s", "wall_s"} <= set(doc["targets"]["largest_chain"])
+    assert set(doc["clock"]) >= {"time_s", "wall_s"} and "CPU" in doc["clock"]["time_s"]
+    _both_clocks(doc, "elapsed_cpu_s", "elapsed_s")
 
 
 def test_the_quick_bench_states_one_time_everywhere(capsys):
@@ -283,6 +363,7 @@ def test_library_lyapunov_is_timed():
     res = maps_lyapunov(200, 100, 400, budget=60)
     assert res is not None  # fabkit.maps is part of the package: the bench must time it
     assert res["outcome"] == "ok" and res["time_s"] > 0
+    _both_clocks(res)
     assert res["exponent"] == pytest.approx(0.312, abs=0.02)  # the paper's λ ≈ 0.312
 
 
@@ -303,6 +384,9 @@ def test_cli_levels_part_compares_the_levels_of_a_build(tmp_path, capsys):
     # the dense basis is left out where its SVD alone would pass the budget (30x30: 2730 bars)
     skipped = [p for p in points if p["seconds_per_build"] is None]
     assert [(p["case"], p["level"]) for p in skipped] == [("lattice 30x30", "first order (basis)")]
+    for p in points:
+        if p not in skipped:
+            _both_clocks(p, "seconds_per_build", "wall_seconds_per_build")
     gate = {p["level"]: p for p in points if p["case"] == "AND gate"}
     assert gate["first order (basis)"]["self_stresses"] == 1
     assert 0 < gate["elastic, no play"]["max_stress_mpa"] < 15

@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 
 from fabkit.errors import FabkitError
-from fabkit.executor import Ending, LocalExecutor, Task, TaskError
+from fabkit.executor import (Ending, LocalExecutor, Task, TaskError, THREAD_VARIABLES,
+                             blas_limits, user_thread_variables)
 from fabkit.sweep import make_spec
 from fabkit.sweep.chunks import run_chunk
 
@@ -193,6 +194,61 @@ def test_bad_jobs_are_refused():
     for jobs in (0, -1, True):
         with pytest.raises(ValueError, match="jobs must be a positive integer"):
             LocalExecutor(jobs)
+
+
+# -- BLAS threads of the workers ----------------------------------------------------------------
+#: Every thread variable a library reads (and the two that threadpoolctl never touches): none
+#: may leak from the shell that runs the tests into a test that sets its own.
+ALL_THREAD_VARIABLES = sorted({v for group in THREAD_VARIABLES.values() for v in group}
+                              | {"VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS"})
+
+
+def _worker_blas_threads(jobs: int, **kwargs) -> list[int]:
+    """The thread counts threadpoolctl reports for the BLAS libraries inside a worker."""
+    import threadpoolctl
+
+    with LocalExecutor(jobs, **kwargs) as pool:
+        (end,) = pool.run([Task(threadpoolctl.threadpool_info)])
+    assert end.ending is Ending.DONE and end.pid not in (None, os.getpid()), end
+    blas = [lib["num_threads"] for lib in end.value if lib["user_api"] == "blas"]
+    assert blas, end.value  # numpy's BLAS is loaded in every worker (fabkit imports numpy)
+    return blas
+
+
+@pytest.mark.parametrize("variable", ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"])
+def test_a_worker_keeps_the_users_blas_threads(monkeypatch, variable):
+    # the worker's share would be 2 threads (given here so that it differs from the user's
+    # 1 on any machine); the user's variable wins
+    for name in ALL_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv(variable, "1")
+    assert set(_worker_blas_threads(1, blas_threads=2)) == {1}
+
+
+def test_without_a_thread_variable_a_worker_takes_its_share_of_the_cores(monkeypatch):
+    for name in ALL_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    # a machine of 6 cores shared by 2 workers: 3 threads each (not what OpenBLAS would take
+    # by itself here, all the cores)
+    monkeypatch.setattr(os, "cpu_count", lambda: 6)
+    assert set(_worker_blas_threads(2)) == {3}
+
+
+def test_only_the_libraries_the_user_set_keep_their_threads():
+    libs = [{"filepath": "/x/libopenblas.so", "internal_api": "openblas"},
+            {"filepath": "/x/libmkl_rt.so", "internal_api": "mkl"},
+            {"filepath": "/x/libgomp.so", "internal_api": "openmp"},
+            {"filepath": "/x/libflexiblas.so", "internal_api": "flexiblas"}]
+    assert blas_limits(2, libs, {}) == {lib["filepath"]: 2 for lib in libs}
+    # MKL's own variable: MKL keeps it, and so does FlexiBLAS (whose backend may be MKL)
+    assert blas_limits(2, libs, {"MKL_NUM_THREADS": "1"}) == {"/x/libopenblas.so": 2,
+                                                              "/x/libgomp.so": 2}
+    # OMP_NUM_THREADS is read by every one of them; an empty variable is not set
+    assert blas_limits(2, libs, {"OMP_NUM_THREADS": "1"}) == {}
+    assert blas_limits(2, libs, {"OMP_NUM_THREADS": " "}) == {lib["filepath"]: 2
+                                                              for lib in libs}
+    assert user_thread_variables("openblas", {"GOTO_NUM_THREADS": "3", "OMP_NUM_THREADS": "1"}) \
+        == ["GOTO_NUM_THREADS", "OMP_NUM_THREADS"]
 
 
 RUNNER = textwrap.dedent('''

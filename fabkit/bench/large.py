@@ -13,8 +13,10 @@
   constructive traces that keep the ports only, ``projected`` against ``constructive``; and
   every bundled module chained, none counted "ambiguous" (:func:`certified_targets` judges them).
 
-Every measurement runs in a child process with a time budget
-(:func:`fabkit.bench.workprecision.run_budgeted`), single-threaded BLAS, median of repeats.
+Every measurement runs in a child process with a budget of CPU time
+(:func:`fabkit.bench.workprecision.run_budgeted`), single-threaded BLAS, median of repeats. Times
+(``time_s``, ``times``) are CPU seconds, what budgets and targets judge; ``wall_s`` and
+``wall_times`` are the same runs' wall-clock seconds, for information.
 """
 
 from __future__ import annotations
@@ -28,8 +30,9 @@ from ..io.toml_writer import TomlDocument
 from ..kinematics import trace
 from ..model.rigidity import count_modes, SPARSE_FROM
 from ..report.viz import figure_kit
-from . import paper_module
-from .workprecision import default_chain_target, fit_exponent, run_budgeted, SKIPPED, STOPPED
+from . import child_cpu_seconds, clock_text, paper_module
+from .workprecision import (BUDGET_SLACK, default_chain_target, fit_exponent, run_budgeted,
+                            SKIPPED, STOPPED, timing, WALL_FACTOR)
 
 __all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "lattice_points", "lattice",
            "edge_floor", "large_targets", "large_figure", "mirrored_chain", "bundled_modules",
@@ -38,14 +41,14 @@ __all__ = ["count_modes_scaling", "dense_svd_seconds", "fourbar_chain_points", "
 
 #: Floating-point operations a second assumed for a dense SVD on one thread: below what LAPACK
 #: reaches on the 2-core reference machine (3-7e9 for the singular values of 600 to 3000
-#: columns), so that :func:`dense_svd_seconds` is an upper bound there. A fixed rate, not one
-#: measured at run time: which points are skipped does not depend on how fast or how busy the
-#: machine is (a point that then overruns the budget is stopped and marked so).
+#: columns), so that :func:`dense_svd_seconds` is an upper bound of its CPU time there. A fixed
+#: rate, not one measured at run time: which points are skipped does not depend on how fast or
+#: how busy the machine is (a point that then overruns the budget is stopped and marked so).
 DENSE_SVD_FLOPS = 2e9
 
 
 def dense_svd_seconds(rows: int, cols: int) -> float:
-    """Estimated seconds for the singular values of a dense ``rows × cols`` matrix: the flop
+    """Estimated CPU seconds for the singular values of a dense ``rows × cols`` matrix: the flop
     count of the bidiagonal reduction, 4mn² − 4n³/3 (m ≥ n, Golub & Van Loan), at
     :data:`DENSE_SVD_FLOPS`.
 
@@ -74,7 +77,8 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
         One per size and path (``"auto"``: what a user gets; ``"dense"``: SVD forced, skipped
         where its work estimate, :func:`dense_svd_seconds`, exceeds the budget, or a smaller
         chain's ran past it; ``estimate_s``): ``modules``, ``nodes``,
-        ``path``, ``outcome``, ``time_s``, ``times``, ``method`` (the path actually taken),
+        ``path``, ``outcome``, ``time_s`` and ``times`` (CPU seconds), ``wall_s`` and
+        ``wall_times`` (wall seconds), ``method`` (the path actually taken),
         ``counts`` (total, rigid, conformational, self-stress), ``gap``, ``smallest_nonzero``,
         ``ambiguous``.
     """
@@ -88,7 +92,7 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
                 est = dense_svd_seconds(net.n_edges, net.dim * net.n_nodes)
                 pt["estimate_s"] = est
                 if dense_stopped or _skip(est, budget):
-                    pt.update(outcome=SKIPPED, time_s=None, times=[])
+                    pt.update(outcome=SKIPPED, **timing([]))
                     if dense_stopped:
                         pt["message"] = "a smaller chain already exceeded the budget"
                     points.append(pt)
@@ -104,8 +108,7 @@ def count_modes_scaling(sizes, *, budget: float = 30.0, repeats: int = 3,
 
             outcome, times, info = run_budgeted(
                 _cold(net, lambda: count_modes(net, method=path)), evaluate, budget, repeats)
-            pt.update(outcome=outcome, times=[float(t) for t in times],
-                      time_s=float(np.median(times)) if times else None)
+            pt.update(outcome=outcome, **timing(times, info))
             if isinstance(info, dict):
                 pt.update(info)
             else:
@@ -137,9 +140,7 @@ def _trace_point(net, drive, to, method, budget, repeats, cold=False, **options)
     outcome, times, info = run_budgeted(_cold(net, work) if cold else work, evaluate, budget,
                                         repeats)
     pt = {"method": method, "nodes": net.n_nodes, "outcome": outcome, "budget_s": budget,
-          "times": [float(t) for t in times],
-          "time_s": float(np.median(times)) if times else None,
-          "floor": edge_floor(net)}
+          **timing(times, info), "floor": edge_floor(net)}
     if isinstance(info, dict):
         pt.update(info)
         if pt["time_s"] is not None:
@@ -189,13 +190,17 @@ def lattice_points(sizes, *, budget: float = 30.0, repeats: int = 3, to: float =
 
 
 def large_targets(modes, chains) -> dict:
-    """The targets for large networks, each with the measured figure and whether it is met."""
+    """The targets for large networks, each with the measured figure and whether it is met.
+
+    Times (``time_s``, and the ratios of times) are CPU seconds; ``wall_s`` and ``wall_ratio``
+    give the same runs' wall clock beside them, for information."""
     out = {}
     auto = {p["modules"]: p for p in modes if p["path"] == "auto" and p["outcome"] == "ok"}
     p10 = auto.get(10000)
     out["count_modes_10000"] = {
         "target": "count_modes on the 10 000-module super-stable chain <= 1 s, exact counts",
         "time_s": p10["time_s"] if p10 else None,
+        "wall_s": p10.get("wall_s") if p10 else None,
         "counts": p10.get("counts") if p10 else None,
         "ambiguous": p10.get("ambiguous") if p10 else None,
         "met": bool(p10 and p10["time_s"] <= 1.0 and p10["counts"] == [4, 3, 1, 0]
@@ -215,6 +220,7 @@ def large_targets(modes, chains) -> dict:
         "target": "projected: 10 000-module 4-bar chain, d1 2 -> 2.6, <= 2 s, edge error within "
                   "10x the float64 floor",
         "time_s": pj["time_s"] if pj else None,
+        "wall_s": pj.get("wall_s") if pj else None,
         "edge_error": pj["max_edge_error"] if pj else None,
         "floor": pj["floor"] if pj else None,
         "met": bool(pj and pj["time_s"] <= 2.0 and pj["max_edge_error"] <= 10 * pj["floor"]),
@@ -224,12 +230,19 @@ def large_targets(modes, chains) -> dict:
     out["projected_vs_constructive_1000"] = {
         "target": "projected <= 3x the time of constructive on the 1000-module chain at the same "
                   "accuracy (both within 10x the float64 floor)",
-        "ratio": ratio,
+        "ratio": ratio, "wall_ratio": _wall_ratio(a, b),
         "edge_errors": [a["max_edge_error"], b["max_edge_error"]] if a and b else None,
         "met": bool(ratio is not None and ratio <= 3.0
                     and max(a["max_edge_error"], b["max_edge_error"]) <= 10 * a["floor"]),
     }
     return out
+
+
+def _wall_ratio(a, b):
+    """The ratio of two points' wall times (None without both)."""
+    if a and b and a.get("wall_s") and b.get("wall_s"):
+        return a["wall_s"] / b["wall_s"]
+    return None
 
 
 def large_figure(modes, chains, lattice_pts):
@@ -263,7 +276,7 @@ def large_figure(modes, chains, lattice_pts):
             ax1.plot(p["nodes"], p.get("estimate_s") or p["budget_s"], "x", color="C3", ms=8,
                      mew=2)
     ax1.set_xlabel("nodes N (super-stable chain)")
-    ax1.set_ylabel("wall time, s")
+    ax1.set_ylabel("CPU time, s")
     ax1.set_title("mode counting (crosses: dense SVD skipped, at its estimate)", fontsize=9)
     draw(ax2, [p for p in chains if p["method"] == "projected"], "time_per_configuration_s",
          "o-", "C2", "projected, 4-bar chain")
@@ -275,7 +288,7 @@ def large_figure(modes, chains, lattice_pts):
         if p["outcome"] != "ok" or p.get("status") != "finished":
             ax2.plot(p["nodes"], 1.0, "x", color="C4", ms=8, mew=2)
     ax2.set_xlabel("nodes N")
-    ax2.set_ylabel("wall time per configuration, s")
+    ax2.set_ylabel("CPU time per configuration, s")
     ax2.set_title("projected on chains and on a 2D lattice (crosses: did not finish)",
                   fontsize=9)
     for ax in (ax1, ax2):
@@ -326,22 +339,50 @@ def _count_row(net, budget, repeats) -> dict:
 
     outcome, times, info = run_budgeted(_cold(net, lambda: count_modes(net)), evaluate, budget,
                                         repeats)
-    pt = {"nodes": net.n_nodes, "outcome": outcome, "times": [float(t) for t in times],
-          "time_s": float(np.median(times)) if times else None, "budget_s": budget}
+    pt = {"nodes": net.n_nodes, "outcome": outcome, **timing(times, info), "budget_s": budget}
     pt.update(info if isinstance(info, dict) else {"message": info})
     return pt
 
 
+def _limit_cpu_of_child(seconds: float):
+    """A ``preexec_fn`` that lets a child process use ``seconds`` of CPU time (rounded up), then
+    has the kernel end it with SIGXCPU (and no core file); None where there are no such
+    limits."""
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not POSIX
+        return None
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_CORE, (0, resource.getrlimit(resource.RLIMIT_CORE)[1]))
+        _, hard = resource.getrlimit(resource.RLIMIT_CPU)
+        soft = int(np.ceil(seconds))
+        resource.setrlimit(resource.RLIMIT_CPU, (soft if hard == resource.RLIM_INFINITY
+                                                 else min(soft, hard), hard))
+
+    return limit
+
+
 def _info_row(k: int, budget: float, repeats: int) -> dict:
     """``fabkit --allow-large info`` on a template of the k-module mirrored chain, as a user
-    runs it (a fresh process: reading the template, building the chain, counting)."""
+    runs it (a fresh process: reading the template, building the chain, counting). Its CPU time
+    is that of the process and its own children (``RUSAGE_CHILDREN``); the kernel stops it past
+    ``budget`` CPU seconds."""
+    import signal
     import subprocess
     import sys
     import tempfile
     import time
     from pathlib import Path
 
-    times, out, code = [], "", None
+    allowance = budget + BUDGET_SLACK
+    xcpu = getattr(signal, "SIGXCPU", None)  # what the kernel ends it with past the budget
+    times, walls, out, code = [], [], "", None
+
+    def stopped(message):
+        return {"modules": k, "outcome": STOPPED, "message": message, "budget_s": budget,
+                **timing(times, {"wall_times": walls}), "time_s": None, "wall_s": None}
+
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"mirrored_chain_{k}.toml"
         doc = TomlDocument()
@@ -356,21 +397,26 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
         doc.value("to", 1.0099505)
         path.write_text(doc.text())
         for _ in range(max(1, repeats)):
-            t0 = time.perf_counter()
+            c0, w0 = child_cpu_seconds(), time.perf_counter()
             try:
                 res = subprocess.run([sys.executable, "-m", "fabkit", "--allow-large", "info",
                                       str(path)], capture_output=True, text=True,
-                                     timeout=budget + 30.0)
+                                     timeout=WALL_FACTOR * allowance,
+                                     preexec_fn=_limit_cpu_of_child(allowance))
             except subprocess.TimeoutExpired:
-                return {"modules": k, "outcome": STOPPED, "times": times, "time_s": None}
-            times.append(time.perf_counter() - t0)
+                return stopped(f"no result within {WALL_FACTOR * allowance:g} s of wall time "
+                               f"(the CPU budget is {budget:g} s): it waited, not worked")
+            if xcpu is not None and res.returncode == -xcpu:
+                return stopped(f"ran past its CPU budget of {budget:g} s")
+            times.append(child_cpu_seconds() - c0)
+            walls.append(time.perf_counter() - w0)
             out, code = res.stdout, res.returncode
             if code != 0 or sum(times) + times[-1] > 0.5 * budget:
                 break
     modes = next((line.split("modes", 1)[1].strip() for line in out.splitlines()
                   if line.strip().startswith("modes")), "")
     return {"modules": k, "nodes": 3 * k + 2, "outcome": "ok" if code == 0 else "error",
-            "exit_code": code, "times": times, "time_s": float(np.median(times)),
+            "exit_code": code, "budget_s": budget, **timing(times, {"wall_times": walls}),
             "modes": modes, "ambiguous": "ambiguous" in out,
             "certificate": next((line.split("certificate", 1)[1].strip() for line in
                                  out.splitlines() if line.strip().startswith("certificate")), "")}
@@ -394,8 +440,8 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     bundled : int or None
         Every bundled module chained this many times (plain and mirrored), counted.
     budget : float
-        Seconds per measurement (each in a child process, single-threaded BLAS; every repeat a
-        first call: the network remembers no construction plan).
+        CPU seconds per measurement (each in a child process, single-threaded BLAS; every repeat
+        a first call: the network remembers no construction plan).
 
     Returns
     -------
@@ -447,7 +493,8 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
 
 def certified_targets(points: dict) -> dict:
     """The targets of exact counts and linear traces, each with the measured figure and whether
-    it is met (from :func:`certified_points`)."""
+    it is met (from :func:`certified_points`); times judged in CPU seconds, the wall clock beside
+    them (``wall_s``, ``wall_ratio``)."""
     goals = {}
     counts = {p["modules"]: p for p in points.get("counts", []) if p["outcome"] == "ok"}
     big = counts.get(100_000)
@@ -455,6 +502,7 @@ def certified_targets(points: dict) -> dict:
         "target": "count_modes on the 100 000-module mirrored super-stable chain <= 5 s, exact "
                   "(1 conformational motion, 0 self-stress, not ambiguous)",
         "time_s": big["time_s"] if big else None,
+        "wall_s": big.get("wall_s") if big else None,
         "counts": big.get("counts") if big else None,
         "certificate": big.get("certificate") if big else None,
         "margin": big.get("margin") if big else None,
@@ -464,6 +512,7 @@ def certified_targets(points: dict) -> dict:
     goals["info_100000_mirrored"] = {
         "target": "fabkit info on the 100 000-module mirrored chain <= 10 s, not ambiguous",
         "time_s": info["time_s"] if info else None,
+        "wall_s": info.get("wall_s") if info else None,
         "met": bool(info and info["outcome"] == "ok" and info["time_s"] <= 10.0
                     and not info["ambiguous"])}
     done = {(p["modules"], p["keep"]): p for p in points.get("traces", [])
@@ -473,7 +522,8 @@ def certified_targets(points: dict) -> dict:
     goals["constructive_trace_100000"] = {
         "target": "constructive trace of the 100 000-module mirrored chain to D2* + 1e-12 "
                   "(keeping the ports) <= 8 s and <= 12x the 10 000-module one",
-        "time_s": a["time_s"] if a else None, "ratio": ratio,
+        "time_s": a["time_s"] if a else None, "wall_s": a.get("wall_s") if a else None,
+        "ratio": ratio, "wall_ratio": _wall_ratio(a, b),
         "edge_error": a["max_edge_error"] if a else None,
         "met": bool(ratio is not None and a["time_s"] <= 8.0 and ratio <= 12.0)}
     pr = {p["method"]: p for p in points.get("projected", []) if p["outcome"] == "ok"}
@@ -482,7 +532,8 @@ def certified_targets(points: dict) -> dict:
     goals["projected_vs_constructive_10000_mirrored"] = {
         "target": "projected <= 3x constructive on the 10 000-module mirrored super-stable chain "
                   "(to D2* + 1e-12), same status",
-        "ratio": ratio, "statuses": [c.get("status"), q.get("status")] if c and q else None,
+        "ratio": ratio, "wall_ratio": _wall_ratio(q, c),
+        "statuses": [c.get("status"), q.get("status")] if c and q else None,
         "stats": q.get("stats") if q else None,
         "met": bool(ratio is not None and ratio <= 3.0 and c.get("status") == q.get("status"))}
     counted = [p for p in points.get("counts", []) + points.get("bundled", [])
@@ -499,7 +550,7 @@ def certified_targets(points: dict) -> dict:
 
 def certified_line(kind: str, p: dict) -> str:
     """One line of progress for a row of :func:`certified_points`."""
-    t = "-" if p.get("time_s") is None else f"{p['time_s']:.3g} s"
+    t = clock_text(p)
     what = {"counts": "count_modes", "info": "fabkit info", "bundled": "count_modes"}.get(kind)
     if kind == "traces":
         what = f"constructive keep={p['keep']}"
@@ -513,4 +564,4 @@ def certified_line(kind: str, p: dict) -> str:
     if p.get("status"):
         tail = f"  {p['status']}  edge {p.get('max_edge_error', float('nan')):.1e}"
     return (f"  {name:<28} {p.get('modules', '-'):>7} modules  {what:<24} "
-            f"{p.get('outcome', ''):<12} {t:>9}{tail}")
+            f"{p.get('outcome', ''):<12} {t:>26}{tail}")

@@ -374,16 +374,18 @@ def _reference_deviation(case: Case, traj) -> np.ndarray | None:
 
 
 def run_case(case: Case, method: str, options=None, *, budget: float = 60.0) -> dict:
-    """Trace one case with one method (in a child process, stopped at the budget) and classify.
+    """Trace one case with one method (in a child process, stopped at ``budget`` seconds of CPU
+    time) and classify.
 
     Returns
     -------
     dict
-        ``case``, ``method``, ``options``, ``status``, ``message``, ``time_s``, ``edge_error``,
+        ``case``, ``method``, ``options``, ``status``, ``message``, ``time_s`` (CPU seconds),
+        ``wall_s`` (wall seconds), ``edge_error``,
         ``ref_error``, ``stop_drive``, ``stop_error``, ``class``, and ``drive``/``port`` arrays
         (the plotted distance along the trace, as lists).
     """
-    from .workprecision import STOPPED, run_budgeted
+    from .workprecision import STOPPED, run_budgeted, timing
 
     options = dict(METHOD_OPTIONS.get(method, {}) if options is None else options)
 
@@ -411,8 +413,7 @@ def run_case(case: Case, method: str, options=None, *, budget: float = 60.0) -> 
                 "deviations": None if dev is None else dev.tolist()}
 
     outcome, times, info = run_budgeted(work, evaluate, budget, repeats=1)
-    row = {"case": case.name, "method": method, "options": options,
-           "time_s": float(times[0]) if times else None}
+    row = {"case": case.name, "method": method, "options": options, **timing(times, info)}
     if outcome == "ok":
         row.update(info)
     elif outcome == STOPPED:
@@ -481,7 +482,7 @@ def _fmt(v, spec=".1e"):
 def stability_table(study: dict) -> str:
     """The study as a Markdown table: one row per case and method, with the evidence."""
     lines = ["| case | method | outcome | status | edge error | ref. deviation | stop at "
-             "(true) | time s |",
+             "(true) | CPU s (wall s) |",
              "|---|---|---|---|---|---|---|---|"]
     by_name = {c["name"]: c for c in study["cases"]}
     for r in study["rows"]:
@@ -493,7 +494,7 @@ def stability_table(study: dict) -> str:
         lines.append(
             f"| {c['name']} | {r['method']} | **{r['class']}** | {r['status']} | "
             f"{_fmt(r['edge_error'])} | {_fmt(r['ref_error'])} | {at} ({true_stop}) | "
-            f"{_fmt(r['time_s'], '.3g')} |")
+            f"{_fmt(r['time_s'], '.3g')} ({_fmt(r.get('wall_s'), '.3g')}) |")
     lines.append("")
     lines.append("Messages:")
     lines.append("")

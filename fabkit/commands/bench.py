@@ -5,6 +5,10 @@ Writes ``DIR/bench/``: ``work_precision.png``, ``scaling.png`` (fitted exponents
 (every measured point, the targets, machine information) and, with ``--profile``,
 ``profile.txt``. Nothing is written until every result exists. Each measurement, as it ends,
 is a progress line on stderr (:mod:`fabkit.commands.progress`); the summary goes to stdout.
+
+Budgets, skips and targets are judged in CPU seconds (``time_s``), so that the verdicts do not
+change with the load of a shared machine; the wall seconds of the same work (``wall_s``) are
+shown and recorded beside them.
 """
 
 from __future__ import annotations
@@ -13,7 +17,8 @@ import json
 import sys
 import time
 
-from ..bench import finite, levels as lv, machine_info, stability as stab
+from ..bench import (clock_text, cpu_seconds, finite, levels as lv, machine_info,
+                     stability as stab)
 from ..bench.stability import stability_table
 from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
 from ..errors import UsageError
@@ -69,7 +74,8 @@ def add_arguments(p):
     p.add_argument("--quick", action="store_true",
                    help="small sizes and budgets (about 40 s on a quiet 2-core machine)")
     p.add_argument("--budget", type=float, default=None,
-                   help="seconds allowed per method, setting and size (default 30; quick 8)")
+                   help="CPU seconds allowed per method, setting and size (default 30; quick "
+                        "8): CPU time, not wall time, so that a busy machine changes no verdict")
     p.add_argument("--sizes", default=None,
                    help="comma-separated numbers of modules (default 10,100,1000,10000)")
     p.add_argument("--parts", default="workprecision,targets,stability,large,levels",
@@ -83,6 +89,15 @@ def add_arguments(p):
                    help="also profile 'projected' on the largest chain (profile.txt)")
     add_progress_options(p)
 
+
+#: What the times of bench.json are (its ``clock``): budgets, skips and targets judge CPU time.
+CLOCK = {"time_s": "CPU seconds (user + system, every thread) of the process that did the "
+                   "work (getrusage RUSAGE_SELF, the figure of time.process_time; a child "
+                   "process's by getrusage RUSAGE_CHILDREN): budgets, skips, fitted exponents "
+                   "and targets use these",
+         "wall_s": "wall-clock seconds of the same work, for information: they grow with the "
+                   "machine's load",
+         "elapsed_cpu_s": "CPU seconds of the whole run, this process and its children"}
 
 #: Largest chain in the work-precision study without ``--allow-large`` (the full bench's own).
 MAX_BENCH_MODULES = 10_000
@@ -100,18 +115,20 @@ def _sizes(text):
 
 
 def _point_line(p):
-    t = "-" if p["time_s"] is None else f"{p['time_s']:.3g} s"
+    t = clock_text(p)
     e = "-" if p["max_edge_error"] is None else f"{p['max_edge_error']:.1e}"
-    return f"  {p['modules']:>6} modules  {p['label']:<34} {p['status']:<30} {t:>10}  edge {e}"
+    return f"  {p['modules']:>6} modules  {p['label']:<34} {p['status']:<30} {t:>24}  edge {e}"
 
 
 def comparison_at(k, points, settings, budget, repeats, rk4_step):
     """Best method against ``rk4-nullspace`` at k modules.
 
     The dense method is timed per evaluation at 10, 30, 100 and k modules (its scaling, where
-    whole runs are over budget); its time at k modules is the evaluation measured there times
+    whole runs are over budget; larger sizes are left out once one evaluation takes more than
+    the budget of CPU time); its time at k modules is the evaluation measured there times
     the evaluations of its largest finished run with the same step (the count depends on the
-    step and the arclength, which for the super-stable chain does not grow with k).
+    step and the arclength, which for the super-stable chain does not grow with k). Times are
+    CPU seconds, with the wall seconds beside them.
     """
     problem = chain_problem(k)
     best = None
@@ -125,7 +142,8 @@ def comparison_at(k, points, settings, budget, repeats, rk4_step):
     evals = []
     for kk in (10, 30, 100, k):
         est = rk4_estimate(kk, rk4_step, 1, repeats=3 if kk < k else 1)
-        evals.append({"modules": kk, "nodes": est["nodes"], "evaluation_s": est["evaluation_s"]})
+        evals.append({"modules": kk, "nodes": est["nodes"], "evaluation_s": est["evaluation_s"],
+                      "evaluation_wall_s": est["evaluation_wall_s"]})
         if est["evaluation_s"] > budget:
             break
     fit = fit_exponent([e["nodes"] for e in evals], [e["evaluation_s"] for e in evals])
@@ -139,7 +157,9 @@ def comparison_at(k, points, settings, budget, repeats, rk4_step):
         n_evals = int(ref["stats"].get("evaluations", 0))
         rk4 = {"label": f"rk4-nullspace (step={rk4_step:g})", "estimated": True,
                "time_s": n_evals * evals[-1]["evaluation_s"],
-               "evaluation_s": evals[-1]["evaluation_s"], "evaluations": n_evals,
+               "wall_s": n_evals * evals[-1]["evaluation_wall_s"],
+               "evaluation_s": evals[-1]["evaluation_s"],
+               "evaluation_wall_s": evals[-1]["evaluation_wall_s"], "evaluations": n_evals,
                "max_edge_error": ref["max_edge_error"],
                "note": f"one dense evaluation measured at {k} modules x the {n_evals} "
                        f"evaluations of the {ref['modules']}-module run with the same step; "
@@ -184,15 +204,16 @@ def run(args) -> int:
     # checked before the work and again when writing: never through a link out of -o
     outdir = inside(args.out_dir, "bench")
     say = progress_for(args, NAME)
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), cpu_seconds()
     doc = {"command": "fabkit bench" + (" --quick" if args.quick else ""), "mode": mode,
-           "parts": parts, "sizes": list(sizes), "budget_s": budget, "machine": machine_info()}
+           "parts": parts, "sizes": list(sizes), "budget_s": budget, "clock": CLOCK,
+           "machine": machine_info()}
     files = {}
 
     points, scal = [], {}
     if "workprecision" in parts or "targets" in parts:
         say.stage(f"{mode}: work-precision on {', '.join(map(str, sizes))} modules, budget "
-                  f"{budget:g} s per run", total=len(sizes) * len(settings), unit="runs")
+                  f"{budget:g} s of CPU per run", total=len(sizes) * len(settings), unit="runs")
         points = work_precision(sizes, settings, budget=budget, repeats=cfg["repeats"],
                                 progress=lambda p: say.advance(text=_point_line(p)))
         scal = scaling(points)
@@ -211,8 +232,9 @@ def run(args) -> int:
         lyap = lyapunov_protocol(starts, transient, iterations)
         if (starts, transient, iterations) != (1000, 5000, 20000):
             # the protocol's cost is linear in the number of map evaluations
-            lyap["extrapolated_time_s"] = lyap["time_per_map_evaluation_s"] * 1000 * (
-                5000 + 20000)
+            scale = 1000 * (5000 + 20000) / max(starts * (transient + iterations), 1)
+            lyap["extrapolated_time_s"] = lyap["time_s"] * scale
+            lyap["extrapolated_wall_s"] = lyap["wall_s"] * scale
         lib_cfg = (1000, 500, 2000) if args.quick else (1000, 5000, 20000)
         say.update(2, text=f"Lyapunov protocol of fabkit.maps ({lib_cfg[0]} x "
                            f"{lib_cfg[1] + lib_cfg[2]})")
@@ -232,7 +254,7 @@ def run(args) -> int:
         study = stab.stability_study(
             None, budget=max(budget, 30.0), cases=cases,
             progress=lambda r: say.advance(text=f"{r['case']:<20} {r['method']:<14} "
-                                                f"{r['class']}"))
+                                                f"{r['class']:<34} {clock_text(r)}"))
         say.stage("predictability horizon of the chaotic chain", total=None)
         horizon = stab.predictability_horizon(cfg["horizon_modules"], budget=max(budget, 30.0))
         doc.update(stability=study, horizon=horizon)
@@ -289,6 +311,7 @@ def run(args) -> int:
         doc["profile"] = prof
 
     doc["elapsed_s"] = time.perf_counter() - t_start
+    doc["elapsed_cpu_s"] = cpu_seconds() - cpu_start
     # everything measured and rendered: only now write
     files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
                                      allow_nan=False).encode()
@@ -296,7 +319,8 @@ def run(args) -> int:
     write_files(args.out_dir, {f"bench/{name}": data for name, data in files.items()})
     say.close()
 
-    print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_s']:.0f} s)")
+    print(f"fabkit bench ({mode}) -> {outdir}  ({doc['elapsed_cpu_s']:.0f} s of CPU, "
+          f"{doc['elapsed_s']:.0f} s wall)")
     for s in scal.values():
         e = "-" if s["exponent"] is None else f"{s['exponent']:.2f}"
         e2 = "-" if s.get("exponent_largest") is None else f"{s['exponent_largest']:.2f}"
@@ -306,7 +330,8 @@ def run(args) -> int:
         print(f"  scaling   rk4-nullspace, one dense evaluation        ~ "
               f"N^{comparison['rk4_evaluation_exponent']:.2f} (between the two largest sizes "
               f"N^{comparison['rk4_evaluation_exponent_largest']:.2f}; "
-              + ", ".join(f"{e['nodes']} nodes {e['evaluation_s']:.3g} s"
+              + ", ".join(f"{e['nodes']} nodes "
+                          + clock_text(e, "evaluation_s", "evaluation_wall_s")
                           for e in comparison["rk4_evaluations"]) + ")")
     for name, g in doc.get("targets", {}).items():
         figures = {k: v for k, v in g.items() if k not in ("target", "met")}
@@ -331,13 +356,13 @@ def run(args) -> int:
 
 
 def _large_line(p):
-    t = "-" if p.get("time_s") is None else f"{p['time_s']:.3g} s"
+    t = clock_text(p)
     what = p.get("path") or p.get("method")
     extra = p.get("status") or p.get("method") or ""
     err = f"  edge {p['max_edge_error']:.1e} (floor {p['floor']:.1e})" \
         if p.get("max_edge_error") is not None else ""
     counts = f"  counts {p['counts']}" if p.get("counts") else ""
-    return (f"  {p['nodes']:>6} nodes  {what:<13} {p['outcome']:<30} {extra:<13} {t:>10}"
+    return (f"  {p['nodes']:>6} nodes  {what:<13} {p['outcome']:<30} {extra:<13} {t:>24}"
             f"{counts}{err}")
 
 
