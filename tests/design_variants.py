@@ -43,8 +43,9 @@ def renumbered(design, seed: int = 1):
             labels[perm[i]] = s
     assembly = None
     if net.assembly is not None:
-        assembly = Assembly(tuple((m, perm[np.asarray(idx)], mir)
-                                  for m, idx, mir in net.assembly.copies), net.assembly.d_in)
+        assembly = Assembly.from_copies(tuple((m, perm[np.asarray(idx)], mir)
+                                              for m, idx, mir in net.assembly.copies),
+                                        net.assembly.d_in)
     ports = {k: (int(perm[i]), int(perm[j])) for k, (i, j) in net.ports.items()}
     fab = copy.deepcopy(design.fabrication)
     for table, key in _NODE_LISTS:

@@ -119,7 +119,7 @@ MAX_UNDERSCORE_IMPORTS = 0
 #: Import statements of fabkit modules inside functions rather than at a module's top. This only
 #: goes down: hoist one when it makes no cycle, pulls no heavy library into ``fabkit.cli`` and is
 #: not a name tests replace on its module (they must be looked up at call time).
-MAX_FUNCTION_LEVEL_IMPORTS = 154
+MAX_FUNCTION_LEVEL_IMPORTS = 150
 
 
 def _imports(mods: dict[str, Path]):

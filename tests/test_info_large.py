@@ -4,6 +4,7 @@ is refused."""
 from pathlib import Path
 
 import pytest
+import scipy.sparse
 
 from fabkit.model import matrix, rigidity
 from fabkit.cli import main
@@ -37,7 +38,7 @@ def test_info_counts_a_ten_thousand_module_chain(tmp_path, capsys, dense_copies)
 def test_info_refuses_a_dense_path_that_cannot_fit(tmp_path, capsys, monkeypatch):
     path = chain_template(tmp_path, 10_000)
     calls = []
-    monkeypatch.setattr(rigidity.sp.csr_matrix, "toarray",
+    monkeypatch.setattr(scipy.sparse.csr_matrix, "toarray",
                         lambda self, *a, **k: calls.append(self.shape))
     assert main(["info", "--rank-method", "dense", str(path)]) == 1
     err = capsys.readouterr().err.strip()

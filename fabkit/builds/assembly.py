@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..numerics import TINY
 
@@ -214,6 +212,9 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
 
     def merit(energy, hl, weight):
         return energy + weight * float(np.abs(hl - ht).sum())
+
+    import scipy.sparse as sp  # here, not at the top: the command line starts without scipy
+    import scipy.sparse.linalg as spla
 
     diff, ell, excess, hd, hl, energy = state(x)
     damping = mu

@@ -17,8 +17,6 @@ with several it is a small linear program per build.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from ..model.matrix import rigidity_matrix
 from ..model.rigidity import self_stresses
@@ -184,6 +182,9 @@ def play_ratio_sparse(net, gap, room, positions=None, *,
     c = np.broadcast_to(np.asarray(room, dtype=np.float64), g.shape)
     if not np.all(np.isfinite(c)) or np.any(c < 0):
         raise ValueError("`room` must be finite and >= 0")
+    import scipy.sparse as sp  # here, not at the top: the command line starts without scipy
+    from scipy.optimize import linprog
+
     eye = sp.identity(e, format="csr")
     a_eq = sp.hstack([r, -eye, sp.csr_matrix((e, 1))], format="csr")
     cost = np.zeros(nd + e + 1)
@@ -224,6 +225,9 @@ def _ratio_lp(w, g, c, time_limit=None) -> float:
     k = wf.shape[0]
     cost = np.zeros(k + 1)
     cost[-1] = 1.0
+    import scipy.sparse as sp
+    from scipy.optimize import linprog
+
     # the bounds |s_e| <= τ c_e as a sparse block: dense, it grows as the square of the bars
     eye = sp.identity(k, format="csr")
     col = sp.csr_matrix(-cf[:, None])

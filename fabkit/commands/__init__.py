@@ -20,7 +20,7 @@ from .progress import Progress
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
            "add_jobs", "add_settings", "add_progress_options", "progress_for",
-           "short_list"]
+           "short_list", "TOLERANCE_SAMPLES"]
 
 
 # --- the help's examples ---------------------------------------------------------------------
@@ -56,6 +56,13 @@ def examples_epilog(examples) -> str:
 
 
 # --- options spelt the same in every command -------------------------------------------------
+
+#: Monte Carlo builds of the tolerance analysis when neither an option (``export
+#: --tolerance-samples``, ``tolerance --samples``) nor the template sets them: the default of
+#: :class:`fabkit.tolerance.spec.ToleranceSpec` (tests/test_cli_startup.py holds them equal),
+#: stated here for the help, which must not import the tolerance analysis (and scipy with it).
+TOLERANCE_SAMPLES = 200
+
 
 def add_out_dir(p, default, help: str, *, ambiguous: str | None = None, **kwargs) -> None:
     """``-o/--out-dir DIR``: the output folder (``--out``, the older spelling, still works and

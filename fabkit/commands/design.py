@@ -12,10 +12,10 @@ from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal
                       parse_fixed_point, read_curve, WishError)
 from ..design.robustness import BUILDS
 from ..design.toml_text import builds_line, fit_lines, margin_lines
-from ..errors import BoundsError, InputFileError, UsageError
+from ..errors import BoundsError, brief, InputFileError, UnsafeNameError, UsageError
 from ..numerics import printed, printed_residual
 from ..io.inputs import read_regular
-from ..io.outputs import write_files as write_all
+from ..io.outputs import check_name, write_files as write_all
 from ..io.templates import bundled_folder
 from ..io.toml_writer import TomlDocument
 from ..io.workload import require
@@ -126,9 +126,6 @@ def add_arguments(p):
 
 def _name(args) -> str:
     if args.name is not None:
-        from ..errors import UnsafeNameError, brief
-        from ..io.outputs import check_name
-
         try:  # the one guard: a name never leaves -o
             return check_name(args.name, "--name")
         except UnsafeNameError as exc:

@@ -18,7 +18,7 @@ import sys
 
 from ..errors import UsageError
 from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, Example,
-               expand_templates, progress_for)
+               expand_templates, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
 
 NAME = "export"
@@ -35,8 +35,6 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from ..tolerance.spec import ToleranceSpec
-
     p.add_argument("paths", nargs="+", metavar="PATH",
                    help="template files, folders of *.toml templates, or glob patterns")
     p.add_argument("--to", default=None, metavar="FORMATS",
@@ -49,10 +47,10 @@ def add_arguments(p):
                    help="skip the as-built check of the written files")
     p.add_argument("--no-previews", action="store_true",
                    help="skip the preview pictures (motion, map, tolerance): faster batches")
-    samples = ToleranceSpec.__dataclass_fields__["samples"].default
     p.add_argument("--tolerance-samples", type=int, default=None, metavar="N",
                    help="Monte Carlo builds in the tolerance analysis (0: skip; default: the "
-                        f"template's [fabrication.tolerance] samples, else {samples})")
+                        f"template's [fabrication.tolerance] samples, else "
+                        f"{TOLERANCE_SAMPLES})")
     p.add_argument("--wait", action="store_true",
                    help="wait for another export into the same output folder to finish "
                         "(default: refuse at once)")

@@ -12,13 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import FabkitError, UsageError
-from ..fab.creases import fold_model, origami_model
-from ..io.outputs import inside
-from ..io.schema import refuse_unused
+from ..io.outputs import inside, write_files
 from ..io.templates import with_settings
 from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
                Example, progress_for)
-from .settings import parse_settings
+from .settings import read_settings
 
 NAME = "fold"
 HELP = "fold an origami template: bifurcation, branches, fold angles; -o writes SVG/FOLD/CP"
@@ -82,13 +80,16 @@ def describe(design, model, fold) -> str:
 def run(args) -> int:
     from dataclasses import replace
 
+    # the origami model is imported here, not at the top: it brings the settings schema
+    # (pydantic), which `fabkit fold --help` does without
+    from ..fab.creases import fold_model, origami_model
     from ..io.templates import load_template
 
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")
     check_number("--to", args.to)
-    settings = parse_settings(args.settings)
-    refuse_unused(settings, {"motion", "origami"}, "fold reads origami and motion settings only")
+    settings = read_settings(args, {"motion": None, "origami": None},
+                             "fold reads origami and motion settings only")
     progress = progress_for(args, NAME)
 
     def one(path) -> bool:
@@ -114,7 +115,6 @@ def run(args) -> int:
         if out:
             from ..check import check_file
             from ..export import get_exporter
-            from ..io.outputs import write_files
 
             chosen = {"origami": overrides} if overrides else {}
             files: dict[str, bytes] = {}

@@ -7,16 +7,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConstructionError, DesignError, FabkitError, UsageError
+from ..errors import ConstructionError, DesignError, FabkitError, MotionError, UsageError
 from ..io.outputs import inside, write_files
-from ..io.schema import refuse_unused
 from ..io.workload import require
+from ..kinematics import Status
 from ..numerics import DOMAIN_RTOL
 from ..report.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
 from .progress import Progress
-from .settings import parse_settings
+from .settings import read_settings
 
 #: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
 #: on f composed m times, whose roots grow with m; orbits and iterations cost one map evaluation
@@ -113,9 +113,6 @@ def design_map(design, d_in="d1", d_out="d2"):
         if design.motion.to is None:
             raise FabkitError(f"{design.path}: {exc}; and the template gives no motion.to to "
                               "trace instead") from None
-        from ..errors import MotionError
-        from ..kinematics import Status
-
         traj = design.trace(method="projected")
         if traj.status is Status.FAILED:  # a failed trace is no map, not even of a stretch
             raise MotionError(design.path, "motion", f"the trace failed: {traj.message}",
@@ -247,8 +244,7 @@ def run(args) -> int:
     require("map --lyapunov" if args.lyapunov else "map", lyap,
             ("orbit step", args.steps * (len(d1) if d1 else 3)), option=True)
 
-    settings = parse_settings(args.settings)
-    refuse_unused(settings, {"motion"}, "map reads motion settings only")
+    settings = read_settings(args, {"motion": None}, "map reads motion settings only")
     progress = progress_for(args, NAME)
 
     def one(path) -> bool:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from ..errors import SettingsError, UsageError
 from ..export import check_export_settings
-from ..io.schema import refuse_unused
 from ..io.templates import tomllib
 
 
@@ -82,6 +81,10 @@ def read_settings(args, reads: dict, why: str) -> dict:
     UsageError
         A malformed item, a key the schema does not know, or one the command does not read.
     """
+
+    # the schema (and pydantic) is imported when settings are read, not when the command
+    # line's parser is built: `fabkit --help` starts without it
+    from ..io.schema import refuse_unused
 
     settings = parse_settings(args.settings)
     refuse_unused(settings, set(reads), why)

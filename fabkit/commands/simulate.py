@@ -10,16 +10,14 @@ import numpy as np
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
-from ..io.schema import refuse_unused
 from ..io.suggest import did_you_mean
 from ..kinematics import METHODS, Status
 from ..motion import judge_ends
 from ..motion.spread import module_spread, shape_missed
-from ..motion.elastic import DEFAULT_STEPS, elastic_motion
 from ..report.viz import elastic_figure, figure_png, motion_figure
 from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number,
                each_template, Example, progress_for)
-from .settings import parse_settings
+from .settings import read_settings
 
 #: Most quasi-static steps of ``--model elastic`` (each one a least-energy assembly).
 MAX_STEPS = 10_000
@@ -36,6 +34,11 @@ EXAMPLES = [
             "push the laser kit 1 mm past where it locks: energy and the largest bar stress "
             "(MPa) along the drive; out/<name>/elastic.npz, elastic.png"),
 ]
+
+#: Quasi-static steps of ``--model elastic`` without ``--steps``: the elastic model's own default
+#: (:data:`fabkit.motion.elastic.DEFAULT_STEPS`; tests/test_cli_startup.py holds them equal),
+#: stated here so that the help does not import the elastic model.
+DEFAULT_STEPS = 51
 
 #: Values of ``--model``: the rigid kinematic model, or bars as springs with the joints' play.
 MODELS = ("rigid", "elastic")
@@ -117,6 +120,10 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
         files["motion.gif"] = motion_gif(traj)
     run = None
     if elastic is not None:
+        # the elastic model is imported here, not at the top: it brings the fabrication
+        # geometry and scipy, which `fabkit simulate --help` and the rigid model do without
+        from ..motion.elastic import elastic_motion
+
         say(f"{design.name}: driving the build with elastic bars")
         run = elastic_motion(design, to=to, steps=elastic["steps"],
                              settings=elastic.get("settings"))
@@ -152,13 +159,12 @@ def run(args) -> int:
                                          f"--method {args.method} does not take it")
     steps = DEFAULT_STEPS if args.steps is None else args.steps
     check_count("--steps", steps, 2, MAX_STEPS, "quasi-static steps")
-    settings = parse_settings(args.settings)
     if elastic:
-        refuse_unused(settings, {"motion", "laser", "print", "tolerance"},
-                      "simulate --model elastic reads motion, laser, print and tolerance "
-                      "settings only")
+        settings = read_settings(args, dict.fromkeys(("motion", "laser", "print", "tolerance")),
+                                 "simulate --model elastic reads motion, laser, print and "
+                                 "tolerance settings only")
     else:
-        refuse_unused(settings, {"motion"}, "simulate reads motion settings only")
+        settings = read_settings(args, {"motion": None}, "simulate reads motion settings only")
     progress = progress_for(args, NAME)
 
     def one(path) -> bool:

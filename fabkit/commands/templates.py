@@ -10,7 +10,8 @@ from pathlib import Path
 
 from ..errors import FabkitError, OutputError, UsageError
 from ..io.outputs import write_files
-from ..io.templates import bundled_folder, resolve_template
+from ..io.suggest import did_you_mean
+from ..io.templates import bundled_folder, bundled_names, is_template_name, resolve_template
 from . import add_out_dir, check_output_folder, Example
 
 NAME = "templates"
@@ -73,9 +74,6 @@ def template_files(name: str) -> dict[str, Path]:
     try:
         path = bundled_template(name)
     except KeyError:
-        from ..io.suggest import did_you_mean
-        from ..io.templates import bundled_names, is_template_name
-
         hint = did_you_mean(name.removesuffix(".toml"), bundled_names()) \
             if is_template_name(name) else ""
         raise UsageError("--copy", f"no bundled template {name!r}; " + (f"{hint} " if hint else "")

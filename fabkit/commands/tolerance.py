@@ -22,7 +22,7 @@ from ..numerics import printed
 from ..report.text import report_json
 from ..report.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
-               Example, progress_for)
+               Example, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
 
 NAME = "tolerance"
@@ -39,13 +39,10 @@ EXAMPLES = [
 
 
 def add_arguments(p):
-    from ..tolerance.spec import ToleranceSpec
-
     p.add_argument("templates", nargs="+", metavar="TEMPLATE", help="template file(s)")
     add_out_dir(p, "out", "output folder (default: out); results go to DIR/<name>/")
-    samples = ToleranceSpec.__dataclass_fields__["samples"].default
     p.add_argument("--samples", type=int, default=None,
-                   help=f"simulated builds (default: the template's, else {samples})")
+                   help=f"simulated builds (default: the template's, else {TOLERANCE_SAMPLES})")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: 0)")
     add_settings(p, "override a setting, e.g. --set tolerance.length_sigma=0.1, "
                     "--set tolerance.process=print or --set laser.scale=40 (repeatable)")

@@ -29,7 +29,7 @@ from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError, FabkitError, KinematicsError
 from ..io.workload import require
 from ..kinematics.constructive import place, plan_construction
-from ..model.network import Assembly, Network
+from ..model.network import Assembly, ChainPorts, Network
 from ..numerics import DOMAIN_RTOL, rigid_fit, TINY
 
 __all__ = [
@@ -360,7 +360,11 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
 
     Notes
     -----
-    O(k): 10 000 super-stable modules are built in about 0.2 s (see docs/assembly.md).
+    O(k). A chain whose modules sit at their references (a chain at a fixed point of its map,
+    the usual long chain) is built from arrays, its ports a :class:`ChainPorts` table and its
+    :class:`~fabkit.model.network.Assembly` one index array per distinct module: a million
+    super-stable modules in a few seconds. Other chains are built module by module, each placed
+    at the distance the one before gives it.
 
     Examples
     --------
@@ -393,7 +397,7 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     # Per distinct module: ports, the local ranks of the nodes that a joined copy adds, and a
     # cache for constructive placement.
     kinds: dict[int, dict] = {}
-    for c, m in enumerate(seq):
+    for c, m in enumerate(base):  # the sequence repeats these: each distinct one is among them
         if m.dim != dim:
             raise FabkitError(f"module {c + 1} is {m.dim}D but module 1 is {dim}D")
         if id(m) in kinds:
@@ -412,6 +416,9 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
                             n_fresh=int(fresh.sum()), cache={},
                             extra=[(n, p) for n, p in m.ports.items() if n not in (d_in, d_out)])
 
+    fast = _chain_at_reference(base, repeat, kinds, flags, dim, d_in)
+    if fast is not None:
+        return fast
     local_blocks, edge_blocks, layout = [], [], []
     src = np.empty((k, 2, dim))   # each module's input pair, in its own (local) frame
     dst = np.empty((k, 2, dim))   # its output pair, local frame
@@ -464,7 +471,90 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     edges = np.concatenate(edge_blocks, axis=0)
     # how the chain was joined, so that a construction plan can be tiled from the modules' own
     # plans instead of searched node by node (see fabkit.kinematics.constructive.cached_plan)
-    return Network(nodes, edges, ports, assembly=Assembly(tuple(layout), d_in))
+    return Network(nodes, edges, ports, assembly=Assembly.from_copies(layout, d_in))
+
+
+def _chain_at_reference(base, repeat, kinds, flags, dim, d_in) -> Network | None:
+    """The chain built from arrays when every module sits at its own reference (each one's
+    output distance is the next one's input distance as drawn: a chain at a fixed point of its
+    map, the usual large chain) and no module has ports besides its input and output; None
+    otherwise (the module-by-module build places each one at its input).
+
+    Node indices: a copy's new nodes follow the earlier copies' in order; its input pair is the
+    previous copy's output pair, found by pointer jumping where an output node is itself an
+    input node (the super-stable module's d2 = (1, 2) shares node 1 with its d1 = (0, 1)).
+    """
+    ids = list(kinds)
+    where = {key: q for q, key in enumerate(ids)}
+    info = [kinds[key] for key in ids]
+    if any(kk["extra"] for kk in info):
+        return None
+    kid = np.tile(np.array([where[id(m)] for m in base], dtype=np.int64), repeat)
+    d_ref = np.array([kk["d_ref"] for kk in info])
+    d_out = np.array([kk["d_out_ref"] for kk in info])
+    prev, this = d_out[kid[:-1]], d_ref[kid[1:]]
+    if np.any(np.abs(prev - this) > DOMAIN_RTOL * np.maximum(this, 1.0)):
+        return None
+    k = kid.size
+    modules = [base[int(np.flatnonzero(kid == q)[0])] for q in range(len(info))]
+    first = modules[kid[0]]
+    counts = np.array([kk["n_fresh"] for kk in info], dtype=np.int64)[kid]
+    counts[0] = first.n_nodes
+    offset = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    # the output pair of every copy: a new node of it, or one of its input nodes (the previous
+    # copy's output): pointers back, resolved by doubling
+    val = np.full(2 * k, -1, dtype=np.int64)
+    ptr = np.full(2 * k, -1, dtype=np.int64)
+    for q, kk in enumerate(info):
+        members = np.flatnonzero(kid == q)
+        for s, o in enumerate(kk["out"]):
+            if kk["fresh"][o]:
+                val[2 * members + s] = offset[members] + kk["rank"][o]
+            else:
+                ptr[2 * members + s] = 2 * (members - 1) + (0 if o == kk["inp"][0] else 1)
+    val[:2] = info[kid[0]]["out"]  # the first copy keeps its own numbering
+    ptr[:2] = -1
+    open_ = np.flatnonzero(ptr >= 0)
+    while open_.size:
+        target = ptr[open_]
+        done = ptr[target] < 0
+        val[open_[done]] = val[target[done]]
+        ptr[open_[done]] = -1
+        ptr[open_[~done]] = ptr[target[~done]]
+        open_ = open_[~done]
+    out_pair = val.reshape(k, 2)
+    in_pair = np.empty((k, 2), dtype=np.int64)
+    in_pair[0] = info[kid[0]]["inp"]
+    in_pair[1:] = out_pair[:-1]
+    n_total = int(counts.sum())
+    local = np.empty((n_total, dim))
+    e_counts = np.array([modules[q].n_edges for q in range(len(info))], dtype=np.int64)[kid]
+    e_offset = np.concatenate([[0], np.cumsum(e_counts)[:-1]])
+    edges = np.empty((int(e_counts.sum()), 2), dtype=np.int64)
+    index = []
+    for q, kk in enumerate(info):
+        m = modules[q]
+        members = np.flatnonzero(kid == q)
+        idx = offset[members][:, None] + kk["rank"][None, :]
+        i0, i1 = kk["inp"]
+        idx[:, i0], idx[:, i1] = in_pair[members, 0], in_pair[members, 1]
+        later = members > 0
+        rows = offset[members[later]][:, None] + np.arange(kk["n_fresh"])
+        local[rows] = kk["fresh_ref"][None]
+        if not later.all():  # the first copy: every node of it, as drawn
+            idx[0] = np.arange(m.n_nodes)
+            local[:m.n_nodes] = m.nodes
+        edges[e_offset[members][:, None] + np.arange(m.n_edges)] = idx[:, m.edges]
+        index.append(idx)
+    src = np.stack([kk["src_ref"] for kk in info])[kid]
+    dst = np.stack([kk["dst_ref"] for kk in info])[kid]
+    owner = np.repeat(np.arange(k), counts)
+    fl = np.asarray(flags, dtype=bool)
+    nodes = _place_chain_2d(src, dst, fl, local, owner) if dim == 2 else \
+        _place_chain_3d(src, dst, fl, local, owner)
+    ports = ChainPorts(np.concatenate([in_pair[:1], out_pair]))
+    return Network(nodes, edges, ports,
+                   assembly=Assembly(tuple(modules), kid, tuple(index), fl, d_in))
 
 
 def _place_chain_2d(src, dst, flags, local, owner) -> np.ndarray:
@@ -496,20 +586,21 @@ def _place_chain_2d(src, dst, flags, local, owner) -> np.ndarray:
         r[0], t[0] = e * e, zs[0, 0] - e * e * np.conj(zs[0, 0])
     else:
         r[0], t[0] = 1.0, 0.0
-    # Compose sequentially (cheap scalar complex arithmetic; the only O(k) loop left).
-    gr = np.empty(k, dtype=complex)
-    gt = np.empty(k, dtype=complex)
+    # Compose: T_c = T_{c-1} ∘ A_c. Under a mirrored T_{c-1} (z ↦ R·conj(z) + T) the step's
+    # coefficients enter conjugated, so with the mirror flags known beforehand (each copy's own
+    # flag) the composition is a running product of the (conjugated) rotations and a running
+    # sum of the rotated shifts, in the same order as a loop would take them
     gm = flags.astype(bool)
-    cr, ct, cm = complex(r[0]), complex(t[0]), bool(flags[0])
-    gr[0], gt[0] = cr, ct
-    rl, tl, rell = r.tolist(), t.tolist(), rel.tolist()
-    for c in range(1, k):
-        r2, t2 = rl[c], tl[c]
-        if cm:
-            r2, t2 = r2.conjugate(), t2.conjugate()
-        cr, ct = cr * r2, cr * t2 + ct
-        cm = cm ^ rell[c]
-        gr[c], gt[c] = cr, ct
+    before = np.empty(k, dtype=bool)  # T_{c-1} mirrored
+    before[0] = False
+    before[1:] = gm[:-1]
+    rr = np.where(before, np.conj(r), r)
+    tt = np.where(before, np.conj(t), t)
+    gr = np.cumprod(rr)
+    prev = np.empty(k, dtype=complex)
+    prev[0] = 1.0
+    prev[1:] = gr[:-1]
+    gt = np.cumsum(prev * tt)
     z = local[:, 0] + 1j * local[:, 1]
     z = np.where(gm[owner], np.conj(z), z)
     out = gr[owner] * z + gt[owner]
@@ -677,7 +768,7 @@ def _load_modules(section: dict, ctx, where: str) -> tuple[list[Network], int | 
 
 def modules_in(net: Network) -> int:
     """How many modules a network was assembled from (1 for a network that is not a chain)."""
-    return len(net.assembly.copies) if net.assembly is not None else 1
+    return net.assembly.count if net.assembly is not None else 1
 
 
 def _chain_from_section(section: dict, ctx, where: str) -> Network:

@@ -14,19 +14,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.linalg.lapack import dgbtrf as _gbtrf
-from scipy.linalg.lapack import dgbtrs as _gbtrs
-from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import KinematicsError
+
+# scipy is imported in the functions that use it: the command line imports the kinematics to
+# build its parser and must start without it (tests/test_cli_startup.py)
 
 __all__ = ["BAND_LIMIT", "BorderedSystem", "gauge_rows", "permutation_parity"]
 
 def permutation_parity(perm: np.ndarray) -> int:
     """+1 for an even permutation, -1 for an odd one: parity = (n - number of cycles) mod 2,
     the cycles counted as connected components of the graph i -> perm[i]."""
+    import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
 
     perm = np.asarray(perm, dtype=np.int64)
@@ -96,6 +95,8 @@ class _BandLU:
         # the inverse permutation by take rather than a scatter: the permutations cost a few
         # percent of a solve instead of a tenth
         y = b.take(into, axis=-1)
+        from scipy.linalg.lapack import dgbtrs as _gbtrs
+
         sol, _ = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
                         overwrite_b=1)
         return sol.T.take(back, axis=-1)
@@ -174,6 +175,9 @@ class BorderedSystem:
         # Band structure, fixed for the whole trace except the last row: coordinates ordered by
         # node along the structure (reverse Cuthill-McKee), rows by the mean position of their
         # entries; the last row is inserted where its own entries lie.
+        import scipy.sparse as sp
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
         m = self.n_rows
         graph = sp.coo_matrix((np.ones(e), (self.edges[:, 0], self.edges[:, 1])), shape=(n, n))
         order = reverse_cuthill_mckee((graph + graph.T).tocsr(), symmetric_mode=True)
@@ -324,6 +328,8 @@ class BorderedSystem:
             band = ab.T.reshape(-1)  # a view: the band's columns one after the other
             band[flat] = fixed
             ab[kl + ku + ins - last_cpos, last_cpos] = last_vals
+            from scipy.linalg.lapack import dgbtrf as _gbtrf
+
             lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
             if info != 0:
                 return None
@@ -332,6 +338,9 @@ class BorderedSystem:
             return _BandLU(lub, piv, kl, ku, rowperm, self._colperm, self._colpos, sign)
         rows = np.concatenate([self._rows, self._grow, np.full(last_cols.size, m - 1)])
         cols = np.concatenate([self._cols, self.gcols, last_cols])
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
         a = sp.csc_matrix((np.concatenate([fixed, last_vals]), (rows, cols)), shape=(m, m))
         try:
             return _SuperLU(spla.splu(a, permc_spec="COLAMD"))

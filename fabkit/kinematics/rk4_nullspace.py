@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import KinematicsError
 from ..model.rigidity import rigid_body_basis, rigidity_matrix
@@ -41,6 +40,8 @@ def conformational_velocity(net, xf: np.ndarray, rtol: float = 1e-9):
     n, d = net.n_nodes, net.dim
     x = xf.reshape(n, d)
     r = rigidity_matrix(net, x).toarray()
+    import scipy.linalg  # here, not at the top: the command line starts without scipy
+
     _, s, vt = scipy.linalg.svd(r, full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0) * float(np.median(net.edge_lengths))
     rank = int((s > tol).sum())

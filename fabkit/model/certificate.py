@@ -33,19 +33,18 @@ numeric rule. That is the ``"substructure"`` certificate.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from .construction import (ConstructionPlan, EdgeLookup, PartialConstruction, SearchGraph,
                            cached_plan, plan_construction, search_construction)
 from ..errors import ConstructionError
-from .network import Network
+from .network import ChainPorts, Network
 from ..numerics import RANK_RTOL, TINY
-from .matrix import AMBIGUOUS_GAP, rank_dense, rigid_body_basis
+from .matrix import AMBIGUOUS_GAP, rank_dense, rigid_body_basis, rigid_body_count
 
 __all__ = ["Certificate", "certify", "construction_velocity", "intersection_sines", "MIN_SINE",
            "Uncertified"]
@@ -175,6 +174,9 @@ def construction_velocity(x, seed, order, parents) -> np.ndarray:
             rows.append(np.broadcast_to(r, coef.shape).ravel())
             cols.append(np.broadcast_to(q, coef.shape).ravel())
             vals.append(coef.ravel())
+    import scipy.sparse as sp  # here, not at the top: the command line starts without scipy
+    import scipy.sparse.linalg as spla
+
     mat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                         shape=(m, m))
     sol = spla.spsolve_triangular(mat, rhs, lower=True, unit_diagonal=True)
@@ -282,16 +284,26 @@ def _seeds(net: Network, x):
         yield (i, j)
 
 
+def _last(mapping):
+    """The last key of a mapping (a dict's by insertion; a chain's ports without a walk)."""
+    if isinstance(mapping, ChainPorts):
+        return f"d{len(mapping)}"
+    return next(reversed(mapping))
+
+
 def _whole(net: Network, x, positions_given: bool, find: EdgeLookup):
     """A construction of the whole network from one of the first seeds, or the reason none."""
     edges = net.edges
     n = net.n_nodes
     reasons = []
     tried = 0
-    ports = list(net.ports.values())
     # the first ports, and the last: a chain whose modules are built backwards (from d2 to d1)
-    # has an order from its last port only
-    for seed in ports[:MAX_SEEDS - 1] + ports[-1:] if len(ports) >= MAX_SEEDS else ports:
+    # has an order from its last port only (a million-port chain is not listed for that)
+    names = list(itertools.islice(net.ports, MAX_SEEDS - 1))
+    if len(net.ports) >= MAX_SEEDS:
+        names.append(_last(net.ports))
+    ports = [net.ports[p] for p in names]
+    for seed in ports:
         if tried >= MAX_SEEDS:
             break
         seed = (int(seed[0]), int(seed[1]))
@@ -425,6 +437,8 @@ def _substructure(net: Network, x, rtol: float, find: EdgeLookup):
         raise Uncertified(f"the interface between {len(parts)} parts has {ncol} unknowns, more "
                           f"than {MAX_INTERFACE}")
     if mat.shape[0]:
+        import scipy.sparse as sp
+
         rank, gap, smallest, note = rank_dense(sp.csr_matrix(mat), rtol)
         if note or gap < AMBIGUOUS_GAP:
             raise Uncertified(f"the interface between {len(parts)} parts is near singular "
@@ -436,7 +450,7 @@ def _substructure(net: Network, x, rtol: float, find: EdgeLookup):
 
 def _count(part: _Part, x) -> tuple[int, int]:
     """(zero modes, self-stresses) of a part that is the whole network."""
-    rigid = rigid_body_basis(x).shape[1] if x.shape[1] == 3 else 3
+    rigid = rigid_body_count(x) if x.shape[1] == 3 else 3
     null = rigid + (0 if part.bar else 1)
     locked = 1 if (not part.bar and not part.moves) else 0
     return null - locked, part.extra.size - locked

@@ -456,30 +456,26 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     layout = net.assembly
     if layout is None or net.dim != 2 or net.ports.get("d1") != tuple(drive):
         return None
-    # the copies of each distinct module at once: a 100 000-module chain has one or two kinds
-    kinds: dict[int, list[int]] = {}
-    plans: dict[int, ConstructionPlan] = {}
-    for c, (module, _index, _flag) in enumerate(layout.copies):
-        kinds.setdefault(id(module), []).append(c)
-    sizes = np.empty(len(layout.copies), dtype=np.int64)
-    for key, members in kinds.items():
-        module = layout.copies[members[0]][0]
+    # the copies of each distinct module at once (one array of their node indices per kind):
+    # a 1 000 000-module chain has one or two kinds
+    plans: list[ConstructionPlan] = []
+    for module in layout.modules:
         try:
             mp = cached_plan(module, module.port(layout.d_in))
         except ConstructionError:
             return None
         if mp.seed != module.port(layout.d_in):
             return None
-        plans[key] = mp
-        sizes[members] = mp.order.size
+        plans.append(mp)
+    sizes = np.array([mp.order.size for mp in plans], dtype=np.int64)[layout.kind]
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     total = int(sizes.sum())
     order = np.empty(total, dtype=np.int64)
     par = np.empty((total, 2), dtype=np.int64)
     rad = np.empty((total, 2))
-    for key, members in kinds.items():
-        mp = plans[key]
-        index = np.stack([layout.copies[c][1] for c in members])  # (copies, module nodes)
+    for q, mp in enumerate(plans):
+        members = np.flatnonzero(layout.kind == q)
+        index = layout.index[q]  # (copies, module nodes)
         at = (starts[members][:, None] + np.arange(mp.order.size)).ravel()
         order[at] = index[:, mp.order].ravel()
         par[at] = index[:, mp.parents].reshape(-1, 2)

@@ -14,14 +14,20 @@ from __future__ import annotations
 import math
 import os
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
 
 from ..errors import ResourceError
 from .network import Network
 
-__all__ = ["rigidity_matrix", "rigid_body_basis", "available_memory", "require_dense_memory",
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+# scipy is imported where it is used: the command line imports this module to build its
+# parser and must start without it (tests/test_cli_startup.py)
+
+__all__ = ["rigidity_matrix", "rigid_body_basis", "rigid_body_count", "available_memory", "require_dense_memory",
            "AMBIGUOUS_GAP", "Undecided", "singular_values_dense", "rank_dense", "sigma_max",
            "smallest_singular", "orthonormal"]
 
@@ -126,6 +132,8 @@ def rigidity_matrix(net: Network, positions=None, *, normalized: bool = False) -
         [d * edges[:, [0]] + np.arange(d), d * edges[:, [1]] + np.arange(d)], axis=1
     ).ravel()
     vals = np.concatenate([diff, -diff], axis=1).ravel()
+    import scipy.sparse as sp
+
     return sp.csr_matrix((vals, (rows, cols)), shape=(e, d * n))
 
 
@@ -175,9 +183,39 @@ def rigid_body_basis(positions, *, rtol: float = 1e-10) -> np.ndarray:
 
 
 
+def rigid_body_count(positions, *, rtol: float = 1e-10) -> int:
+    """How many rigid-body velocities a node set has: the column count of
+    :func:`rigid_body_basis`, from the node set's own singular values instead of an SVD of the
+    whole (d·N × 3 or 6) basis.
+
+    The translations are orthogonal to the rotations about the centroid and each has norm √N;
+    the rotations' singular values are ``√(σ_j² + σ_k²)`` over pairs of the centred
+    coordinates' singular values σ (in 2D: their norm). A motion counts where its singular value
+    exceeds ``rtol`` times the largest, as there.
+
+    Examples
+    --------
+    >>> rigid_body_count([[0, 0], [1, 0]]), rigid_body_count([[0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    (3, 5)
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    n, d = x.shape
+    c = x - x.mean(axis=0)
+    sigma = np.linalg.svd(c, compute_uv=False) if n else np.zeros(0)
+    sigma = np.concatenate([sigma, np.zeros(d - sigma.size)]) if sigma.size < d else sigma
+    if d == 2:
+        rot = np.array([math.hypot(sigma[0], sigma[1])])
+    else:
+        rot = np.array([math.hypot(sigma[j], sigma[k]) for j, k in ((0, 1), (0, 2), (1, 2))])
+    values = np.concatenate([np.full(d, math.sqrt(n)), rot])
+    return int((values > rtol * values.max()).sum())
+
+
 def singular_values_dense(r: sp.csr_matrix) -> np.ndarray:
     require_dense_memory(*r.shape)
     dense = r.toarray()
+    import scipy.linalg
+
     return scipy.linalg.svdvals(dense) if dense.size else np.zeros(0)
 
 

@@ -7,6 +7,7 @@ maps, fabrication) derives from it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from collections.abc import Mapping
 
 import numpy as np
@@ -20,6 +21,86 @@ _ZERO_LENGTH_RTOL = 1e-12
 #: Coordinates beyond this (design units) are refused: their squares (every length, every
 #: rigidity row) would overflow or drown the rest of the network in round-off.
 MAX_COORDINATE = 1e9
+
+
+class ChainPorts(Mapping):
+    """A chain's ports ``d1 … d{k+1}`` held as one array of node pairs: a mapping like any
+    ports dict (``ports["d7"]``, iteration in order, ``len``, ``in``), without a million names
+    and tuples for a million-module chain.
+
+    Parameters
+    ----------
+    pairs : array_like of int, shape (k + 1, 2)
+        ``pairs[i]`` is port ``d{i+1}``.
+
+    Examples
+    --------
+    >>> p = ChainPorts([[0, 1], [2, 3], [4, 5]])
+    >>> p["d2"], list(p), "d4" in p, dict(p) == {"d1": (0, 1), "d2": (2, 3), "d3": (4, 5)}
+    ((2, 3), ['d1', 'd2', 'd3'], False, True)
+    """
+
+    __slots__ = ("pairs",)
+
+    def __init__(self, pairs):
+        arr = np.array(pairs, dtype=np.int64, copy=True).reshape(-1, 2)
+        arr.setflags(write=False)
+        self.pairs = arr
+
+    def _row(self, name) -> int:
+        if isinstance(name, str) and len(name) > 1 and name[0] == "d" and name[1:].isdigit() \
+                and name[1] != "0":
+            i = int(name[1:]) - 1
+            if i < self.pairs.shape[0]:
+                return i
+        return -1
+
+    def __getitem__(self, name):
+        i = self._row(name)
+        if i < 0:
+            raise KeyError(name)
+        a, b = self.pairs[i]
+        return (int(a), int(b))
+
+    def __contains__(self, name) -> bool:
+        return self._row(name) >= 0
+
+    def __iter__(self):
+        return (f"d{i}" for i in range(1, self.pairs.shape[0] + 1))
+
+    def __len__(self) -> int:
+        return int(self.pairs.shape[0])
+
+    def __reduce__(self):
+        return (ChainPorts, (self.pairs,))
+
+    def __repr__(self) -> str:
+        return f"ChainPorts(d1..d{len(self)})"
+
+
+def _checked_ports(given, n_nodes: int):
+    """Every port as ``name -> (int, int)``, checked: a chain's :class:`ChainPorts` at once on
+    its array, a dict of integer pairs at once as one array, else one by one (which names the
+    bad one)."""
+    if isinstance(given, ChainPorts):
+        arr = given.pairs
+        if bool(((arr >= 0) & (arr < n_nodes)).all()) and bool((arr[:, 0] != arr[:, 1]).all()):
+            return given
+        given = dict(given)  # one by one: the message names the port
+    names = [str(k) for k in given]
+    pairs = list(given.values())
+    if pairs and all(type(p) is tuple and len(p) == 2 for p in pairs):
+        arr = np.asarray(pairs)
+        if arr.dtype.kind in "iu" and arr.shape == (len(pairs), 2) and \
+                bool(((arr >= 0) & (arr < n_nodes)).all()) and bool((arr[:, 0] != arr[:, 1]).all()):
+            return dict(zip(names, map(tuple, arr.tolist())))
+    return {str(name): _as_port(name, pair, n_nodes) for name, pair in dict(given).items()}
+
+
+def _extent(nodes) -> float:
+    """The largest extent of the nodes along a coordinate axis, ``max(ptp(nodes, axis=0))``
+    (column by column: a strided reduction over a million rows is twenty times slower)."""
+    return max((float(np.ptp(nodes[:, k])) for k in range(nodes.shape[1])), default=0.0)
 
 
 def _as_port(name: str, pair, n_nodes: int) -> tuple[int, int]:
@@ -47,19 +128,65 @@ class Assembly:
 
     Structure-aware algorithms read it instead of rediscovering it (e.g. a chain's construction
     plan is its modules' plans one after the other); each checks that it still fits the network's
-    geometry before using it.
+    geometry before using it. It is held as arrays, one row per copy of each distinct module, so
+    that a chain of a million modules costs a few arrays, not a million objects.
 
     Attributes
     ----------
-    copies : tuple of (Network, numpy.ndarray of int, bool)
-        Per module, in chain order: the module, where each of its nodes went in the assembled
-        network, and whether it was placed as a mirror image.
+    modules : tuple of Network
+        The distinct modules (by identity).
+    kind : numpy.ndarray of int, shape (k,)
+        Per copy, in chain order: which of ``modules`` it is.
+    index : tuple of numpy.ndarray of int
+        Per distinct module, shape (its copies, its nodes): where each node of each of its
+        copies went in the assembled network, the copies in chain order.
+    mirrored : numpy.ndarray of bool, shape (k,)
+        Per copy: placed as a mirror image.
     d_in : str
         The module port driven by the previous module's output (the chain's input port name).
     """
 
-    copies: tuple
+    modules: tuple
+    kind: np.ndarray
+    index: tuple
+    mirrored: np.ndarray
     d_in: str
+
+    @classmethod
+    def from_copies(cls, copies, d_in: str) -> "Assembly":
+        """From one ``(module, node indices, mirrored)`` per copy, in chain order."""
+        modules, kind, rows = [], [], {}
+        for module, idx, _flag in copies:
+            for q, known in enumerate(modules):
+                if known is module:
+                    break
+            else:
+                q = len(modules)
+                modules.append(module)
+                rows[q] = []
+            kind.append(q)
+            rows[q].append(np.asarray(idx, dtype=np.int64))
+        index = tuple(np.stack(rows[q]) if rows[q] else np.zeros((0, m.n_nodes), dtype=np.int64)
+                      for q, m in enumerate(modules))
+        return cls(tuple(modules), np.asarray(kind, dtype=np.int64), index,
+                   np.array([bool(f) for _, _, f in copies], dtype=bool), d_in)
+
+    @property
+    def count(self) -> int:
+        """How many modules (copies) the network was assembled from."""
+        return int(self.kind.size)
+
+    @cached_property
+    def copies(self) -> tuple:
+        """Per copy, in chain order: ``(module, its nodes' indices, mirrored)`` (made on first
+        use: one object per module)."""
+        rank = np.zeros(self.kind.size, dtype=np.int64)
+        for q in range(len(self.modules)):
+            members = np.flatnonzero(self.kind == q)
+            rank[members] = np.arange(members.size)
+        return tuple((self.modules[q], self.index[q][r], bool(f))
+                     for q, r, f in zip(self.kind.tolist(), rank.tolist(),
+                                        self.mirrored.tolist()))
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,13 +239,14 @@ class Network:
                                "nodes")
         if nodes.shape[0] < 2:
             raise NetworkError(f"a network needs at least 2 nodes, got {nodes.shape[0]}", "nodes")
-        bad = ~np.isfinite(nodes).all(axis=1)
-        if bad.any():
+        # each check over the whole array first, rows only to name the first bad one
+        if not np.isfinite(nodes).all():
+            bad = ~np.isfinite(nodes).all(axis=1)
             i = int(np.flatnonzero(bad)[0])
             raise NetworkError(f"node {i} has a non-finite coordinate {nodes[i].tolist()}",
                                f"nodes[{i}]")
-        far = (np.abs(nodes) > MAX_COORDINATE).any(axis=1)
-        if far.any():
+        if (np.abs(nodes) > MAX_COORDINATE).any():
+            far = (np.abs(nodes) > MAX_COORDINATE).any(axis=1)
             i = int(np.flatnonzero(far)[0])
             raise NetworkError(f"node {i} lies at {nodes[i].tolist()}, beyond ±{MAX_COORDINATE:g} "
                                "design units (lengths squared would overflow); scale the "
@@ -144,8 +272,8 @@ class Network:
                                "edges")
         edges = raw_edges.astype(np.int64)
         n = nodes.shape[0]
-        out = (edges < 0) | (edges >= n)
-        if out.any():
+        if edges.size and (edges.min() < 0 or edges.max() >= n):
+            out = (edges < 0) | (edges >= n)
             k = int(np.flatnonzero(out.any(axis=1))[0])
             raise NetworkError(
                 f"edge {k} {edges[k].tolist()} names a node outside 0..{n - 1}", f"edges[{k}]"
@@ -154,17 +282,22 @@ class Network:
         if loops.any():
             k = int(np.flatnonzero(loops)[0])
             raise NetworkError(f"edge {k} joins node {edges[k, 0]} to itself", f"edges[{k}]")
-        key = np.sort(edges, axis=1)
-        _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
-        if (counts > 1).any():
-            dup_key = key[first[counts > 1][0]]
-            where = np.flatnonzero((key == dup_key).all(axis=1))
+        lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+        # one integer per unordered pair: sorting a million of them is cheap, unlike rows
+        code = lo * np.int64(n) + hi
+        ordered = np.sort(code)
+        same = ordered[1:] == ordered[:-1]
+        if same.any():
+            dup = ordered[1:][same][0]
+            dup_key = (int(dup // n), int(dup % n))
+            where = np.flatnonzero(code == dup)
             raise NetworkError(
                 f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}",
                 f"edges[{where[0]}]"
             )
-        lengths = np.linalg.norm(nodes[edges[:, 0]] - nodes[edges[:, 1]], axis=1)
-        scale = float(np.ptp(nodes, axis=0).max()) or 1.0
+        diff = nodes[edges[:, 0]] - nodes[edges[:, 1]]
+        lengths = np.sqrt(np.add.reduce(diff * diff, axis=1))  # as np.linalg.norm, bit for bit
+        scale = _extent(nodes) or 1.0
         short = lengths <= _ZERO_LENGTH_RTOL * scale
         if short.any():
             k = int(np.flatnonzero(short)[0])
@@ -175,7 +308,7 @@ class Network:
         if not isinstance(self.ports, Mapping):
             raise NetworkError("`ports` must be a mapping of name to (i, j) node pair, got "
                                f"{type(self.ports).__name__}", "ports")
-        ports = {str(name): _as_port(name, pair, n) for name, pair in dict(self.ports).items()}
+        ports = _checked_ports(self.ports, n)
         labels = None
         if self.labels is not None:
             labels = tuple(str(s) for s in self.labels)
@@ -217,7 +350,7 @@ class Network:
     @property
     def size(self) -> float:
         """Largest extent of the node set along a coordinate axis (design units)."""
-        return float(np.ptp(self.nodes, axis=0).max())
+        return _extent(self.nodes)
 
     # -- geometry ------------------------------------------------------------------------------
     @property

@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 import threadpoolctl
 
 from .. import arguments
@@ -28,8 +26,15 @@ from .network import Network
 from ..numerics import RANK_RTOL
 from .certificate import Uncertified, certify
 from .matrix import (AMBIGUOUS_GAP, Undecided, available_memory, orthonormal, rank_dense,
-                     require_dense_memory, rigid_body_basis, rigidity_matrix, sigma_max,
+                     require_dense_memory, rigid_body_basis, rigid_body_count, rigidity_matrix,
+                     sigma_max,
                      smallest_singular)
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+# scipy is imported where it is used: the command line imports this module to build its
+# parser and must start without it (tests/test_cli_startup.py)
 
 __all__ = [
     "rigidity_matrix",
@@ -160,6 +165,8 @@ def _best_conditioned(q: np.ndarray) -> np.ndarray:
     k = q.shape[1]
     if k == 0:
         return np.zeros(0, dtype=np.int64)
+    import scipy.linalg
+
     return scipy.linalg.qr(q.T, pivoting=True, mode="r")[1][:k]
 
 
@@ -169,6 +176,9 @@ def _rank_sparse(r: sp.csr_matrix, rtol: float, block: int = 8, iterations: int 
     Returns (rank, gap, smallest_nonzero); raises :class:`Undecided` when the two bounds do not
     bracket the threshold.
     """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
     e, n = r.shape
     smax = sigma_max(r)
     tol = rtol * max(smax, 1.0)
@@ -248,6 +258,9 @@ def _rank_sparse_normal(r: sp.csr_matrix, rtol: float, block: int = 8, iteration
     ``λ_min(RᵀR + VVᵀ)``: squaring limits it to singular values above about 1e-7·σ_max, below
     which the count is reported as ambiguous.
     """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
     e, n = r.shape
     smax = sigma_max(r)
     tol = rtol * max(smax, 1.0)
@@ -435,7 +448,7 @@ def _count_modes(net: Network, x: np.ndarray, rtol: float, method: str) -> ModeC
     if method in ("dense", "sparse") or (method == "auto" and (
             cert is None or d * n <= NUMERIC_CHECK_LIMIT)):
         numeric = _numeric_rank(net, x, rtol, method)
-    rigid = rigid_body_basis(x).shape[1]
+    rigid = rigid_body_count(x)
     if cert is None:
         used, rank, gap, smallest, note = numeric
         total = d * n - rank

@@ -1,0 +1,87 @@
+"""The command line starts at once: its help, and a listing of the templates, import none of the
+heavy libraries that only the work needs (scipy, matplotlib, pydantic, the mesh and DXF
+libraries).
+
+Building the parser imports every command's module (:func:`fabkit.cli.build_parser`), so a
+module-level import of a heavy library anywhere on the way from a command to the core would
+load it for ``fabkit --help`` too. Each run is in a fresh interpreter, where ``sys.modules``
+shows what was imported. How fast it starts is measured by benchmarks, not asserted here.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Libraries that no help and no listing of the templates may import.
+HEAVY = ("scipy", "matplotlib", "pydantic", "trimesh", "ezdxf", "shapely", "manifold3d")
+
+#: Libraries ``fabkit templates`` may import: listing a template loads it, and loading checks
+#: its fabrication settings against the schema (pydantic) and builds its network, whose
+#: designed modules count their modes (scipy.sparse, scipy.linalg).
+LISTING_NEEDS = ("scipy", "pydantic")
+
+# Runs ``main`` once per command line given as a JSON list of argument lists (``null``: every
+# ``CMD --help`` of the parser, after ``--help``), and prints, per heavy library loaded, the
+# first command line after which it was in sys.modules.
+_RUN = """
+import argparse, contextlib, io, json, sys
+from fabkit.cli import build_parser, main
+
+heavy = json.loads(sys.argv[1])
+runs = json.loads(sys.argv[2])
+if runs is None:
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    runs = [["--help"]] + [[name, "--help"] for name in sorted(sub.choices)]
+first, codes = {}, {}
+for argv in runs:
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        codes[" ".join(argv)] = main(argv)
+    for lib in heavy:
+        if lib in sys.modules and lib not in first:
+            first[lib] = " ".join(argv)
+print(json.dumps({"runs": [" ".join(a) for a in runs], "codes": codes, "first": first}))
+"""
+
+
+def _run(runs, heavy=HEAVY) -> dict:
+    proc = subprocess.run([sys.executable, "-c", _RUN, json.dumps(heavy), json.dumps(runs)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=300,
+                          env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin",
+                               "PYTHONPATH": str(ROOT)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _leaks(found: dict) -> str:
+    return "; ".join(f"{lib} (first after `fabkit {argv}`)"
+                     for lib, argv in sorted(found["first"].items()))
+
+
+def test_help_of_the_command_line_and_of_every_command_imports_no_heavy_library():
+    found = _run(None)
+    assert len(found["runs"]) >= 13 and found["runs"][0] == "--help", found["runs"]
+    assert set(found["codes"].values()) == {0}, found["codes"]
+    assert not found["first"], "imported by the help: " + _leaks(found)
+
+
+def test_listing_the_templates_imports_no_plotting_mesh_or_dxf_library():
+    heavy = tuple(lib for lib in HEAVY if lib not in LISTING_NEEDS)
+    found = _run([["templates"]], heavy)
+    assert found["codes"] == {"templates": 0}
+    assert not found["first"], "imported by the listing: " + _leaks(found)
+
+
+def test_the_defaults_named_in_the_help_are_those_of_the_models():
+    # the help states them without importing the models (which import scipy); they must agree
+    from fabkit.commands import TOLERANCE_SAMPLES
+    from fabkit.commands.simulate import DEFAULT_STEPS
+    from fabkit.motion.elastic import DEFAULT_STEPS as MODEL_STEPS
+    from fabkit.tolerance.spec import ToleranceSpec
+
+    assert DEFAULT_STEPS == MODEL_STEPS
+    assert TOLERANCE_SAMPLES == ToleranceSpec().samples
