@@ -52,6 +52,12 @@ class _Parser(argparse.ArgumentParser):
     other error of the command line, that say "did you mean" for a misspelt command, choice
     or option."""
 
+    def __init__(self, *args, **kwargs):
+        # no abbreviated options: `--orbit 10` is not silently `--orbits 10`, and a new option
+        # never changes what an old abbreviation meant
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
     def error(self, message):
         command = self.prog.split(" ", 1)[1] if " " in self.prog else ""
         hint = f"fabkit {command} --help" if command else "fabkit --help"

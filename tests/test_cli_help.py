@@ -273,3 +273,27 @@ def test_a_misspelt_setting_gets_did_you_mean(tmp_path, capsys):
     assert _error(capsys) == ("fabkit: error: --set: lazer: unknown section; known: laser, "
                               "motion, origami, print, tolerance; did you mean 'laser'?")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv, option", [
+    (["map", "chaotic", "--orbit", "10"], "--orbit"),        # not --orbits
+    (["export", "fourbar", "--tolerance", "0"], "--tolerance"),  # not --tolerance-samples
+    (["--allow", "templates"], "--allow"),                  # not --allow-large
+])
+def test_no_option_is_taken_from_its_abbreviation(argv, option, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"unrecognized arguments: {option}" in err
+
+
+def test_export_help_lists_every_format_with_its_process(capsys):
+    from fabkit.commands.export import FORMAT_PROCESS
+    from fabkit.export import EXPORTERS
+    from fabkit.tolerance import PROCESS_FORMATS
+
+    assert set(FORMAT_PROCESS) == set(EXPORTERS)
+    assert FORMAT_PROCESS == {f: p for p, fs in PROCESS_FORMATS.items() for f in fs}
+    assert main(["export", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "dxf (a laser-cut acrylic kit, its guide and BOM); svg, fold, cp (origami crease " \
+           "patterns and cut sheets); stl (a 3D print, STL and 3MF)" in text

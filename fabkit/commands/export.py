@@ -34,11 +34,27 @@ EXAMPLES = [
 ]
 
 
+#: The process that makes each format (every format of :data:`fabkit.export.EXPORTERS`, the
+#: inverse of :data:`fabkit.tolerance.PROCESS_FORMATS`; tests/test_cli_help.py holds them equal),
+#: stated here for the help, which must not import the exporters or the tolerance analysis.
+FORMAT_PROCESS = {"dxf": "laser", "svg": "origami", "fold": "origami", "cp": "origami",
+                  "stl": "print"}
+
+#: What each process makes, in the help's words.
+PROCESS_WORDS = {"laser": "a laser-cut acrylic kit, its guide and BOM",
+                 "origami": "origami crease patterns and cut sheets",
+                 "print": "a 3D print, STL and 3MF"}
+
+
 def add_arguments(p):
     p.add_argument("paths", nargs="+", metavar="PATH",
                    help="template files, folders of *.toml templates, or glob patterns")
     p.add_argument("--to", default=None, metavar="FORMATS",
-                   help="comma-separated formats (default: every format that applies to a design)")
+                   help="comma-separated formats, each made by its process: "
+                        + "; ".join(f"{', '.join(f for f, q in FORMAT_PROCESS.items() if q == p)} "
+                                    f"({PROCESS_WORDS[p]})"
+                                    for p in dict.fromkeys(FORMAT_PROCESS.values()))
+                        + " (default: every format that applies to a design)")
     add_out_dir(p, "out", "output folder (default: out); each design goes to DIR/<name>/")
     add_jobs(p, 1, "designs exported in parallel processes (default: 1)")
     add_settings(p, "override a fabrication setting, e.g. --set laser.kerf=0.2 (repeatable; "
