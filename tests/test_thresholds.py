@@ -162,3 +162,34 @@ def test_the_canonical_order_follows_the_bar_list_and_the_frame_turns_with_the_d
     r = v - (v @ f2[0]) * f2[0]
     assert np.linalg.norm(r) / np.linalg.norm(v) > 0.1
     assert np.allclose(f2[1], r / np.linalg.norm(r))
+
+
+# --- a start is singular relative to the network's size --------------------------------------
+
+def test_the_singular_start_threshold_falls_with_the_size():
+    from fabkit.kinematics.projected import (SINGULAR_START, SINGULAR_START_FLOOR,
+                                             singular_start_threshold)
+
+    assert singular_start_threshold(500) == SINGULAR_START
+    # a chain of k 4-bars has about 4k rows and σ_min ≈ 3.5/k² at its start (3.5e-10 at 10⁵):
+    # 35 times above the threshold at 10⁵ modules and at 10⁶
+    for k in (10**4, 10**5, 10**6):
+        assert 3.5 / k**2 > 30 * singular_start_threshold(4 * k)
+    assert singular_start_threshold(10**9) == SINGULAR_START_FLOOR > 100 * 2.2e-16
+
+
+def test_a_flat_sheet_is_still_singular_for_the_projected_method():
+    d = fabkit.load_template("origami_sheet")
+    tr = fabkit.trace(d.network, drive=d.motion.drive, to=d.motion.to, method="projected")
+    assert not tr.success and "singular" in tr.message
+
+
+@pytest.mark.slow
+def test_projected_traces_a_chain_of_a_hundred_thousand_fourbars():
+    # σ_min of its start is 3.5e-10, once below a fixed 1e-9 and refused as singular
+    net = fabkit.chain(fabkit.load_template("fourbar").network, copies=10**5)
+    proj = fabkit.trace(net, drive="d1", to=2.6, method="projected")
+    cons = fabkit.trace(net, drive="d1", to=2.6, method="constructive")
+    assert proj.success and cons.success
+    end = f"d{10**5 + 1}"
+    assert proj.distance(end)[-1] == pytest.approx(cons.distance(end)[-1], abs=1e-10)

@@ -55,14 +55,39 @@ from .bordered import BorderedSystem, gauge_rows, permutation_parity
 from .stepping import Step, StepMethod, Stop
 from .trajectory import EventKind, Status
 
-__all__ = ["Projected", "gauge_rows", "permutation_parity"]
+__all__ = ["Projected", "gauge_rows", "permutation_parity", "singular_start_threshold"]
+
+
+def singular_start_threshold(rows: int) -> float:
+    """The smallest singular value below which a start of a bordered system of ``rows`` rows
+    is singular: :data:`SINGULAR_START` up to :data:`SINGULAR_START_ROWS` rows, then falling as
+    the square of the size (a long chain's regular start is that much worse conditioned), never
+    below :data:`SINGULAR_START_FLOOR`.
+
+    Examples
+    --------
+    >>> [f"{singular_start_threshold(n):.0e}" for n in (100, 40_000, 400_000, 4_000_000)]
+    ['1e-09', '1e-09', '1e-11', '1e-13']
+    """
+    scale = min(1.0, SINGULAR_START_ROWS / max(int(rows), 1)) ** 2
+    return max(SINGULAR_START * scale, SINGULAR_START_FLOOR)
 
 #: Smallest step by default, relative to the median edge: a step this small that still fails
 #: means a singular configuration ahead, not a step too large.
 MIN_STEP_RTOL = 1e-10
 #: A start whose bordered matrix [J; e_j] has a smallest singular value below this (row-scaled
-#: system) is singular: a state of self-stress there.
+#: system) is singular: a state of self-stress there (up to SINGULAR_START_ROWS rows; see
+#: :func:`singular_start_threshold`).
 SINGULAR_START = 1e-9
+#: Rows of the bordered system up to which SINGULAR_START holds as it is. A larger network's
+#: regular starts are worse conditioned: a chain of k modules has σ_min ≈ 3.5/k² (measured: 4-bar
+#: chains, 3.3e-4 at 100 modules, 3.5e-8 at 10⁴, 3.5e-10 at 10⁵; a lattice of n nodes falls as
+#: 1/n), so beyond it the threshold falls as the square of the rows.
+SINGULAR_START_ROWS = 40_000
+#: The threshold never falls below this: an exactly singular start (a flat sheet, a bifurcation)
+#: keeps σ_min at round-off, ~1e-16 of the row-scaled matrix, and a regular 10⁶-module chain
+#: has 3.5e-12.
+SINGULAR_START_FLOOR = 1e-13
 #: |∇drive · t| below this at the start: the drive is stationary (a turning point).
 STATIONARY_DRIVE = 1e-12
 #: The secant search for a turning point stops when its bracket is this small (relative to the
@@ -371,7 +396,7 @@ class Projected(StepMethod):
             return Stop(Status.FAILED, self._singular_message("start"))
         t, lu, tau = first
         sig = self.sys.sigma_min(lu, self.sys.n_rows)
-        if sig < SINGULAR_START:
+        if sig < singular_start_threshold(self.sys.n_rows):
             return Stop(Status.FAILED, self._singular_message("start", sig))
         g_prev = float(self._drive_grad(x) @ t) * direction
         if abs(g_prev) < STATIONARY_DRIVE:
