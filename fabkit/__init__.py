@@ -18,7 +18,7 @@ from .errors import (
 from .model.network import Network
 from .model.rigidity import ModeCount, count_modes, rigid_body_basis, rigidity_matrix
 from .kinematics import METHODS, Trajectory, trace
-from .io.templates import Design, load_template
+from .templates import Design, load_template
 
 __version__ = "0.1.0"
 
@@ -32,7 +32,7 @@ _LAZY = {
     "design_curve": "fabkit.design.letters",
     "design_word": "fabkit.design.letters",
     "glyph": "fabkit.design.letters",
-    "motion_gif": "fabkit.report.animate",
+    "motion_gif": "fabkit.plots.animate",
     "module_map": "fabkit.maps",
     "Map1D": "fabkit.maps",
     "design_module": "fabkit.design.solution_space",

@@ -26,17 +26,9 @@ import numbers
 import numpy as np
 
 from .errors import ArgumentTypeError, ArgumentValueError
-from .model.network import Network
 from .numerics import EDGE_RTOL, TINY
 
-__all__ = ["network", "whole", "real", "choice", "port", "names"]
-
-
-def network(name: str, value):
-    """``value`` when it is a :class:`fabkit.Network`."""
-    if not isinstance(value, Network):
-        raise ArgumentTypeError(name, f"must be a fabkit.Network, got {_kind(value)}")
-    return value
+__all__ = ["whole", "real", "choice", "port", "names"]
 
 
 def whole(name: str, value, minimum: int | None = None, maximum: int | None = None) -> int:
@@ -120,10 +112,6 @@ def positions(name: str, value, net) -> np.ndarray:
             raise ArgumentValueError(name, f"puts nodes {a} and {b} of edge {int(short[0])} at "
                                            "one point; every edge needs a length")
     return x
-
-
-def _kind(value) -> str:
-    return "None" if value is None else type(value).__name__
 
 
 def _show(value) -> str:

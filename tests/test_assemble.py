@@ -14,7 +14,7 @@ from fabkit.design.assemble import (branch, build_tessellation, chain, join, joi
                                     tessellate)
 from fabkit.errors import BoundsError, FabkitError, TemplateError
 from fabkit.model.rigidity import count_modes
-from fabkit.io.templates import TemplateContext, load_template, parse_template
+from fabkit.templates import TemplateContext, load_template, parse_template
 
 from conftest import TEMPLATES
 
@@ -344,7 +344,7 @@ def test_tessellation_builder(tmp_path):
 
 
 def test_core_does_not_import_fabrication_layers():
-    code = ("import sys, fabkit.design.assemble, fabkit.design.letters, fabkit.report.animate\n"
+    code = ("import sys, fabkit.design.assemble, fabkit.design.letters, fabkit.plots.animate\n"
             "bad = [m for m in sys.modules if m.startswith(('fabkit.fab', 'fabkit.export', "
             "'fabkit.check', 'fabkit.cli', 'fabkit.commands'))]\n"
             "assert not bad, bad\n")

@@ -303,7 +303,7 @@ def test_bad_sizes_and_values_of_options_exit_2_before_work(args, words, tmp_pat
 
 def test_check_against_another_design_is_a_failed_check_not_a_crash(tmp_path, capsys):
     from fabkit.export import export
-    from fabkit.io.templates import load_template
+    from fabkit.templates import load_template
 
     # the file, as the exporter writes it (in this process: the subject is the check)
     paths, _ = export(load_template(GOOD.parent / "origami_sheet.toml"), "fold", tmp_path)

@@ -17,7 +17,7 @@ import pytest
 
 from fabkit.pipeline import FAULT_ENV, Outcome, Stage, exit_code, export_many
 from fabkit.cli import main
-from fabkit.io.templates import bundled_folder
+from fabkit.templates import bundled_folder
 
 from conftest import TEMPLATES
 

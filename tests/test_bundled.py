@@ -17,7 +17,7 @@ import fabkit
 from fabkit import TemplateError, load_template
 from fabkit.cli import main
 from fabkit.commands.templates import template_files
-from fabkit.io.templates import (bundled_folder, bundled_names, bundled_template, is_template_name,
+from fabkit.templates import (bundled_folder, bundled_names, bundled_template, is_template_name,
                               resolve_template)
 
 from conftest import TEMPLATES

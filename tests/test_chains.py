@@ -14,7 +14,7 @@ from fabkit.design.assemble import chain
 from fabkit.errors import ConstructionError
 from fabkit.kinematics import place, plan_construction
 from fabkit.model.rigidity import count_modes, self_stresses
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 
 from conftest import TEMPLATES
 
@@ -367,7 +367,7 @@ def test_motion_gif_frames_read_back():
     from PIL import Image
     import io
 
-    from fabkit.report.animate import motion_gif
+    from fabkit.plots.animate import motion_gif
 
     traj = load("fourbar_chain").trace(method="constructive", samples=30)
     data = motion_gif(traj, frames=12, fps=10)
@@ -379,9 +379,9 @@ def test_motion_gif_frames_read_back():
 
 
 def test_sequence_and_junction_figures():
-    from fabkit.report.animate import (collapse_order, collapse_profile, junction_figure,
+    from fabkit.plots.animate import (collapse_order, collapse_profile, junction_figure,
                                        sequence_figure)
-    from fabkit.report.viz import figure_png
+    from fabkit.plots.viz import figure_png
 
     values, d = soliton_distances(12, n_values=200, closest=1e-8)
     profile = collapse_profile(d, SQRT3, D2_SUPER_STABLE)

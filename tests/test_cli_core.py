@@ -156,7 +156,7 @@ def test_no_decision_reads_message_text():
 def test_motion_failures_are_typed(stem, cls, key, status):
     from fabkit import errors
     from fabkit.pipeline import traced_motion
-    from fabkit.io.templates import load_template
+    from fabkit.templates import load_template
 
     design = load_template(Path(__file__).resolve().parent / "bad_templates" / f"{stem}.toml")
     with pytest.raises(errors.MotionError) as info:

@@ -91,7 +91,7 @@ def test_a_bad_setting_is_one_line_and_exit_2(argv, line, tmp_path, monkeypatch,
 
 
 def test_design_builds_and_template_take_the_settings(tmp_path, capsys):
-    from fabkit.io.templates import load_template
+    from fabkit.templates import load_template
     from fabkit.tolerance import tolerance_spec
 
     out = tmp_path / "d"

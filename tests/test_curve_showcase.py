@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 import fabkit
 from fabkit.cli import main
 from fabkit.design.letters import chain_centerline
-from fabkit.io.templates import bundled_folder
+from fabkit.templates import bundled_folder
 
 CURVES = bundled_folder() / "curves"
 

@@ -13,7 +13,7 @@ from fabkit.design.solution_space import (SolutionSpace, design_module, displace
                                           velocity_space)
 from fabkit.errors import DesignError, TemplateError
 from fabkit.maps import module_map
-from fabkit.io.templates import load_template, parse_template
+from fabkit.templates import load_template, parse_template
 
 SQRT3 = math.sqrt(3.0)
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"

@@ -34,7 +34,7 @@ SOURCE = textwrap.dedent('''
     import signal
 
     from fabkit.executor import report
-    from fabkit.pipeline.stoppable import StepLimitError
+    from fabkit.stoppable import StepLimitError
 
 
     def die():

@@ -21,7 +21,7 @@ from fabkit.pipeline import Outcome, export_many
 from fabkit.commands.export import parse_formats
 from fabkit.commands.settings import parse_settings
 from fabkit.errors import UsageError
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"

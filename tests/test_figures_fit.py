@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import fabkit
 from fabkit.tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
-from fabkit.report.viz import clipped_texts, figure_kit
+from fabkit.plots.viz import clipped_texts, figure_kit
 
 from conftest import TEMPLATES
 
@@ -31,7 +31,7 @@ def test_the_tolerance_picture_keeps_a_long_verdict_inside():
 
 
 def test_the_map_axes_say_input_and_output_not_inches():
-    from fabkit.report.mapplots import map_figure
+    from fabkit.plots.mapplots import map_figure
 
     design = fabkit.load_template(TEMPLATES / "super_stable.toml")
     fig = map_figure(fabkit.module_map(design.network, d_in="d1", d_out="d2"))
@@ -46,7 +46,7 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
     at the same ticks, without math text."""
     from matplotlib.ticker import LogFormatterSciNotation
 
-    from fabkit.report.viz import plain_log_ticks
+    from fabkit.plots.viz import plain_log_ticks
 
     fig, ax = figure_kit.subplots()
     ax.semilogy([0, 1], [6e-16, 3e-15])
@@ -71,7 +71,7 @@ def test_log_axes_are_labelled_as_matplotlib_labels_them_in_plain_text():
 
 
 def test_layout_faults_finds_labels_cut_off_and_axes_that_run_into_each_other():
-    from fabkit.report.viz import _draw_fitted, layout_faults, set_margins
+    from fabkit.plots.viz import _draw_fitted, layout_faults, set_margins
 
     fig, (a, b) = figure_kit.subplots(1, 2, figsize=(6, 3))
     a.set_title("left")
@@ -98,7 +98,7 @@ def test_layout_faults_finds_labels_cut_off_and_axes_that_run_into_each_other():
 
 
 def test_set_margins_gives_the_gaps_in_inches():
-    from fabkit.report.viz import set_margins
+    from fabkit.plots.viz import set_margins
 
     fig, axes = figure_kit.subplots(2, 3, figsize=(10, 6))
     set_margins(fig, left=0.7, right=0.3, bottom=0.5, top=0.4, gap=0.8)
@@ -115,7 +115,7 @@ def test_the_export_figures_fit_their_fixed_margins_without_a_second_layout():
     designs with long titles, log axes and multi-line verdicts nothing is cut off or overlaps,
     so figure_png draws each once."""
     from fabkit.pipeline.motion import map_figure, traced_motion
-    from fabkit.report.viz import layout_faults, motion_figure
+    from fabkit.plots.viz import layout_faults, motion_figure
 
     for name in ("super_stable_chain", "fourbar", "period_two_chain16"):
         design = fabkit.load_template(TEMPLATES / f"{name}.toml")
@@ -138,7 +138,7 @@ def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
     import numpy as np
     from PIL import Image
 
-    from fabkit.report.viz import figure_png, set_margins
+    from fabkit.plots.viz import figure_png, set_margins
 
     fig, ax = figure_kit.subplots(figsize=(3, 2))
     ax.plot([0, 1], [0, 1], color="C3")

@@ -2,7 +2,7 @@
 
 A notebook or an application that uses fabkit keeps the matplotlib it set up: fabkit never
 calls ``matplotlib.use`` nor imports pyplot (whose import picks a backend and keeps a list of
-open figures); each picture gets its own Agg canvas (:data:`fabkit.report.viz.figure_kit`).
+open figures); each picture gets its own Agg canvas (:data:`fabkit.plots.viz.figure_kit`).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Each mutant is a real file changed the way damaged and hostile files are: number
 extremes (1e300, nan, 10^23, text), attributes removed, elements repeated up to thousands of
 times, files cut short, bytes flipped, transforms and DTDs added. Every mutant is read as the
 command line reads it, in a child process held to its work estimate
-(:mod:`fabkit.pipeline.stoppable`: CPU seconds and memory from the estimate), and must end in a
+(:mod:`fabkit.stoppable`: CPU seconds and memory from the estimate), and must end in a
 result or a fabkit error: no internal error (what the command line reports with exit status 70),
 and no run stopped at its limits. The mutants come from fixed seeds: a failure names the seed that makes it again.
 """
@@ -27,7 +27,7 @@ from fabkit.cli import main
 from fabkit.design import read_curve
 from fabkit.design.curve_files import svg_work
 from fabkit.errors import FabkitError
-from fabkit.pipeline.stoppable import StepLimitError, keep_to, run_stoppable
+from fabkit.stoppable import StepLimitError, keep_to, run_stoppable
 from fabkit.io.workload import require
 
 MUTANTS = 500
@@ -208,7 +208,7 @@ def prints(tmp_path_factory):
     rc = main(["export", "fourbar", "printed_planar", "--to", "stl", "-o", str(out),
                "--tolerance-samples", "0", "--no-previews", "-q"])
     assert rc == 0
-    from fabkit.io.templates import load_template
+    from fabkit.templates import load_template
 
     return {name: ((out / name / f"{name}.3mf").read_bytes(), load_template(name))
             for name in ("fourbar", "printed_planar")}

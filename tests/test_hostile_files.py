@@ -228,7 +228,7 @@ def test_a_signal_ends_a_check_inside_geos(signum, tmp_path):
 
 
 def test_a_check_that_runs_past_its_estimate_is_stopped(tmp_path, monkeypatch, capsys):
-    import fabkit.pipeline.stoppable as stoppable
+    import fabkit.stoppable as stoppable
 
     # the CPU time allowed is four times the estimate and at least a minute; lowered here so
     # that the test needs a few seconds: the same kernel limit (RLIMIT_CPU) stops it either way
@@ -322,7 +322,7 @@ def test_a_fifo_given_as_input_is_refused_not_waited_on(command, tmp_path, capsy
 # --- templates: references and samples ------------------------------------------------------
 
 def test_a_sheet_named_by_many_spellings_is_read_once(tmp_path, monkeypatch, capsys):
-    import fabkit.io.templates as templates
+    import fabkit.templates as templates
 
     (tmp_path / "sheet.toml").write_text('[chain]\nmodule = "fourbar"\ncopies = 2000\n')
     wrapper = (TEMPLATES / "fourbar.toml").read_text().replace('name = "fourbar"', "")

@@ -158,7 +158,7 @@ def test_the_installed_package_runs_from_another_folder(dist, deps, tmp_path, ki
     # the Python API, from the installed files
     api = _run([python, "-c", (
         "import importlib.metadata as md, importlib.resources as r, fabkit\n"
-        "from fabkit.io.templates import bundled_folder\n"
+        "from fabkit.templates import bundled_folder\n"
         "d = fabkit.load_template('fourbar')\n"
         "print(fabkit.__file__, bundled_folder(), d.path, d.network.n_nodes, sep='\\n')\n"
         "print(md.version('fabkit'), fabkit.__version__, r.files('fabkit').joinpath('py.typed')"

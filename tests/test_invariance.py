@@ -25,7 +25,7 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 import fabkit
 from design_variants import VARIANTS
-from fabkit.io.templates import bundled_names
+from fabkit.templates import bundled_names
 from fabkit.tolerance import analyse_tolerance, tolerance_spec
 
 #: The builds the paper photographs working (Fig. 5), a chaotic chain and the AND gate.

@@ -14,7 +14,7 @@ from fabkit.fab.layers import (Sweep, find_conflicts, plan_layers, point_segment
                                sample_motion, segment_distance, stacking_gaps)
 from fabkit.fab.nest import REFERENCE_SIZE, make_parts, nest_parts
 from fabkit.fab.bars import bar_set
-from fabkit.io.templates import Motion
+from fabkit.templates import Motion
 
 from conftest import TEMPLATES
 

@@ -210,7 +210,7 @@ def test_labeller_counts_overlapping_labels_as_matplotlib_measures_them():
     """Labels placed never overlap; ``overlaps`` counts the pairs whose drawn boxes meet, as
     matplotlib's Bbox.overlaps does, when labels are forced on top of each other."""
     from fabkit.fab.guide.draw import Labeller
-    from fabkit.report.viz import figure_kit
+    from fabkit.plots.viz import figure_kit
 
     fig, ax = figure_kit.subplots(figsize=(4, 4))
     ax.set_xlim(0, 100)
@@ -406,7 +406,7 @@ def test_a_long_motion_table_continues_and_its_pictures_get_a_page(chain):
     assert len(rows) == 210
     # the old layout: the pictures in what was left below three columns of 70 rows
     from fabkit.fab.guide.draw import row_axes
-    from fabkit.report.viz import figure_kit
+    from fabkit.plots.viz import figure_kit
 
     fig = figure_kit.figure(figsize=(8.27, 11.69))
     with pytest.raises(ValueError, match="positive scale"):

@@ -11,7 +11,7 @@ from fabkit.export import export
 from fabkit.fab.bars import bar_set
 from fabkit.fab.hardware import CATALOGUE, choose_length, screw_spec
 from fabkit.fab.laser import laser_settings
-from fabkit.io.templates import parse_template
+from fabkit.templates import parse_template
 
 from conftest import TEMPLATES
 

@@ -21,7 +21,7 @@ LAYERS = {
     "executor": 0,
     "io": 0,
     "io.outputs": 0,
-    "pipeline.stoppable": 0,
+    "stoppable": 0,
     "io.inputs": 0,
     "io.workload": 0,
     "io.schema": 0,
@@ -41,13 +41,14 @@ LAYERS = {
     "design.solution_space": 4,
     "design.assemble": 5,
     "design.letters": 5,
-    "io.templates": 6,
+    "templates": 6,
     "design": 6,
     "report": 7,
-    "report.viz": 7,
-    "report.animate": 7,
-    "report.mapplots": 7,
-    "report.designplots": 7,
+    "plots": 7,
+    "plots.viz": 7,
+    "plots.animate": 7,
+    "plots.mapplots": 7,
+    "plots.designplots": 7,
     "fab": 8,
     "motion": 8,
     "tolerance": 8,
@@ -67,7 +68,7 @@ LAYERS = {
 #: layers that take template paths from a user (the command line, the batch engine behind
 #: ``fabkit export``, sweeps, and the studies, which load the paper's bundled modules). Every
 #: other stage gets a loaded Design, with the templates it refers to in ``Design.references``.
-TEMPLATE_READERS = {"io.templates", "commands", "cli", "pipeline", "sweep", "bench"}
+TEMPLATE_READERS = {"templates", "commands", "cli", "pipeline", "sweep", "bench"}
 
 
 def _module_name(path: Path) -> str:
@@ -150,7 +151,7 @@ def test_only_the_template_reader_reads_templates(path):
                if (target.endswith("templates") and "load_template" in names)
                or (target == "fabkit" and "load_template" in names)]
     assert not readers, (f"{path.relative_to(ROOT.parent)} imports load_template at lines "
-                         f"{readers}: referenced templates are resolved by fabkit.io.templates")
+                         f"{readers}: referenced templates are resolved by fabkit.templates")
 
 
 def test_the_walk_sees_imports_inside_functions():

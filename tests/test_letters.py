@@ -15,7 +15,7 @@ from fabkit.errors import DesignError, FabkitError
 from fabkit.design.letters import (GLYPHS, chain_centerline, curvature_modules, design_curve,
                             design_word, glyph, polyline_distance, strip_model)
 from fabkit.model.rigidity import count_modes
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 
 from conftest import TEMPLATES
 

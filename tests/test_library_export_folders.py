@@ -7,7 +7,7 @@ import pytest
 from fabkit.errors import LockedError, OutputError
 from fabkit.export import export
 from fabkit.io.outputs import LOCK_NAME, OutputLock
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 from fabkit.pipeline import export_many
 
 from conftest import TEMPLATES

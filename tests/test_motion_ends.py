@@ -11,7 +11,7 @@ import pytest
 
 from fabkit.cli import main
 from fabkit.motion import MotionStatus, trace_motion
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 
 from conftest import TEMPLATES
 

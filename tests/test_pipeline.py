@@ -14,7 +14,7 @@ import pytest
 import fabkit
 import fabkit.kinematics.tracer as tracer
 from fabkit.pipeline import export_one
-from fabkit.io.templates import Design, load_template
+from fabkit.templates import Design, load_template
 
 from conftest import TEMPLATES
 

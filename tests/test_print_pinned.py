@@ -398,7 +398,7 @@ def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     """The preview's fixed layout leaves room for every tick label, bed title and the heading
     (wrapped to the figure's width: on one bed it ran off both edges)."""
     from fabkit.export.pinned import preview_figure
-    from fabkit.report.viz import clipped_texts
+    from fabkit.plots.viz import clipped_texts
 
     design = fabkit.load_template(TEMPLATES / f"{name}.toml")
     plan = pinned_print(design, design_print_settings(design, None))

@@ -258,7 +258,7 @@ def test_every_move_of_a_print_lies_on_the_bed(name, tmp_path_factory):
 def test_every_bundled_print_slices_with_every_move_on_the_bed(tmp_path_factory):
     """Every bundled design that exports a print (STL and 3MF beds, on its printer's bed)."""
     from fabkit.errors import FabricationError
-    from fabkit.io.templates import bundled_names
+    from fabkit.templates import bundled_names
 
     sliced = 0
     for name in bundled_names():

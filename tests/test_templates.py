@@ -5,7 +5,7 @@ import pytest
 
 import fabkit
 from fabkit import TemplateError, load_template
-from fabkit.io.templates import parse_template
+from fabkit.templates import parse_template
 
 from conftest import TEMPLATES
 

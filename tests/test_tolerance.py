@@ -13,7 +13,7 @@ import pytest
 
 from fabkit.cli import main
 from fabkit.errors import TemplateError
-from fabkit.io.templates import load_template, parse_template
+from fabkit.templates import load_template, parse_template
 from fabkit.tolerance.processes import ProcessGeometry, sample_builds
 from fabkit.tolerance import (
     ToleranceSpec,

@@ -17,7 +17,7 @@ from fabkit.maps import module_map
 from fabkit.numerics import project_to_lengths
 from fabkit.report.text import tolerance_markdown
 from fabkit.report.html import keep_chart_svg
-from fabkit.io.templates import load_template, parse_template
+from fabkit.templates import load_template, parse_template
 from fabkit.tolerance import ToleranceSpec, analyse_tolerance, tolerance_spec
 from fabkit.tolerance.criteria import profile_order
 from fabkit.tolerance.processes import (ProcessGeometry, joint_turns, sample_builds,

@@ -12,7 +12,7 @@ import pytest
 
 from fabkit.errors import TemplateError
 from fabkit.kinematics import make_problem, place
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 from fabkit.tolerance import ToleranceSpec, analyse_tolerance, design_process, tolerance_spec
 from fabkit.tolerance.placement import find_plan, _place_builds
 from fabkit.tolerance.processes import ProcessGeometry, sample_lengths

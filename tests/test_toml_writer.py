@@ -14,7 +14,7 @@ import pytest
 from fabkit.design.curvature import design_curvature_type
 from fabkit.design.toml_text import curvature_template
 from fabkit.errors import FabkitError
-from fabkit.io.templates import load_template
+from fabkit.templates import load_template
 from fabkit.io.toml_writer import TomlDocument, toml_key, toml_value
 
 HOSTILE = ['two\nlines', 'say "hi"', "back\\slash", "tab\there", "ünïcødé ✓ 曲率", "#not a comment",

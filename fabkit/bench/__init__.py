@@ -48,7 +48,7 @@ def paper_module(name: str, nodes=None) -> Network:
     >>> net.n_nodes, round(float(net.port_distance("d1")), 12)
     (4, 2.0)
     """
-    from ..io.templates import bundled_template, load_template
+    from ..templates import bundled_template, load_template
 
     net = load_template(bundled_template(name)).network
     return net if nodes is None else net.with_nodes(np.asarray(nodes, dtype=np.float64))

@@ -25,11 +25,11 @@ import numpy as np
 
 from ..design.assemble import chain, tessellate
 from ..errors import FabkitError
-from ..io.templates import bundled_folder, bundled_template
+from ..templates import bundled_folder, bundled_template
 from ..io.toml_writer import TomlDocument
 from ..kinematics import trace
 from ..model.rigidity import count_modes, SPARSE_FROM
-from ..report.viz import figure_kit
+from ..plots.viz import figure_kit
 from . import child_cpu_seconds, clock_text, paper_module
 from .workprecision import (BUDGET_SLACK, default_chain_target, fit_exponent, run_budgeted,
                             SKIPPED, STOPPED, timing, WALL_FACTOR)
@@ -311,7 +311,7 @@ def bundled_modules() -> list[str]:
     :func:`fabkit.chain` chains port to port. (The origami sheet is joined by three corners,
     :func:`fabkit.fab.creases.chains.sheet_chain`; chained by its d2/d1 pair alone each join is
     a hinge, a network of a thousand motions at its flat state.)"""
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     names = []
     for path in sorted(bundled_folder().glob("*.toml")):

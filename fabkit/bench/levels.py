@@ -27,8 +27,8 @@ import numpy as np
 from ..builds.assembly import assemble, bar_stress
 from ..builds.closure import play_ratio, play_ratio_sparse, self_stress_basis
 from ..builds.materials import bar_stiffness, MATERIALS
-from ..io.templates import load_template
-from ..report.viz import figure_kit, set_margins
+from ..templates import load_template
+from ..plots.viz import figure_kit, set_margins
 from . import clock_text, own_cpu_seconds
 from .large import dense_svd_seconds, lattice
 from .workprecision import run_budgeted, STOPPED

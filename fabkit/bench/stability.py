@@ -25,7 +25,7 @@ from ..design.assemble import branch, chain
 from ..errors import FabkitError
 from ..kinematics import align_to_gauge, METHODS, place, trace
 from ..model.rigidity import count_modes
-from ..report.viz import figure_kit
+from ..plots.viz import figure_kit
 from . import ModuleMap, paper_module
 from .workprecision import collapsed_fixed_point
 

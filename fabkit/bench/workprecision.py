@@ -33,7 +33,7 @@ import numpy as np
 from ..design.assemble import chain
 from ..kinematics import trace
 from ..kinematics.rk4_nullspace import conformational_velocity
-from ..report.viz import figure_kit
+from ..plots.viz import figure_kit
 from . import ModuleMap, own_cpu_seconds, paper_module, single_thread_blas
 
 __all__ = [

@@ -34,7 +34,7 @@ from scipy.optimize import linprog
 from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError
 from ..model.matrix import rigidity_matrix
-from ..model.network import Network
+from ..model.network import checked_network, Network
 from ..numerics import RANK_RTOL
 
 __all__ = ["PortSlop", "port_slop", "MAX_AMPLIFICATION"]
@@ -183,7 +183,7 @@ def port_slop(net: Network, positions, room, *, held=(), ports=None) -> list[Por
     >>> [(s.port, s.largest, s.bounded) for s in port_slop(net, net.nodes, 0.1)]
     [('d1', inf, False), ('d2', inf, False)]
     """
-    arguments.network("net", net)
+    checked_network("net", net)
     x = arguments.positions("positions", positions, net)
     c = _checked_room(room, net)
     held_pairs = _checked_pairs("held", held, x)

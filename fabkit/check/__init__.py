@@ -73,8 +73,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
 
 def require_checked(where: str, *parts):
     """Estimate the work of a check from counts read in the file, refuse it past the bounds,
-    and hold the check to it (:func:`fabkit.pipeline.stoppable.keep_to`); returns the estimate."""
-    from ..pipeline.stoppable import keep_to
+    and hold the check to it (:func:`fabkit.stoppable.keep_to`); returns the estimate."""
+    from ..stoppable import keep_to
 
     est = require(where, *parts)
     keep_to(est)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from ..errors import BoundsError, FabkitError, InputFileError, UsageError
 from ..io.outputs import output_folder
-from ..io.templates import allow_large, resolve_template
+from ..templates import allow_large, resolve_template
 from .progress import Progress
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
@@ -124,7 +124,7 @@ def progress_for(args, command: str):
 def expand_templates(paths) -> list[Path]:
     """Template files named by files, folders (their ``*.toml``), glob patterns and names of
     bundled templates (``fourbar``; a file of that name in the current folder wins, see
-    :func:`fabkit.io.templates.resolve_template`), in order."""
+    :func:`fabkit.templates.resolve_template`), in order."""
     import glob
 
     out: list[Path] = []

@@ -23,7 +23,7 @@ from ..bench.stability import stability_table
 from ..bench.workprecision import chain_problem, fit_exponent, measure, rk4_estimate
 from ..errors import UsageError
 from ..io.outputs import inside, write_files
-from ..report.viz import figure_png
+from ..plots.viz import figure_png
 from . import add_out_dir, add_progress_options, check_count, check_number, Example, progress_for
 
 NAME = "bench"

@@ -60,8 +60,8 @@ def run(args) -> int:
     import json
     from pathlib import Path
 
-    from ..pipeline.stoppable import run_stoppable
-    from ..io.templates import load_template, with_settings
+    from ..stoppable import run_stoppable
+    from ..templates import load_template, with_settings
 
     settings = parse_settings(args.settings)
     if settings:  # a section no check of these files reads would be accepted without effect

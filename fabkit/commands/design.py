@@ -16,11 +16,11 @@ from ..errors import BoundsError, brief, InputFileError, UnsafeNameError, UsageE
 from ..numerics import printed, printed_residual
 from ..io.inputs import read_regular
 from ..io.outputs import check_name, write_files as write_all
-from ..io.templates import bundled_folder
+from ..templates import bundled_folder
 from ..io.toml_writer import TomlDocument
 from ..io.workload import require
-from ..report.designplots import curve_design_figure, module_design_figure
-from ..report.viz import figure_png
+from ..plots.designplots import curve_design_figure, module_design_figure
+from ..plots.viz import figure_png
 from . import add_out_dir, add_progress_options, add_settings, Example, progress_for
 from .settings import read_settings
 
@@ -172,10 +172,10 @@ def _read_curve_file(path: str):
 
 def _check_curve_size(curve, module_size: float) -> None:
     """The drawing, at its scale, is within reach of a chain: finite, and at most
-    :data:`fabkit.io.templates.MAX_MODULES` modules long (before any design work)."""
+    :data:`fabkit.templates.MAX_MODULES` modules long (before any design work)."""
     import numpy as np
 
-    from ..io.templates import MAX_MODULES, allow_large
+    from ..templates import MAX_MODULES, allow_large
 
     if not np.isfinite(curve.points).all() or not np.isfinite(curve.length):
         raise UsageError("--curve-scale", "makes the curve's coordinates overflow; give a "

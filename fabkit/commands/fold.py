@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
-from ..io.templates import with_settings
+from ..templates import with_settings
 from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
                Example, progress_for)
 from .settings import read_settings
@@ -83,7 +83,7 @@ def run(args) -> int:
     # the origami model is imported here, not at the top: it brings the settings schema
     # (pydantic), which `fabkit fold --help` does without
     from ..fab.creases import fold_model, origami_model
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     if args.branch is not None and args.branch < 0:
         raise UsageError("--branch", f"must be 0 or more, got {args.branch}")

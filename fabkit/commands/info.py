@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import ConstructionError
-from ..io.templates import with_settings
+from ..templates import with_settings
 from ..kinematics.constructive import cached_plan
 from ..model.rigidity import count_modes
 from . import (add_progress_options, add_settings, Example, expand_templates, progress_for,
@@ -77,7 +77,7 @@ def describe(design, rank_method: str = "auto") -> str:
 
 
 def run(args) -> int:
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     settings = read_settings(args, {"motion": None}, "info reads motion settings only")
     found = expand_templates(args.templates)

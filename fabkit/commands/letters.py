@@ -12,9 +12,9 @@ from ..design.letters import (chain_centerline, curvature_modules, design_word, 
                               letter_template, polyline_distance)
 from ..errors import FabkitError, UsageError
 from ..io.outputs import write_files
-from ..io.templates import with_settings
+from ..templates import with_settings
 from ..kinematics import trace
-from ..report.viz import draw_network, figure_kit, figure_png
+from ..plots.viz import draw_network, figure_kit, figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number, Example,
                progress_for)
 from .settings import read_settings
@@ -57,7 +57,7 @@ def _module_folder(arg) -> Path:
     if arg is not None:
         folder = Path(arg)
     else:
-        from ..io.templates import bundled_folder
+        from ..templates import bundled_folder
 
         folder = bundled_folder()
     missing = [f for f in MODULE_FILES.values() if not (folder / f).is_file()]
@@ -134,7 +134,7 @@ MAX_BEAM = 5_000
 
 
 def run(args) -> int:
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     word = args.word
     if not word:

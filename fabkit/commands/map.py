@@ -12,7 +12,7 @@ from ..io.outputs import inside, write_files
 from ..io.workload import require
 from ..kinematics import Status
 from ..numerics import DOMAIN_RTOL
-from ..report.viz import figure_png
+from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
 from .progress import Progress
@@ -138,7 +138,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                progress=None) -> dict:
     """Compute everything for one template and write its files; returns the summary.
     ``progress``: a :class:`~fabkit.commands.progress.Progress` told each stage."""
-    from ..report.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
+    from ..plots.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
@@ -215,7 +215,7 @@ def _json_default(o):
 
 
 def run(args) -> int:
-    from ..io.templates import load_template, with_settings
+    from ..templates import load_template, with_settings
 
     if args.steps < 1:
         raise UsageError("--steps", f"must be at least 1, got {args.steps}")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ..errors import SettingsError, UsageError
 from ..export import check_export_settings
-from ..io.templates import tomllib
+from ..templates import tomllib
 
 
 def parse_settings(items) -> dict:

@@ -14,7 +14,7 @@ from ..io.suggest import did_you_mean
 from ..kinematics import METHODS, Status
 from ..motion import judge_ends
 from ..motion.spread import module_spread, shape_missed
-from ..report.viz import elastic_figure, figure_png, motion_figure
+from ..plots.viz import elastic_figure, figure_png, motion_figure
 from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number,
                each_template, Example, progress_for)
 from .settings import read_settings
@@ -114,7 +114,7 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
     files = {"trajectory.npz": trajectory_npz(traj),
              "motion.png": figure_png(motion_figure(traj, title=design.name))}
     if gif:
-        from ..report.animate import motion_gif
+        from ..plots.animate import motion_gif
 
         say(f"{design.name}: animating motion.gif")
         files["motion.gif"] = motion_gif(traj)
@@ -136,7 +136,7 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
 
 
 def run(args) -> int:
-    from ..io.templates import load_template, with_settings
+    from ..templates import load_template, with_settings
 
     valid = ["auto", *METHODS]
     if args.method is not None and args.method not in valid:

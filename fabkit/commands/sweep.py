@@ -128,7 +128,7 @@ def _with_target(design, settings, axes):
 
 def run(args) -> int:
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     settings = read_settings(args, {"motion": {"to"}}, "sweep reads motion.to only (the branch "
                                                        "measured, the target of a traced motion)")

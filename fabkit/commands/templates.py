@@ -11,7 +11,7 @@ from pathlib import Path
 from ..errors import FabkitError, OutputError, UsageError
 from ..io.outputs import write_files
 from ..io.suggest import did_you_mean
-from ..io.templates import bundled_folder, bundled_names, is_template_name, resolve_template
+from ..templates import bundled_folder, bundled_names, is_template_name, resolve_template
 from . import add_out_dir, check_output_folder, Example
 
 NAME = "templates"
@@ -30,7 +30,7 @@ EXAMPLES = [
 
 def template_line(path: Path, width: int = 28) -> str:
     """``name  [figure]  description`` for a template; the reason instead when it is invalid."""
-    from ..io.templates import load_template
+    from ..templates import load_template
 
     try:
         design = load_template(path)
@@ -69,7 +69,7 @@ def template_files(name: str) -> dict[str, Path]:
         A referenced template lies outside the bundled folder (it could not be copied with the
         same relative path).
     """
-    from ..io.templates import bundled_folder, bundled_template, load_template
+    from ..templates import bundled_folder, bundled_template, load_template
 
     try:
         path = bundled_template(name)

@@ -20,7 +20,7 @@ from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
 from ..numerics import printed
 from ..report.text import report_json
-from ..report.viz import figure_png
+from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
@@ -127,7 +127,7 @@ def describe(result) -> str:
 
 
 def run(args) -> int:
-    from ..io.templates import load_template, with_settings
+    from ..templates import load_template, with_settings
     from ..tolerance import (analyse_tolerance, design_process, refuse_foreign,
                              tolerance_figure, tolerance_spec)
     from ..pipeline import traced_motion

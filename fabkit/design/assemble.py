@@ -29,7 +29,7 @@ from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError, FabkitError, KinematicsError
 from ..io.workload import require
 from ..kinematics.constructive import place, plan_construction
-from ..model.network import Assembly, ChainPorts, Network
+from ..model.network import Assembly, ChainPorts, checked_network, Network
 from ..numerics import DOMAIN_RTOL, rigid_fit, TINY
 
 __all__ = [
@@ -383,7 +383,7 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
         if not base:
             raise ArgumentValueError("modules", "must hold at least one module")
         for c, m in enumerate(base):
-            arguments.network(f"modules[{c}]", m)
+            checked_network(f"modules[{c}]", m)
     else:
         raise ArgumentTypeError("modules", "must be a fabkit.Network or a list of them, got "
                                            f"{type(modules).__name__}")
@@ -663,7 +663,7 @@ def tessellate(module: Network, shape: tuple[int, int], *, x_join: tuple[str, st
     >>> net.n_nodes, net.n_edges
     (12, 17)
     """
-    arguments.network("module", module)
+    checked_network("module", module)
     if module.dim != 2:
         raise FabkitError("tessellate works on 2D modules")
     if not isinstance(shape, (list, tuple)) or len(shape) != 2:

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DesignError, FabkitError
-from ..io.templates import parse_template
+from ..templates import parse_template
 from ..kinematics import trace
 from ..model.network import Network
 from .assemble import chain

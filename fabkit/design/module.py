@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import DesignError, FabkitError
-from ..io.templates import parse_template
+from ..templates import parse_template
 from ..model.network import Network
 from ..numerics import TINY
 from .branch import branch_margins, MIN_BRANCH_MARGIN, on_branch

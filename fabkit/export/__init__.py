@@ -16,7 +16,7 @@ from pathlib import Path
 
 from ..errors import ArgumentTypeError, FabkitError, OutputError
 from ..io.outputs import LOCK_NAME, output_folder, OutputLock, write_atomic, write_files
-from ..io.templates import Design
+from ..templates import Design
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
            "write_outputs", "export", "check_export_settings"]

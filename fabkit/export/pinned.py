@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import FabricationError
 from ..fab.slicer import slicer_settings
 from ..numerics import MM_SLACK
-from ..report.viz import figure_kit
+from ..plots.viz import figure_kit
 from . import ExportResult
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
@@ -288,7 +288,7 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
         if s.threemf:
             files[mf_names[b]] = _threemf(objects, slicer, design.name)
     if s.preview:
-        from ..report.viz import figure_png
+        from ..plots.viz import figure_png
 
         files[f"{name}_print.png"] = figure_png(preview_figure(plan, design.name))
     volumes = plan.volumes

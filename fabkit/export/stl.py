@@ -38,7 +38,7 @@ from ..fab.slicer import slicer_settings
 from ..model.network import Network
 from ..motion import motion_for, MotionStatus
 from ..numerics import MM_SLACK
-from ..report.viz import figure_kit, figure_png
+from ..plots.viz import figure_kit, figure_png
 from . import ExportResult
 from .pinned import bed_file_names
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
@@ -250,7 +250,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
 
     Parameters
     ----------
-    design : fabkit.io.templates.Design
+    design : fabkit.templates.Design
         A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
         linkage), as ``linkage`` says.
     settings : dict, optional

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError, KinematicsError, SettingsError
-from ..model.network import Network
+from ..model.network import checked_network, Network
 from ..numerics import rigid_fit, START_RTOL, TARGET_AT_TURN_RTOL, TINY
 from .record import edge_errors, keep_rule, Record, record_positions
 from .trajectory import Event, EventKind, Status, Trajectory
@@ -298,7 +298,7 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
                  keep="all") -> Problem:
     """Validate a tracing request and build the :class:`Problem` every method solves."""
     keep = keep_rule(keep)
-    arguments.network("net", net)
+    checked_network("net", net)
     pair, name = _resolve_port(net, drive)
     target = arguments.real("to", to, positive=True)
     # No two nodes are farther apart than the length of all bars: a target beyond that is traced

@@ -10,7 +10,7 @@ from scipy.optimize import brentq
 from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
 from ..kinematics import place, plan_construction
-from ..model.network import Network
+from ..model.network import checked_network, Network
 from ..numerics import DOMAIN_RTOL, FLAT_RTOL, TINY
 from .evaluate import Constructive2D, ConstructiveGeneral, port_pair
 from .map1d import Map1D
@@ -171,7 +171,7 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
     >>> round(f(2.5), 12), round(f.derivative(2.5), 12)
     (1.6, -0.64)
     """
-    arguments.network("net", net)
+    checked_network("net", net)
     if toward is not None:
         toward = arguments.real("toward", toward, positive=True)
     if branch is not None:

@@ -12,9 +12,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from ..errors import NetworkError
+from ..errors import ArgumentTypeError, NetworkError
 
-__all__ = ["Network", "Assembly"]
+__all__ = ["Network", "Assembly", "checked_network"]
 
 # Edges shorter than this fraction of the network's size are treated as zero-length.
 _ZERO_LENGTH_RTOL = 1e-12
@@ -447,3 +447,12 @@ class Network:
     def __repr__(self) -> str:
         ports = ", ".join(f"{k}={v}" for k, v in self.ports.items())
         return f"Network(dim={self.dim}, nodes={self.n_nodes}, edges={self.n_edges}, ports=[{ports}])"
+
+
+def checked_network(name: str, value) -> Network:
+    """``value`` when it is a :class:`Network`; else an
+    :class:`~fabkit.errors.ArgumentTypeError` naming the argument ``name``."""
+    if not isinstance(value, Network):
+        kind = "None" if value is None else type(value).__name__
+        raise ArgumentTypeError(name, f"must be a fabkit.Network, got {kind}")
+    return value

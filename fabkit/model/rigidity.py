@@ -22,7 +22,7 @@ import threadpoolctl
 
 from .. import arguments
 from ..errors import ConstructionError
-from .network import Network
+from .network import checked_network, Network
 from ..numerics import RANK_RTOL
 from .certificate import Uncertified, certify
 from .matrix import (AMBIGUOUS_GAP, Undecided, available_memory, orthonormal, rank_dense,
@@ -421,7 +421,7 @@ def count_modes(net: Network, positions=None, *, rtol: float = RANK_RTOL,
     >>> (m.total, m.rigid, m.conformational, m.self_stress, m.certificate)
     (3, 3, 0, 0, 'structure')
     """
-    arguments.network("net", net)
+    checked_network("net", net)
     arguments.choice("method", method, ("auto", "structure", "dense", "sparse"))
     if positions is not None:
         return _count_modes(net, arguments.positions("positions", positions, net), rtol, method)

@@ -148,7 +148,7 @@ def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
 
     Examples
     --------
-    >>> from fabkit.io.templates import load_template
+    >>> from fabkit.templates import load_template
     >>> run = elastic_motion(load_template("fourbar"), steps=5)
     >>> run.process, bool(run.motion.closes.all()), float(run.motion.peak_stress.max()) < 1e-6
     ('laser', True, True)

@@ -17,7 +17,7 @@ from enum import Enum
 
 from ..errors import ArgumentValueError, FabkitError, MotionError, SingularStartError
 from ..fab.window import motion_window
-from ..io.templates import BUILDERS
+from ..templates import BUILDERS
 from ..kinematics import Status
 from ..model.rigidity import count_modes
 from .spread import module_spread, shape_missed

@@ -33,7 +33,7 @@ What it guarantees:
   :attr:`DesignResult.worker_exit`), leaves no file, and is replaced while designs remain.
 - **Bounds before work.** Sizes that would not finish (Monte Carlo samples) are refused before any
   worker starts (:class:`~fabkit.errors.BoundsError`); template sizes are bounded when the template
-  is loaded (:mod:`fabkit.io.templates`).
+  is loaded (:mod:`fabkit.templates`).
 - **Progress.** :func:`export_many` tells a ``progress`` object (``stage(name, stage)`` as a
   design starts a stage, ``finished(result)`` as it ends, ``close()``) and says nothing itself;
   the command line's :class:`~fabkit.commands.export.DesignProgress` puts it into the one
@@ -48,7 +48,7 @@ from ..errors import BoundsError, FabkitError, UsageError
 from ..export import check_export_settings
 from ..io.outputs import OutputLock
 from ..io.schema import refuse_unused
-from ..io.templates import allow_large as large_allowed
+from ..templates import allow_large as large_allowed
 from ..report.html import write_index
 from ..tolerance import key_process, made_process
 from .design import export_one
@@ -180,7 +180,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     Designs with the same name would share a folder: the later ones fail instead.
     """
     from ..export import EXPORTERS
-    from ..io.templates import load_template, resolve_template
+    from ..templates import load_template, resolve_template
 
     allow_large = allow_large or large_allowed()
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:

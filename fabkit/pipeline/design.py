@@ -96,7 +96,7 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     from ..export import EXPORTERS, write_atomic, write_outputs
-    from ..io.templates import load_template, with_settings
+    from ..templates import load_template, with_settings
 
     t0, cpu0 = time.perf_counter(), time.process_time()
     res = DesignResult(path=str(path), name=Path(path).stem)

@@ -9,7 +9,7 @@ from ..errors import BoundsError, FabkitError, TemplateError, UnavailableError
 from ..export import skip_reason
 from ..motion import MotionStatus, trace_motion
 from ..report.text import design_facts
-from ..report.viz import figure_png, motion_figure
+from ..plots.viz import figure_png, motion_figure
 from ..tolerance import made_process, stated_process, tolerance_spec
 from .motion import map_figure, motion_report
 from .results import CheckResult, FormatResult, FormatStatus, Stage

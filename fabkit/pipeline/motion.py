@@ -6,7 +6,7 @@ import re
 
 from ..errors import FabkitError
 from ..motion import MotionStatus, trace_motion
-from ..report.viz import figure_kit, set_margins
+from ..plots.viz import figure_kit, set_margins
 
 
 # --- the motion ------------------------------------------------------------------------------
@@ -52,7 +52,7 @@ def _chain_port_names(net) -> list[str]:
 def map_figure(traj, design):
     """The map picture of a design, or None when it has fewer than two ports d1, d2, ...
 
-    A single module: its whole map d2 = f(d1) (:func:`fabkit.report.mapplots.map_figure`, fixed
+    A single module: its whole map d2 = f(d1) (:func:`fabkit.plots.mapplots.map_figure`, fixed
     points and 2-cycles marked) with the traced stretch in red. A chain: the cobweb of the
     distances d_1, d_2, ... at the start and at the end of the motion, over the identity line.
     """
@@ -64,7 +64,7 @@ def map_figure(traj, design):
     dist = np.stack([traj.distance(p) for p in ports], axis=1)  # (S, K)
     if len(ports) == 2:
         try:
-            from ..report.mapplots import map_figure as module_map_figure
+            from ..plots.mapplots import map_figure as module_map_figure
             from ..maps import module_map
 
             fig = module_map_figure(module_map(design.network), title=f"{design.name}: map")

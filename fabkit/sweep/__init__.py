@@ -35,7 +35,7 @@ from ..errors import BoundsError, FabkitError, InputFileError
 from ..executor import Ending, LocalExecutor, Task
 from ..io.inputs import read_regular
 from ..io.outputs import inside, output_folder, write_files
-from ..io.templates import MAX_FILE_BYTES, resolve_template
+from ..templates import MAX_FILE_BYTES, resolve_template
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
 from .model import (Axis, CHUNKS_FOLDER, json_default, key_path, lookup_number, MEASURES,
                     parse_vary, path_text, Protocol, require_points, SPEC_FILE, Status, SweepError,
@@ -128,7 +128,7 @@ def make_spec(template, vary, measure=None, protocol: Protocol | None = None) ->
     SweepError
         Unknown or non-numeric key, bad grid, unknown measure, unknown port.
     """
-    from ..io.templates import Design, load_template
+    from ..templates import Design, load_template
 
     design = template if isinstance(template, Design) else load_template(template)
     raw = design.raw
@@ -494,7 +494,7 @@ def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
     out = result.outdir
     files = {"sweep.csv": result.table_csv()}
     if plots:
-        from ..report.viz import figure_png
+        from ..plots.viz import figure_png
         from .plots import figures
 
         for name, fig in figures(result).items():

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report.viz import figure_kit
+from ..plots.viz import figure_kit
 from .model import COLUMNS, MEASURES, key_path, lookup_number
 
 __all__ = ["figures", "bifurcation_figure", "heatmap_figure", "STATUS_STYLE"]

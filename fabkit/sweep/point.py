@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError
-from ..io.templates import BUILDERS, TemplateContext
+from ..templates import BUILDERS, TemplateContext
 from ..kinematics import plan_construction
 from ..maps import map_from_trajectory, module_map
 from ..model.rigidity import count_modes

@@ -325,7 +325,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
 
     Examples
     --------
-    >>> from fabkit.io.templates import load_template
+    >>> from fabkit.templates import load_template
     >>> from pathlib import Path
     >>> d = load_template(Path(__file__).parents[2] / "templates" / "fourbar.toml")
     >>> res = analyse_tolerance(d, tolerance_spec(d, samples=50), attribute=False)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..report.viz import figure_kit, plain_log_ticks, set_margins
+from ..plots.viz import figure_kit, plain_log_ticks, set_margins
 from .result import ToleranceResult
 
 __all__ = ["tolerance_figure", "keep_chart"]

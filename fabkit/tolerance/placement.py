@@ -116,7 +116,7 @@ def process_geometry(design, spec, problem, final) -> ProcessGeometry:
 
     Parameters
     ----------
-    design : fabkit.io.templates.Design
+    design : fabkit.templates.Design
     spec : fabkit.tolerance.spec.ToleranceSpec
         The process (``"print"``: the joints' turns over the motion; ``"origami"``: the cut
         boundary and the sheets of the flat pattern).

@@ -296,7 +296,7 @@ def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
 
     Examples
     --------
-    >>> from fabkit.io.templates import parse_template
+    >>> from fabkit.templates import parse_template
     >>> d = parse_template('[network]\\nnodes=[[0,0],[1,0],[0,1],[1,1]]\\n'
     ...                    'edges=[[0,1],[0,2],[1,3],[2,3]]\\nports={d1=[0,3]}\\n'
     ...                    '[fabrication.tolerance]\\nscale=20\\nsamples=10')

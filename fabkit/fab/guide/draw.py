@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...numerics import MM_SLACK
-from ...report.viz import figure_kit
+from ...plots.viz import figure_kit
 from ..bars import stadium_polygon
 
 __all__ = ["Labeller", "draw_bars", "label_joints", "label_bars", "layer_colour",

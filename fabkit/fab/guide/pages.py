@@ -27,7 +27,7 @@ import textwrap
 
 import numpy as np
 
-from ...report.viz import checked_png, clipped_texts, figure_kit
+from ...plots.viz import checked_png, clipped_texts, figure_kit
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .flow import column_lines, MIN_PT, STYLES

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...report.viz import checked_png, figure_kit
+from ...plots.viz import checked_png, figure_kit
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .plan import bar_name, frame_caption, GuidePlan

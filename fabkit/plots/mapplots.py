@@ -1,6 +1,6 @@
 """Pictures of 1-D maps: the map with the identity line, cobweb diagrams, Lyapunov exponents,
 and solution spaces of a module design (matplotlib figures; saving is the caller's job, e.g.
-with :func:`fabkit.report.viz.figure_png`)."""
+with :func:`fabkit.plots.viz.figure_png`)."""
 
 from __future__ import annotations
 

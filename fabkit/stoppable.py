@@ -29,9 +29,9 @@ import resource
 import signal
 import sys
 
-from ..errors import FabkitError
-from ..executor import die_with_parent
-from ..io.workload import describe_bytes, estimate as combine
+from .errors import FabkitError
+from .executor import die_with_parent
+from .io.workload import describe_bytes, estimate as combine
 
 __all__ = ["run_stoppable", "keep_to", "TIME_FACTOR", "MIN_SECONDS", "MEMORY_FACTOR",
            "MIN_BYTES", "StepLimitError"]

@@ -41,13 +41,13 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from ..errors import (BoundsError, brief, FabkitError, InputFileError, NetworkError, SettingsError,
+from .errors import (BoundsError, brief, FabkitError, InputFileError, NetworkError, SettingsError,
                       TemplateError, UnsafeNameError)
-from ..kinematics import METHODS, trace
-from ..model.network import Network
-from .outputs import check_name
-from .suggest import close_names, nearest_file
-from .workload import require
+from .kinematics import METHODS, trace
+from .model.network import Network
+from .io.outputs import check_name
+from .io.suggest import close_names, nearest_file
+from .io.workload import require
 
 __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
            "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
@@ -56,7 +56,7 @@ __all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_templa
 #: Sections that build the network: name → "module:function". The function takes the section
 #: (a dict) and a :class:`TemplateContext` and returns a Network. Exactly one must be present.
 BUILDERS: dict[str, str] = {
-    "network": "fabkit.io.templates:build_network",
+    "network": "fabkit.templates:build_network",
     "chain": "fabkit.design.assemble:build_chain",
     "design": "fabkit.design.solution_space:build_designed_module",
     "tessellation": "fabkit.design.assemble:build_tessellation",
@@ -370,8 +370,8 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
         if not isinstance(h, str) or h not in net.ports:
             raise ctx.error(f"motion.hold[{i}]", f"must name a port of the network, got {h!r}")
     if "ends" in section:  # designed end values of ports (fabkit.motion.ends)
-        from ..errors import SettingsError
-        from .schema import check_motion_ends
+        from .errors import SettingsError
+        from .io.schema import check_motion_ends
 
         try:
             check_motion_ends(section["ends"], net.ports)
@@ -379,8 +379,8 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
             raise ctx.error(exc.key, exc.reason) from None
     options = ctx.get(section, "options", "motion", dict, required=False, default={})
     if options:
-        from ..errors import SettingsError
-        from .schema import check_method_options
+        from .errors import SettingsError
+        from .io.schema import check_method_options
 
         try:  # strict types and ranges, declared in fabkit.io.schema
             check_method_options(method, options)
@@ -388,7 +388,7 @@ def _parse_motion(ctx: TemplateContext, section: dict, net: Network) -> Motion:
             raise ctx.error(exc.key, exc.reason) from None
         samples = options.get("samples")
         if isinstance(samples, int) and not isinstance(samples, bool):
-            from .workload import require
+            from .io.workload import require
 
             # a sampled trace holds every sample's configuration: samples x nodes
             require(f"{ctx.path}: motion.options.samples",
@@ -401,7 +401,7 @@ def _check_fabrication(ctx, fabrication: dict) -> None:
     """Every ``[fabrication]`` table against the declared schema (:mod:`fabkit.io.schema`), when
     the template is read: a misspelt section or key, a wrong type or a value out of range is
     refused before any work, by every command."""
-    from .schema import check_fabrication
+    from .io.schema import check_fabrication
 
     try:
         check_fabrication(fabrication)
@@ -423,7 +423,7 @@ def with_settings(design: "Design", settings: dict | None) -> "Design":
     """
     from dataclasses import replace
 
-    from .schema import section_of
+    from .io.schema import section_of
 
     motion = section_of(settings, "motion")
     if not motion:
@@ -537,12 +537,12 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
     import stat
 
     if not isinstance(path, (str, os.PathLike)):
-        from ..errors import ArgumentTypeError
+        from .errors import ArgumentTypeError
 
         raise ArgumentTypeError("path", f"must be a file path or a bundled template's name, "
                                         f"got {type(path).__name__}")
     if "\x00" in os.fspath(path):
-        from ..errors import ArgumentValueError
+        from .errors import ArgumentValueError
 
         raise ArgumentValueError("path", f"holds a NUL character, which no file name has: "
                                          f"{os.fspath(path)[:80]!r}")
