@@ -80,7 +80,7 @@ def test_the_defaults_named_in_the_help_are_those_of_the_models():
     # the help states them without importing the models (which import scipy); they must agree
     from fabkit.commands import TOLERANCE_SAMPLES
     from fabkit.commands.simulate import DEFAULT_STEPS
-    from fabkit.motion.elastic import DEFAULT_STEPS as MODEL_STEPS
+    from fabkit.tolerance.elastic import DEFAULT_STEPS as MODEL_STEPS
     from fabkit.tolerance.spec import ToleranceSpec
 
     assert DEFAULT_STEPS == MODEL_STEPS

@@ -1,4 +1,4 @@
-"""A build driven with elastic bars (fabkit.builds.quasistatic, fabkit.motion.elastic and
+"""A build driven with elastic bars (fabkit.builds.quasistatic, fabkit.tolerance.elastic and
 ``fabkit simulate --model elastic``): stress and energy against σ = E ε and ½ k δ², where the
 stress reaches the allowable against the closed form, a mechanism unstrained all along, a kit
 pushed past its lock, and bad input named."""
@@ -12,7 +12,7 @@ import fabkit
 from fabkit.builds.materials import MATERIALS
 from fabkit.builds.quasistatic import drive_elastically
 from fabkit.cli import main
-from fabkit.motion.elastic import elastic_motion
+from fabkit.tolerance.elastic import elastic_motion
 
 ACRYLIC = MATERIALS["acrylic"]
 #: A 14.5 mm bar of 3 mm acrylic.

@@ -106,6 +106,43 @@ def test_no_import_cycle():
                                                                          for c in cycles)
 
 
+def _unit(module: str) -> str:
+    """The package-level unit of a module: its package directly under fabkit/, or the top-level
+    module itself (``fabkit.templates``, ``fabkit.cli``); the root ``fabkit`` is its own unit."""
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def _package_graph(edges: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Edges between units (:func:`_unit`), the root's own ``__init__`` left out: it re-exports
+    the public names of the packages below it and imports nothing back."""
+    out: dict[str, set[str]] = {}
+    for m, targets in edges.items():
+        src = _unit(m)
+        if src == "fabkit":
+            continue
+        out.setdefault(src, set()).update(_unit(t) for t in targets if _unit(t) not in (src,
+                                                                                    "fabkit"))
+    return out
+
+
+def test_a_planted_package_cycle_is_found():
+    edges = {"fabkit.a.x": {"fabkit.b.y"}, "fabkit.b.y": {"fabkit.b.z"},
+             "fabkit.b.z": {"fabkit.a.w"}, "fabkit.a.w": set(), "fabkit.c": {"fabkit.a.x"}}
+    assert _cycles(_package_graph(edges)) == [{"fabkit.a", "fabkit.b"}]
+
+
+def test_no_package_imports_another_that_imports_it_back():
+    graph = _package_graph(_graph(_modules()))
+    # the walk sees packages and top-level modules as units
+    assert {"fabkit.motion", "fabkit.tolerance", "fabkit.templates", "fabkit.cli"} <= set(graph)
+    assert "fabkit.kinematics" in graph["fabkit.templates"]
+    cycles = [sorted(c) for c in _cycles({k: graph.get(k, set()) | set()
+                                          for k in set(graph).union(*graph.values())})]
+    assert cycles == [], "packages that import each other: " + "; ".join(" <-> ".join(c)
+                                                                          for c in cycles)
+
+
 def test_few_modules_at_the_top():
     top = sorted(p.name for p in ROOT.glob("*.py"))
     assert "cli.py" in top and "errors.py" in top  # the walk sees the package's own top

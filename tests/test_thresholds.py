@@ -67,7 +67,7 @@ def test_the_flat_sheets_map_ends_at_its_flat_crystal_with_the_limit_slope():
 def test_the_chain_of_sheets_ends_flat_on_every_copy(make):
     """A 1e-12 change of the chain's coordinates moves its map's flat end off the diagonal by
     3e-12: still the crystal at the end of the branch, with the same slope."""
-    from fabkit.tolerance.modules import chain_modules
+    from fabkit.motion.modules import chain_modules
     from fabkit.kinematics import make_problem
 
     for d in (fabkit.load_template("origami_chain12"),

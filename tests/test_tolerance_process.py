@@ -14,7 +14,8 @@ from fabkit.errors import TemplateError
 from fabkit.kinematics import make_problem, place
 from fabkit.templates import load_template
 from fabkit.tolerance import ToleranceSpec, analyse_tolerance, design_process, tolerance_spec
-from fabkit.tolerance.placement import find_plan, _place_builds
+from fabkit.motion.modules import find_plan
+from fabkit.tolerance.placement import _place_builds
 from fabkit.tolerance.processes import ProcessGeometry, sample_lengths
 
 TEMPLATES = Path(__file__).resolve().parents[1] / "templates"

@@ -56,7 +56,7 @@ def curvature_modules_table() -> str:
     import math
 
     from fabkit.design.letters import curvature_modules
-    from fabkit.io.templates import bundled_folder, load_template
+    from fabkit.templates import bundled_folder, load_template
 
     names = ("contract", "maintain", "expand")
     designs = {n: load_template(bundled_folder() / f"curvature_{n}.toml") for n in names}

@@ -36,7 +36,7 @@ EXAMPLES = [
 ]
 
 #: Quasi-static steps of ``--model elastic`` without ``--steps``: the elastic model's own default
-#: (:data:`fabkit.motion.elastic.DEFAULT_STEPS`; tests/test_cli_startup.py holds them equal),
+#: (:data:`fabkit.tolerance.elastic.DEFAULT_STEPS`; tests/test_cli_startup.py holds them equal),
 #: stated here so that the help does not import the elastic model.
 DEFAULT_STEPS = 51
 
@@ -122,7 +122,7 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
     if elastic is not None:
         # the elastic model is imported here, not at the top: it brings the fabrication
         # geometry and scipy, which `fabkit simulate --help` and the rigid model do without
-        from ..motion.elastic import elastic_motion
+        from ..tolerance.elastic import elastic_motion
 
         say(f"{design.name}: driving the build with elastic bars")
         run = elastic_motion(design, to=to, steps=elastic["steps"],

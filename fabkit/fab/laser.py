@@ -18,7 +18,7 @@ from ..errors import FabricationError
 from ..io.schema import check_section, LaserSection, section_of
 from ..numerics import MM_SLACK
 from .hardware import screw_spec, ScrewSpec
-from .window import motion_window
+from ..motion.window import motion_window
 
 __all__ = ["LaserSettings", "laser_settings", "laser_overrides", "kit_design", "DEFAULT_SCALE",
            "DEFAULT_MAX_LAYERS", "LASER_KEYS", "kerf_note"]
@@ -235,7 +235,7 @@ def _check_consistency(s: LaserSettings) -> None:
 def kit_design(design, settings: LaserSettings):
     """The design as the kit moves: from ``motion_from`` to ``motion_to`` when they are set.
 
-    See :func:`fabkit.fab.window.motion_window`.
+    See :func:`fabkit.motion.window.motion_window`.
 
     Parameters
     ----------
@@ -250,7 +250,7 @@ def kit_design(design, settings: LaserSettings):
     Raises
     ------
     FabricationError
-        See :func:`fabkit.fab.window.motion_window`.
+        See :func:`fabkit.motion.window.motion_window`.
     """
     return motion_window(design, settings.motion_from, settings.motion_to, "laser")
 

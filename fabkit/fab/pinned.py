@@ -42,7 +42,7 @@ from .laser import LaserSettings
 from .layers import plan_layers, sample_chain, sample_motion
 from .printers import split_to_fit
 from .printing import PrintSettings
-from .window import motion_window
+from ..motion.window import motion_window
 
 __all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "printed_design", "stack_settings", "bar_body",
            "pin_profile", "polygon_area", "circle_polygon"]
@@ -260,7 +260,7 @@ def printed_design(design, s: PrintSettings):
     Raises
     ------
     FabricationError
-        See :func:`fabkit.fab.window.motion_window`.
+        See :func:`fabkit.motion.window.motion_window`.
     """
     return motion_window(design, s.motion_from, s.motion_to, "print")
 

@@ -132,7 +132,7 @@ class PrintSettings:
     motion_from, motion_to : float or None
         The part of the design's motion the printed linkage follows (drive values; None: the
         design's start and its ``motion.to``), as for the laser kit
-        (:func:`fabkit.fab.window.motion_window`).
+        (:func:`fabkit.motion.window.motion_window`).
     """
 
     material: str

@@ -9,7 +9,7 @@ the end the design asks for, where that end is known:
   of ports, in design units);
 - **implied**: a chain (ports d1, d2, ...) whose first module ends at a fixed point D* of its
   module map (a crystal, as the tolerance analysis infers it:
-  :func:`fabkit.tolerance.behaviour.end_fixed_point`) is designed to end with every module at D*
+  :func:`fabkit.motion.intent.end_fixed_point`) is designed to end with every module at D*
   (the super-stable chain's collapse to D2*): each module's input port d_1 ... d_n at D* (the
   last module's output is a free end that may fold on past D* where the chain locks). A map that is the identity over the travel (a
   curvature module) keeps every state: no end is implied.
@@ -18,7 +18,7 @@ Where the motion, continued past the target, locks within the limit of it (the s
 chain driven to D2* + 1e-12 locks 1e-12 later with every module at D2*), the ends are judged at
 that lock, as the tolerance analysis judges builds: a maker pulls until it stops. A port reached
 its end when it lies within the **state tolerance** of it (a quarter of the first module's
-travel, never less than the limit, :data:`fabkit.tolerance.behaviour.STATE_FRACTION`). A port that
+travel, never less than the limit, :data:`fabkit.motion.intent.STATE_FRACTION`). A port that
 missed is named with what its motion did (it never left its start, it turned back, it ended
 elsewhere) and why, read from the trace: the first port that went wrong names the module whose
 map stopped it (its output turned back while its input went on: a turning point of that module's
@@ -156,7 +156,7 @@ def _modules_of(names) -> str:
 def _nominal(design, trajectory):
     """(problem, construction plan or None) of the design's motion."""
     from ..kinematics import make_problem
-    from ..tolerance.placement import find_plan
+    from .modules import find_plan
 
     m = design.motion
     problem = make_problem(design.network, m.drive, float(trajectory.drive[-1]), hold=m.hold)
@@ -182,9 +182,8 @@ def judge_ends(design, trajectory) -> MotionEnds | None:
     TemplateError
         ``[motion] ends`` names a port the network does not have.
     """
-    from ..tolerance.behaviour import (STATE_FRACTION, end_fixed_point, map_fixed_points,
-                                       nominal_lock, template_intent)
-    from ..tolerance.spec import ToleranceSpec
+    from .intent import (end_fixed_point, LIMIT_FRACTION, map_fixed_points, nominal_lock,
+                         STATE_FRACTION, template_intent)
 
     net = design.network
     stated = stated_ends(design)
@@ -204,7 +203,7 @@ def judge_ends(design, trajectory) -> MotionEnds | None:
     p0 = np.array([start[p][0] for p in chain[:2]]) if len(chain) >= 2 else np.zeros(0)
     # the limit of the tolerance analysis (a fraction of the first module's size at the end)
     sized = [start[p][-1] for p in chain[:2]] or [float(net.size)]
-    limit = ToleranceSpec.limit_fraction * float(np.mean(sized))
+    limit = LIMIT_FRACTION * float(np.mean(sized))
     to = float(trajectory.drive[-1])
     judged_at, final = "target", {p: float(start[p][-1]) for p in start}
     intent = template_intent(design)
@@ -262,7 +261,7 @@ def judge_ends(design, trajectory) -> MotionEnds | None:
 def _first_module_map(design, trajectory):
     """The map of a chain's first module on the branch its motion takes, or None."""
     from ..maps import module_map
-    from ..tolerance.modules import chain_modules
+    from .modules import chain_modules
 
     x0, x1 = np.asarray(trajectory.positions[0]), np.asarray(trajectory.final)
     try:
@@ -340,7 +339,7 @@ def _other_branch(design, trajectory, first, up, final, tol) -> str:
     """Whether the designed end of ``first`` lies on the branch of its module's map that the
     motion takes: the map where the input ended (as judged) against it."""
     from ..maps import module_map
-    from ..tolerance.modules import chain_modules
+    from .modules import chain_modules
 
     try:
         modules = chain_modules(design, [np.asarray(trajectory.positions[0]),

@@ -6,7 +6,7 @@ motion stays in the first modules (the paper's localisation at the edge); near a
 it grows, and the far end moves first. Reaching the drive's target says nothing of this, so a
 traced chain is also read module by module: how far each module's output port went from its
 start, as a fraction of the drive's own travel. A module **moved** when its output went farther
-than the state tolerance of the designed ends (:data:`fabkit.tolerance.behaviour.STATE_FRACTION`
+than the state tolerance of the designed ends (:data:`fabkit.motion.intent.STATE_FRACTION`
 of the drive's travel). The motion is **localised** when some modules did not move.
 
 The chain is the one the drive belongs to: ports ``d1, d2, ...`` (or ``d1_b, d2_b, ...`` for a
@@ -151,7 +151,7 @@ def module_spread(design, trajectory) -> ModuleSpread | None:
     >>> module_spread(d, d.trace()).sentence()
     'spread: all 4 modules moved'
     """
-    from ..tolerance.behaviour import STATE_FRACTION
+    from .intent import STATE_FRACTION
 
     chain = chain_of(design.network.ports, design.motion.drive)
     if len(chain) < 3:
@@ -168,7 +168,7 @@ def module_spread(design, trajectory) -> ModuleSpread | None:
 def shape_missed(design, spread: ModuleSpread | None) -> str:
     """Why a design whose intent is a shape (``[motion] intent = "shape"``: a curve, a letter)
     did not take it: some of its modules never moved; ``""`` when it did or is not one."""
-    from ..tolerance.behaviour import template_intent
+    from .intent import template_intent
 
     if spread is None or not spread.localised or template_intent(design) != "shape":
         return ""

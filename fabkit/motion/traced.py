@@ -4,7 +4,7 @@
 the trajectory (or None), a :class:`MotionStatus`, a one-line reason, the typed error that the
 stages which need a motion raise (:meth:`TracedMotion.require`), and whether the design happened
 (:mod:`fabkit.motion.ends`). A kit that covers only part of the motion (``motion_from`` /
-``motion_to``, :func:`fabkit.fab.window.motion_window`) asks for its window with
+``motion_to``, :func:`fabkit.motion.window.motion_window`) asks for its window with
 :meth:`TracedMotion.window`: each window is traced once and shared by every process and format
 that uses it. Exporters, the as-built checks, the tolerance analysis and the reports take the
 :class:`TracedMotion`; none of them traces the design's motion itself.
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from ..errors import ArgumentValueError, FabkitError, MotionError, SingularStartError
-from ..fab.window import motion_window
+from .window import motion_window
 from ..templates import BUILDERS
 from ..kinematics import Status
 from ..model.rigidity import count_modes
@@ -157,7 +157,7 @@ class TracedMotion:
         Raises
         ------
         FabricationError
-            See :func:`fabkit.fab.window.motion_window`.
+            See :func:`fabkit.motion.window.motion_window`.
         """
         if start is None and to is None:
             return self

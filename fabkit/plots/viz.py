@@ -160,7 +160,7 @@ def elastic_figure(run, *, title: str | None = None):
 
     Parameters
     ----------
-    run : fabkit.motion.elastic.ElasticRun
+    run : fabkit.tolerance.elastic.ElasticRun
 
     Returns
     -------

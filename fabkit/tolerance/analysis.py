@@ -25,7 +25,8 @@ from .horizon import lyapunov_estimate, MIN_MAP_STEPS, NEUTRAL_LYAPUNOV
 from .margin import (critical_scales, CURVE_SCALES, keep_curve, margin_of, margin_text,
                      SCALE_BISECTIONS)
 from .modules import ModuleMaps
-from .placement import (BUILD_RTOL, chain_ports, Driver, find_plan, process_geometry,
+from ..motion.modules import find_plan
+from .placement import (BUILD_RTOL, chain_ports, Driver, process_geometry,
                         PROJECTED_SAMPLES_CAP, to_drive_frame)
 from .pins import pin_play
 from .processes import nominal_room_mm, sample_builds, spec_sources

@@ -8,10 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..builds.closure import play_ratio, self_stress_basis
-from ..errors import ConstructionError, FabricationError
+from ..errors import FabricationError
 from ..fab.creases import origami_model
-from ..kinematics import place, plan_construction
-from ..kinematics.constructive import cached_plan
+from ..kinematics import place
 from ..numerics import EDGE_RTOL
 from .processes import interp_rows, ProcessGeometry, PROFILE_SAMPLES, Sheet, state_profile
 
@@ -186,22 +185,6 @@ def _sheets(design):
         out.append(Sheet(nodes, np.asarray(cp.vertices, dtype=np.float64), edges, boundary,
                          np.asarray(creases, dtype=np.int64).reshape(-1, 4)))
     return tuple(out)
-
-
-def find_plan(problem, trajectory):
-    """The cached construction plan from the start; from the target's sides when the start is a
-    flat state (a flat origami sheet); None when there is no construction order."""
-    try:
-        return cached_plan(problem.work, problem.drive, problem.start)
-    except ConstructionError:
-        pass
-    final = getattr(trajectory, "final", None)
-    if final is None or np.shape(final) != problem.start.shape:
-        return None
-    try:
-        return plan_construction(problem.work, problem.drive, final)
-    except ConstructionError:
-        return None
 
 
 @dataclass

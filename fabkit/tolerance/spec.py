@@ -12,7 +12,7 @@ from ..fab.laser import laser_settings
 from ..fab.printing import design_print_settings
 from ..io.schema import check_table, refuse_unused, ToleranceSection
 from ..numerics import TINY
-from .behaviour import STATE_FRACTION
+from ..motion.intent import LIMIT_FRACTION, STATE_FRACTION
 from .processes import (PIN_EXTRA_KEYS, PROCESS_EXTRA_KEYS, PROCESSES, ProcessGeometry,
                         sample_lengths, SOURCES, spec_sources)
 
@@ -99,7 +99,7 @@ class ToleranceSpec:
     paper_thickness: float = 0.1
     compliance_sigma: float = 0.2
     limit: float | None = None
-    limit_fraction: float = 0.02
+    limit_fraction: float = LIMIT_FRACTION
     min_reached: float = 0.95
     state_fraction: float = STATE_FRACTION
     samples: int = 200

@@ -19,9 +19,9 @@ from ..builds.quasistatic import drive_elastically, ElasticMotion
 from ..errors import TemplateError
 from ..fab.printing import design_print_settings
 from ..kinematics import make_problem
-from ..tolerance.pins import pin_play
-from ..tolerance.processes import nominal_room_mm
-from ..tolerance.spec import design_process, stated_process, tolerance_spec
+from .pins import pin_play
+from .processes import nominal_room_mm
+from .spec import design_process, stated_process, tolerance_spec
 
 __all__ = ["ElasticRun", "elastic_motion", "DEFAULT_STEPS"]
 
