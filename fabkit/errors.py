@@ -227,13 +227,24 @@ class SettingsError(FabkitError, ValueError):
         The key path (``"fabrication.laser.min_web"``, ``"laser.kerf"``).
     reason : str
         Why, with the value given (``"must be >= 0, got -5"``).
+    kind : str
+        What is wrong, for code that must tell the cases apart (never the message's text):
+        ``"unknown"`` (a key or section the schema does not declare), ``"missing"``, ``"type"``
+        (a value of the wrong type: text for a number, 2.5 for a whole number) or ``"value"``
+        (the right type, out of range or not allowed).
     """
 
     code = "settings"
 
-    def __init__(self, key: str, reason: str):
+    #: Values of :attr:`kind`.
+    KINDS = ("unknown", "missing", "type", "value")
+
+    def __init__(self, key: str, reason: str, kind: str = "value"):
+        if kind not in self.KINDS:
+            raise ValueError(f"SettingsError kind must be one of {self.KINDS}, got {kind!r}")
         self.key = key
         self.reason = reason
+        self.kind = kind
         super().__init__(f"{key}: {reason}" if key else reason)
 
 

@@ -462,7 +462,7 @@ def check_method_options(method: str, options, where: str = "motion.options") ->
     one of them); a method of one's own (not declared here) is left to the method itself.
     """
     if not isinstance(options, dict):
-        raise SettingsError(where, f"must be a table, got {_describe(options)}")
+        raise SettingsError(where, f"must be a table, got {_describe(options)}", kind="type")
     if method == "auto":
         names = ("constructive", "projected")
     elif method in METHOD_OPTIONS:
@@ -473,7 +473,8 @@ def check_method_options(method: str, options, where: str = "motion.options") ->
     for key, value in options.items():
         if key not in fields:
             raise SettingsError(f"{where}.{key}", f"unknown option of the {method} method; "
-                                                  f"known: {', '.join(sorted(fields))}")
+                                                  f"known: {', '.join(sorted(fields))}",
+                                kind="unknown")
         model = METHOD_OPTIONS[fields[key]]
         try:
             model.model_validate({key: value})
@@ -539,7 +540,36 @@ def describe_keys(name: str) -> list[tuple[str, str, str]]:
 # --- messages ---------------------------------------------------------------------------------
 
 def _settings_error(exc: ValidationError, where: str, model) -> SettingsError:
-    return SettingsError(*_explain(exc, where, model))
+    key, reason = _explain(exc, where, model)
+    return SettingsError(key, reason, kind=_error_kind(exc))
+
+
+#: pydantic error types of a value of the wrong type (a SettingsError of kind "type").
+_TYPE_ERRORS = {"bool_type", "float_type", "float_parsing", "int_parsing", "int_type",
+                "int_from_float", "string_type", "tuple_type", "list_type", "model_type",
+                "dict_type", "bool_parsing"}
+
+
+def _error_kind(exc: ValidationError) -> str:
+    """The :attr:`SettingsError.kind` of a validation's first error (as :func:`_explain` picks
+    it)."""
+    err = _first_error(exc)
+    if err["type"] == "extra_forbidden":
+        return "unknown"
+    if err["type"] == "missing":
+        return "missing"
+    value = err.get("input")
+    if isinstance(value, float) and not math.isfinite(value):
+        return "value"  # a number, but not a finite one (whatever type was asked for)
+    return "type" if err["type"] in _TYPE_ERRORS else "value"
+
+
+def _first_error(exc: ValidationError) -> dict:
+    # a value tried against a Union fails every member: report the member that got furthest
+    # (a table given for a screw is judged as a table, not as a catalogue name)
+    errs = exc.errors(include_url=False)
+    return max(errs, key=lambda e: (len(e["loc"]), not e["type"].endswith("_type"),
+                                    e["type"] != "literal_error"))
 
 
 def describe_validation_error(exc: ValidationError, model, where: str = "",
@@ -552,11 +582,7 @@ def describe_validation_error(exc: ValidationError, model, where: str = "",
 
 
 def _explain(exc: ValidationError, where: str, model) -> tuple[str, str]:
-    # a value tried against a Union fails every member: report the member that got furthest
-    # (a table given for a screw is judged as a table, not as a catalogue name)
-    errs = exc.errors(include_url=False)
-    err = max(errs, key=lambda e: (len(e["loc"]), not e["type"].endswith("_type"),
-                                   e["type"] != "literal_error"))
+    err = _first_error(exc)
     loc = [p for p in err["loc"] if not _is_union_tag(p)]
     key = where
     for part in loc:

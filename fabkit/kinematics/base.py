@@ -362,12 +362,12 @@ def check_option(method: str, name: str, value) -> None:
     try:
         check_method_options(method, {name: plain}, where="options")
     except SettingsError as exc:
-        if "unknown option" in exc.reason:
+        if exc.kind == "unknown":
             return  # not declared: the method's own
         # a value of the wrong kind (text, a bool, 2.5 for a count) is a TypeError, as in
         # fabkit.arguments; a number out of range a ValueError
         number = isinstance(plain, (int, float)) and not isinstance(plain, bool)
-        wrong_kind = not number or (isinstance(plain, float) and "whole number" in exc.reason)
+        wrong_kind = not number or exc.kind == "type"
         raise (ArgumentTypeError if wrong_kind else ArgumentValueError)(name, exc.reason) \
             from None
 
