@@ -126,7 +126,7 @@ def test_mode_counts_are_the_same_on_every_copy(name):
 
 
 def _layer_plan(design) -> tuple:
-    from fabkit.export.dxf import laser_plan
+    from fabkit.fab.laser_plan import laser_plan
 
     st = laser_plan(design).stacking
     return (st.n_layers, st.lower_bound, np.bincount(st.layer).tolist(),

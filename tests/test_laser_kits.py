@@ -165,7 +165,8 @@ def test_dense_resampling_finds_the_stacking_clear(name):
 def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
     import re
 
-    from fabkit.export.dxf import bill_of_materials, laser_plan
+    from fabkit.export.dxf import bill_of_materials
+    from fabkit.fab.laser_plan import laser_plan
     from fabkit.fab.guide import guide_pages
 
     design, result = chain24

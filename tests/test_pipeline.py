@@ -99,3 +99,60 @@ def test_no_exporter_check_or_report_traces_the_design_itself(path):
             if bad:
                 found.append(f"line {node.lineno}: imports {', '.join(sorted(bad))}")
     assert not found, f"{path.relative_to(ROOT.parent)}: " + "; ".join(found)
+
+
+def test_every_origami_format_is_written_from_one_fold(monkeypatch, tmp_path):
+    # the crease SVG, FOLD and .cp writers share the origami plan: the sheet is folded once
+    import fabkit.fab.creases.plan as origami
+
+    folds = []
+    real = origami.fold_model
+
+    def fold_model(model, drive, to, samples=None):
+        folds.append(model.name)
+        return real(model, drive, to, samples)
+
+    monkeypatch.setattr(origami, "fold_model", fold_model)
+    res = export_one(TEMPLATES / "origami_sheet.toml", ["svg", "fold", "cp"], tmp_path, {},
+                     check=False, tolerance_samples=0, previews=False)
+    assert res.ok, res.error
+    assert set(res.exported_formats) == {"svg", "fold", "cp"}
+    assert folds == ["origami_sheet"]
+
+
+def test_a_writer_takes_a_plan_and_plans_nothing():
+    # writers of a process's plan: no planner, tracer or settings reader is imported in them
+    from fabkit.export import EXPORTERS
+    from fabkit.fab.plans import PLANNERS
+
+    import importlib
+
+    planners = {"laser_plan", "print_plan", "origami_plan", "origami_model", "fold_model",
+                "pinned_print", "laser_settings", "design_print_settings", "make_plan"}
+    for fmt, name in EXPORTERS.items():
+        module = importlib.import_module(name)
+        assert module.PROCESS in PLANNERS and callable(module.write), fmt
+        path = Path(module.__file__)
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        shortcut = [n for n in tree.body if isinstance(n, ast.FunctionDef)
+                    and n.name == "export_design"]
+        assert len(shortcut) == 1, fmt  # the one-call shortcut: plans, then writes
+        allowed = {id(n) for n in ast.walk(shortcut[0])}
+        imported = [n for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)
+                    and id(n) not in allowed]
+        assert imported, fmt  # the walk sees the writer's imports
+        for node in imported:
+            bad = {a.name for a in node.names} & planners
+            assert not bad, f"{path.name}:{node.lineno} imports {sorted(bad)}"
+
+
+@pytest.mark.slow
+def test_the_and_gate_laser_kit_is_planned_along_the_one_trace(monkeypatch, tmp_path):
+    # a projected motion is traced once, with the node step the stacking needs
+    # (fabkit.fab.laser_plan.trace_needs): the laser plan does not trace it again
+    path = TEMPLATES / "and_gate.toml"
+    designs, own = _count_traces(monkeypatch, path)
+    res = export_one(path, ["dxf"], tmp_path, {}, check=False, tolerance_samples=0,
+                     previews=False)
+    assert res.ok, res.error
+    assert len(designs) == 1 and len(own) == 1

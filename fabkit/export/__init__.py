@@ -1,9 +1,14 @@
-"""Exporters: one module per file format behind one :func:`export` entry (like trimesh.exchange).
+"""Writers: one module per file format behind one :func:`export` entry (like trimesh.exchange).
 
-Each format module defines ``FORMAT`` (its name) and ``export_design(design, settings) ->
-ExportResult``: pure, it returns the bytes of every file to write and a report dict, and never
-opens a file. Only :func:`write_outputs` writes, through a temporary file in the target folder
-and ``os.replace`` (:mod:`fabkit.io.outputs`), so that no half-written file is ever left behind.
+Each format module defines ``FORMAT`` (its name), ``PROCESS`` (the process whose plan it is
+written from: ``"laser"``, ``"print"`` or ``"origami"``, :data:`fabkit.fab.plans.PLANNERS`) and
+``write(plan) -> ExportResult``: pure, it turns the plan into the bytes of every file to write
+and a report dict; it traces nothing, plans nothing and never opens a file. The batch engine
+builds each process's plan once for all of that process's formats. ``export_design(design,
+settings)`` is the one-call shortcut (plan, then write). An exporter of one's own registered in
+:data:`EXPORTERS` may define ``export_design`` alone. Only :func:`write_outputs` writes, through
+a temporary file in the target folder and ``os.replace`` (:mod:`fabkit.io.outputs`), so that no
+half-written file is ever left behind.
 """
 
 from __future__ import annotations
@@ -14,7 +19,7 @@ import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import ArgumentTypeError, FabkitError, OutputError
+from ..errors import ArgumentTypeError, FabkitError, OutputError, UnavailableError
 from ..io.outputs import LOCK_NAME, output_folder, OutputLock, write_atomic, write_files
 from ..templates import Design
 
@@ -69,16 +74,27 @@ def check_export_settings(settings, exporters: dict | None = None) -> dict:
     return check_settings(settings, sections=extra)
 
 
-def get_exporter(fmt: str):
-    """The module that implements a format; ``FabkitError`` listing the valid ones otherwise."""
+def get_exporter(fmt: str, exporters: dict | None = None):
+    """The module that implements a format, from a registry (name → module path; default
+    :data:`EXPORTERS`, as it is now). The one lookup of formats: the API, the batch engine and
+    the commands use it.
+
+    Raises
+    ------
+    FabkitError
+        The format is not in the registry (the message lists the valid ones).
+    UnavailableError
+        Its module cannot be imported (a missing optional dependency).
+    """
+    registry = EXPORTERS if exporters is None else exporters
     try:
-        name = EXPORTERS[fmt]
+        name = registry[fmt]
     except (KeyError, TypeError):
-        raise FabkitError(f"unknown export format {fmt!r}; valid: {', '.join(EXPORTERS)}") from None
+        raise FabkitError(f"unknown export format {fmt!r}; valid: {', '.join(registry)}") from None
     try:
         return importlib.import_module(name)
     except ImportError as exc:
-        raise FabkitError(f"export format {fmt!r} is not available: {exc}") from None
+        raise UnavailableError(f"export format {fmt!r}", str(exc)) from None
 
 
 def skip_reason(design, fmt: str) -> str | None:

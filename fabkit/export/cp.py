@@ -12,6 +12,9 @@ from ..errors import FabricationError
 from . import ExportResult
 
 FORMAT = "cp"
+
+#: The process whose plan (:func:`fabkit.fab.creases.plan.origami_plan`) this format is written from.
+PROCESS = "origami"
 #: The sections of ``--set`` this format reads (any other has no effect on it).
 READS = ("origami",)
 
@@ -45,21 +48,33 @@ def render(pattern, scale: float) -> bytes:
     return ("\n".join(lines) + "\n").encode("ascii")
 
 
-def export_design(design, settings: dict) -> ExportResult:
-    """``<name>.cp`` for a single sheet."""
-    from ..fab.creases import origami_model
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+    """``<name>.cp`` of a design: its origami plan, written (see :func:`write`)."""
+    from ..fab.plans import make_plan
 
+    return write(make_plan(PROCESS, design, settings, motion))
+
+
+def write(plan) -> ExportResult:
+    """``<name>.cp`` of an origami plan (:class:`fabkit.fab.creases.plan.OrigamiPlan`) of a
+    single sheet.
+
+    Raises
+    ------
+    FabricationError
+        The plan has several sheets (the SVG writer lays them out).
+    """
     from dataclasses import replace
 
-    from ..fab.creases import fold_model, folded_assignment
+    from ..fab.creases import folded_assignment
 
-    model = origami_model(design, (settings or {}).get("origami"))
+    design, model = plan.design, plan.model
     if len(model.sheets) != 1:
         raise FabricationError(f"{design.name}: ORIPA .cp holds one sheet; this design has "
                                f"{len(model.sheets)} (export svg for the layout)")
     # mountain and valley as the simulator folds the sheet (they equal the template's when the
     # branch is chosen by its assignment)
-    labs = folded_assignment(model, fold_model(model, design.motion.drive, design.motion.to))
+    labs = folded_assignment(model, plan.fold)
     pattern = replace(model.pattern(), assignment=labs)
     data = render(pattern, model.scale)
     n = int(sum(a in TYPES for a in labs))

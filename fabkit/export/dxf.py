@@ -29,27 +29,28 @@ import contextlib
 import io
 import json
 from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import FabricationError
-from ..fab.bars import bar_set, bulge_primitives
+from ..fab.bars import bulge_primitives
 from ..fab.coupon import COUPON_NAME, coupon_sheet, COUPON_SPACING, coupon_text
 from ..fab.guide import assembly_picture, guide_pages, motion_picture
 from ..fab.hardware import MAX_AXIAL_PLAY, part_family, part_lines, spares
-from ..fab.laser import kerf_note, laser_overrides, laser_settings
-from ..fab.layers import plan_layers, sample_chain, sample_motion
-from ..fab.nest import label_outlines, make_parts, nest_parts, place_like, utilisation
-from ..motion import motion_for
+from ..fab.laser import kerf_note
+from ..fab.nest import label_outlines, utilisation
+from ..fab.laser_plan import LaserPlan, uncompensated_plan
 from . import ExportResult
 from .laser_svg import sheet_svg
 
-__all__ = ["FORMAT", "applies", "export_design", "LaserPlan", "laser_plan", "sheet_dxf",
+__all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "sheet_dxf",
            "bill_of_materials", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
            "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
+
+#: The process whose plan (:func:`fabkit.fab.laser_plan.laser_plan`) this format is written from.
+PROCESS = "laser"
 #: The sections of ``--set`` this format reads (any other has no effect on it).
 READS = ("laser",)
 
@@ -70,74 +71,6 @@ def applies(design) -> bool:
     return design.network.dim == 2
 
 
-@dataclass(eq=False)
-class LaserPlan:
-    """Everything decided before files are written."""
-
-    design: object
-    settings: object
-    bars: object
-    sweep: object
-    stacking: object
-    parts: list
-    sheets: list
-    #: ``""`` for the kit as cut; ``"uncompensated"`` for its copy drawn at true size
-    variant: str = ""
-
-
-def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
-    """Decide bars, layers, parts and sheets for a design (no files).
-
-    Parameters
-    ----------
-    design : Design
-        A loaded template with a 2D network and a motion target.
-    settings : dict, optional
-        Overrides of ``[fabrication.laser]`` (``{"laser": {"kerf": 0.2}}`` or ``{"kerf": 0.2}``).
-    motion : TracedMotion, optional
-        The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`);
-        traced here when not given. A kit's window (``motion_from`` / ``motion_to``) is asked of
-        it, so the print of the same window shares its trace.
-
-    Returns
-    -------
-    LaserPlan
-
-    Raises
-    ------
-    FabricationError
-        Bad settings, bars that cannot be cut, no collision-free stacking, parts larger than
-        a sheet; one line each with a suggested fix.
-    """
-    net = design.network
-    if net.dim != 2:
-        raise FabricationError(f"laser-cut bars need a 2D network; {design.name} is {net.dim}D")
-    table = design.fabrication.get("laser", {}) if isinstance(design.fabrication, dict) else {}
-    if not isinstance(table, dict):
-        raise FabricationError("[fabrication.laser] must be a table")
-    s = laser_settings(table, laser_overrides(settings), network_size=net.size)
-    lengths = net.edge_lengths * s.scale  # the design's own, wherever the kit starts
-    kit = motion_for(design, motion).window_motion(s.motion_from, s.motion_to, "laser")
-    design, traj = kit.design, kit.planning_trajectory()
-    net = design.network
-    bars = bar_set(lengths, net.edges, s, scale=s.scale)
-    # Module windows are sampled over the union of the ranges their modules sweep in the whole
-    # motion: from a start part way along it (motion_from) one module sweeps most of the map
-    # while the others hardly move, and the union would count every module's neighbours as
-    # sweeping it all; such a kit is sampled along its own motion.
-    sweep = None if s.motion_from is not None else sample_chain(
-        net, design.motion, s.scale, s.sample_step, width=s.bar_width, clearance=s.clearance,
-        column_radius=0.5 * s.screw.head_diameter, spacer_radius=0.5 * s.spacer_diameter,
-        floor_limit=s.clearance, trajectory=traj)
-    if sweep is None:  # not a chain of modules: sample the whole motion
-        sweep = sample_motion(net, design.motion, s.scale, s.sample_step,
-                              floor_limit=s.clearance, trajectory=traj)
-    stacking = plan_layers(net.edges, sweep, s)
-    parts = make_parts(bars, stacking, s)
-    sheets = nest_parts(parts, s)
-    return LaserPlan(design, s, bars, sweep, stacking, parts, sheets)
-
-
 def coupon_files(plan: LaserPlan) -> dict:
     """The kerf and fit test coupon: ``laser_coupon.dxf`` and ``.svg`` (the kit's bar pair
     and spacer ring, drawn as on its sheets) and ``laser_coupon.md`` (what to check)."""
@@ -151,17 +84,6 @@ def coupon_files(plan: LaserPlan) -> dict:
     return {f"{COUPON_NAME}.dxf": sheet_dxf(sheet, plan, 1, header=header),
             f"{COUPON_NAME}.svg": sheet_svg(sheet, s),
             f"{COUPON_NAME}.md": coupon_text(s, plan.design.name).encode("utf-8")}
-
-
-def uncompensated_plan(plan: LaserPlan) -> LaserPlan:
-    """The same kit drawn at true size (kerf 0), every part where it was nested, for a
-    cutting service that compensates kerf itself."""
-    from dataclasses import replace
-
-    s = replace(plan.settings, kerf=0.0)
-    bars = bar_set(plan.bars.lengths, plan.bars.edges, s, scale=s.scale)
-    sheets = place_like(make_parts(bars, plan.stacking, s), plan.sheets)
-    return replace(plan, settings=s, bars=bars, sheets=sheets, variant="uncompensated")
 
 
 # -- DXF ------------------------------------------------------------------------------------
@@ -182,6 +104,29 @@ def _fixed_metadata():
 
 def _fmt(v: float) -> str:
     return repr(float(v))
+
+
+def _header(sheet, plan: LaserPlan, n_sheets: int, header: dict | None) -> dict:
+    """The FABKIT_* header variables of a sheet: the kit's, or ``header`` (the coupon's)."""
+    if header is not None:
+        return header
+    s = plan.settings
+    meta = {
+        "FABKIT_DESIGN": plan.design.name,
+        "FABKIT_SHEET": f"{sheet.index}/{n_sheets}",
+        "FABKIT_SCALE": _fmt(s.scale),
+        "FABKIT_KERF": _fmt(s.kerf),
+        "FABKIT_KERF_NOTE": kerf_note(s),
+        "FABKIT_BAR_WIDTH": _fmt(s.bar_width),
+        "FABKIT_HOLE": _fmt(s.screw.hole_diameter),
+        "FABKIT_THICKNESS": _fmt(s.thickness),
+        "FABKIT_LAYERS": str(plan.stacking.n_layers),
+        "FABKIT_BARS": str(plan.bars.n_bars),
+        "FABKIT_TEMPLATE": plan.design.path.name if plan.design.path else "",
+    }
+    if plan.variant:
+        meta["FABKIT_VARIANT"] = plan.variant
+    return meta
 
 
 def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None) -> bytes:
@@ -211,24 +156,8 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
         for name, colour in LAYERS.items():
             doc.layers.add(name, color=colour)
         doc.appids.add(APPID)
-        custom = doc.header.custom_vars
-        meta = {
-            "FABKIT_DESIGN": plan.design.name,
-            "FABKIT_SHEET": f"{sheet.index}/{n_sheets}",
-            "FABKIT_SCALE": _fmt(s.scale),
-            "FABKIT_KERF": _fmt(s.kerf),
-            "FABKIT_KERF_NOTE": kerf_note(s),
-            "FABKIT_BAR_WIDTH": _fmt(s.bar_width),
-            "FABKIT_HOLE": _fmt(s.screw.hole_diameter),
-            "FABKIT_THICKNESS": _fmt(s.thickness),
-            "FABKIT_LAYERS": str(plan.stacking.n_layers),
-            "FABKIT_BARS": str(plan.bars.n_bars),
-            "FABKIT_TEMPLATE": plan.design.path.name if plan.design.path else "",
-        } if header is None else header
-        if plan.variant and header is None:
-            meta["FABKIT_VARIANT"] = plan.variant
-        for key, value in meta.items():
-            custom.append(key, value)
+        for key, value in _header(sheet, plan, n_sheets, header).items():
+            doc.header.custom_vars.append(key, value)
         msp = doc.modelspace()
 
         def tag(entity, part):
@@ -481,16 +410,13 @@ def bom_markdown(bom: dict) -> str:
 
 # -- entry ----------------------------------------------------------------------------------
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
-    """Laser-cut files for a design (pure: returns bytes, writes nothing).
+def write(plan: LaserPlan) -> ExportResult:
+    """Laser-cut files of a laser plan (pure: returns bytes, writes nothing).
 
     Parameters
     ----------
-    design : Design
-    settings : dict, optional
-        Overrides of ``[fabrication.laser]``, e.g. ``{"laser": {"kerf": 0.2, "scale": 60}}``.
-    motion : TracedMotion, optional
-        The design's motion, traced once (see :func:`laser_plan`).
+    plan : LaserPlan
+        The laser process's plan (:func:`fabkit.fab.laser_plan.laser_plan`).
 
     Returns
     -------
@@ -500,21 +426,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
         ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``: the bill of materials.
         The as-built check reads the files back (:func:`fabkit.check.dxf.check_documents`,
         run on every export by the batch engine); an exporter never checks its own output.
-
-    Raises
-    ------
-    FabricationError
-        Bad settings or geometry (see :func:`laser_plan`).
-
-    Examples
-    --------
-    >>> import fabkit
-    >>> from fabkit.export.dxf import export_design
-    >>> design = fabkit.load_template("templates/fourbar.toml")   # doctest: +SKIP
-    >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
-    ['laser_assembly.png', 'laser_bom.json']
     """
-    plan = laser_plan(design, settings, motion)
     files: dict[str, bytes] = {}
     n = len(plan.sheets)
     for sheet in plan.sheets:
@@ -540,3 +452,42 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
     # the guide's page count rides with the report (a report never counts a PDF's pages)
     return ExportResult(files=files, report={"format": FORMAT, **bom,
                                              "guide_pages": int(guide.stats["pages"])})
+
+
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+    """Laser-cut files for a design: its laser plan, written (pure: returns bytes, writes
+    nothing).
+
+    Parameters
+    ----------
+    design : Design
+    settings : dict, optional
+        Overrides of ``[fabrication.laser]``, e.g. ``{"laser": {"kerf": 0.2, "scale": 60}}``.
+    motion : TracedMotion, optional
+        The design's motion, traced once (see :func:`fabkit.fab.laser_plan.laser_plan`).
+
+    Returns
+    -------
+    ExportResult
+        ``files``: ``laser_sheet<k>.dxf`` and ``.svg`` per sheet, ``laser_bom.json``,
+        ``laser_bom.md``, ``laser_assembly.png``, ``laser_layers_motion.png``,
+        ``laser_guide.pdf``, ``laser_guide_page1.png``. ``report``: the bill of materials.
+        The as-built check reads the files back (:func:`fabkit.check.dxf.check_documents`,
+        run on every export by the batch engine); an exporter never checks its own output.
+
+    Raises
+    ------
+    FabricationError
+        Bad settings or geometry (see :func:`fabkit.fab.laser_plan.laser_plan`).
+
+    Examples
+    --------
+    >>> import fabkit
+    >>> from fabkit.export.dxf import export_design
+    >>> design = fabkit.load_template("templates/fourbar.toml")   # doctest: +SKIP
+    >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
+    ['laser_assembly.png', 'laser_bom.json']
+    """
+    from ..fab.plans import make_plan
+
+    return write(make_plan(PROCESS, design, settings, motion))

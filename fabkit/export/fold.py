@@ -25,6 +25,9 @@ from .. import __version__
 from . import ExportResult
 
 FORMAT = "fold"
+
+#: The process whose plan (:func:`fabkit.fab.creases.plan.origami_plan`) this format is written from.
+PROCESS = "origami"
 #: The sections of ``--set`` this format reads (any other has no effect on it).
 READS = ("origami",)
 
@@ -114,18 +117,22 @@ def sheet_ports(model) -> list[dict]:
     return out
 
 
-def export_design(design, settings: dict) -> ExportResult:
-    """``<name>.fold``.
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+    """``<name>.fold`` of a design: its origami plan, written (see :func:`write`).
 
     Raises
     ------
     FabricationError
         No [fabrication.origami] table, bad settings, or a folding the simulator cannot do.
     """
-    from ..fab.creases import fold_model, origami_model
+    from ..fab.plans import make_plan
 
-    model = origami_model(design, (settings or {}).get("origami"))
-    fold = fold_model(model, design.motion.drive, design.motion.to)
+    return write(make_plan(PROCESS, design, settings, motion))
+
+
+def write(plan) -> ExportResult:
+    """``<name>.fold`` of an origami plan (:class:`fabkit.fab.creases.plan.OrigamiPlan`)."""
+    design, model, fold = plan.design, plan.model, plan.fold
     doc = fold_document(model, fold, design.motion.drive, design.motion.to)
     data = (json.dumps(doc, indent=1) + "\n").encode("utf-8")
     changed = [k for k, (a, b) in enumerate(zip(model.assignment, doc["edges_assignment"]))

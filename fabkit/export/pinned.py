@@ -30,7 +30,7 @@ from . import ExportResult
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
-__all__ = ["export_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED", "print_bom",
+__all__ = ["write_pinned", "bed_file_names", "body_meshes", "JOIN_PINNED", "print_bom",
            "BOLT_LENGTHS", "STL_NOTE"]
 
 JOIN_PINNED = ("the pieces meet at the joints of the port named joined_at, where every bar has a "
@@ -215,18 +215,56 @@ def _stacks(plan) -> list[dict]:
     return out
 
 
-def export_pinned(design, s, name: str, motion=None) -> ExportResult:
-    """Files and report of a design's print-in-place linkage (see the module docstring).
+def _bed_bodies(plan, meshes, b: int, name: str, origin) -> tuple[list, list, list]:
+    """The bodies on bed ``b``, placed: their vertices and faces (one mesh for the STL) and one
+    object per piece (for the 3MF)."""
+    verts, faces, offset = [], [], 0
+    objects = []
+    for p, piece in enumerate(plan.pieces):
+        if plan.layout[p].bed != b:
+            continue
+        m = plan.placement_matrix(p)
+        pv, pf, volumes = [], [], []
+        first = poff = 0
+        for k in piece["bars"]:
+            v, f = meshes[k]
+            placed = _placed(v, m)
+            if not (stored_mesh_is_closed(placed, f)
+                    and stored_mesh_is_closed(placed - origin, f)):
+                raise FabricationError(
+                    f"bar {k}'s body is not watertight once its coordinates are rounded to "
+                    "float32 (features too close); change bar_width or scale slightly")
+            verts.append(placed)
+            faces.append(f + offset)
+            offset += len(v)
+            pv.append(placed)
+            pf.append(f + poff)
+            poff += len(v)
+            i, j = plan.edges[k]
+            volumes.append((first, first + len(f) - 1,
+                            f"bar {k} (joints {i}-{j}), layer {int(plan.layer[k]) + 1}"))
+            first += len(f)
+        # placed in the mesh itself: PrusaSlicer 2.5 applies a build item's transform to
+        # the first part of an object only
+        objects.append((np.concatenate(pv), np.concatenate(pf),
+                        name if len(plan.pieces) == 1 else f"{name}_piece{p + 1}", None,
+                        volumes))
+    return verts, faces, objects
+
+
+def write_pinned(plan, s, name: str, design) -> ExportResult:
+    """Files and report of a print-in-place linkage's plan (see the module docstring).
 
     Parameters
     ----------
-    design : Design
+    plan : PinnedPrint
+        The linkage's layers, pins, pieces and beds (:func:`fabkit.fab.pinned.pinned_print`).
     s : PrintSettings
         ``linkage = "pins"``.
     name : str
         File name stem.
-    motion : TracedMotion, optional
-        The design's motion, traced once (see :func:`fabkit.fab.pinned.pinned_print`).
+    design : Design
+        The design the plan was made for (its name, for the files' titles).
 
     Returns
     -------
@@ -235,12 +273,8 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
     Raises
     ------
     FabricationError
-        See :func:`fabkit.fab.pinned.pinned_print`; a body that is not watertight once its
-        coordinates are rounded to float32.
+        A body that is not watertight once its coordinates are rounded to float32.
     """
-    from ..fab.pinned import pinned_print
-
-    plan = pinned_print(design, s, motion)
     meshes = body_meshes(plan)
     beds = plan.beds
     files: dict[str, bytes] = {}
@@ -250,37 +284,7 @@ def export_pinned(design, s, name: str, motion=None) -> ExportResult:
     origin = stl_origin(s.printer_profile())
     triangles = 0
     for b in range(beds):
-        verts, faces, offset = [], [], 0
-        objects = []
-        for p, piece in enumerate(plan.pieces):
-            if plan.layout[p].bed != b:
-                continue
-            m = plan.placement_matrix(p)
-            pv, pf, volumes = [], [], []
-            first = poff = 0
-            for k in piece["bars"]:
-                v, f = meshes[k]
-                placed = _placed(v, m)
-                if not (stored_mesh_is_closed(placed, f)
-                        and stored_mesh_is_closed(placed - origin, f)):
-                    raise FabricationError(
-                        f"bar {k}'s body is not watertight once its coordinates are rounded to "
-                        "float32 (features too close); change bar_width or scale slightly")
-                verts.append(placed)
-                faces.append(f + offset)
-                offset += len(v)
-                pv.append(placed)
-                pf.append(f + poff)
-                poff += len(v)
-                i, j = plan.edges[k]
-                volumes.append((first, first + len(f) - 1,
-                                f"bar {k} (joints {i}-{j}), layer {int(plan.layer[k]) + 1}"))
-                first += len(f)
-            # placed in the mesh itself: PrusaSlicer 2.5 applies a build item's transform to
-            # the first part of an object only
-            objects.append((np.concatenate(pv), np.concatenate(pf),
-                            name if len(plan.pieces) == 1 else f"{name}_piece{p + 1}", None,
-                            volumes))
+        verts, faces, objects = _bed_bodies(plan, meshes, b, name, origin)
         v_bed, f_bed = np.concatenate(verts) - origin, np.concatenate(faces)
         triangles += len(f_bed)
         files[stl_names[b]] = binary_stl(

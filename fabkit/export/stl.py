@@ -36,7 +36,6 @@ from ..errors import FabricationError
 from ..fab.printers import split_to_fit
 from ..fab.slicer import slicer_settings
 from ..model.network import Network
-from ..motion import motion_for, MotionStatus
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit, figure_png
 from . import ExportResult
@@ -44,10 +43,13 @@ from .pinned import bed_file_names
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
-__all__ = ["FORMAT", "applies", "export_design", "binary_stl", "threemf_package",
+__all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "binary_stl", "threemf_package",
            "stored_mesh_is_closed", "hinge_layout", "piece_network", "stl_origin"]
 
 FORMAT = "stl"
+
+#: The process whose plan (:func:`fabkit.fab.print_plan.print_plan`) this format is written from.
+PROCESS = "print"
 #: The sections of ``--set`` this format reads (any other has no effect on it).
 READS = ("print",)
 
@@ -222,31 +224,8 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]", "_", name) or "network"
 
 
-def _hinge_report(design, geo, motion) -> dict:
-    """Largest hinge rotation along the design's motion and the bending strain it means."""
-    from ..fab.hinges import hinge_bending
-
-    s = geo.settings
-    if design.motion.to is None:
-        return {"status": "no motion in the template"}
-    traj = motion.trajectory
-    if traj is None:
-        if motion.status is MotionStatus.NO_TARGET:
-            return {"status": "no motion in the template"}
-        return {"status": f"motion not traced: {motion.error or motion.reason}"}
-    turn, strain = hinge_bending(geo, traj.positions)
-    k = int(np.argmax(strain)) if strain.size else 0
-    return {"status": str(traj.status),
-            "max_rotation_deg": float(np.degrees(turn.max())) if turn.size else 0.0,
-            "bending_strain": float(strain[k]) if strain.size else 0.0,
-            "worst_joint": int(geo.arm_joint[k]) if strain.size else None,
-            "strain_limit": s.strain_limit,
-            "hinge_length_needed": float(strain[k] / s.strain_limit * 2.0 * geo.arm_length[k])
-            if strain.size else 0.0}
-
-
 def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
-    """A printed network as STL (+ 3MF, preview PNG), laid out on the printer's bed.
+    """A printed network as STL (+ 3MF, preview PNG): its print plan, written (:func:`write`).
 
     Parameters
     ----------
@@ -271,21 +250,28 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
         triangles, plates that would touch, hinges that do not fit; bars that cannot be stacked
         or pinned (:func:`fabkit.fab.pinned.pinned_print`); nothing is produced.
     """
-    from ..fab.hinges import print_geometry, print_solid, solid_mesh
-    from ..fab.printing import design_print_settings
+    from ..fab.plans import make_plan
 
-    s = design_print_settings(design, settings)
+    return write(make_plan(PROCESS, design, settings, motion))
+
+
+def write(plan) -> ExportResult:
+    """A print plan (:class:`fabkit.fab.print_plan.PrintPlan`) as STL (+ 3MF, preview PNG), laid
+    out on the printer's bed.
+
+    Raises
+    ------
+    FabricationError
+        Features so close that they merge in the STL's float32 coordinates (the file would
+        not be watertight); nothing is produced.
+    """
+    design, s = plan.design, plan.settings
     name = _safe(design.name)
-    if design.network.dim != 2:
-        raise FabricationError(f"printing needs a planar network; {design.name} is "
-                               f"{design.network.dim}D")
-    if s.linkage == "pins":
-        from .pinned import export_pinned
+    if plan.pinned is not None:
+        from .pinned import write_pinned
 
-        return export_pinned(design, s, name, motion)
-    geo = print_geometry(design.network, s)
-    body = print_solid(geo)
-    verts, faces = solid_mesh(body)
+        return write_pinned(plan.pinned, s, name, design)
+    geo, body, verts, faces = plan.geo, plan.body, plan.verts, plan.faces
     if not stored_mesh_is_closed(verts, faces):
         raise FabricationError(
             "the solid has features so close that they merge in the STL's float32 coordinates "
@@ -296,7 +282,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
     if s.preview:
         files[f"{name}_print.png"] = _preview_png(geo, design.name)
 
-    hinges = _hinge_report(design, geo, motion_for(design, motion))
+    hinges = plan.hinges
     warnings = []
     if hinges.get("bending_strain", 0.0) > s.strain_limit:
         warnings.append(

@@ -40,6 +40,9 @@ from ..numerics import MM_SLACK, TINY
 from . import ExportResult
 
 FORMAT = "svg"
+
+#: The process whose plan (:func:`fabkit.fab.creases.plan.origami_plan`) this format is written from.
+PROCESS = "origami"
 #: The sections of ``--set`` this format reads (any other has no effect on it).
 READS = ("origami",)
 
@@ -604,21 +607,27 @@ def _render_pages(model, targets, geom, table, facts):
                   "width_mm": float(media.width), "height_mm": float(media.height), **facts}
 
 
-def export_design(design, settings: dict) -> ExportResult:
-    """Crease pattern SVG (``<name>.svg``, or the layout of all sheets ``<name>_layout.svg``)
-    and the cut-ready sheet(s) (``<name>_cut.svg``, :mod:`fabkit.export.svg_cut`).
+def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+    """The crease pattern files of a design: its origami plan, written (see :func:`write`).
 
     Raises
     ------
     FabricationError
         No [fabrication.origami] table, bad settings, or a folding the simulator cannot do.
     """
-    from ..fab.creases import fold_model, origami_model
+    from ..fab.plans import make_plan
+
+    return write(make_plan(PROCESS, design, settings, motion))
+
+
+def write(plan) -> ExportResult:
+    """Crease pattern SVG (``<name>.svg``, or the layout of all sheets ``<name>_layout.svg``)
+    and the cut-ready sheet(s) (``<name>_cut.svg``, :mod:`fabkit.export.svg_cut`) of an origami
+    plan (:class:`fabkit.fab.creases.plan.OrigamiPlan`)."""
     from ..fab.creases.perforation import Perforation
     from .svg_cut import cut_svg
 
-    model = origami_model(design, (settings or {}).get("origami"))
-    fold = fold_model(model, design.motion.drive, design.motion.to)
+    design, model, fold = plan.design, plan.model, plan.fold
     data, report = render(model, fold)
     perf = Perforation.from_settings(model.settings)
     realised = realised_model(model, fold)

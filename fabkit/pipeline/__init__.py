@@ -112,6 +112,58 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
                                       f"tolerance.process = \"{owner}\" to change that)")
 
 
+def _resolved(paths, settings, exporters, tolerance_samples, allow_large):
+    """The templates' paths, the checked settings and the format registry, before any design:
+    one bad key or size fails them all alike."""
+    from ..export import EXPORTERS
+    from ..templates import resolve_template
+
+    if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
+        raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
+                          MAX_SAMPLES, "fabkit --allow-large", option=True)
+    exporters = dict(EXPORTERS if exporters is None else exporters)
+    settings = check_export_settings(settings or {}, exporters)
+    # a bare name is a template of the current folder or a bundled one, as on the command line
+    return [resolve_template(p) for p in paths], settings, exporters
+
+
+def _write_index(outdir: Path, results) -> None:
+    """index.html from the cards the exports handed back (no page is read back); the folders
+    of earlier runs are linked by name."""
+    cards = [r.card for r in results if r is not None and r.folder and r.card is not None]
+    if cards:
+        write_index(outdir, cards)
+
+
+def _loaded(paths, finished):
+    """Load every template once, before any work: one that does not load, or that shares its
+    name (its output folder) with an earlier one, is finished here with its error. Returns the
+    indices to export, their designs, names and costs (edges, the measure of work)."""
+    from ..templates import load_template
+
+    owners: dict[str, Path] = {}
+    todo, designs, names, cost = [], {}, {}, {}
+    for i, p in enumerate(paths):
+        try:
+            design = designs[i] = load_template(p)
+            name = design.name
+            cost[i] = design.network.n_edges
+        except FabkitError as exc:
+            # a template that does not even load needs no worker: report it here
+            finished(i, DesignResult(str(p), p.stem, error=str(exc), error_code=exc.code))
+            continue
+        if name in owners:
+            finished(i, DesignResult(str(p), name, error_code="template",
+                                     error=f"{p}: name: {name!r} is also the name of "
+                                           f"{owners[name]}; each design needs its own name "
+                                           "(its output folder)"))
+            continue
+        owners[name] = p
+        names[i] = name
+        todo.append(i)
+    return todo, designs, names, cost
+
+
 def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, check=True,
                 tolerance_samples=None, progress=None, isolate=True, exporters=None,
                 previews=True, debug=False, wait=False, allow_large=False,
@@ -179,48 +231,17 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     -----
     Designs with the same name would share a folder: the later ones fail instead.
     """
-    from ..export import EXPORTERS
-    from ..templates import load_template, resolve_template
-
     allow_large = allow_large or large_allowed()
-    if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
-        raise BoundsError("--tolerance-samples", "Monte Carlo samples", int(tolerance_samples),
-                          MAX_SAMPLES, "fabkit --allow-large", option=True)
-
-    exporters = dict(EXPORTERS if exporters is None else exporters)
-    # before any design: one bad key fails them all alike
-    settings = check_export_settings(settings or {}, exporters)
-    # a bare name is a template of the current folder or a bundled one, as on the command line
-    paths = [resolve_template(p) for p in paths]
+    paths, settings, exporters = _resolved(paths, settings, exporters, tolerance_samples,
+                                           allow_large)
     results: list[DesignResult | None] = [None] * len(paths)
-    owners: dict[str, Path] = {}
-    names: dict[int, str] = {}
-    todo = []
 
     def finished(i, res):
         results[i] = res
         if progress:
             progress.finished(res)
 
-    cost, designs = {}, {}
-    for i, p in enumerate(paths):
-        try:
-            design = designs[i] = load_template(p)
-            name = design.name
-            cost[i] = design.network.n_edges
-        except FabkitError as exc:
-            # a template that does not even load needs no worker: report it here
-            finished(i, DesignResult(str(p), p.stem, error=str(exc), error_code=exc.code))
-            continue
-        if name in owners:
-            finished(i, DesignResult(str(p), name, error_code="template",
-                                     error=f"{p}: name: {name!r} is also the name of "
-                                           f"{owners[name]}; each design needs its own name "
-                                           "(its output folder)"))
-            continue
-        owners[name] = p
-        names[i] = name
-        todo.append(i)
+    todo, designs, names, cost = _loaded(paths, finished)
     if not todo:
         return results  # type: ignore[return-value]
     _refuse_unused_settings(settings, [designs[i] for i in todo], formats, exporters,
@@ -240,11 +261,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
             stage_cb = progress.stage if progress else None
             for i in todo:
                 finished(i, export_one(*args[i], progress=stage_cb, **kwargs))
-        cards = [r.card for r in results if r is not None and r.folder and r.card is not None]
-        if cards:
-            # index.html from the cards the exports handed back (no page is read back); the
-            # folders of earlier runs are linked by name
-            write_index(outdir, cards)
+        _write_index(outdir, results)
     return results  # type: ignore[return-value]
 
 

@@ -11,12 +11,11 @@ from ..errors import (brief, FabkitError, internal_error_line, Interrupted, Temp
                       UnsafeNameError, WriteError)
 from ..io.inputs import read_regular
 from ..io.outputs import inside
-from ..motion import trace_motion
 from ..report.html import design_html, index_card, motion_frames
 from ..report.text import design_facts, report_json, report_markdown
 from .folders import check_replaceable, recover_folder, staging_folders, swap_in
 from .formats import (choose_formats, make_artefacts, motion_facts, plan_design, RESERVED,
-                      run_checks)
+                      run_checks, traced_for)
 from .manifest import (design_digest, MANIFEST, MAX_KEPT_BYTES, new_manifest, read_manifest,
                        sort_earlier)
 from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
@@ -95,139 +94,176 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     -------
     DesignResult
     """
-    from ..export import EXPORTERS, write_atomic, write_outputs
-    from ..templates import load_template, with_settings
-
     t0, cpu0 = time.perf_counter(), time.process_time()
     res = DesignResult(path=str(path), name=Path(path).stem)
-    stage_dir = None
-    current = [None, t0]
-
-    def stage(s):
-        now = time.perf_counter()
-        if current[0] is not None:
-            res.stages[str(current[0])] = res.stages.get(str(current[0]), 0.0) + now - current[1]
-        current[:] = [s, now]
-        if progress is not None and s is not None:
-            progress(res.name, s)
-
+    clock = _StageClock(res, progress, t0)
+    staged = [None]  # the staging folder while it holds an unfinished export
     try:
-        stage(Stage.LOAD)
-        loaded = load_template(path)
-        # what the files are made from, as the template says (--set is compared on its own)
-        digest = design_digest(loaded)
-        design = with_settings(loaded, settings)  # --set motion.to=...
-        res.name = design.name
-        outdir = Path(outdir)
-        try:
-            folder = inside(outdir, design.name)  # before the work, not after it
-        except UnsafeNameError as exc:  # a Design made in code, not read from a template
-            raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
-        check_replaceable(folder)
-        staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
-        # a folder caught between the two renames of a killed run is put back first: its
-        # record says what it holds
-        recover_folder(outdir, design.name)
-        # what earlier exports left in the folder: formats still current stay, stale ones go
-        earlier = read_manifest(folder) if folder.is_dir() and not folder.is_symlink() else None
-        registry = dict(EXPORTERS if exporters is None else exporters)
-        made_now = [f for f, _ in choose_formats(design, formats, registry)[0]]
-        kept, removed = sort_earlier(folder, earlier, design, settings, made_now, registry,
-                                     digest)
-        stage(Stage.MOTION)
-        motion = trace_motion(design)  # once: every later stage reads this one
-        plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
-                           allow_large=allow_large, kept=kept)
-        art = make_artefacts(design, plan, settings, motion, previews, stage=stage)
-        if kept:
-            art = keep_formats(art, folder, kept, list(registry))
-        fmts = art.formats
-        stage(Stage.WRITE)
-        stage_dir = staging_folders(outdir, design.name)[0]
-        stage_dir.mkdir(parents=True)
-        written = write_outputs(art.files, stage_dir)
-        outcome = Outcome.OK
-        by_format: dict = {}
-        if check:
-            stage(Stage.CHECK)
-            for chk in run_checks(written, design, settings, motion):
-                fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
-                if fmt is None:
-                    continue
-                fmts[fmt].checks.append(chk)
-                by_format.setdefault(fmt, []).append(chk)
-                if not chk.ok:
-                    fmts[fmt].status = FormatStatus.CHECK_FAILED
-                    outcome = Outcome.CHECK_FAILED
-        checks = Checks(by_format)
-        refused = [f"{f}: {v.detail}" for f, v in fmts.items()
-                   if v.status is FormatStatus.REFUSED]
-        if refused:  # asked for and not made: a failure with its reason, never "ok"
-            outcome = Outcome.REFUSED
-        record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry,
-                              digest, time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
-        write_atomic(stage_dir / MANIFEST, record.to_bytes())
-        names = [p.name for p in written] + [MANIFEST, "report.json", "report.md",
-                                             "report.html"]
-        verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
-        rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
-                           outcome, tuple(f"{line} (format refused)" for line in refused),
-                           tuple(names), record.formats, removed)
-        # the reports, rendered from the typed results above (none is read back)
-        md, js = report_markdown(rep), report_json(report_dict(rep))
-        write_atomic(stage_dir / "report.md", md)
-        write_atomic(stage_dir / "report.json", js)
-        traj = motion.trajectory if motion.traced else None
-        frames = motion_frames(design, traj, fmts)
-        listing = {p.name: len(art.files[p.name]) for p in written}
-        listing.update({"report.md": len(md), "report.json": len(js),
-                        MANIFEST: len(record.to_bytes())})
-        write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
-        res.card = index_card(rep, design.name, frames)
-        res.level, res.headline = str(verdict.level), verdict.headline
-        # files of other commands stay; those of earlier exports are ours to keep or drop
-        ours = None if earlier is None else (
-            {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
-        if swap:
-            swap_in(stage_dir, folder, ours)
-        else:
-            res.staged, res.earlier_files = str(stage_dir), (
-                None if ours is None else tuple(sorted(ours)))
-        stage_dir = None
-        res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
-        res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(
-            removed)
-        if outcome is Outcome.REFUSED:
-            res.error = f"{path}: cannot produce {'; '.join(refused)}"
-            res.error_code = "refused"
-        elif outcome is Outcome.CHECK_FAILED:
-            bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
-            res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
-                         f"(see {folder / 'report.md'})")
-            res.error_code = "check"
-    except WriteError as exc:
-        res.error = (f"{path}: cannot write the export to {outdir}: {exc.reason} "
-                     f"({Path(exc.path).name}); nothing of it was written")
-        res.error_code = "output"
-    except FabkitError as exc:
-        res.error, res.error_code = str(exc), exc.code
-    except OSError as exc:
-        res.error = f"{path}: cannot write the export to {outdir}: {exc.strerror or exc}"
-        if getattr(exc, "filename", None):
-            res.error += f" ({Path(exc.filename).name})"
-        res.error_code = "output"
+        _export(path, formats, outdir, settings, res, clock, staged, check=check,
+                tolerance_samples=tolerance_samples, exporters=exporters, previews=previews,
+                allow_large=allow_large, swap=swap)
     except (Interrupted, KeyboardInterrupt):
         res.outcome, res.error, res.error_code = Outcome.INTERRUPTED, f"{path}: interrupted", \
             "interrupted"
         raise
     except Exception as exc:  # a bug must not stop the other designs; say where it happened
-        if debug:
+        if debug and not isinstance(exc, (FabkitError, OSError)):
             raise
-        res.error, res.error_code = f"{path}: {internal_error_line(exc)}", "internal"
+        res.error, res.error_code = _failure(exc, path, outdir)
     finally:
-        if stage_dir is not None and stage_dir.exists():
-            shutil.rmtree(stage_dir, ignore_errors=True)
-        stage(None)
+        if staged[0] is not None and staged[0].exists():
+            shutil.rmtree(staged[0], ignore_errors=True)
+        clock(None)
         res.seconds = time.perf_counter() - t0
         res.cpu_seconds = time.process_time() - cpu0
     return res
+
+
+class _StageClock:
+    """Times the stages of one design's export into ``res.stages`` and tells ``progress``."""
+
+    def __init__(self, res: DesignResult, progress, t0: float):
+        self.res, self.progress, self.current = res, progress, [None, t0]
+
+    def __call__(self, s) -> None:
+        now = time.perf_counter()
+        name, since = self.current
+        if name is not None:
+            self.res.stages[str(name)] = self.res.stages.get(str(name), 0.0) + now - since
+        self.current = [s, now]
+        if self.progress is not None and s is not None:
+            self.progress(self.res.name, s)
+
+
+def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
+    """(error line, error code) of an export that stopped with ``exc``."""
+    if isinstance(exc, WriteError):
+        return (f"{path}: cannot write the export to {outdir}: {exc.reason} "
+                f"({Path(exc.path).name}); nothing of it was written"), "output"
+    if isinstance(exc, FabkitError):
+        return str(exc), exc.code
+    if isinstance(exc, OSError):
+        line = f"{path}: cannot write the export to {outdir}: {exc.strerror or exc}"
+        if getattr(exc, "filename", None):
+            line += f" ({Path(exc.filename).name})"
+        return line, "output"
+    return f"{path}: {internal_error_line(exc)}", "internal"
+
+
+def _load(path, settings, outdir, formats, exporters):
+    """The Load stage: the design with ``--set`` applied, its folder, and what an earlier export
+    left there (formats still current stay, stale ones go)."""
+    from ..export import EXPORTERS
+    from ..templates import load_template, with_settings
+
+    loaded = load_template(path)
+    # what the files are made from, as the template says (--set is compared on its own)
+    digest = design_digest(loaded)
+    design = with_settings(loaded, settings)  # --set motion.to=...
+    outdir = Path(outdir)
+    try:
+        folder = inside(outdir, design.name)  # before the work, not after it
+    except UnsafeNameError as exc:  # a Design made in code, not read from a template
+        raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
+    check_replaceable(folder)
+    staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
+    # a folder caught between the two renames of a killed run is put back first: its record
+    # says what it holds
+    recover_folder(outdir, design.name)
+    earlier = read_manifest(folder) if folder.is_dir() and not folder.is_symlink() else None
+    registry = dict(EXPORTERS if exporters is None else exporters)
+    chosen = choose_formats(design, formats, registry)[0]
+    kept, removed = sort_earlier(folder, earlier, design, settings, [f for f, _ in chosen],
+                                 registry, digest)
+    return design, digest, folder, earlier, registry, kept, removed, chosen
+
+
+def _check_written(written, design, settings, motion, fmts) -> tuple[Outcome, Checks]:
+    """The Checks stage: every written file checked as built, each result on its format."""
+    outcome, by_format = Outcome.OK, {}
+    for chk in run_checks(written, design, settings, motion):
+        fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
+        if fmt is None:
+            continue
+        fmts[fmt].checks.append(chk)
+        by_format.setdefault(fmt, []).append(chk)
+        if not chk.ok:
+            fmts[fmt].status = FormatStatus.CHECK_FAILED
+            outcome = Outcome.CHECK_FAILED
+    return outcome, Checks(by_format)
+
+
+def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, record,
+                   motion) -> dict:
+    """report.md, report.json and report.html of a design into its staging folder, rendered
+    from the typed results (none is read back); returns the design's card for index.html."""
+    from ..export import write_atomic
+
+    md, js = report_markdown(rep), report_json(report_dict(rep))
+    write_atomic(stage_dir / "report.md", md)
+    write_atomic(stage_dir / "report.json", js)
+    traj = motion.trajectory if motion.traced else None
+    frames = motion_frames(rep.design, traj, rep.formats)
+    listing = {p.name: len(art.files[p.name]) for p in written}
+    listing.update({"report.md": len(md), "report.json": len(js),
+                    MANIFEST: len(record.to_bytes())})
+    write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
+    return index_card(rep, rep.design.name, frames)
+
+
+def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *, check,
+            tolerance_samples, exporters, previews, allow_large, swap) -> None:
+    """The stages of :func:`export_one`, filling ``res``; raises what stops them."""
+    from ..export import write_atomic, write_outputs
+
+    clock(Stage.LOAD)
+    design, digest, folder, earlier, registry, kept, removed, chosen = _load(
+        path, settings, outdir, formats, exporters)
+    res.name = design.name
+    clock(Stage.MOTION)
+    motion = traced_for(design, chosen, settings)  # once: every later stage reads this one
+    plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
+                       allow_large=allow_large, kept=kept)
+    art = make_artefacts(design, plan, settings, motion, previews, stage=clock)
+    if kept:
+        art = keep_formats(art, folder, kept, list(registry))
+    fmts = art.formats
+    clock(Stage.WRITE)
+    stage_dir = staged[0] = staging_folders(Path(outdir), design.name)[0]
+    stage_dir.mkdir(parents=True)
+    written = write_outputs(art.files, stage_dir)
+    outcome, checks = Outcome.OK, Checks({})
+    if check:
+        clock(Stage.CHECK)
+        outcome, checks = _check_written(written, design, settings, motion, fmts)
+    refused = [f"{f}: {v.detail}" for f, v in fmts.items() if v.status is FormatStatus.REFUSED]
+    if refused:  # asked for and not made: a failure with its reason, never "ok"
+        outcome = Outcome.REFUSED
+    record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry, digest,
+                          time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
+    write_atomic(stage_dir / MANIFEST, record.to_bytes())
+    names = [p.name for p in written] + [MANIFEST, "report.json", "report.md", "report.html"]
+    verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
+    rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
+                       outcome, tuple(f"{line} (format refused)" for line in refused),
+                       tuple(names), record.formats, removed)
+    res.card = _write_reports(stage_dir, rep, art, written, record, motion)
+    res.level, res.headline = str(verdict.level), verdict.headline
+    # files of other commands stay; those of earlier exports are ours to keep or drop
+    ours = None if earlier is None else (
+        {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
+    if swap:
+        swap_in(stage_dir, folder, ours)
+    else:
+        res.staged, res.earlier_files = str(stage_dir), (
+            None if ours is None else tuple(sorted(ours)))
+    staged[0] = None
+    res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
+    res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(removed)
+    if outcome is Outcome.REFUSED:
+        res.error, res.error_code = f"{path}: cannot produce {'; '.join(refused)}", "refused"
+    elif outcome is Outcome.CHECK_FAILED:
+        bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
+        res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
+                     f"(see {folder / 'report.md'})")
+        res.error_code = "check"

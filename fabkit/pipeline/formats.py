@@ -6,7 +6,8 @@ from pathlib import Path
 
 from ..check import CHECKERS
 from ..errors import BoundsError, FabkitError, TemplateError, UnavailableError
-from ..export import skip_reason
+from ..export import get_exporter, skip_reason
+from ..fab.plans import make_plan, PLANNERS, trace_needs
 from ..motion import MotionStatus, trace_motion
 from ..report.text import design_facts
 from ..plots.viz import figure_png, motion_figure
@@ -42,26 +43,6 @@ def _check_names(fmt, files, taken, path):
         taken[name] = fmt
 
 
-def load_exporter(fmt: str, exporters: dict):
-    """The module of a format from a registry (name → module path).
-
-    Raises
-    ------
-    UnavailableError
-        The module cannot be imported (a missing optional dependency).
-    FabkitError
-        The format is not in the registry.
-    """
-    import importlib
-
-    if fmt not in exporters:
-        raise FabkitError(f"unknown export format {fmt!r}; valid: {', '.join(exporters)}")
-    try:
-        return importlib.import_module(exporters[fmt])
-    except ImportError as exc:
-        raise UnavailableError(f"export format {fmt!r}", str(exc)) from None
-
-
 def _not_applicable(fmt: str, module) -> str:
     """Why a format does not apply: the exporter's ``NOT_APPLICABLE``, else its rule."""
     why = getattr(module, "NOT_APPLICABLE", None)
@@ -84,7 +65,7 @@ def choose_formats(design, formats, exporters) -> tuple[list, dict]:
     chosen, skipped = [], {}
     for fmt in (formats if asked else list(exporters)):
         try:
-            module = load_exporter(fmt, exporters)
+            module = get_exporter(fmt, exporters)
         except UnavailableError as exc:
             skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
                                         else FormatStatus.NOT_AVAILABLE, detail=str(exc))
@@ -176,6 +157,20 @@ def _accepts_motion(function) -> bool:
     return "motion" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
 
 
+def _write_format(module, design, settings, motion, plans: dict):
+    """One format's files: a writer of a process's plan (``PROCESS`` and ``write``) gets the
+    plan built once for every format of that process; an exporter of one's own
+    (``export_design``) gets the design, the settings and, when it takes it, the motion."""
+    process = getattr(module, "PROCESS", None)
+    if process in PLANNERS and callable(getattr(module, "write", None)):
+        if process not in plans:
+            plans[process] = make_plan(process, design, settings, motion)
+        return module.write(plans[process])
+    if _accepts_motion(module.export_design):
+        return module.export_design(design, settings, motion=motion)
+    return module.export_design(design, settings)
+
+
 def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
                    stage=None) -> Artefacts:
     """The Artefacts stage: every file of the design's folder in memory (nothing is written).
@@ -213,12 +208,10 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
     results = dict(plan.skipped)
     taken = {name: "export" for name in RESERVED}
     stage(Stage.EXPORT)
+    plans: dict = {}  # one plan per process, for all of its formats
     for fmt, module in plan.chosen:
         try:
-            if _accepts_motion(module.export_design):
-                result = module.export_design(design, settings, motion=motion)
-            else:
-                result = module.export_design(design, settings)
+            result = _write_format(module, design, settings, motion, plans)
         except FabkitError as exc:
             if singular is not None:
                 raise singular from None  # the root cause, not its consequence in this format
@@ -300,9 +293,12 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
     FabkitError
         Bad template content, impossible motion, or an exporter's refusal (one line).
     """
+    from ..export import EXPORTERS
+
     stage = stage or (lambda s: None)
     stage(Stage.MOTION)
-    motion = trace_motion(design)
+    registry = dict(EXPORTERS if exporters is None else exporters)
+    motion = traced_for(design, choose_formats(design, formats, registry)[0], settings)
     plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
                        allow_large=allow_large)
     art = make_artefacts(design, plan, settings, motion, previews, stage=stage)
@@ -313,6 +309,14 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
     if art.tolerance is not None:
         facts["tolerance"] = art.tolerance.as_dict()
     return art.files, art.formats, facts
+
+
+def traced_for(design, chosen, settings):
+    """The Motion stage: the design's motion, traced once, as densely as the plans of the
+    chosen formats need it (:func:`fabkit.fab.plans.trace_needs`), so no plan traces again."""
+    needs = trace_needs({getattr(module, "PROCESS", None) for _, module in chosen}, design,
+                        settings)
+    return trace_motion(design, **needs)
 
 
 def _load_checker(suffix: str):

@@ -27,7 +27,7 @@ from .. import __version__
 from ..errors import FabkitError, OutputError
 from ..io.inputs import read_regular
 from ..report.text import jsonable
-from .formats import load_exporter
+from ..export import get_exporter
 
 __all__ = ["MANIFEST", "SCHEMA", "SCHEMA_VERSION", "FormatOrigin", "Manifest", "read_manifest",
            "design_digest", "format_settings", "stale_reason", "sort_earlier", "new_manifest"]
@@ -229,7 +229,7 @@ def read_manifest(folder) -> Manifest | None:
 
 def _origin_now(fmt, files, design, settings, exporters, digest) -> FormatOrigin:
     """How format ``fmt`` would be made by this export (its number and time not yet given)."""
-    module = load_exporter(fmt, exporters)
+    module = get_exporter(fmt, exporters)
     return FormatOrigin(fmt, tuple(files), 1, "", digest,
                         format_settings(fmt, module, settings), __version__)
 

@@ -15,6 +15,11 @@ from .conflicts import closer_than, Conflicts, find_conflicts
 from .constants import MAX_SAMPLES, STEP_RTOL
 from .distances import bar_distance_kernel, min_over_samples, node_steps, point_segment_distance
 
+#: The share of the step limit a projected trace bounds each node's move by: the bound holds to
+#: first order, so a tenth inside it is met in one trace (the Motion stage traces a laser kit's
+#: motion so, :func:`fabkit.fab.laser_plan.trace_needs`).
+NODE_STEP_SHARE = 0.9
+
 @dataclass(frozen=True, eq=False)
 class Sweep:
     """The motion sampled finely enough for collision checks.
@@ -104,6 +109,11 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
             np.linspace(traj.drive[0], traj.drive[-1], 65), limit, scale, floor_limit,
             motion.drive)
         drive = values
+    elif trajectory is not None and traj.positions.shape[0] > 1 \
+            and float(node_steps(traj.positions).max(initial=0.0)) <= limit:
+        # the Motion stage traced it as densely as the stacking needs (fabkit.fab.plans
+        # trace_needs): planned along that one trace, never re-traced
+        x, drive = traj.positions, traj.drive
     else:
         # Re-trace with a step bound: the projected method bounds each node's move (fine where
         # a few nodes move fast, coarse elsewhere: the and-gate needs 2 000 samples where a bound
@@ -113,7 +123,8 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
         opts = dict(motion.options)
         key = "max_node_step" if traj.method == "projected" else "step"
         # the node bound holds to first order: a tenth below the limit, one trace usually meets it
-        step = min(0.9 * limit if key == "max_node_step" else limit, opts.get(key) or np.inf)
+        step = min(NODE_STEP_SHARE * limit if key == "max_node_step" else limit,
+                   opts.get(key) or np.inf)
         for _ in range(6):
             opts[key] = step
             traj = trace(net, drive=motion.drive, to=motion.to, method=traj.method,
@@ -121,7 +132,7 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
             worst = float(node_steps(traj.positions).max(initial=0.0))
             if worst <= limit:
                 break
-            step *= 0.9 * limit / worst
+            step *= NODE_STEP_SHARE * limit / worst
         x, drive = traj.positions, traj.drive
     steps = node_steps(x)
     max_step = float(steps.max() * scale) if steps.size else 0.0
