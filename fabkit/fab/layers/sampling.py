@@ -112,8 +112,9 @@ def sample_motion(net, motion, scale: float, step_limit: float, *,
     elif trajectory is not None and traj.positions.shape[0] > 1 \
             and float(node_steps(traj.positions).max(initial=0.0)) <= limit:
         # the Motion stage traced it as densely as the stacking needs (fabkit.fab.plans
-        # trace_needs): planned along that one trace, never re-traced
-        x, drive = traj.positions, traj.drive
+        # trace_needs): planned along that one trace, never re-traced; a copy, since the
+        # samples are scaled to mm in place below and the trace is every stage's
+        x, drive = np.array(traj.positions, dtype=np.float64), np.array(traj.drive)
     else:
         # Re-trace with a step bound: the projected method bounds each node's move (fine where
         # a few nodes move fast, coarse elsewhere: the and-gate needs 2 000 samples where a bound
