@@ -1,11 +1,12 @@
 """The as-built checks stand apart from the writers they check.
 
 A check that reused a writer's code would reproduce the writer's bug instead of catching it. So
-``fabkit/check`` imports nothing from ``fabkit/export`` nor from the plans the writers draw from
-(the laser kit, the pinned print, the layer stacking, the hinges): it reads the written file with
-its own reader, rebuilds the network from the file's geometry and re-simulates it. Here that is
-tested on the import graph (function-level imports included) and by planting writer bugs: a
-hole moved by 0.5 mm in a written DXF, pins written 0.4 mm thicker in a 3MF, a mountain turned
+``fabkit/check`` imports nothing from ``fabkit/export`` nor from ``fabkit/fab``, the plans the
+writers draw from (the laser kit, the pinned print, the layer stacking, the hinges, the crease
+patterns): it reads the written file with its own reader, rebuilds the network from the file's
+geometry and re-simulates it. What a design asks for (``fabkit/settings``) both sides read. Here
+that is tested on the import graph (function-level imports included) and by planting writer
+bugs: a hole moved by 0.5 mm in a written DXF, pins written 0.4 mm thicker in a 3MF, a mountain turned
 into a valley in a FOLD file.
 """
 
@@ -29,19 +30,9 @@ from conftest import ROOT, TEMPLATES
 
 CHECK = Path(fabkit.__file__).parent / "check"
 
-#: What a check may take from fabkit/fab: settings and catalogues that say what was asked for
-#: (never how it was drawn).
-ALLOWED_FAB = {
-    "fabkit.fab.laser": {"laser_overrides", "laser_settings"},
-    "fabkit.fab.printing": {"design_print_settings"},
-    "fabkit.fab.slicer": {"FILAMENTS"},
-    "fabkit.fab.hardware": {"fit_fastener"},
-}
 
-
-def _imports(path: Path):
-    """(module, name) of every import in a file of fabkit/check, wherever it stands."""
-    package = "fabkit.check"
+def _imports(path: Path, package: str = "fabkit.check"):
+    """(module, name) of every import in a file of ``package``, wherever it stands."""
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             for a in node.names:
@@ -59,16 +50,29 @@ def _imports(path: Path):
 def test_the_checks_import_nothing_from_the_writers():
     files = sorted(CHECK.glob("*.py"))
     assert len(files) >= 10  # the walk sees the package
-    seen_fab = set()
+    seen_settings = set()
     for path in files:
         for module, name in _imports(path):
             where = f"{path.name}: from {module} import {name}"
-            assert not module.startswith("fabkit.export"), where
-            if module == "fabkit.fab" or module.startswith("fabkit.fab."):
-                assert name in ALLOWED_FAB.get(module, set()), where
-                seen_fab.add(module)
-    # the walk resolves relative imports (the check does use fab's settings)
-    assert "fabkit.fab.laser" in seen_fab and "fabkit.fab.printing" in seen_fab
+            for writer in ("fabkit.export", "fabkit.fab"):
+                assert module != writer and not module.startswith(writer + "."), where
+            if module.startswith("fabkit.settings."):
+                seen_settings.add(module)
+    # the walk resolves relative imports: the checks read what was asked for from the settings
+    assert {"fabkit.settings.laser", "fabkit.settings.printing", "fabkit.settings.filaments",
+            "fabkit.settings.fasteners"} <= seen_settings
+
+
+def test_the_settings_import_no_stage_that_plans_draws_or_checks():
+    banned = ("fabkit.fab", "fabkit.export", "fabkit.check", "fabkit.tolerance", "fabkit.motion",
+              "fabkit.pipeline", "fabkit.report")
+    files = sorted((CHECK.parent / "settings").glob("*.py"))
+    assert len(files) >= 6
+    for path in files:
+        rel = path.relative_to(CHECK.parent.parent).with_suffix("")
+        for module, name in _imports(path, ".".join(rel.parts[:-1])):
+            assert not any(module == b or module.startswith(b + ".") for b in banned), \
+                f"{path.name}: from {module} import {name}"
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,6 @@
 """STL (and 3MF) export of printed networks, in millimetres, laid out on the printer's bed.
 
-Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.fab.printing`):
+Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.settings.printing`):
 
 * ``"hinges"`` (the default for a network made of rigid triangles): plates and hinges as one
   watertight body (:mod:`fabkit.fab.hinges`), described below;
@@ -272,7 +272,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
         or pinned (:func:`fabkit.fab.pinned.pinned_print`); nothing is produced.
     """
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
-    from ..fab.printing import design_print_settings
+    from ..settings.printing import design_print_settings
 
     s = design_print_settings(design, settings)
     name = _safe(design.name)
