@@ -54,14 +54,16 @@ def vertex_folds(xy, edges, assignment) -> list[dict]:
     labels = list(assignment)
     edge_of_boundary = np.array([a in ("B", "C") for a in labels], dtype=bool)
     boundary = set(e[edge_of_boundary].ravel().tolist())
+    folds_at: dict[int, list[int]] = {}
+    for k, (a, b) in enumerate(e.tolist()):
+        if labels[k] in ("M", "V"):
+            folds_at.setdefault(a, []).append(k)
+            folds_at.setdefault(b, []).append(k)
     out = []
-    for vert in range(len(x)):
+    for vert in sorted(folds_at):
         if vert in boundary:
             continue
-        at = [k for k in np.flatnonzero((e == vert).any(axis=1)).tolist()
-              if labels[k] in ("M", "V")]
-        if not at:
-            continue
+        at = folds_at[vert]
         far = np.where(e[at, 0] == vert, e[at, 1], e[at, 0])
         d = x[far] - x[vert]
         heading = np.arctan2(d[:, 1], d[:, 0])

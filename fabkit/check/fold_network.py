@@ -105,14 +105,16 @@ def _face_sides(edges: np.ndarray, faces) -> np.ndarray:
 
 def _panels(sides: np.ndarray, assignment, n_faces: int) -> list[list[int]]:
     """Faces grouped into panels: connected across F edges."""
-    label = list(range(n_faces))
-    for k, a in enumerate(assignment):
-        f, g = sides[k]
-        if a == "F" and f >= 0 and g >= 0 and label[f] != label[g]:
-            old, new = label[f], label[g]
-            label = [new if x == old else x for x in label]
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    joined = sides[[k for k, a in enumerate(assignment) if a == "F"]].reshape(-1, 2)
+    joined = joined[(joined >= 0).all(axis=1)]
+    graph = coo_matrix((np.ones(len(joined)), (joined[:, 0], joined[:, 1])),
+                       shape=(n_faces, n_faces))
+    _, label = connected_components(graph, directed=False)
     groups: dict[int, list[int]] = {}
-    for f, lab in enumerate(label):
+    for f, lab in enumerate(label.tolist()):
         groups.setdefault(lab, []).append(f)
     return list(groups.values())
 
