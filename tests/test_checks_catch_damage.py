@@ -29,7 +29,7 @@ import trimesh
 import fabkit
 from fabkit.check import check_file
 from fabkit.export import export
-from fabkit.fab.printing import design_print_settings
+from fabkit.settings.printing import design_print_settings
 
 from conftest import TEMPLATES
 

@@ -1,16 +1,21 @@
 """The as-built checks stand apart from the writers they check.
 
 A check that reused a writer's code would reproduce the writer's bug instead of catching it. So
-``fabkit/check`` imports nothing from ``fabkit/export`` nor from the plans the writers draw from
-(the laser kit, the pinned print, the layer stacking, the hinges): it reads the written file with
-its own reader, rebuilds the network from the file's geometry and re-simulates it. Here that is
-tested on the import graph (function-level imports included) and by planting writer bugs: a
-hole moved by 0.5 mm in a written DXF, pins written 0.4 mm thicker in a 3MF.
+``fabkit/check`` imports nothing from ``fabkit/export`` nor from ``fabkit/fab``, the plans the
+writers draw from (the laser kit, the pinned print, the layer stacking, the hinges, the crease
+patterns): it reads the written file with its own reader, rebuilds the network from the file's
+geometry and re-simulates it. What a design asks for (``fabkit/settings``) both sides read. Here
+that is tested on the import graph (function-level imports included) and by planting writer
+bugs: a hole moved by 0.5 mm in a written DXF, pins written 0.4 mm thicker in a 3MF, a mountain turned
+into a valley in a FOLD file.
 """
 
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import ezdxf
@@ -21,25 +26,13 @@ import fabkit
 from fabkit.check import check_file
 from fabkit.export import export
 
-from conftest import TEMPLATES
+from conftest import ROOT, TEMPLATES
 
 CHECK = Path(fabkit.__file__).parent / "check"
 
-#: What a check may take from fabkit/fab: settings and catalogues that say what was asked for
-#: (never how it was drawn), and the origami model (the simulator of a crease pattern).
-ALLOWED_FAB = {
-    "fabkit.fab.laser": {"laser_overrides", "laser_settings"},
-    "fabkit.fab.printing": {"design_print_settings"},
-    "fabkit.fab.slicer": {"FILAMENTS"},
-    "fabkit.fab.hardware": {"fit_fastener"},
-    "fabkit.fab.creases": {"CreasePattern", "OrigamiModel", "Sheet", "network_from_pattern",
-                           "fold_model", "flat_foldability"},
-}
 
-
-def _imports(path: Path):
-    """(module, name) of every import in a file of fabkit/check, wherever it stands."""
-    package = "fabkit.check"
+def _imports(path: Path, package: str = "fabkit.check"):
+    """(module, name) of every import in a file of ``package``, wherever it stands."""
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             for a in node.names:
@@ -57,16 +50,29 @@ def _imports(path: Path):
 def test_the_checks_import_nothing_from_the_writers():
     files = sorted(CHECK.glob("*.py"))
     assert len(files) >= 10  # the walk sees the package
-    seen_fab = set()
+    seen_settings = set()
     for path in files:
         for module, name in _imports(path):
             where = f"{path.name}: from {module} import {name}"
-            assert not module.startswith("fabkit.export"), where
-            if module == "fabkit.fab" or module.startswith("fabkit.fab."):
-                assert name in ALLOWED_FAB.get(module, set()), where
-                seen_fab.add(module)
-    # the walk resolves relative imports (the check does use fab's settings)
-    assert "fabkit.fab.laser" in seen_fab and "fabkit.fab.printing" in seen_fab
+            for writer in ("fabkit.export", "fabkit.fab"):
+                assert module != writer and not module.startswith(writer + "."), where
+            if module.startswith("fabkit.settings."):
+                seen_settings.add(module)
+    # the walk resolves relative imports: the checks read what was asked for from the settings
+    assert {"fabkit.settings.laser", "fabkit.settings.printing", "fabkit.settings.filaments",
+            "fabkit.settings.fasteners"} <= seen_settings
+
+
+def test_the_settings_import_no_stage_that_plans_draws_or_checks():
+    banned = ("fabkit.fab", "fabkit.export", "fabkit.check", "fabkit.tolerance", "fabkit.motion",
+              "fabkit.pipeline", "fabkit.report")
+    files = sorted((CHECK.parent / "settings").glob("*.py"))
+    assert len(files) >= 6
+    for path in files:
+        rel = path.relative_to(CHECK.parent.parent).with_suffix("")
+        for module, name in _imports(path, ".".join(rel.parts[:-1])):
+            assert not any(module == b or module.startswith(b + ".") for b in banned), \
+                f"{path.name}: from {module} import {name}"
 
 
 @pytest.fixture(scope="module")
@@ -139,3 +145,61 @@ def test_pins_written_thicker_in_the_3mf_are_caught(super_stable, tmp_path, monk
     ok, value = _pin_clearance(bad)
     assert not bad["ok"] and not ok
     assert value == pytest.approx(0.1, abs=1e-3)  # 0.3 mm asked, 0.1 mm written
+
+
+@pytest.fixture(scope="module")
+def origami_fold(tmp_path_factory):
+    design = fabkit.load_template(TEMPLATES / "origami_sheet.toml")
+    out = tmp_path_factory.mktemp("fold")
+    export(design, "fold", out)
+    return design, out / "origami_sheet.fold"
+
+
+def test_the_written_fold_file_passes_maekawa_and_kawasaki(origami_fold):
+    design, path = origami_fold
+    r = check_file(path, design=design)
+    assert r["ok"] and r["flat_foldable"] is True, [c for c in r["checks"] if not c["ok"]]
+    c = _by_name(r)
+    # P, the one interior vertex: PD a mountain, PA, PB, PC valleys
+    assert c["maekawa"]["value"] == [] and c["maekawa"]["limit"] == 2
+    assert "vertex 4: 1 mountains, 3 valleys, |#M - #V| = 2" in c["maekawa"]["detail"]
+    assert c["kawasaki"]["value"] < 1e-12
+
+
+def _mountain_made_valley(path, tmp_path):
+    """The file with PD (edge 7, the one mountain at P) a valley, its fold angles turned too so
+    that assignment and angles agree."""
+    doc = json.loads(path.read_text())
+    assert doc["edges_assignment"][7] == "M" and doc["edges_vertices"][7] == [3, 4]
+    doc["edges_assignment"][7] = "V"
+    doc["edges_foldAngle"][7] = -doc["edges_foldAngle"][7]
+    for frame in doc["file_frames"]:
+        frame["edges_foldAngle"][7] = -frame["edges_foldAngle"][7]
+    bad = tmp_path / "valley.fold"
+    bad.write_text(json.dumps(doc))
+    return bad
+
+
+def test_a_mountain_turned_into_a_valley_fails_maekawa(origami_fold, tmp_path):
+    design, path = origami_fold
+    bad = _mountain_made_valley(path, tmp_path)
+    r = check_file(bad, design=design)
+    c = _by_name(r)
+    assert c["structure"]["ok"]  # the file is consistent: only the crease pattern is wrong
+    assert not r["ok"] and r["flat_foldable"] is False
+    assert not c["maekawa"]["ok"] and c["maekawa"]["value"] == [4]
+    assert "vertex 4: 0 mountains, 4 valleys, |#M - #V| = 4" in c["maekawa"]["detail"]
+    assert c["kawasaki"]["ok"]  # the geometry is untouched
+
+
+def test_a_mountain_turned_into_a_valley_fails_fabkit_check(origami_fold, tmp_path):
+    _, path = origami_fold
+    bad = _mountain_made_valley(path, tmp_path)
+    run = subprocess.run([sys.executable, "-m", "fabkit", "check", str(bad), "--design",
+                          "origami_sheet"], capture_output=True, text=True, cwd=ROOT)
+    assert run.returncode == 1, run.stderr
+    assert "FAIL  maekawa: [4] (limit 2)  vertex 4: 0 mountains, 4 valleys" in run.stdout
+    assert run.stdout.strip().endswith("valley.fold: FAILED")
+    good = subprocess.run([sys.executable, "-m", "fabkit", "check", str(path), "--design",
+                           "origami_sheet"], capture_output=True, text=True, cwd=ROOT)
+    assert good.returncode == 0, good.stdout + good.stderr

@@ -137,7 +137,7 @@ def test_no_decision_reads_message_text():
 
     root = Path(__file__).resolve().parents[1] / "fabkit"
     files = [*sorted((root / "pipeline").glob("*.py")), root / "cli.py",
-             root / "report" / "text.py", root / "io" / "templates.py", root / "errors.py",
+             root / "report" / "text.py", root / "templates.py", root / "errors.py",
              *sorted((root / "commands").glob("*.py"))]
     pattern = re.compile(r"in str\(|in reason\b|in message\b|in msg\b|_is_singular_start"
                          r"|startswith\(str\(")

@@ -61,7 +61,8 @@ def test_physical_fourbar_chain_kit_starts_where_its_bars_lie_apart():
     assert bom["layers"]["count"] == 12 and bom["layers"]["lower_bound"] == 12
     # the kit is assembled in its start state, d1 = 1.05, not the design's flat 1 + 1e-6; its
     # bars keep the design's lengths
-    from fabkit.fab.laser import kit_design, laser_settings
+    from fabkit.fab.laser import kit_design
+    from fabkit.settings.laser import laser_settings
 
     kit = kit_design(design, laser_settings(design.fabrication["laser"]))
     assert design.network.port_distance("d1") == pytest.approx(1.000001)

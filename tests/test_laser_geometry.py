@@ -9,7 +9,7 @@ import pytest
 
 import fabkit
 from fabkit.fab.bars import bar_outline, bulge_primitives, hole_radius, outline_radius, undo_kerf
-from fabkit.fab.laser import laser_settings
+from fabkit.settings.laser import laser_settings
 from fabkit.fab.layers import (Sweep, find_conflicts, plan_layers, point_segment_distance,
                                sample_motion, segment_distance, stacking_gaps)
 from fabkit.fab.nest import REFERENCE_SIZE, make_parts, nest_parts
@@ -267,7 +267,7 @@ def _rules_broken(st, edges):
 
 
 def _chain_stacking(name):
-    from fabkit.fab.laser import laser_overrides
+    from fabkit.settings.laser import laser_overrides
     from fabkit.fab.layers import sample_chain
 
     design = fabkit.load_template(TEMPLATES / f"{name}.toml")

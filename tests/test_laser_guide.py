@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.export.dxf import bill_of_materials, laser_plan
+from fabkit.export.dxf import bill_of_materials
+from fabkit.fab.laser_plan import laser_plan
 from fabkit.fab.guide import assembly_picture, guide_pages, motion_picture
 
 from conftest import TEMPLATES

@@ -16,9 +16,9 @@ import fabkit
 from fabkit.check.dxf import check_documents
 from fabkit.errors import FabricationError
 from fabkit.export.dxf import export_design
-from fabkit.fab.hardware import (CATALOGUE, DEFAULT_SCREW, MAX_AXIAL_PLAY, MAX_EXTENSIONS, PINS,
-                                 WASHER_CLEARANCE, WASHERS, ScrewSpec, choose_washer,
-                                 fit_fastener, inch_text, screw_spec)
+from fabkit.settings.fasteners import (CATALOGUE, DEFAULT_SCREW, MAX_AXIAL_PLAY, MAX_EXTENSIONS,
+                                       PINS, WASHER_CLEARANCE, WASHERS, ScrewSpec, choose_washer,
+                                       fit_fastener, inch_text, screw_spec)
 from fabkit.io.schema import ScrewSection
 
 from conftest import TEMPLATES
@@ -46,7 +46,7 @@ def test_the_default_screw_is_the_widely_sold_m4_book_screw_and_inch_kits_take_3
     inch = screw_spec("inch-chicago")
     assert inch_text(inch.barrel_diameter) == "3/16 in" and "3/16 in barrel" in inch.family
     # through the settings, as --set laser.screw=inch-chicago gives it
-    from fabkit.fab.laser import laser_settings
+    from fabkit.settings.laser import laser_settings
 
     s = laser_settings({}, {"screw": "inch-chicago"})
     assert s.screw is inch and s.bar_width == 14.0    # 5.0 mm hole + 2 x 4.5 mm web
@@ -202,7 +202,7 @@ def test_the_coupon_measures_kerf_hole_and_scale_in_one_cut(labels):
     from shapely.geometry import Point, Polygon
 
     from fabkit.fab.coupon import LABEL_CLEARANCE, coupon_sheet, coupon_text, ladder
-    from fabkit.fab.laser import laser_settings
+    from fabkit.settings.laser import laser_settings
 
     design = fabkit.load_template(TEMPLATES / "fourbar.toml")
     result = export_design(design, {"laser": {"labels": labels}})

@@ -188,7 +188,7 @@ def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
 def test_chain_sampling_does_not_grow_with_the_chain(tmp_path):
     import shutil
 
-    from fabkit.fab.laser import laser_settings
+    from fabkit.settings.laser import laser_settings
     from fabkit.fab.layers import sample_chain
 
     shutil.copy(TEMPLATES / "super_stable.toml", tmp_path / "super_stable.toml")
@@ -217,7 +217,8 @@ def test_chain_sampling_does_not_grow_with_the_chain(tmp_path):
 # -- parts as sold ----------------------------------------------------------------------------
 
 def test_every_bom_part_of_the_chain_is_a_catalogue_part(chain24):
-    from fabkit.fab.hardware import CATALOGUE, PINS, WASHERS, spares
+    from fabkit.fab.hardware import spares
+    from fabkit.settings.fasteners import CATALOGUE, PINS, WASHERS
 
     _, result = chain24
     bom = json.loads(result.files["laser_bom.json"])

@@ -9,8 +9,8 @@ import fabkit
 from fabkit.errors import FabkitError, FabricationError, SettingsError
 from fabkit.export import export
 from fabkit.fab.bars import bar_set
-from fabkit.fab.hardware import CATALOGUE, choose_length, screw_spec
-from fabkit.fab.laser import laser_settings
+from fabkit.settings.fasteners import CATALOGUE, choose_length, screw_spec
+from fabkit.settings.laser import laser_settings
 from fabkit.templates import parse_template
 
 from conftest import TEMPLATES

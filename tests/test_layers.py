@@ -49,6 +49,7 @@ LAYERS = {
     "plots.animate": 7,
     "plots.mapplots": 7,
     "plots.designplots": 7,
+    "settings": 7,
     "fab": 9,
     "motion": 8,
     "tolerance": 10,

@@ -281,8 +281,13 @@ def test_named_branch_writes_the_assignment_it_folds(design, tmp_path):
     assert [r.split()[0] for r in rows if r] == ["1", "1", "1", "1", "3", "3"]
     report = check_file(tmp_path / "origami_sheet.fold")
     assert report["ok"] and report["branch"] == 1
-    mk = {c["name"]: c for c in report["checks"]}["maekawa_kawasaki"]
-    assert mk["value"] is False  # two unassigned creases: not a flat-foldable assignment
+    # PA and PC stay flat (U): the folds at P are PB and PD, two valleys on one line, which
+    # fold flat (Maekawa |0 - 2| = 2, Kawasaki 180 degrees either side)
+    checks = {c["name"]: c for c in report["checks"]}
+    assert checks["maekawa"]["ok"] and checks["maekawa"]["value"] == []
+    assert "vertex 4: 0 mountains, 2 valleys" in checks["maekawa"]["detail"]
+    assert checks["kawasaki"]["ok"] and checks["kawasaki"]["value"] < 1e-12
+    assert report["flat_foldable"] is True
 
 
 def test_fold_check_rejects_contradicting_angles(files, tmp_path):

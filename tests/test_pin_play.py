@@ -18,7 +18,7 @@ import pytest
 import fabkit
 from fabkit.builds.closure import self_stress_basis
 from fabkit.fab.pinned import pinned_print
-from fabkit.fab.printing import design_print_settings
+from fabkit.settings.printing import design_print_settings
 from fabkit.tolerance import analyse_tolerance, tolerance_spec
 from fabkit.tolerance.pins import pin_play
 from fabkit.tolerance.placement import process_geometry

@@ -15,7 +15,7 @@ from fabkit.errors import SettingsError
 from fabkit.export import export, get_exporter
 from fabkit.export.stl import applies, binary_stl, export_design, stored_mesh_is_closed
 from fabkit.fab.hinges import print_geometry
-from fabkit.fab.printing import print_settings
+from fabkit.settings.printing import print_settings
 
 from conftest import TEMPLATES
 

@@ -10,7 +10,7 @@ import fabkit
 from fabkit.design.assemble import chain
 from fabkit.errors import FabricationError
 from fabkit.fab.hinges import hinge_bending, print_geometry, rigid_triangles
-from fabkit.fab.printing import print_settings
+from fabkit.settings.printing import print_settings
 
 from conftest import TEMPLATES
 

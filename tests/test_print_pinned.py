@@ -20,7 +20,7 @@ from fabkit.export import export
 from fabkit.export.stl import export_design
 from fabkit.fab.pinned import bar_body, pin_profile, pinned_print
 from fabkit.fab.printers import chain_pieces
-from fabkit.fab.printing import default_linkage, design_print_settings, print_settings
+from fabkit.settings.printing import default_linkage, design_print_settings, print_settings
 
 from conftest import TEMPLATES
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from fabkit.errors import FabkitError, FabricationError, SettingsError
-from fabkit.fab.printing import HINGE_STYLES, MATERIALS, print_settings
+from fabkit.settings.printing import HINGE_STYLES, MATERIALS, print_settings
 
 
 @pytest.mark.parametrize("material", sorted(MATERIALS))

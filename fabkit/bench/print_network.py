@@ -83,7 +83,7 @@ def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: f
     from scipy.spatial import cKDTree
 
     from ..fab.hinges import print_geometry, print_solid, solid_mesh
-    from ..fab.printing import print_settings
+    from ..settings.printing import print_settings
 
     copies = max(1, math.ceil(triangles / 4))
     seconds = {}

@@ -37,8 +37,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from ..errors import FabkitError, FabricationError
-from ..fab.hardware import fit_fastener
-from ..fab.laser import laser_overrides, laser_settings
+from ..settings.fasteners import fit_fastener
+from ..settings.laser import laser_overrides, laser_settings
 from ..io.schema import describe_validation_error
 from ..model.network import Network
 from ..model.rigidity import count_modes
@@ -437,8 +437,6 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
         checks.append(_check(name, d <= LENGTH_TOL, d, LENGTH_TOL,
                              f"drawn size with the {kerf:g} mm kerf undone vs {expect:g} mm"))
     if design is not None:
-        from ..fab.laser import laser_overrides, laser_settings
-
         s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                            network_size=design.network.size)
         kit = {"kerf": s.kerf, "bar width": s.bar_width, "hole": s.screw.hole_diameter,
@@ -551,7 +549,7 @@ def _screws_close(edges, layer, s, thickness: float) -> dict:
     """Every joint's stack (its layers read back) is closed by a fastener of the catalogue on
     the thickest sheets the thickness tolerance allows.
 
-    The catalogue (:func:`fabkit.fab.hardware.fit_fastener`: the posts, extensions and shims as
+    The catalogue (:func:`fabkit.settings.fasteners.fit_fastener`: the posts, extensions and shims as
     sold) is asked afresh for the stack read back; the fasteners the writer chose are not
     consulted (the DXF holds none)."""
     spans: dict[int, list[int]] = {}

@@ -12,8 +12,13 @@ Checks, each reported as ``{"name", "ok", "value", "limit", "detail"}``:
   (branch chosen by its mountain/valley assignment), reproduces every port distance stored in
   ``fabkit:map`` at the file's drive values (absolute, design units, limit 1e-8);
 - ``design_map`` (with a design): the same against the design's own simulation;
-- ``maekawa_kawasaki``: for a crease pattern, Maekawa and Kawasaki at every interior vertex
-  (reported; a failure means the pattern cannot fold flat, which is not required).
+- ``maekawa`` and ``kawasaki``: for a crease pattern, at every interior vertex with folds,
+  ``|#M - #V| = 2`` and the alternate sector angles sum to pi
+  (:mod:`fabkit.check.flat_fold`; the failing vertices are named).
+
+The network is rebuilt from the file's own vertices, edges, assignment and faces
+(:mod:`fabkit.check.fold_network`) and folded by the shared simulator; nothing is taken from the
+code that wrote the file.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ from ..kinematics import place, plan_construction
 from ..model.network import Network
 from ..numerics import apply_fit, FLAT_RTOL, rigid_fit
 from . import require_files
+from .flat_fold import KAWASAKI_TOL, vertex_folds
+from .fold_network import rebuild, refold
 
 FORMAT = "fold"
 #: The sections of ``--set`` this check reads (any other has no effect on it).
@@ -70,35 +77,6 @@ def structure_problems(doc: dict) -> list[str]:
     from .fold_schema import fold_problems
 
     return fold_problems(doc)
-
-
-def model_from_fold(doc: dict, name: str = "fold"):
-    """Rebuild an :class:`~fabkit.fab.creases.OrigamiModel` from a FOLD document (design units)."""
-    from ..fab.creases import (CreasePattern, OrigamiModel, Sheet, network_from_pattern)
-
-    scale = float(doc["fabkit:scale"])
-    x = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
-    edges = np.asarray(doc["edges_vertices"], dtype=np.int64)
-    assignment = tuple(doc["edges_assignment"])
-    faces = tuple(tuple(f) for f in doc["faces_vertices"])
-    ports = {k: tuple(v) for k, v in doc["fabkit:ports"].items()}
-    motion = doc["fabkit:motion"]
-    settings = {"samples": int(motion["samples"]), "branch": "assignment", "sign": None,
-                "spacing": motion.get("spacing", "uniform"),
-                "step_off": float(motion.get("step_off", 1e-3)), "sheet_size": 1.0}
-    if x.shape[1] == 2:
-        cp = CreasePattern(x, edges, assignment, faces)
-        net, _ = network_from_pattern(cp, ports)
-        # the sheet corner to corner, so the model's scale is the file's own
-        size = float(np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(axis=-1)).max()) * scale
-        settings["sheet_size"] = size
-        return OrigamiModel(name, net, x.shape[0], edges, assignment, faces,
-                            (Sheet(cp, np.arange(x.shape[0])),), True, size, settings)
-    keep = [k for k, a in enumerate(assignment) if a != "C"]
-    net = Network(x, edges[keep], ports)
-    flat = CreasePattern(np.zeros((x.shape[0], 2)), np.zeros((0, 2)), (), ())
-    return OrigamiModel(name, net, x.shape[0], edges, assignment, faces,
-                        (Sheet(flat, np.arange(x.shape[0])),), False, scale, settings)
 
 
 def _map_at(model, fold, drive: str, values: np.ndarray) -> dict:
@@ -148,14 +126,12 @@ def _sheet_maps(model, sheets, stored) -> tuple[float, str]:
                    f"{len(next(iter(stored.values())))} frames")
 
 
-def _design_checks(checks, doc, model, design, drive, values, stored, sheets, name):
+def _design_checks(checks, doc, model, design, drive, values, stored, sheets):
     """The file against the design's template: its vertices are the design's nodes (a rigid
     fit, the worst vertex named), its edges and ports the design's; and the design's own
     geometry, folded by the simulator as the file says (its assignment, branch and frames),
     gives the map the file stores. Returns the largest map difference, None when the file is
     another design's."""
-    from ..fab.creases import fold_model
-
     net = design.network
     scale = float(doc["fabkit:scale"])
     root = np.asarray(doc["vertices_coords"], dtype=np.float64) / scale
@@ -187,10 +163,10 @@ def _design_checks(checks, doc, model, design, drive, values, stored, sheets, na
     # the design's nodes carried into the file's frame, folded as the file says
     inverse = (net.nodes[:nv] - fit.shift) @ fit.rotation
     again = dict(doc, vertices_coords=(inverse[:, :root.shape[1]] * scale).tolist())
-    dm = model_from_fold(again, name)
     m = design.motion
     try:
-        dfold = fold_model(dm, m.drive, m.to)
+        dm = rebuild(again)
+        dfold = refold(dm, m.drive, m.to)
         if len(sheets) > 1:
             ddiff, _ = _sheet_maps(dm, sheets, stored)
         else:
@@ -206,81 +182,111 @@ def _design_checks(checks, doc, model, design, drive, values, stored, sheets, na
     return ddiff
 
 
-def check_file(path, design=None, settings=None) -> dict:
-    """Read a FOLD file back and re-fold it (see the module docstring).
-
-    Returns
-    -------
-    dict
-        ``ok``, ``checks``, and ``max_map_difference``.
-    """
-    from ..fab.creases import flat_foldability, fold_model
-    from ..model.rigidity import count_modes
-
-    require_files([path])  # the check is held to the work its size allows
-    doc = read_fold(path)
-    checks = []
-    problems = structure_problems(doc)
-    checks.append(_check("structure", not problems, len(problems), 0,
-                         "; ".join(problems) or "fields present and consistent"))
-    if problems:
-        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
-    model = model_from_fold(doc, Path(path).stem)
-    motion = doc["fabkit:motion"]
-    drive, to = motion["drive"], float(motion["to"])
-    # frames keep the root edge lengths
+def _frames_check(doc, model) -> dict:
+    """Every frame keeps the edge lengths of the root frame (relative)."""
     net = model.network
     scale = float(doc["fabkit:scale"])
     frames = np.asarray([f["vertices_coords"] for f in doc.get("file_frames", [])],
                         dtype=np.float64) / scale
-    nv = model.n_vertices
-    root = np.zeros((nv, 3))
-    root[:, : net.nodes.shape[1]] = net.nodes[:nv]
+    root = np.zeros((model.n_vertices, 3))
+    root[:, : net.nodes.shape[1]] = net.nodes[:model.n_vertices]
     rest = np.linalg.norm(root[model.edges[:, 0]] - root[model.edges[:, 1]], axis=1)
     if frames.size:
         lens = np.linalg.norm(frames[:, model.edges[:, 0]] - frames[:, model.edges[:, 1]], axis=-1)
         worst = float(np.max(np.abs(lens / rest - 1.0)))
     else:
         worst = 0.0
-    checks.append(_check("frames_keep_lengths", worst <= FRAME_RTOL, worst, FRAME_RTOL,
-                         f"{len(frames)} frames; largest relative edge-length change {worst:.1e}"))
-    try:
-        fold = fold_model(model, drive, to)
-    except FabkitError as exc:
-        checks.append(_check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
-        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    return _check("frames_keep_lengths", worst <= FRAME_RTOL, worst, FRAME_RTOL,
+                  f"{len(frames)} frames; largest relative edge-length change {worst:.1e}")
+
+
+def _flat_fold_checks(doc, model) -> list[dict]:
+    """Maekawa and Kawasaki at the interior vertices of the file's crease pattern, from the
+    file's vertices, edges and assignment (see :mod:`fabkit.check.flat_fold`)."""
+    folds = vertex_folds(np.asarray(doc["vertices_coords"], dtype=np.float64), model.edges,
+                         model.assignment)
+    if not folds:
+        return [_check("maekawa", True, [], 2, "no interior vertex with folds"),
+                _check("kawasaki", True, 0.0, KAWASAKI_TOL, "no interior vertex with folds")]
+    bad = [f for f in folds if not f["maekawa"]]
+    maekawa = _check("maekawa", not bad, [f["vertex"] for f in bad], 2, "; ".join(
+        f"vertex {f['vertex']}: {f['mountains']} mountains, {f['valleys']} valleys, "
+        f"|#M - #V| = {abs(f['mountains'] - f['valleys'])}" for f in bad or folds))
+    odd = [f["vertex"] for f in folds if f["kawasaki"] is None]
+    off = {f["vertex"]: abs(f["kawasaki"]) for f in folds if f["kawasaki"] is not None}
+    worst = max(off, key=off.get) if off else None
+    value = None if odd else off[worst]
+    detail = (f"vertex {', '.join(map(str, odd))}: an odd number of folds" if odd else
+              f"vertex {worst}: the alternate sector angles sum to pi within {off[worst]:.1e} "
+              f"rad (worst of {len(folds)} interior vertices with folds)")
+    kawasaki = _check("kawasaki", not odd and value <= KAWASAKI_TOL, value, KAWASAKI_TOL, detail)
+    return [maekawa, kawasaki]
+
+
+def _refold_checks(doc, model, fold, checks) -> dict:
+    """The modes of the rebuilt network and its map against the file's (``refold_map``)."""
+    from ..model.rigidity import count_modes
+
+    net = model.network
+    motion = doc["fabkit:motion"]
     after = fold.positions[1] if model.flat_start else net.nodes
     m = count_modes(net, after)
     checks.append(_check("modes", m.conformational == 1, m.conformational, 1,
                          f"rebuilt network: {m}" + (" (just off the flat state)"
                                                    if model.flat_start else "")))
     stored = {k: np.asarray(v, dtype=np.float64) for k, v in doc["fabkit:map"].items()}
-    values = stored[drive]
+    values = stored[motion["drive"]]
     sheets = doc.get("fabkit:sheets") or []
+    if len(sheets) > 1:
+        diff, detail = _sheet_maps(model, sheets, stored)
+    else:
+        again = _map_at(model, fold, motion["drive"], values)
+        diff = max(float(np.max(np.abs(again[k] - stored[k]))) for k in stored)
+        detail = (f"{len(values)} drive values, ports {', '.join(sorted(stored))}; branch "
+                  f"{fold.branch} (file: {motion.get('branch')})")
+    checks.append(_check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail))
+    return {"values": values, "stored": stored, "sheets": sheets, "diff": diff}
+
+
+def check_file(path, design=None, settings=None) -> dict:
+    """Read a FOLD file back and re-fold it (see the module docstring).
+
+    Returns
+    -------
+    dict
+        ``ok``, ``checks``, ``max_map_difference``, the branch taken and the branches found;
+        for a crease pattern ``flat_foldable`` (Maekawa and Kawasaki hold).
+    """
+    require_files([path])  # the check is held to the work its size allows
+    doc = read_fold(path)
+    checks = []
+    problems = structure_problems(doc)
+    checks.append(_check("structure", not problems, len(problems), 0,
+                         "; ".join(problems) or "fields present and consistent"))
+    report = {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    if problems:
+        return report
     try:
-        if len(sheets) > 1:
-            diff, detail = _sheet_maps(model, sheets, stored)
-        else:
-            again = _map_at(model, fold, drive, values)
-            diff = max(float(np.max(np.abs(again[k] - stored[k]))) for k in stored)
-            detail = (f"{len(values)} drive values, ports {', '.join(sorted(stored))}; branch "
-                      f"{fold.branch} (file: {motion.get('branch')})")
+        model = rebuild(doc)
+    except FabkitError as exc:
+        checks.append(_check("refold_map", False, None, MAP_TOL, f"rebuilding failed: {exc}"))
+        return report
+    checks.append(_frames_check(doc, model))
+    if model.flat_start:
+        flat = _flat_fold_checks(doc, model)
+        checks += flat
+        report["flat_foldable"] = all(c["ok"] for c in flat)
+    motion = doc["fabkit:motion"]
+    try:
+        fold = refold(model, motion["drive"], float(motion["to"]))
+        got = _refold_checks(doc, model, fold, checks)
     except FabkitError as exc:
         checks.append(_check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
-        return {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
-    checks.append(_check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail))
-    report = {"format": FORMAT, "file": str(path), "checks": checks, "max_map_difference": diff,
-              "branches": fold.branches, "branch": fold.branch}
+        return report
+    report.update(max_map_difference=got["diff"], branches=fold.branches, branch=fold.branch)
     if design is not None:
-        ddiff = _design_checks(checks, doc, model, design, drive, values, stored, sheets, Path(path).stem)
-        report["max_design_difference"] = ddiff
-    if model.flat_start:
-        ff = flat_foldability(model.pattern())
-        ok = all(v["maekawa"] and v["kawasaki"] for v in ff)
-        checks.append(_check("maekawa_kawasaki", True, ok, True,
-                             "; ".join(f"vertex {v['vertex']}: M-V = {v['mountains'] - v['valleys']}"
-                                       f", alternating angle sum {v['kawasaki_deg']:.2e} deg"
-                                       for v in ff) or "no interior vertex"))
-        report["flat_foldable"] = ok
+        report["max_design_difference"] = _design_checks(
+            checks, doc, model, design, motion["drive"], got["values"], got["stored"],
+            got["sheets"])
     report["ok"] = all(c["ok"] for c in checks)
     return report

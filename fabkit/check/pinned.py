@@ -245,6 +245,137 @@ def _place(joints, bar_joints, design, s):
             "pieces": len(pieces), "centres": centres}
 
 
+def _bars_check(meshes, names, net, s, checks):
+    """The closed bodies of the beds read back as bars: one per design bar, each on a layer,
+    of the asked thickness and width. Appends two checks; returns the bodies, the bed of each,
+    the bars read and each bar's layer, or None when the bodies are not the design's bars."""
+    placed = _bodies(meshes)
+    bodies = [b for _, b in placed]
+    beds = [bed for bed, _ in placed]
+    closed = [b.is_watertight and b.is_winding_consistent and b.volume > 0 for b in bodies]
+    checks.append(_check("one closed body per bar", len(bodies) == net.n_edges and all(closed),
+                         value=len(bodies), limit=net.n_edges,
+                         detail=f"{sum(closed)} of {len(bodies)} bodies watertight, consistently "
+                                f"wound, outward; none shares a vertex with another; the design "
+                                f"has {net.n_edges} bars"))
+    bars = [read_bar(b, s) for b in bodies]
+    bad = [f"body {k} on {names[beds[k]]}: {b['problem']}" for k, b in enumerate(bars)
+           if b["problem"]]
+    pitch = s.layer_pitch
+    layer = np.array([round(b["z0"] / pitch) for b in bars], dtype=np.int64)
+    off_layer = max((abs(b["z0"] - lz * pitch) for b, lz in zip(bars, layer)), default=0.0)
+    thick = max((abs(b["thickness"] - s.bar_thickness) for b in bars
+                 if b["thickness"] is not None), default=0.0)
+    wide = max((abs(b["width"] - s.bar_width) for b in bars if b["width"] is not None),
+               default=0.0)
+    checks.append(_check(
+        "bars read back", not bad and max(off_layer, thick, wide) <= MEASURE_TOL_MM,
+        value=round(max(off_layer, thick, wide), 9), limit=MEASURE_TOL_MM,
+        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
+                                      f"layers of {pitch:g} mm; largest error of height, "
+                                      f"thickness and width (mm)"))
+    if bad or len(bodies) != net.n_edges:
+        return None
+    return bodies, beds, bars, layer
+
+
+def _pins_at_joints(joints, node, cut, bars, bodies, s) -> dict:
+    """Every joint's pin and holes measured: the problems found, the smallest pin clearance and
+    cap overlap (each with its joint), the cap radius and the layers the heads take, and the
+    printed pin of each joint."""
+    def at(j) -> str:
+        return f"the joint at node {node[j]}" if node[j] >= 0 else f"joint {j} (at no node)"
+
+    problems, clear, hold = [], (math.inf, None), (math.inf, None)
+    cap_radius, head_slots = 0.0, 1
+    pin_of = {}
+    for j, jfeats in enumerate(joints):
+        pins = [f for f in jfeats if f[1] == "pin"]
+        holes = [f for f in jfeats if f[1] == "hole"]
+        if len(pins) > 1:
+            problems.append(f"{at(j)} has {len(pins)} pins")
+            continue
+        if not pins:
+            if len(holes) >= 2 and int(node[j]) not in cut:
+                problems.append(f"{at(j)} has {len(holes)} holes and no pin")
+            continue
+        if int(node[j]) in cut:
+            problems.append(f"{at(j)} is cut between pieces but has a pin")
+        pk, _, pc, _, pr = pins[0]
+        pin_of[j] = (pk, pc, jfeats)
+        for hk, _, hc, hin, hout in holes:
+            gap = hin - pr - float(np.hypot(*(hc - pc)))
+            if gap < clear[0]:
+                clear = (gap, j)
+        if holes:
+            top = max(holes, key=lambda f: bars[f[0]]["z0"])
+            cap_top, cap_in, cap_out = _cap(bodies[pk], pc, s)
+            if cap_in - top[4] < hold[0]:
+                hold = (cap_in - top[4], j)
+            cap_radius = max(cap_radius, cap_out)
+            above = cap_top - bars[top[0]]["z0"] - bars[top[0]]["thickness"]
+            head_slots = max(head_slots, math.ceil(above / s.layer_pitch - MEASURE_TOL_MM))
+    return {"problems": problems, "clear": clear, "hold": hold, "cap_radius": cap_radius,
+            "head_slots": head_slots, "pin_of": pin_of, "at": at}
+
+
+def _pin_checks(pins, joints, node, where, cut, net, s) -> list[dict]:
+    """The checks of the pins: every joint built, the clearance around each pin, the caps."""
+    problems, clear, hold, at = pins["problems"], pins["clear"], pins["hold"], pins["at"]
+    built_nodes = int(np.unique(node[node >= 0]).size)
+    out = [_check("pins -> joints", not problems,
+                  value=[built_nodes, len(pins["pin_of"])], limit=[net.n_nodes, None],
+                  detail="; ".join(problems[:3]) or
+                         f"{len(joints)} joints from the holes and pins of "
+                         f"{where['pieces']} piece(s); {len(pins['pin_of'])} printed pins, "
+                         f"{len(cut)} joints cut between pieces (plain holes)")]
+    # a gap of zero or less is a pin fused to its hole, whatever tolerance the measure has
+    c_ok = clear[0] >= s.pin_clearance - MEASURE_TOL_MM and clear[0] > 0
+    out.append(_check("pin clearance", c_ok,
+                      value=None if math.isinf(clear[0]) else round(clear[0], 6),
+                      limit=s.pin_clearance,
+                      detail="smallest radial gap (mm) between a pin and a hole around it"
+                             if c_ok else
+                             f"{at(clear[1])}: its pin leaves {clear[0]:.3f} mm to the hole "
+                             f"around it, {s.pin_clearance:g} mm wanted"
+                             + ("; the pin touches or overlaps its hole" if clear[0] <= 0
+                                else "")))
+    need_hold = 0.5 * s.nozzle_width
+    out.append(_check("caps hold the bars", hold[0] >= need_hold,
+                      value=None if math.isinf(hold[0]) else round(hold[0], 6),
+                      limit=need_hold,
+                      detail="smallest overlap (mm) of a cap over the top bar's hole on its "
+                             "pin" if hold[0] >= need_hold else
+                             f"{at(hold[1])}: its cap overlaps the top bar's hole by "
+                             f"{hold[0]:.3f} mm, {need_hold:g} mm wanted"))
+    return out
+
+
+def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
+    """The rebuilt network moved as the design moves (:func:`_motion_checks`, memoised): the
+    checks and the facts they report."""
+    bars, layer = read["bars"], read["layer"]
+    order, lengths, dev = rebuilt
+    # layers count within a piece: each piece is lowered onto its bed, and pieces joined by
+    # hand stack as their bill of materials says; the pieces' layers are kept apart here
+    piece_of_bar = where["piece"][bar_joints[:, 0]]
+    band = int(layer.max(initial=0)) + 2 * pins["head_slots"] + 2
+    edge_layer = (layer + band * piece_of_bar)[order]
+    # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
+    widths = [b["width"] for b in bars if b["width"] is not None]
+    measured = {"width": _to_resolution(max(widths)),
+                "cap_radius": _to_resolution(pins["cap_radius"] or 0.5 * s.cap_diameter),
+                "head_slots": pins["head_slots"], "band": band}
+    x_mm = _joints_mm(design.network, lengths, s)
+    key = ("motion",) + _design_key(design, s) + (
+        x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
+    try:
+        return _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s, measured,
+                                                 reference))
+    except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
+        return [_check("motion re-simulated", False, detail=str(exc))], {}
+
+
 def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
     """The as-built check of a print-in-place linkage (see the module docstring).
 
@@ -277,126 +408,32 @@ def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
         return report
     net = design.network
     checks = []
-    placed = _bodies(meshes)
-    bodies = [b for _, b in placed]
-    beds = [bed for bed, _ in placed]
-    closed = [b.is_watertight and b.is_winding_consistent and b.volume > 0 for b in bodies]
-    checks.append(_check("one closed body per bar", len(bodies) == net.n_edges and all(closed),
-                         value=len(bodies), limit=net.n_edges,
-                         detail=f"{sum(closed)} of {len(bodies)} bodies watertight, consistently "
-                                f"wound, outward; none shares a vertex with another; the design "
-                                f"has {net.n_edges} bars"))
-    bars = [read_bar(b, s) for b in bodies]
-    bad = [f"body {k} on {names[beds[k]]}: {b['problem']}" for k, b in enumerate(bars)
-           if b["problem"]]
-    pitch = s.layer_pitch
-    layer = np.array([round(b["z0"] / pitch) for b in bars], dtype=np.int64)
-    off_layer = max((abs(b["z0"] - lz * pitch) for b, lz in zip(bars, layer)), default=0.0)
-    thick = max((abs(b["thickness"] - s.bar_thickness) for b in bars
-                 if b["thickness"] is not None), default=0.0)
-    widths = [b["width"] for b in bars if b["width"] is not None]
-    wide = max((abs(w - s.bar_width) for w in widths), default=0.0)
-    checks.append(_check(
-        "bars read back", not bad and max(off_layer, thick, wide) <= MEASURE_TOL_MM,
-        value=round(max(off_layer, thick, wide), 9), limit=MEASURE_TOL_MM,
-        detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
-                                      f"layers of {pitch:g} mm; largest error of height, "
-                                      f"thickness and width (mm)"))
-    if bad or len(bodies) != net.n_edges:
+    read = _bars_check(meshes, names, net, s, checks)
+    if read is None:
         report.update(ok=False, checks=checks)
         return report
+    bodies, beds, bars, layer = read
     joints, bar_joints = _joints(bars, beds)
     where = _place(joints, bar_joints, design, s)
     node = where["node"]
     held = np.bincount(node[node >= 0], minlength=net.n_nodes)
     cut = {int(v) for v in np.flatnonzero(held >= 2)}  # a node built on two pieces
-
-    def at(j) -> str:
-        return f"the joint at node {node[j]}" if node[j] >= 0 else f"joint {j} (at no node)"
-
-    problems, clear, hold = [], (math.inf, None), (math.inf, None)
-    cap_radius, head_slots = 0.0, 1
-    pin_of = {}
-    for j, jfeats in enumerate(joints):
-        pins = [f for f in jfeats if f[1] == "pin"]
-        holes = [f for f in jfeats if f[1] == "hole"]
-        if len(pins) > 1:
-            problems.append(f"{at(j)} has {len(pins)} pins")
-            continue
-        if not pins:
-            if len(holes) >= 2 and int(node[j]) not in cut:
-                problems.append(f"{at(j)} has {len(holes)} holes and no pin")
-            continue
-        if int(node[j]) in cut:
-            problems.append(f"{at(j)} is cut between pieces but has a pin")
-        pk, _, pc, _, pr = pins[0]
-        pin_of[j] = (pk, pc, jfeats)
-        for hk, _, hc, hin, hout in holes:
-            gap = hin - pr - float(np.hypot(*(hc - pc)))
-            if gap < clear[0]:
-                clear = (gap, j)
-        if holes:
-            top = max(holes, key=lambda f: bars[f[0]]["z0"])
-            cap_top, cap_in, cap_out = _cap(bodies[pk], pc, s)
-            if cap_in - top[4] < hold[0]:
-                hold = (cap_in - top[4], j)
-            cap_radius = max(cap_radius, cap_out)
-            above = cap_top - bars[top[0]]["z0"] - bars[top[0]]["thickness"]
-            head_slots = max(head_slots, math.ceil(above / pitch - MEASURE_TOL_MM))
-    built_nodes = int(np.unique(node[node >= 0]).size)
-    checks.append(_check("pins -> joints", not problems,
-                         value=[built_nodes, len(pin_of)], limit=[net.n_nodes, None],
-                         detail="; ".join(problems[:3]) or
-                                f"{len(joints)} joints from the holes and pins of "
-                                f"{where['pieces']} piece(s); {len(pin_of)} printed pins, "
-                                f"{len(cut)} joints cut between pieces (plain holes)"))
-    # a gap of zero or less is a pin fused to its hole, whatever tolerance the measure has
-    c_ok = clear[0] >= s.pin_clearance - MEASURE_TOL_MM and clear[0] > 0
-    checks.append(_check("pin clearance", c_ok,
-                         value=None if math.isinf(clear[0]) else round(clear[0], 6),
-                         limit=s.pin_clearance,
-                         detail="smallest radial gap (mm) between a pin and a hole around it"
-                                if c_ok else
-                                f"{at(clear[1])}: its pin leaves {clear[0]:.3f} mm to the hole "
-                                f"around it, {s.pin_clearance:g} mm wanted"
-                                + ("; the pin touches or overlaps its hole" if clear[0] <= 0
-                                   else "")))
-    need_hold = 0.5 * s.nozzle_width
-    checks.append(_check("caps hold the bars", hold[0] >= need_hold,
-                         value=None if math.isinf(hold[0]) else round(hold[0], 6),
-                         limit=need_hold,
-                         detail="smallest overlap (mm) of a cap over the top bar's hole on its "
-                                "pin" if hold[0] >= need_hold else
-                                f"{at(hold[1])}: its cap overlaps the top bar's hole by "
-                                f"{hold[0]:.3f} mm, {need_hold:g} mm wanted"))
-    checks.append(_layer_gap_check(pin_of, bars, bodies, s))
+    pins = _pins_at_joints(joints, node, cut, bars, bodies, s)
+    checks += _pin_checks(pins, joints, node, where, cut, net, s)
+    checks.append(_layer_gap_check(pins["pin_of"], bars, bodies, s))
     rebuilt = _rebuilt_network(design, where, bar_joints, checks, s)
     if rebuilt is None:
         report.update(ok=False, checks=checks)
         return report
-    order, lengths, dev = rebuilt
-    # layers count within a piece: each piece is lowered onto its bed, and pieces joined by
-    # hand stack as their bill of materials says; the pieces' layers are kept apart here
-    piece_of_bar = where["piece"][bar_joints[:, 0]]
-    band = int(layer.max(initial=0)) + 2 * head_slots + 2
-    edge_layer = (layer + band * piece_of_bar)[order]
-    report["as_built"] = {"bars": len(bars), "joints": len(joints), "printed_pins": len(pin_of),
-                          "pieces": where["pieces"], "cut_joints": sorted(cut),
-                          "layers": int(layer.max()) + 1, "node_deviation_mm": dev,
+    clear, hold = pins["clear"], pins["hold"]
+    report["as_built"] = {"bars": len(bars), "joints": len(joints),
+                          "printed_pins": len(pins["pin_of"]), "pieces": where["pieces"],
+                          "cut_joints": sorted(cut), "layers": int(layer.max()) + 1,
+                          "node_deviation_mm": rebuilt[2],
                           "pin_clearance_mm": None if math.isinf(clear[0]) else clear[0],
                           "cap_overlap_mm": None if math.isinf(hold[0]) else hold[0]}
-    # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
-    measured = {"width": _to_resolution(max(widths)),
-                "cap_radius": _to_resolution(cap_radius or 0.5 * s.cap_diameter),
-                "head_slots": head_slots, "band": band}
-    x_mm = _joints_mm(net, lengths, s)
-    key = ("motion",) + _design_key(design, s) + (
-        x_mm.tobytes(), edge_layer.tobytes(), tuple(sorted(measured.items())))
-    try:
-        moved, facts = _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s,
-                                                        measured, reference))
-    except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
-        moved, facts = [_check("motion re-simulated", False, detail=str(exc))], {}
+    moved, facts = _moved_checks(design, reference, rebuilt, {"bars": bars, "layer": layer},
+                                 pins, where, bar_joints, s)
     checks += moved
     report.update(facts)
     report.update(ok=all(c["ok"] for c in checks), checks=checks)

@@ -662,7 +662,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
     -------
     dict
     """
-    from ..fab.printing import design_print_settings
+    from ..settings.printing import design_print_settings
 
     report = {"file": names[0], "format": fmt}
     if len(names) > 1:

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FabricationError
-from ..fab.slicer import FILAMENTS
+from ..settings.filaments import FILAMENTS
 from . import read_set, require_checked
 from .beds import bed_set
 from .stl import check_meshes, MAX_COORDINATE_MM
@@ -261,7 +261,7 @@ def _settings_check(packages, names, design, settings) -> dict:
 
     The values are compared as numbers with the template's print settings; what else the
     writer chose to tell the slicer (perimeters, supports, skirt) is its own business."""
-    from ..fab.printing import design_print_settings
+    from ..settings.printing import design_print_settings
 
     s = design_print_settings(design, settings)
     layer = float(s.layer_height)

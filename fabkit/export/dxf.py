@@ -3,7 +3,7 @@
 The pipeline (all pure, nothing is written here):
 
 1. settings: the template's ``[fabrication.laser]`` table merged with the caller's overrides
-   (:func:`fabkit.fab.laser.laser_settings`);
+   (:func:`fabkit.settings.laser.laser_settings`);
 2. bars: design units to mm, outlines and holes, refusal of bars that cannot be cut
    (:mod:`fabkit.fab.bars`);
 3. stacking layers over the sampled motion (:mod:`fabkit.fab.layers`);
@@ -36,10 +36,11 @@ from ..errors import FabricationError
 from ..fab.bars import bulge_primitives
 from ..fab.coupon import COUPON_NAME, coupon_sheet, COUPON_SPACING, coupon_text
 from ..fab.guide import assembly_picture, guide_pages, motion_picture
-from ..fab.hardware import MAX_AXIAL_PLAY, part_family, part_lines, spares
+from ..fab.hardware import part_family, part_lines, spares
 from ..fab.laser import kerf_note
 from ..fab.nest import label_outlines, utilisation
 from ..fab.laser_plan import LaserPlan, uncompensated_plan
+from ..settings.fasteners import MAX_AXIAL_PLAY
 from . import ExportResult
 from .laser_svg import sheet_svg
 

@@ -1,6 +1,6 @@
 """STL (and 3MF) export of printed networks, in millimetres, laid out on the printer's bed.
 
-Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.fab.printing`):
+Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.settings.printing`):
 
 * ``"hinges"`` (the default for a network made of rigid triangles): plates and hinges as one
   watertight body (:mod:`fabkit.fab.hinges`), described below;

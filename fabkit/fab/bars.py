@@ -127,7 +127,7 @@ def bar_set(lengths_mm, edges, settings, *, scale: float | None = None) -> BarSe
     edges : array_like of int, shape (E, 2)
     settings : LaserSettings
         Bar width, hole (from the screw entry), kerf and minimum web (already validated
-        against each other by :func:`~fabkit.fab.laser.laser_settings`).
+        against each other by :func:`~fabkit.settings.laser.laser_settings`).
     scale : float, optional
         Only used to suggest a fix in error messages.
 
@@ -142,7 +142,7 @@ def bar_set(lengths_mm, edges, settings, *, scale: float | None = None) -> BarSe
 
     Examples
     --------
-    >>> from fabkit.fab.laser import laser_settings
+    >>> from fabkit.settings.laser import laser_settings
     >>> bars = bar_set([100.0], [[0, 1]], laser_settings())
     >>> bars.outline(0)[:, 2].tolist()   # bulges: straight, half circle, straight, half circle
     [0.0, 1.0, 0.0, 1.0]

@@ -56,7 +56,7 @@ def ladder(settings) -> tuple:
 
     Examples
     --------
-    >>> from fabkit.fab.laser import laser_settings
+    >>> from fabkit.settings.laser import laser_settings
     >>> holes, kerfs = ladder(laser_settings())
     >>> [round(h, 2) for h in holes], [round(k, 2) for k in kerfs]
     ([5.0, 5.1, 5.2, 5.3, 5.4], [0.05, 0.1, 0.15, 0.2, 0.25])
@@ -160,7 +160,7 @@ def coupon_sheet(settings) -> Sheet:
 
     Examples
     --------
-    >>> from fabkit.fab.laser import laser_settings
+    >>> from fabkit.settings.laser import laser_settings
     >>> sheet = coupon_sheet(laser_settings())
     >>> [p.id for p in sheet.parts], round(float(sheet.parts[0].hole_radius), 4)
     (['C0', 'C1', 'CR', 'CL', 'REF'], 2.525)
@@ -209,7 +209,7 @@ def coupon_sheet(settings) -> Sheet:
 
 def coupon_text(settings, design_name: str) -> str:
     """What to cut first, what to measure on the coupon and which setting to change."""
-    from .hardware import fit_fastener
+    from ..settings.fasteners import fit_fastener
 
     s = settings
     w, k, hole = s.bar_width, s.kerf, s.screw.hole_diameter

@@ -28,8 +28,8 @@ import scipy.sparse as sp
 
 from ..errors import FabricationError
 from ..model.network import Network
-from .printing import PrintSettings
-from .triangles import rigid_triangles
+from ..model.triangles import rigid_triangles
+from ..settings.printing import PrintSettings
 
 __all__ = ["rigid_triangles", "PrintGeometry", "print_geometry", "print_solid", "solid_mesh",
            "hinge_bending", "manifold3d"]
@@ -163,7 +163,7 @@ def print_geometry(net: Network, settings: PrintSettings, positions=None) -> Pri
 
     Examples
     --------
-    >>> from fabkit.fab.printing import print_settings
+    >>> from fabkit.settings.printing import print_settings
     >>> net = Network([[0, 0], [10, 0], [5, 8], [15, 8]], [[0, 1], [0, 2], [1, 2], [1, 3], [2, 3]])
     >>> geo = print_geometry(net, print_settings({"scale": 3.0, "hinge_length": 4.0}))
     >>> geo.joints.tolist(), len(geo.plates)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from ..errors import FabricationError
 from ..motion import motion_for
 from .bars import bar_set
-from .laser import laser_overrides, laser_settings
+from ..settings.laser import laser_overrides, laser_settings
 from .layers import plan_layers, sample_chain, sample_motion
 from .layers.sampling import NODE_STEP_SHARE
 from .nest import make_parts, nest_parts, place_like

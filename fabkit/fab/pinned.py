@@ -36,12 +36,12 @@ from ..errors import FabricationError
 from ..io.workload import require
 from ..motion import motion_for, trace_motion
 from .bars import stadium_polygon
-from .hardware import ScrewSpec
+from ..settings.fasteners import ScrewSpec
 from .hinges import manifold3d
-from .laser import LaserSettings
+from ..settings.laser import LaserSettings
 from .layers import plan_layers, sample_chain, sample_motion
 from .printers import split_to_fit
-from .printing import PrintSettings
+from ..settings.printing import PrintSettings
 from ..motion.window import motion_window
 
 __all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "printed_design", "stack_settings", "bar_body",
@@ -322,7 +322,7 @@ def pinned_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     design : Design
         A planar bar network with a motion.
     s : PrintSettings
-        ``linkage = "pins"`` settings (:func:`fabkit.fab.printing.design_print_settings`).
+        ``linkage = "pins"`` settings (:func:`fabkit.settings.printing.design_print_settings`).
     motion : TracedMotion, optional
         The design's motion, traced once by the pipeline; its window (``motion_from`` /
         ``motion_to``) is asked of it. Traced here when not given.

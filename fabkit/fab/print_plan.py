@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..motion import motion_for, MotionStatus
-from .printing import design_print_settings
+from ..settings.printing import design_print_settings
 
 __all__ = ["PrintPlan", "print_plan", "hinge_motion"]
 

@@ -26,24 +26,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["SlicerSettings", "slicer_settings", "FILAMENTS", "LEFT_TO_USER", "SKIRT_DISTANCE"]
+from ..settings.filaments import FILAMENTS
+
+__all__ = ["SlicerSettings", "slicer_settings", "LEFT_TO_USER", "SKIRT_DISTANCE"]
 
 #: Distance of the skirt from the parts (mm): well inside the bed's free margin.
 SKIRT_DISTANCE = 3.0
-
-#: Filament settings per material (PrusaSlicer keys): its name for the material, and the middle
-#: of the nozzle and bed temperature ranges filament makers print on their spools (check yours).
-FILAMENTS: dict[str, dict] = {
-    "PLA": {"filament_type": "PLA", "temperature": 210, "first_layer_temperature": 215,
-            "bed_temperature": 60, "first_layer_bed_temperature": 60},
-    "PETG": {"filament_type": "PETG", "temperature": 240, "first_layer_temperature": 240,
-             "bed_temperature": 80, "first_layer_bed_temperature": 80},
-    # PrusaSlicer calls flexible filaments FLEX; a soft filament buckles in the extruder when it
-    # is pushed fast: 3 mm^3/s is a common limit for TPU 95A
-    "TPU": {"filament_type": "FLEX", "temperature": 230, "first_layer_temperature": 230,
-            "bed_temperature": 50, "first_layer_bed_temperature": 50,
-            "filament_max_volumetric_speed": 3},
-}
 
 #: What the file never sets.
 LEFT_TO_USER = ("printer and its profile", "bed shape and size", "nozzle diameter",
@@ -118,7 +106,7 @@ def slicer_settings(s) -> SlicerSettings:
 
     Examples
     --------
-    >>> from fabkit.fab.printing import print_settings
+    >>> from fabkit.settings.printing import print_settings
     >>> ss = slicer_settings(print_settings({"material": "TPU"}))
     >>> ss.project["filament_type"], ss.per_object["layer_height"]
     ('FLEX', 0.2)

@@ -17,7 +17,7 @@ import numpy as np
 from ..builds.materials import Material, process_material
 from ..builds.quasistatic import drive_elastically, ElasticMotion
 from ..errors import TemplateError
-from ..fab.printing import design_print_settings
+from ..settings.printing import design_print_settings
 from ..kinematics import make_problem
 from .pins import pin_play
 from .processes import nominal_room_mm

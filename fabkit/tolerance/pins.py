@@ -56,7 +56,7 @@ def pin_play(design, print_settings) -> PinPlay:
     Examples
     --------
     >>> import fabkit
-    >>> from fabkit.fab.printing import design_print_settings
+    >>> from fabkit.settings.printing import design_print_settings
     >>> d = fabkit.load_template("fourbar")
     >>> pin_play(d, design_print_settings(d, {"print": {"linkage": "pins"}})).ends.tolist()
     [1.0, 0.0, 2.0, 1.0]

@@ -8,8 +8,8 @@ import numpy as np
 
 from ..errors import FabricationError, SettingsError, TemplateError, UsageError
 from ..fab.creases import origami_model
-from ..fab.laser import laser_settings
-from ..fab.printing import design_print_settings
+from ..settings.laser import laser_settings
+from ..settings.printing import design_print_settings
 from ..io.schema import check_table, refuse_unused, ToleranceSection
 from ..numerics import TINY
 from ..motion.intent import LIMIT_FRACTION, STATE_FRACTION

@@ -46,7 +46,7 @@ class JointStack:
     play_range : (float, float)
         Axial play with the washers on the thickest and on the thinnest sheets (mm).
     fastener : Fastener or None
-        What holds the stack, with the parts to buy (:func:`fabkit.fab.hardware.fit_fastener`):
+        What holds the stack, with the parts to buy (:func:`fabkit.settings.fasteners.fit_fastener`):
         a Chicago screw, one with extensions, or a bolt set for a deep stack.
     """
 
@@ -580,7 +580,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     Examples
     --------
     >>> import numpy as np
-    >>> from fabkit.fab.laser import laser_settings
+    >>> from fabkit.settings.laser import laser_settings
     >>> x = np.array([[[0, 0], [100, 0], [100, 100]]], dtype=float)
     >>> sw = Sweep(x, np.zeros(1), 0.5, 0.0, "given", "finished", "")
     >>> plan_layers([[0, 1], [1, 2]], sw, laser_settings()).layer.tolist()
@@ -717,7 +717,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             "hardware catalogue holds deep stacks with extension posts or bolts), or make "
             "room: larger scale or narrower bars")
     stacks = []
-    from ..hardware import fit_fastener
+    from ...settings.fasteners import fit_fastener
 
     for j, jb in zip(conf.screw_joints.tolist(), joint_bars):
         order = np.argsort(layer[jb], kind="stable")

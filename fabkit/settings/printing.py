@@ -21,8 +21,8 @@ from dataclasses import asdict, dataclass
 from ..errors import FabricationError
 from ..io.schema import check_section, HINGE_STYLES, section_of
 from ..numerics import MM_SLACK
+from ..model.triangles import rigid_triangles
 from .printers import DEFAULT_PRINTER, printer_profile
-from .triangles import rigid_triangles
 
 __all__ = ["PrintSettings", "MATERIALS", "HINGE_STYLES", "PIN_DEFAULTS", "print_settings",
            "design_print_settings", "default_linkage"]
@@ -110,7 +110,7 @@ class PrintSettings:
     threemf : bool
         Also write a 3MF file (the bed-ready layout: oriented, arranged or split to fit).
     printer : str
-        A printer of :data:`fabkit.fab.printers.PRINTERS` (default ``"generic"``, 200 x 200 mm).
+        A printer of :data:`fabkit.settings.printers.PRINTERS` (default ``"generic"``, 200 x 200 mm).
     bed : tuple of float or None
         A custom bed (width, depth) in mm, instead of the printer's.
     linkage : str
@@ -165,7 +165,7 @@ class PrintSettings:
     motion_to: float | None = None
 
     def printer_profile(self):
-        """The :class:`~fabkit.fab.printers.Printer` these settings print on."""
+        """The :class:`~fabkit.settings.printers.Printer` these settings print on."""
         return printer_profile(self.printer, self.bed, margin=self.bed_margin)
 
     @property
@@ -413,7 +413,7 @@ def default_linkage(network) -> str:
 
 
 def design_print_settings(design, settings: dict | None = None):
-    """The design's :class:`~fabkit.fab.printing.PrintSettings` with ``settings["print"]``
+    """The design's :class:`~fabkit.settings.printing.PrintSettings` with ``settings["print"]``
     overrides (a template's table, then the command line); the kind of print is the table's
     ``linkage``, else :func:`default_linkage` of the design's network."""
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
