@@ -190,7 +190,7 @@ class DesignProgress:
 
         # a design is named after its file until its template is read
         self.in_hand.difference_update({result.name, Path(result.path).stem})
-        self.progress.advance(text=f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
+        self.progress.advance(text=f"{result.name}: {result.status} in {result.seconds:.1f} s")
 
     def close(self) -> None:
         self.progress.close()
