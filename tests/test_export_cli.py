@@ -447,7 +447,7 @@ def test_export_progress_is_the_commands_progress_one_line_per_stage():
     import io
 
     from fabkit.commands.export import DesignProgress
-    from fabkit.commands.progress import Progress
+    from fabkit.io.progress import Progress
     from fabkit.pipeline import DesignResult, Stage
 
     stream = io.StringIO()  # not a terminal: shown because asked (--progress)
@@ -476,7 +476,7 @@ def test_progress_counts_the_stages_of_the_one_design_in_hand():
     import io
 
     from fabkit.commands.export import DesignProgress
-    from fabkit.commands.progress import Progress
+    from fabkit.io.progress import Progress
     from fabkit.pipeline import DesignResult, Stage
 
     stream = io.StringIO()  # not a terminal: shown because asked (--progress)

@@ -25,7 +25,7 @@ LAYERS = {
     "io.inputs": 0,
     "io.workload": 0,
     "io.schema": 0,
-    "commands.progress": 0,
+    "io.progress": 0,
     "io.suggest": 0,
     "arguments": 1,
     "numerics": 1,

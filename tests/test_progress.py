@@ -1,4 +1,4 @@
-"""fabkit.commands.progress: the one way long commands say how far they are (stage, count done of
+"""fabkit.io.progress: the one way long commands say how far they are (stage, count done of
 total, time left), on stderr, shown on a terminal, forced with --progress, silenced with -q."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import os
 
 import pytest
 
-from fabkit.commands.progress import Progress, duration
+from fabkit.io.progress import Progress, duration
 
 
 class Clock:

@@ -3,7 +3,7 @@
 Options that mean the same in several commands are added here, so that they are spelt the same
 everywhere: ``-o/--out-dir DIR`` (the output folder), ``-j/--jobs N`` (parallel processes),
 ``--set SECTION.KEY=VALUE`` (settings), ``-q/--quiet`` and ``--progress`` (progress lines, on
-stderr: :mod:`fabkit.commands.progress`). Each command's ``EXAMPLES`` end its ``--help``.
+stderr: :mod:`fabkit.io.progress`). Each command's ``EXAMPLES`` end its ``--help``.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 from ..errors import BoundsError, FabkitError, InputFileError, UsageError
 from ..io.outputs import output_folder
 from ..templates import allow_large, resolve_template
-from .progress import Progress
+from ..io.progress import Progress
 
 __all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
@@ -112,7 +112,7 @@ def add_progress_options(p) -> None:
 
 
 def progress_for(args, command: str):
-    """The :class:`~fabkit.commands.progress.Progress` of a command, as ``-q``/``--progress``
+    """The :class:`~fabkit.io.progress.Progress` of a command, as ``-q``/``--progress``
     ask."""
     quiet, forced = getattr(args, "quiet", False), getattr(args, "progress", False)
     return Progress(f"fabkit {command}", show=False if quiet else True if forced else None)
@@ -173,7 +173,7 @@ def each_template(paths, work, *, debug: bool = False, progress=None) -> int:
     A fabkit error of one template is printed as one line that names the template, and the
     others still run (as ``fabkit export`` does). ``work`` returns True when its template
     failed in a way it has already reported (a target not reached, a flagged design).
-    With a :class:`~fabkit.commands.progress.Progress`, the templates are its count (``work`` names
+    With a :class:`~fabkit.io.progress.Progress`, the templates are its count (``work`` names
     its own stages with ``progress.stage(text)``).
 
     Returns

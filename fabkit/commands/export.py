@@ -7,7 +7,7 @@ the files of every format that applies (or of the formats asked for), ``report.j
 This module only reads the command line and prints; the work is done by :mod:`fabkit.pipeline`
 (atomic folders, as-built checks, worker processes, signals, the lock on the output folder).
 Progress (each design's stages as they start, each design as it ends, the time left) goes to
-stderr through :mod:`fabkit.commands.progress`; the summary table and the page to open go to stdout.
+stderr through :mod:`fabkit.io.progress`; the summary table and the page to open go to stdout.
 A design that fails is reported and the others still export; the exit code is 1 when any failed,
 2 for a bad option. Identical input gives identical bytes.
 """
@@ -140,7 +140,7 @@ def run(args) -> int:
 class DesignProgress:
     """What :func:`fabkit.pipeline.export_many` reports (``stage(name, stage)`` as a design starts
     a stage, ``finished(result)`` as it ends), said through one
-    :class:`~fabkit.commands.progress.Progress` whose count is the designs.
+    :class:`~fabkit.io.progress.Progress` whose count is the designs.
 
     While one design is in hand (a single design, or one at a time), its stages are counted
     too (``[0/1 designs, 3/7 stages, 41 s, about 1 min left]``), with the time left at the rate
@@ -149,7 +149,7 @@ class DesignProgress:
     Examples
     --------
     >>> import io
-    >>> from fabkit.commands.progress import Progress
+    >>> from fabkit.io.progress import Progress
     >>> from fabkit.pipeline import DesignResult, Outcome, Stage
     >>> out = io.StringIO()
     >>> p = Progress("fabkit export", show=True, stream=out,
@@ -190,7 +190,7 @@ class DesignProgress:
 
         # a design is named after its file until its template is read
         self.in_hand.difference_update({result.name, Path(result.path).stem})
-        self.progress.advance(text=f"{result.name}: {result.outcome} in {result.seconds:.1f} s")
+        self.progress.advance(text=f"{result.name}: {result.status} in {result.seconds:.1f} s")
 
     def close(self) -> None:
         self.progress.close()

@@ -15,7 +15,7 @@ from ..numerics import DOMAIN_RTOL
 from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
-from .progress import Progress
+from ..io.progress import Progress
 from .settings import read_settings
 
 #: Bounds on the options (``fabkit --allow-large`` lifts them): a cycle of period m is searched
@@ -137,7 +137,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2",
                progress=None) -> dict:
     """Compute everything for one template and write its files; returns the summary.
-    ``progress``: a :class:`~fabkit.commands.progress.Progress` told each stage."""
+    ``progress``: a :class:`~fabkit.io.progress.Progress` told each stage."""
     from ..plots.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
 
     progress = progress or Progress("", show=False)

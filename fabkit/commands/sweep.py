@@ -77,7 +77,7 @@ def _usage(message: str):
 
 class _Points:
     """The sweep's ``progress(done, total)``, said through a
-    :class:`~fabkit.commands.progress.Progress` (points done of all, the time left at the rate of
+    :class:`~fabkit.io.progress.Progress` (points done of all, the time left at the rate of
     this run)."""
 
     def __init__(self, progress, name: str):

@@ -55,7 +55,6 @@ def describe(result) -> str:
     from ..tolerance.margin import margin_text
 
     d = result.as_dict()
-    b = d.get("behaviour") or {}
     lines = [f"  builds        {d['samples']} ({result.method}); {d['model']}",
              f"  effective     bar-length error {d['length_rms_mm']:.3g} mm RMS"]
     if d.get("play_note"):
@@ -64,54 +63,13 @@ def describe(result) -> str:
         lines.append(f"  assembly      {d['assembly']['sentence']}")
     if d.get("slop"):
         lines.append(f"  slop          {d['slop']['sentence']}")
-    if b:
-        how = "stated in the template" if b["intent"] != "auto" else "inferred"
-        lines.append(f"  behaviour     {', '.join(b['criteria'])} ({how}; the end: "
-                     f"{b['end']} at the {b['end_at']}, drive {b['end_drive']:.6g})")
-        for c in b["crystals"]:
-            lines.append(f"  crystal       {c['role']}: D* = {c['value']:.6g}, slope "
-                         f"{c['slope']:.3g} ({c['kind']})"
-                         + (", at a turning point" if c["at_turning_point"] else ""))
-        if b.get("end_lock"):
-            lines.append(f"  lock          the first module ends where it locks: d_in = "
-                         f"{b['end_lock'][0]:.6g}, d_out = {b['end_lock'][1]:.6g}")
-        if b.get("order"):
-            lines.append(f"  order         the front runs {b['order']}")
-        for note in b.get("notes", []):
-            lines.append(f"  note          {note}")
+    lines += _behaviour_lines(d.get("behaviour") or {})
     for c in d.get("criteria", []):
-        pct = 100 * c["kept_fraction"]
-        if c["criterion"] == "order":
-            side = c["detail"]
-            text = (f"{pct:.1f}% of builds: every module on the designed side of the diagonal "
-                    f"over d_in {side['interval'][0]:.4g}..{side['interval'][1]:.4g}")
-            obs = d.get("observed_order")
-            if obs:
-                text += (f"; observed along the motion: {100 * obs['monotone_fraction']:.1f}% "
-                         f"monotone ({obs['samples']} instants)")
-        elif c["p95_mm"] is None or not math.isfinite(c["p95_mm"]):
-            text = (f"{pct:.1f}% of builds; {c['missing']} with no such state within "
-                    f"{c['limit_mm']:.3g} mm")
-        else:
-            text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g} mm (95%: "
-                    f"{printed(c['p95_mm'], '.3g')} mm, worst {printed(c['worst_mm'], '.3g')} mm)")
-            slopes = (c["detail"] or {}).get("slopes")
-            if isinstance(slopes, list):
-                text += f"; built slopes {slopes[0]:.3g}..{slopes[1]:.3g}"
-        lines.append(f"  {c['criterion']:<13} {text}")
+        lines.append(f"  {c['criterion']:<13} {_criterion_text(c, d)}")
         if (c["detail"] or {}).get("front"):
             lines.append(f"  front         {c['detail']['front']}")
     if d.get("ports_judged"):
-        for p in d["ports"]:
-            if p["mean"] is None:
-                continue
-            lines.append(f"  {p['port']:<13} designed {p['nominal']:.6g}, built {p['mean']:.6g} ± "
-                         f"{p['std']:.2g}; 95% |error| {p['p95_abs_error_mm']:.3g} mm "
-                         f"(limit {p['limit_mm']:.3g} mm)")
-        if "end_position_p95_mm" in d:
-            lines.append(f"  far end       nodes {', '.join(map(str, result.end_nodes))}: 95% "
-                         f"within {d['end_position_p95_mm']:.3g} mm, worst "
-                         f"{d['end_position_max_mm']:.3g} mm")
+        lines += _port_lines(d, result.end_nodes)
     if d.get("margin") is not None:
         alone = ", ".join(f"{n} {margin_text(v['value'], v['bound'])}"
                           for n, v in (d.get("source_margins") or {}).items())
@@ -124,6 +82,66 @@ def describe(result) -> str:
         lines.append(f"  horizon       {hz['detail']}")
     lines.append(f"  verdict       {d['verdict']}")
     return "\n".join(lines)
+
+
+def _behaviour_lines(b: dict) -> list[str]:
+    """The behaviour judged (its criteria, crystals, lock, order, notes), when there is one."""
+    if not b:
+        return []
+    how = "stated in the template" if b["intent"] != "auto" else "inferred"
+    lines = [f"  behaviour     {', '.join(b['criteria'])} ({how}; the end: "
+             f"{b['end']} at the {b['end_at']}, drive {b['end_drive']:.6g})"]
+    for c in b["crystals"]:
+        lines.append(f"  crystal       {c['role']}: D* = {c['value']:.6g}, slope "
+                     f"{c['slope']:.3g} ({c['kind']})"
+                     + (", at a turning point" if c["at_turning_point"] else ""))
+    if b.get("end_lock"):
+        lines.append(f"  lock          the first module ends where it locks: d_in = "
+                     f"{b['end_lock'][0]:.6g}, d_out = {b['end_lock'][1]:.6g}")
+    if b.get("order"):
+        lines.append(f"  order         the front runs {b['order']}")
+    for note in b.get("notes", []):
+        lines.append(f"  note          {note}")
+    return lines
+
+
+def _criterion_text(c: dict, d: dict) -> str:
+    """One criterion's line: the builds that keep it, and how far the others are."""
+    pct = 100 * c["kept_fraction"]
+    if c["criterion"] == "order":
+        side = c["detail"]
+        text = (f"{pct:.1f}% of builds: every module on the designed side of the diagonal "
+                f"over d_in {side['interval'][0]:.4g}..{side['interval'][1]:.4g}")
+        obs = d.get("observed_order")
+        if obs:
+            text += (f"; observed along the motion: {100 * obs['monotone_fraction']:.1f}% "
+                     f"monotone ({obs['samples']} instants)")
+        return text
+    if c["p95_mm"] is None or not math.isfinite(c["p95_mm"]):
+        return (f"{pct:.1f}% of builds; {c['missing']} with no such state within "
+                f"{c['limit_mm']:.3g} mm")
+    text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g} mm (95%: "
+            f"{printed(c['p95_mm'], '.3g')} mm, worst {printed(c['worst_mm'], '.3g')} mm)")
+    slopes = (c["detail"] or {}).get("slopes")
+    if isinstance(slopes, list):
+        text += f"; built slopes {slopes[0]:.3g}..{slopes[1]:.3g}"
+    return text
+
+
+def _port_lines(d: dict, end_nodes) -> list[str]:
+    """Each judged port, designed against built, and the far end's nodes."""
+    lines = []
+    for p in d["ports"]:
+        if p["mean"] is None:
+            continue
+        lines.append(f"  {p['port']:<13} designed {p['nominal']:.6g}, built {p['mean']:.6g} ± "
+                     f"{p['std']:.2g}; 95% |error| {p['p95_abs_error_mm']:.3g} mm "
+                     f"(limit {p['limit_mm']:.3g} mm)")
+    if "end_position_p95_mm" in d:
+        lines.append(f"  far end       nodes {', '.join(map(str, end_nodes))}: 95% "
+                     f"within {d['end_position_p95_mm']:.3g} mm, worst "
+                     f"{d['end_position_max_mm']:.3g} mm")
+    return lines
 
 
 def run(args) -> int:

@@ -70,9 +70,10 @@ __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "D
 # --- many designs ----------------------------------------------------------------------------
 
 def summary_table(results) -> str:
-    """The table printed at the end: one line per design."""
+    """The table printed at the end: one line per design, its status that of its reports'
+    verdict (:attr:`DesignResult.status`)."""
     header = ("design", "status", "formats", "files", "time", "cpu", "output or error")
-    body = [(r.name, r.outcome.value, ",".join(r.exported_formats) or "-", str(r.files),
+    body = [(r.name, r.status, ",".join(r.exported_formats) or "-", str(r.files),
              f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s", r.folder if r.ok else r.error)
             for r in results]
     widths = [max(len(x[i]) for x in [header, *body]) for i in range(6)]

@@ -173,6 +173,12 @@ class DesignResult:
         return self.outcome is Outcome.OK
 
     @property
+    def status(self) -> str:
+        """The design in one word: the verdict's level when it exported (``ok``, ``by design``,
+        ``FLAG``, ``FAIL``, as its reports head), else the outcome (``failed``, ...)."""
+        return (self.level or self.outcome.value) if self.ok else self.outcome.value
+
+    @property
     def exported_formats(self) -> list[str]:
         return [f for f, v in self.formats.items() if v.status.produced]
 
