@@ -256,39 +256,25 @@ def _audit(doc) -> tuple[int, str]:
                    "block)")
 
 
-def _check_docs(docs: dict, design, settings, motion=None) -> dict:
-    checks = []
-    sheets = {name: read_sheet(doc) for name, doc in docs.items()}
-    units = {name: sh["insunits"] for name, sh in sheets.items()}
-    checks.append(_check("units", all(u == 4 for u in units.values()),
-                         sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
-    audits = {name: _audit(doc) for name, doc in docs.items()}
-    n_err = {name: n for name, (n, _) in audits.items()}
-    why = "; ".join(f"{name}: {w}" for name, (_, w) in audits.items() if w)
-    checks.append(_check("audit", not any(n_err.values()), sum(n_err.values()), 0,
-                         why or "errors found by ezdxf's audit"))
-    used = set().union(*(sh["layers"] for sh in sheets.values())) if sheets else set()
-    checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
-                         "layers that carry entities"))
-    head = next(iter(sheets.values()))["header"] if sheets else {}
-    if "FABKIT_COUPON" in head:
-        return _check_coupon(sheets, head, checks, design, settings, sorted(docs))
-    values = _header_values(head)
-    if isinstance(values, str):
-        checks.append(_check("parts", False, None, None, values))
-        return {"ok": False, "checks": checks, "files": sorted(docs)}
-    kerf, width, hole = values["FABKIT_KERF"], values["FABKIT_BAR_WIDTH"], values["FABKIT_HOLE"]
-    n_bars, scale = values["FABKIT_BARS"], values["FABKIT_SCALE"]
+def _kerf_cut_with(settings, head: dict, kerf: float, checks: list) -> float:
+    """The kerf the sheets were cut with: the one the user gives (``--set laser.kerf``, with a
+    check that says when the file was drawn for another: its bars would come out the wrong
+    size), else the header's."""
     given = ((settings or {}).get("laser") or {}).get("kerf")
-    if given is not None and head.get("FABKIT_VARIANT") != "uncompensated":
-        # the kerf the user says the file was cut with: undo that one, and say when the file
-        # was drawn for another (its bars would come out the wrong size)
-        same = abs(float(given) - kerf) <= MM_SLACK
-        checks.append(_check("kerf", same, float(given), kerf,
-                             f"kerf of --set laser.kerf against the {kerf:g} mm the file was "
-                             "drawn for" + ("" if same else "; re-export with the kerf of "
-                                                            "your laser")))
-        kerf = float(given)
+    if given is None or head.get("FABKIT_VARIANT") == "uncompensated":
+        return kerf
+    same = abs(float(given) - kerf) <= MM_SLACK
+    checks.append(_check("kerf", same, float(given), kerf,
+                         f"kerf of --set laser.kerf against the {kerf:g} mm the file was "
+                         "drawn for" + ("" if same else "; re-export with the kerf of "
+                                                        "your laser")))
+    return float(given)
+
+
+def _bars_read(sheets: dict, n_bars: int) -> tuple[dict, list]:
+    """The bars of the sheets (by bar index: joints, layer, holes, round ends, sheet) and what
+    is wrong with them: a bar twice, without two holes or a closed outline, an untagged cut
+    entity, bars missing below the header's count or beyond it."""
     bars, problems = {}, [p for sh in sheets.values() for p in sh["problems"]]
     for name, sh in sheets.items():
         for pid, part in sh["parts"].items():
@@ -319,6 +305,34 @@ def _check_docs(docs: dict, design, settings, motion=None) -> dict:
         missing = [k for k in range(min(n_bars, len(bars) + 5)) if k not in bars][:5]
         problems.append(f"{n_bars - len(bars)} of the header's {n_bars} bars missing (first: "
                         f"{missing})")
+    return bars, problems
+
+
+def _check_docs(docs: dict, design, settings, motion=None) -> dict:
+    checks = []
+    sheets = {name: read_sheet(doc) for name, doc in docs.items()}
+    units = {name: sh["insunits"] for name, sh in sheets.items()}
+    checks.append(_check("units", all(u == 4 for u in units.values()),
+                         sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
+    audits = {name: _audit(doc) for name, doc in docs.items()}
+    n_err = {name: n for name, (n, _) in audits.items()}
+    why = "; ".join(f"{name}: {w}" for name, (_, w) in audits.items() if w)
+    checks.append(_check("audit", not any(n_err.values()), sum(n_err.values()), 0,
+                         why or "errors found by ezdxf's audit"))
+    used = set().union(*(sh["layers"] for sh in sheets.values())) if sheets else set()
+    checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
+                         "layers that carry entities"))
+    head = next(iter(sheets.values()))["header"] if sheets else {}
+    if "FABKIT_COUPON" in head:
+        return _check_coupon(sheets, head, checks, design, settings, sorted(docs))
+    values = _header_values(head)
+    if isinstance(values, str):
+        checks.append(_check("parts", False, None, None, values))
+        return {"ok": False, "checks": checks, "files": sorted(docs)}
+    kerf, width, hole = values["FABKIT_KERF"], values["FABKIT_BAR_WIDTH"], values["FABKIT_HOLE"]
+    n_bars, scale = values["FABKIT_BARS"], values["FABKIT_SCALE"]
+    kerf = _kerf_cut_with(settings, head, kerf, checks)
+    bars, problems = _bars_read(sheets, n_bars)
     checks.append(_check("parts", not problems, len(bars), n_bars, "; ".join(problems[:3]) or
                          "every bar found once with two holes and a closed outline"))
     if problems:

@@ -73,19 +73,10 @@ class FoldFile(_Part):
     sheets: list[FoldSheet] = Field([], alias="fabkit:sheets")
 
 
-def fold_problems(doc: dict) -> list[str]:
-    """Problems of a FOLD document as sentences (empty when fabkit can use it).
-
-    Types and ranges of every field first (:class:`FoldFile`), then what ties the fields
-    together: one coordinate dimension, array lengths per edge and per vertex, indices in
-    range, faces made of edges, ports and sheets naming vertices, the drive among the ports,
-    the map's arrays of one length, and the work the file asks for (its samples times its
-    vertices) within the bounds.
-    """
-    try:
-        f = FoldFile.model_validate(doc)
-    except ValidationError as exc:
-        return [_sentence(exc)]
+def _edge_problems(f) -> tuple[list[str], bool]:
+    """Problems of the vertices and edges (one dimension, one entry per edge, fold angles of
+    the assignment's sign), and whether every edge joins two existing vertices (if not, nothing
+    that reads the edges can be checked)."""
     out = []
     nv, ne = len(f.vertices_coords), len(f.edges_vertices)
     dims = {len(c) for c in f.vertices_coords}
@@ -105,7 +96,13 @@ def fold_problems(doc: dict) -> list[str]:
     if any(max(e) >= nv for e in f.edges_vertices) or any(a == b for a, b in f.edges_vertices):
         out.append("edges_vertices names vertices that do not exist (or an edge from a vertex "
                    "to itself)")
-        return out
+        return out, False
+    return out, True
+
+
+def _face_and_frame_problems(f) -> list[str]:
+    """Faces made of edges, frames of every vertex in one dimension."""
+    out, nv = [], len(f.vertices_coords)
     keys = {tuple(sorted(e)) for e in f.edges_vertices}
     for i, cyc in enumerate(f.faces_vertices):
         sides = list(zip(cyc, cyc[1:] + cyc[:1]))
@@ -120,6 +117,13 @@ def fold_problems(doc: dict) -> list[str]:
         if len({len(c) for c in fr.vertices_coords}) != 1:
             out.append(f"file_frames[{k}] mixes 2D and 3D vertices")
             break
+    return out
+
+
+def _fabkit_problems(f) -> list[str]:
+    """fabkit's own fields: ports and sheets naming vertices, the drive among the ports, the
+    map's arrays of one length."""
+    out, nv = [], len(f.vertices_coords)
     for name, (a, b) in f.ports.items():
         if max(a, b) >= nv or a == b:
             out.append(f"fabkit:ports.{name} names vertices {a}, {b} of {nv}")
@@ -140,6 +144,27 @@ def fold_problems(doc: dict) -> list[str]:
             out.append(f"fabkit:sheets[{k}] names a vertex that does not exist")
         if sh.map is not None and not set(sh.map) <= set(f.ports):
             out.append(f"fabkit:sheets[{k}].map names a port that is not in fabkit:ports")
+    return out
+
+
+def fold_problems(doc: dict) -> list[str]:
+    """Problems of a FOLD document as sentences (empty when fabkit can use it).
+
+    Types and ranges of every field first (:class:`FoldFile`), then what ties the fields
+    together: one coordinate dimension, array lengths per edge and per vertex, indices in
+    range, faces made of edges, ports and sheets naming vertices, the drive among the ports,
+    the map's arrays of one length, and the work the file asks for (its samples times its
+    vertices) within the bounds.
+    """
+    try:
+        f = FoldFile.model_validate(doc)
+    except ValidationError as exc:
+        return [_sentence(exc)]
+    nv = len(f.vertices_coords)
+    out, edges_usable = _edge_problems(f)
+    if not edges_usable:
+        return out
+    out += _face_and_frame_problems(f) + _fabkit_problems(f)
     if not out:
         from ..io.workload import require
 

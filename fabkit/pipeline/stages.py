@@ -153,6 +153,43 @@ def _first_clause(text: str, limit: int = 240) -> str:
     return text if len(text) <= limit else text[:limit - 1].rstrip() + "…"
 
 
+def _tolerance_finding(tolerance) -> Finding:
+    """What a flagged tolerance analysis adds to the verdict: chaos by design, or a FLAG."""
+    chaos = tolerance.behaviour.chaos if tolerance.behaviour is not None else None
+    if chaos is not None:
+        hz = tolerance.horizon or {}
+        after = hz.get("limit_modules")
+        return Finding(
+            Level.BY_DESIGN, "tolerance",
+            f"chaotic by design: its module map stretches errors by e^{chaos['lyapunov']:.2f} "
+            "a module, so "
+            + (f"a {hz['error_mm']:.3g} mm build error outgrows what is allowed after about "
+               f"{after:.0f} modules and " if after is not None and "error_mm" in hz else "")
+            + f"no build can keep the far end of its {chaos['modules']} modules where the "
+            "design puts it; the tolerance analysis flags that, as the design intends")
+    # "FLAG, margin 0.75; ..." said once: the level heads the line
+    said = tolerance.verdict.removeprefix("FLAG, ")
+    return Finding(Level.FLAG, "tolerance",
+                   f"tolerance as {tolerance.spec.process} builds: {_first_clause(said)}")
+
+
+def _passed(formats: dict, checks: Checks, motion, tolerance) -> list[str]:
+    """The parts of an OK verdict's line: what was checked and passed."""
+    parts = []
+    n = len(checks.results)
+    if n:
+        parts.append(f"every as-built check passed ({n} file{'s' if n != 1 else ''} read back)")
+    if tolerance is not None:  # "ok, margin 7.5" (the whole verdict is in its section)
+        parts.append(f"tolerance as {tolerance.spec.process} builds: "
+                     f"{tolerance.verdict.split(':')[0]}")
+    if motion is not None and motion.ends is not None:
+        parts.append("every designed end reached")
+    if not parts:
+        parts.append("nothing was checked" if not any(
+            f.status.produced for f in formats.values()) else "no as-built check ran")
+    return parts
+
+
 def judge_design(outcome, formats: dict, checks: Checks, motion, tolerance,
                  refused: list) -> Verdict:
     """The Verdict stage: the worst of every check, the motion and the tolerance analysis.
@@ -193,41 +230,14 @@ def judge_design(outcome, formats: dict, checks: Checks, motion, tolerance,
         found.append(Finding(Level.FLAG, "motion", f"the design does not happen: "
                                                    f"{motion.ends.reason}"))
     if tolerance is not None and tolerance.flagged:
-        chaos = tolerance.behaviour.chaos if tolerance.behaviour is not None else None
-        if chaos is not None:
-            hz = tolerance.horizon or {}
-            after = hz.get("limit_modules")
-            found.append(Finding(
-                Level.BY_DESIGN, "tolerance",
-                f"chaotic by design: its module map stretches errors by e^{chaos['lyapunov']:.2f} "
-                "a module, so "
-                + (f"a {hz['error_mm']:.3g} mm build error outgrows what is allowed after about "
-                   f"{after:.0f} modules and " if after is not None and "error_mm" in hz else "")
-                + f"no build can keep the far end of its {chaos['modules']} modules where the "
-                "design puts it; the tolerance analysis flags that, as the design intends"))
-        else:  # "FLAG, margin 0.75; ..." said once: the level heads the line
-            said = tolerance.verdict.removeprefix("FLAG, ")
-            found.append(Finding(Level.FLAG, "tolerance",
-                                 f"tolerance as {tolerance.spec.process} builds: "
-                                 f"{_first_clause(said)}"))
+        found.append(_tolerance_finding(tolerance))
     found.sort(key=lambda f: -f.level.rank)
     if found:
         worst = found[0]
         others = sum(1 for f in found[1:] if f.level is not Level.OK)
         more = f" (and {others} more below)" if others else ""
         return Verdict(worst.level, worst.text + more, tuple(found))
-    parts = []
-    n = len(checks.results)
-    if n:
-        parts.append(f"every as-built check passed ({n} file{'s' if n != 1 else ''} read back)")
-    if tolerance is not None:  # "ok, margin 7.5" (the whole verdict is in its section)
-        parts.append(f"tolerance as {tolerance.spec.process} builds: "
-                     f"{tolerance.verdict.split(':')[0]}")
-    if motion is not None and motion.ends is not None:
-        parts.append("every designed end reached")
-    if not parts:
-        parts.append("nothing was checked" if not any(
-            f.status.produced for f in formats.values()) else "no as-built check ran")
+    parts = _passed(formats, checks, motion, tolerance)
     return Verdict(Level.OK, "; ".join(parts))
 
 
