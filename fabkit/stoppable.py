@@ -247,7 +247,7 @@ def _died(what: str, exitcode, limits) -> StepLimitError:
     """The error for a child that ended without a result (``limits``: the last estimate it
     kept to, as (description, CPU seconds allowed))."""
     if exitcode == -signal.SIGXCPU and limits:
-        from ..io.workload import describe_seconds
+        from .io.workload import describe_seconds
 
         estimate, allowed = limits
         return StepLimitError(what, f"ran past the {describe_seconds(allowed)} of CPU time "
@@ -278,13 +278,13 @@ def _child_main(conn, parent_pid, func, args, kwargs) -> None:
     except MemoryError:
         result = ("memory", f"over {_describe_limit()} of address space")
     except Exception as exc:  # noqa: BLE001 - reported as the internal error it is
-        from ..errors import internal_error_line
+        from .errors import internal_error_line
 
         result = ("internal", internal_error_line(exc))
     try:
         conn.send(result)
     except Exception as exc:  # noqa: BLE001 - a result that does not pickle is a bug
-        from ..errors import internal_error_line
+        from .errors import internal_error_line
 
         conn.send(("internal", internal_error_line(exc)))
     conn.close()
