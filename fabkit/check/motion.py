@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..kinematics import trace
@@ -32,7 +34,9 @@ def design_window(design, start, to, motion=None, process: str = "laser"):
     Returns
     -------
     design : Design
-        ``design`` itself when neither is given.
+        ``design`` itself when neither is given; its ``[motion]`` options carry the options
+        the Motion stage traced with (:attr:`fabkit.motion.TracedMotion.options`), so the
+        rebuilt network is traced as the design was.
     trajectory : Trajectory or None
         Its motion, as traced (None: the template gives no target).
 
@@ -44,7 +48,11 @@ def design_window(design, start, to, motion=None, process: str = "laser"):
     kit = motion_for(design, motion).window_motion(start, to, process)
     if kit.trajectory is None and kit.status is not MotionStatus.NO_TARGET:
         kit.require()  # the motion's typed failure
-    return kit.design, kit.trajectory
+    design = kit.design
+    if kit.options:
+        m = design.motion
+        design = replace(design, motion=replace(m, options={**m.options, **kit.options}))
+    return design, kit.trajectory
 
 
 def compare_motion(design, built, rtol: float, reference) -> dict:

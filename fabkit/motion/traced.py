@@ -76,6 +76,11 @@ class TracedMotion:
         ``(start, to)`` of a kit's window, None for the design's own motion.
     spread : ModuleSpread or None
         A driven chain: how far each module moved (:func:`fabkit.motion.spread.module_spread`).
+    options : dict
+        Trace options given beyond the template's ``[motion]`` (a laser kit's
+        ``max_node_step``, :func:`fabkit.fab.plans.trace_needs`): a check that traces a rebuilt
+        network again traces it with these too, so like is compared with like (a network that
+        starts at a branch point, the AND gate, may leave it on another branch at another step).
     """
 
     design: object
@@ -86,6 +91,7 @@ class TracedMotion:
     ends: object = None
     window: tuple | None = None
     spread: object = None
+    options: dict = field(default_factory=dict)
     _windows: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -246,6 +252,7 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
                                 window=window)
         singular = modes.self_stress > 0 and modes.conformational > 1
         several = modes.conformational > 1 and not singular
+    options = {k: v for k, v in overrides.items() if k not in ("to", "method")}
     try:
         traj = design.trace(**overrides)
     except TypeError as exc:  # an unknown method option
@@ -268,22 +275,23 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
         if ends is not None and not ends.reached:
             return TracedMotion(design, MotionStatus.ENDS_MISSED,
                                 f"{traj.message}, but {ends.reason}", traj, ends=ends,
-                                window=window, spread=spread)
+                                window=window, spread=spread, options=options)
         missed = shape_missed(design, spread)
         if missed:
             return TracedMotion(design, MotionStatus.ENDS_MISSED, f"{traj.message}, but {missed}",
-                                traj, ends=ends, window=window, spread=spread)
+                                traj, ends=ends, window=window, spread=spread,
+                            options=options)
         return TracedMotion(design, MotionStatus.FINISHED, traj.message, traj, ends=ends,
-                            window=window, spread=spread)
+                            window=window, spread=spread, options=options)
     at_start = traj.n_steps <= 1
     if singular and at_start:
         error = SingularStartError(path, nodes_key, f"target {design.motion.drive} = "
                                    f"{float(target):.10g} is not reached: {traj.message}",
                                    status=str(traj.status))
         return TracedMotion(design, MotionStatus.SINGULAR_START, error.reason, traj,
-                            error=error, window=window)
+                            error=error, window=window, options=options)
     key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) else "motion"
     error = MotionError(path, key, f"target {design.motion.drive} = {float(target):.10g} is not "
                                    f"reached: {traj.message}", status=str(traj.status))
     return TracedMotion(design, MotionStatus.NOT_REACHED, error.reason, traj, error=error,
-                        window=window)
+                        window=window, options=options)

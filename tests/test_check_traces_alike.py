@@ -1,0 +1,58 @@
+"""A check traces the rebuilt network as the Motion stage traced the design.
+
+The AND gate starts at a branch point (two infinitesimal motions and a state of self-stress). The
+Motion stage traces it at the node step its laser kit's stacking needs
+(:func:`fabkit.fab.plans.trace_needs`); traced again at the default step, the same network leaves
+its start on another branch (port d3_b 0.72 design units away). An as-built check that traced the
+rebuilt network with the template's options only failed every and_gate export ("module_map").
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from fabkit.check.motion import compare_motion, design_window
+from fabkit.fab.plans import trace_needs
+from fabkit.motion import trace_motion
+from fabkit.templates import load_template
+
+TEMPLATES = Path(__file__).resolve().parents[1] / "templates"
+#: the DXF check's own bound on a port-distance difference, relative to the network's size
+MAP_RTOL = 1e-6
+#: how far the other branch takes port d3_b (design units): the failure this test guards
+OTHER_BRANCH = 0.5
+
+
+@pytest.fixture(scope="module")
+def and_gate():
+    design = load_template(TEMPLATES / "and_gate.toml")
+    needs = trace_needs({"laser"}, design)
+    assert "max_node_step" in needs  # the kit needs a finer trace than the template's
+    return design, needs, trace_motion(design, **needs)
+
+
+def test_the_motion_stage_keeps_the_options_it_traced_with(and_gate):
+    design, needs, motion = and_gate
+    assert motion.traced
+    assert motion.options == needs
+
+
+def test_the_same_network_retraced_as_the_design_matches(and_gate):
+    design, _, motion = and_gate
+    kit, reference = design_window(design, None, None, motion)
+    assert kit.motion.options["max_node_step"] == motion.options["max_node_step"]
+    cmp = compare_motion(kit, design.network, MAP_RTOL, reference)
+    assert cmp["ok"], cmp
+    assert cmp["worst"] == 0.0  # the same network, the same options: the same numbers
+    assert cmp["same_end"]
+
+
+def test_retraced_with_the_template_options_only_it_takes_another_branch(and_gate):
+    # what the check did before: the design's own [motion] options, not the Motion stage's
+    design, _, motion = and_gate
+    _, reference = design_window(design, None, None, motion)
+    cmp = compare_motion(design, design.network, MAP_RTOL, reference)
+    assert not cmp["ok"]
+    assert cmp["worst"] > OTHER_BRANCH
