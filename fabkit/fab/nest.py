@@ -23,6 +23,8 @@ import numpy as np
 
 from ..errors import FabricationError
 from .bars import bar_outline, hole_radius, outline_radius
+from .free_space import fill_back
+from .shelves import shelf_pack
 
 __all__ = ["Part", "Label", "Sheet", "make_parts", "nest_parts", "place_like", "label_outlines",
            "REFERENCE_SIZE", "part_area", "utilisation"]
@@ -254,11 +256,26 @@ def nest_parts(parts, settings) -> list[Sheet]:
             min_x, min_y = x0, y0
         shift = (s.margin + x / _UNIT - min_x, s.margin + y / _UNIT - min_y)
         sheet = sheets.setdefault(b, Sheet(index=b + 1, width=s.sheet_width, height=s.sheet_height))
-        moved = _moved(part, rotated, shift)
-        sheet.parts.append(moved)
-        sheet.placements[part.id] = {"x": round(shift[0], 6), "y": round(shift[1], 6),
-                                     "rotated": bool(rotated), "shift": shift}
-    return [sheets[k] for k in sorted(sheets)]
+        _place(sheet, part, rotated, shift)
+    out = [sheets[k] for k in sorted(sheets)]
+    # the packers see boxes: the parts of a last sheet may fit between the round ends and rings
+    # of the sheets before; a sheet is kept only when its parts fit nowhere else
+    by_id = {p.id: p for p in parts}
+    while len(out) > 1:
+        moves = fill_back(out, by_id, s)
+        if moves is None:
+            break
+        for pid, (k, rotated, shift) in moves.items():
+            _place(out[k], by_id[pid], rotated, shift)
+        out.pop()
+    return out
+
+
+def _place(sheet: Sheet, part: Part, rotated: bool, shift) -> None:
+    """Put ``part`` (own frame) on ``sheet``, turned and shifted, and record where."""
+    sheet.parts.append(_moved(part, rotated, shift))
+    sheet.placements[part.id] = {"x": round(shift[0], 6), "y": round(shift[1], 6),
+                                 "rotated": bool(rotated), "shift": shift}
 
 
 def place_like(parts, sheets) -> list[Sheet]:
@@ -323,6 +340,10 @@ def _pack(ids, sizes, bin_w, bin_h, strategies):
             best = (key, strategy, placed)
     if best is None:  # pragma: no cover
         raise FabricationError("nesting failed to place every part")
+    # rows of bars: taken only where it saves a sheet (the boxes' packers place the rest)
+    rows = shelf_pack(ids, sizes, bin_w, bin_h)
+    if rows and 1 + max(r[0] for r in rows) < best[0][0]:
+        return best[1], rows
     return best[1], best[2]
 
 
