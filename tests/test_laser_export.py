@@ -67,7 +67,16 @@ def test_files_written(exported, key):
         assert not list(root.iter(f"{ns}text")) and not list(root.iter(f"{ns}rect"))
         assert all(e.get("transform") is None for e in root.iter())
         strokes = [e.get("stroke") for e in root.iter() if e.get("stroke") not in (None, "none")]
-        assert set(strokes) <= {"#FF0000", "#0000FF", "#000000"}
+        assert set(strokes) <= {"#FF0000", "#0000FF", "#00FF00"}
+        # no outline is stroked in the colour that fills the labels: a program set to fill the
+        # black layer engraves the labels, not the reference square as a block
+        fills = {e.get("fill") for e in root.iter() if e.get("fill") not in (None, "none")}
+        assert fills == {"#000000"} and not fills & set(strokes)
+        refs = [e for e in root.iter(f"{ns}path") if e.get("id") == "REF"]
+        if k == 1:
+            assert len(refs) == 1 and refs[0].get("stroke") == "#00FF00"
+            group = next(g for g in root.iter(f"{ns}g") if g.get("id") == "reference")
+            assert refs[0] in list(group)
         holes += sum(e.get("stroke") == "#0000FF" for e in root.iter(f"{ns}circle"))
         outer += sum(e.get("stroke") == "#FF0000" and (e.get("id") or "").startswith("B")
                      for e in root.iter(f"{ns}path"))

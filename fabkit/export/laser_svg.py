@@ -5,8 +5,11 @@ and most cutting services map to operations):
 
 * ``#FF0000`` red: outer cut (bar outlines, spacer rings; the reference square when it is cut);
 * ``#0000FF`` blue: inner cut (holes; cut before the outer contours);
-* ``#000000`` black: engrave / score (labels as filled glyph outlines, the reference square
-  when engraved).
+* ``#000000`` black: engrave (labels as filled glyph outlines: a program set to fill the
+  black layer fills only them);
+* ``#00FF00`` green: reference line (the 100 mm square when engraved, a hairline scored once,
+  in its own group: filled with the labels it would engrave a 100 mm block). The DXF keeps it on
+  its own REFERENCE layer (ACI 3, green) likewise.
 
 The file is ``width="<W>mm" height="<H>mm"`` with ``viewBox="0 0 W H"``, so one user unit is
 one millimetre; strokes are 0.1 mm hairlines, there is no background shape, no group
@@ -20,11 +23,12 @@ import math
 
 import numpy as np
 
-__all__ = ["CUT", "INNER", "ENGRAVE", "sheet_svg"]
+__all__ = ["CUT", "INNER", "ENGRAVE", "REFERENCE", "sheet_svg"]
 
 CUT = "#FF0000"
 INNER = "#0000FF"
 ENGRAVE = "#000000"
+REFERENCE = "#00FF00"
 _STROKE = 0.1  # mm
 
 
@@ -81,11 +85,11 @@ def sheet_svg(sheet, settings) -> bytes:
     from ..fab.nest import label_outlines
 
     W, H = float(sheet.width), float(sheet.height)
-    engrave, inner, outer = [], [], []
+    reference, engrave, inner, outer = [], [], [], []
     for part in sheet.parts:
         if part.engrave_outline:
-            engrave.append(f'<path d="{_outline_path(part.outline, H)}" fill="none" '
-                           f'stroke="{ENGRAVE}" stroke-width="{_STROKE}"/>')
+            reference.append(f'<path id="{part.id}" d="{_outline_path(part.outline, H)}" '
+                             f'fill="none" stroke="{REFERENCE}" stroke-width="{_STROKE}"/>')
         if settings.labels != "none":
             glyphs = [_poly_path(poly, H) for lb in part.labels for poly in label_outlines(lb)]
             if glyphs:
@@ -106,10 +110,12 @@ def sheet_svg(sheet, settings) -> bytes:
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{_f(W)}mm" height="{_f(H)}mm" '
            f'viewBox="0 0 {_f(W)} {_f(H)}">',
            f"<title>sheet {sheet.index}: red {CUT} outer cut, blue {INNER} inner cut, "
-           f"black {ENGRAVE} engrave; 1 unit = 1 mm</title>",
+           f"black {ENGRAVE} engrave (filled labels), green {REFERENCE} reference line; "
+           f"1 unit = 1 mm</title>",
            f'<desc id="kerf">{_kerf_text(settings)}</desc>',
            f'<metadata><fabkit:kerf xmlns:fabkit="urn:fabkit" mm="{_f(settings.kerf)}" '
            f'applied="{"true" if settings.kerf > 0 else "false"}"/></metadata>',
+           '<g id="reference">', *reference, "</g>",
            '<g id="engrave">', *engrave, "</g>",
            '<g id="inner-cut">', *inner, "</g>",
            '<g id="outer-cut">', *outer, "</g>",
