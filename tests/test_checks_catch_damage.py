@@ -116,6 +116,8 @@ TEMPLATE_LAYER_MM = 0.2
 WRONG_LAYER_MM = 0.3
 #: Sizes read back from float32 meshes agree with the damage to this relative error.
 SCALE_RTOL = 0.02
+#: Widths measured on a cross-section of a float32 mesh agree with the settings to this (mm).
+MEASURE_MM = 1e-3
 
 
 def _by_name(report) -> dict:
@@ -288,6 +290,16 @@ def crossing_bars_one_layer(doc):
     return None
 
 
+def bar_onto_a_joint_neighbours_layer(doc):
+    # bar 0 put on the layer of a bar that shares a joint with it: both round ends fill the
+    # same disc around that joint, a bar width deep (the kit's bars are all of one width)
+    bars = [meta for kind, meta, _ in _parts(doc).values() if kind == "bar"]
+    k, i, j, _ = next(m for m in bars if m[0] == 0)
+    other = next(m for m in bars if m[0] != k and {i, j} & set(m[1:3]))
+    _retag(doc, k, 3, other[3])
+    return -float(doc.header.custom_vars.get("FABKIT_BAR_WIDTH"))
+
+
 def other_kerf(doc):
     _set_header(doc, "FABKIT_KERF", str(OTHER_KERF_MM))
     return OTHER_KERF_MM
@@ -308,6 +320,7 @@ SHEET_DAMAGES = [
     (bar_on_wrong_joints, "topology", None),
     (thicker_sheet, "screws_close", None),
     (crossing_bars_one_layer, "same_layer", None),
+    (bar_onto_a_joint_neighbours_layer, "same_layer", "value"),
     (other_kerf, "kerf", None),
 ]
 
@@ -342,6 +355,35 @@ def test_a_damaged_sheet_fails_its_check(laser, tmp_path, damage, name, expect):
         assert c["value"] == pytest.approx(expected, abs=DXF_ROUND_OFF_MM)
     elif expect == "contains":
         assert expected in c["value"]
+
+
+def test_a_sheet_checked_without_its_design_says_what_it_did_not_check(laser, tmp_path):
+    design, out = laser
+    path, shortened = _damaged_kit(out, tmp_path, "laser_sheet1.dxf", bar_shortened)
+    alone = check_file(path)
+    names = [c["name"] for c in alone["checks"]]
+    # only what the file alone can say is reported, and it holds: a shortened bar is well drawn
+    assert names == ["units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
+                     "hole_after_kerf"]
+    _passes(alone)
+    # what needs the design is named as not checked, never reported ok
+    assert alone["not_checked"].startswith("no design given: lengths, topology, modes")
+    c = _failed(check_file(path, design=design), "lengths")
+    assert c["value"] == pytest.approx(shortened, abs=DXF_ROUND_OFF_MM)
+
+
+def test_a_sheet_check_that_stops_early_reports_what_it_did_not_run(laser, tmp_path):
+    design, out = laser
+    path, _ = _damaged_kit(out, tmp_path, "laser_sheet1.dxf", hole_removed)
+    report = check_file(path, design=design)
+    checks = _by_name(report)
+    assert not checks["parts"]["ok"]
+    after = ["holes_centred", "width_after_kerf", "hole_after_kerf", "lengths", "topology",
+             "modes", "module_map", "screws_close", "same_layer"]
+    assert [c["name"] for c in report["checks"]][-len(after):] == after
+    for name in after:
+        assert not checks[name]["ok"] and checks[name]["value"] is None
+        assert checks[name]["detail"] == "not run: stopped after 'parts' failed"
 
 
 def _self_stress(net) -> np.ndarray:
@@ -523,7 +565,7 @@ def boundary_cut(doc):
     k = doc["edges_vertices"].index([0, 1])
     assert doc["edges_assignment"][k] == "B"
     doc["edges_assignment"][k] = "C"
-    return None
+    return 2  # conformational motions: the sheet's fold, and the panel's flap
 
 
 def stored_map_shifted(doc):
@@ -540,11 +582,7 @@ def crease_vertex_moved(doc):
 FOLD_DAMAGES = [
     (faces_missing, "structure", "value"),
     (frame_vertex_moved, "frames_keep_lengths", "value"),
-    pytest.param(boundary_cut, "modes", None, marks=pytest.mark.xfail(strict=True, reason=(
-        "the side A-B written as a cut gives the rebuilt sheet 2 conformational motions, but "
-        "the re-fold refuses a network of more than one motion before 'modes' is computed: "
-        "the report holds only structure, frames_keep_lengths and refold_map ('re-folding "
-        "failed: ... 2 conformational motions at the start'), never a failed 'modes'"))),
+    (boundary_cut, "modes", "value"),
     (stored_map_shifted, "refold_map", "value"),
     (stored_map_shifted, "design_map", "value"),
     (crease_vertex_moved, "design_geometry", "fit"),
@@ -868,13 +906,7 @@ def bar_onto_its_neighbours_layer(v, f, s):
 #: check's limit, None when only the failure is asserted.
 PIN_DAMAGES = [
     (pin_bottom_removed, "one closed body per bar", None),
-    pytest.param(
-        pin_triangle_removed, "one closed body per bar", None,
-        marks=pytest.mark.xfail(strict=True, reason=(
-            "one triangle missing (up to three, measured) passes: the bodies are split with "
-            "trimesh's Trimesh.split, whose repair=True default fills the hole of each body "
-            "before 'one closed body per bar' asks it is watertight (5 of 6 is reported from "
-            "five missing triangles on)"))),
+    (pin_triangle_removed, "one closed body per bar", None),
     (pin_bar_lifted, "bars read back", "value"),
     (pin_bar_off_its_joints, "pins -> joints", None),
     (pin_bar_nudged, "pin clearance", "value"),
@@ -885,13 +917,7 @@ PIN_DAMAGES = [
     (print_scaled_slightly, "lengths", "lengths"),
     (print_scaled_slightly, "motion re-simulated", "above"),
     (bar_onto_a_crossing_layer, "clearances over the motion", "below"),
-    pytest.param(
-        bar_onto_its_neighbours_layer, "clearances over the motion", "below",
-        marks=pytest.mark.xfail(strict=True, reason=(
-            "a bar moved onto the layer of the two bars it shares its joints with (their round "
-            "ends and its own fill the same space, solid in solid) passes every check: "
-            "'clearances over the motion' measures only bars that share no joint, and 'layer "
-            "gaps' only the pitch and the pins' bodies"))),
+    (bar_onto_its_neighbours_layer, "clearances over the motion", "overlap"),
 ]
 
 
@@ -906,6 +932,8 @@ def _expect(c, expect, expected, design, s):
         assert c["value"] > c["limit"]
     elif expect == "below":
         assert c["value"] < c["limit"]
+    elif expect == "overlap":  # two round ends on one joint and one layer: a bar width deep
+        assert c["value"] == pytest.approx(-s.bar_width, abs=MEASURE_MM)
 
 
 def _damaged_print(src: Path, dst: Path, damage, s, **write):
@@ -924,6 +952,21 @@ def test_the_written_pinned_print_passes(pinned_print, tmp_path, fmt):
     s = design_print_settings(design, None)
     _damaged_print(src, tmp_path / src.name, lambda v, f, s: (v, f, None), s)
     _passes(check_file(tmp_path / src.name, design=design))
+
+
+def test_a_print_check_that_stops_early_reports_what_it_did_not_run(pinned_print, tmp_path):
+    design, out = pinned_print
+    s = design_print_settings(design, None)
+    src = out / "super_stable.stl"
+    _damaged_print(src, tmp_path / src.name, bar_turned_onto_other_joints, s)
+    report = check_file(tmp_path / src.name, design=design)
+    names = [c["name"] for c in report["checks"]]
+    # a bar on joints the design does not join: its network is not the design's, and nothing
+    # that needs it is measured, but every check is named
+    after = ["lengths", "modes", "motion re-simulated", "clearances over the motion"]
+    assert names[names.index("topology") + 1:] == after
+    for c in report["checks"][-len(after):]:
+        assert not c["ok"] and c["detail"] == "not run: stopped after 'topology' failed", c
 
 
 @pytest.mark.parametrize("fmt", ["stl", "3mf"])
@@ -1023,13 +1066,6 @@ def brace_plate(v, f, s):
     return np.vstack([v, pv]), np.vstack([f, np.asarray(prism.faces) + len(v)]), None
 
 
-_UNREACHED = (
-    "a plate added between three hinge joints (a brace the design lacks) is stopped by 'one "
-    "body' (2 bodies) and 'plates -> triangles, hinges -> joints' (the plate read with 4 free "
-    "sides), which end the check before the rebuilt edges and modes are compared; a plate "
-    "removed loses a node the design has, and 'rebuilt nodes match the design' ends it: in a "
-    "one-piece hinge print no damage tried reaches these two checks")
-
 HINGE_DAMAGES = [
     (hinge_triangle_removed, "watertight", None),
     (hinge_triangle_flipped, "winding consistent", None),
@@ -1039,10 +1075,8 @@ HINGE_DAMAGES = [
     (thin_wall, "no feature thinner than the nozzle", "above"),
     (stray_block, "plates -> triangles, hinges -> joints", None),
     (hinge_print_scaled, "rebuilt nodes match the design", "above"),
-    pytest.param(brace_plate, "rebuilt edges match the design", "above",
-                 marks=pytest.mark.xfail(strict=True, reason=_UNREACHED)),
-    pytest.param(brace_plate, "one conformational motion", "other",
-                 marks=pytest.mark.xfail(strict=True, reason=_UNREACHED)),
+    (brace_plate, "rebuilt edges match the design", "above"),
+    (brace_plate, "one conformational motion", "other"),
 ]
 
 

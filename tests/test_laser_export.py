@@ -220,7 +220,9 @@ def test_kerf_zero_and_check_catches_a_tampered_file(tmp_path):
 def test_check_without_design_and_on_garbage(tmp_path, exported):
     _, folder, _, _ = exported["fourbar"]
     result = check_file(folder / "laser_sheet1.dxf")
-    assert result["ok"] and any(c["name"] == "design" for c in result["checks"])
+    # what the file alone cannot say is named as not checked, not reported as a check passed
+    assert result["ok"] and "lengths" in result["not_checked"]
+    assert not any(c["name"] in ("design", "lengths", "modes") for c in result["checks"])
     junk = tmp_path / "junk.dxf"
     junk.write_bytes(b"\x00\x01 not a dxf")
     assert not check_file(junk)["ok"]

@@ -107,7 +107,7 @@ def benchmark_print(triangles: int = 1000, *, transition: bool = False, scale: f
     t = time.perf_counter()
     mesh = trimesh.load(io.BytesIO(data), file_type="stl", force="mesh")
     sections = slab_sections(mesh, s)
-    checks = {c["name"]: c for c in check_mesh(mesh, s, geo.volume, sections)}
+    checks = {c.name: c.as_dict() for c in check_mesh(mesh, s, geo.volume, sections)}
     seconds["read_and_check"] = time.perf_counter() - t
     t = time.perf_counter()
     built = rebuild_linkage(mesh, s, sections)

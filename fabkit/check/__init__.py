@@ -1,8 +1,17 @@
 """As-built checks: read exported files back, rebuild the network, re-simulate, compare.
 
 One module per file format, each defining ``FORMAT``, ``SUFFIXES`` (file name endings it reads)
-and ``check_file(path, design=None, settings=None) -> dict`` (a JSON-serialisable report with at
-least ``"ok": bool`` and ``"checks"``: a list of ``{"name", "ok", "value", "limit", "detail"}``).
+and ``check_file(path, design=None, settings=None) -> dict``: a JSON-serialisable report with at
+least ``"ok": bool`` and ``"checks"``.
+
+Every check is one :class:`fabkit.check.items.Check` (its name, a status of
+:data:`fabkit.status.CHECK`, the value measured, its limit and a one-sentence detail), made with
+:func:`fabkit.check.items.check` and written into the report by
+:func:`fabkit.check.items.finish` as ``{"name", "ok", "value", "limit", "detail"}``; ``ok`` of
+the report is true when every check holds. A check that an earlier failure leaves without what
+it needs is reported as not run (failed, its detail saying so and why), never left out; the
+checks that need the design's template and were given none are named in the report's
+``not_checked``, never reported ok.
 """
 
 from __future__ import annotations

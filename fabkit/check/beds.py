@@ -31,6 +31,8 @@ def bed_set(path) -> list[Path]:
 
 
 def split_bodies(mesh) -> list:
-    """The connected shells of a mesh (trimesh), in a fixed order (by their lowest vertex)."""
-    bodies = list(mesh.split(only_watertight=False))
+    """The connected shells of a mesh (trimesh), in a fixed order (by their lowest vertex),
+    each as the file has it: trimesh's ``split`` fills small holes of every body by default
+    (``repair=True``), which would make a body with a triangle missing watertight again."""
+    bodies = list(mesh.split(only_watertight=False, repair=False))
     return sorted(bodies, key=lambda b: tuple(np.round(b.bounds[0], 6)))

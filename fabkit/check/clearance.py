@@ -9,6 +9,9 @@ joint moves more than a bound between two samples, and every gap is measured on 
 * two bars of one layer that share no joint: the distance between the segments joining their
   joints, less half the width of each (a round-ended bar is the set of points within half its
   width of that segment);
+* two bars of one layer that share a joint: their round ends fill the same disc around it at
+  every moment (solid in solid), so their gap is minus the sum of their half widths; bars on a
+  joint must lie on different layers;
 * a bar and a column (a screw with its heads, a printed pin with its cap) whose layers the bar
   occupies and which it is not threaded on: the distance from the joint to the bar's segment,
   less half the bar's width and the column's radius;
@@ -237,9 +240,10 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     Returns
     -------
     dict
-        ``bar_gap``, ``bar_pair`` (bar indices), ``sample``; ``screw_gap``, ``screw_at`` (bar,
-        joint); ``column_gap``, ``column_pair`` (joints). ``inf`` / None where nothing shares
-        a layer.
+        ``bar_gap``, ``bar_pair`` (bar indices), ``sample``; ``joint_gap``, ``joint_pair`` (two
+        bars of one layer on one joint: always overlapping, see the module docstring);
+        ``screw_gap``, ``screw_at`` (bar, joint); ``column_gap``, ``column_pair`` (joints).
+        ``inf`` / None where nothing shares a layer.
     """
     edges = np.asarray(edges, dtype=np.int64)
     layer = np.asarray(layer, dtype=np.int64)
@@ -247,12 +251,18 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     lo_n, hi_n = x.min(axis=0), x.max(axis=0)
     bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]])
     bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]])
-    out = {"bar_gap": math.inf, "bar_pair": None, "sample": None, "screw_gap": math.inf,
-           "screw_at": None, "column_gap": math.inf, "column_pair": None}
-    # bar pairs: same layer, no shared joint (pairs formed layer by layer)
+    out = {"bar_gap": math.inf, "bar_pair": None, "sample": None, "joint_gap": math.inf,
+           "joint_pair": None, "screw_gap": math.inf, "screw_at": None, "column_gap": math.inf,
+           "column_pair": None}
+    # bar pairs of one layer (formed layer by layer); those on a shared joint overlap there
     a, b = _layer_pairs(layer)
     keep = (edges[a, 0] != edges[b, 0]) & (edges[a, 0] != edges[b, 1]) \
         & (edges[a, 1] != edges[b, 0]) & (edges[a, 1] != edges[b, 1])
+    if not keep.all():
+        overlap = -(half[a[~keep]] + half[b[~keep]])
+        k = int(np.argmin(overlap))
+        out.update(joint_gap=float(overlap[k]),
+                   joint_pair=[int(a[~keep][k]), int(b[~keep][k])])
     a, b = a[keep], b[keep]
     lower = _box_gap(bar_lo[a], bar_hi[a], bar_lo[b], bar_hi[b]) - half[a] - half[b]
 

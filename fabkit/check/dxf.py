@@ -22,7 +22,8 @@ Steps (each a named entry of the report's ``checks``):
   layer come closer than clearance / 2 (the stacking's guarantee), and no bar or screw column
   enters another screw's layers nearby.
 
-Without a design only the file-level checks run (the report says so).
+Without a design only the file-level checks run: the report's ``not_checked`` names the others.
+A check that an earlier failure leaves without what it needs is reported as not run (failed).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ from ..model.rigidity import count_modes
 from ..numerics import MM_SLACK, project_to_lengths
 from . import require_files
 from .clearance import fine_motion, same_layer_gaps
+from .items import Check, check, finish
 from .motion import compare_motion, design_window
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
@@ -64,6 +66,15 @@ FILE_RESOLUTION_MM = 1e-9
 #: to the network size (design units): the map is compared away from exact flat states.
 MAP_RTOL = 1e-6
 _LAYERS = {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
+#: The checks of a kit's sheets from the file alone, in the order they run (``kerf`` runs too when
+#: the user says which kerf the laser cuts).
+FILE_CHECKS = ("units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
+               "hole_after_kerf")
+#: The checks of a kit against its design, after :data:`FILE_CHECKS`.
+DESIGN_CHECKS = ("lengths", "topology", "modes", "module_map", "screws_close", "same_layer")
+#: The checks of the test coupon (``same_as_kit`` with a design).
+COUPON_CHECKS = ("units", "audit", "layers", "parts", "width_after_kerf", "hole_after_kerf",
+                 "ring_after_kerf", "spacing")
 _APPID = "FABKIT"
 
 
@@ -94,10 +105,6 @@ class DxfHeader(BaseModel):
 
 def _mm(v: float) -> str:
     return "none" if math.isinf(v) else f"{v:.3f}"
-
-
-def _check(name, ok, value=None, limit=None, detail=""):
-    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
 
 def _bar_name(k, joints) -> str:
@@ -218,9 +225,10 @@ def check_documents(texts: dict, design=None, settings=None, *, motion=None) -> 
         try:
             docs[name] = ezdxf.read(io.StringIO(texts[name]))
         except Exception as exc:  # ezdxf raises several types for malformed files
-            checks.append(_check("readable", False, name, None, f"{name}: {exc}"))
+            checks.append(check("readable", False, name, None, f"{name}: {exc}"))
     if checks:
-        return {"ok": False, "checks": checks, "files": sorted(texts)}
+        return finish({"files": sorted(texts)}, checks, _expected(design),
+                      "a sheet of the kit cannot be read")
     return _check_groups(docs, design, settings, motion)
 
 
@@ -264,10 +272,10 @@ def _kerf_cut_with(settings, head: dict, kerf: float, checks: list) -> float:
     if given is None or head.get("FABKIT_VARIANT") == "uncompensated":
         return kerf
     same = abs(float(given) - kerf) <= MM_SLACK
-    checks.append(_check("kerf", same, float(given), kerf,
-                         f"kerf of --set laser.kerf against the {kerf:g} mm the file was "
-                         "drawn for" + ("" if same else "; re-export with the kerf of "
-                                                        "your laser")))
+    checks.append(check("kerf", same, float(given), kerf,
+                        f"kerf of --set laser.kerf against the {kerf:g} mm the file was "
+                        "drawn for" + ("" if same else "; re-export with the kerf of "
+                                                       "your laser")))
     return float(given)
 
 
@@ -312,31 +320,31 @@ def _check_docs(docs: dict, design, settings, motion=None) -> dict:
     checks = []
     sheets = {name: read_sheet(doc) for name, doc in docs.items()}
     units = {name: sh["insunits"] for name, sh in sheets.items()}
-    checks.append(_check("units", all(u == 4 for u in units.values()),
-                         sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
+    checks.append(check("units", all(u == 4 for u in units.values()),
+                        sorted(set(units.values())), 4, "$INSUNITS of every sheet (4 = mm)"))
     audits = {name: _audit(doc) for name, doc in docs.items()}
     n_err = {name: n for name, (n, _) in audits.items()}
     why = "; ".join(f"{name}: {w}" for name, (_, w) in audits.items() if w)
-    checks.append(_check("audit", not any(n_err.values()), sum(n_err.values()), 0,
-                         why or "errors found by ezdxf's audit"))
+    checks.append(check("audit", not any(n_err.values()), sum(n_err.values()), 0,
+                        why or "errors found by ezdxf's audit"))
     used = set().union(*(sh["layers"] for sh in sheets.values())) if sheets else set()
-    checks.append(_check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
-                         "layers that carry entities"))
+    checks.append(check("layers", used <= _LAYERS, sorted(used), sorted(_LAYERS),
+                        "layers that carry entities"))
     head = next(iter(sheets.values()))["header"] if sheets else {}
     if "FABKIT_COUPON" in head:
         return _check_coupon(sheets, head, checks, design, settings, sorted(docs))
     values = _header_values(head)
     if isinstance(values, str):
-        checks.append(_check("parts", False, None, None, values))
-        return {"ok": False, "checks": checks, "files": sorted(docs)}
+        checks.append(check("parts", False, None, None, values))
+        return finish({"files": sorted(docs)}, checks, _expected(design))
     kerf, width, hole = values["FABKIT_KERF"], values["FABKIT_BAR_WIDTH"], values["FABKIT_HOLE"]
     n_bars, scale = values["FABKIT_BARS"], values["FABKIT_SCALE"]
     kerf = _kerf_cut_with(settings, head, kerf, checks)
     bars, problems = _bars_read(sheets, n_bars)
-    checks.append(_check("parts", not problems, len(bars), n_bars, "; ".join(problems[:3]) or
-                         "every bar found once with two holes and a closed outline"))
+    checks.append(check("parts", not problems, len(bars), n_bars, "; ".join(problems[:3]) or
+                        "every bar found once with two holes and a closed outline"))
     if problems:
-        return {"ok": False, "checks": checks, "files": sorted(docs)}
+        return finish({"files": sorted(docs)}, checks, _expected(design))
     ks = sorted(bars)
     hc = np.array([[bars[k]["holes"][0][0], bars[k]["holes"][1][0]] for k in ks])  # (E, 2, 2)
     hr = np.array([[bars[k]["holes"][0][1], bars[k]["holes"][1][1]] for k in ks])
@@ -348,58 +356,59 @@ def _check_docs(docs: dict, design, settings, motion=None) -> dict:
     off = np.minimum(d_same, d_swap)
     edges = np.array([bars[k]["joints"] for k in ks], dtype=np.int64)
     worst = int(np.argmax(off))
-    checks.append(_check("holes_centred", off.max() <= LENGTH_TOL, float(off.max()), LENGTH_TOL,
-                         "largest distance (mm) from a hole centre to its round end's centre"
-                         if off.max() <= LENGTH_TOL else
-                         f"{_bar_name(ks[worst], edges[worst])}: a hole lies {off[worst]:.3f} mm "
-                         "from the centre of its round end"))
+    checks.append(check("holes_centred", off.max() <= LENGTH_TOL, float(off.max()), LENGTH_TOL,
+                        "largest distance (mm) from a hole centre to its round end's centre"
+                        if off.max() <= LENGTH_TOL else
+                        f"{_bar_name(ks[worst], edges[worst])}: a hole lies {off[worst]:.3f} mm "
+                        "from the centre of its round end"))
     w_built, h_built = _kerf_undone(ar, hr, kerf)
     dw = float(np.abs(w_built - width).max())
     dh = float(np.abs(h_built - hole).max())
-    checks.append(_check("width_after_kerf", dw <= LENGTH_TOL, dw, LENGTH_TOL,
-                         f"bar width with the {kerf:g} mm kerf of the header undone vs "
-                         f"{width:g} mm"))
-    checks.append(_check("hole_after_kerf", dh <= LENGTH_TOL, dh, LENGTH_TOL,
-                         f"hole diameter with the {kerf:g} mm kerf of the header undone vs "
-                         f"{hole:g} mm"))
+    checks.append(check("width_after_kerf", dw <= LENGTH_TOL, dw, LENGTH_TOL,
+                        f"bar width with the {kerf:g} mm kerf of the header undone vs "
+                        f"{width:g} mm"))
+    checks.append(check("hole_after_kerf", dh <= LENGTH_TOL, dh, LENGTH_TOL,
+                        f"hole diameter with the {kerf:g} mm kerf of the header undone vs "
+                        f"{hole:g} mm"))
     lengths = np.linalg.norm(hc[:, 0] - hc[:, 1], axis=1)
     layer = np.array([bars[k]["layer"] for k in ks], dtype=np.int64)
     report = {"files": sorted(docs), "bars": [round(float(v), 9) for v in lengths],
               "scale": scale}
-    if design is None:
-        checks.append(_check("design", True, None, None,
-                             "no design given: network, motion and collision checks skipped"))
-        report.update(ok=all(c["ok"] for c in checks), checks=checks)
-        return report
+    if design is None:  # what the file alone cannot say is named, not passed
+        report["not_checked"] = (f"no design given: {', '.join(DESIGN_CHECKS)} need the design's "
+                                 "template")
+        return finish(report, checks)
     net = design.network
     if len(lengths) != net.n_edges:  # another design's sheets: a failed check, not an error
-        checks.append(_check("topology", False, len(lengths), net.n_edges,
-                             f"the file holds {len(lengths)} bars, the design {design.name} "
-                             f"{net.n_edges} edges: not this design's file"))
-        report.update(ok=False, checks=checks)
-        return report
+        checks.append(check("topology", False, len(lengths), net.n_edges,
+                            f"the file holds {len(lengths)} bars, the design {design.name} "
+                            f"{net.n_edges} edges: not this design's file"))
+        return finish(report, checks, _expected(design))
     want = net.edge_lengths * scale
     worst = int(np.argmax(np.abs(lengths - want)))
     dl = float(abs(lengths[worst] - want[worst]))
-    checks.append(_check("lengths", dl <= LENGTH_TOL, dl, LENGTH_TOL,
-                         "largest |read-back - designed| bar length (mm)" if dl <= LENGTH_TOL else
-                         f"{_bar_name(ks[worst], edges[worst])}: its holes are "
-                         f"{lengths[worst]:.3f} mm apart, the design's bar {want[worst]:.3f} mm"))
+    checks.append(check("lengths", dl <= LENGTH_TOL, dl, LENGTH_TOL,
+                        "largest |read-back - designed| bar length (mm)" if dl <= LENGTH_TOL else
+                        f"{_bar_name(ks[worst], edges[worst])}: its holes are "
+                        f"{lengths[worst]:.3f} mm apart, the design's bar {want[worst]:.3f} mm"))
     same_topology = np.array_equal(np.sort(edges, 1), np.sort(net.edges, 1))
-    checks.append(_check("topology", same_topology, None, None,
-                         "bars join the designed joints" if same_topology else
-                         "the bars read back join other joints than the design's"))
+    checks.append(check("topology", same_topology, None, None,
+                        "bars join the designed joints" if same_topology else
+                        "the bars read back join other joints than the design's"))
     if not same_topology:
-        report.update(ok=False, checks=checks)
-        return report
+        return finish(report, checks, _expected(design))
     spacers = [2.0 * r - kerf for sh in sheets.values() for part in sh["parts"].values()
                if part["kind"] == "spacer" for _, r in part["outer"]]
     measured = {"widths": w_built.max(axis=1), "thickness": values["FABKIT_THICKNESS"],
                 "spacer": max(spacers) if spacers else None}
     checks += _motion_checks(design, edges, lengths, layer, scale, settings, report, measured,
                              motion)
-    report.update(ok=all(c["ok"] for c in checks), checks=checks)
-    return report
+    return finish(report, checks, _expected(design))
+
+
+def _expected(design) -> tuple:
+    """The checks of a kit's sheets: from the file alone, and with a design against it."""
+    return FILE_CHECKS + (DESIGN_CHECKS if design is not None else ())
 
 
 class CouponHeader(BaseModel):
@@ -422,19 +431,19 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
     try:
         v = CouponHeader.model_validate(head).model_dump()
     except ValidationError as exc:
-        checks.append(_check("parts", False, None, None,
-                             "coupon header " + describe_validation_error(exc, CouponHeader)))
-        return {"ok": False, "checks": checks, "files": files, "coupon": True}
+        checks.append(check("parts", False, None, None,
+                            "coupon header " + describe_validation_error(exc, CouponHeader)))
+        return finish({"files": files, "coupon": True}, checks, COUPON_CHECKS)
     parts = [p for sh in sheets.values() for p in sh["parts"].values()]
     bars = [p for p in parts if p["kind"] == "bar"]
     rings = [p for p in parts if p["kind"] == "spacer"]
     shaped = (len(bars) == 2 and len(rings) == 1
               and all(len(b["holes"]) == 2 and len(b["arcs"]) == 2 for b in bars)
               and len(rings[0]["holes"]) == 1 and len(rings[0]["outer"]) == 1)
-    checks.append(_check("parts", shaped, len(parts), 3,
-                         "two bars with two holes and round ends, one spacer ring"))
+    checks.append(check("parts", shaped, len(parts), 3,
+                        "two bars with two holes and round ends, one spacer ring"))
     if not shaped:
-        return {"ok": False, "checks": checks, "files": files, "coupon": True}
+        return finish({"files": files, "coupon": True}, checks, COUPON_CHECKS)
     kerf = v["FABKIT_KERF"]
     ar = np.array([[a[1] for a in b["arcs"]] for b in bars])
     hr = np.array([[h[1] for h in b["holes"]] for b in bars] + [[rings[0]["holes"][0][1]] * 2])
@@ -448,8 +457,8 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
             "spacing": (spacing, v["FABKIT_SPACING"])}
     for name, (got, expect) in want.items():
         d = float(np.abs(np.asarray(got) - expect).max())
-        checks.append(_check(name, d <= LENGTH_TOL, d, LENGTH_TOL,
-                             f"drawn size with the {kerf:g} mm kerf undone vs {expect:g} mm"))
+        checks.append(check(name, d <= LENGTH_TOL, d, LENGTH_TOL,
+                            f"drawn size with the {kerf:g} mm kerf undone vs {expect:g} mm"))
     if design is not None:
         s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
                            network_size=design.network.size)
@@ -458,15 +467,14 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
         read = {"kerf": kerf, "bar width": v["FABKIT_BAR_WIDTH"], "hole": v["FABKIT_HOLE"],
                 "ring": v["FABKIT_SPACER"]}
         off = [k for k in kit if abs(kit[k] - read[k]) > MM_SLACK]
-        checks.append(_check("same_as_kit", not off, off or None, None,
-                             "kerf, bar width, hole and ring of the kit's settings"
-                             + (f"; differ: {', '.join(off)}" if off else "")))
-    return {"ok": all(c["ok"] for c in checks), "checks": checks, "files": files,
-            "coupon": True}
+        checks.append(check("same_as_kit", not off, off or None, None,
+                            "kerf, bar width, hole and ring of the kit's settings"
+                            + (f"; differ: {', '.join(off)}" if off else "")))
+    return finish({"files": files, "coupon": True}, checks)
 
 
 def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, measured,
-                   motion=None) -> list:
+                   motion=None) -> list[Check]:
     """Modes, the re-simulated motion, the screws and the clearances of the rebuilt kit.
 
     ``measured``: what the file says besides the bars' lengths: ``widths`` (each bar's width,
@@ -497,19 +505,19 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     # the design's own count: 1 for a mechanism, more for a design that starts at a branch
     # point on purpose (the AND gate: two infinitesimal motions and a state of self-stress)
     want = count_modes(net).conformational
-    out.append(_check("modes", modes.conformational == want and err <= LENGTH_TOL,
-                      modes.conformational, want,
-                      f"conformational motions of the rebuilt network (fit residual {err:.1e} mm, "
-                      f"{modes.self_stress} states of self-stress) against the design's"))
+    out.append(check("modes", modes.conformational == want and err <= LENGTH_TOL,
+                     modes.conformational, want,
+                     f"conformational motions of the rebuilt network (fit residual {err:.1e} mm, "
+                     f"{modes.self_stress} states of self-stress) against the design's"))
     m = design.motion
     if m.to is None:
-        out.append(_check("module_map", False, None, None, "the design has no motion target"))
+        out.append(check("module_map", False, None, None, "the design has no motion target"))
         return out
     cmp = compare_motion(design, built, MAP_RTOL, reference)
-    out.append(_check("module_map", cmp["ok"], cmp["worst"], cmp["limit"],
-                      f"largest port-distance difference (design units, at {cmp['port']}) "
-                      f"between the design's and the rebuilt network's motion; both "
-                      f"{cmp['status']}"))
+    out.append(check("module_map", cmp["ok"], cmp["worst"], cmp["limit"],
+                     f"largest port-distance difference (design units, at {cmp['port']}) "
+                     f"between the design's and the rebuilt network's motion; both "
+                     f"{cmp['status']}"))
     thickness = measured["thickness"] or s.thickness
     out.append(_screws_close(edges, layer, s, thickness))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
@@ -520,20 +528,24 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
                            columns=_columns(edges, layer, head, 0.5 * s.screw.head_diameter,
                                             0.5 * (measured["spacer"] or s.spacer_diameter)))
     need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
-    worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
+    worst_gap = min(gaps["bar_gap"], gaps["joint_gap"], gaps["screw_gap"], gaps["column_gap"])
     report["motion"] = {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
                         **{k: (None if isinstance(v, float) and math.isinf(v) else v)
                            for k, v in gaps.items()}}
-    out.append(_check(
+    out.append(check(
         "same_layer", worst_gap >= need, None if math.isinf(worst_gap) else round(worst_gap, 6),
         need, f"smallest gap (mm) between parts sharing a layer over {fine.n_samples} samples "
-              f"(bar to bar {_mm(gaps['bar_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, "
-              f"screw to screw {_mm(gaps['column_gap'])})" + _closest(gaps, need)))
+              f"(bar to bar {_mm(gaps['bar_gap'])}, two bars on one joint "
+              f"{_mm(gaps['joint_gap'])}, bar to screw {_mm(gaps['screw_gap'])}, screw to screw "
+              f"{_mm(gaps['column_gap'])})" + _closest(gaps, need)))
     return out
 
 
 def _closest(gaps: dict, need: float) -> str:
     """Where the parts come too close, named (empty when nothing does)."""
+    if gaps["joint_gap"] < need:
+        return f"; bars {gaps['joint_pair'][0]} and {gaps['joint_pair'][1]} share a joint and " \
+               "a layer: their round ends overlap"
     if gaps["bar_gap"] < need:
         return f"; bars {gaps['bar_pair'][0]} and {gaps['bar_pair'][1]} at sample " \
                f"{gaps['sample']}"
@@ -559,7 +571,7 @@ def _columns(edges, layer, head_slots: int, radius: float, ring_radius: float) -
             "inner_radius": ring_radius}
 
 
-def _screws_close(edges, layer, s, thickness: float) -> dict:
+def _screws_close(edges, layer, s, thickness: float) -> Check:
     """Every joint's stack (its layers read back) is closed by a fastener of the catalogue on
     the thickest sheets the thickness tolerance allows.
 
@@ -584,9 +596,9 @@ def _screws_close(edges, layer, s, thickness: float) -> dict:
         if fit.play_min < worst:
             worst, where = fit.play_min, joint
     ok = not problem and worst >= -MM_SLACK
-    return _check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
-                  problem or f"least axial play (mm) with washers on sheets of "
-                  f"{thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
+    return check("screws_close", ok, None if math.isinf(worst) else round(worst, 6), 0.0,
+                 problem or f"least axial play (mm) with washers on sheets of "
+                 f"{thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
 
 
 def _sheet_set(path: Path) -> list[Path]:
@@ -646,10 +658,11 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
         except MemoryError:
             raise
         except Exception as exc:  # not a DXF at all
-            checks.append(_check("readable", False, p.name, None,
-                                 f"{p.name}: {str(exc) or type(exc).__name__}"))
+            checks.append(check("readable", False, p.name, None,
+                                f"{p.name}: {str(exc) or type(exc).__name__}"))
             continue
         docs[p.name] = doc
     if checks:
-        return {"ok": False, "checks": checks, "files": [str(p) for p in sheets]}
+        return finish({"files": [str(p) for p in sheets]}, checks, _expected(design),
+                      "a sheet of the kit cannot be read")
     return _check_docs(docs, design, settings, motion)

@@ -6,8 +6,9 @@ Checks, each reported as ``{"name", "ok", "value", "limit", "detail"}``:
   assignments in B/M/V/F/U/C/J, fold angles in [-180, 180], faces made of edges, vertex
   indices in range);
 - ``frames_keep_lengths``: every frame keeps the edge lengths of the root frame (relative);
-- ``modes``: the network rebuilt from the file has one conformational motion (after leaving the
-  flat state, for a crease pattern);
+- ``modes``: the network rebuilt from the file has one conformational motion, counted at the
+  file's root frame, or for a crease pattern at its first frame off the flat state (from the
+  file alone: reported whether or not the re-fold below succeeds);
 - ``refold_map``: the rebuilt network, folded again by the simulator from the file alone
   (branch chosen by its mountain/valley assignment), reproduces every port distance stored in
   ``fabkit:map`` at the file's drive values (absolute, design units, limit 1e-8);
@@ -35,6 +36,7 @@ from ..numerics import apply_fit, FLAT_RTOL, rigid_fit
 from . import require_files
 from .flat_fold import KAWASAKI_TOL, vertex_folds
 from .fold_network import rebuild, refold
+from .items import Check, check, finish, not_run
 
 FORMAT = "fold"
 #: The sections of ``--set`` this check reads (any other has no effect on it).
@@ -52,10 +54,11 @@ FRAME_RTOL = 1e-8
 #: Largest distance (mm) of a file vertex from the design's node: the file stores 12
 #: significant digits, so anything above round-off is a vertex the writer put elsewhere.
 GEOMETRY_TOL_MM = 1e-6
-
-
-def _check(name, ok, value, limit, detail):
-    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
+#: The checks of every FOLD file, in the order they run; with a design, :data:`DESIGN_CHECKS`
+#: follow. A check an earlier failure leaves without what it needs is reported as not run.
+CHECKS = ("structure", "frames_keep_lengths", "modes", "refold_map")
+#: The checks against the design's template.
+DESIGN_CHECKS = ("design_geometry", "design_map")
 
 
 def read_fold(path) -> dict:
@@ -143,23 +146,23 @@ def _design_checks(checks, doc, model, design, drive, values, stored, sheets):
             and {k: tuple(v) for k, v in doc["fabkit:ports"].items()}
             == {k: tuple(v) for k, v in net.ports.items()})
     if not same:  # another design (other sheets, other ports): a failed check, not an error
-        checks.append(_check("design_map", False, None, MAP_TOL,
-                             f"the design {design.name} does not match this file ({net.n_nodes} "
-                             f"nodes, ports {', '.join(sorted(net.ports))} against {nv} "
-                             f"vertices, ports {', '.join(sorted(doc['fabkit:ports']))})"))
+        checks.append(check("design_map", False, None, MAP_TOL,
+                            f"the design {design.name} does not match this file ({net.n_nodes} "
+                            f"nodes, ports {', '.join(sorted(net.ports))} against {nv} "
+                            f"vertices, ports {', '.join(sorted(doc['fabkit:ports']))})"))
         return None
     flat = np.zeros((nv, 3))
     flat[:, :root.shape[1]] = root
     fit = rigid_fit(flat, net.nodes[:nv])
     off = np.linalg.norm(apply_fit(fit, flat) - net.nodes[:nv], axis=1) * scale
     k = int(np.argmax(off))
-    checks.append(_check("design_geometry", off[k] <= GEOMETRY_TOL_MM, float(off[k]),
-                         GEOMETRY_TOL_MM,
-                         f"vertex {k} lies {off[k]:.3f} mm from the design's node {k} (best "
-                         "rigid fit of the file's vertices onto the design's nodes)"
-                         if off[k] > GEOMETRY_TOL_MM else
-                         "largest distance (mm) of a file vertex from the design's node after a "
-                         "rigid fit; edges and ports are the design's"))
+    checks.append(check("design_geometry", off[k] <= GEOMETRY_TOL_MM, float(off[k]),
+                        GEOMETRY_TOL_MM,
+                        f"vertex {k} lies {off[k]:.3f} mm from the design's node {k} (best "
+                        "rigid fit of the file's vertices onto the design's nodes)"
+                        if off[k] > GEOMETRY_TOL_MM else
+                        "largest distance (mm) of a file vertex from the design's node after a "
+                        "rigid fit; edges and ports are the design's"))
     # the design's nodes carried into the file's frame, folded as the file says
     inverse = (net.nodes[:nv] - fit.shift) @ fit.rotation
     again = dict(doc, vertices_coords=(inverse[:, :root.shape[1]] * scale).tolist())
@@ -173,16 +176,16 @@ def _design_checks(checks, doc, model, design, drive, values, stored, sheets):
             dmap = _map_at(dm, dfold, drive, values)
             ddiff = max(float(np.max(np.abs(dmap[k] - stored[k]))) for k in stored)
     except FabkitError as exc:
-        checks.append(_check("design_map", False, None, MAP_TOL,
-                             f"the design's geometry does not fold as the file says: {exc}"))
+        checks.append(check("design_map", False, None, MAP_TOL,
+                            f"the design's geometry does not fold as the file says: {exc}"))
         return None
-    checks.append(_check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
-                         f"the file's map against the design {design.name}'s geometry, folded by "
-                         f"the simulator to {m.drive} = {float(m.to):g}"))
+    checks.append(check("design_map", ddiff <= MAP_TOL, ddiff, MAP_TOL,
+                        f"the file's map against the design {design.name}'s geometry, folded by "
+                        f"the simulator to {m.drive} = {float(m.to):g}"))
     return ddiff
 
 
-def _frames_check(doc, model) -> dict:
+def _frames_check(doc, model) -> Check:
     """Every frame keeps the edge lengths of the root frame (relative)."""
     net = model.network
     scale = float(doc["fabkit:scale"])
@@ -196,20 +199,20 @@ def _frames_check(doc, model) -> dict:
         worst = float(np.max(np.abs(lens / rest - 1.0)))
     else:
         worst = 0.0
-    return _check("frames_keep_lengths", worst <= FRAME_RTOL, worst, FRAME_RTOL,
-                  f"{len(frames)} frames; largest relative edge-length change {worst:.1e}")
+    return check("frames_keep_lengths", worst <= FRAME_RTOL, worst, FRAME_RTOL,
+                 f"{len(frames)} frames; largest relative edge-length change {worst:.1e}")
 
 
-def _flat_fold_checks(doc, model) -> list[dict]:
+def _flat_fold_checks(doc, model) -> list[Check]:
     """Maekawa and Kawasaki at the interior vertices of the file's crease pattern, from the
     file's vertices, edges and assignment (see :mod:`fabkit.check.flat_fold`)."""
     folds = vertex_folds(np.asarray(doc["vertices_coords"], dtype=np.float64), model.edges,
                          model.assignment)
     if not folds:
-        return [_check("maekawa", True, [], 2, "no interior vertex with folds"),
-                _check("kawasaki", True, 0.0, KAWASAKI_TOL, "no interior vertex with folds")]
+        return [check("maekawa", True, [], 2, "no interior vertex with folds"),
+                check("kawasaki", True, 0.0, KAWASAKI_TOL, "no interior vertex with folds")]
     bad = [f for f in folds if not f["maekawa"]]
-    maekawa = _check("maekawa", not bad, [f["vertex"] for f in bad], 2, "; ".join(
+    maekawa = check("maekawa", not bad, [f["vertex"] for f in bad], 2, "; ".join(
         f"vertex {f['vertex']}: {f['mountains']} mountains, {f['valleys']} valleys, "
         f"|#M - #V| = {abs(f['mountains'] - f['valleys'])}" for f in bad or folds))
     odd = [f["vertex"] for f in folds if f["kawasaki"] is None]
@@ -219,24 +222,58 @@ def _flat_fold_checks(doc, model) -> list[dict]:
     detail = (f"vertex {', '.join(map(str, odd))}: an odd number of folds" if odd else
               f"vertex {worst}: the alternate sector angles sum to pi within {off[worst]:.1e} "
               f"rad (worst of {len(folds)} interior vertices with folds)")
-    kawasaki = _check("kawasaki", not odd and value <= KAWASAKI_TOL, value, KAWASAKI_TOL, detail)
+    kawasaki = check("kawasaki", not odd and value <= KAWASAKI_TOL, value, KAWASAKI_TOL, detail)
     return [maekawa, kawasaki]
 
 
-def _refold_checks(doc, model, fold, checks) -> dict:
-    """The modes of the rebuilt network and its map against the file's (``refold_map``)."""
+def _frame_positions(doc, model, k: int):
+    """The rebuilt network's nodes in the file's frame ``k`` (design units): the file's vertices
+    as the frame has them, and each node added to a panel (off its plane) carried along by the
+    panel's rigid motion from the flat sheet; None when the file has no such frame (or
+    one of another shape)."""
+    frames = doc.get("file_frames") or []
+    if len(frames) <= k:
+        return None
+    net = model.network
+    nv = model.n_vertices
+    frame = np.asarray(frames[k]["vertices_coords"], dtype=np.float64)
+    if frame.shape != (nv, net.dim):
+        return None
+    x = np.array(net.nodes, dtype=np.float64)
+    x[:nv] = frame / float(doc["fabkit:scale"])
+    for node in range(nv, net.n_nodes):
+        panel = np.unique(net.edges[(net.edges == node).any(axis=1)])
+        panel = panel[panel != node]
+        fit = rigid_fit(net.nodes[panel], x[panel])
+        x[node] = apply_fit(fit, net.nodes[node][None])[0]
+    return x
+
+
+def _modes_check(doc, model) -> Check:
+    """The rebuilt network has one conformational motion, counted where the file says it is
+    folded (:func:`fabkit.model.rigidity.count_modes`): at its root frame, or for a flat crease
+    pattern (a bifurcation, where every sheet counts several) at the file's first frame off the
+    flat state. Counted from the file alone, whether or not the re-fold succeeds: a FOLD file
+    holds one motion (the writer folds along one), so a network of more moves as it should not.
+    """
     from ..model.rigidity import count_modes
 
-    net = model.network
-    motion = doc["fabkit:motion"]
-    after = fold.positions[1] if model.flat_start else net.nodes
-    m = count_modes(net, after)
-    checks.append(_check("modes", m.conformational == 1, m.conformational, 1,
-                         f"rebuilt network: {m}" + (" (just off the flat state)"
-                                                   if model.flat_start else "")))
-    stored = {k: np.asarray(v, dtype=np.float64) for k, v in doc["fabkit:map"].items()}
+    if model.flat_start:
+        x = _frame_positions(doc, model, 1)
+        if x is None:
+            return not_run("modes", "the file holds no frame of its vertices off its flat "
+                                    "state, where its motions are counted")
+        where = "at the file's first frame off the flat state"
+    else:
+        x, where = model.network.nodes, "at the file's root frame"
+    m = count_modes(model.network, x)
+    return check("modes", m.conformational == 1, m.conformational, 1,
+                 f"conformational motions of the network rebuilt from the file, {where}: {m}")
+
+
+def _refold_check(model, fold, motion, stored, sheets) -> Check:
+    """The rebuilt network, folded again, against the map the file stores (``refold_map``)."""
     values = stored[motion["drive"]]
-    sheets = doc.get("fabkit:sheets") or []
     if len(sheets) > 1:
         diff, detail = _sheet_maps(model, sheets, stored)
     else:
@@ -244,8 +281,7 @@ def _refold_checks(doc, model, fold, checks) -> dict:
         diff = max(float(np.max(np.abs(again[k] - stored[k]))) for k in stored)
         detail = (f"{len(values)} drive values, ports {', '.join(sorted(stored))}; branch "
                   f"{fold.branch} (file: {motion.get('branch')})")
-    checks.append(_check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail))
-    return {"values": values, "stored": stored, "sheets": sheets, "diff": diff}
+    return check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail)
 
 
 def check_file(path, design=None, settings=None) -> dict:
@@ -261,32 +297,39 @@ def check_file(path, design=None, settings=None) -> dict:
     doc = read_fold(path)
     checks = []
     problems = structure_problems(doc)
-    checks.append(_check("structure", not problems, len(problems), 0,
-                         "; ".join(problems) or "fields present and consistent"))
-    report = {"ok": False, "format": FORMAT, "file": str(path), "checks": checks}
+    checks.append(check("structure", not problems, len(problems), 0,
+                        "; ".join(problems) or "fields present and consistent"))
+    report = {"format": FORMAT, "file": str(path)}
+    expected = CHECKS + (DESIGN_CHECKS if design is not None else ())
     if problems:
-        return report
+        return finish(report, checks, expected)
     try:
         model = rebuild(doc)
     except FabkitError as exc:
-        checks.append(_check("refold_map", False, None, MAP_TOL, f"rebuilding failed: {exc}"))
-        return report
+        checks.append(check("refold_map", False, None, MAP_TOL, f"rebuilding failed: {exc}"))
+        return finish(report, checks, expected, f"the network cannot be rebuilt: {exc}")
     checks.append(_frames_check(doc, model))
     if model.flat_start:
         flat = _flat_fold_checks(doc, model)
         checks += flat
-        report["flat_foldable"] = all(c["ok"] for c in flat)
+        report["flat_foldable"] = all(c.passed for c in flat)
+    checks.append(_modes_check(doc, model))
     motion = doc["fabkit:motion"]
+    stored = {k: np.asarray(v, dtype=np.float64) for k, v in doc["fabkit:map"].items()}
+    sheets = doc.get("fabkit:sheets") or []
     try:
         fold = refold(model, motion["drive"], float(motion["to"]))
-        got = _refold_checks(doc, model, fold, checks)
+        refolded = _refold_check(model, fold, motion, stored, sheets)
     except FabkitError as exc:
-        checks.append(_check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
-        return report
-    report.update(max_map_difference=got["diff"], branches=fold.branches, branch=fold.branch)
-    if design is not None:
+        checks.append(check("refold_map", False, None, MAP_TOL, f"re-folding failed: {exc}"))
+    else:
+        checks.append(refolded)
+        report.update(max_map_difference=refolded.value, branches=fold.branches,
+                      branch=fold.branch)
+    if design is not None:  # the file's vertices and stored map against the design's own
         report["max_design_difference"] = _design_checks(
-            checks, doc, model, design, motion["drive"], got["values"], got["stored"],
-            got["sheets"])
-    report["ok"] = all(c["ok"] for c in checks)
-    return report
+            checks, doc, model, design, motion["drive"], stored[motion["drive"]], stored, sheets)
+    else:
+        report["not_checked"] = (f"no design given: {', '.join(DESIGN_CHECKS)} need the "
+                                 "design's template")
+    return finish(report, checks, expected)

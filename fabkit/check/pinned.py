@@ -44,6 +44,7 @@ from ..model.rigidity import count_modes
 from ..numerics import project_to_lengths
 from .beds import split_bodies
 from .clearance import fine_motion, point_gap, same_layer_gaps
+from .items import Check, check, finish
 from .motion import compare_motion, design_window
 from .register import pieces_of, place_pieces
 from .sections import section as _section
@@ -66,6 +67,12 @@ JOINT_TOL_MM = 0.05
 #: network's size (design units).
 MAP_RTOL = 1e-6
 
+#: Every check of a print-in-place linkage, in the order they run: a check that an earlier
+#: failure leaves without what it needs is reported as not run.
+CHECKS = ("one closed body per bar", "bars read back", "pins -> joints", "pin clearance",
+          "caps hold the bars", "layer gaps", "rebuilt joints match the design", "topology",
+          "lengths", "modes", "motion re-simulated", "clearances over the motion")
+
 
 #: Work shared by the checks of one export's files (its STL and its 3MF rebuild the same
 #: network): results of pure functions, keyed by everything they depend on; a few entries only.
@@ -86,10 +93,6 @@ def _design_key(design, s) -> tuple:
     m = design.motion
     return (design.name, str(design.path), net.nodes.tobytes(), net.edges.tobytes(),
             repr(sorted(net.ports.items())), repr((m.drive, m.to, m.method, m.hold, m.options)), s)
-
-
-def _check(name, ok, value=None, limit=None, detail=""):
-    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
 
 def _ring_centre(coords) -> np.ndarray:
@@ -253,11 +256,11 @@ def _bars_check(meshes, names, net, s, checks):
     bodies = [b for _, b in placed]
     beds = [bed for bed, _ in placed]
     closed = [b.is_watertight and b.is_winding_consistent and b.volume > 0 for b in bodies]
-    checks.append(_check("one closed body per bar", len(bodies) == net.n_edges and all(closed),
-                         value=len(bodies), limit=net.n_edges,
-                         detail=f"{sum(closed)} of {len(bodies)} bodies watertight, consistently "
-                                f"wound, outward; none shares a vertex with another; the design "
-                                f"has {net.n_edges} bars"))
+    checks.append(check("one closed body per bar", len(bodies) == net.n_edges and all(closed),
+                        value=len(bodies), limit=net.n_edges,
+                        detail=f"{sum(closed)} of {len(bodies)} bodies watertight, consistently "
+                               f"wound, outward; none shares a vertex with another; the design "
+                               f"has {net.n_edges} bars"))
     bars = [read_bar(b, s) for b in bodies]
     bad = [f"body {k} on {names[beds[k]]}: {b['problem']}" for k, b in enumerate(bars)
            if b["problem"]]
@@ -268,7 +271,7 @@ def _bars_check(meshes, names, net, s, checks):
                  if b["thickness"] is not None), default=0.0)
     wide = max((abs(b["width"] - s.bar_width) for b in bars if b["width"] is not None),
                default=0.0)
-    checks.append(_check(
+    checks.append(check(
         "bars read back", not bad and max(off_layer, thick, wide) <= MEASURE_TOL_MM,
         value=round(max(off_layer, thick, wide), 9), limit=MEASURE_TOL_MM,
         detail="; ".join(bad[:3]) or f"{len(bars)} bars on {int(layer.max(initial=-1)) + 1} "
@@ -319,35 +322,35 @@ def _pins_at_joints(joints, node, cut, bars, bodies, s) -> dict:
             "head_slots": head_slots, "pin_of": pin_of, "at": at}
 
 
-def _pin_checks(pins, joints, node, where, cut, net, s) -> list[dict]:
+def _pin_checks(pins, joints, node, where, cut, net, s) -> list[Check]:
     """The checks of the pins: every joint built, the clearance around each pin, the caps."""
     problems, clear, hold, at = pins["problems"], pins["clear"], pins["hold"], pins["at"]
     built_nodes = int(np.unique(node[node >= 0]).size)
-    out = [_check("pins -> joints", not problems,
-                  value=[built_nodes, len(pins["pin_of"])], limit=[net.n_nodes, None],
-                  detail="; ".join(problems[:3]) or
-                         f"{len(joints)} joints from the holes and pins of "
-                         f"{where['pieces']} piece(s); {len(pins['pin_of'])} printed pins, "
-                         f"{len(cut)} joints cut between pieces (plain holes)")]
+    out = [check("pins -> joints", not problems,
+                 value=[built_nodes, len(pins["pin_of"])], limit=[net.n_nodes, None],
+                 detail="; ".join(problems[:3]) or
+                        f"{len(joints)} joints from the holes and pins of "
+                        f"{where['pieces']} piece(s); {len(pins['pin_of'])} printed pins, "
+                        f"{len(cut)} joints cut between pieces (plain holes)")]
     # a gap of zero or less is a pin fused to its hole, whatever tolerance the measure has
     c_ok = clear[0] >= s.pin_clearance - MEASURE_TOL_MM and clear[0] > 0
-    out.append(_check("pin clearance", c_ok,
-                      value=None if math.isinf(clear[0]) else round(clear[0], 6),
-                      limit=s.pin_clearance,
-                      detail="smallest radial gap (mm) between a pin and a hole around it"
-                             if c_ok else
-                             f"{at(clear[1])}: its pin leaves {clear[0]:.3f} mm to the hole "
-                             f"around it, {s.pin_clearance:g} mm wanted"
-                             + ("; the pin touches or overlaps its hole" if clear[0] <= 0
-                                else "")))
+    out.append(check("pin clearance", c_ok,
+                     value=None if math.isinf(clear[0]) else round(clear[0], 6),
+                     limit=s.pin_clearance,
+                     detail="smallest radial gap (mm) between a pin and a hole around it"
+                            if c_ok else
+                            f"{at(clear[1])}: its pin leaves {clear[0]:.3f} mm to the hole "
+                            f"around it, {s.pin_clearance:g} mm wanted"
+                            + ("; the pin touches or overlaps its hole" if clear[0] <= 0
+                               else "")))
     need_hold = 0.5 * s.nozzle_width
-    out.append(_check("caps hold the bars", hold[0] >= need_hold,
-                      value=None if math.isinf(hold[0]) else round(hold[0], 6),
-                      limit=need_hold,
-                      detail="smallest overlap (mm) of a cap over the top bar's hole on its "
-                             "pin" if hold[0] >= need_hold else
-                             f"{at(hold[1])}: its cap overlaps the top bar's hole by "
-                             f"{hold[0]:.3f} mm, {need_hold:g} mm wanted"))
+    out.append(check("caps hold the bars", hold[0] >= need_hold,
+                     value=None if math.isinf(hold[0]) else round(hold[0], 6),
+                     limit=need_hold,
+                     detail="smallest overlap (mm) of a cap over the top bar's hole on its "
+                            "pin" if hold[0] >= need_hold else
+                            f"{at(hold[1])}: its cap overlaps the top bar's hole by "
+                            f"{hold[0]:.3f} mm, {need_hold:g} mm wanted"))
     return out
 
 
@@ -373,7 +376,7 @@ def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
         return _memo(key, lambda: _motion_checks(design, edge_layer, x_mm, s, measured,
                                                  reference))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
-        return [_check("motion re-simulated", False, detail=str(exc))], {}
+        return [check("motion re-simulated", False, detail=str(exc))], {}
 
 
 def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
@@ -404,14 +407,13 @@ def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
                                   lambda: design_window(design, s.motion_from, s.motion_to,
                                                         motion, "print"))
     except FabkitError as exc:
-        report.update(ok=False, checks=[_check("design prints", False, detail=str(exc))])
-        return report
+        return finish(report, [check("design prints", False, detail=str(exc))], CHECKS,
+                      "the design's own motion cannot be traced for the print")
     net = design.network
     checks = []
     read = _bars_check(meshes, names, net, s, checks)
     if read is None:
-        report.update(ok=False, checks=checks)
-        return report
+        return finish(report, checks, CHECKS)
     bodies, beds, bars, layer = read
     joints, bar_joints = _joints(bars, beds)
     where = _place(joints, bar_joints, design, s)
@@ -423,8 +425,7 @@ def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
     checks.append(_layer_gap_check(pins["pin_of"], bars, bodies, s))
     rebuilt = _rebuilt_network(design, where, bar_joints, checks, s)
     if rebuilt is None:
-        report.update(ok=False, checks=checks)
-        return report
+        return finish(report, checks, CHECKS)
     clear, hold = pins["clear"], pins["hold"]
     report["as_built"] = {"bars": len(bars), "joints": len(joints),
                           "printed_pins": len(pins["pin_of"]), "pieces": where["pieces"],
@@ -436,8 +437,7 @@ def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
                                  pins, where, bar_joints, s)
     checks += moved
     report.update(facts)
-    report.update(ok=all(c["ok"] for c in checks), checks=checks)
-    return report
+    return finish(report, checks, CHECKS)
 
 
 def _cap(carrier, centre, s) -> tuple[float, float, float]:
@@ -457,7 +457,7 @@ def _cap(carrier, centre, s) -> tuple[float, float, float]:
     return top, 0.0, 0.0
 
 
-def _layer_gap_check(pin_of, bars, bodies, s) -> dict:
+def _layer_gap_check(pin_of, bars, bodies, s) -> Check:
     """Within one layer gap of every bar on a pin, the pin's body is no wider than the pin."""
     eps = 0.25 * s.layer_height
     worst, where = 0.0, None
@@ -473,12 +473,12 @@ def _layer_gap_check(pin_of, bars, bodies, s) -> dict:
     pitch_gap = s.layer_pitch - max(b["thickness"] for b in bars)
     limit = 0.5 * s.pin_diameter + MEASURE_TOL_MM
     ok = worst <= limit and pitch_gap >= s.layer_gap - MEASURE_TOL_MM
-    return _check("layer gaps", ok, value=round(worst, 6), limit=round(limit, 6),
-                  detail=f"widest reach (mm) of a pin's body from its axis within "
-                         f"{s.layer_gap - eps:g} mm above or below a bar on the pin (the pin's "
-                         f"radius: collars and caps keep their gap)"
-                         f"{'' if ok or where is None else f', exceeded at {where[1]:.3f} mm'}; "
-                         f"stacked bars {pitch_gap:.4g} mm apart")
+    return check("layer gaps", ok, value=round(worst, 6), limit=round(limit, 6),
+                 detail=f"widest reach (mm) of a pin's body from its axis within "
+                        f"{s.layer_gap - eps:g} mm above or below a bar on the pin (the pin's "
+                        f"radius: collars and caps keep their gap)"
+                        f"{'' if ok or where is None else f', exceeded at {where[1]:.3f} mm'}; "
+                        f"stacked bars {pitch_gap:.4g} mm apart")
 
 
 def _rebuilt_network(design, where, bar_joints, checks, s):
@@ -503,15 +503,15 @@ def _rebuilt_network(design, where, bar_joints, checks, s):
                   "it (the piece laid onto the design by its best rigid fit)")
     else:
         detail = f"{int(np.sum(held == 0))} design nodes are built by no joint"
-    checks.append(_check("rebuilt joints match the design", ok,
-                         value=d if np.isfinite(d) else None, limit=NODE_TOL_MM, detail=detail))
+    checks.append(check("rebuilt joints match the design", ok,
+                        value=d if np.isfinite(d) else None, limit=NODE_TOL_MM, detail=detail))
     if not ok:
         return None
     edge = where["edge"]
     same = bool((edge >= 0).all()) and np.unique(edge).size == net.n_edges == len(edge)
-    checks.append(_check("topology", same, value=len(edge), limit=net.n_edges,
-                         detail="the bars join the designed joints" if same else
-                                "the bars read back join other joints than the design's"))
+    checks.append(check("topology", same, value=len(edge), limit=net.n_edges,
+                        detail="the bars join the designed joints" if same else
+                               "the bars read back join other joints than the design's"))
     if not same:
         return None
     order = np.empty(net.n_edges, dtype=np.int64)
@@ -522,11 +522,11 @@ def _rebuilt_network(design, where, bar_joints, checks, s):
     k = int(np.argmax(np.abs(lengths - want)))
     dl = float(abs(lengths[k] - want[k]))
     i, j = net.edges[k]
-    checks.append(_check("lengths", dl <= LENGTH_TOL_MM, value=dl, limit=LENGTH_TOL_MM,
-                         detail="largest |read-back - designed| distance (mm) between a bar's "
-                                "joints" if dl <= LENGTH_TOL_MM else
-                                f"the bar between nodes {i} and {j}: its joints are "
-                                f"{lengths[k]:.3f} mm apart, the design's {want[k]:.3f} mm"))
+    checks.append(check("lengths", dl <= LENGTH_TOL_MM, value=dl, limit=LENGTH_TOL_MM,
+                        detail="largest |read-back - designed| distance (mm) between a bar's "
+                               "joints" if dl <= LENGTH_TOL_MM else
+                               f"the bar between nodes {i} and {j}: its joints are "
+                               f"{lengths[k]:.3f} mm apart, the design's {want[k]:.3f} mm"))
     return order, lengths, d
 
 
@@ -545,7 +545,7 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
     return np.ascontiguousarray(x_mm)
 
 
-def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[dict], dict]:
+def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[Check], dict]:
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts. ``reference``: the design's motion as the
     Motion stage traced it."""
@@ -556,36 +556,43 @@ def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[di
     # a print is faithful when it moves as its design does
     designed = modes.conformational if modes.conformational == 1 else count_modes(
         net).conformational
-    out.append(_check("modes", modes.conformational == designed,
-                      modes.conformational, designed,
-                      f"conformational motions of the rebuilt network ({modes.self_stress} states "
-                      "of self-stress)"))
+    out.append(check("modes", modes.conformational == designed,
+                     modes.conformational, designed,
+                     f"conformational motions of the rebuilt network ({modes.self_stress} states "
+                     "of self-stress)"))
     m = design.motion
     cmp = compare_motion(design, built, MAP_RTOL, reference)
-    out.append(_check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
-                      f"largest port-distance difference (design units, at {cmp['port']}) "
-                      f"between the design's motion and the rebuilt network's; the rebuilt one "
-                      f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
+    out.append(check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
+                     f"largest port-distance difference (design units, at {cmp['port']}) "
+                     f"between the design's motion and the rebuilt network's; the rebuilt one "
+                     f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
     fine = fine_motion(built, m, s.scale, 0.25 * s.clearance, floor=s.clearance)
     # widths and cap radii as read back; caps and collars above and below every stack
     gaps = same_layer_gaps(net.edges, layer, fine.positions, measured["width"],
                            columns=_pin_columns(net.edges, layer, measured["band"],
                                                 measured["head_slots"], measured["cap_radius"]))
     need = 0.5 * s.clearance + max(0.0, fine.max_step - 0.25 * s.clearance)
-    worst_gap = min(gaps["bar_gap"], gaps["screw_gap"], gaps["column_gap"])
+    worst_gap = min(gaps["bar_gap"], gaps["joint_gap"], gaps["screw_gap"], gaps["column_gap"])
 
     def mm(v):
         return "none" if math.isinf(v) else f"{v:.3f}"
 
+    where = ""
+    if gaps["joint_gap"] < need:  # bars on one joint lie on different layers, or fill one space
+        p, q = (net.edges[k].tolist() for k in gaps["joint_pair"])
+        where = (f"; the bars between nodes {p[0]}-{p[1]} and {q[0]}-{q[1]} share a joint and a "
+                 "layer: their round ends overlap")
+
     facts = {"motion": {"samples": fine.n_samples, "max_node_step_mm": fine.max_step,
                         **{k: (None if isinstance(v, float) and math.isinf(v) else v)
                            for k, v in gaps.items()}}}
-    out.append(_check(
+    out.append(check(
         "clearances over the motion", worst_gap >= need,
         None if math.isinf(worst_gap) else round(worst_gap, 6), need,
         f"smallest gap (mm) between parts sharing a layer over {fine.n_samples} samples (bar to "
-        f"bar {mm(gaps['bar_gap'])}, bar to a pin's cap or collar {mm(gaps['screw_gap'])}, cap "
-        f"to cap {mm(gaps['column_gap'])})"))
+        f"bar {mm(gaps['bar_gap'])}, two bars on one joint {mm(gaps['joint_gap'])}, bar to a "
+        f"pin's cap or collar {mm(gaps['screw_gap'])}, cap to cap {mm(gaps['column_gap'])})"
+        + where))
     return out, facts
 
 

@@ -36,6 +36,7 @@ from ..model.rigidity import count_modes
 from ..numerics import START_RTOL
 from . import read_set, require_checked
 from .beds import bed_set
+from .items import Check, check, finish, not_run, not_run_after
 from .register import pieces_of, place_pieces
 from .sections import plane_segments, section
 
@@ -55,15 +56,17 @@ VOLUME_RTOL = 1e-6
 TRANSITION_RTOL = 1e-4
 #: Largest distance (mm) between a node rebuilt from the solid and the design's node.
 NODE_TOL_MM = 1e-2
+#: The checks of each piece of a hinge print, in the order they run (a check an earlier failure
+#: leaves without what it needs is reported as not run).
+PIECE_CHECKS = ("rebuilt nodes match the design", "rebuilt edges match the design",
+                "one conformational motion")
+#: The checks of a one-piece print's transition D1* -> D2* (when its design has ports d1, d2).
+TRANSITION = ("sequential transition D1* -> D2*", "hinge strain along the transition")
 
 
 #: Points of a section closer than this (mm) are merged: STL stores float32 coordinates, which
 #: split a straight side at ~1e-5 mm (more far from the origin, see the spacing term).
 SECTION_MERGE_MM = 1e-4
-
-
-def _check(name, ok, value=None, limit=None, detail=""):
-    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
 
 def _stl_kind(data: bytes, path) -> str:
@@ -118,7 +121,10 @@ def _load(data: bytes, path):
         if not np.isfinite(tri["v"]).all():
             raise FabricationError(f"{path}: vertices that are not finite (a corrupt file)")
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type="stl", force="mesh", process=True)
+        # process: merge the vertices the triangles share, nothing else (validate=True would
+        # drop degenerate and repeated triangles and mend the winding: damage the checks report)
+        mesh = trimesh.load(io.BytesIO(data), file_type="stl", force="mesh", process=True,
+                            validate=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise FabricationError(f"{path}: cannot be read as STL: {exc}") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -149,6 +155,35 @@ def _thin_pieces(polys, radius: float) -> int:
     return int(np.sum(empty | (parts != 1)))
 
 
+def _drop_straight(polys, tol: float):
+    """Polygons without vertices on straight sides of their outlines (within ``tol``).
+
+    A cross-section cuts each side face of a prism in two triangles, so a side comes back in
+    two segments. :func:`shapely.simplify` (GEOS's Douglas-Peucker) keeps some of these points
+    on closed rings (next to where the ring starts): a triangular plate was read with four
+    sides. Each such vertex is removed here, nearest its side first, down to a triangle.
+    """
+    import shapely
+
+    out = []
+    for poly in polys:
+        ring = np.asarray(poly.exterior.coords)[:-1]
+        start = len(ring)
+        while len(ring) > 3:
+            a, c = np.roll(ring, 1, axis=0), np.roll(ring, -1, axis=0)
+            ac = c - a
+            cross = np.abs(ac[:, 0] * (ring - a)[:, 1] - ac[:, 1] * (ring - a)[:, 0])
+            off = cross / np.maximum(np.hypot(ac[:, 0], ac[:, 1]), np.finfo(float).tiny)
+            k = int(np.argmin(off))
+            if off[k] > tol:
+                break
+            ring = np.delete(ring, k, axis=0)
+        if len(ring) < start:
+            poly = shapely.Polygon(ring, [r.coords for r in poly.interiors])
+        out.append(poly)
+    return np.asarray(out, dtype=object)
+
+
 def slab_sections(mesh, settings) -> dict:
     """Plates (a cross-section above the hinges) and hinges (a cross-section through them, less
     the plates) of a printed solid, as arrays of shapely polygons (mm)."""
@@ -160,7 +195,7 @@ def slab_sections(mesh, settings) -> dict:
     # float32 coordinates far from the origin split straight sides at ~1e-4 mm: merge them
     reach = float(np.abs(mesh.bounds).max()) if len(mesh.vertices) else 1.0
     tol = max(SECTION_MERGE_MM, 16.0 * float(np.spacing(np.float32(reach))))
-    plates = shapely.orient_polygons(shapely.simplify(top, tol))
+    plates = shapely.orient_polygons(_drop_straight(shapely.simplify(top, tol), tol))
     if len(low) and len(plates):
         region = shapely.difference(shapely.union_all(low), shapely.buffer(
             shapely.union_all(plates), tol))
@@ -172,42 +207,42 @@ def slab_sections(mesh, settings) -> dict:
 
 
 def check_mesh(mesh, settings=None, expected_volume=None, sections=None, *,
-               bodies: int | None = 1) -> list[dict]:
-    """Solid checks of a loaded mesh (see the module docstring); one dict per check.
+               bodies: int | None = 1) -> list[Check]:
+    """Solid checks of a loaded mesh (see the module docstring); one item per check.
 
     ``bodies``: the number of separate bodies the mesh must have (None: any, reported as
     ``bodies``)."""
     count = int(mesh.body_count)
     checks = [
-        _check("watertight", mesh.is_watertight, detail="every edge shared by exactly two faces"),
-        _check("winding consistent", mesh.is_winding_consistent),
-        _check("one body", count == 1, value=count, limit=1) if bodies == 1 else
-        _check("bodies", bodies is None or count == bodies, value=count, limit=bodies),
-        _check("outward normals", mesh.volume > 0, value=float(mesh.volume)),
+        check("watertight", mesh.is_watertight, detail="every edge shared by exactly two faces"),
+        check("winding consistent", mesh.is_winding_consistent),
+        check("one body", count == 1, value=count, limit=1) if bodies == 1 else
+        check("bodies", bodies is None or count == bodies, value=count, limit=bodies),
+        check("outward normals", mesh.volume > 0, value=float(mesh.volume)),
     ]
     if expected_volume is not None:
         rel = abs(mesh.volume - expected_volume) / expected_volume
-        checks.append(_check("volume = analytic volume of plates + hinges", rel <= VOLUME_RTOL,
-                             value=float(rel), limit=VOLUME_RTOL,
-                             detail=f"mesh {mesh.volume:.9g} mm^3, analytic "
-                                    f"{expected_volume:.9g} mm^3"))
+        checks.append(check("volume = analytic volume of plates + hinges", rel <= VOLUME_RTOL,
+                            value=float(rel), limit=VOLUME_RTOL,
+                            detail=f"mesh {mesh.volume:.9g} mm^3, analytic "
+                                   f"{expected_volume:.9g} mm^3"))
     if settings is not None:
         layer = settings.layer_height
         z = np.unique(np.round(mesh.vertices[:, 2], 4))
         slabs = np.diff(z)
         layers = slabs / layer
         whole = bool(np.all(np.abs(layers - np.round(layers)) < 1e-3) and np.all(layers > 0.999))
-        checks.append(_check("slabs are whole layers", whole,
-                             value=[round(float(v), 6) for v in slabs], limit=layer,
-                             detail=f"heights between the solid's levels; layer {layer:g} mm"))
+        checks.append(check("slabs are whole layers", whole,
+                            value=[round(float(v), 6) for v in slabs], limit=layer,
+                            detail=f"heights between the solid's levels; layer {layer:g} mm"))
         if sections is None:
             sections = slab_sections(mesh, settings)
         pieces = list(sections["plates"]) + list(sections["hinges"])
         thin = _thin_pieces(pieces, 0.5 * settings.nozzle_width * 0.999)
-        checks.append(_check("no feature thinner than the nozzle", thin == 0, value=thin, limit=0,
-                             detail=f"plates and hinges (from cross-sections of the solid) that "
-                                    f"vanish or split when opened by a {settings.nozzle_width:g} "
-                                    "mm disc"))
+        checks.append(check("no feature thinner than the nozzle", thin == 0, value=thin, limit=0,
+                            detail=f"plates and hinges (from cross-sections of the solid) that "
+                                   f"vanish or split when opened by a {settings.nozzle_width:g} "
+                                   "mm disc"))
     return checks
 
 
@@ -493,32 +528,32 @@ def as_built_tolerance(fixed: dict, node_deviation: float) -> float:
 
 
 def _transition_checks(report, asbuilt, module, copies, fixed, arms, s,
-                       node_deviation) -> list[dict]:
+                       node_deviation) -> list[Check]:
     """Simulate D1* -> D2* on the rebuilt linkage; the transition and hinge-strain checks.
 
     ``arms``: from :func:`hinge_arms` (the hinges' free lengths measured on the file)."""
-    name = "sequential transition D1* -> D2*"
+    name = TRANSITION[0]
     tol = as_built_tolerance(fixed, node_deviation)
     try:
         tr = sequential_transition(asbuilt, module, copies, fixed, keep_positions=True,
                                    tolerance=tol)
     except FabkitError as exc:
-        return [_check(name, False, detail=str(exc))]
+        return [check(name, False, detail=str(exc))]
     turn, strain = hinge_strain(arms, tr.pop("positions"), s.hinge_width)
     worst = int(np.argmax(strain))
     report["transition"] = dict(tr, status="simulated")
     report["fixed_points"] = {k: fixed[k] for k in ("D1", "slope1", "D2", "slope2",
                                                    "d_in_turning")}
     return [
-        _check(name, tr["ok"], value=tr["max_deviation"], limit=tol,
-               detail=f"D1* = {fixed['D1']:.6g} (slope {fixed['slope1']:.2g}) -> D2* = "
-                      f"{fixed['D2']:.9g} (slope {fixed['slope2']:.4g}); "
-                      f"{'sequential' if tr['sequential'] else 'not sequential'}"),
-        _check("hinge strain along the transition", strain[worst] <= s.strain_limit,
-               value=float(strain[worst]), limit=s.strain_limit,
-               detail=f"largest hinge rotation {np.degrees(turn.max()):.1f} degrees (joint "
-                      f"{int(arms['joint'][worst])}); {s.material} hinges {s.hinge_width:g} mm "
-                      f"wide, {2 * arms['length'][worst]:.3g} mm free length (measured)"),
+        check(name, tr["ok"], value=tr["max_deviation"], limit=tol,
+              detail=f"D1* = {fixed['D1']:.6g} (slope {fixed['slope1']:.2g}) -> D2* = "
+                     f"{fixed['D2']:.9g} (slope {fixed['slope2']:.4g}); "
+                     f"{'sequential' if tr['sequential'] else 'not sequential'}"),
+        check(TRANSITION[1], strain[worst] <= s.strain_limit,
+              value=float(strain[worst]), limit=s.strain_limit,
+              detail=f"largest hinge rotation {np.degrees(turn.max()):.1f} degrees (joint "
+                     f"{int(arms['joint'][worst])}); {s.material} hinges {s.hinge_width:g} mm "
+                     f"wide, {2 * arms['length'][worst]:.3g} mm free length (measured)"),
     ]
 
 
@@ -670,12 +705,11 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
     if design is None:
         checks = []
         for name, mesh in zip(names, meshes):
-            for c in check_mesh(mesh, bodies=None if pinned else 1):
-                if len(names) > 1:
-                    c["name"] = f"{name}: {c['name']}"
-                checks.append(c)
-        report.update(ok=all(c["ok"] for c in checks), checks=checks)
-        return report
+            checks += [c.named(name) if len(names) > 1 else c
+                       for c in check_mesh(mesh, bodies=None if pinned else 1)]
+        report["not_checked"] = ("no design given: the rebuilt linkage, its modes and its motion "
+                                 "need the design's template")
+        return finish(report, checks)
     s = design_print_settings(design, settings)
     if s.linkage == "pins":
         from .pinned import check_pinned
@@ -696,19 +730,19 @@ def _check_hinge_beds(meshes, names, design, s, report) -> dict:
         pieces = pieces_of(len(built.nodes), built.edges) if len(built.nodes) else []
         # one body per piece: a body split where the design is whole, or joined where a
         # hinge should not be, does not match the plates found in its cross-sections
-        for c in check_mesh(mesh, s, None, sections, bodies=max(1, len(pieces))):
-            if len(meshes) > 1:
-                c["name"] = f"{names[b]}: {c['name']}"
-            checks.append(c)
+        checks += [c.named(names[b]) if len(meshes) > 1 else c
+                   for c in check_mesh(mesh, s, None, sections, bodies=max(1, len(pieces)))]
         name = "plates -> triangles, hinges -> joints"
-        checks.append(_check(name if len(meshes) == 1 else f"{names[b]}: {name}",
-                             not built.problems,
-                             value=[len(built.triangles), len(built.joints)], limit=None,
-                             detail="; ".join(built.problems) or "every hinge holds one joint"))
+        checks.append(check(name if len(meshes) == 1 else f"{names[b]}: {name}",
+                            not built.problems,
+                            value=[len(built.triangles), len(built.joints)], limit=None,
+                            detail="; ".join(built.problems) or "every hinge holds one joint"))
         found += [(b, sections, built, members) for members in pieces]
-    if not found or any(f[2].problems for f in found):
-        report.update(ok=False, checks=checks)
-        return report
+    if not found:  # no plate could be read: nothing to lay onto the design
+        return finish(report, checks, PIECE_CHECKS, "no plate of the print could be read as a "
+                                                    "triangle")
+    # plates that could not be read are reported above; the rest are rebuilt and compared, so
+    # that what they build (a brace, a missing bar) is said too
     pieces = []
     for _, _, built, members in found:
         local = np.full(len(built.nodes), -1, dtype=np.int64)
@@ -722,10 +756,8 @@ def _check_hinge_beds(meshes, names, design, s, report) -> dict:
         sub = {}
         piece_checks = _check_hinge_piece(design, s, sections, built, members, place, sub,
                                           transition=single)
-        for c in piece_checks:
-            if not single:
-                c["name"] = f"piece {k + 1} on {names[b]}: {c['name']}"
-            checks.append(c)
+        checks += [c if single else c.named(f"piece {k + 1} on {names[b]}")
+                   for c in piece_checks]
         built_pieces.append({"piece": k + 1, "bed": b + 1, **sub.get("as_built", {})})
         if single:
             report.update({key: v for key, v in sub.items()})
@@ -734,26 +766,33 @@ def _check_hinge_beds(meshes, names, design, s, report) -> dict:
         held = np.bincount(np.concatenate([p.match for p in matched] + [np.zeros(0, int)]),
                            minlength=net.n_nodes)
         whole = bool((held >= 1).all())
-        checks.append(_check("pieces build the design", whole and len(matched) == len(placed),
-                             value=int(np.sum(held == 0)), limit=0,
-                             detail=f"{len(found)} pieces laid onto the design; nodes built by "
-                                    f"no piece: {int(np.sum(held == 0))}"))
+        checks.append(check("pieces build the design", whole and len(matched) == len(placed),
+                            value=int(np.sum(held == 0)), limit=0,
+                            detail=f"{len(found)} pieces laid onto the design; nodes built by "
+                                   f"no piece: {int(np.sum(held == 0))}"))
         report["as_built"] = {"pieces": built_pieces}
         report["transition"] = {"status": f"not simulated: the print is split into "
                                           f"{len(found)} pieces, each checked on its own; "
                                           "joined, they are the design"}
-    report.update(ok=all(c["ok"] for c in checks), checks=checks)
-    return report
+    return finish(report, checks)
 
 
 def _check_hinge_piece(design, s, sections, built, members, place, report, *,
-                       transition: bool) -> list[dict]:
+                       transition: bool) -> list[Check]:
     """One piece rebuilt from a bed: its nodes and edges against the part of the design it
-    lies on, its modes, and (with ``transition``) the D1* -> D2* transition."""
+    lies on, its modes, and (with ``transition``) the D1* -> D2* transition; the checks it
+    could not reach are reported as not run."""
+    checks = _hinge_piece_checks(design, s, sections, built, members, place, report,
+                                 transition=transition)
+    return checks + not_run_after(checks, PIECE_CHECKS)
+
+
+def _hinge_piece_checks(design, s, sections, built, members, place, report, *,
+                        transition: bool) -> list[Check]:
     net = design.network
     if place is None:
-        return [_check("rebuilt nodes match the design", False, value=None, limit=NODE_TOL_MM,
-                       detail=f"the piece fits nowhere in the design {design.name}")]
+        return [check("rebuilt nodes match the design", False, value=None, limit=NODE_TOL_MM,
+                      detail=f"the piece fits nowhere in the design {design.name}")]
     worst = int(np.argmax(place.deviation))
     dev = float(place.deviation[worst])
     match = place.match
@@ -768,8 +807,8 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
                   "design has it (the piece laid onto the design by its best rigid fit)")
     else:
         detail = f"the piece builds {len(match)} of the design's {net.n_nodes} nodes"
-    checks = [_check("rebuilt nodes match the design", matched, value=dev, limit=NODE_TOL_MM,
-                     detail=detail)]
+    checks = [check("rebuilt nodes match the design", matched, value=dev, limit=NODE_TOL_MM,
+                    detail=detail)]
     if not matched:  # the file was not made from this design with these settings
         return checks
     # the piece in the design's frame and numbering: its nodes where the fit puts them
@@ -787,12 +826,17 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
     try:
         asbuilt = Network(nodes, edges, ports=ports)
     except FabkitError as exc:
-        checks.append(_check("rebuilt edges match the design", False, detail=str(exc)))
+        checks.append(check("rebuilt edges match the design", False, detail=str(exc)))
         return checks
-    same_edges = {tuple(e) for e in np.sort(edges, 1).tolist()} == {
-        tuple(e) for e in np.sort(sub_net.edges, 1).tolist()}
-    checks.append(_check("rebuilt edges match the design", same_edges,
-                         value=asbuilt.n_edges, limit=sub_net.n_edges))
+    have = {tuple(e) for e in np.sort(edges, 1).tolist()}
+    want = {tuple(e) for e in np.sort(sub_net.edges, 1).tolist()}
+    extra, missing = sorted(have - want), sorted(want - have)
+    checks.append(check("rebuilt edges match the design", have == want,
+                        value=asbuilt.n_edges, limit=sub_net.n_edges,
+                        detail="edges (bars between nodes) rebuilt from the plates; the design's"
+                        if have == want else
+                        f"edges the design lacks {extra[:4]}, design edges not built "
+                        f"{missing[:4]} (design nodes)"))
     modes = count_modes(asbuilt)
     detail = str(modes)
     ok_modes = modes.conformational == 1
@@ -800,8 +844,8 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
         designed = count_modes(sub_net)
         ok_modes = designed.conformational == modes.conformational
         detail += f"; the design has {designed.conformational}"
-    checks.append(_check("one conformational motion", ok_modes,
-                         value=int(modes.conformational), limit=1, detail=detail))
+    checks.append(check("one conformational motion", ok_modes,
+                        value=int(modes.conformational), limit=1, detail=detail))
     report["as_built"] = {"nodes": asbuilt.n_nodes, "edges": asbuilt.n_edges,
                           "triangles": int(len(built.triangles)), "joints": int(len(built.joints)),
                           "node_deviation_mm": dev, "modes": str(modes)}
@@ -809,6 +853,9 @@ def _check_hinge_piece(design, s, sections, built, members, place, report, *,
         return checks
     if modes.conformational != 1 or "d1" not in net.ports or "d2" not in net.ports:
         report["transition"] = {"status": "not applicable: needs one motion and ports d1, d2"}
+        if not ok_modes and "d1" in net.ports and "d2" in net.ports:
+            checks += [not_run(n, f"the rebuilt linkage has {modes.conformational} "
+                                  "conformational motions, the design 1") for n in TRANSITION]
     else:
         try:
             module, copies = _module_of(design)

@@ -24,6 +24,7 @@ from ..errors import FabricationError
 from ..settings.filaments import FILAMENTS
 from . import read_set, require_checked
 from .beds import bed_set
+from .items import Check, check
 from .stl import check_meshes, MAX_COORDINATE_MM
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "read_package"]
@@ -41,10 +42,6 @@ _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
 #: Units a 3MF may declare, in millimetres.
 _UNITS = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8,
           "meter": 1000.0}
-
-
-def _check(name, ok, value=None, limit=None, detail=""):
-    return {"name": name, "ok": bool(ok), "value": value, "limit": limit, "detail": detail}
 
 
 def _xml(data: bytes, what: str):
@@ -186,7 +183,8 @@ def _place(path, parsed: dict) -> dict:
         if len(v) and not (np.isfinite(v).all() and np.abs(v).max() <= MAX_COORDINATE_MM):
             raise FabricationError(f"{path}: build item {k} places object {oid!r} beyond "
                                    f"{MAX_COORDINATE_MM:g} mm (a corrupt file)")
-        placed.append(trimesh.Trimesh(v, f, process=True))
+        # vertices merged, nothing mended (see fabkit.check.stl)
+        placed.append(trimesh.Trimesh(v, f, process=True, validate=False))
     if not any(len(m.faces) for m in placed):
         raise FabricationError(f"{path}: holds no triangles")
     project, per_object = {}, []
@@ -254,7 +252,7 @@ def _number(text):
         return None
 
 
-def _settings_check(packages, names, design, settings) -> dict:
+def _settings_check(packages, names, design, settings) -> Check:
     """The slicer settings in every bed file give the print the design's template asks for:
     its layer height (the project's, its first layer's and every object's: every height of the
     print is a whole number of layers) and its material (PrusaSlicer's filament type for it).
@@ -284,10 +282,10 @@ def _settings_check(packages, names, design, settings) -> dict:
             wrong.append(f"{name}: no per-object settings")
         for k, obj in enumerate(pkg["per_object"]):
             compare(f"{name}: object {k + 1}", obj.get("layer_height"), "layer_height")
-    return _check("slicer settings", not wrong, value=len(wrong), limit=0,
-                  detail="; ".join(wrong[:3]) or
-                  f"{s.material} ({filament}) and {layer:g} mm layers for the project and its "
-                  f"first layer; {layer:g} mm layers for every object")
+    return check("slicer settings", not wrong, value=len(wrong), limit=0,
+                 detail="; ".join(wrong[:3]) or
+                 f"{s.material} ({filament}) and {layer:g} mm layers for the project and its "
+                 f"first layer; {layer:g} mm layers for every object")
 
 
 def check_file(path, design=None, settings=None, *, motion=None) -> dict:
@@ -324,8 +322,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     report = check_meshes([pkg["mesh"] for pkg in packages], names, design, settings,
                           fmt=FORMAT, pinned=pinned, motion=motion)
     if design is not None:
-        report["checks"].append(_settings_check(packages, names, design, settings))
-        report["ok"] = all(c["ok"] for c in report["checks"])
+        report["checks"].append(_settings_check(packages, names, design, settings).as_dict())
+        report["ok"] = bool(report["ok"] and report["checks"][-1]["ok"])
     report["slicer_settings"] = {"project": packages[0]["project"],
                                  "per_object": packages[0]["per_object"][:1]}
     return report

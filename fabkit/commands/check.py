@@ -52,6 +52,8 @@ def format_report(path, report: dict) -> str:
         detail = f"  {c['detail']}" if c.get("detail") else ""
         lines.append(f"  {'ok  ' if c.get('ok') else 'FAIL'}  {c.get('name')}: "
                      f"{_value(c.get('value'))}{lim}{detail}")
+    if report.get("not_checked"):
+        lines.append(f"  not checked: {report['not_checked']}")
     lines.append(f"{path}: {'ok' if report.get('ok') else 'FAILED'}")
     return "\n".join(lines)
 
