@@ -300,6 +300,21 @@ def bar_onto_a_joint_neighbours_layer(doc):
     return -float(doc.header.custom_vars.get("FABKIT_BAR_WIDTH"))
 
 
+def bar_onto_another(doc):
+    """Bar 1 moved onto bar 0 of the same sheet, half a bar width off its axis: the two
+    outlines overlap (a nesting that lost a part's place)."""
+    _, holes0 = _bar(doc, 0)
+    _, holes1 = _bar(doc, 1)
+    a, _, _, n = _axis(holes0)
+    width = float(doc.header.custom_vars.get("FABKIT_BAR_WIDTH"))
+    d = a + 0.5 * width * n - np.array(holes1[0].dxf.center)[:2]
+    for kind, meta, ents in _parts(doc).values():
+        if kind == "bar" and meta[0] == 1:
+            for e in ents:
+                e.translate(float(d[0]), float(d[1]), 0.0)
+    return -1.0  # any overlap
+
+
 def other_kerf(doc):
     _set_header(doc, "FABKIT_KERF", str(OTHER_KERF_MM))
     return OTHER_KERF_MM
@@ -312,6 +327,7 @@ SHEET_DAMAGES = [
     (block_cycle, "audit", None),
     (engrave_renamed, "layers", "contains"),
     (hole_removed, "parts", "value"),
+    (bar_onto_another, "parts_apart", "value"),
     (hole_off_centre, "holes_centred", "value"),
     (outline_wider, "width_after_kerf", "value"),
     (hole_larger, "hole_after_kerf", "value"),
@@ -363,8 +379,8 @@ def test_a_sheet_checked_without_its_design_says_what_it_did_not_check(laser, tm
     alone = check_file(path)
     names = [c["name"] for c in alone["checks"]]
     # only what the file alone can say is reported, and it holds: a shortened bar is well drawn
-    assert names == ["units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
-                     "hole_after_kerf"]
+    assert names == ["units", "audit", "layers", "parts", "parts_apart", "holes_centred",
+                     "width_after_kerf", "hole_after_kerf"]
     _passes(alone)
     # what needs the design is named as not checked, never reported ok
     assert alone["not_checked"].startswith("no design given: lengths, topology, modes")
@@ -378,8 +394,8 @@ def test_a_sheet_check_that_stops_early_reports_what_it_did_not_run(laser, tmp_p
     report = check_file(path, design=design)
     checks = _by_name(report)
     assert not checks["parts"]["ok"]
-    after = ["holes_centred", "width_after_kerf", "hole_after_kerf", "lengths", "topology",
-             "modes", "module_map", "screws_close", "same_layer"]
+    after = ["parts_apart", "holes_centred", "width_after_kerf", "hole_after_kerf", "lengths",
+             "topology", "modes", "module_map", "screws_close", "same_layer"]
     assert [c["name"] for c in report["checks"]][-len(after):] == after
     for name in after:
         assert not checks[name]["ok"] and checks[name]["value"] is None

@@ -46,6 +46,7 @@ from ..model.rigidity import count_modes
 from ..numerics import MM_SLACK, project_to_lengths
 from . import require_files
 from .clearance import fine_motion, same_layer_gaps
+from .sheet_layout import least_gap, MIN_WEB_MM
 from .items import Check, check, finish
 from .motion import compare_motion, design_window
 
@@ -68,8 +69,8 @@ MAP_RTOL = 1e-6
 _LAYERS = {"CUT", "CUT_INNER", "ENGRAVE", "REFERENCE"}
 #: The checks of a kit's sheets from the file alone, in the order they run (``kerf`` runs too when
 #: the user says which kerf the laser cuts).
-FILE_CHECKS = ("units", "audit", "layers", "parts", "holes_centred", "width_after_kerf",
-               "hole_after_kerf")
+FILE_CHECKS = ("units", "audit", "layers", "parts", "parts_apart", "holes_centred",
+               "width_after_kerf", "hole_after_kerf")
 #: The checks of a kit against its design, after :data:`FILE_CHECKS`.
 DESIGN_CHECKS = ("lengths", "topology", "modes", "module_map", "screws_close", "same_layer")
 #: The checks of the test coupon (``same_as_kit`` with a design).
@@ -345,6 +346,7 @@ def _check_docs(docs: dict, design, settings, motion=None) -> dict:
                         "every bar found once with two holes and a closed outline"))
     if problems:
         return finish({"files": sorted(docs)}, checks, _expected(design))
+    checks.append(_parts_apart(sheets))
     ks = sorted(bars)
     hc = np.array([[bars[k]["holes"][0][0], bars[k]["holes"][1][0]] for k in ks])  # (E, 2, 2)
     hr = np.array([[bars[k]["holes"][0][1], bars[k]["holes"][1][1]] for k in ks])
@@ -421,6 +423,23 @@ class CouponHeader(BaseModel):
     FABKIT_HOLE: float = Field(gt=0, le=1000, description="screw hole diameter (mm)")
     FABKIT_SPACER: float = Field(gt=0, le=1000, description="spacer ring diameter (mm)")
     FABKIT_SPACING: float = Field(gt=0, le=1000, description="hole spacing of the bars (mm)")
+
+
+def _parts_apart(sheets: dict):
+    """The least gap between two parts' cut lines over the sheets (:mod:`.sheet_layout`)."""
+    worst, where = float("inf"), None
+    for name, sh in sheets.items():
+        gap, pair = least_gap(sh["parts"])
+        if gap < worst:
+            worst, where = gap, (name, pair)
+    if where is None or where[1] is None:
+        return check("parts_apart", True, None, MIN_WEB_MM,
+                     f"no two parts of a sheet within {4 * MIN_WEB_MM:g} mm of each other")
+    name, (a, b) = where
+    said = "overlap" if worst < 0 else f"are {worst:.2f} mm apart"
+    return check("parts_apart", worst >= MIN_WEB_MM, round(worst, 6), MIN_WEB_MM,
+                 f"least gap (mm) between the cut lines of two parts on a sheet: {a} and {b} "
+                 f"on {name} {said}")
 
 
 def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
