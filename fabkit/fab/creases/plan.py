@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .folding import fold_model, FoldResult, OrigamiModel, origami_model
+from .layout import crease_layout, CreaseLayout
 
 __all__ = ["OrigamiPlan", "origami_plan"]
 
@@ -26,11 +27,22 @@ class OrigamiPlan:
         The sheets, their crease patterns, assignment and settings.
     fold : FoldResult
         The model folded along the design's motion.
+    layout : CreaseLayout
+        What the crease SVG and its cut sheets draw: the realised assignment, the fold angles,
+        the paper, and a chain's joins and pages (:func:`~fabkit.fab.creases.layout.crease_layout`).
     """
 
     design: object
     model: OrigamiModel
     fold: FoldResult
+    layout: CreaseLayout
+
+    @property
+    def panels(self) -> list:
+        """The paper's panels as cycles of the design's network nodes (what a drawing of the
+        design's motion fills)."""
+        n = self.design.network.n_nodes
+        return [list(map(int, f)) for f in self.model.faces if max(f) < n]
 
 
 def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
@@ -52,7 +64,9 @@ def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
     Raises
     ------
     FabricationError
-        No [fabrication.origami] table, bad settings, or a folding the simulator cannot do.
+        No [fabrication.origami] table, bad settings, a folding the simulator cannot do, or a
+        medium too small for a sheet of a chain with its labels and legend.
     """
     model = origami_model(design, (settings or {}).get("origami"))
-    return OrigamiPlan(design, model, fold_model(model, design.motion.drive, design.motion.to))
+    fold = fold_model(model, design.motion.drive, design.motion.to)
+    return OrigamiPlan(design, model, fold, crease_layout(model, fold))
