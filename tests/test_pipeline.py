@@ -146,6 +146,67 @@ def test_a_writer_takes_a_plan_and_plans_nothing():
             assert not bad, f"{path.name}:{node.lineno} imports {sorted(bad)}"
 
 
+#: What builds a model, a fold or a plan: a report draws what the export's plans made.
+MODEL_BUILDERS = {"origami_model", "fold_model", "origami_plan", "crease_layout",
+                  "rigid_triangles", "print_geometry", "print_plan", "laser_plan", "make_plan",
+                  "network_from_pattern"}
+#: The modules that build them (a report imports none of them).
+MODEL_MODULES = ("fab.creases", "fab.hinges", "fab.plans", "fab.print_plan", "fab.laser_plan",
+                 "model.triangles")
+
+
+def _imports(tree) -> list[tuple[int, str, set]]:
+    """Every import of a module (inside functions too): (line, module, names)."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            out.append((node.lineno, "." * node.level + (node.module or ""),
+                        {a.name for a in node.names}))
+        elif isinstance(node, ast.Import):
+            out += [(node.lineno, a.name, set()) for a in node.names]
+    return out
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "report").rglob("*.py")),
+                         ids=lambda p: str(p.relative_to(ROOT.parent)))
+def test_a_report_draws_from_the_plans_and_builds_no_model(path):
+    # the motion drawing's panels come from the origami plan and the print plan the export
+    # made (Artefacts.plans), not from an origami model or rigid triangles rebuilt for it
+    found = []
+    for line, module, names in _imports(ast.parse(path.read_text(encoding="utf-8"))):
+        bare = module.lstrip(".").removeprefix("fabkit.")
+        pulled = [f"{bare}.{n}" if bare else n for n in names] or [bare]
+        if any(p == m or p.startswith(m + ".") for p in [bare, *pulled] for m in MODEL_MODULES):
+            found.append(f"line {line}: imports {module} {sorted(names)}")
+        if names & MODEL_BUILDERS:
+            found.append(f"line {line}: imports {', '.join(sorted(names & MODEL_BUILDERS))}")
+    assert not found, f"{path.relative_to(ROOT.parent)}: " + "; ".join(found)
+
+
+def test_the_ast_walk_of_reports_sees_a_model_import():
+    # the test above can fail: an import of the origami model, inside a function, is found
+    tree = ast.parse("def f():\n    from ...fab.creases import origami_model\n")
+    line, module, names = _imports(tree)[0]
+    assert (line, module, names) == (2, "...fab.creases", {"origami_model"})
+    assert names & MODEL_BUILDERS
+
+
+def test_the_report_fills_the_panels_the_plans_made():
+    # the motion drawing of report.html fills the panels of the export's own plans
+    from fabkit.report.html import motion_frames
+
+    design = load_template(TEMPLATES / "origami_sheet.toml")
+    traj = fabkit.motion.trace_motion(design).trajectory
+
+    class Plan:
+        panels = [[0, 1, 4], [1, 2, 4]]
+
+    frames = motion_frames(design, traj, {}, {"origami": Plan()})
+    assert frames["faces"] == [[0, 1, 4], [1, 2, 4]] and frames["fill"] == "#fff3c4"
+    bare = motion_frames(design, traj, {})
+    assert bare["faces"] == [] and bare["fill"] == ""  # no plan: no model rebuilt for it
+
+
 @pytest.mark.slow
 def test_the_and_gate_laser_kit_is_planned_along_the_one_trace(monkeypatch, tmp_path):
     # a projected motion is traced once, with the node step the stacking needs
