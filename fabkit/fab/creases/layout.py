@@ -107,6 +107,9 @@ class CreaseLayout:
 
     Attributes
     ----------
+    assignment : tuple of str
+        The assignment of every paper edge of the model as the folding realises it
+        (:func:`~fabkit.fab.creases.folded_assignment`): what the FOLD and .cp files write.
     realised : OrigamiModel
         The model with every sheet's assignment as the folding realises it
         (:func:`realised_model`).
@@ -131,6 +134,7 @@ class CreaseLayout:
         Width and height of a page of the cut file (mm).
     """
 
+    assignment: tuple
     realised: object
     targets: tuple
     sheet: dict
@@ -225,11 +229,11 @@ def sheet_targets(model, fold) -> list[np.ndarray]:
     return out
 
 
-def realised_model(model, fold):
+def realised_model(model, fold, assignment=None):
     """The model with every sheet's assignment as the simulated folding realises it
-    (:func:`fabkit.fab.creases.folded_assignment`), so that files never contradict their fold
-    angles."""
-    realised = folded_assignment(model, fold)
+    (:func:`fabkit.fab.creases.folded_assignment`, or ``assignment`` when given: the same), so
+    that files never contradict their fold angles."""
+    realised = folded_assignment(model, fold) if assignment is None else assignment
     index = _edge_index(model)
     sheets = []
     for sh in model.sheets:
@@ -444,14 +448,16 @@ def crease_layout(model, fold) -> CreaseLayout:
         A bad ``origami.medium``, or a sheet (with its labels, and the legend) that does not
         fit the medium.
     """
-    realised = realised_model(model, fold)
+    assignment = folded_assignment(model, fold)
+    realised = realised_model(model, fold, assignment)
     targets = tuple(sheet_targets(realised, fold))
     geom = sheet_geometry(realised.sheets[0].pattern, realised.scale)
     table = tuple(crease_table(realised, targets))
     if len(model.sheets) == 1:
         w, h = np.ptp(realised.sheets[0].pattern.vertices, axis=0) * realised.scale
         page = PageLayout((SheetLayout(0, (MARGIN, MARGIN)),), ())
-        return CreaseLayout(realised, targets, geom, table, realised, None, ({},), (), (page,),
+        return CreaseLayout(assignment, realised, targets, geom, table, realised, None, ({},), (),
+                            (page,),
                             (float(w + 2 * MARGIN), float(h + 2 * MARGIN)))
     media = medium(model.settings.get("medium"))
     drawn = upright(realised)
@@ -467,6 +473,6 @@ def crease_layout(model, fold) -> CreaseLayout:
             sheets.append(SheetLayout(k, (dx, dy), tuple(tuple(map(float, c)) for c in holes)))
         out.append(PageLayout(tuple(sheets), tuple(
             (j, tuple(corners)) for j, corners in page_joins(joins, idx))))
-    return CreaseLayout(realised, targets, geom, table, drawn, media,
+    return CreaseLayout(assignment, realised, targets, geom, table, drawn, media,
                         tuple(numbers), tuple(tuple(c) for c in joins), tuple(out),
                         (media.width, media.height))
