@@ -157,6 +157,39 @@ def test_the_medium_is_a_setting(design, tmp_path):
         export(design, "svg", tmp_path / "y", origami={"medium": "60x60"})
 
 
+def test_the_plan_lays_out_the_pages_and_the_writer_draws_them(design):
+    # which sheet goes on which page, the join numbers and the thread holes are the origami
+    # plan's (fab/creases/layout.py); the SVG writer draws them where the plan says
+    from dataclasses import replace
+
+    from fabkit.export import svg
+    from fabkit.fab.creases.layout import place
+    from fabkit.fab.plans import make_plan
+
+    plan = make_plan("origami", design)
+    lay = plan.layout
+    assert [p.indices for p in lay.pages] == [[0, 1, 2, 3], [4, 5, 6, 7], [8, 9, 10, 11]]
+    assert lay.joins[0] == ((1, "B"), (2, "A")) and lay.numbers[1] == {0: 1, 1: 2, 2: 3, 3: 4}
+    # a page lists the joins that touch its sheets: page 2 (sheets 5-8) starts with join 4
+    assert lay.pages[1].joins[0][0] == 4 and lay.pages[0].joins[-1][0] < lay.pages[1].joins[-1][0]
+    # every thread hole sits 2.2 mm in from the corner it holds
+    first = lay.pages[0].sheets[1]
+    corners = place(lay.drawn.sheets[1].pattern, lay.drawn.scale, *first.offset)
+    gaps = [min(float(np.linalg.norm(np.subtract(h, c))) for c in corners) for h in first.holes]
+    assert len(first.holes) == 4 and gaps == pytest.approx([2.2] * 4)
+    # moved in the plan, a sheet is drawn moved: the writer decides nothing of where it goes
+    page = lay.pages[0]
+    moved = replace(page.sheets[0], offset=(page.sheets[0].offset[0] + 5.0,
+                                            page.sheets[0].offset[1]))
+    shifted = replace(plan, layout=replace(lay, pages=(replace(
+        page, sheets=(moved, *page.sheets[1:])), *lay.pages[1:])))
+    a = ET.fromstring(svg.write(plan).files["origami_chain12_layout.svg"])
+    b = ET.fromstring(svg.write(shifted).files["origami_chain12_layout.svg"])
+    xa = [float(ln.get("x1")) for ln in a.findall(f"{SVG}line")][:8]
+    xb = [float(ln.get("x1")) for ln in b.findall(f"{SVG}line")][:8]
+    assert np.subtract(xb, xa) == pytest.approx([5.0] * 8)
+
+
 def test_chain_fold_file_round_trip(design, tmp_path):
     export(design, "fold", tmp_path)
     doc = json.loads((tmp_path / "origami_chain12.fold").read_text())

@@ -64,18 +64,14 @@ def write(plan) -> ExportResult:
     FabricationError
         The plan has several sheets (the SVG writer lays them out).
     """
-    from dataclasses import replace
-
-    from ..fab.creases import folded_assignment
-
     design, model = plan.design, plan.model
     if len(model.sheets) != 1:
         raise FabricationError(f"{design.name}: ORIPA .cp holds one sheet; this design has "
                                f"{len(model.sheets)} (export svg for the layout)")
     # mountain and valley as the simulator folds the sheet (they equal the template's when the
-    # branch is chosen by its assignment)
-    labs = folded_assignment(model, plan.fold)
-    pattern = replace(model.pattern(), assignment=labs)
+    # branch is chosen by its assignment): the plan's realised pattern
+    pattern = plan.layout.realised.pattern()
+    labs = pattern.assignment
     data = render(pattern, model.scale)
     n = int(sum(a in TYPES for a in labs))
     return ExportResult(files={f"{design.name}.cp": data},

@@ -47,15 +47,15 @@ def _round(a, digits=12):
     return np.round(np.asarray(a, dtype=np.float64), digits).tolist()
 
 
-def fold_document(model, fold, drive: str, to: float) -> dict:
-    """The FOLD dictionary of a folded model (see the module docstring).
+def fold_document(plan) -> dict:
+    """The FOLD dictionary of an origami plan's folded model (see the module docstring).
 
-    ``edges_assignment`` is the assignment the simulated folding realises
-    (:func:`~fabkit.fab.creases.folded_assignment`): its M/V always agree with the signs of
-    ``edges_foldAngle``.
+    ``edges_assignment`` is the assignment the simulated folding realises (the plan's
+    ``layout.assignment``, :func:`~fabkit.fab.creases.folded_assignment`): its M/V always agree
+    with the signs of ``edges_foldAngle``.
     """
-    from ..fab.creases import folded_assignment
-
+    model, fold = plan.model, plan.fold
+    drive, to = plan.design.motion.drive, plan.design.motion.to
     scale = model.scale
     nv = model.n_vertices
     if model.flat_start:
@@ -89,7 +89,7 @@ def fold_document(model, fold, drive: str, to: float) -> dict:
         "frame_unit": "mm",
         "vertices_coords": _round(root, 12),
         "edges_vertices": model.edges.tolist(),
-        "edges_assignment": list(folded_assignment(model, fold)),
+        "edges_assignment": list(plan.layout.assignment),
         "edges_foldAngle": _round(final, 9),
         "faces_vertices": [list(f) for f in model.faces],
         "file_frames": frames,
@@ -133,7 +133,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
 def write(plan) -> ExportResult:
     """``<name>.fold`` of an origami plan (:class:`fabkit.fab.creases.plan.OrigamiPlan`)."""
     design, model, fold = plan.design, plan.model, plan.fold
-    doc = fold_document(model, fold, design.motion.drive, design.motion.to)
+    doc = fold_document(plan)
     data = (json.dumps(doc, indent=1) + "\n").encode("utf-8")
     changed = [k for k, (a, b) in enumerate(zip(model.assignment, doc["edges_assignment"]))
                if a != b]

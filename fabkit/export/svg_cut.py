@@ -46,7 +46,7 @@ def cut_svg(model, perf, offsets, size, *, holes=None, hole: float = 0.0) -> tup
     Parameters
     ----------
     model : OrigamiModel
-        With the assignment the folding realises (:func:`fabkit.export.svg.realised_model`).
+        With the assignment the folding realises (:func:`fabkit.fab.creases.layout.realised_model`).
     perf : fabkit.fab.creases.perforation.Perforation
     offsets : list of (float, float)
         Where each sheet's bounding box goes (mm), as in the crease pattern.

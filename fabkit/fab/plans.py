@@ -30,6 +30,7 @@ PLANNERS: dict[str, str] = {
 #: the plan is made along that one trace instead of tracing again.
 TRACE_NEEDS: dict[str, str] = {
     "laser": "fabkit.fab.laser_plan:trace_needs",
+    "origami": "fabkit.fab.creases.plan:trace_needs",
 }
 
 

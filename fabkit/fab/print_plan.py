@@ -48,6 +48,14 @@ class PrintPlan:
     faces: np.ndarray | None = None
     hinges: dict | None = None
 
+    @property
+    def panels(self) -> list:
+        """A hinged solid's rigid plates as node triples, sorted (what a drawing of the
+        design's motion fills); none for a print-in-place linkage."""
+        if self.geo is None:
+            return []
+        return [sorted(int(i) for i in t) for t in self.geo.triangles]
+
 
 def print_plan(design, settings=None, motion=None) -> PrintPlan:
     """The print plan of a planar design.

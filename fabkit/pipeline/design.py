@@ -63,7 +63,7 @@ def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefact
     rank = {f: i for i, f in enumerate(order)}
     formats = {f: formats[f] for f in sorted(formats, key=lambda f: (rank.get(f, len(rank)), f))}
     shown = tuple(sorted(n for n in files if n.endswith((".png", ".svg"))))
-    return Artefacts(files, formats, art.tolerance, shown)
+    return Artefacts(files, formats, art.tolerance, shown, art.plans)
 
 
 def export_one(path, formats, outdir, settings, check=True, tolerance_samples=None,
@@ -203,7 +203,7 @@ def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, 
     write_atomic(stage_dir / "report.md", md)
     write_atomic(stage_dir / "report.json", js)
     traj = motion.trajectory if motion.traced else None
-    frames = motion_frames(rep.design, traj, rep.formats)
+    frames = motion_frames(rep.design, traj, rep.formats, art.plans)
     listing = {p.name: len(art.files[p.name]) for p in written}
     listing.update({"report.md": len(md), "report.json": len(js),
                     MANIFEST: len(record.to_bytes())})

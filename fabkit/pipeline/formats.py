@@ -246,7 +246,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
             files["preview_tolerance.png"] = figure_png(tolerance_figure(tol, title=design.name))
     # pictures for report.md: ours, the exporters' PNGs, and SVGs (crease patterns, sheets)
     shown = tuple(sorted(n for n in files if n.endswith((".png", ".svg"))))
-    return Artefacts(files, results, tol, shown)
+    return Artefacts(files, results, tol, shown, plans)
 
 
 def motion_facts(motion, formats) -> dict | None:

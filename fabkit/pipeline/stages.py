@@ -70,12 +70,16 @@ class Artefacts:
     tolerance : ToleranceResult or None
     previews : tuple of str
         The pictures report.md shows (ours, the exporters' PNG and SVG files).
+    plans : dict of str to plan
+        The plan of each process whose writers made files (:func:`fabkit.fab.plans.make_plan`),
+        made once: the reports draw from them (an origami sheet's panels, a print's plates).
     """
 
     files: dict
     formats: dict
     tolerance: object = None
     previews: tuple = ()
+    plans: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,23 +10,15 @@ import numpy as np
 from ...errors import FabricationError, KinematicsError, PatternError, SettingsError
 from ...io.schema import check_section
 from ...io.workload import require
-from ...kinematics import place, plan_construction
-from ...kinematics.base import align_to_gauge
-from ...kinematics.branching import analyze_bifurcation, fold_through
+from ...kinematics import trace
+from ...kinematics.branching import analyze_bifurcation
 from ...model.network import Network
 from ...numerics import canonical_frame, FLAT_SHEET_RTOL, TINY
-from .pattern import (assignment_score, ASSIGNMENTS, CreasePattern, fold_angles,
-                      network_from_pattern, planar_faces)
+from .pattern import ASSIGNMENTS, CreasePattern, fold_angles, network_from_pattern, planar_faces
+from .tracing import ChainFold, fold_key, KEY as FOLD_KEY, SheetFold
 
 # -- origami designs: a template's [fabrication.origami] table --------------------------------
 
-
-
-#: Geometric spacing runs from the start to this fraction of the way left to the target (the
-#: last frames resolve the approach to a flat or folded state).
-GEOMETRIC_END = 1e-12
-#: The relay's share of its way is spaced in logit up to this fraction short of the target.
-RELAY_END = 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -310,7 +302,46 @@ def folded_assignment(model: OrigamiModel, fold: FoldResult, rtol: float = 1e-6)
     return tuple(out)
 
 
-def fold_model(model: OrigamiModel, drive: str, to: float, samples=None) -> FoldResult:
+def fold_trace(model: OrigamiModel, samples=None) -> tuple[type, dict]:
+    """How the fold of a model traces its design's motion: the tracing method and its options
+    (:mod:`fabkit.fab.creases.tracing`), for :func:`fabkit.trace` and the Motion stage alike.
+
+    Parameters
+    ----------
+    model : OrigamiModel
+    samples : int, optional
+        Configurations of the fold (default: the model's ``samples`` setting).
+
+    Returns
+    -------
+    (type, dict)
+        :class:`~fabkit.fab.creases.tracing.SheetFold` for a flat start (the branch chosen by
+        the assignment, or the one the settings name), else
+        :class:`~fabkit.fab.creases.tracing.ChainFold`; and its options.
+    """
+    s = model.settings
+    samples = int(samples or s["samples"])
+    if model.flat_start:
+        branch = None if s["branch"] == "assignment" else int(s["branch"])
+        pattern = None if branch is not None else (model.assignment, model.edges, model.faces)
+        return SheetFold, {"samples": samples, "branch": branch, "sign": s["sign"],
+                           "step_off": float(s["step_off"]), "pattern": pattern}
+    return ChainFold, {"samples": samples, "spacing": s["spacing"], "relay": s.get("relay"),
+                       "gauge": tuple(int(i) for i in model.faces[0][:3]), "name": model.name}
+
+
+def traced_fold(trajectory, model: OrigamiModel, samples=None) -> bool:
+    """Whether ``trajectory`` (the Motion stage's) is the trace the fold of ``model`` asks for
+    (:func:`fold_trace`): of the model's own network, with the same method and options."""
+    if trajectory is None or trajectory.network is not model.network:
+        return False
+    method, options = fold_trace(model, samples)
+    return (trajectory.positions is not None
+            and trajectory.stats.get(FOLD_KEY) == fold_key(method, options))
+
+
+def fold_model(model: OrigamiModel, drive: str, to: float, samples=None, *,
+               trajectory=None) -> FoldResult:
     """Fold an origami model along its design's motion.
 
     Parameters
@@ -322,12 +353,18 @@ def fold_model(model: OrigamiModel, drive: str, to: float, samples=None) -> Fold
         Target value of the drive (``motion.to``).
     samples : int, optional
         Number of configurations (default: the model's ``samples`` setting).
+    trajectory : Trajectory, optional
+        The design's motion as the Motion stage traced it. When it is the trace this fold asks
+        for (:func:`traced_fold`: the Motion stage was asked for it,
+        :func:`fabkit.fab.creases.plan.trace_needs`), the fold is made of it; else the fold
+        traces the motion itself.
 
     A flat start is a bifurcation: the branches are enumerated by the second-order test
     (:mod:`fabkit.kinematics.branching`) and the one whose fold angles match the mountain/valley
-    assignment (or the branch named in ``branch``) is followed. A regular start is traced
-    directly; with ``spacing = "geometric"`` the drive approaches its target geometrically (to
-    resolve a sequential motion that speeds up towards the end).
+    assignment (or the branch named in ``branch``) is followed. A regular start is placed
+    constructively; with ``spacing = "geometric"`` the drive approaches its target geometrically
+    (to resolve a sequential motion that speeds up towards the end), and ``relay`` hands the
+    drive to the far end (:mod:`fabkit.fab.creases.tracing`).
 
     Returns
     -------
@@ -338,94 +375,31 @@ def fold_model(model: OrigamiModel, drive: str, to: float, samples=None) -> Fold
     FabricationError
         No target, or the motion cannot be traced (with the simulator's reason).
     """
-    s = model.settings
     if to is None:
         raise FabricationError(f"{model.name}: motion.to (how far to fold) is not given")
-    samples = int(samples or s["samples"])
     net = model.network
-    branch = None if s["branch"] == "assignment" else int(s["branch"])
-
-    def score(x):
-        return assignment_score(model.assignment, fold_angles(model.edges, model.faces, x))
-
     try:
+        if traced_fold(trajectory, model, samples):
+            traj = trajectory
+        else:
+            method, options = fold_trace(model, samples)
+            traj = trace(net, drive=drive, to=to, method=method, **options)
         if model.flat_start:
             bif = analyze_bifurcation(net)
-            traj = fold_through(net, drive, to, branch=branch, sign=s["sign"],
-                                score=score if branch is None else None,
-                                step_off_size=float(s["step_off"]), method="auto",
-                                samples=samples - 1)
-            pos, method, message = traj.positions, traj.method, traj.message
-            chosen, sign = traj.stats.get("branch"), traj.stats.get("sign")
             report, names = bif.summary(), [b.describe() for b in bif.branches]
             if str(traj.status) != "finished":
                 raise FabricationError(f"{model.name}: folding stopped: {traj.message}")
         else:
-            pair = net.port(drive)
-            plan = plan_construction(net, pair)
-            d0 = float(net.port_distance(drive))
-            if s["spacing"] == "geometric":
-                frac = 1.0 - np.geomspace(1.0, GEOMETRIC_END, samples)
-                frac[0] = 0.0
-            else:
-                frac = np.linspace(0.0, 1.0, samples)
-            values = d0 + frac * (float(to) - d0)
-            pos, margin, _ = place(plan, values)
-            if (margin[1:] < 0).any():
-                k = int(np.argmax(margin[1:] < 0)) + 1
-                raise FabricationError(f"{model.name}: the motion ends before {drive} = "
-                                       f"{values[k]:.10g}")
-            method, message = "constructive", f"reached {drive} = {float(to):.10g}"
-            relay = s.get("relay")
-            if relay is not None:
-                pos, message = _relay(model, pos, relay, float(to), samples)
-                method = f"constructive ({drive}, then {relay})"
-            gauge = tuple(int(i) for i in model.faces[0][:3])
-            pos = align_to_gauge(pos, net.nodes, gauge)
-            chosen = sign = None
             report, names = "", []
     except KinematicsError as exc:
         raise FabricationError(f"{model.name}: {exc}") from None
+    pos = traj.positions
+    chosen, sign = traj.stats.get("branch"), traj.stats.get("sign")
     ports = {k: net.port_distance(k, pos) for k in net.ports}
     angles = fold_angles(model.edges, model.faces, pos)
     # boundary and cut edges have no fold angle (where sheets are joined, two sheets' faces meet
     # at a boundary edge: that angle is not a crease's)
     angles[:, [a in ("B", "C") for a in model.assignment]] = 0.0
-    return FoldResult(pos, net.port_distance(drive, pos), ports, angles, method, message, chosen,
-                      sign, names, report, float(np.max(net.edge_error(pos))))
-
-
-#: The relay port takes over the drive once it has moved by this fraction of its way.
-RELAY_SWITCH = 1e-6
-
-
-def _relay(model, pos, relay: str, to: float, samples: int):
-    """Hand the drive over to another port part way (see ``relay`` in the docs).
-
-    Driving one end of a chain whose map contracts towards that end resolves the start of the
-    motion but not its end: the far end's distance is then the drive's error times the map's
-    slope to the power k. Once the relay port (the far end) has moved by ``RELAY_SWITCH`` of its
-    way, the remaining frames are placed from the relay port instead, where the map contracts
-    the other way and the end of the motion is resolved to round-off.
-    """
-    net = model.network
-    if relay not in net.ports:
-        raise _err(model.name, "relay", f"unknown port {relay!r}")
-    r = net.port_distance(relay, pos)
-    moved = np.abs(r - r[0]) / max(abs(to - r[0]), TINY)
-    hits = np.flatnonzero(moved >= RELAY_SWITCH)
-    if hits.size == 0 or hits[0] >= samples - 1:
-        return pos, f"reached {relay} = {r[-1]:.10g} without handing over"
-    k = int(hits[0])
-    plan = plan_construction(net, net.port(relay), pos[k])
-    # the relay's share of its way, spaced evenly in logit from the handover to 1 - 1e-6 (small
-    # first steps resolve the front leaving the middle), then the target itself
-    start = min(float(moved[k]), 0.5)
-    t = np.linspace(np.log(start / (1.0 - start)), np.log((1.0 - RELAY_END) / RELAY_END), samples - k - 1)
-    values = np.append(r[0] + (to - r[0]) / (1.0 + np.exp(-t[1:])), to)
-    more, margin, _ = place(plan, values)
-    if (margin < 0).any():
-        raise FabricationError(f"{model.name}: the relay port {relay} cannot reach {to:.10g}")
-    # the relay's frames are in its own seed frame; the caller aligns every frame to the gauge
-    out = np.concatenate([pos[: k + 1], more], axis=0)
-    return out, f"handed the drive to {relay} at frame {k}; reached {relay} = {values[-1]:.10g}"
+    return FoldResult(pos, net.port_distance(drive, pos), ports, angles, traj.method,
+                      traj.message, chosen, sign, names, report,
+                      float(np.max(net.edge_error(pos))))

@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 
-from ...errors import FabkitError
 from .common import esc, exporter_report, img, LAYER_COLOURS
 
 
@@ -60,27 +59,24 @@ def _edge_colours(design, formats: dict) -> tuple[list, list]:
     return colours, legend
 
 
-def _faces(design) -> tuple[list, str]:
-    """Filled polygons of the drawing: the rigid plates of a print, the panels of a sheet."""
-    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    try:
-        if "origami" in fab:
-            from ...fab.creases import origami_model
+#: The fill of the panels each process's plan names (``panels``: node cycles), in the order
+#: they are looked for.
+PANEL_FILLS = (("origami", "#fff3c4"), ("print", "#cfd8dc"))
 
-            model = origami_model(design)
-            n = design.network.n_nodes
-            return [list(map(int, f)) for f in model.faces if max(f) < n], "#fff3c4"
-        if "print" in fab:
-            from ...fab.hinges import rigid_triangles
 
-            given = (fab.get("print") or {}).get("rigid_triangles")
-            return rigid_triangles(design.network, given).tolist(), "#cfd8dc"
-    except FabkitError:  # no faces to draw: the bars alone still show the motion
-        pass
+def _faces(plans: dict) -> tuple[list, str]:
+    """Filled polygons of the drawing, as the export's plans name them (``plan.panels``): the
+    panels of an origami sheet, the rigid plates of a hinged print. None made: the bars alone
+    show the motion (a report builds no model of its own)."""
+    for process, fill in PANEL_FILLS:
+        panels = getattr(plans.get(process), "panels", None)
+        if panels:
+            return [list(map(int, f)) for f in panels], fill
     return [], ""
 
 
-def motion_frames(design, trajectory, formats: dict | None = None) -> dict | None:
+def motion_frames(design, trajectory, formats: dict | None = None,
+                  plans: dict | None = None) -> dict | None:
     """The motion as drawing data: frames of projected node positions, edges, ports, colours.
 
     Parameters
@@ -91,6 +87,9 @@ def motion_frames(design, trajectory, formats: dict | None = None) -> dict | Non
         never traces).
     formats : dict of str to FormatResult, optional
         The export's formats (a laser kit's layers colour the bars).
+    plans : dict of str to plan, optional
+        The plan of each process the export made files by (the Artefacts stage's ``plans``):
+        an origami plan's panels and a hinged print's plates are drawn filled.
 
     Returns
     -------
@@ -120,7 +119,7 @@ def motion_frames(design, trajectory, formats: dict | None = None) -> dict | Non
     except Exception:  # a drive given as a node pair that is not a port: show the frame number
         values = np.arange(len(keep), dtype=float)
     colours, legend = _edge_colours(design, formats or {})
-    faces, fill = _faces(design)
+    faces, fill = _faces(plans or {})
     ports = [[p, int(i), int(j)] for p, (i, j) in sorted(net.ports.items())]
     w, h = (hi - lo) * scale
     return {"frames": np.round(xy, 2).tolist(), "values": values.tolist(),
@@ -144,7 +143,8 @@ def report_frames(report) -> dict | None:
     """The drawing data of a report's traced motion (None when it was not traced)."""
     motion = report.motion
     traj = motion.trajectory if motion is not None and motion.traced else None
-    return motion_frames(report.design, traj, report.formats)
+    return motion_frames(report.design, traj, report.formats,
+                         getattr(report.artefacts, "plans", None))
 
 
 def motion_section(report, data: dict | None) -> str:
