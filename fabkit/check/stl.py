@@ -662,7 +662,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
     -------
     dict
     """
-    from ..settings.printing import design_print_settings
+    from ..settings.design import design_settings
 
     report = {"file": names[0], "format": fmt}
     if len(names) > 1:
@@ -676,7 +676,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
                 checks.append(c)
         report.update(ok=all(c["ok"] for c in checks), checks=checks)
         return report
-    s = design_print_settings(design, settings)
+    s = design_settings(design, settings).require("print")
     if s.linkage == "pins":
         from .pinned import check_pinned
 

@@ -549,7 +549,7 @@ def _render_pages(model, targets, geom, table, facts):
     from ..fab.creases.media import medium
 
     model = upright(model)
-    media = medium(model.settings.get("medium"))
+    media = medium(model.settings.medium)
     numbers, joins = join_numbers(model)
     n = len(model.sheets)
     width = media.width - 2 * _MARGIN
@@ -643,7 +643,7 @@ def write(plan) -> ExportResult:
 
         from ..fab.creases.media import medium
 
-        media = medium(model.settings.get("medium"))
+        media = medium(model.settings.medium)
         realised = upright(realised)
         turned = upright(model)
         numbers, _ = join_numbers(turned)

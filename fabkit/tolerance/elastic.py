@@ -17,7 +17,7 @@ import numpy as np
 from ..builds.materials import Material, process_material
 from ..builds.quasistatic import drive_elastically, ElasticMotion
 from ..errors import TemplateError
-from ..settings.printing import design_print_settings
+from ..settings.design import design_settings
 from ..kinematics import make_problem
 from .pins import pin_play
 from .processes import nominal_room_mm
@@ -106,8 +106,9 @@ def _bars(design, settings) -> tuple[str, float, Material, float, np.ndarray]:
     tolerance settings' (one resolution of the process's settings, the print's pins from its
     plan)."""
     path = design.path or design.name
+    settings = design_settings(design, settings)  # once: the spec below reads the same
     process = stated_process(design, settings) or design_process(design)
-    if process == "print" and design_print_settings(design, settings).linkage != "pins":
+    if process == "print" and settings.require("print").linkage != "pins":
         raise TemplateError(path, "fabrication.print.linkage",
                             "--model elastic drives bars; this print is triangles joined by "
                             "flexure hinges, which bend rather than stretch (print it with "

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...settings.design import design_settings
 from .folding import fold_model, FoldResult, OrigamiModel, origami_model
 
 __all__ = ["OrigamiPlan", "origami_plan"]
@@ -39,8 +40,10 @@ def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Overrides nested by section (``{"origami": {"samples": 41}}``).
+    settings : DesignSettings, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`;
+        a dict of overrides nested by section, ``{"origami": {"samples": 41}}``, is resolved
+        here).
     motion : TracedMotion, optional
         Not used: a sheet folds along the branch its crease assignment names, which the fold
         chooses itself (:func:`~fabkit.fab.creases.folding.fold_model`).
@@ -54,5 +57,5 @@ def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
     FabricationError
         No [fabrication.origami] table, bad settings, or a folding the simulator cannot do.
     """
-    model = origami_model(design, (settings or {}).get("origami"))
+    model = origami_model(design, design_settings(design, settings).require("origami"))
     return OrigamiPlan(design, model, fold_model(model, design.motion.drive, design.motion.to))
