@@ -117,7 +117,7 @@ def sheet_ports(model) -> list[dict]:
     return out
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """``<name>.fold`` of a design: its origami plan, written (see :func:`write`).
 
     Raises

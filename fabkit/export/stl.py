@@ -224,7 +224,7 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]", "_", name) or "network"
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """A printed network as STL (+ 3MF, preview PNG): its print plan, written (:func:`write`).
 
     Parameters
@@ -232,8 +232,9 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
     design : fabkit.templates.Design
         A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
         linkage), as ``linkage`` says.
-    settings : dict, optional
-        Command-line overrides; ``settings["print"]`` holds print keys (``gap``, ``scale`` ...).
+    settings : DesignSettings or dict, optional
+        The design's resolved settings, or overrides nested by section (``{"print": {"gap":
+        0.3}}``, resolved once, here).
     motion : TracedMotion, optional
         The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`):
         the hinges' bending and a linkage's stacking are measured along it. Traced here, once,

@@ -176,7 +176,11 @@ def _origami(design, overrides) -> OrigamiSettings:
     return origami_settings(design, section_of(overrides, "origami"))
 
 
-_RESOLVERS = {"laser": _laser, "print": design_print_settings, "origami": _origami,
+def _print(design, overrides) -> PrintSettings:
+    return design_print_settings(design, overrides)
+
+
+_RESOLVERS = {"laser": _laser, "print": _print, "origami": _origami,
               "tolerance": tolerance_settings}
 
 

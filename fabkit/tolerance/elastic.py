@@ -125,7 +125,7 @@ def _bars(design, settings) -> tuple[str, float, Material, float, np.ndarray]:
 
 
 def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
-                   settings: dict | None = None) -> ElasticRun:
+                   settings=None) -> ElasticRun:
     """Drive a design's build with elastic bars from its start to its target.
 
     Parameters
@@ -135,8 +135,9 @@ def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
         Target of the drive (design units; default: the template's ``motion.to``).
     steps : int
         Quasi-static steps, the start and the target included (>= 2).
-    settings : dict, optional
-        ``--set`` overrides by section (``laser``, ``print``, ``tolerance``).
+    settings : DesignSettings or dict, optional
+        The design's resolved settings, or ``--set`` overrides by section (``laser``,
+        ``print``, ``tolerance``), resolved once, here.
 
     Returns
     -------
