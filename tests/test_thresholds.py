@@ -112,7 +112,7 @@ def test_a_target_within_rounding_past_the_fold_is_reached_there_and_said():
 # --- a flat sheet, however drawn ----------------------------------------------------------------
 
 def test_a_sheet_flat_to_typed_digits_is_flat_and_its_pattern_does_not_turn_with_svd():
-    from fabkit.fab.creases.folding import _flat_coords
+    from fabkit.model.flat import flat_coords as _flat_coords
 
     d = fabkit.load_template("origami_sheet")
     x = d.network.nodes

@@ -39,7 +39,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ..errors import FabkitError, FabricationError
 from ..settings.fasteners import fit_fastener
-from ..settings.laser import laser_overrides, laser_settings
+from ..settings.design import design_settings
 from ..io.schema import describe_validation_error
 from ..model.network import Network
 from ..model.rigidity import count_modes
@@ -269,7 +269,7 @@ def _kerf_cut_with(settings, head: dict, kerf: float, checks: list) -> float:
     """The kerf the sheets were cut with: the one the user gives (``--set laser.kerf``, with a
     check that says when the file was drawn for another: its bars would come out the wrong
     size), else the header's."""
-    given = ((settings or {}).get("laser") or {}).get("kerf")
+    given = settings.require("laser").kerf if settings.given("laser", "kerf") else None
     if given is None or head.get("FABKIT_VARIANT") == "uncompensated":
         return kerf
     same = abs(float(given) - kerf) <= MM_SLACK
@@ -318,6 +318,7 @@ def _bars_read(sheets: dict, n_bars: int) -> tuple[dict, list]:
 
 
 def _check_docs(docs: dict, design, settings, motion=None) -> dict:
+    settings = design_settings(design, settings)  # the pipeline's, resolved once; or a dict
     checks = []
     sheets = {name: read_sheet(doc) for name, doc in docs.items()}
     units = {name: sh["insunits"] for name, sh in sheets.items()}
@@ -479,8 +480,7 @@ def _check_coupon(sheets, head, checks, design, settings, files) -> dict:
         checks.append(check(name, d <= LENGTH_TOL, d, LENGTH_TOL,
                             f"drawn size with the {kerf:g} mm kerf undone vs {expect:g} mm"))
     if design is not None:
-        s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
-                           network_size=design.network.size)
+        s = settings.require("laser")
         kit = {"kerf": s.kerf, "bar width": s.bar_width, "hole": s.screw.hole_diameter,
                "ring": s.spacer_diameter}
         read = {"kerf": kerf, "bar width": v["FABKIT_BAR_WIDTH"], "hole": v["FABKIT_HOLE"],
@@ -502,8 +502,7 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     catalogue entry) and the window of the motion the kit follows; ``motion`` (the pipeline's
     :class:`fabkit.motion.TracedMotion`) gives that window's motion, traced once.
     """
-    s = laser_settings(design.fabrication.get("laser", {}), laser_overrides(settings),
-                       network_size=design.network.size)
+    s = settings.require("laser")
     # the motion the kit follows (motion_from / _to), from the Motion stage: traced once
     design, reference = design_window(design, s.motion_from, s.motion_to, motion, "laser")
     net = design.network

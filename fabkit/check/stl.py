@@ -697,7 +697,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
     -------
     dict
     """
-    from ..settings.printing import design_print_settings
+    from ..settings.design import design_settings
 
     report = {"file": names[0], "format": fmt}
     if len(names) > 1:
@@ -710,7 +710,7 @@ def check_meshes(meshes, names, design=None, settings=None, *, fmt: str = FORMAT
         report["not_checked"] = ("no design given: the rebuilt linkage, its modes and its motion "
                                  "need the design's template")
         return finish(report, checks)
-    s = design_print_settings(design, settings)
+    s = design_settings(design, settings).require("print")
     if s.linkage == "pins":
         from .pinned import check_pinned
 

@@ -259,9 +259,9 @@ def _settings_check(packages, names, design, settings) -> Check:
 
     The values are compared as numbers with the template's print settings; what else the
     writer chose to tell the slicer (perimeters, supports, skirt) is its own business."""
-    from ..settings.printing import design_print_settings
+    from ..settings.design import design_settings
 
-    s = design_print_settings(design, settings)
+    s = design_settings(design, settings).require("print")
     layer = float(s.layer_height)
     filament = FILAMENTS[s.material]["filament_type"]
     wrong = []

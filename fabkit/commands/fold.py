@@ -83,6 +83,7 @@ def run(args) -> int:
     # the origami model is imported here, not at the top: it brings the settings schema
     # (pydantic), which `fabkit fold --help` does without
     from ..fab.creases import fold_model, origami_model
+    from ..settings.origami import origami_settings
     from ..templates import load_template
 
     if args.branch is not None and args.branch < 0:
@@ -100,7 +101,7 @@ def run(args) -> int:
         overrides = {**settings.get("origami", {}),
                      **{k: v for k, v in (("branch", args.branch), ("sign", args.sign))
                         if v is not None}}
-        model = origami_model(design, overrides)
+        model = origami_model(design, origami_settings(design, overrides))
         drive = args.drive or design.motion.drive
         if drive not in design.network.ports:
             known = ", ".join(sorted(design.network.ports))

@@ -48,7 +48,7 @@ def render(pattern, scale: float) -> bytes:
     return ("\n".join(lines) + "\n").encode("ascii")
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """``<name>.cp`` of a design: its origami plan, written (see :func:`write`)."""
     from ..fab.plans import make_plan
 

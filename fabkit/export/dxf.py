@@ -455,15 +455,16 @@ def write(plan: LaserPlan) -> ExportResult:
                                              "guide_pages": int(guide.stats["pages"])})
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """Laser-cut files for a design: its laser plan, written (pure: returns bytes, writes
     nothing).
 
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Overrides of ``[fabrication.laser]``, e.g. ``{"laser": {"kerf": 0.2, "scale": 60}}``.
+    settings : DesignSettings or dict, optional
+        The design's resolved settings, or overrides nested by section, e.g.
+        ``{"laser": {"kerf": 0.2, "scale": 60}}`` (resolved once, here).
     motion : TracedMotion, optional
         The design's motion, traced once (see :func:`fabkit.fab.laser_plan.laser_plan`).
 

@@ -98,8 +98,8 @@ def fold_document(plan) -> dict:
         "fabkit:motion": {"drive": drive, "to": float(to), "method": fold.method,
                           "branch": fold.branch, "sign": fold.sign,
                           "branches": fold.branches, "samples": int(fold.positions.shape[0]),
-                          "spacing": model.settings.get("spacing", "uniform"),
-                          "step_off": model.settings.get("step_off", 1e-3)},
+                          "spacing": model.settings.spacing,
+                          "step_off": model.settings.step_off},
         "fabkit:map": {k: [float(x) for x in v] for k, v in fold.ports.items()},
         "fabkit:sheets": sheet_ports(model),
     }
@@ -117,7 +117,7 @@ def sheet_ports(model) -> list[dict]:
     return out
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """``<name>.fold`` of a design: its origami plan, written (see :func:`write`).
 
     Raises

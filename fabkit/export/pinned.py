@@ -23,7 +23,6 @@ import math
 import numpy as np
 
 from ..errors import FabricationError
-from ..fab.slicer import slicer_settings
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit
 from . import ExportResult
@@ -252,7 +251,7 @@ def _bed_bodies(plan, meshes, b: int, name: str, origin) -> tuple[list, list, li
     return verts, faces, objects
 
 
-def write_pinned(plan, s, name: str, design) -> ExportResult:
+def write_pinned(plan, s, name: str, design, slicer) -> ExportResult:
     """Files and report of a print-in-place linkage's plan (see the module docstring).
 
     Parameters
@@ -265,6 +264,9 @@ def write_pinned(plan, s, name: str, design) -> ExportResult:
         File name stem.
     design : Design
         The design the plan was made for (its name, for the files' titles).
+    slicer : SlicerSettings
+        What the 3MF files tell the slicer (the print plan's
+        :attr:`~fabkit.fab.print_plan.PrintPlan.slicer`).
 
     Returns
     -------
@@ -280,7 +282,6 @@ def write_pinned(plan, s, name: str, design) -> ExportResult:
     files: dict[str, bytes] = {}
     stl_names = bed_file_names(name, beds, ".stl")
     mf_names = bed_file_names(name, beds, ".3mf")
-    slicer = slicer_settings(s)
     origin = stl_origin(s.printer_profile())
     triangles = 0
     for b in range(beds):

@@ -34,7 +34,6 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..fab.printers import split_to_fit
-from ..fab.slicer import slicer_settings
 from ..model.network import Network
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit, figure_png
@@ -137,8 +136,10 @@ def _piece_solid(geo):
     return verts, faces
 
 
-def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]:
-    """The bed-ready STL and 3MF file(s) and the layout report (see the module docstring).
+def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[dict, dict]:
+    """The bed-ready STL and 3MF file(s) and the layout report (see the module docstring);
+    ``slicer`` is what the 3MF files tell the slicer (the plan's, :attr:`PrintPlan.slicer
+    <fabkit.fab.print_plan.PrintPlan>`).
 
     Returns
     -------
@@ -162,7 +163,6 @@ def bed_files(design, s, verts, faces, name: str, geo=None) -> tuple[dict, dict]
     beds = 1 + max(p.bed for p in layout)
     files = {}
     stls, mfs = bed_file_names(name, beds, ".stl"), bed_file_names(name, beds, ".3mf")
-    slicer = slicer_settings(s)
     for b in range(beds):
         on_bed = [p for p in layout if p.bed == b]
         placed = []
@@ -224,7 +224,7 @@ def _safe(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.+-]", "_", name) or "network"
 
 
-def export_design(design, settings: dict | None = None, *, motion=None) -> ExportResult:
+def export_design(design, settings=None, *, motion=None) -> ExportResult:
     """A printed network as STL (+ 3MF, preview PNG): its print plan, written (:func:`write`).
 
     Parameters
@@ -232,8 +232,9 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
     design : fabkit.templates.Design
         A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
         linkage), as ``linkage`` says.
-    settings : dict, optional
-        Command-line overrides; ``settings["print"]`` holds print keys (``gap``, ``scale`` ...).
+    settings : DesignSettings or dict, optional
+        The design's resolved settings, or overrides nested by section (``{"print": {"gap":
+        0.3}}``, resolved once, here).
     motion : TracedMotion, optional
         The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`):
         the hinges' bending and a linkage's stacking are measured along it. Traced here, once,
@@ -270,13 +271,13 @@ def write(plan) -> ExportResult:
     if plan.pinned is not None:
         from .pinned import write_pinned
 
-        return write_pinned(plan.pinned, s, name, design)
+        return write_pinned(plan.pinned, s, name, design, plan.slicer)
     geo, body, verts, faces = plan.geo, plan.body, plan.verts, plan.faces
     if not stored_mesh_is_closed(verts, faces):
         raise FabricationError(
             "the solid has features so close that they merge in the STL's float32 coordinates "
             "(the file would not be watertight); change hinge_width or scale slightly")
-    files, layout = bed_files(design, s, verts, faces, name, geo)
+    files, layout = bed_files(design, s, verts, faces, name, geo, slicer=plan.slicer)
     if not s.threemf:
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
@@ -311,7 +312,7 @@ def write(plan) -> ExportResult:
         "min_feature_mm": geo.min_feature,
         "hinge_motion": hinges,
         "printer": layout,
-        "slicer": slicer_settings(s).as_dict() if s.threemf else None,
+        "slicer": plan.slicer.as_dict() if s.threemf else None,
         "warnings": warnings,
         "files": sorted(files),
     }

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from ..errors import FabricationError
 from ..motion import motion_for
 from .bars import bar_set
-from ..settings.laser import laser_overrides, laser_settings
+from ..settings.design import design_settings
 from .layers import plan_layers, sample_chain, sample_motion
 from .layers.sampling import NODE_STEP_SHARE
 from .nest import make_parts, nest_parts, place_like
@@ -36,15 +36,16 @@ class LaserPlan:
     variant: str = ""
 
 
-def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
+def laser_plan(design, settings=None, motion=None) -> LaserPlan:
     """Decide bars, layers, parts and sheets for a design (no files).
 
     Parameters
     ----------
     design : Design
         A loaded template with a 2D network and a motion target.
-    settings : dict, optional
-        Overrides of ``[fabrication.laser]`` (``{"laser": {"kerf": 0.2}}`` or ``{"kerf": 0.2}``).
+    settings : DesignSettings, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`;
+        a dict of overrides nested by section, ``{"laser": {"kerf": 0.2}}``, is resolved here).
     motion : TracedMotion, optional
         The design's motion, traced once by the pipeline (:func:`fabkit.motion.trace_motion`);
         traced here when not given. A kit's window (``motion_from`` / ``motion_to``) is asked of
@@ -63,10 +64,7 @@ def laser_plan(design, settings: dict | None = None, motion=None) -> LaserPlan:
     net = design.network
     if net.dim != 2:
         raise FabricationError(f"laser-cut bars need a 2D network; {design.name} is {net.dim}D")
-    table = design.fabrication.get("laser", {}) if isinstance(design.fabrication, dict) else {}
-    if not isinstance(table, dict):
-        raise FabricationError("[fabrication.laser] must be a table")
-    s = laser_settings(table, laser_overrides(settings), network_size=net.size)
+    s = design_settings(design, settings).require("laser")
     lengths = net.edge_lengths * s.scale  # the design's own, wherever the kit starts
     kit = motion_for(design, motion).window_motion(s.motion_from, s.motion_to, "laser")
     design, traj = kit.design, kit.planning_trajectory()
@@ -113,8 +111,8 @@ def trace_needs(design, settings=None) -> dict:
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Overrides nested by section.
+    settings : DesignSettings, optional
+        The design's settings, resolved once (a dict of overrides is resolved here).
 
     Returns
     -------
@@ -124,10 +122,9 @@ def trace_needs(design, settings=None) -> dict:
     m = design.motion
     if m.to is None or m.method != "projected" or design.network.dim != 2:
         return {}
-    table = design.fabrication.get("laser", {}) if isinstance(design.fabrication, dict) else {}
-    if not isinstance(table, dict):
-        return {}  # the plan refuses it, with its reason
-    s = laser_settings(table, laser_overrides(settings), network_size=design.network.size)
+    s = design_settings(design, settings).laser
+    if s is None:
+        return {}  # the plan refuses them, with their reason
     if s.motion_from is not None or s.motion_to is not None:
         return {}
     step = NODE_STEP_SHARE * s.sample_step / s.scale

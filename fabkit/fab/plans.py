@@ -13,11 +13,13 @@ from __future__ import annotations
 import importlib
 
 from ..errors import FabkitError
+from ..settings.design import design_settings
 
 __all__ = ["PLANNERS", "TRACE_NEEDS", "make_plan", "trace_needs"]
 
-#: Process → ``module:function`` of its planner, ``(design, settings, motion) -> plan``
-#: (imported when the process is used).
+#: Process → ``module:function`` of its planner, ``(design, settings, motion) -> plan``, with
+#: the design's resolved :class:`~fabkit.settings.design.DesignSettings` (imported when the
+#: process is used).
 PLANNERS: dict[str, str] = {
     "laser": "fabkit.fab.laser_plan:laser_plan",
     "origami": "fabkit.fab.creases.plan:origami_plan",
@@ -26,7 +28,7 @@ PLANNERS: dict[str, str] = {
 
 
 #: Process → ``module:function`` of what its plan asks of the Motion stage's trace,
-#: ``(design, settings) -> dict`` of trace options (a projected laser kit's node step), so that
+#: ``(design, settings) -> dict`` of trace options (``settings``: resolved) (a projected laser kit's node step), so that
 #: the plan is made along that one trace instead of tracing again.
 TRACE_NEEDS: dict[str, str] = {
     "laser": "fabkit.fab.laser_plan:trace_needs",
@@ -42,7 +44,8 @@ def trace_needs(processes, design, settings=None) -> dict:
     processes : iterable of str
         The processes whose plans will be made.
     design : Design
-    settings : dict, optional
+    settings : DesignSettings, optional
+        The design's settings, resolved once (a dict of overrides is resolved here).
 
     Returns
     -------
@@ -51,6 +54,7 @@ def trace_needs(processes, design, settings=None) -> dict:
         two plans would need different ones (each then samples for itself), or when a plan's
         settings are bad (the planner refuses them with its reason).
     """
+    settings = design_settings(design, settings)
     needs: list[dict] = []
     for process in sorted(set(processes) & set(TRACE_NEEDS)):
         module, name = TRACE_NEEDS[process].split(":")
@@ -70,8 +74,9 @@ def make_plan(process: str, design, settings=None, motion=None):
     process : str
         A key of :data:`PLANNERS`.
     design : Design
-    settings : dict, optional
-        Overrides nested by section (``{"laser": {"kerf": 0.2}}``).
+    settings : DesignSettings, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`);
+        a dict of overrides nested by section (``{"laser": {"kerf": 0.2}}``) is resolved here.
     motion : TracedMotion, optional
         The design's motion, traced once by the Motion stage; a planner that needs it and is
         not given it traces it (the Python API without a pipeline).
@@ -92,4 +97,5 @@ def make_plan(process: str, design, settings=None, motion=None):
     if process not in PLANNERS:
         raise FabkitError(f"no planner for process {process!r}; valid: {', '.join(PLANNERS)}")
     module, name = PLANNERS[process].split(":")
-    return getattr(importlib.import_module(module), name)(design, settings, motion)
+    return getattr(importlib.import_module(module), name)(
+        design, design_settings(design, settings), motion)

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..motion import motion_for, MotionStatus
-from ..settings.printing import design_print_settings
+from ..settings.design import design_settings
+from .slicer import slicer_settings, SlicerSettings
 
 __all__ = ["PrintPlan", "print_plan", "hinge_motion"]
 
@@ -37,6 +38,8 @@ class PrintPlan:
         The hinged solid's mesh.
     hinges : dict
         How far the hinges bend along the design's motion (:func:`hinge_motion`).
+    slicer : SlicerSettings
+        What the print's 3MF files tell the slicer (:func:`fabkit.fab.slicer.slicer_settings`).
     """
 
     design: object
@@ -47,6 +50,7 @@ class PrintPlan:
     verts: np.ndarray | None = None
     faces: np.ndarray | None = None
     hinges: dict | None = None
+    slicer: SlicerSettings | None = None
 
     @property
     def panels(self) -> list:
@@ -65,8 +69,9 @@ def print_plan(design, settings=None, motion=None) -> PrintPlan:
     design : Design
         A planar network: of rigid triangles (a hinged solid) or of bars (a print-in-place
         linkage), as ``linkage`` says.
-    settings : dict, optional
-        Overrides nested by section; ``settings["print"]`` holds print keys.
+    settings : DesignSettings, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`;
+        a dict of overrides nested by section, ``{"print": {"gap": 0.3}}``, is resolved here).
     motion : TracedMotion, optional
         The design's motion, traced once by the pipeline: the hinges' bending and a linkage's
         stacking are measured along it. Traced here, once, when not given.
@@ -83,19 +88,21 @@ def print_plan(design, settings=None, motion=None) -> PrintPlan:
     """
     from .hinges import print_geometry, print_solid, solid_mesh
 
-    s = design_print_settings(design, settings)
+    s = design_settings(design, settings).require("print")
     if design.network.dim != 2:
         raise FabricationError(f"printing needs a planar network; {design.name} is "
                                f"{design.network.dim}D")
     if s.linkage == "pins":
         from .pinned import pinned_print
 
-        return PrintPlan(design, s, pinned=pinned_print(design, s, motion))
+        return PrintPlan(design, s, pinned=pinned_print(design, s, motion),
+                         slicer=slicer_settings(s))
     geo = print_geometry(design.network, s)
     body = print_solid(geo)
     verts, faces = solid_mesh(body)
     return PrintPlan(design, s, geo=geo, body=body, verts=verts, faces=faces,
-                     hinges=hinge_motion(design, geo, motion_for(design, motion)))
+                     hinges=hinge_motion(design, geo, motion_for(design, motion)),
+                     slicer=slicer_settings(s))
 
 
 def hinge_motion(design, geo, motion) -> dict:

@@ -13,6 +13,7 @@ from ..io.inputs import read_regular
 from ..io.outputs import inside
 from ..report.html import design_html, index_card, motion_frames
 from ..report.text import design_facts, report_json, report_markdown
+from ..settings.design import design_settings
 from .folders import check_replaceable, recover_folder, staging_folders, swap_in
 from .formats import (choose_formats, make_artefacts, motion_facts, plan_design, RESERVED,
                       run_checks, traced_for)
@@ -221,10 +222,13 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
         path, settings, outdir, formats, exporters)
     res.name = design.name
     clock(Stage.MOTION)
-    motion = traced_for(design, chosen, settings)  # once: every later stage reads this one
-    plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
+    # the settings resolved once, before the motion's trace asks what the plans need of it:
+    # every later stage reads these (the raw overrides stay for the folder's record)
+    resolved = design_settings(design, settings)
+    motion = traced_for(design, chosen, resolved)  # once: every later stage reads this one
+    plan = plan_design(design, formats, resolved, motion, tolerance_samples, exporters,
                        allow_large=allow_large, kept=kept)
-    art = make_artefacts(design, plan, settings, motion, previews, stage=clock)
+    art = make_artefacts(design, plan, resolved, motion, previews, stage=clock)
     if kept:
         art = keep_formats(art, folder, kept, list(registry))
     fmts = art.formats
@@ -235,7 +239,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     outcome, checks = Outcome.OK, Checks({})
     if check:
         clock(Stage.CHECK)
-        outcome, checks = _check_written(written, design, settings, motion, fmts)
+        outcome, checks = _check_written(written, design, resolved, motion, fmts)
     refused = [f"{f}: {v.detail}" for f, v in fmts.items() if v.status is FormatStatus.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
         outcome = Outcome.REFUSED

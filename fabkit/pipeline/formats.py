@@ -10,6 +10,7 @@ from ..export import get_exporter, skip_reason
 from ..fab.plans import make_plan, PLANNERS, trace_needs
 from ..motion import MotionStatus, trace_motion
 from ..report.text import design_facts
+from ..settings.design import design_settings
 from ..plots.viz import figure_png, motion_figure
 from ..tolerance import made_process, stated_process, tolerance_spec
 from .motion import map_figure, motion_report
@@ -109,8 +110,9 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
     design : Design
     formats : list of str or None
         Formats to export; None: every format whose module says it ``applies(design)``.
-    settings : dict
-        Command-line overrides of the fabrication settings (nested dict).
+    settings : DesignSettings
+        The design's settings, resolved once before the Motion stage
+        (:func:`fabkit.settings.design.design_settings`).
     motion : TracedMotion
         The Motion stage's result (no tolerance analysis without a traced motion).
     tolerance_samples : int or None
@@ -135,6 +137,7 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
     """
     from ..export import EXPORTERS
 
+    settings = design_settings(design, settings)  # resolved already: handed back as they are
     exporters = dict(EXPORTERS if exporters is None else exporters)
     chosen, skipped = choose_formats(design, formats, exporters)
     process = made_process(design, [f for f, _ in chosen] + list(kept), settings)
@@ -159,16 +162,18 @@ def _accepts_motion(function) -> bool:
 
 def _write_format(module, design, settings, motion, plans: dict):
     """One format's files: a writer of a process's plan (``PROCESS`` and ``write``) gets the
-    plan built once for every format of that process; an exporter of one's own
-    (``export_design``) gets the design, the settings and, when it takes it, the motion."""
+    plan built once for every format of that process, from the resolved settings; an exporter
+    of one's own (``export_design``) gets the design, the overrides as a dict (its contract)
+    and, when it takes it, the motion."""
     process = getattr(module, "PROCESS", None)
     if process in PLANNERS and callable(getattr(module, "write", None)):
         if process not in plans:
             plans[process] = make_plan(process, design, settings, motion)
         return module.write(plans[process])
+    overrides = settings.overrides_dict()
     if _accepts_motion(module.export_design):
-        return module.export_design(design, settings, motion=motion)
-    return module.export_design(design, settings)
+        return module.export_design(design, overrides, motion=motion)
+    return module.export_design(design, overrides)
 
 
 def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
@@ -182,7 +187,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
     ----------
     design : Design
     plan : Plan
-    settings : dict
+    settings : DesignSettings
     motion : TracedMotion
     previews : bool
         Draw preview_motion.png, preview_map.png and preview_tolerance.png.
@@ -199,6 +204,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
         An exporter's refusal (one line), or the motion's typed failure.
     """
     stage = stage or (lambda s: None)
+    settings = design_settings(design, settings)  # resolved already: handed back as they are
     path = design.path or design.name
     files: dict[str, bytes] = {}
     singular = motion.error if motion.status is MotionStatus.SINGULAR_START else None
@@ -297,6 +303,7 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
 
     stage = stage or (lambda s: None)
     stage(Stage.MOTION)
+    settings = design_settings(design, settings)  # once: every later stage reads these
     registry = dict(EXPORTERS if exporters is None else exporters)
     motion = traced_for(design, choose_formats(design, formats, registry)[0], settings)
     plan = plan_design(design, formats, settings, motion, tolerance_samples, exporters,
@@ -340,7 +347,8 @@ def run_checks(paths, design, settings, motion=None) -> list[CheckResult]:
     paths : list of Path
         The written files.
     design : Design
-    settings : dict
+    settings : DesignSettings
+        The design's settings, resolved once (a checker of one's own may be handed them too).
     motion : TracedMotion, optional
         The design's motion, traced once: handed to every checker that takes it (the design's
         side of the comparison is not traced again; the network rebuilt from the files is).

@@ -17,7 +17,7 @@ import numpy as np
 from ..builds.materials import Material, process_material
 from ..builds.quasistatic import drive_elastically, ElasticMotion
 from ..errors import TemplateError
-from ..settings.printing import design_print_settings
+from ..settings.design import design_settings
 from ..kinematics import make_problem
 from .pins import pin_play
 from .processes import nominal_room_mm
@@ -106,8 +106,9 @@ def _bars(design, settings) -> tuple[str, float, Material, float, np.ndarray]:
     tolerance settings' (one resolution of the process's settings, the print's pins from its
     plan)."""
     path = design.path or design.name
+    settings = design_settings(design, settings)  # once: the spec below reads the same
     process = stated_process(design, settings) or design_process(design)
-    if process == "print" and design_print_settings(design, settings).linkage != "pins":
+    if process == "print" and settings.require("print").linkage != "pins":
         raise TemplateError(path, "fabrication.print.linkage",
                             "--model elastic drives bars; this print is triangles joined by "
                             "flexure hinges, which bend rather than stretch (print it with "
@@ -124,7 +125,7 @@ def _bars(design, settings) -> tuple[str, float, Material, float, np.ndarray]:
 
 
 def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
-                   settings: dict | None = None) -> ElasticRun:
+                   settings=None) -> ElasticRun:
     """Drive a design's build with elastic bars from its start to its target.
 
     Parameters
@@ -134,8 +135,9 @@ def elastic_motion(design, to: float | None = None, steps: int = DEFAULT_STEPS,
         Target of the drive (design units; default: the template's ``motion.to``).
     steps : int
         Quasi-static steps, the start and the target included (>= 2).
-    settings : dict, optional
-        ``--set`` overrides by section (``laser``, ``print``, ``tolerance``).
+    settings : DesignSettings or dict, optional
+        The design's resolved settings, or ``--set`` overrides by section (``laser``,
+        ``print``, ``tolerance``), resolved once, here.
 
     Returns
     -------

@@ -7,10 +7,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..errors import FabricationError, SettingsError, TemplateError, UsageError
-from ..fab.creases import origami_model
-from ..settings.laser import laser_settings
-from ..settings.printing import design_print_settings
-from ..io.schema import check_table, refuse_unused, ToleranceSection
+from ..settings.design import design_settings, DesignSettings, tolerance_settings
+from ..io.schema import check_table, refuse_unused, section_of, ToleranceSection
 from ..numerics import TINY
 from ..motion.intent import LIMIT_FRACTION, STATE_FRACTION
 from .processes import (PIN_EXTRA_KEYS, PROCESS_EXTRA_KEYS, PROCESSES, ProcessGeometry,
@@ -148,11 +146,12 @@ def refuse_foreign(settings, process: str, name: str) -> None:
     Raises
     ------
     UsageError
+    SettingsError
+        ``settings`` not nested by section, or a tolerance key the schema refuses.
     """
-    tol = (settings or {}).get("tolerance")
-    if isinstance(tol, dict) and tol.get("process") in PROCESSES:
-        process = tol["process"]
-    for key in (tol or {}) if isinstance(tol, dict) else ():
+    tol = check_table(ToleranceSection, section_of(settings, "tolerance"), "tolerance").given()
+    process = tol.get("process") or process
+    for key in tol:
         if _OWNER.get(key, process) != process:
             raise UsageError("--set", f"tolerance.{key}: is a {_OWNER[key]} error; {name} is "
                                       f"analysed as {process} (set tolerance.process = "
@@ -181,15 +180,17 @@ PROCESS_FORMATS = {"laser": ("dxf",), "origami": ("svg", "fold", "cp"), "print":
 
 
 def stated_process(design, settings=None) -> str | None:
-    """The process the template or ``--set tolerance.process`` names, or None."""
-    cli = ((settings or {}).get("tolerance") or {}).get("process")
-    if cli in PROCESSES:
-        return cli
-    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    table = fab.get("tolerance")
-    if isinstance(table, dict) and table.get("process") in PROCESSES:
-        return table["process"]
-    return None
+    """The process ``--set tolerance.process``, else the template, names, or None.
+
+    ``settings``: the design's :class:`~fabkit.settings.design.DesignSettings`, or overrides
+    nested by section (only their tolerance section is read: tolerance settings the schema
+    refuses state no process)."""
+    if isinstance(settings, DesignSettings):
+        return settings.stated_process
+    try:
+        return tolerance_settings(design, settings).process
+    except (TemplateError, SettingsError):
+        return None
 
 
 def made_process(design, formats, settings=None) -> str:
@@ -204,8 +205,8 @@ def made_process(design, formats, settings=None) -> str:
     design : Design
     formats : iterable of str
         The formats that are made.
-    settings : dict, optional
-        Command-line overrides (``tolerance.process``).
+    settings : DesignSettings or dict, optional
+        The design's settings (:func:`stated_process`: ``tolerance.process``).
 
     Returns
     -------
@@ -225,15 +226,23 @@ def made_process(design, formats, settings=None) -> str:
     return own
 
 
-def _laser_defaults(design, settings) -> dict:
+def _refused(design, section: str, exc: Exception) -> Exception:
+    """The error of a process's settings as the tolerance analysis says it: a fabrication
+    error names the template and its table; a schema error names its key already."""
+    if isinstance(exc, FabricationError):
+        return TemplateError(design.path or design.name, f"fabrication.{section}", str(exc))
+    return exc
+
+
+def _process_settings(design, settings: DesignSettings, section: str):
+    if getattr(settings, section) is None and section in settings.refused:
+        raise _refused(design, section, settings.refused[section]) from None
+    return getattr(settings, section)
+
+
+def _laser_defaults(design, settings: DesignSettings) -> dict:
     """Scale, thickness and hole clearance from the laser settings."""
-    laser = design.fabrication.get("laser") if isinstance(design.fabrication, dict) else None
-    try:
-        s = laser_settings(laser if isinstance(laser, dict) else {},
-                           (settings or {}).get("laser") or {},
-                           network_size=float(design.network.size))
-    except FabricationError as exc:
-        raise TemplateError(design.path or design.name, "fabrication.laser", str(exc)) from None
+    s = _process_settings(design, settings, "laser")
     out = {"scale": float(s.scale), "thickness": float(s.thickness),
            "bar_width": float(s.bar_width)}
     screw = getattr(s, "screw", None)
@@ -242,12 +251,9 @@ def _laser_defaults(design, settings) -> dict:
     return out
 
 
-def _print_defaults(design, settings) -> dict:
+def _print_defaults(design, settings: DesignSettings) -> dict:
     """Scale, hinge length and the material's shrinkage from the print settings."""
-    try:
-        s = design_print_settings(design, settings)
-    except FabricationError as exc:
-        raise TemplateError(design.path or design.name, "fabrication.print", str(exc)) from None
+    s = _process_settings(design, settings, "print")
     mean, sd = SHRINKAGE.get(s.material, SHRINKAGE["PLA"])
     out = {"scale": float(s.scale), "hinge_length": float(s.hinge_length), "shrinkage": mean,
            "shrinkage_sigma": sd, "linkage": s.linkage, "material": s.material}
@@ -257,15 +263,13 @@ def _print_defaults(design, settings) -> dict:
     return out
 
 
-def _origami_defaults(design, settings) -> dict:
-    """Scale from the sheet size of the [fabrication.origami] table (150 mm when absent)."""
+def _origami_defaults(design, settings: DesignSettings) -> dict:
+    """Scale from the sheet size of the [fabrication.origami] settings, measured on the flat
+    sheet (150 mm over the network's extent when the template has no origami table)."""
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
         return {"scale": 150.0 / max(float(design.network.size), TINY)}
-    try:
-        return {"scale": float(origami_model(design, (settings or {}).get("origami")).scale)}
-    except FabricationError as exc:
-        raise TemplateError(design.path or design.name, "fabrication.origami", str(exc)) from None
+    return {"scale": float(_process_settings(design, settings, "origami").scale)}
 
 
 _DEFAULTS = {"laser": _laser_defaults, "print": _print_defaults, "origami": _origami_defaults}
@@ -273,14 +277,16 @@ _DEFAULTS = {"laser": _laser_defaults, "print": _print_defaults, "origami": _ori
 
 def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
     """The tolerance settings of a design: defaults < the process's settings (scale, sheet,
-    hinge, material) < the template's ``[fabrication.tolerance]`` table < ``settings
-    ["tolerance"]`` (command line) < ``overrides``.
+    hinge, material) < the template's ``[fabrication.tolerance]`` table < ``--set
+    tolerance.*`` (command line) < ``overrides``.
 
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Command-line overrides, nested by section (``{"tolerance": {"samples": 50}}``).
+    settings : DesignSettings or dict, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`);
+        command-line overrides nested by section (``{"tolerance": {"samples": 50}}``) are
+        resolved here.
     **overrides
         Final say on any field of :class:`ToleranceSpec`.
 
@@ -304,24 +310,22 @@ def tolerance_spec(design, settings=None, **overrides) -> ToleranceSpec:
     (20.0, 5, 'laser')
     """
     path = design.path or design.name
-    table = design.fabrication.get("tolerance", {}) if isinstance(design.fabrication, dict) else {}
-    cli = (settings or {}).get("tolerance", {})
-    sources = (("fabrication.tolerance", table), ("--set tolerance", cli),
-               ("tolerance option", overrides))
+    settings = design_settings(design, settings)
+    if settings.tolerance is None:
+        raise settings.refused["tolerance"]
+    try:  # types and ranges: the declared schema (fabkit.io.schema.ToleranceSection)
+        given = check_table(ToleranceSection, overrides, "tolerance option").given()
+    except SettingsError as exc:
+        raise TemplateError(path, exc.key, exc.reason) from None
+    checked = [*settings.tolerance.sources(), ("tolerance option", given)]
     process = design_process(design)
-    checked = []
-    for where, source in sources:
-        try:  # types and ranges: the declared schema (fabkit.io.schema.ToleranceSection)
-            given = check_table(ToleranceSection, source, where).given()
-        except SettingsError as exc:
-            raise TemplateError(path, exc.key, exc.reason) from None
-        if given.get("process") is not None:
-            process = given["process"]
-        checked.append((where, given))
+    for _, keys in checked:
+        if keys.get("process") is not None:
+            process = keys["process"]
     values: dict = {"process": process}
     values.update(_DEFAULTS[process](design, settings))
-    for where, given in checked:
-        for key, value in given.items():
+    for where, keys in checked:
+        for key, value in keys.items():
             if key == "process":
                 continue
             if _OWNER.get(key, process) != process:  # a setting that does not apply here

@@ -3,17 +3,16 @@ through the flat state (branch choice, relay of the drive along a chain of sheet
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import FabricationError, KinematicsError, PatternError, SettingsError
-from ...io.schema import check_section
-from ...io.workload import require
+from ...errors import FabricationError, KinematicsError, PatternError
 from ...kinematics import trace
 from ...kinematics.branching import analyze_bifurcation
 from ...model.network import Network
-from ...numerics import canonical_frame, FLAT_SHEET_RTOL, TINY
+from ...model.flat import flat_coords, point_diameter
+from ...settings.origami import design_where, origami_settings, OrigamiSettings
 from .pattern import ASSIGNMENTS, CreasePattern, fold_angles, network_from_pattern, planar_faces
 from .tracing import ChainFold, fold_key, KEY as FOLD_KEY, SheetFold
 
@@ -59,8 +58,8 @@ class OrigamiModel:
         The network's reference configuration is the flat sheet (a bifurcation).
     sheet_size : float
         Largest extent of one sheet's flat pattern, corner to corner (its diameter), mm.
-    settings : dict
-        The validated [fabrication.origami] table (with defaults).
+    settings : OrigamiSettings
+        The resolved [fabrication.origami] settings (with defaults and the sheet's scale).
     """
 
     name: str
@@ -72,13 +71,15 @@ class OrigamiModel:
     sheets: tuple
     flat_start: bool
     sheet_size: float
-    settings: dict = field(default_factory=dict)
+    settings: OrigamiSettings
 
     @property
     def scale(self) -> float:
         """mm per design unit: ``sheet_size`` over the largest sheet's extent corner to corner
-        (its flat pattern's diameter, the same however the sheet is drawn or turned)."""
-        return self.sheet_size / max(_diameter(s.pattern.vertices) for s in self.sheets)
+        (its flat pattern's diameter, the same however the sheet is drawn or turned); for the
+        model as read, the same number as the settings' :attr:`OrigamiSettings.scale
+        <fabkit.settings.origami.OrigamiSettings.scale>`."""
+        return self.sheet_size / max(point_diameter(s.pattern.vertices) for s in self.sheets)
 
     def pattern(self) -> CreasePattern:
         """The flat pattern of a single-sheet design."""
@@ -87,68 +88,25 @@ class OrigamiModel:
         return self.sheets[0].pattern
 
 
-def _diameter(points) -> float:
-    """Largest distance between two of the points (on their convex hull when there are many)."""
-    p = np.asarray(points, dtype=np.float64)
-    if p.shape[0] > 64:
-        from scipy.spatial import ConvexHull, QhullError
-
-        try:
-            p = p[ConvexHull(p).vertices]
-        except QhullError:  # all on one line
-            pass
-    diff = p[:, None, :] - p[None, :, :]
-    return float(np.sqrt((diff * diff).sum(axis=-1)).max())
-
-
-def _where(design) -> str:
-    """The template file (or the design's name) for error messages."""
-    return str(design.path) if getattr(design, "path", None) else design.name
-
-
 def _err(where, key, reason):
     return FabricationError(f"{where}: fabrication.origami.{key}: {reason}")
 
 
-def _table(design, overrides) -> dict:
-    fab = design.fabrication.get("origami") if isinstance(design.fabrication, dict) else None
-    if not isinstance(fab, dict):
-        raise FabricationError(f"{_where(design)}: the template has no [fabrication.origami] table")
-    merged = {**fab, **(overrides or {})}
-    try:
-        given = check_section("origami", merged).given()
-    except SettingsError as exc:  # name the template, as the other origami errors do
-        raise SettingsError(f"{_where(design)}: {exc.key}", exc.reason) from None
-    out = {"sheet_size": 150.0, "samples": 41, "branch": "assignment", "sign": None,
-           "spacing": "uniform", "step_off": 1e-3, **given}
-    return out
-
-
-def _flat_coords(x: np.ndarray, edges=None, tol: float = FLAT_SHEET_RTOL):
-    """2D coordinates of a planar node set (in its own plane), or None when it is not planar.
-
-    A sheet drawn in the xy plane keeps its coordinates and orientation; any other plane gets
-    the frame of its own bars (:func:`fabkit.numerics.canonical_frame`: x along the first bar),
-    so the pattern does not turn with the last bits of an eigenvector."""
-    c = x - x.mean(axis=0)
-    size = max(float(np.ptp(x, axis=0).max()), TINY)
-    normal = np.linalg.svd(c, full_matrices=False)[2][2]
-    if np.abs(c @ normal).max() > tol * size:
-        return None
-    if np.ptp(x[:, 2]) <= tol * size:
-        return x[:, :2].copy()  # already in the xy plane: keep its coordinates and orientation
-    frame = canonical_frame(x, edges if edges is not None else np.array([[0, 1]]))
-    return c @ frame[:2].T
-
-
-def origami_model(design, overrides=None) -> OrigamiModel:
-    """Read a design's [fabrication.origami] table into an :class:`OrigamiModel`.
+def origami_model(design, settings: OrigamiSettings | None = None) -> OrigamiModel:
+    """Read a design's [fabrication.origami] settings into an :class:`OrigamiModel`.
 
     Single sheet: the template's ``[network]`` is the flat sheet (3D, all nodes in one plane);
     ``assignment`` lists one of B/M/V/F/U/C per network edge; ``faces`` are found from the flat
     pattern when not given. Several sheets (a chain): ``sheet`` names the template of one sheet,
     ``sheets`` lists, per sheet, the network node of each of its vertices; assignment and faces
     come from the sheet template.
+
+    Parameters
+    ----------
+    design : Design
+    settings : OrigamiSettings, optional
+        The design's resolved origami settings (:func:`fabkit.settings.origami.origami_settings`);
+        resolved from the template alone when not given.
 
     Raises
     ------
@@ -160,26 +118,17 @@ def origami_model(design, overrides=None) -> OrigamiModel:
         Missing keys, a sheet that is not flat, faces that are not polygons of edges; the
         message names the key.
     """
-    s = _table(design, overrides)
+    s = origami_settings(design) if settings is None else settings
     net = design.network
-    name = design.name
-    where = _where(design)
-    # every sample of the folding is a configuration of the whole network
-    require(f"{where}: fabrication.origami.samples", ("origami sample node",
-                                                      s["samples"] * net.n_nodes))
-    if net.dim != 3:
-        raise FabricationError(f"{where}: origami needs a 3D network (nodes with x, y, z)")
-    if "sheets" in s:
+    where = design_where(design)
+    if s.chain:
         return _chain_model(design, s)
-    assignment = s.get("assignment")
-    if not isinstance(assignment, list) or len(assignment) != net.n_edges:
+    assignment = s.assignment
+    if assignment is None or len(assignment) != net.n_edges:
         raise _err(where, "assignment", f"must list one of {'/'.join(ASSIGNMENTS)} for each of "
                                         f"the {net.n_edges} network edges")
-    flat = _flat_coords(net.nodes, net.edges)
-    if flat is None:
-        raise FabricationError(f"{where}: the network of a single sheet must be given flat "
-                               "(all nodes in one plane)")
-    faces = s.get("faces")
+    flat = flat_coords(net.nodes, net.edges)  # flat: the settings' scale was measured on it
+    faces = s.faces
     if faces is None:
         faces = planar_faces(flat, net.edges)
     try:
@@ -187,31 +136,25 @@ def origami_model(design, overrides=None) -> OrigamiModel:
         full, info = network_from_pattern(cp, net.ports, net.labels)
     except PatternError as exc:
         raise _err(where, "faces" if exc.part == "faces" else "assignment", str(exc)) from None
-    return OrigamiModel(name, full if info["apex"] else net, net.n_nodes, cp.edges, cp.assignment,
-                        cp.faces, (Sheet(cp, np.arange(net.n_nodes)),), True,
-                        float(s["sheet_size"]), s)
+    return OrigamiModel(design.name, full if info["apex"] else net, net.n_nodes, cp.edges,
+                        cp.assignment, cp.faces, (Sheet(cp, np.arange(net.n_nodes)),), True,
+                        float(s.sheet_size), s)
 
 
-def _chain_model(design, s) -> OrigamiModel:
-    name = design.name
-    where = _where(design)
+def _chain_model(design, s: OrigamiSettings) -> OrigamiModel:
+    where = design_where(design)
     net = design.network
-    if "sheet" not in s or not isinstance(s["sheet"], str):
-        raise _err(where, "sheet", "a design with `sheets` needs `sheet`: the template of one sheet")
-    sheet_design = design.references.get("fabrication.origami.sheet")
-    if sheet_design is None:
-        raise _err(where, "sheet", "the sheet template was not loaded with the design (load the "
-                                   "design with fabkit.load_template)")
-    one = origami_model(sheet_design)
+    # the settings checked that the sheet template is there
+    one = origami_model(design.references["fabrication.origami.sheet"])
     if one.n_vertices != one.network.n_nodes:
         raise _err(where, "sheet", "chained sheets must have triangular panels")
     cp = one.pattern()
-    maps = s["sheets"]
-    if not isinstance(maps, list) or not maps:
+    maps = s.sheets
+    if not maps:
         raise _err(where, "sheets", "must be a non-empty array of node lists")
     sheets, edge_set, faces = [], {}, []
     for k, m in enumerate(maps):
-        if (not isinstance(m, list) or len(m) != cp.n_vertices
+        if (len(m) != cp.n_vertices
                 or any(isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < net.n_nodes
                        for i in m)):
             raise _err(where, f"sheets[{k}]", f"must list {cp.n_vertices} network nodes")
@@ -229,8 +172,8 @@ def _chain_model(design, s) -> OrigamiModel:
         raise _err(where, "sheets", f"the sheets' edges and the network's edges differ "
                                    f"(e.g. nodes {extra[0]}-{extra[1]})")
     edges = np.array(list(edge_set), dtype=np.int64)
-    return OrigamiModel(name, net, net.n_nodes, edges, tuple(edge_set.values()), tuple(faces),
-                        tuple(sheets), False, float(s["sheet_size"]), s)
+    return OrigamiModel(design.name, net, net.n_nodes, edges, tuple(edge_set.values()),
+                        tuple(faces), tuple(sheets), False, float(s.sheet_size), s)
 
 
 @dataclass(frozen=True, eq=False)
@@ -320,13 +263,13 @@ def fold_trace(model: OrigamiModel, samples=None) -> tuple[type, dict]:
         :class:`~fabkit.fab.creases.tracing.ChainFold`; and its options.
     """
     s = model.settings
-    samples = int(samples or s["samples"])
+    samples = int(samples or s.samples)
     if model.flat_start:
-        branch = None if s["branch"] == "assignment" else int(s["branch"])
+        branch = None if s.branch == "assignment" else int(s.branch)
         pattern = None if branch is not None else (model.assignment, model.edges, model.faces)
-        return SheetFold, {"samples": samples, "branch": branch, "sign": s["sign"],
-                           "step_off": float(s["step_off"]), "pattern": pattern}
-    return ChainFold, {"samples": samples, "spacing": s["spacing"], "relay": s.get("relay"),
+        return SheetFold, {"samples": samples, "branch": branch, "sign": s.sign,
+                           "step_off": float(s.step_off), "pattern": pattern}
+    return ChainFold, {"samples": samples, "spacing": s.spacing, "relay": s.relay,
                        "gauge": tuple(int(i) for i in model.faces[0][:3]), "name": model.name}
 
 

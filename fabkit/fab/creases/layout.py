@@ -459,7 +459,7 @@ def crease_layout(model, fold) -> CreaseLayout:
         return CreaseLayout(assignment, realised, targets, geom, table, realised, None, ({},), (),
                             (page,),
                             (float(w + 2 * MARGIN), float(h + 2 * MARGIN)))
-    media = medium(model.settings.get("medium"))
+    media = medium(model.settings.medium)
     drawn = upright(realised)
     numbers, joins = join_numbers(drawn)
     width = media.width - 2 * MARGIN

@@ -43,9 +43,11 @@ class Perforation:
     stop: float
 
     @classmethod
-    def from_settings(cls, settings: dict) -> "Perforation":
-        """From an origami settings table (its ``perforation_*`` keys, with the defaults)."""
-        s = {**PERFORATION, **{k: v for k, v in settings.items() if k in PERFORATION}}
+    def from_settings(cls, settings) -> "Perforation":
+        """From the resolved origami settings (:class:`~fabkit.settings.origami.OrigamiSettings`:
+        its ``perforation_*`` fields, the defaults where they are None)."""
+        values = {k: getattr(settings, k) for k in PERFORATION}
+        s = {k: PERFORATION[k] if v is None else v for k, v in values.items()}
         return cls(float(s["perforation_dash"]), float(s["perforation_gap"]),
                    float(s["perforation_stop"]))
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ...settings.design import design_settings
 from .folding import fold_model, fold_trace, FoldResult, OrigamiModel, origami_model
 from .layout import crease_layout, CreaseLayout
 
@@ -62,8 +63,10 @@ def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Overrides nested by section (``{"origami": {"samples": 41}}``).
+    settings : DesignSettings, optional
+        The design's settings, resolved once (:func:`fabkit.settings.design.design_settings`;
+        a dict of overrides nested by section, ``{"origami": {"samples": 41}}``, is resolved
+        here).
     motion : TracedMotion, optional
         The design's motion, traced once by the Motion stage: the fold is made of its trace
         when that is the trace the fold asks for (:func:`trace_needs`); else (a singular start,
@@ -79,7 +82,7 @@ def origami_plan(design, settings=None, motion=None) -> OrigamiPlan:
         No [fabrication.origami] table, bad settings, a folding the simulator cannot do, or a
         medium too small for a sheet of a chain with its labels and legend.
     """
-    model = origami_model(design, (settings or {}).get("origami"))
+    model = origami_model(design, design_settings(design, settings).require("origami"))
     traj = motion.trajectory if motion is not None and motion.traced else None
     fold = fold_model(model, design.motion.drive, design.motion.to, trajectory=traj)
     return OrigamiPlan(design, model, fold, crease_layout(model, fold))
@@ -92,8 +95,8 @@ def trace_needs(design, settings=None) -> dict:
     Parameters
     ----------
     design : Design
-    settings : dict, optional
-        Overrides nested by section.
+    settings : DesignSettings or dict, optional
+        The design's settings (a dict of overrides is resolved here).
 
     Returns
     -------
@@ -114,7 +117,7 @@ def trace_needs(design, settings=None) -> dict:
     m = design.motion
     if m.to is None or not m.drive or m.hold:
         return {}
-    model = origami_model(design, (settings or {}).get("origami"))
+    model = origami_model(design, design_settings(design, settings).require("origami"))
     if model.network is not design.network:
         return {}
     if m.method not in (("branch",) if model.flat_start else CONSTRUCTIVE):
