@@ -145,6 +145,12 @@ def test_dash_gap_and_stop_are_settings_and_short_creases_are_named(design, tmp_
     assert not (tmp_path / "c").exists()
 
 
+#: origami_chain12's sheet_size: each sheet 100 mm corner to corner
+SHEET_SIZE_MM = 100.0
+#: the SVG's coordinates carry 4 decimals (and the outline's corners are printed to 0.1 mm)
+ROUND_MM = 0.1
+
+
 def test_a_chain_of_sheets_is_cut_sheet_by_sheet(tmp_path):
     """The twelve sheets on pages of A4 (the default medium), each page's cut file the same
     sheets at the same places as its layout, and a thread hole at every joined corner, clear
@@ -173,6 +179,12 @@ def test_a_chain_of_sheets_is_cut_sheet_by_sheet(tmp_path):
         assert corners.min() >= 0 and corners[:, 0].max() <= 210 and corners[:, 1].max() <= 297
         sheets = [Polygon(np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", part)])
                           .reshape(-1, 2)) for part in d.split("Z") if part.strip()]
+        # every sheet cut at the size the template asks (sheet_size: corner to corner), however
+        # it is turned on the page (it was once drawn 1/sqrt(2) too small once turned upright)
+        for sh in sheets:
+            ring = np.asarray(sh.exterior.coords)
+            diameter = np.max(np.linalg.norm(ring[:, None] - ring[None], axis=-1))
+            assert diameter == pytest.approx(SHEET_SIZE_MM, abs=ROUND_MM)
         perf = np.concatenate([_cuts(layers[k].find(f"{SVG}path").get("d"))
                                for k in ("valley-perforations", "mountain-perforations")])
         for c in layers["join-holes"].findall(f"{SVG}circle"):

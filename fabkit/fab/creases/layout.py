@@ -397,9 +397,10 @@ def upright(model):
         if best is not None and best[0] < (1.0 - AREA_RTOL) * float(np.prod(np.ptp(v, axis=0))):
             pat = replace(pat, vertices=best[1])
         sheets.append(replace(sh, pattern=pat))
-    # the same mm per design unit: sheet_size is the larger side of the turned sheets' boxes
-    ext = max(float(np.ptp(sh.pattern.vertices, axis=0).max()) for sh in sheets)
-    return replace(model, sheets=tuple(sheets), sheet_size=model.scale * ext)
+    # the same mm per design unit: sheet_size is a sheet's diameter (corner to corner), which a
+    # turn in its plane keeps (it was once replaced by the turned box's side, so a square drawn
+    # as a diamond came out 1/sqrt(2) of the size its legend states)
+    return replace(model, sheets=tuple(sheets))
 
 
 def place(pattern, scale, dx, dy):
