@@ -197,7 +197,7 @@ def read_sweep_file(path) -> SweepFile | None:
     try:  # a FIFO or a device given as the template is refused here, never waited on
         raw = tomllib.loads(read_regular(path, MAX_FILE_BYTES).decode("utf-8"))
     except InputFileError as exc:
-        if exc.reason == "no such file" or not os.path.exists(path):
+        if exc.kind == "missing" or not os.path.exists(path):
             return None  # a bundled template's name: the template loader resolves it
         raise
     except BoundsError:
