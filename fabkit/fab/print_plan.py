@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
-from ..motion import motion_for, MotionStatus
+from ..motion import motion_for
+from ..status import Status
 from ..settings.printing import design_print_settings
 
 __all__ = ["PrintPlan", "print_plan", "hinge_motion"]
@@ -112,9 +113,9 @@ def hinge_motion(design, geo, motion) -> dict:
         return {"status": "no motion in the template"}
     traj = motion.trajectory
     if traj is None:
-        if motion.status is MotionStatus.NO_TARGET:
+        if motion.status is Status.NO_TARGET:
             return {"status": "no motion in the template"}
-        return {"status": f"motion not traced: {motion.error or motion.reason}"}
+        return {"status": f"motion not traced: {motion.error or motion.message}"}
     turn, strain = hinge_bending(geo, traj.positions)
     k = int(np.argmax(strain)) if strain.size else 0
     return {"status": str(traj.status),
