@@ -408,8 +408,8 @@ class MotionError(TemplateError):
     path, key, reason
         As for :class:`TemplateError`.
     status : str
-        How the trace ended (a :class:`fabkit.kinematics.Status` value, or ``"refused"`` when the
-        tracer raised before it started).
+        How the trace ended (a :class:`fabkit.status.Status` value of :data:`fabkit.status.TRACE`,
+        or ``"refused"`` when the tracer raised before it started).
     """
 
     code = "motion"

@@ -218,7 +218,7 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
             error = MotionError(path, builder,
                                 f"the network is rigid: it has no conformational motion "
                                 f"(modes: {modes.total} = {modes.rigid} rigid); remove an edge",
-                                status="refused")
+                                status=Status.REFUSED.value)
             return TracedMotion(design, Status.REFUSED, error.reason, error=error,
                                 window=window)
         singular = modes.self_stress > 0 and modes.conformational > 1
@@ -226,13 +226,13 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
     try:
         traj = design.trace(**overrides)
     except TypeError as exc:  # an unknown method option
-        error = MotionError(path, "motion.options", str(exc), status="refused")
+        error = MotionError(path, "motion.options", str(exc), status=Status.REFUSED.value)
         return TracedMotion(design, Status.REFUSED, error.reason, error=error,
                             window=window)
     except FabkitError as exc:
         key = nodes_key if singular else builder if several else "motion"
         cls = SingularStartError if singular else MotionError
-        error = cls(path, key, str(exc), status="refused")
+        error = cls(path, key, str(exc), status=Status.REFUSED.value)
         status = Status.SINGULAR_START if singular else Status.REFUSED
         return TracedMotion(design, status, error.reason, error=error, window=window)
     if traj.success:

@@ -253,7 +253,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
 def motion_facts(motion, formats) -> dict | None:
     """The ``motion`` part of report.json from the Motion stage's result."""
     if motion.status is Status.SINGULAR_START:
-        return {"status": "singular start", "message": motion.error.reason,
+        return {"status": Status.SINGULAR_START.value, "message": motion.error.reason,
                 "resolved_by": sorted(f for f, v in formats.items() if v.status.produced)}
     if not motion.traced:
         return None
