@@ -103,14 +103,15 @@ class DesignResult:
     name : str
         The design's name (its folder), or the file's stem when it did not load.
     status : Status
-        How its export ended, one of :data:`fabkit.status.EXPORT` (report.json's ``outcome``).
+        How its export ended, one of :data:`fabkit.status.EXPORT` (``outcome`` in report.json
+        and in :meth:`as_dict`).
     formats : dict of str to FormatResult
     files : int
         Files written into the folder (reports included).
     folder : str
         The design's folder, or ``""`` when nothing was written.
     message : str
-        One line when the status is not OK, else ``""`` (report.json's ``error``).
+        One line when the status is not OK, else ``""`` (``error`` in :meth:`as_dict`).
     error_code : str
         The stable code of the error (:attr:`fabkit.errors.FabkitError.code`), ``"check"`` for a
         failed as-built check, ``"internal"`` for a bug, ``""`` when OK.
