@@ -282,13 +282,23 @@ class InputFileError(FabkitError):
     ----------
     path : str
     reason : str
+    kind : str
+        What is wrong, for code that must tell the cases apart (never the message's text):
+        ``"missing"`` (no such file), ``"not_regular"`` (a folder, a FIFO, a device, a socket),
+        ``"loop"`` (a symbolic-link loop) or ``"unreadable"`` (anything else).
     """
 
     code = "input_file"
 
-    def __init__(self, path, reason: str):
+    #: Values of :attr:`kind`.
+    KINDS = ("missing", "not_regular", "loop", "unreadable")
+
+    def __init__(self, path, reason: str, kind: str = "unreadable"):
+        if kind not in self.KINDS:
+            raise ValueError(f"InputFileError kind must be one of {self.KINDS}, got {kind!r}")
         self.path = str(path)
         self.reason = reason
+        self.kind = kind
         super().__init__(f"{self.path}: {reason}")
 
 
@@ -398,8 +408,8 @@ class MotionError(TemplateError):
     path, key, reason
         As for :class:`TemplateError`.
     status : str
-        How the trace ended (a :class:`fabkit.kinematics.Status` value, or ``"refused"`` when the
-        tracer raised before it started).
+        How the trace ended (a :class:`fabkit.status.Status` value of :data:`fabkit.status.TRACE`,
+        or ``"refused"`` when the tracer raised before it started).
     """
 
     code = "motion"

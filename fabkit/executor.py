@@ -45,12 +45,12 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from enum import Enum
 from typing import Any, Callable, Iterable, Iterator
 
 from .errors import FabkitError, Interrupted, internal_error_line
+from .status import Status, TASK, expect
 
-__all__ = ["Task", "TaskEnd", "TaskError", "Ending", "LocalExecutor", "report", "overdue",
+__all__ = ["Task", "TaskEnd", "TaskError", "LocalExecutor", "report", "overdue",
            "heartbeat_interval", "die_with_parent", "blas_limits", "user_thread_variables",
            "HEARTBEAT", "SILENCE", "STARTUP", "GRACE", "THREAD_VARIABLES"]
 
@@ -106,17 +106,6 @@ class Task:
     timeout: float | None = None
 
 
-class Ending(str, Enum):
-    """How a task ended."""
-
-    DONE = "done"  #: it returned: :attr:`TaskEnd.value` is what it returned
-    RAISED = "raised"  #: it raised: :attr:`TaskEnd.value` is the exception
-    DIED = "died"  #: its worker ended while it ran (killed by the system, a crash)
-    TIMED_OUT = "timed_out"  #: it ran past its time limit; its worker was killed
-    SILENT = "silent"  #: its worker stopped answering; it was killed
-    NOT_STARTED = "not_started"  #: its worker did not start in time; it was killed
-
-
 @dataclass
 class TaskEnd:
     """The end of one task, as :meth:`LocalExecutor.run` reports it.
@@ -125,7 +114,11 @@ class TaskEnd:
     ----------
     index : int
         The task's position in the list given to :meth:`LocalExecutor.run`.
-    ending : Ending
+    status : Status
+        How it ended, one of :data:`fabkit.status.TASK`: ``DONE`` (it returned), ``RAISED``,
+        ``DIED`` (its worker ended while it ran), ``TIMED_OUT`` (past its time limit),
+        ``SILENT`` (its worker stopped answering), ``NOT_STARTED`` (its worker did not start in
+        time); the executor killed the worker of the last three.
     value : object
         What the task returned (``DONE``) or the exception it raised (``RAISED``); else None.
     exitcode : int or None
@@ -137,16 +130,32 @@ class TaskEnd:
     """
 
     index: int
-    ending: Ending
+    status: Status
     value: Any = None
     exitcode: int | None = None
     limit: float | None = None
     pid: int | None = None
 
+    def __post_init__(self):
+        self.status = expect(self.status, TASK, "a task")
+
     @property
     def stopped(self) -> bool:
         """True when the executor killed the worker for a limit."""
-        return self.ending in (Ending.TIMED_OUT, Ending.SILENT, Ending.NOT_STARTED)
+        return self.status in (Status.TIMED_OUT, Status.SILENT, Status.NOT_STARTED)
+
+    @property
+    def message(self) -> str:
+        """How the task ended, in one sentence."""
+        limit = "" if self.limit is None else f" of {self.limit:g} s"
+        return {
+            Status.DONE: "it returned",
+            Status.RAISED: f"it raised {type(self.value).__name__}: {self.value}",
+            Status.DIED: f"its worker ended while it ran (exit status {self.exitcode})",
+            Status.TIMED_OUT: f"it ran past its time limit{limit}; its worker was killed",
+            Status.SILENT: f"its worker stopped answering (limit{limit}); it was killed",
+            Status.NOT_STARTED: f"its worker did not start in time (limit{limit}); it was killed",
+        }[self.status]
 
 
 class TaskError(FabkitError):
@@ -178,7 +187,7 @@ def heartbeat_interval(silence: float | None) -> float:
 
 def overdue(now: float, *, born: float, heard: float | None, since: float | None,
             silence: float | None, timeout: float | None,
-            startup: float) -> tuple[Ending, float] | None:
+            startup: float) -> tuple[Status, float] | None:
     """Whether a worker holding a task is to be stopped at time ``now``, and why.
 
     A worker that has not said a word yet (``heard`` None) is starting, allowed ``startup``
@@ -189,16 +198,16 @@ def overdue(now: float, *, born: float, heard: float | None, since: float | None
 
     Returns
     -------
-    (Ending, float) or None
+    (Status, float) or None
         The ending (``NOT_STARTED``, ``SILENT`` or ``TIMED_OUT``) and the limit passed, or None
         while the worker is within its limits.
     """
     if heard is None:
-        return (Ending.NOT_STARTED, startup) if now - born > startup else None
+        return (Status.NOT_STARTED, startup) if now - born > startup else None
     if silence is not None and now - heard > silence:
-        return Ending.SILENT, silence
+        return Status.SILENT, silence
     if timeout is not None and since is not None and now - since > timeout:
-        return Ending.TIMED_OUT, timeout
+        return Status.TIMED_OUT, timeout
     return None
 
 
@@ -402,7 +411,7 @@ class _Worker:
         self.born = time.monotonic()  # when it was started
         self.heard: float | None = None  # when it last said anything (None: not a word yet)
         self.since: float | None = None  # when it took the task in hand (its "taken")
-        self.stopped: tuple[Ending, float] | None = None  # why the parent killed it
+        self.stopped: tuple[Status, float] | None = None  # why the parent killed it
 
 
 class LocalExecutor:
@@ -530,9 +539,9 @@ class LocalExecutor:
             if self.on_event is not None:
                 _to_parent = lambda payload, i=i: self.on_event(i, payload)  # noqa: E731
             try:
-                end = TaskEnd(i, Ending.DONE, t.func(*t.args, **t.kwargs))
+                end = TaskEnd(i, Status.DONE, t.func(*t.args, **t.kwargs))
             except Exception as exc:  # noqa: BLE001 - reported as this task's ending
-                end = TaskEnd(i, Ending.RAISED, exc)
+                end = TaskEnd(i, Status.RAISED, exc)
             finally:
                 _to_parent = None
             yield end
@@ -597,7 +606,7 @@ class LocalExecutor:
                 if i != w.task:  # pragma: no cover - every task is sent once
                     continue
                 w.task, w.since = None, None
-                ending = Ending.DONE if kind == "done" else Ending.RAISED
+                ending = Status.DONE if kind == "done" else Status.RAISED
                 ends.append(TaskEnd(i, ending, value, pid=w.proc.pid))
         except (EOFError, OSError):  # closed, or cut off mid-message by the worker's death
             return False
@@ -614,7 +623,7 @@ class LocalExecutor:
             ending, limit = w.stopped
             return TaskEnd(w.task, ending, exitcode=w.proc.exitcode, limit=limit,
                            pid=w.proc.pid)
-        return TaskEnd(w.task, Ending.DIED, exitcode=w.proc.exitcode, pid=w.proc.pid)
+        return TaskEnd(w.task, Status.DIED, exitcode=w.proc.exitcode, pid=w.proc.pid)
 
     # --- the end ---------------------------------------------------------------------------
 

@@ -557,7 +557,7 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
     except OSError as exc:
         if exc.errno == errno.ELOOP:
             raise InputFileError(path, "symbolic-link loop: the link never reaches a "
-                                       "file") from None
+                                       "file", kind="loop") from None
         raise TemplateError(path, "", f"cannot read: {exc.strerror}") from None
     if stat.S_ISDIR(st.st_mode):
         raise TemplateError(path, "", "is a folder, not a template file")
@@ -565,7 +565,8 @@ def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Desig
         kind = ("a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else
                 "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
                 "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
-        raise InputFileError(path, f"is {kind}, not a template file: refused")
+        raise InputFileError(path, f"is {kind}, not a template file: refused",
+                             kind="not_regular")
     if st.st_size > MAX_FILE_BYTES and not allow_large():
         raise BoundsError(str(path), "bytes", st.st_size, MAX_FILE_BYTES,
                           "fabkit --allow-large")

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from fabkit.pipeline import FAULT_ENV, Outcome, Stage, exit_code, export_many
+from fabkit.pipeline import FAULT_ENV, Stage, Status, exit_code, export_many
 from fabkit.cli import main
 from fabkit.templates import bundled_folder
 
@@ -82,15 +82,15 @@ def test_a_worker_dying_at_any_moment_fails_only_its_design(tmp_path, lengths, m
     by_name = {r.name: r for r in results}
     assert [r.name for r in results] == DESIGNS  # every design reported, in input order
     dead = by_name[VICTIM]
-    assert dead.outcome is Outcome.FAILED and dead.error_code == "worker"
+    assert dead.status is Status.FAILED and dead.error_code == "worker"
     assert dead.worker_exit == status and dead.folder == "" and dead.files == 0
     how = f"exit code {status}" if status > 0 else \
         f"signal {-status}, {signal.Signals(-status).name}"
-    assert dead.error == (f"{TEMPLATES / (VICTIM + '.toml')}: worker died ({how}) while "
+    assert dead.message == (f"{TEMPLATES / (VICTIM + '.toml')}: worker died ({how}) while "
                           f"exporting {VICTIM}; nothing of it was written")
     for name in DESIGNS:
         if name != VICTIM:
-            assert by_name[name].outcome is Outcome.OK and by_name[name].worker_exit is None
+            assert by_name[name].status is Status.OK and by_name[name].worker_exit is None
     assert exit_code(results) == 1
     files = _files(out)
     # no folder, no staging folder, no lock, no temporary file of the victim
@@ -124,11 +124,11 @@ def test_a_worker_that_stops_answering_fails_only_its_design(tmp_path, lengths, 
                           exporters=lengths, previews=False, tolerance_samples=0, **limits)
     by_name = {r.name: r for r in results}
     stuck = by_name[VICTIM]
-    assert stuck.outcome is Outcome.FAILED and stuck.error_code == "timeout"
-    assert stuck.error == (f"{TEMPLATES / (VICTIM + '.toml')}: {words}, and was stopped; "
+    assert stuck.status is Status.FAILED and stuck.error_code == "timeout"
+    assert stuck.message == (f"{TEMPLATES / (VICTIM + '.toml')}: {words}, and was stopped; "
                            f"nothing of {VICTIM} was written")
     assert stuck.worker_exit == -signal.SIGKILL
-    assert all(by_name[n].outcome is Outcome.OK for n in DESIGNS if n != VICTIM)
+    assert all(by_name[n].status is Status.OK for n in DESIGNS if n != VICTIM)
     assert exit_code(results) == 1
     assert not any(VICTIM in k for k in _files(out))
     assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []
@@ -137,13 +137,13 @@ def test_a_worker_that_stops_answering_fails_only_its_design(tmp_path, lengths, 
 def test_a_dead_worker_leaves_the_previous_export_untouched(tmp_path, lengths, monkeypatch):
     out = tmp_path / "out"
     first = _export(out, lengths)
-    assert [r.outcome for r in first] == [Outcome.OK] * 3
+    assert [r.status for r in first] == [Status.OK] * 3
     before = _files(out / VICTIM)
     assert f"{VICTIM}_lengths.txt" in before
     # the second export of the victim is complete in its staging folder when its worker dies
     monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@done")
     second = _export(out, lengths)
-    assert [r.outcome for r in second] == [Outcome.OK, Outcome.FAILED, Outcome.OK]
+    assert [r.status for r in second] == [Status.OK, Status.FAILED, Status.OK]
     assert _files(out / VICTIM) == before
     assert sorted(p.name for p in out.iterdir()) == sorted(DESIGNS + ["index.html"])
 
@@ -169,10 +169,10 @@ def test_the_command_line_reports_the_death_and_exits_1(tmp_path, lengths, monke
 
 def test_a_fault_for_another_design_or_moment_changes_nothing(tmp_path, lengths, monkeypatch):
     monkeypatch.setenv(FAULT_ENV, "no_such_design@taken")
-    assert [r.outcome for r in _export(tmp_path / "a", lengths)] == [Outcome.OK] * 3
+    assert [r.status for r in _export(tmp_path / "a", lengths)] == [Status.OK] * 3
     monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@no_such_moment")
     results = _export(tmp_path / "b", lengths)
-    assert [r.outcome for r in results] == [Outcome.OK] * 3 and exit_code(results) == 0
+    assert [r.status for r in results] == [Status.OK] * 3 and exit_code(results) == 0
 
 
 def test_the_limits_judge_the_worker_not_the_machine():
@@ -215,11 +215,11 @@ def test_export_many_takes_bare_names_like_the_command_line(tmp_path, monkeypatc
     results = export_many(["fourbar", "mine", "super_stabel"], ["dxf"], tmp_path / "out",
                           check=False, isolate=False)
     assert [r.name for r in results] == ["fourbar", "mine", "super_stabel"]
-    assert [r.outcome for r in results[:2]] == [Outcome.OK, Outcome.OK]
+    assert [r.status for r in results[:2]] == [Status.OK, Status.OK]
     assert Path(results[0].path) == bundled_folder() / "fourbar.toml"
     assert Path(results[1].path).resolve() == own.resolve()
-    assert "no such file, nor a bundled template" in results[2].error
-    assert "did you mean 'super_stable'?" in results[2].error
+    assert "no such file, nor a bundled template" in results[2].message
+    assert "did you mean 'super_stable'?" in results[2].message
     assert (tmp_path / "out" / "fourbar" / "laser_sheet1.dxf").is_file()
     assert (tmp_path / "out" / "mine" / "laser_sheet1.dxf").is_file()
     assert not (tmp_path / "out" / "super_stabel").exists()

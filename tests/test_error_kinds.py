@@ -9,6 +9,7 @@ type is a TypeError, a number out of range a ValueError) reads that, not ``reaso
 from __future__ import annotations
 
 import ast
+import os
 from pathlib import Path
 
 import pytest
@@ -24,22 +25,34 @@ ROOT = Path(fabkit.__file__).parent
 TEXT = {"reason", "message", "args", "msg"}
 
 
+def _is_error_text(node) -> bool:
+    """``x.reason`` / ``x.message`` / ``x.args`` / ``x.msg`` (or one of its items), or
+    ``str(exc)``."""
+    if isinstance(node, ast.Subscript):
+        node = node.value
+    if isinstance(node, ast.Attribute) and node.attr in TEXT:
+        return True
+    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            and node.func.id == "str" and bool(node.args) and isinstance(node.args[0], ast.Name)
+            and node.args[0].id in ("exc", "e", "err", "error"))
+
+
 def _reads_error_text(tree) -> list[int]:
-    """Lines of ``"..." in exc.reason`` / ``in str(exc)`` comparisons."""
+    """Lines that decide on an error's words: ``"..." in exc.reason``, ``exc.reason == "..."``,
+    ``str(exc).startswith("...")``, ``re.search(..., exc.message)``."""
     found = []
     for node in ast.walk(tree):
-        if not isinstance(node, ast.Compare) or not any(isinstance(o, (ast.In, ast.NotIn))
-                                                          for o in node.ops):
-            continue
-        if not isinstance(node.left, ast.Constant) or not isinstance(node.left.value, str):
-            continue
-        for right in node.comparators:
-            text_attr = isinstance(right, ast.Attribute) and right.attr in TEXT
-            str_call = (isinstance(right, ast.Call) and isinstance(right.func, ast.Name)
-                        and right.func.id == "str" and right.args
-                        and isinstance(right.args[0], ast.Name)
-                        and right.args[0].id in ("exc", "e", "err", "error"))
-            if text_attr or str_call:
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            words = any(isinstance(s, ast.Constant) and isinstance(s.value, str) for s in sides)
+            if words and any(_is_error_text(s) for s in sides):
+                found.append(node.lineno)
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+            f = node.func
+            if f.attr in ("startswith", "endswith", "find", "count") and _is_error_text(f.value):
+                found.append(node.lineno)
+            elif (isinstance(f.value, ast.Name) and f.value.id == "re"
+                  and any(_is_error_text(a) for a in node.args)):
                 found.append(node.lineno)
     return found
 
@@ -48,6 +61,11 @@ def test_the_walk_finds_a_decision_on_text():
     tree = ast.parse('try:\n    f()\nexcept E as exc:\n    if "unknown option" in exc.reason:'
                      '\n        pass\n    if "x" in str(exc):\n        pass\n')
     assert _reads_error_text(tree) == [4, 6]
+    more = ast.parse('if exc.reason == "no such file":\n    pass\n'
+                     'if str(exc).startswith("turning"):\n    pass\n'
+                     'if re.search("kerf", exc.args[0]):\n    pass\n'
+                     'if exc.kind == "missing":\n    pass\n')
+    assert _reads_error_text(more) == [1, 3, 5]
 
 
 def test_no_code_reads_an_errors_text():
@@ -99,3 +117,18 @@ def test_a_method_option_is_refused_by_its_kind(value, error, monkeypatch):
 
 def test_an_undeclared_option_is_the_methods_own():
     assert check_option("projected", "plan", object()) is None
+
+
+def test_an_input_file_error_says_its_kind(tmp_path):
+    from fabkit.errors import InputFileError
+    from fabkit.io.inputs import read_regular
+
+    with pytest.raises(InputFileError) as missing:
+        read_regular(tmp_path / "nothing.toml", 100)
+    os.mkfifo(tmp_path / "pipe")
+    with pytest.raises(InputFileError) as fifo:
+        read_regular(tmp_path / "pipe", 100)
+    assert (missing.value.kind, fifo.value.kind) == ("missing", "not_regular")
+    with pytest.raises(ValueError):
+        InputFileError("a.toml", "gone", kind="vanished")
+

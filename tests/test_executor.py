@@ -20,8 +20,9 @@ from pathlib import Path
 import pytest
 
 from fabkit.errors import FabkitError
-from fabkit.executor import (Ending, LocalExecutor, Task, TaskError, THREAD_VARIABLES,
+from fabkit.executor import (LocalExecutor, Task, TaskError, THREAD_VARIABLES,
                              blas_limits, user_thread_variables)
+from fabkit.status import Status
 from fabkit.sweep import make_spec
 from fabkit.sweep.chunks import run_chunk
 
@@ -108,7 +109,7 @@ def test_two_workers_give_the_serial_results():
     tasks = [Task(run_chunk, (payload, c)) for c in chunks]
     with LocalExecutor(2) as pool:
         ends = _ends(pool, tasks)
-    assert [ends[i].ending for i in range(4)] == [Ending.DONE] * 4
+    assert [ends[i].status for i in range(4)] == [Status.DONE] * 4
     assert [ends[i].value["records"] for i in range(4)] == serial
     pids = {e.pid for e in ends.values()}
     assert len(pids) == 2 and os.getpid() not in pids  # two worker processes did the work
@@ -126,7 +127,7 @@ def test_a_task_past_its_time_limit_is_stopped_and_its_worker_is_gone():
     with LocalExecutor(1) as pool:
         ends = _ends(pool, tasks)
     stuck = ends[0]
-    assert stuck.ending is Ending.TIMED_OUT and stuck.stopped
+    assert stuck.status is Status.TIMED_OUT and stuck.stopped
     assert stuck.limit == 1.0 and stuck.exitcode == -signal.SIGKILL and stuck.value is None
     assert not _alive(stuck.pid)
     assert [ends[i].value for i in (1, 2, 3)] == [6, 24, 120]
@@ -140,11 +141,11 @@ def test_an_exception_ends_its_task_only(helpers):
     with LocalExecutor(2) as pool:
         ends = _ends(pool, tasks)
     assert (ends[0].value, ends[4].value) == (6, 24)
-    assert ends[1].ending is Ending.RAISED and isinstance(ends[1].value, ValueError)
+    assert ends[1].status is Status.RAISED and isinstance(ends[1].value, ValueError)
     assert str(ends[1].value) == "math domain error"
     # an exception that cannot be rebuilt here, a result that cannot be sent: one line each
     for i, what in ((2, "StepLimitError: a step: ran too long"), (3, "pickle")):
-        assert ends[i].ending is Ending.RAISED and isinstance(ends[i].value, TaskError)
+        assert ends[i].status is Status.RAISED and isinstance(ends[i].value, TaskError)
         assert isinstance(ends[i].value, FabkitError) and what in str(ends[i].value)
         assert str(ends[i].value).startswith("internal error")
     # the same in this process: the exception itself
@@ -158,9 +159,9 @@ def test_a_dead_or_silent_worker_ends_its_task_only(helpers):
              Task(math.factorial, (6,))]
     with LocalExecutor(2, silence=3.0) as pool:
         ends = _ends(pool, tasks)
-    assert ends[0].ending is Ending.DIED and ends[0].exitcode == -signal.SIGKILL
+    assert ends[0].status is Status.DIED and ends[0].exitcode == -signal.SIGKILL
     assert not ends[0].stopped and ends[0].limit is None
-    assert ends[1].ending is Ending.SILENT and ends[1].limit == 3.0 and ends[1].stopped
+    assert ends[1].status is Status.SILENT and ends[1].limit == 3.0 and ends[1].stopped
     assert ends[1].exitcode == -signal.SIGKILL and not _alive(ends[1].pid)
     assert (ends[2].value, ends[3].value) == (120, 720)
 
@@ -186,7 +187,7 @@ def test_leaving_the_run_early_stops_the_workers():
         for end in pool.run(tasks):
             workers = pool.pids
             break
-    assert end.ending is Ending.DONE and end.value in workers and len(workers) == 2
+    assert end.status is Status.DONE and end.value in workers and len(workers) == 2
     assert pool.pids == [] and _wait_dead(workers, 10) == []
 
 
@@ -209,7 +210,7 @@ def _worker_blas_threads(jobs: int, **kwargs) -> list[int]:
 
     with LocalExecutor(jobs, **kwargs) as pool:
         (end,) = pool.run([Task(threadpoolctl.threadpool_info)])
-    assert end.ending is Ending.DONE and end.pid not in (None, os.getpid()), end
+    assert end.status is Status.DONE and end.pid not in (None, os.getpid()), end
     blas = [lib["num_threads"] for lib in end.value if lib["user_api"] == "blas"]
     assert blas, end.value  # numpy's BLAS is loaded in every worker (fabkit imports numpy)
     return blas

@@ -17,7 +17,7 @@ import pytest
 
 import fabkit.export
 from fabkit.cli import main
-from fabkit.pipeline import Outcome, export_many
+from fabkit.pipeline import Status, export_many
 from fabkit.commands.export import parse_formats
 from fabkit.commands.settings import parse_settings
 from fabkit.errors import UsageError
@@ -294,7 +294,7 @@ RUNNER = textwrap.dedent('''
     os.fdopen = fdopen
     rows = export_many([sys.argv[5]], None, sys.argv[1], {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    print(rows[0].outcome, rows[0].error)
+    print(rows[0].status, rows[0].message)
 ''')
 
 
@@ -345,7 +345,7 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     template = TEMPLATES / "fourbar.toml"
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
-    assert rows[0].ok, rows[0].error
+    assert rows[0].ok, rows[0].message
     reference = snapshot(out)
 
     real_fdopen = os.fdopen
@@ -376,9 +376,9 @@ def test_a_writer_that_raises_midway_leaves_no_partial_file(tmp_path, lengths_fo
     rows = export_many([template], None, out, {}, isolate=False, tolerance_samples=20,
                        previews=False)
     monkeypatch.undo()
-    assert rows[0].outcome is Outcome.FAILED and rows[0].error_code == "output"
-    assert "cannot write the export" in rows[0].error
-    assert "No space left on device" in rows[0].error
+    assert rows[0].status is Status.FAILED and rows[0].error_code == "output"
+    assert "cannot write the export" in rows[0].message
+    assert "No space left on device" in rows[0].message
     assert snapshot(out) == reference  # nothing half-written, staging removed, old export intact
 
 
@@ -456,8 +456,8 @@ def test_export_progress_is_the_commands_progress_one_line_per_stage():
     progress.stage("2 designs into out, 1 at a time", total=2, unit="designs")
     bar = DesignProgress(progress)
     bar.stage("a", Stage.MOTION)
-    bar.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
-    bar.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    bar.finished(DesignResult("a.toml", "a", Status.OK, seconds=1.25))
+    bar.finished(DesignResult("b.toml", "b", Status.FAILED, seconds=0.5))
     bar.close()
     lines = stream.getvalue().splitlines()
     assert lines[0] == "fabkit export [0/2 designs, 0.0 s] 2 designs into out, 1 at a time"
@@ -488,9 +488,9 @@ def test_progress_counts_the_stages_of_the_one_design_in_hand():
     said.stage("a", Stage.MOTION)
     said.stage("a", Stage.CHECK)
     said.stage("b", Stage.LOAD)  # b starts beside a: stages are said, not counted
-    said.finished(DesignResult("a.toml", "a", Outcome.OK, seconds=1.25))
+    said.finished(DesignResult("a.toml", "a", Status.OK, seconds=1.25))
     said.stage("b", Stage.MOTION)  # b alone again: counted
-    said.finished(DesignResult("b.toml", "b", Outcome.FAILED, seconds=0.5))
+    said.finished(DesignResult("b.toml", "b", Status.FAILED, seconds=0.5))
     lines = stream.getvalue().splitlines()
     assert lines == [
         "fabkit export [0/2 designs, 0.0 s] 2 designs",

@@ -172,7 +172,7 @@ def test_the_library_batch_adds_formats_too(fourbar, tmp_path):
     out = tmp_path / "out"
     first = export_many([fourbar], ["dxf"], out, isolate=False, tolerance_samples=0,
                         previews=False)
-    assert first[0].ok, first[0].error
+    assert first[0].ok, first[0].message
     second = export_many([fourbar], ["stl"], out, isolate=False, tolerance_samples=0,
                          previews=False)
     assert second[0].ok and second[0].exported_formats == ["dxf", "stl"]
@@ -184,13 +184,13 @@ def test_export_many_takes_bundled_names_and_suggests_for_misspelt_ones(tmp_path
     monkeypatch.chdir(tmp_path)  # no file of those names here: the bundled templates are meant
     rows = export_many(["fourbar", "super_stabel", "fourbar_chian"], ["dxf"], "out",
                        isolate=False, tolerance_samples=0, previews=False)
-    assert rows[0].ok, rows[0].error
+    assert rows[0].ok, rows[0].message
     assert Path(rows[0].path) == TEMPLATES / "fourbar.toml"
     assert (tmp_path / "out" / "fourbar" / "laser_sheet1.dxf").is_file()
-    assert [r.outcome.value for r in rows[1:]] == ["failed", "failed"]
-    assert rows[1].error == ("super_stabel: no such file, nor a bundled template of that name "
-                             "(fabkit templates lists them); did you mean 'super_stable'?")
-    assert rows[2].error.endswith("did you mean 'fourbar_chain'?")
+    assert [r.status.value for r in rows[1:]] == ["failed", "failed"]
+    assert rows[1].message == ("super_stabel: no such file, nor a bundled template of that name "
+                               "(fabkit templates lists them); did you mean 'super_stable'?")
+    assert rows[2].message.endswith("did you mean 'fourbar_chain'?")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["fourbar", "index.html"]
     # a file of that name in the current folder wins over the bundled one, as on the command line
     own = (TEMPLATES / "fourbar.toml").read_text().replace('name = "fourbar"',

@@ -64,14 +64,14 @@ def test_the_batch_does_not_swap_a_folder_a_library_export_holds(tmp_path, fourb
         [result] = export_many(["fourbar"], ["dxf"], out, check=False, isolate=isolate,
                                previews=False, tolerance_samples=0)
     assert not result.ok
-    assert "is writing into this folder (it holds its .fabkit.lock)" in result.error
-    assert "nothing was swapped in" in result.error
+    assert "is writing into this folder (it holds its .fabkit.lock)" in result.message
+    assert "nothing was swapped in" in result.message
     assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
     assert sorted(p.name for p in out.iterdir()) == ["fourbar"]  # no staging folder left
     # once it has finished, the batch's export replaces the kit and keeps the other file
     [result] = export_many(["fourbar"], ["dxf"], out, check=False, isolate=isolate,
                            previews=False, tolerance_samples=0)
-    assert result.ok, result.error
+    assert result.ok, result.message
     assert (folder / "notes.txt").read_text() == "mine"
     assert (folder / "report.json").is_file()
     assert not (folder / LOCK_NAME).exists()

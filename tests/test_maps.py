@@ -371,6 +371,10 @@ def test_branches_record_where_the_walk_entered_them():
         # entered at a turning point: an end of both the branch and the one walked from
         assert br.entered_at in (came.lo, came.hi)
         assert min(abs(br.lo - br.entered_at), abs(br.hi - br.entered_at)) < 1e-9
+        # and both say so as a flag, not only in words
+        assert came.turning[(came.lo, came.hi).index(br.entered_at)] is True
+        side = 0 if abs(br.lo - br.entered_at) < abs(br.hi - br.entered_at) else 1
+        assert br.turning[side] is True and br.ends[side].startswith("turning point")
         # at that turning point the two branches meet in one configuration
         a = f.on_branch(came.index).configuration(br.entered_at)
         b = f.on_branch(br.index).configuration(min(max(br.entered_at, br.lo), br.hi))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.kinematics import METHODS, EventKind, Mark, Method, Outcome, Status
+from fabkit.kinematics import METHODS, EventKind, Mark, Method, Solved, Status
 from fabkit.kinematics.trajectory import Event
 
 from conftest import module_network
@@ -46,10 +46,10 @@ class _ThreeSteps(Method):
     name = "three-steps"
     options = {"offset": 0.0}
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         x = self.problem.start
         moved = np.stack([x, x + 1.0 + self.opts["offset"], x + 2.0])  # rigid shifts
-        return Outcome(moved, Status.TURNING_POINT, "stopped on purpose",
+        return Solved(moved, Status.TURNING_POINT, "stopped on purpose",
                        (Mark(EventKind.TURNING_POINT, 99, "past the end"),), {"steps": 2})
 
 

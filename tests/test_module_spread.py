@@ -18,7 +18,8 @@ import pytest
 
 import fabkit
 from fabkit.cli import main
-from fabkit.motion import MotionStatus, trace_motion
+from fabkit.motion import trace_motion
+from fabkit.status import Status
 from fabkit.motion.spread import chain_of, module_spread
 
 from conftest import TEMPLATES
@@ -67,8 +68,8 @@ def test_a_shape_that_stays_local_is_not_the_shape(capsys, tmp_path):
     path.write_text(text.replace("[motion]\n", '[motion]\nintent = "shape"\n', 1))
     design = fabkit.load_template(path)
     motion = trace_motion(design)
-    assert motion.status is MotionStatus.ENDS_MISSED
-    assert "its intent is a shape" in motion.reason
+    assert motion.status is Status.ENDS_MISSED
+    assert "its intent is a shape" in motion.message
     assert main(["simulate", str(path), "-o", str(tmp_path / "out")]) == 1
     cap = capsys.readouterr()
     assert "status        shape missed" in cap.out

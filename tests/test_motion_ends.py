@@ -10,7 +10,8 @@ import json
 import pytest
 
 from fabkit.cli import main
-from fabkit.motion import MotionStatus, trace_motion
+from fabkit.motion import trace_motion
+from fabkit.status import Status
 from fabkit.templates import load_template
 
 from conftest import TEMPLATES
@@ -48,7 +49,7 @@ def _two_cycle(tmp_path, to: float, ends: str | None = None):
 
 def test_a_chain_driven_past_the_turning_point_of_its_map_names_the_modules_that_missed(tmp_path):
     motion = trace_motion(load_template(_two_cycle(tmp_path, 0.76)))
-    assert motion.status is MotionStatus.ENDS_MISSED and motion.status is not MotionStatus.FINISHED
+    assert motion.status is Status.ENDS_MISSED and motion.status is not Status.FINISHED
     assert motion.traced  # the trace reached d1 = 0.76: usable, but the design did not happen
     assert motion.require() is motion.trajectory
     ends = motion.ends
@@ -69,7 +70,7 @@ def test_a_chain_driven_past_the_turning_point_of_its_map_names_the_modules_that
 
 def test_the_same_chain_driven_to_its_designed_end_reaches_every_end(tmp_path):
     motion = trace_motion(load_template(_two_cycle(tmp_path, D1O)))
-    assert motion.status is MotionStatus.FINISHED and motion.ends.reached
+    assert motion.status is Status.FINISHED and motion.ends.reached
     assert [round(p.end, 4) for p in motion.ends.ports] == [round(D2O, 4), round(D1O, 4),
                                                            round(D2O, 4)]
     assert motion.line() == ("reached d1 = 0.8827949196; every designed end reached (stated in "
@@ -91,18 +92,18 @@ to = 2.05
 ends = {{ d2 = 1.5, d3 = 1.5, d4 = 1.5, d5 = 1.5 }}
 """)
     motion = trace_motion(load_template(path))
-    assert motion.status is MotionStatus.ENDS_MISSED
+    assert motion.status is Status.ENDS_MISSED
     assert motion.ends.missed == ("d2", "d3", "d4", "d5")
     assert [p.motion for p in motion.ends.ports] == ["short", "stayed", "stayed", "stayed"]
     assert ("d2–d5 (modules 1–4) did not reach their designed end: d2 ended away from it; "
-            "d3–d5 never left their start") in motion.reason
+            "d3–d5 never left their start") in motion.message
     # why d2 is short: on its branch, d1 would have to go on to about 2.094
-    assert "its designed 1.5 needs d1 near 2.09" in motion.reason
+    assert "its designed 1.5 needs d1 near 2.09" in motion.message
 
 
 def test_a_chain_that_collapses_to_its_crystal_reaches_the_ends_it_implies():
     motion = trace_motion(load_template(TEMPLATES / "super_stable_chain8.toml"))
-    assert motion.status is MotionStatus.FINISHED
+    assert motion.status is Status.FINISHED
     ends = motion.ends
     assert ends.source == "implied" and ends.reached and ends.judged_at == "lock"
     assert len(ends.ports) == 8  # every module's input port d1 ... d8 at D2*

@@ -61,7 +61,7 @@ def test_an_export_traces_each_motion_window_once(monkeypatch, tmp_path, name, w
     designs, own = _count_traces(monkeypatch, path)
     res = export_one(path, None, tmp_path, {}, check=True, tolerance_samples=10,
                      previews=False)
-    assert res.ok, res.error
+    assert res.ok, res.message
     assert {"dxf", "stl"} <= set(res.exported_formats)
     assert sorted(designs) == windows
     # every call of the tracer on the design's own network outside the checks is one of those
@@ -115,7 +115,7 @@ def test_every_origami_format_is_written_from_one_fold(monkeypatch, tmp_path):
     monkeypatch.setattr(origami, "fold_model", fold_model)
     res = export_one(TEMPLATES / "origami_sheet.toml", ["svg", "fold", "cp"], tmp_path, {},
                      check=False, tolerance_samples=0, previews=False)
-    assert res.ok, res.error
+    assert res.ok, res.message
     assert set(res.exported_formats) == {"svg", "fold", "cp"}
     assert folds == ["origami_sheet"]
 
@@ -288,5 +288,5 @@ def test_the_and_gate_laser_kit_is_planned_along_the_one_trace(monkeypatch, tmp_
     designs, own = _count_traces(monkeypatch, path)
     res = export_one(path, ["dxf"], tmp_path, {}, check=False, tolerance_samples=0,
                      previews=False)
-    assert res.ok, res.error
+    assert res.ok, res.message
     assert len(designs) == 1 and len(own) == 1

@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from fabkit.pipeline import FormatStatus, Outcome, export_many
+from fabkit.pipeline import Status, export_many
 from fabkit.cli import main
 
 from conftest import TEMPLATES
@@ -70,13 +70,13 @@ def test_a_format_not_installed_is_refused_when_asked(tmp_path):
     registry = {"dxf": "fabkit.export.dxf", "gcode": "fabkit.export.no_such_module"}
     [res] = export_many([TEMPLATES / "fourbar.toml"], ["gcode"], tmp_path, jobs=1,
                         isolate=False, tolerance_samples=0, previews=False, exporters=registry)
-    assert res.outcome is Outcome.REFUSED and not res.ok and res.error_code == "refused"
-    assert res.formats["gcode"].status is FormatStatus.REFUSED
-    assert "no_such_module" in res.formats["gcode"].detail
+    assert res.status is Status.REFUSED and not res.ok and res.error_code == "refused"
+    assert res.formats["gcode"].status is Status.REFUSED
+    assert "no_such_module" in res.formats["gcode"].message
     [res] = export_many([TEMPLATES / "fourbar.toml"], None, tmp_path / "all", jobs=1,
                         isolate=False, tolerance_samples=0, previews=False, exporters=registry)
-    assert res.ok and res.formats["gcode"].status is FormatStatus.NOT_AVAILABLE
-    assert res.formats["dxf"].status is FormatStatus.EXPORTED
+    assert res.ok and res.formats["gcode"].status is Status.NOT_AVAILABLE
+    assert res.formats["dxf"].status is Status.EXPORTED
 
 
 def test_one_format_refused_among_several_still_writes_the_others(tmp_path, capsys):

@@ -12,14 +12,14 @@ import fabkit.pipeline
 from fabkit.cli import main
 from fabkit.commands.export import DesignProgress
 from fabkit.io.progress import Progress
-from fabkit.pipeline import DesignResult, exit_code, Outcome, summary_table
+from fabkit.pipeline import DesignResult, exit_code, Status, summary_table
 
 
-def _result(name: str, outcome: Outcome = Outcome.OK, level: str = "", headline: str = ""):
-    folder = f"out/{name}" if outcome is Outcome.OK else ""
-    error = "" if outcome is Outcome.OK else f"{name}.toml: network: cannot be read"
+def _result(name: str, outcome: Status = Status.OK, level: str = "", headline: str = ""):
+    folder = f"out/{name}" if outcome is Status.OK else ""
+    error = "" if outcome is Status.OK else f"{name}.toml: network: cannot be read"
     return DesignResult(f"{name}.toml", name, outcome, files=5 if folder else 0, folder=folder,
-                        error=error, seconds=1.0, level=level, headline=headline)
+                        message=error, seconds=1.0, level=level, headline=headline)
 
 
 def _rows(table: str) -> dict:
@@ -40,7 +40,7 @@ def test_a_flagged_design_shows_its_verdict_in_the_summary_row():
 
 
 def test_a_passing_design_shows_ok_and_a_failed_one_its_outcome():
-    failed = _result("broken", Outcome.FAILED)
+    failed = _result("broken", Status.FAILED)
     by_design = _result("chaotic_chain", level="by design")
     rows = _rows(summary_table([PASSING, failed, by_design]))
     assert rows == {"fourbar": "ok", "broken": "failed", "chaotic_chain": "by"}

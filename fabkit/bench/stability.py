@@ -605,7 +605,7 @@ def predictability_horizon(k: int = 200, *, d1: float = 0.9, delta: float = 1e-8
     outcome, _, info = run_budgeted(
         lambda: trace(net_p, "d1", to=target, method="projected"),
         lambda tr: ([float(v) for v in (tr.distance(f"d{c + 1}")[-1] for c in range(kp + 1))]
-                    if str(tr.status) == "finished" else None),
+                    if tr.success else None),
         budget, repeats=1)
     if outcome == "ok" and info is not None:
         series["projected"] = np.array(info)

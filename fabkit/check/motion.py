@@ -7,7 +7,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..kinematics import trace
-from ..motion import motion_for, MotionStatus
+from ..motion import motion_for
+from ..status import Status
 
 __all__ = ["compare_motion", "design_window"]
 
@@ -46,7 +47,7 @@ def design_window(design, start, to, motion=None, process: str = "laser"):
         The design has no motion, its motion does not reach ``start``, or it cannot be traced.
     """
     kit = motion_for(design, motion).window_motion(start, to, process)
-    if kit.trajectory is None and kit.status is not MotionStatus.NO_TARGET:
+    if kit.trajectory is None and kit.status is not Status.NO_TARGET:
         kit.require()  # the motion's typed failure
     design = kit.design
     if kit.options:

@@ -137,7 +137,7 @@ def expand_templates(paths) -> list[Path]:
 
             if exc.errno == errno.ELOOP:
                 raise InputFileError(p, "symbolic-link loop: the link never reaches a "
-                                        "file") from None
+                                        "file", kind="loop") from None
         if p.is_dir():
             found = sorted(p.glob("*.toml"))
             if not found:

@@ -157,7 +157,7 @@ def _curve_path(path: str) -> Path:
 def _read_curve_file(path: str):
     p = _curve_path(path)
     if not p.exists():
-        raise InputFileError(p, "no such curve file (give an .svg or a .csv)")
+        raise InputFileError(p, "no such curve file (give an .svg or a .csv)", kind="missing")
     try:  # a FIFO or a device is refused, never waited on
         data = read_regular(p, MAX_CURVE_BYTES, what="bytes for a curve file")
     except BoundsError as exc:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import UsageError
+from ..status import Status
 from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, Example,
                expand_templates, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
@@ -124,7 +125,7 @@ def run(args) -> int:
     progress.close()
     print(summary_table(results))
     for r in results:  # the verdict of a design that is not plainly ok, in one line each
-        if r.ok and r.level not in ("", "ok"):
+        if r.ok and r.level not in ("", Status.OK.value):
             print(f"{r.name}: {r.headline}")
         for note in r.notes:  # formats of earlier exports kept in the folder, or removed
             print(f"{r.name}: {note}")
@@ -133,7 +134,7 @@ def run(args) -> int:
         print(f"open {index} (every design's report)")
     for r in results:
         if not r.ok:
-            print(f"fabkit: error: {r.error}", file=sys.stderr)
+            print(f"fabkit: error: {r.message}", file=sys.stderr)
     return exit_code(results)
 
 
@@ -150,7 +151,7 @@ class DesignProgress:
     --------
     >>> import io
     >>> from fabkit.io.progress import Progress
-    >>> from fabkit.pipeline import DesignResult, Outcome, Stage
+    >>> from fabkit.pipeline import DesignResult, Stage, Status
     >>> out = io.StringIO()
     >>> p = Progress("fabkit export", show=True, stream=out,
     ...              clock=iter([0, 0, 1, 3, 9, 9]).__next__)
@@ -159,7 +160,7 @@ class DesignProgress:
     >>> said.stage("chain", Stage.LOAD)
     >>> said.stage("chain", Stage.MOTION)
     >>> said.stage("chain", Stage.EXPORT)
-    >>> said.finished(DesignResult("chain.toml", "chain", Outcome.OK, seconds=9.0))
+    >>> said.finished(DesignResult("chain.toml", "chain", Status.OK, seconds=9.0))
     >>> print(out.getvalue(), end="")
     fabkit export [0/1 designs, 0.0 s] 1 design
     fabkit export [0/1 designs, 0/7 stages, 1.0 s] chain: load
@@ -190,7 +191,7 @@ class DesignProgress:
 
         # a design is named after its file until its template is read
         self.in_hand.difference_update({result.name, Path(result.path).stem})
-        self.progress.advance(text=f"{result.name}: {result.status} in {result.seconds:.1f} s")
+        self.progress.advance(text=f"{result.name}: {result.word} in {result.seconds:.1f} s")
 
     def close(self) -> None:
         self.progress.close()

@@ -85,7 +85,7 @@ def simulate_letter(fit, modules_by_name, final):
     """
     net = chain([modules_by_name[n] for n in fit.names], mirror="alternate")
     traj = trace(net, "d1", to=final, method="constructive", samples=5)
-    if str(traj.status) != "finished":
+    if not traj.success:
         raise FabkitError(f"the chain does not reach D2*: {traj.message}")
     k = len(fit.names)
     move = _align(chain_centerline(net, traj.positions[-1], k), fit.centerline)

@@ -597,7 +597,7 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
     names = [modules[t].name for t in model.types]
     net = chain([nets[n] for n in names], mirror="alternate")
     traj = trace(net, "d1", to=LEG_RATIO, method="constructive", samples=2)
-    if str(traj.status) != "finished":
+    if not traj.success:
         raise DesignError(f"the designed chain does not reach its final state: {traj.message}")
     k = len(names)
     center_units = chain_centerline(net, traj.positions[-1], k)

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabricationError
-from ..motion import motion_for, MotionStatus
+from ..motion import motion_for
 from ..settings.design import design_settings
+from ..status import Status
 from .slicer import slicer_settings, SlicerSettings
 
 __all__ = ["PrintPlan", "print_plan", "hinge_motion"]
@@ -127,9 +128,9 @@ def hinge_motion(design, geo, motion) -> dict:
         return {"status": "no motion in the template"}
     traj = motion.trajectory
     if traj is None:
-        if motion.status is MotionStatus.NO_TARGET:
+        if motion.status is Status.NO_TARGET:
             return {"status": "no motion in the template"}
-        return {"status": f"motion not traced: {motion.error or motion.reason}"}
+        return {"status": f"motion not traced: {motion.error or motion.message}"}
     turn, strain = hinge_bending(geo, traj.positions)
     k = int(np.argmax(strain)) if strain.size else 0
     return {"status": str(traj.status),

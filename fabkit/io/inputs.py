@@ -68,13 +68,14 @@ def read_regular(path, limit: int, *, what: str = "bytes",
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
+        raise InputFileError(path, "no such file", kind="missing") from None
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
     with os.fdopen(fd, "rb") as fh:
         mode = os.fstat(fd).st_mode
         if not stat.S_ISREG(mode):
-            raise InputFileError(path, f"is {file_kind(mode)}, not a regular file: refused")
+            raise InputFileError(path, f"is {file_kind(mode)}, not a regular file: refused",
+                                 kind="not_regular")
         size = os.fstat(fd).st_size
         if size > limit and not large:
             raise BoundsError(str(path), what, size, limit, override)

@@ -15,12 +15,13 @@ predictor-corrector on the constraint set, any network with one motion) and ``"r
 
 from __future__ import annotations
 
-from .base import Mark, Method, Outcome, Problem, align_to_gauge, choose_gauge, make_problem
+from .base import Mark, Method, Solved, Problem, align_to_gauge, choose_gauge, make_problem
 from .branching import BranchSwitch, analyze_bifurcation, fold_through
 from .constructive import ConstructionPlan, place, plan_construction
 from .stepping import Step, StepMethod, Stop
 from .tracer import METHODS, select_method, trace
-from .trajectory import Event, EventKind, Status, Trajectory
+from ..status import Status
+from .trajectory import Event, EventKind, Trajectory
 
 __all__ = [
     "METHODS",
@@ -32,7 +33,7 @@ __all__ = [
     "EventKind",
     "Method",
     "Mark",
-    "Outcome",
+    "Solved",
     "Step",
     "StepMethod",
     "Stop",

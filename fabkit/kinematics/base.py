@@ -2,7 +2,7 @@
 the packaging of results.
 
 A method is a subclass of :class:`Method` that declares its options (name → default) and
-implements :meth:`Method.solve`, which returns an :class:`Outcome`: configurations, a status, a
+implements :meth:`Method.solve`, which returns a :class:`Solved`: configurations, a status, a
 message and :class:`Mark` s at configuration indices. Methods that trace step by step
 (``projected``, ``rk4-nullspace``) subclass :class:`~.stepping.StepMethod` instead, which owns
 the loop (configurations, ``max_steps``, stops and their events) and asks the method only for
@@ -26,9 +26,10 @@ from ..errors import ArgumentTypeError, ArgumentValueError, KinematicsError, Set
 from ..model.network import checked_network, Network
 from ..numerics import rigid_fit, START_RTOL, TARGET_AT_TURN_RTOL, TINY
 from .record import edge_errors, keep_rule, Record, record_positions
-from .trajectory import Event, EventKind, Status, Trajectory
+from ..status import Status, TRACE, expect
+from .trajectory import Event, EventKind, Trajectory
 
-__all__ = ["Problem", "Mark", "Outcome", "Method", "make_problem", "choose_gauge",
+__all__ = ["Problem", "Mark", "Solved", "Method", "make_problem", "choose_gauge",
            "align_to_gauge", "check_option"]
 
 #: A gauge triangle (3D) must span at least this area, and a third gauge node lie this far off
@@ -56,7 +57,7 @@ class Mark:
 
 
 @dataclass(frozen=True, eq=False)
-class Outcome:
+class Solved:
     """What :meth:`Method.solve` returns; :meth:`Method.run` makes the Trajectory of it.
 
     Attributes
@@ -89,6 +90,9 @@ class Outcome:
     aligned: bool = False
     method: str | None = None
     record: Record | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", expect(self.status, TRACE, "a trace"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -396,8 +400,8 @@ class Method(ABC):
         self.opts = {**self.options, **options}
 
     @abstractmethod
-    def solve(self) -> Outcome:
-        """Trace the motion; return an Outcome whatever happens (status and message say how)."""
+    def solve(self) -> Solved:
+        """Trace the motion; return a Solved whatever happens (status and message say how)."""
 
     def run(self) -> Trajectory:
         """Trace the motion and package it: gauge frame, arclength, events, edge errors, and

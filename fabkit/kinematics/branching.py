@@ -34,7 +34,7 @@ from ..errors import ConstructionError, KinematicsError
 from ..model.network import Network
 from ..numerics import START_RTOL, TINY, project_to_lengths
 from ..model.rigidity import count_modes, rigidity_matrix, self_stresses, zero_modes
-from .base import Mark, Method, Outcome, make_problem
+from .base import Mark, Method, Solved, make_problem
 from .tracer import trace
 from .trajectory import EventKind, Trajectory
 
@@ -650,7 +650,7 @@ class BranchSwitch(Method):
     name = "branch"
     options = {"branch": None, "sign": None, "step_off": 1e-3, "then": "auto", "samples": 101}
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         p = self.problem
         o = self.opts
         extra = {"samples": o["samples"]} if o["then"] in ("auto", "constructive") else {}
@@ -662,5 +662,5 @@ class BranchSwitch(Method):
                             sign=sign, step_off_size=o["step_off"], method=o["then"], **extra)
         method = traj.method if traj.method.startswith(self.name) else f"{self.name}/{traj.method}"
         marks = tuple(Mark(e.kind, e.index, e.detail) for e in traj.events)
-        return Outcome(traj.positions, traj.status, traj.message, marks, traj.stats,
+        return Solved(traj.positions, traj.status, traj.message, marks, traj.stats,
                        traj.arclength, aligned=True, method=method)

@@ -17,9 +17,10 @@ from ..model.construction import (ON_AXIS_RTOL, ConstructionPlan, cached_plan,  
                                   plan_construction)
 from ..errors import KinematicsError
 from ..numerics import COLLINEAR_PARENTS_RTOL, rigid_fit
-from .base import Mark, Method, Outcome
+from .base import Mark, Method, Solved
 from .record import Record, kept_indices
-from .trajectory import EventKind, Status
+from ..status import Status
+from .trajectory import EventKind
 
 __all__ = ["ConstructionPlan", "plan_construction", "cached_plan", "place", "Constructive"]
 
@@ -214,7 +215,7 @@ class Constructive(Method):
     name = "constructive"
     options = {"samples": 101, "plan": None}
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         p = self.problem
         samples = int(self.opts["samples"])
         if samples < 2:
@@ -265,7 +266,7 @@ class Constructive(Method):
             status = Status.FAILED
             message = (f"the construction breaks edges beyond {p.drive_name} = {drive:.10g} "
                        "(the network is over-constrained along this drive)")
-        return Outcome(None, status, message, tuple(marks), stats, record=record)
+        return Solved(None, status, message, tuple(marks), stats, record=record)
 
 
 #: Placements per block of the streamed sweep (:func:`_sweep`): after each block the nodes it

@@ -53,7 +53,8 @@ from ..numerics import START_RTOL
 from .base import choose_gauge
 from .bordered import BorderedSystem, gauge_rows, permutation_parity
 from .stepping import Step, StepMethod, Stop
-from .trajectory import EventKind, Status
+from ..status import Status
+from .trajectory import EventKind
 
 __all__ = ["Projected", "gauge_rows", "permutation_parity", "singular_start_threshold"]
 

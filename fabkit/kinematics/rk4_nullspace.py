@@ -16,7 +16,8 @@ import numpy as np
 from ..errors import KinematicsError
 from ..model.rigidity import rigid_body_basis, rigidity_matrix
 from .stepping import Step, StepMethod, Stop
-from .trajectory import EventKind, Status
+from ..status import Status
+from .trajectory import EventKind
 
 __all__ = ["RK4Nullspace", "conformational_velocity"]
 

@@ -8,7 +8,7 @@ typed result: :class:`Step` (the next configuration) or :class:`Stop` (a status,
 configurations that end the trace — the landing on the target, the point found at a turning or
 branch point — and the event at the last of them). The base keeps the configurations, counts
 steps against ``max_steps``, refuses a non-finite configuration, turns the stop into events at the
-right index, and returns the :class:`~.base.Outcome`; :meth:`~.base.Method.run` then builds the
+right index, and returns the :class:`~.base.Solved`; :meth:`~.base.Method.run` then builds the
 Trajectory. Control flows on these types, never on message text.
 """
 
@@ -19,9 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Mark, Method, Outcome
+from .base import Mark, Method, Solved
 from .record import Recorder
-from .trajectory import EventKind, Status
+from ..status import Status
+from .trajectory import EventKind
 
 __all__ = ["Step", "Stop", "StepMethod"]
 
@@ -89,7 +90,7 @@ class StepMethod(Method):
         return Stop(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
                                    f"({p.drive_name} = {drive:.10g})")
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         p = self.problem
         x0 = p.start.ravel().copy()
         self.positions = [x0]
@@ -134,7 +135,7 @@ class StepMethod(Method):
         if recorder is not None:
             for x in self.positions:
                 recorder.add(x, aligned=self.aligned)
-            return Outcome(None, stop.status, stop.message, marks, stats,
+            return Solved(None, stop.status, stop.message, marks, stats,
                            record=recorder.finish())
         X = np.array(self.positions).reshape((len(self.positions),) + p.start.shape)
-        return Outcome(X, stop.status, stop.message, marks, stats, aligned=self.aligned)
+        return Solved(X, stop.status, stop.message, marks, stats, aligned=self.aligned)

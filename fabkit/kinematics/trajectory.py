@@ -9,20 +9,9 @@ import numpy as np
 
 from ..errors import KinematicsError
 from ..model.network import Network
+from ..status import Status, TRACE, expect
 
-__all__ = ["Status", "EventKind", "Event", "Trajectory"]
-
-
-class Status(str, Enum):
-    """How a trace ended."""
-
-    FINISHED = "finished"            #: reached the target drive value
-    TURNING_POINT = "turning_point"  #: the drive reaches an extremum before the target
-    BRANCH_POINT = "branch_point"    #: a bifurcation of the motion lies ahead; not crossed
-    FAILED = "failed"                #: the method could not continue (see message)
-
-    def __str__(self) -> str:  # "finished", not "Status.FINISHED"
-        return self.value
+__all__ = ["EventKind", "Event", "Trajectory"]
 
 
 class EventKind(str, Enum):
@@ -124,6 +113,9 @@ class Trajectory:
     stats: dict = field(default_factory=dict)
     kept: np.ndarray | None = None
     port_values: dict | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", expect(self.status, TRACE, "a trace"))
 
     @property
     def success(self) -> bool:

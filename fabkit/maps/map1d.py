@@ -267,8 +267,9 @@ class Map1D:
             return []
         lo, hi = self.domain
         out = []
-        for end, side, what in ((lo, 1.0, self.branch.ends[0]), (hi, -1.0, self.branch.ends[1])):
-            if str(what).startswith("turning point"):
+        for end, side, turning in ((lo, 1.0, self.branch.turning[0]),
+                                   (hi, -1.0, self.branch.turning[1])):
+            if turning:
                 out.append((float(end), side))
         return out
 

@@ -145,7 +145,11 @@ class Branch:
     signs : tuple of float
         Side of every constructed node (see :func:`fabkit.kinematics.plan_construction`).
     ends : tuple of str
-        What ends the branch at lo and at hi (a turning point: which node becomes flat).
+        What ends the branch at lo and at hi, in words (a turning point: which node becomes
+        flat).
+    turning : tuple of bool
+        Whether the branch ends at a turning point of d_in at lo and at hi (what code reads;
+        ``ends`` is for people).
     previous : int or None
         Index of the branch the walk came from (None for the branch through the reference).
     entered_at : float or None
@@ -160,6 +164,7 @@ class Branch:
     ends: tuple = ("", "")
     previous: int | None = None
     entered_at: float | None = None
+    turning: tuple = (False, False)
 
     def as_dict(self) -> dict:
         return {"index": self.index, "domain": [self.lo, self.hi], "ends": list(self.ends)}

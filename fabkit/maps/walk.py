@@ -202,7 +202,8 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
         return f"turning point: node {v} {shape} with nodes {par}"
 
     lo, hi, wlo, whi = _walk_branch(ev, signs0, d0, size, samples)
-    first = Branch(0, lo, hi, signs0, (describe(wlo), describe(whi)))
+    first = Branch(0, lo, hi, signs0, (describe(wlo), describe(whi)),
+                   turning=(bool(wlo >= 0), bool(whi >= 0)))
     branches = [first]
     # walk the rest of the motion: at each end flip the side of the node that became flat
     seen = {signs0}
@@ -220,7 +221,8 @@ def module_map(net: Network, d_in="d1", d_out="d2", *, reference=None, toward: f
                 break
             seen.add(signs)
             branches.append(Branch(len(branches), nlo, nhi, signs, (describe(nwlo), describe(nwhi)),
-                                   previous=previous, entered_at=float(d_end)))
+                                   previous=previous, entered_at=float(d_end),
+                                   turning=(bool(nwlo >= 0), bool(nwhi >= 0))))
             previous = len(branches) - 1
             # continue from the far end of the new branch
             if abs(nhi - d_end) >= abs(nlo - d_end):

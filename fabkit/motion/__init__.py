@@ -3,7 +3,7 @@ and whether every designed end was reached (:mod:`fabkit.motion.traced`,
 :mod:`fabkit.motion.ends`)."""
 
 from .ends import MotionEnds, PortEnd, judge_ends
-from .traced import MotionStatus, TracedMotion, motion_for, trace_motion
+from .traced import TracedMotion, motion_for, trace_motion
 
-__all__ = ["MotionStatus", "TracedMotion", "trace_motion", "motion_for", "MotionEnds", "PortEnd",
+__all__ = ["TracedMotion", "trace_motion", "motion_for", "MotionEnds", "PortEnd",
            "judge_ends"]

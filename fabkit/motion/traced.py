@@ -1,8 +1,9 @@
 """The Motion stage: a design's motion traced once, with one typed status every later stage reads.
 
 :func:`trace_motion` traces a design's ``[motion]`` once and returns a :class:`TracedMotion`:
-the trajectory (or None), a :class:`MotionStatus`, a one-line reason, the typed error that the
-stages which need a motion raise (:meth:`TracedMotion.require`), and whether the design happened
+the trajectory (or None), a :class:`~fabkit.status.Status` (one of
+:data:`fabkit.status.MOTION`), a one-line message, the typed error that the stages which need a
+motion raise (:meth:`TracedMotion.require`), and whether the design happened
 (:mod:`fabkit.motion.ends`). A kit that covers only part of the motion (``motion_from`` /
 ``motion_to``, :func:`fabkit.motion.window.motion_window`) asks for its window with
 :meth:`TracedMotion.window`: each window is traced once and shared by every process and format
@@ -13,43 +14,15 @@ that uses it. Exporters, the as-built checks, the tolerance analysis and the rep
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
 
 from ..errors import ArgumentValueError, FabkitError, MotionError, SingularStartError
 from .window import motion_window
 from ..templates import BUILDERS
-from ..kinematics import Status
+from ..status import MOTION, Status, expect
 from ..model.rigidity import count_modes
 from .spread import module_spread, shape_missed
 
-__all__ = ["MotionStatus", "TracedMotion", "trace_motion", "motion_for"]
-
-
-class MotionStatus(str, Enum):
-    """How the Motion stage ended (one value that every stage reads the same way)."""
-
-    #: the drive reached its target, and every designed end (where one is known) was reached
-    FINISHED = "finished"
-    #: the drive reached its target, but ports did not reach their designed end: the trace is
-    #: usable, the design did not happen (the reason names them and why)
-    ENDS_MISSED = "ends missed"
-    #: the trace stopped before the target (a turning point, a branch point, a failure)
-    NOT_REACHED = "target not reached"
-    #: the motion could not be traced at all (a rigid network, several motions, a bad option)
-    REFUSED = "refused"
-    #: the start is a kinematic bifurcation: only an exporter that chooses the branch (an
-    #: origami crease assignment) can leave it
-    SINGULAR_START = "singular start"
-    #: the template gives no target (``motion.to``): a geometry-only design
-    NO_TARGET = "no target"
-
-    def __str__(self) -> str:
-        return self.value
-
-    @property
-    def traced(self) -> bool:
-        """True when there is a trajectory that reached the drive's target."""
-        return self in (MotionStatus.FINISHED, MotionStatus.ENDS_MISSED)
+__all__ = ["TracedMotion", "trace_motion", "motion_for"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,8 +34,9 @@ class TracedMotion:
     design : Design
         The design this motion moves (for a window: the kit's design, its reference moved to the
         window's start).
-    status : MotionStatus
-    reason : str
+    status : Status
+        One of :data:`fabkit.status.MOTION`.
+    message : str
         One line: what happened (the trace's message, or which ports missed their end and why).
     trajectory : Trajectory or None
         The traced motion; also kept when the trace stopped short (a window's kit is sampled
@@ -84,8 +58,8 @@ class TracedMotion:
     """
 
     design: object
-    status: MotionStatus
-    reason: str = ""
+    status: Status
+    message: str = ""
     trajectory: object = None
     error: FabkitError | None = None
     ends: object = None
@@ -93,6 +67,9 @@ class TracedMotion:
     spread: object = None
     options: dict = field(default_factory=dict)
     _windows: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", expect(self.status, MOTION, "the Motion stage"))
 
     @property
     def traced(self) -> bool:
@@ -112,7 +89,7 @@ class TracedMotion:
         if self.error is not None:
             raise self.error
         path = self.design.path or self.design.name
-        raise MotionError(path, "motion", self.reason or "no [motion] with a target `to` is given",
+        raise MotionError(path, "motion", self.message or "no [motion] with a target `to` is given",
                           status=str(self.status))
 
     def planning_trajectory(self):
@@ -126,22 +103,22 @@ class TracedMotion:
         MotionError
             The motion could not be traced at all (its typed error).
         """
-        if self.trajectory is None and self.status is not MotionStatus.NO_TARGET:
+        if self.trajectory is None and self.status is not Status.NO_TARGET:
             self.require()
         return self.trajectory
 
     def line(self) -> str:
         """The motion in one line, as the command line and the reports say it."""
         local = f"; {self.spread.sentence()}" if self.spread is not None and \
-            self.spread.localised and self.status is MotionStatus.FINISHED else ""
-        if self.status is MotionStatus.FINISHED and self.ends is not None:
-            return f"{self.reason}{local}; every designed end reached ({self.ends.basis})"
+            self.spread.localised and self.status is Status.FINISHED else ""
+        if self.status is Status.FINISHED and self.ends is not None:
+            return f"{self.message}{local}; every designed end reached ({self.ends.basis})"
         if local:
-            return f"{self.reason}{local}"
-        if self.status is MotionStatus.ENDS_MISSED:
-            return f"{self.status}: {self.reason}"
-        return self.reason if self.status is MotionStatus.FINISHED else \
-            f"{self.status}: {self.reason}"
+            return f"{self.message}{local}"
+        if self.status is Status.ENDS_MISSED:
+            return f"{self.status}: {self.message}"
+        return self.message if self.status is Status.FINISHED else \
+            f"{self.status}: {self.message}"
 
     def window_motion(self, start, to, process: str) -> "TracedMotion":
         """The motion of a kit that covers ``start`` to ``to`` of this one, traced once.
@@ -171,7 +148,7 @@ class TracedMotion:
         if key not in self._windows:
             kit = motion_window(self.design, start, to, process)  # places the kit's start
             traj = kit.trace()
-            status = MotionStatus.FINISHED if traj.success else MotionStatus.NOT_REACHED
+            status = Status.FINISHED if traj.success else Status.NOT_REACHED
             self._windows[key] = TracedMotion(kit, status, traj.message, traj, window=key)
         return self._windows[key]
 
@@ -236,7 +213,7 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
     path = design.path or design.name
     target = overrides.get("to", design.motion.to)
     if target is None:
-        return TracedMotion(design, MotionStatus.NO_TARGET, "the template gives no target "
+        return TracedMotion(design, Status.NO_TARGET, "the template gives no target "
                                                             "(motion.to)", window=window)
     builder = _builder_key(design)
     nodes_key = "network.nodes" if builder == "network" else builder
@@ -247,8 +224,8 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
             error = MotionError(path, builder,
                                 f"the network is rigid: it has no conformational motion "
                                 f"(modes: {modes.total} = {modes.rigid} rigid); remove an edge",
-                                status="refused")
-            return TracedMotion(design, MotionStatus.REFUSED, error.reason, error=error,
+                                status=Status.REFUSED.value)
+            return TracedMotion(design, Status.REFUSED, error.reason, error=error,
                                 window=window)
         singular = modes.self_stress > 0 and modes.conformational > 1
         several = modes.conformational > 1 and not singular
@@ -256,14 +233,14 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
     try:
         traj = design.trace(**overrides)
     except TypeError as exc:  # an unknown method option
-        error = MotionError(path, "motion.options", str(exc), status="refused")
-        return TracedMotion(design, MotionStatus.REFUSED, error.reason, error=error,
+        error = MotionError(path, "motion.options", str(exc), status=Status.REFUSED.value)
+        return TracedMotion(design, Status.REFUSED, error.reason, error=error,
                             window=window)
     except FabkitError as exc:
         key = nodes_key if singular else builder if several else "motion"
         cls = SingularStartError if singular else MotionError
-        error = cls(path, key, str(exc), status="refused")
-        status = MotionStatus.SINGULAR_START if singular else MotionStatus.REFUSED
+        error = cls(path, key, str(exc), status=Status.REFUSED.value)
+        status = Status.SINGULAR_START if singular else Status.REFUSED
         return TracedMotion(design, status, error.reason, error=error, window=window)
     if traj.success:
         ends = spread = None
@@ -273,25 +250,25 @@ def _traced(design, *, window=None, judge=True, **overrides) -> TracedMotion:  #
             ends = judge_ends(design, traj)
             spread = module_spread(design, traj)
         if ends is not None and not ends.reached:
-            return TracedMotion(design, MotionStatus.ENDS_MISSED,
+            return TracedMotion(design, Status.ENDS_MISSED,
                                 f"{traj.message}, but {ends.reason}", traj, ends=ends,
                                 window=window, spread=spread, options=options)
         missed = shape_missed(design, spread)
         if missed:
-            return TracedMotion(design, MotionStatus.ENDS_MISSED, f"{traj.message}, but {missed}",
+            return TracedMotion(design, Status.ENDS_MISSED, f"{traj.message}, but {missed}",
                                 traj, ends=ends, window=window, spread=spread,
                             options=options)
-        return TracedMotion(design, MotionStatus.FINISHED, traj.message, traj, ends=ends,
+        return TracedMotion(design, Status.FINISHED, traj.message, traj, ends=ends,
                             window=window, spread=spread, options=options)
     at_start = traj.n_steps <= 1
     if singular and at_start:
         error = SingularStartError(path, nodes_key, f"target {design.motion.drive} = "
                                    f"{float(target):.10g} is not reached: {traj.message}",
                                    status=str(traj.status))
-        return TracedMotion(design, MotionStatus.SINGULAR_START, error.reason, traj,
+        return TracedMotion(design, Status.SINGULAR_START, error.reason, traj,
                             error=error, window=window, options=options)
     key = "motion.to" if traj.status in (Status.TURNING_POINT, Status.BRANCH_POINT) else "motion"
     error = MotionError(path, key, f"target {design.motion.drive} = {float(target):.10g} is not "
                                    f"reached: {traj.message}", status=str(traj.status))
-    return TracedMotion(design, MotionStatus.NOT_REACHED, error.reason, traj, error=error,
+    return TracedMotion(design, Status.NOT_REACHED, error.reason, traj, error=error,
                         window=window, options=options)

@@ -4,14 +4,17 @@ Callable from Python::
 
     from fabkit.pipeline import export_many
     results = export_many(["fourbar", "templates/fourbar_chain.toml"], outdir="out", jobs=2)
-    results[0].outcome        # Outcome.OK / FAILED / CHECK_FAILED / INTERRUPTED
-    results[0].formats["dxf"] # FormatResult(status=FormatStatus.EXPORTED, files=[...], ...)
+    results[0].status         # Status.OK / FAILED / CHECK_FAILED / REFUSED / INTERRUPTED
+    results[0].message        # "" when OK, else one line: what went wrong
+    results[0].formats["dxf"] # FormatResult(status=Status.EXPORTED, files=[...], ...)
 
 What it guarantees:
 
-- **Typed results.** Every design ends as a :class:`DesignResult` with an :class:`Outcome`; every
-  format as a :class:`FormatResult` with a :class:`FormatStatus`. The command line, report.json and
-  the tests read these fields; no decision anywhere reads the text of an error message.
+- **Typed results.** Every design ends as a :class:`DesignResult`, every format as a
+  :class:`FormatResult`, each with a :class:`~fabkit.status.Status` (one of
+  :data:`fabkit.status.EXPORT`, :data:`fabkit.status.FORMAT`) and a one-line ``message``. The
+  command line, report.json and the tests read these fields; no decision anywhere reads the text
+  of an error message (the kind of an error is its ``error_code``).
 - **Atomic folders.** A design is computed completely in memory, written to a hidden staging folder
   (each file through a temporary file and a rename), checked as built there, and swapped in place
   of the previous export by two renames. Files in the old folder that no export wrote (those of
@@ -55,13 +58,13 @@ from .design import export_one
 from .folders import prepare_outdir
 from .formats import build_outputs, choose_formats, MAX_SAMPLES, RESERVED, run_checks
 from .motion import traced_motion
-from .results import (CheckResult, DesignResult, exit_code, FormatResult, FormatStatus, Outcome,
-                      Stage)
-from .stages import Artefacts, Checks, DesignReport, judge_design, Level, Plan, Verdict
+from ..status import Status
+from .results import CheckResult, DesignResult, exit_code, FormatResult, Stage
+from .stages import Artefacts, Checks, DesignReport, judge_design, Plan, Verdict
 from .workers import DESIGN_TIMEOUT, FAULT_ENV, run_pool, SILENCE
 
-__all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "DesignResult",
-           "Plan", "Artefacts", "Checks", "Level", "Verdict", "DesignReport", "judge_design",
+__all__ = ["Status", "Stage", "CheckResult", "FormatResult", "DesignResult",
+           "Plan", "Artefacts", "Checks", "Verdict", "DesignReport", "judge_design",
            "traced_motion", "build_outputs", "run_checks", "export_one", "export_many",
            "OutputLock", "summary_table", "exit_code", "RESERVED", "MAX_SAMPLES",
            "DESIGN_TIMEOUT", "SILENCE", "FAULT_ENV"]
@@ -71,10 +74,10 @@ __all__ = ["Outcome", "FormatStatus", "Stage", "CheckResult", "FormatResult", "D
 
 def summary_table(results) -> str:
     """The table printed at the end: one line per design, its status that of its reports'
-    verdict (:attr:`DesignResult.status`)."""
+    verdict (:attr:`DesignResult.word`)."""
     header = ("design", "status", "formats", "files", "time", "cpu", "output or error")
-    body = [(r.name, r.status, ",".join(r.exported_formats) or "-", str(r.files),
-             f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s", r.folder if r.ok else r.error)
+    body = [(r.name, r.word, ",".join(r.exported_formats) or "-", str(r.files),
+             f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s", r.folder if r.ok else r.message)
             for r in results]
     widths = [max(len(x[i]) for x in [header, *body]) for i in range(6)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r[:6], widths)) + "  " + r[6]
@@ -151,13 +154,13 @@ def _loaded(paths, finished):
             cost[i] = design.network.n_edges
         except FabkitError as exc:
             # a template that does not even load needs no worker: report it here
-            finished(i, DesignResult(str(p), p.stem, error=str(exc), error_code=exc.code))
+            finished(i, DesignResult(str(p), p.stem, message=str(exc), error_code=exc.code))
             continue
         if name in owners:
             finished(i, DesignResult(str(p), name, error_code="template",
-                                     error=f"{p}: name: {name!r} is also the name of "
-                                           f"{owners[name]}; each design needs its own name "
-                                           "(its output folder)"))
+                                     message=f"{p}: name: {name!r} is also the name of "
+                                             f"{owners[name]}; each design needs its own name "
+                                             "(its output folder)"))
             continue
         owners[name] = p
         names[i] = name

@@ -19,7 +19,8 @@ from .formats import (choose_formats, make_artefacts, motion_facts, plan_design,
                       run_checks, traced_for)
 from .manifest import (design_digest, MANIFEST, MAX_KEPT_BYTES, new_manifest, read_manifest,
                        sort_earlier)
-from .results import DesignResult, FormatResult, FormatStatus, Outcome, Stage
+from ..status import Status
+from .results import DesignResult, FormatResult, Stage
 from .stages import Artefacts, Checks, DesignReport, judge_design
 
 
@@ -31,7 +32,7 @@ def report_dict(rep: DesignReport) -> dict:
 
     out = {"design": rep.facts, "fabkit_version": fabkit.__version__,
            "formats": {f: r.as_dict() for f, r in rep.formats.items()},
-           "errors": list(rep.errors), "ok": rep.outcome is Outcome.OK,
+           "errors": list(rep.errors), "ok": rep.outcome is Status.OK,
            "outcome": rep.outcome.value, "files": sorted(rep.names), "report_version": 4,
            "previews": list(rep.artefacts.previews), "process": rep.process,
            "verdict": rep.verdict.as_dict(),
@@ -59,7 +60,7 @@ def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefact
         for name in origin.files:
             if name not in files:
                 files[name] = read_regular(folder / name, MAX_KEPT_BYTES, what="kept file")
-        formats[fmt] = FormatResult(fmt, FormatStatus.EXPORTED, sorted(origin.files),
+        formats[fmt] = FormatResult(fmt, Status.EXPORTED, sorted(origin.files),
                                     dict(origin.report), "")
     rank = {f: i for i, f in enumerate(order)}
     formats = {f: formats[f] for f in sorted(formats, key=lambda f: (rank.get(f, len(rank)), f))}
@@ -104,13 +105,13 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                 tolerance_samples=tolerance_samples, exporters=exporters, previews=previews,
                 allow_large=allow_large, swap=swap)
     except (Interrupted, KeyboardInterrupt):
-        res.outcome, res.error, res.error_code = Outcome.INTERRUPTED, f"{path}: interrupted", \
+        res.status, res.message, res.error_code = Status.INTERRUPTED, f"{path}: interrupted", \
             "interrupted"
         raise
     except Exception as exc:  # a bug must not stop the other designs; say where it happened
         if debug and not isinstance(exc, (FabkitError, OSError)):
             raise
-        res.error, res.error_code = _failure(exc, path, outdir)
+        res.message, res.error_code = _failure(exc, path, outdir)
     finally:
         if staged[0] is not None and staged[0].exists():
             shutil.rmtree(staged[0], ignore_errors=True)
@@ -179,9 +180,9 @@ def _load(path, settings, outdir, formats, exporters):
     return design, digest, folder, earlier, registry, kept, removed, chosen
 
 
-def _check_written(written, design, settings, motion, fmts) -> tuple[Outcome, Checks]:
+def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Checks]:
     """The Checks stage: every written file checked as built, each result on its format."""
-    outcome, by_format = Outcome.OK, {}
+    outcome, by_format = Status.OK, {}
     for chk in run_checks(written, design, settings, motion):
         fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
         if fmt is None:
@@ -189,8 +190,8 @@ def _check_written(written, design, settings, motion, fmts) -> tuple[Outcome, Ch
         fmts[fmt].checks.append(chk)
         by_format.setdefault(fmt, []).append(chk)
         if not chk.ok:
-            fmts[fmt].status = FormatStatus.CHECK_FAILED
-            outcome = Outcome.CHECK_FAILED
+            fmts[fmt].status = Status.CHECK_FAILED
+            outcome = Status.CHECK_FAILED
     return outcome, Checks(by_format)
 
 
@@ -236,13 +237,13 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     stage_dir = staged[0] = staging_folders(Path(outdir), design.name)[0]
     stage_dir.mkdir(parents=True)
     written = write_outputs(art.files, stage_dir)
-    outcome, checks = Outcome.OK, Checks({})
+    outcome, checks = Status.OK, Checks({})
     if check:
         clock(Stage.CHECK)
         outcome, checks = _check_written(written, design, resolved, motion, fmts)
-    refused = [f"{f}: {v.detail}" for f, v in fmts.items() if v.status is FormatStatus.REFUSED]
+    refused = [f"{f}: {v.message}" for f, v in fmts.items() if v.status is Status.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
-        outcome = Outcome.REFUSED
+        outcome = Status.REFUSED
     record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry, digest,
                           time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     write_atomic(stage_dir / MANIFEST, record.to_bytes())
@@ -252,7 +253,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
                        outcome, tuple(f"{line} (format refused)" for line in refused),
                        tuple(names), record.formats, removed)
     res.card = _write_reports(stage_dir, rep, art, written, record, motion)
-    res.level, res.headline = str(verdict.level), verdict.headline
+    res.level, res.headline = str(verdict.status), verdict.headline
     # files of other commands stay; those of earlier exports are ours to keep or drop
     ours = None if earlier is None else (
         {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
@@ -262,12 +263,12 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
         res.staged, res.earlier_files = str(stage_dir), (
             None if ours is None else tuple(sorted(ours)))
     staged[0] = None
-    res.outcome, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
+    res.status, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
     res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(removed)
-    if outcome is Outcome.REFUSED:
-        res.error, res.error_code = f"{path}: cannot produce {'; '.join(refused)}", "refused"
-    elif outcome is Outcome.CHECK_FAILED:
+    if outcome is Status.REFUSED:
+        res.message, res.error_code = f"{path}: cannot produce {'; '.join(refused)}", "refused"
+    elif outcome is Status.CHECK_FAILED:
         bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
-        res.error = (f"{path}: as-built check failed for {', '.join(bad)} "
+        res.message = (f"{path}: as-built check failed for {', '.join(bad)} "
                      f"(see {folder / 'report.md'})")
         res.error_code = "check"

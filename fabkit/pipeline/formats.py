@@ -8,13 +8,14 @@ from ..check import CHECKERS
 from ..errors import BoundsError, FabkitError, TemplateError, UnavailableError
 from ..export import get_exporter, skip_reason
 from ..fab.plans import make_plan, PLANNERS, trace_needs
-from ..motion import MotionStatus, trace_motion
+from ..motion import trace_motion
 from ..report.text import design_facts
 from ..settings.design import design_settings
 from ..plots.viz import figure_png, motion_figure
 from ..tolerance import made_process, stated_process, tolerance_spec
 from .motion import map_figure, motion_report
-from .results import CheckResult, FormatResult, FormatStatus, Stage
+from ..status import Status
+from .results import CheckResult, FormatResult, Stage
 from .stages import Artefacts, Plan
 
 
@@ -59,8 +60,8 @@ def choose_formats(design, formats, exporters) -> tuple[list, dict]:
 
     The one place that decides which formats a design gets: asked for (``formats``) or every
     registered one that ``applies(design)`` and that the template does not opt out of. A format
-    asked for by name that cannot be produced is :attr:`FormatStatus.REFUSED` with the reason;
-    without ``formats`` those that do not apply are listed as such.
+    asked for by name that cannot be produced is :attr:`~fabkit.status.Status.REFUSED` with the
+    reason; without ``formats`` those that do not apply are listed as such.
     """
     asked = formats is not None
     chosen, skipped = [], {}
@@ -68,20 +69,20 @@ def choose_formats(design, formats, exporters) -> tuple[list, dict]:
         try:
             module = get_exporter(fmt, exporters)
         except UnavailableError as exc:
-            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
-                                        else FormatStatus.NOT_AVAILABLE, detail=str(exc))
+            skipped[fmt] = FormatResult(fmt, Status.REFUSED if asked
+                                        else Status.NOT_AVAILABLE, message=str(exc))
             continue
         applies = getattr(module, "applies", None)
         if applies is not None and not applies(design):
-            skipped[fmt] = (FormatResult(fmt, FormatStatus.REFUSED,
-                                         detail=_not_applicable(fmt, module)) if asked
-                            else FormatResult(fmt, FormatStatus.DOES_NOT_APPLY))
+            skipped[fmt] = (FormatResult(fmt, Status.REFUSED,
+                                         message=_not_applicable(fmt, module)) if asked
+                            else FormatResult(fmt, Status.DOES_NOT_APPLY))
             continue
         reason = skip_reason(design, fmt)
         if reason is not None:  # the template opts out of this format and says why
-            skipped[fmt] = FormatResult(fmt, FormatStatus.REFUSED if asked
-                                        else FormatStatus.SKIPPED,
-                                        detail=f"the template opts out: {reason}" if asked
+            skipped[fmt] = FormatResult(fmt, Status.REFUSED if asked
+                                        else Status.SKIPPED,
+                                        message=f"the template opts out: {reason}" if asked
                                         else reason)
             continue
         chosen.append((fmt, module))
@@ -207,9 +208,9 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
     settings = design_settings(design, settings)  # resolved already: handed back as they are
     path = design.path or design.name
     files: dict[str, bytes] = {}
-    singular = motion.error if motion.status is MotionStatus.SINGULAR_START else None
-    if not motion.traced and motion.status not in (MotionStatus.NO_TARGET,
-                                                   MotionStatus.SINGULAR_START):
+    singular = motion.error if motion.status is Status.SINGULAR_START else None
+    if not motion.traced and motion.status not in (Status.NO_TARGET,
+                                                   Status.SINGULAR_START):
         motion.require()  # the one typed failure: nothing is exported
     results = dict(plan.skipped)
     taken = {name: "export" for name in RESERVED}
@@ -229,7 +230,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
             raise FabkitError(f"{path}: the {fmt} exporter returned no file bytes")
         _check_names(fmt, result.files, taken, path)
         files.update({k: bytes(v) for k, v in result.files.items()})
-        results[fmt] = FormatResult(fmt, FormatStatus.EXPORTED, sorted(result.files),
+        results[fmt] = FormatResult(fmt, Status.EXPORTED, sorted(result.files),
                                     result.report)
     if singular is not None and not any(v.status.produced for v in results.values()):
         raise singular
@@ -257,8 +258,8 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
 
 def motion_facts(motion, formats) -> dict | None:
     """The ``motion`` part of report.json from the Motion stage's result."""
-    if motion.status is MotionStatus.SINGULAR_START:
-        return {"status": "singular start", "message": motion.error.reason,
+    if motion.status is Status.SINGULAR_START:
+        return {"status": Status.SINGULAR_START.value, "message": motion.error.reason,
                 "resolved_by": sorted(f for f, v in formats.items() if v.status.produced)}
     if not motion.traced:
         return None
@@ -268,8 +269,8 @@ def motion_facts(motion, formats) -> dict | None:
     if motion.ends is not None:
         out["status"] = str(motion.status)
         out["ends"] = motion.ends.as_dict()
-        if motion.status is MotionStatus.ENDS_MISSED:
-            out["message"] = motion.reason
+        if motion.status is Status.ENDS_MISSED:
+            out["message"] = motion.message
     return out
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import re
 
 from ..errors import FabkitError
-from ..motion import MotionStatus, trace_motion
+from ..motion import trace_motion
+from ..status import Status
 from ..plots.viz import figure_kit, set_margins
 
 
@@ -39,7 +40,7 @@ def traced_motion(design, *, allow_singular_start=False, **overrides):
         The motion is impossible, or its trace does not reach the target.
     """
     motion = trace_motion(design, judge=False, **overrides)
-    if motion.status is MotionStatus.NO_TARGET:
+    if motion.status is Status.NO_TARGET:
         return None
     return motion.require()
 

@@ -5,42 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
-
-
-class Outcome(str, Enum):
-    """How the export of one design ended."""
-
-    OK = "ok"                      #: every file written and every as-built check passed
-    FAILED = "failed"              #: nothing written: bad template, impossible motion, refusal
-    CHECK_FAILED = "check failed"  #: files written, but an as-built check failed
-    #: a format asked for (``--to``) cannot be produced: report.json names it ``refused`` with
-    #: the reason; the formats that could be made are written
-    REFUSED = "refused"
-    INTERRUPTED = "interrupted"    #: stopped by a signal before it finished; nothing written
-
-    def __str__(self) -> str:
-        return self.value
-
-
-class FormatStatus(str, Enum):
-    """What happened to one format of one design."""
-
-    EXPORTED = "exported"
-    CHECK_FAILED = "check failed"
-    DOES_NOT_APPLY = "does not apply"
-    NOT_AVAILABLE = "not available"
-    SKIPPED = "skipped by the template"
-    #: asked for by name and cannot be produced (it does not apply, the template opts out, or
-    #: it is not installed): the design fails with the reason in ``detail``
-    REFUSED = "refused"
-
-    def __str__(self) -> str:
-        return self.value
-
-    @property
-    def produced(self) -> bool:
-        """True when the format wrote files."""
-        return self in (FormatStatus.EXPORTED, FormatStatus.CHECK_FAILED)
+from ..status import EXPORT, FORMAT, Status, expect
 
 
 class Stage(str, Enum):
@@ -60,13 +25,27 @@ class Stage(str, Enum):
 
 @dataclass
 class CheckResult:
-    """The as-built check of one written file (``fabkit.check``)."""
+    """The as-built check of one written file (``fabkit.check``).
+
+    Its :attr:`status` (one of :data:`fabkit.status.CHECK`) and :attr:`message` are read from
+    ``ok`` and ``error``, the keys report.json gives it.
+    """
 
     file: str
     ok: bool
     checks: list = field(default_factory=list)
     error: str = ""
     extra: dict = field(default_factory=dict)
+
+    @property
+    def status(self) -> Status:
+        """``ok`` when every check of the file passed, else ``failed``."""
+        return Status.OK if self.ok else Status.FAILED
+
+    @property
+    def message(self) -> str:
+        """Why the file could not be checked (``""`` when it could)."""
+        return self.error
 
     def as_dict(self) -> dict:
         out = {**self.extra, "file": self.file, "ok": self.ok, "checks": self.checks}
@@ -77,21 +56,37 @@ class CheckResult:
 
 @dataclass
 class FormatResult:
-    """One format of one design: its status, files, exporter report and checks."""
+    """One format of one design: its status, files, exporter report and checks.
+
+    Attributes
+    ----------
+    name : str
+    status : Status
+        One of :data:`fabkit.status.FORMAT`.
+    files : list of str
+    report : dict
+        The exporter's report (for a format that wrote files).
+    message : str
+        Why the format was not made, or what to know about it (report.json's ``detail``).
+    checks : list of CheckResult
+    """
 
     name: str
-    status: FormatStatus
+    status: Status
     files: list = field(default_factory=list)
     report: dict = field(default_factory=dict)
-    detail: str = ""
+    message: str = ""
     checks: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.status = expect(self.status, FORMAT, "a format")
 
     def as_dict(self) -> dict:
         out = {"status": self.status.value, "files": list(self.files)}
         if self.status.produced:
             out["report"] = self.report
-        if self.detail:
-            out["detail"] = self.detail
+        if self.message:
+            out["detail"] = self.message
         if self.checks:
             out["checks"] = [c.as_dict() for c in self.checks]
         return out
@@ -107,14 +102,16 @@ class DesignResult:
         The template file.
     name : str
         The design's name (its folder), or the file's stem when it did not load.
-    outcome : Outcome
+    status : Status
+        How its export ended, one of :data:`fabkit.status.EXPORT` (``outcome`` in report.json
+        and in :meth:`as_dict`).
     formats : dict of str to FormatResult
     files : int
         Files written into the folder (reports included).
     folder : str
         The design's folder, or ``""`` when nothing was written.
-    error : str
-        One line when the outcome is not OK, else ``""``.
+    message : str
+        One line when the status is not OK, else ``""`` (``error`` in :meth:`as_dict`).
     error_code : str
         The stable code of the error (:attr:`fabkit.errors.FabkitError.code`), ``"check"`` for a
         failed as-built check, ``"internal"`` for a bug, ``""`` when OK.
@@ -140,7 +137,7 @@ class DesignResult:
         The design's card in index.html, made from its typed report (None when nothing was
         written).
     level : str
-        The verdict's level (:class:`fabkit.pipeline.stages.Level` value: ``ok``, ``by design``,
+        The verdict's status (a :data:`fabkit.status.VERDICT` value: ``ok``, ``by design``,
         ``FLAG``, ``FAIL``), ``""`` when nothing was written.
     headline : str
         The verdict in one line (it heads report.md, report.html and the card).
@@ -151,11 +148,11 @@ class DesignResult:
 
     path: str
     name: str
-    outcome: Outcome = Outcome.FAILED
+    status: Status = Status.FAILED
     formats: dict = field(default_factory=dict)
     files: int = 0
     folder: str = ""
-    error: str = ""
+    message: str = ""
     error_code: str = ""
     seconds: float = 0.0
     cpu_seconds: float = 0.0
@@ -168,24 +165,27 @@ class DesignResult:
     headline: str = ""
     notes: list = field(default_factory=list)
 
-    @property
-    def ok(self) -> bool:
-        return self.outcome is Outcome.OK
+    def __post_init__(self):
+        self.status = expect(self.status, EXPORT, "the export of a design")
 
     @property
-    def status(self) -> str:
+    def ok(self) -> bool:
+        return self.status is Status.OK
+
+    @property
+    def word(self) -> str:
         """The design in one word: the verdict's level when it exported (``ok``, ``by design``,
-        ``FLAG``, ``FAIL``, as its reports head), else the outcome (``failed``, ...)."""
-        return (self.level or self.outcome.value) if self.ok else self.outcome.value
+        ``FLAG``, ``FAIL``, as its reports head), else its status (``failed``, ...)."""
+        return (self.level or self.status.value) if self.ok else self.status.value
 
     @property
     def exported_formats(self) -> list[str]:
         return [f for f, v in self.formats.items() if v.status.produced]
 
     def as_dict(self) -> dict:
-        return {"path": self.path, "name": self.name, "outcome": self.outcome.value,
+        return {"path": self.path, "name": self.name, "outcome": self.status.value,
                 "ok": self.ok, "formats": self.exported_formats, "files": self.files,
-                "folder": self.folder, "error": self.error, "error_code": self.error_code,
+                "folder": self.folder, "error": self.message, "error_code": self.error_code,
                 "seconds": self.seconds, "cpu_seconds": self.cpu_seconds,
                 "stages": dict(self.stages), "worker_exit": self.worker_exit,
                 "level": self.level, "headline": self.headline, "notes": list(self.notes)}

@@ -22,12 +22,9 @@ next (as scipy's ``solve_ivp`` hands back one result with a status and a message
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
+from ..status import Status, VERDICT, expect
 
-from ..motion import MotionStatus
-from .results import FormatStatus, Outcome
-
-__all__ = ["Plan", "Artefacts", "Checks", "Level", "Finding", "Verdict", "DesignReport",
+__all__ = ["Plan", "Artefacts", "Checks", "Finding", "Verdict", "DesignReport",
            "judge_design"]
 
 
@@ -97,31 +94,17 @@ class Checks:
         return [c for c in self.results if not c.ok]
 
 
-class Level(str, Enum):
-    """How a design stands, from best to worst (a headline shows the worst)."""
-
-    OK = "ok"
-    #: flagged by what the design is for (a chaotic chain's far end cannot be predicted): said
-    #: in words, not alarmed in red
-    BY_DESIGN = "by design"
-    FLAG = "FLAG"
-    FAIL = "FAIL"
-
-    def __str__(self) -> str:
-        return self.value
-
-    @property
-    def rank(self) -> int:
-        return list(Level).index(self)
-
-
 @dataclass(frozen=True)
 class Finding:
-    """One thing the verdict weighs: its level, what it is about, and a sentence."""
+    """One thing the verdict weighs: its level (a :data:`fabkit.status.VERDICT` status), what it
+    is about, and a sentence."""
 
-    level: Level
+    level: Status
     about: str
     text: str
+
+    def __post_init__(self):
+        object.__setattr__(self, "level", expect(self.level, VERDICT, "a finding"))
 
 
 @dataclass(frozen=True)
@@ -130,25 +113,31 @@ class Verdict:
 
     Attributes
     ----------
-    level : Level
-    text : str
-        The finding that set the level, in words (shown beside the level's badge).
+    status : Status
+        One of :data:`fabkit.status.VERDICT` (report.json's ``level``).
+    message : str
+        The finding that set the status, in words (shown beside its badge; report.json's
+        ``text``).
     findings : tuple of Finding
         Every finding, worst first.
     """
 
-    level: Level
-    text: str
+    status: Status
+    message: str
     findings: tuple = ()
+
+    def __post_init__(self):
+        object.__setattr__(self, "status", expect(self.status, VERDICT, "a verdict"))
 
     @property
     def headline(self) -> str:
-        """One line: the level and the finding that set it (a design flagged by intent says so
-        in words: its text starts "chaotic by design")."""
-        return self.text if self.level is Level.BY_DESIGN else f"{self.level}: {self.text}"
+        """One line: the status and the finding that set it (a design flagged by intent says so
+        in words: its message starts "chaotic by design")."""
+        return self.message if self.status is Status.BY_DESIGN else \
+            f"{self.status}: {self.message}"
 
     def as_dict(self) -> dict:
-        return {"level": self.level.value, "headline": self.headline, "text": self.text,
+        return {"level": self.status.value, "headline": self.headline, "text": self.message,
                 "findings": [{"level": f.level.value, "about": f.about, "text": f.text}
                              for f in self.findings]}
 
@@ -164,7 +153,7 @@ def _tolerance_finding(tolerance) -> Finding:
         hz = tolerance.horizon or {}
         after = hz.get("limit_modules")
         return Finding(
-            Level.BY_DESIGN, "tolerance",
+            Status.BY_DESIGN, "tolerance",
             f"chaotic by design: its module map stretches errors by e^{chaos['lyapunov']:.2f} "
             "a module, so "
             + (f"a {hz['error_mm']:.3g} mm build error outgrows what is allowed after about "
@@ -173,7 +162,7 @@ def _tolerance_finding(tolerance) -> Finding:
             "design puts it; the tolerance analysis flags that, as the design intends")
     # "FLAG, margin 0.75; ..." said once: the level heads the line
     said = tolerance.verdict.removeprefix("FLAG, ")
-    return Finding(Level.FLAG, "tolerance",
+    return Finding(Status.FLAG, "tolerance",
                    f"tolerance as {tolerance.spec.process} builds: {_first_clause(said)}")
 
 
@@ -205,7 +194,7 @@ def judge_design(outcome, formats: dict, checks: Checks, motion, tolerance,
 
     Parameters
     ----------
-    outcome : Outcome
+    outcome : Status
     formats : dict of str to FormatResult
     checks : Checks
     motion : TracedMotion or None
@@ -219,30 +208,30 @@ def judge_design(outcome, formats: dict, checks: Checks, motion, tolerance,
     """
     found = []
     for line in refused:
-        found.append(Finding(Level.FAIL, "format", f"cannot produce {line}"))
+        found.append(Finding(Status.FAIL, "format", f"cannot produce {line}"))
     for chk in checks.failed:
         bad = [c.get("name") for c in chk.checks if not c.get("ok")]
-        found.append(Finding(Level.FAIL, "check", f"the as-built check of {chk.file} failed"
+        found.append(Finding(Status.FAIL, "check", f"the as-built check of {chk.file} failed"
                              + (f" ({chk.error})" if chk.error else
                                 f" ({', '.join(map(str, bad[:3]))})" if bad else "")))
     if not refused and not any(f.status.produced for f in formats.values()):
-        why = "; ".join(f"{k}: {v.status}" + (f" – {v.detail}" if v.detail else "")
+        why = "; ".join(f"{k}: {v.status}" + (f" – {v.message}" if v.message else "")
                         for k, v in sorted(formats.items()))
-        found.append(Finding(Level.FLAG, "files", "nothing to build was written"
+        found.append(Finding(Status.FLAG, "files", "nothing to build was written"
                              + (f" ({why})" if why else "")))
-    if motion is not None and motion.status is MotionStatus.ENDS_MISSED:
-        found.append(Finding(Level.FLAG, "motion", f"the design does not happen: "
+    if motion is not None and motion.status is Status.ENDS_MISSED:
+        found.append(Finding(Status.FLAG, "motion", f"the design does not happen: "
                                                    f"{motion.ends.reason}"))
     if tolerance is not None and tolerance.flagged:
         found.append(_tolerance_finding(tolerance))
     found.sort(key=lambda f: -f.level.rank)
     if found:
         worst = found[0]
-        others = sum(1 for f in found[1:] if f.level is not Level.OK)
+        others = sum(1 for f in found[1:] if f.level is not Status.OK)
         more = f" (and {others} more below)" if others else ""
         return Verdict(worst.level, worst.text + more, tuple(found))
     parts = _passed(formats, checks, motion, tolerance)
-    return Verdict(Level.OK, "; ".join(parts))
+    return Verdict(Status.OK, "; ".join(parts))
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,7 +250,7 @@ class DesignReport:
     artefacts : Artefacts
     checks : Checks
     verdict : Verdict
-    outcome : Outcome
+    outcome : Status
     errors : list of str
     names : list of str
         Every file the export writes into the folder, the reports included.
@@ -279,7 +268,7 @@ class DesignReport:
     artefacts: Artefacts
     checks: Checks
     verdict: Verdict
-    outcome: Outcome
+    outcome: Status
     errors: tuple = ()
     names: tuple = ()
     origins: dict = field(default_factory=dict)
@@ -306,4 +295,4 @@ class DesignReport:
 
     def produced(self, fmt: str) -> bool:
         f = self.formats.get(fmt)
-        return f is not None and f.status is FormatStatus.EXPORTED
+        return f is not None and f.status is Status.EXPORTED

@@ -9,10 +9,11 @@ import time
 from pathlib import Path
 
 from ..errors import OutputError, internal_error_line
-from ..executor import SILENCE, Ending, LocalExecutor, Task, report
+from ..executor import SILENCE, LocalExecutor, Task, report
 from .design import export_one
 from .folders import is_safe_name, recover_folder, swap_in
-from .results import DesignResult, Outcome
+from ..status import Status
+from .results import DesignResult
 
 
 #: Default time limit of one design in a worker process (``--timeout``); the work estimate
@@ -74,12 +75,12 @@ def _export_in_worker(name: str, args: tuple, kwargs: dict) -> DesignResult:
     return res
 
 
-def _stuck_reason(ending: Ending, limit: float, name: str) -> str:
+def _stuck_reason(ending: Status, limit: float, name: str) -> str:
     """Why the worker exporting design ``name`` was stopped, at the limit ``limit`` seconds."""
-    if ending is Ending.NOT_STARTED:
+    if ending is Status.NOT_STARTED:
         return (f"the worker did not start within {limit:g} s (it was to export {name}), "
                 "and was stopped")
-    if ending is Ending.SILENT:
+    if ending is Status.SILENT:
         return (f"the worker stopped answering (no word for {limit:g} s) while exporting "
                 f"{name}, and was stopped")
     return (f"exporting {name} ran past the time limit of {limit:g} s (--timeout), and was "
@@ -125,7 +126,7 @@ def run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
             for end in pool.run(tasks):
                 i = todo[end.index]
                 pending.discard(i)
-                if end.ending is Ending.DONE:
+                if end.status is Status.DONE:
                     finished(i, _swapped_in(end.value, args[i][0], names[i], outdir))
                     continue
                 if is_safe_name(names[i]):
@@ -157,9 +158,9 @@ def _swapped_in(res: DesignResult, path, name: str, outdir) -> DesignResult:
                 recover_folder(outdir, name)
             except (OSError, OutputError):
                 pass  # the guard's refusal is the error reported
-            res.outcome, res.folder, res.files = Outcome.FAILED, "", 0
+            res.status, res.folder, res.files = Status.FAILED, "", 0
             why = exc.strerror if isinstance(exc, OSError) else exc.reason
-            res.error = f"{path}: cannot write the export to {outdir}: {why or exc}"
+            res.message = f"{path}: cannot write the export to {outdir}: {why or exc}"
             res.error_code = "output"
         res.staged = ""
     return res
@@ -167,12 +168,12 @@ def _swapped_in(res: DesignResult, path, name: str, outdir) -> DesignResult:
 
 def _failed(end, path, name: str) -> DesignResult:
     """The result of a design whose worker died, was stopped, or could not send it back."""
-    if end.ending is Ending.RAISED:  # export_one reports its own errors: this is a bug
+    if end.status is Status.RAISED:  # export_one reports its own errors: this is a bug
         return DesignResult(str(path), name, error_code="internal",
-                            error=f"{path}: {internal_error_line(end.value)}")
+                            message=f"{path}: {internal_error_line(end.value)}")
     if end.stopped:
         return DesignResult(str(path), name, error_code="timeout", worker_exit=end.exitcode,
-                            error=(f"{path}: {_stuck_reason(end.ending, end.limit, name)}; "
+                            message=(f"{path}: {_stuck_reason(end.status, end.limit, name)}; "
                                    f"nothing of {name} was written"))
     return DesignResult(str(path), name, error_code="worker", worker_exit=end.exitcode,
-                        error=_died_message(path, name, end.exitcode))
+                        message=_died_message(path, name, end.exitcode))

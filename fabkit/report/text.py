@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..model.rigidity import count_modes
-from ..motion import MotionStatus
+from ..status import Status
 
 __all__ = ["jsonable", "report_json", "report_markdown", "tolerance_markdown", "file_digest",
            "design_facts", "MADE_FOR"]
@@ -204,13 +204,13 @@ def report_markdown(report) -> bytes:
     """
     d = jsonable(report.facts)
     verdict = report.verdict
-    word = "flagged by design" if verdict.level.value == "by design" else verdict.level.value
-    out = [f"# {d['name']}", "", f"**{word}**: {verdict.text}", ""]
+    word = "flagged by design" if verdict.status is Status.BY_DESIGN else verdict.status.value
+    out = [f"# {d['name']}", "", f"**{word}**: {verdict.message}", ""]
     if d.get("description"):
         out += [d["description"], ""]
     made = [f for f, v in report.formats.items() if v.status.produced]
-    outcome = report.outcome.value
-    out += [f"- export: **{'ok' if outcome == 'ok' else outcome.upper()}**"
+    outcome = report.outcome
+    out += [f"- export: **{'ok' if outcome is Status.OK else outcome.value.upper()}**"
             + (f"; made for {MADE_FOR[report.process]}" if made else "; no files to build"),
             f"- template: `{d['template']}`"
             + (f" (sha256 {d['template_sha256'][:12]})" if d.get("template_sha256") else "")]
@@ -239,9 +239,9 @@ def report_markdown(report) -> bytes:
 
 def _motion_markdown(report) -> list[str]:
     motion = report.motion
-    if motion is None or motion.status is MotionStatus.NO_TARGET:
+    if motion is None or motion.status is Status.NO_TARGET:
         return []
-    if motion.status is MotionStatus.SINGULAR_START:
+    if motion.status is Status.SINGULAR_START:
         resolved = sorted(f for f, v in report.formats.items() if v.status.produced)
         return ["## Motion", "",
                 f"The template's motion cannot leave its singular start by itself "
@@ -279,8 +279,8 @@ def _motion_markdown(report) -> list[str]:
 
 def _formats_markdown(report) -> list[str]:
     fmts = report.formats
-    quiet = ("not available", "does not apply", "skipped by the template")
-    skipped = {k: v for k, v in fmts.items() if v.status.value in quiet}
+    quiet = (Status.NOT_AVAILABLE, Status.DOES_NOT_APPLY, Status.SKIPPED)
+    skipped = {k: v for k, v in fmts.items() if v.status in quiet}
     made = {k: v for k, v in fmts.items() if k not in skipped}
     if not fmts:
         return []
@@ -295,7 +295,7 @@ def _formats_markdown(report) -> list[str]:
         out += ["Removed from the folder (stale): " + "; ".join(report.removed) + ".", ""]
     if skipped:
         out += ["Not exported: " + ", ".join(
-            f"{k} ({v.status}" + (f": {v.detail}" if v.detail else "") + ")"
+            f"{k} ({v.status}" + (f": {v.message}" if v.message else "") + ")"
             for k, v in sorted(skipped.items())) + ".", ""]
     for name in sorted(made):
         f = made[name]
@@ -308,8 +308,8 @@ def _formats_markdown(report) -> list[str]:
                 out.append(f"From {origin.line()}" + (
                     f"; kept from that export (same design, settings and fabkit version){again}."
                     if name in report.kept else "."))
-        elif f.detail:
-            out.append(f"- {f.detail}")
+        elif f.message:
+            out.append(f"- {f.message}")
         out.append("")
         for fn in f.files:
             out.append(f"- [`{fn}`]({fn})")

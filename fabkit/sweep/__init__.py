@@ -32,13 +32,14 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..errors import BoundsError, FabkitError, InputFileError
-from ..executor import Ending, LocalExecutor, Task
+from ..executor import LocalExecutor, Task
 from ..io.inputs import read_regular
 from ..io.outputs import inside, output_folder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
+from ..status import Status
 from .model import (Axis, CHUNKS_FOLDER, json_default, key_path, lookup_number, MEASURES,
-                    parse_vary, path_text, Protocol, require_points, SPEC_FILE, Status, SweepError,
+                    parse_vary, path_text, Protocol, require_points, SPEC_FILE, SweepError,
                     SweepSpec)
 from .point import evaluate_point, failed_record
 from .results import SweepResult
@@ -197,7 +198,7 @@ def read_sweep_file(path) -> SweepFile | None:
     try:  # a FIFO or a device given as the template is refused here, never waited on
         raw = tomllib.loads(read_regular(path, MAX_FILE_BYTES).decode("utf-8"))
     except InputFileError as exc:
-        if exc.reason == "no such file" or not os.path.exists(path):
+        if exc.kind == "missing" or not os.path.exists(path):
             return None  # a bundled template's name: the template loader resolves it
         raise
     except BoundsError:
@@ -431,9 +432,9 @@ def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
     with LocalExecutor(workers, silence=None, name="fabkit-sweep",
                        in_process=workers == 1) as pool:
         for end in pool.run(tasks):
-            if end.ending is Ending.DONE:
+            if end.status is Status.DONE:
                 arrived(end.value)
-            elif end.ending is Ending.RAISED:
+            elif end.status is Status.RAISED:
                 raise end.value  # as it would have been raised in this process
             elif end.stopped:
                 arrived(_stopped_chunk(payload, chunks[end.index],

@@ -19,7 +19,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from ..errors import FabkitError, InputFileError
 from ..io.inputs import read_regular
 from ..io.outputs import write_files
-from .model import Axis, Protocol, Status, SweepSpec, json_default
+from ..status import SWEEP_POINT
+from .model import Axis, Protocol, SweepSpec, json_default
 from .point import evaluate_point
 
 _Real = Optional[float]
@@ -27,13 +28,23 @@ _Count = Optional[Annotated[int, Field(ge=0)]]
 
 
 class SweepRecord(BaseModel):
-    """One point's record as written to a chunk (:func:`fabkit.sweep.evaluate_point`)."""
+    """One point's record as written to a chunk (:func:`fabkit.sweep.evaluate_point`).
+
+    Its ``status`` is one of :data:`fabkit.status.SWEEP_POINT` (another status is refused):
+    ``ok``, the map was evaluated and every measure computed; ``rigid``, the geometry has no
+    conformational motion at all; ``flat``, the start is a flat state (a node collinear with the
+    two it is built from: a turning point of d1, where the motion bifurcates), measured on the
+    branch on the side of ``motion.to``; ``no_motion``, the network moves, but not in a way that
+    d1 drives; ``escapes``, every orbit of the map leaves its domain (fixed points and cycles are
+    still measured); ``failed``, anything else. ``reason`` (the CSV's and summary's column) is
+    its one-sentence :attr:`message`.
+    """
 
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
     index: Annotated[int, Field(ge=0)]
     params: dict[str, float]
-    status: Literal[tuple(s.value for s in Status)]
+    status: Literal[tuple(sorted(s.value for s in SWEEP_POINT))]
     reason: str = ""
     domain_lo: _Real = None
     domain_hi: _Real = None
@@ -56,6 +67,12 @@ class SweepRecord(BaseModel):
     attractor_max: _Real = None
     lyapunov: _Real = None
     lyapunov_std: _Real = None
+
+    @property
+    def message(self) -> str:
+        """Why the point ended as it did, in one sentence (its ``reason``)."""
+        return self.reason
+
 
 def run_chunk(spec_dict: dict, indices: Sequence[int]) -> dict:
     """Evaluate a chunk of points; takes and returns plain data so it ships to any worker.

@@ -1,9 +1,7 @@
-"""What a sweep is: the grid (axes and template key paths), the measures, the protocol, the
-typed status of a point."""
+"""What a sweep is: the grid (axes and template key paths), the measures, the protocol."""
 
 from __future__ import annotations
 
-import enum
 import hashlib
 import json
 import math
@@ -51,27 +49,6 @@ ATTRACTOR_RTOL = 1e-7
 
 class SweepError(FabkitError, ValueError):
     """A sweep request that cannot be run as given (bad --vary, unknown key or measure)."""
-
-
-class Status(str, enum.Enum):
-    """What happened at one point of a sweep.
-
-    ``ok``: the map was evaluated and every measure computed. ``rigid``: the geometry has no
-    conformational motion at all. ``flat``: the start configuration is a flat state (a node
-    collinear with the two it is built from: a turning point of d1, where the motion
-    bifurcates); the measures are those of the branch on the side of ``motion.to``. ``no_motion``:
-    the network moves, but not in a way that d1 drives (no map d2 = f(d1) through the start).
-    ``escapes``: the map exists but every orbit leaves its domain (no chain of many modules can
-    be assembled); fixed points and cycles are still measured. ``failed``: anything else, with
-    the reason.
-    """
-
-    OK = "ok"
-    RIGID = "rigid"
-    FLAT = "flat"
-    NO_MOTION = "no_motion"
-    ESCAPES = "escapes"
-    FAILED = "failed"
 
 
 # --------------------------------------------------------------------------------------------

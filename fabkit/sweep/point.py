@@ -13,7 +13,8 @@ from ..templates import BUILDERS, TemplateContext
 from ..kinematics import plan_construction
 from ..maps import map_from_trajectory, module_map
 from ..model.rigidity import count_modes
-from .model import (ATTRACTOR_RTOL, FLAT_NUDGE, FLAT_START_RTOL, Protocol, Status, SweepError,
+from ..status import Status
+from .model import (ATTRACTOR_RTOL, FLAT_NUDGE, FLAT_START_RTOL, Protocol, SweepError,
                     SweepSpec, assign_value, key_path, lookup_number)
 
 # --------------------------------------------------------------------------------------------

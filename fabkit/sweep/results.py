@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import COLUMNS, HEAD_COLUMNS, MEASURES, TAIL_COLUMNS, Status, SweepSpec
+from ..status import Status
+from .model import COLUMNS, HEAD_COLUMNS, MEASURES, TAIL_COLUMNS, SweepSpec
 
 # --------------------------------------------------------------------------------------------
 # Results

@@ -13,7 +13,8 @@ import scipy.linalg
 from ..errors import FabkitError, KinematicsError, TemplateError
 from ..io.workload import require
 from ..kinematics import make_problem, place, trace
-from ..kinematics.trajectory import EventKind, Status
+from ..status import Status
+from ..kinematics.trajectory import EventKind
 from ..model.network import Network
 from ..numerics import EDGE_RTOL, printed, project_to_lengths
 from ..builds.closure import play_ratio, self_stress_basis

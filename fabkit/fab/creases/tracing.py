@@ -21,9 +21,9 @@ import numpy as np
 
 from ...errors import FabricationError
 from ...kinematics import place, plan_construction
-from ...kinematics.base import align_to_gauge, Mark, Method, Outcome
+from ...kinematics.base import align_to_gauge, Mark, Method, Solved
 from ...kinematics.branching import fold_through
-from ...kinematics.trajectory import Status
+from ...status import Status
 from ...numerics import TINY
 from .pattern import assignment_score, fold_angles
 
@@ -72,7 +72,7 @@ class SheetFold(Method):
     name = "origami-sheet"
     options = {"samples": 41, "branch": None, "sign": None, "step_off": 1e-3, "pattern": None}
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         p, o = self.problem, self.opts
         score = None
         if o["branch"] is None and o["pattern"] is not None:
@@ -86,7 +86,7 @@ class SheetFold(Method):
                             method="auto", samples=int(o["samples"]) - 1)
         stats = {**traj.stats, KEY: fold_key(type(self), dict(o))}
         marks = tuple(Mark(e.kind, e.index, e.detail) for e in traj.events)
-        return Outcome(traj.positions, traj.status, traj.message, marks, stats, traj.arclength,
+        return Solved(traj.positions, traj.status, traj.message, marks, stats, traj.arclength,
                        aligned=True, method=traj.method)
 
 
@@ -109,7 +109,7 @@ class ChainFold(Method):
     name = "origami-chain"
     options = {"samples": 41, "spacing": "uniform", "relay": None, "name": "the chain"}
 
-    def solve(self) -> Outcome:
+    def solve(self) -> Solved:
         p, o = self.problem, self.opts
         net, drive, to = p.network, p.drive_name, float(p.target)
         samples = int(o["samples"])
@@ -134,7 +134,7 @@ class ChainFold(Method):
         gauge = tuple(int(i) for i in p.gauge)
         pos = align_to_gauge(pos, net.nodes, gauge)
         stats = {"samples": int(pos.shape[0]), KEY: fold_key(type(self), {**o, "gauge": gauge})}
-        return Outcome(pos, Status.FINISHED, message, (), stats, aligned=True, method=method)
+        return Solved(pos, Status.FINISHED, message, (), stats, aligned=True, method=method)
 
 
 def _relay(net, name: str, pos, relay: str, to: float, samples: int):

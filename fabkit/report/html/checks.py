@@ -22,11 +22,11 @@ def verdict_section(report) -> str:
     """The Verdict section that opens the page: the level, the finding that set it, and the
     other findings."""
     v = report.verdict
-    cls = {"ok": "ok", "by design": "by-design"}.get(str(v.level), str(v.level))
+    cls = {"ok": "ok", "by design": "by-design"}.get(str(v.status), str(v.status))
     rows = "".join(f"<li>{level_span(f.level)} {esc(f.about)}: {esc(f.text)}</li>"
                    for f in v.findings[1:])
-    return (f'<section id=verdict class="verdict {cls}"><h2>Verdict: {level_span(v.level)}</h2>'
-            f"<p>{esc(v.text)}</p>" + (f"<ul>{rows}</ul>" if rows else "")
+    return (f'<section id=verdict class="verdict {cls}"><h2>Verdict: {level_span(v.status)}</h2>'
+            f"<p>{esc(v.message)}</p>" + (f"<ul>{rows}</ul>" if rows else "")
             + "</section>")
 
 
@@ -47,7 +47,7 @@ def checks_section(report) -> str:
 def _format_rows(fmt: str, f) -> list[str]:
     """One format: its status, each as-built check of each file read back, its warnings."""
     rows = [f"<tr><th colspan=5>{esc(fmt)}: {esc(f.status)}"
-            + (f" – {esc(f.detail)}" if f.detail else "") + "</th></tr>"]
+            + (f" – {esc(f.message)}" if f.message else "") + "</th></tr>"]
     for res in f.checks:
         if res.error:
             rows.append(f"<tr><td>{esc(res.file)}</td><td>{pass_span(False)}</td>"

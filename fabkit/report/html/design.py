@@ -61,8 +61,8 @@ def design_html(report, files: dict, listing: dict, frames: dict | None = None) 
     d = report.facts
     name = d["name"]
     v = report.verdict
-    badge = {"ok": "#a5d6a7", "by design": "#d7ccc8"}.get(str(v.level), "#ef9a9a")
-    word = "flagged by design" if str(v.level) == "by design" else str(v.level)
+    badge = {"ok": "#a5d6a7", "by design": "#d7ccc8"}.get(str(v.status), "#ef9a9a")
+    word = "flagged by design" if str(v.status) == "by design" else str(v.status)
     head = (f"<header><h1>{esc(name)} <span style=\"color:{badge}\">{esc(word)}</span>"
             f"</h1><p>{esc(d.get('description', ''))}"
             + (f" · {esc(d['figure'])}" if d.get("figure") else "")

@@ -57,7 +57,7 @@ def not_exported(formats: dict) -> list:
         if f.status.value == "does not apply":
             never.append(f"{fmt}: does not apply")  # said only when nothing else explains it
         elif not f.status.produced:
-            out.append(f"{fmt}: {f.status}" + (f" – {f.detail}" if f.detail else ""))
+            out.append(f"{fmt}: {f.status}" + (f" – {f.message}" if f.message else ""))
     return out or never
 
 

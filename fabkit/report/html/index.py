@@ -25,7 +25,7 @@ class IndexCard:
         The design's folder name (its page is ``folder/report.html``).
     name, description : str
     level : str
-        The verdict's level (:class:`fabkit.pipeline.stages.Level` value).
+        The verdict's status (a :data:`fabkit.status.VERDICT` value).
     text : str
         The verdict's finding in words, shown beside the level.
     process : str or None
@@ -83,7 +83,7 @@ def index_card(report, folder: str, frames: dict | None = None):
         exports = tuple(f"{f}: export {o.export} ({o.when} UTC)"
                         for f, o in sorted(origins.items()))
     return IndexCard(folder, report.facts["name"], report.facts.get("description", ""),
-                     str(report.verdict.level), report.verdict.text, report.process, made,
+                     str(report.verdict.status), report.verdict.message, report.process, made,
                      len(report.checks.results), why, data, exports)
 
 
