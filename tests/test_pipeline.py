@@ -152,7 +152,7 @@ def test_an_origami_export_traces_its_motion_once(monkeypatch, tmp_path, name, f
     outer = _count_outer_traces(monkeypatch, path)
     res = export_one(path, formats, tmp_path, {}, check=True, tolerance_samples=10,
                      previews=False)
-    assert res.ok, res.error
+    assert res.ok, res.message
     assert sorted(res.exported_formats) == sorted(formats)
     assert outer == [load_template(path).motion.to]
 

@@ -64,7 +64,7 @@ def test_each_design_resolves_its_settings_once(template, fmt, tmp_path, monkeyp
     origami = _counted(monkeypatch, "fabkit.settings.origami", "origami_settings")
     res = export_one(TEMPLATES / f"{template}.toml", [fmt], tmp_path, {}, check=True,
                      tolerance_samples=4, previews=False)
-    assert not res.error, res.error
+    assert not res.message, res.message
     checks = res.formats[fmt].checks
     assert checks and all(c.ok for c in checks), "the as-built check ran, and passed"
     folder = Path(res.folder)
