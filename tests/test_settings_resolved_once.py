@@ -181,3 +181,23 @@ def test_a_section_that_cannot_resolve_stops_only_its_process():
     from fabkit.fab.plans import trace_needs
 
     assert trace_needs({"laser"}, design, s) == {}  # the plan says why, not the trace
+
+
+def test_the_origami_error_model_reads_the_resolved_settings_not_the_template(monkeypatch):
+    """The tolerance analysis's sheets and cut boundary come from the spec's resolved origami
+    settings: the template is not read again (a ``--set origami.*`` would be lost there)."""
+    import fabkit.tolerance.placement as placement
+    from fabkit.tolerance.spec import tolerance_spec
+
+    design = fabkit.load_template(TEMPLATES / "origami_sheet.toml")
+    spec = tolerance_spec(design)
+    assert spec.origami_settings is not None
+
+    def reread(*_a, **_k):
+        raise AssertionError("the template's origami table was read again")
+
+    monkeypatch.setattr(placement, "origami_settings", reread)
+    geo = placement.process_geometry(design, spec, None, None)
+    assert geo.sheets and geo.boundary is not None
+    assert int(geo.boundary.sum()) == len({i for e in design.network.edges[
+        [a in ("B", "C") for a in spec.origami_settings.assignment]] for i in e})

@@ -8,10 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..builds.closure import play_ratio, self_stress_basis
-from ..errors import FabricationError
+from ..errors import FabkitError, FabricationError
 from ..fab.creases import origami_model
 from ..kinematics import place
 from ..numerics import EDGE_RTOL
+from ..settings.origami import origami_settings
 from .processes import interp_rows, ProcessGeometry, PROFILE_SAMPLES, Sheet, state_profile
 
 #: Builds whose lengths must be realised and traced one by one (no construction order) are
@@ -133,25 +134,32 @@ def process_geometry(design, spec, problem, final) -> ProcessGeometry:
     if spec.process == "print" and final is not None:
         turn = _joint_turn(net, problem.start, final)
     sheets = None
-    if spec.process == "origami":
-        fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-        assignment = (fab.get("origami") or {}).get("assignment") \
-            if isinstance(fab.get("origami"), dict) else None
-        if isinstance(assignment, list) and len(assignment) == net.n_edges:
+    origami = spec.origami_settings if spec.process == "origami" else None
+    if spec.process == "origami" and origami is None:  # a spec made by hand: the template's
+        origami = _template_origami(design)
+    if origami is not None:
+        assignment = origami.assignment
+        if assignment is not None and len(assignment) == net.n_edges:
             cut = net.edges[[a in ("B", "C") for a in assignment]]
             boundary = np.zeros(net.n_nodes, dtype=bool)
             boundary[cut.ravel()] = True
-        sheets = _sheets(design)
+        sheets = _sheets(design, origami)
     return ProcessGeometry(net.nodes, net.edges, net.edge_lengths, turn, boundary, sheets)
 
 
-def _sheets(design):
-    """The sheets of an origami design, each with its flat pattern (None without one)."""
-    fab = design.fabrication if isinstance(design.fabrication, dict) else {}
-    if "origami" not in fab:
-        return None
+def _template_origami(design):
+    """The origami settings of the template alone, or None when it has none (or bad ones)."""
     try:
-        model = origami_model(design)
+        return origami_settings(design)
+    except FabkitError:
+        return None
+
+
+def _sheets(design, settings):
+    """The sheets of an origami design, each with its flat pattern (None without one), from
+    its origami settings as resolved (the command line's ``--set origami.*`` included)."""
+    try:
+        model = origami_model(design, settings)
     except FabricationError:
         return None
     lookup = {(min(i, j), max(i, j)) for i, j in design.network.edges.tolist()}

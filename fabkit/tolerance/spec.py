@@ -51,6 +51,10 @@ class ToleranceSpec:
     print_settings : PrintSettings or None
         The print's settings as resolved (template, then command line): a pin-jointed print's
         plan says which bar carries each pin (:mod:`fabkit.tolerance.pins`).
+    origami_settings : OrigamiSettings or None
+        The origami settings as resolved (template, then command line): the sheets, their
+        crease assignment and the cut boundary the error model perturbs
+        (:mod:`fabkit.tolerance.placement`).
     crease_sigma, cut_sigma, paper_thickness, compliance_sigma : float
         Origami: crease-vertex position σ (0.5 mm, folding by hand on a printed line), boundary
         σ (0.2 mm, knife or cutter), paper thickness (0.1 mm, 80 g/m² copy paper), panel bowing
@@ -92,6 +96,7 @@ class ToleranceSpec:
     pin_clearance: float = 0.3
     bar_thickness: float = 2.4
     print_settings: object = field(default=None, repr=False)
+    origami_settings: object = field(default=None, repr=False)
     crease_sigma: float = 0.5
     cut_sigma: float = 0.2
     paper_thickness: float = 0.1
@@ -118,7 +123,7 @@ class ToleranceSpec:
                                  else self.thickness)
 
 
-TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)} - {"print_settings"}
+TOLERANCE_KEYS = {f.name for f in fields(ToleranceSpec)} - {"print_settings", "origami_settings"}
 _OWNER = {k: proc for proc in PROCESSES for src in SOURCES[proc].values() for k in src}
 _OWNER.update({k: proc for proc, keys in PROCESS_EXTRA_KEYS.items() for k in keys})
 
@@ -269,7 +274,8 @@ def _origami_defaults(design, settings: DesignSettings) -> dict:
     fab = design.fabrication if isinstance(design.fabrication, dict) else {}
     if "origami" not in fab:
         return {"scale": 150.0 / max(float(design.network.size), TINY)}
-    return {"scale": float(_process_settings(design, settings, "origami").scale)}
+    s = _process_settings(design, settings, "origami")
+    return {"scale": float(s.scale), "origami_settings": s}
 
 
 _DEFAULTS = {"laser": _laser_defaults, "print": _print_defaults, "origami": _origami_defaults}
