@@ -250,6 +250,24 @@ def test_fold_command_reports_bifurcation_and_writes_checked_files(tmp_path, cap
                      "origami_sheet_cut.svg"]
 
 
+def test_fold_command_folds_once_for_its_summary_and_every_file(tmp_path, capsys,
+                                                                 monkeypatch):
+    """The summary and the SVG, FOLD and .cp files are drawn from one origami plan: the
+    sheet is folded once (it was folded for the summary, then once more per format)."""
+    import fabkit.fab.creases.plan as plan
+    from fabkit.cli import main
+
+    folds = []
+    real = plan.fold_model
+    monkeypatch.setattr(plan, "fold_model", lambda *a, **k: folds.append(1) or real(*a, **k))
+    code = main(["fold", str(TEMPLATES / "origami_sheet.toml"), "--branch", "2", "-o",
+                 str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0 and "taken        branch 2" in out
+    assert len(folds) == 1
+    assert len(list((tmp_path / "origami_sheet").iterdir())) == 4
+
+
 def test_fold_command_errors_are_one_line(tmp_path, capsys):
     from fabkit.cli import main
 

@@ -82,8 +82,7 @@ def run(args) -> int:
 
     # the origami model is imported here, not at the top: it brings the settings schema
     # (pydantic), which `fabkit fold --help` does without
-    from ..fab.creases import fold_model, origami_model
-    from ..settings.origami import origami_settings
+    from ..fab.creases.plan import origami_plan
     from ..templates import load_template
 
     if args.branch is not None and args.branch < 0:
@@ -101,7 +100,7 @@ def run(args) -> int:
         overrides = {**settings.get("origami", {}),
                      **{k: v for k, v in (("branch", args.branch), ("sign", args.sign))
                         if v is not None}}
-        model = origami_model(design, origami_settings(design, overrides))
+        chosen = {"origami": overrides} if overrides else {}
         drive = args.drive or design.motion.drive
         if drive not in design.network.ports:
             known = ", ".join(sorted(design.network.ports))
@@ -111,18 +110,18 @@ def run(args) -> int:
                          to=args.to if args.to is not None else design.motion.to)
         design = replace(design, motion=motion)
         progress.stage(f"{design.name}: folding")
-        fold = fold_model(model, motion.drive, motion.to)
-        print(describe(design, model, fold))
+        # folded once: the summary and every file are drawn from the one origami plan
+        plan = origami_plan(design, chosen)
+        print(describe(design, plan.model, plan.fold))
         if out:
             from ..check import check_file
             from ..export import get_exporter
 
-            chosen = {"origami": overrides} if overrides else {}
             files: dict[str, bytes] = {}
             for fmt in ("svg", "fold", "cp"):
                 module = get_exporter(fmt)
                 if module.applies(design):
-                    files.update(module.export_design(design, chosen).files)
+                    files.update(module.write(plan).files)
             paths = write_files(folder, files)  # every format computed first: all or nothing
             print("wrote        " + ", ".join(str(p) for p in paths))
             progress.stage(f"{design.name}: checking {design.name}.fold by folding it again")
