@@ -58,6 +58,49 @@ def test_chain_keeps_every_module_edge_length(super_stable, mirror):
     assert count_modes(net).conformational == 1
 
 
+def _coincident_pairs(net) -> int:
+    """Pairs of distinct nodes at one place, by brute force over every pair."""
+    x = net.nodes
+    d = np.linalg.norm(x[:, None] - x[None], axis=-1)
+    return int((d[np.triu_indices(len(x), 1)] < 1e-9 * net.size).sum())
+
+
+def test_a_chain_picks_the_mirroring_its_module_needs(super_stable, fourbar):
+    # the paper's 5-node module folds back onto the module before it when chained as it is:
+    # of four copies joined as they are, five pairs of nodes stand on one another
+    straight = chain(super_stable, 4, mirror="none")
+    assert _coincident_pairs(straight) == 5
+    picked = chain(super_stable, 6)  # "auto"
+    assert picked.assembly.mirrored.tolist() == [False, True] * 3  # it says what it used
+    assert _coincident_pairs(picked) == 0
+    np.testing.assert_array_equal(picked.nodes, chain(super_stable, 6, mirror="alternate").nodes)
+    # a module that chains as it is keeps its handedness
+    plain = chain(fourbar, 4)
+    assert not plain.assembly.mirrored.any()
+    np.testing.assert_array_equal(plain.nodes, chain(fourbar, 4, mirror="none").nodes)
+
+
+def test_modules_that_stand_on_one_another_either_way_are_refused(super_stable, monkeypatch):
+    import fabkit.design.assemble as assemble
+
+    monkeypatch.setattr(assemble, "_stacked_nodes", lambda net: 2)
+    with pytest.raises(FabkitError, match="however they are chained.*list of booleans"):
+        chain(super_stable, 5)
+    assert chain(super_stable, 5, mirror="alternate").n_nodes  # a rule given is not second-guessed
+
+
+def test_a_template_chain_without_mirror_picks_it(tmp_path):
+    (tmp_path / "c.toml").write_text(
+        f'name = "c"\n[chain]\nmodule = "{(TEMPLATES / "super_stable.toml").as_posix()}"\n'
+        'copies = 4\n')
+    net = load_template(tmp_path / "c.toml").network
+    assert net.assembly.mirrored.tolist() == [False, True, False, True]
+    with pytest.raises(TemplateError, match="mirror"):
+        (tmp_path / "d.toml").write_text((tmp_path / "c.toml").read_text()
+                                         + 'mirror = "sometimes"\n')
+        load_template(tmp_path / "d.toml")
+
+
 def test_mirror_flags_flip_handedness(super_stable):
     net = chain(super_stable, 4, mirror=[False, True, True, False])
     # module k's designed triangle (nodes 0, 1, 2) in the chain: d_k pair + the d_{k+1} far node
@@ -124,10 +167,10 @@ def test_chain_inverse_map_direction(module):
     ({"copies": 2.5}, "copies must be a whole number, got 2.5", TypeError),
     ({"copies": True}, "copies must be a whole number, got True", TypeError),
     ({}, "copies is needed with one module", TypeError),
-    ({"copies": 3, "mirror": "sometimes"}, "mirror must be one of 'alternate', 'none'",
+    ({"copies": 3, "mirror": "sometimes"}, "mirror must be one of 'auto', 'alternate', 'none'",
      ValueError),
     ({"copies": 3, "mirror": [True]}, "mirror has 1 entries for 3 modules", ValueError),
-    ({"copies": 3, "mirror": [1, 0, 1]}, "mirror must be None, 'alternate', 'none' or a list "
+    ({"copies": 3, "mirror": [1, 0, 1]}, "mirror must be 'auto', 'alternate', 'none' or a list "
                                          "of booleans", TypeError),
     ({"copies": 2, "d_in": "dx"}, "d_in 'dx' is not a port of the network", ValueError),
     ({"copies": 2, "d_out": ["d2"]}, "d_out must be a port name", TypeError),

@@ -314,22 +314,58 @@ def _module_at(module: Network, d_in: str, value: float, plan_cache: dict) -> np
     return x[0]
 
 
+#: Two nodes of a chain closer than this share of its size stand on one another: the modules
+#: were joined on the wrong side (a 5-node module of the paper chained unmirrored folds back
+#: onto the module before it, five of its nodes on that module's nodes).
+COINCIDENT_RTOL = 1e-9
+
+
 def _mirror_flags(mirror, k: int) -> list[bool]:
     if mirror is None:
         return [False] * k
     if isinstance(mirror, str):
-        arguments.choice("mirror", mirror, ("alternate", "none"))
+        arguments.choice("mirror", mirror, ("auto", "alternate", "none"))
         return [mirror == "alternate" and c % 2 == 1 for c in range(k)]
     if not isinstance(mirror, (list, tuple)) or not all(isinstance(f, bool) for f in mirror):
-        raise ArgumentTypeError("mirror", "must be None, 'alternate', 'none' or a list of "
+        raise ArgumentTypeError("mirror", "must be 'auto', 'alternate', 'none' or a list of "
                                           f"booleans, got {type(mirror).__name__}")
     if len(mirror) != k:
         raise ArgumentValueError("mirror", f"has {len(mirror)} entries for {k} modules")
     return list(mirror)
 
 
+def _stacked_nodes(net: Network) -> int:
+    """How many pairs of a network's nodes stand on one another (:data:`COINCIDENT_RTOL`)."""
+    from scipy.spatial import cKDTree
+
+    tol = COINCIDENT_RTOL * max(float(net.size), 1.0)
+    return len(cKDTree(net.nodes).query_pairs(tol))
+
+
+def _auto_mirror(base, d_in: str, d_out: str) -> str:
+    """The mirroring a sequence of modules needs: ``"none"`` when joined as they are no two
+    nodes of a short chain of them (the sequence, its first module again) stand on one another,
+    else ``"alternate"`` when every second one mirrored keeps them apart.
+
+    Raises
+    ------
+    FabkitError
+        Neither keeps the nodes apart (pass ``mirror`` as a list of booleans).
+    """
+    prefix = list(base) * 2 + [base[0]] if len(base) == 1 else list(base) + [base[0]]
+    found = {}
+    for rule in ("none", "alternate"):
+        found[rule] = _stacked_nodes(chain(prefix, d_in=d_in, d_out=d_out, mirror=rule))
+        if not found[rule]:
+            return rule
+    raise FabkitError(f"the modules stand on one another however they are chained: joined as "
+                      f"they are, {found['none']} pair(s) of nodes of the first "
+                      f"{len(prefix)} modules coincide, every second one mirrored "
+                      f"{found['alternate']}; pass mirror as a list of booleans, one per module")
+
+
 def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = "d2",
-          mirror=None) -> Network:
+          mirror="auto") -> Network:
     """Join modules in a chain, each one's ``d_out`` port onto the next one's ``d_in`` port.
 
     Parameters
@@ -342,9 +378,13 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     d_in, d_out : str
         Port names of a module's input and output pairs (``d_in="d2", d_out="d1"`` chains the
         inverse map).
-    mirror : None, "alternate", or sequence of bool
-        Mirror every second module (``"alternate"``, the curvature chains) or the modules
-        flagged True.
+    mirror : "auto", "alternate", "none" or sequence of bool
+        Mirror every second module (``"alternate"``: the paper's 5-node modules, whose output
+        pair lies the other way round from their input pair), none (``"none"`` or None), or the
+        modules flagged True. ``"auto"`` (the default) picks what planar modules need: none when
+        joined as they are no two nodes of the chain stand on one another, else
+        ``"alternate"`` (3D modules: none); the chain's ``assembly.mirrored`` says which copies
+        it mirrored.
 
     Returns
     -------
@@ -355,8 +395,9 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     Raises
     ------
     FabkitError
-        Missing ports, mismatched dimensions, or a module that cannot take the previous output
-        distance (it lies outside the module's range).
+        Missing ports, mismatched dimensions, a module that cannot take the previous output
+        distance (it lies outside the module's range), or (``"auto"``) modules whose nodes
+        stand on one another mirrored or not.
 
     Notes
     -----
@@ -392,6 +433,10 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     require("chain", ("node", repeat * sum(m.n_nodes for m in base)))
     seq = base * repeat
     k = len(seq)
+    if isinstance(mirror, str) and mirror == "auto":
+        # planar modules: a mirror image is the module's other handedness; a 3D module's
+        # mirror is through a plane of the designer's choosing, so it is never guessed
+        mirror = _auto_mirror(base, d_in, d_out) if k > 1 and base[0].dim == 2 else "none"
     flags = _mirror_flags(mirror, k)
     dim = seq[0].dim
     # Per distinct module: ports, the local ranks of the nodes that a joined copy adds, and a
@@ -777,10 +822,11 @@ def _chain_from_section(section: dict, ctx, where: str) -> Network:
     ctx.bound_modules(f"{where}.copies" if copies is not None else f"{where}.modules",
                       repeat * sum(modules_in(m) for m in mods),
                       repeat * sum(m.n_nodes for m in mods))
-    mirror = section.get("mirror")
-    if mirror is not None and not (mirror in ("alternate", "none") or (
+    mirror = section.get("mirror", "auto")
+    if not (mirror in ("auto", "alternate", "none") or (
             isinstance(mirror, list) and all(isinstance(v, bool) for v in mirror))):
-        raise ctx.error(f"{where}.mirror", "must be \"alternate\", \"none\" or an array of booleans")
+        raise ctx.error(f"{where}.mirror",
+                        "must be \"auto\", \"alternate\", \"none\" or an array of booleans")
     d_in = ctx.get(section, "d_in", where, str, required=False, default="d1")
     d_out = ctx.get(section, "d_out", where, str, required=False, default="d2")
     try:
