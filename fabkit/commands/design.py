@@ -320,12 +320,16 @@ def _pasteable(nearest: str | None, args) -> str | None:
         return nearest
     words = nearest.split()
     scale, size = args.curve_scale, args.module_size
-    if words[:1] == ["--curve-scale"]:
-        scale = float(f"{args.curve_scale * float(words[1]):.6g}")
-    elif words[:1] == ["--module-size"]:
-        size = float(words[1])
-    else:
+    if words[:1] not in (["--curve-scale"], ["--module-size"]):
         return nearest
+    # the options lead the suggestion (words in brackets may follow): each one a value
+    for option, value in zip(words[::2], words[1::2]):
+        if option == "--curve-scale":
+            scale = float(f"{args.curve_scale * float(value):.6g}")
+        elif option == "--module-size":
+            size = float(value)
+        else:
+            break
     tail = f" --types {args.types}" if args.types is not None else ""
     return (f"--curve {shlex.quote(str(args.curve))} --curve-scale {scale:g} --module-size "
             f"{size:g}{tail}")
