@@ -152,9 +152,9 @@ def test_l_with_a_right_angle_is_cut_within_the_tolerance(tmp_path, capsys):
 
 
 def test_spiral_turns_the_way_it_is_drawn(tmp_path, capsys):
-    # at 50 mm the spiral's inner turn (r = 100 mm: 57 deg per two modules) is too sharp, and
-    # smaller modules turn less sharply themselves; the refusal's suggestion
-    # (test_spiral_refused_with_a_suggestion_that_builds) is the drawing 2.2 times larger
+    # at 50 mm the spiral's inner turn (r = 100 mm: 57 deg per two modules) is too sharp; the
+    # drawing 2.2 times larger follows it (the refusal names 30 mm modules at its own size:
+    # test_spiral_refused_with_a_suggestion_that_builds)
     curve = read_csv(CURVES / "spiral.csv") * 2.2
     out, code = design(tmp_path, "spiral", "--curve-scale", "2.2")
     capsys.readouterr()
@@ -205,8 +205,17 @@ def test_spiral_refused_with_a_suggestion_that_builds(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     (line,) = err.strip().splitlines()
-    assert "nearest feasible: --curve " in line and " --curve-scale 2.2 --module-size " in line
+    # smaller modules cut the inner turn (tighter than any module turns along) closely enough
+    assert line.endswith(f"nearest feasible: --curve {CURVES / 'spiral.csv'} --curve-scale 1 "
+                         "--module-size 30")
     assert not out.exists()
+    out, code = design(tmp_path, "spiral", "--module-size", "30")
+    assert code == 0
+    fit = check_chain(out, "spiral", read_csv(CURVES / "spiral.csv"))
+    # within the tolerance; where the inner turn is cut the chain wavers (69 mm longer than the
+    # 2378 mm curve), so the length is not held to a module here
+    assert fit["mean"] <= 0.01 and fit["start"] <= 0.02 and fit["end"] <= 0.02
+    assert abs(fit["length"] - 2378.1) <= 0.05 * 2378.1
 
 
 def test_fit_summary_says_only_what_fits_the_curve(tmp_path, capsys):

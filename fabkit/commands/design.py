@@ -39,9 +39,10 @@ EXAMPLES = [
             "a module super-stable at 1.6 with a second fixed point at 1.1"),
     Example("fabkit design --cycle 1.4,1.8 --name two_cycle",
             "a module whose map has the 2-cycle 1.4 <-> 1.8; out/design/two_cycle.toml"),
-    Example("fabkit design --curve quadrifolium.csv --curve-scale 70 -o out/quad",
-            "a chain whose final state follows a bundled curve, 70 times the drawing",
-            cheap=False),
+    Example("fabkit design --curve quadrifolium.csv --curve-scale 2.9 --module-size 25 "
+            "-o out/quad",
+            "a chain whose final state follows a bundled curve, 2.9 times the drawing, in "
+            "modules of 25 mm", cheap=False),
 ]
 
 #: Largest curve file read (an SVG of a hand-drawn curve is a few kB).

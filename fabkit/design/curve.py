@@ -27,8 +27,13 @@ The curve (mm) and the module size (mm per module along the curve) fix everythin
 A chain is accepted when its centre line lies within ``FIT_TOLERANCE`` of the curve's size
 (mean) and its ends within ``END_TOLERANCE``. A curve that turns faster than modules of this
 size can (or has corners sharper than they can cut within the tolerance) is refused, naming
-the nearest module size or enlargement of the drawing that builds: computed (the turn the
-curve needs against the turn the modules give), then tried.
+the nearest wish that builds: a smaller module size at the drawing's size, else the least
+enlargement of the drawing (at this module size, and at a smaller one where the curve turns
+tighter than these modules), modelled, then built. No module size turns a chain tighter than
+:func:`tightest_radius` (about 122 mm: the narrow apex angles need room for the screws), so a
+sharper turn is always cut; the refusal says so. The report carries the chain as measured on
+the drawing by :func:`~fabkit.design.drawing_fit.fit_final_state` (its own fit of the traced
+port midpoints, and the designed nodes).
 """
 
 from __future__ import annotations
@@ -462,8 +467,9 @@ def curve_radius(points, size: float) -> float:
 def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: float,
              end_tolerance: float, progress, stop) -> str | None:
     """The nearest wish that builds: a smaller module size at the drawing's own size, else the
-    smallest enlargement of the drawing, at this module size or at the size that follows sharp
-    turns most closely (``TIGHT_SIZE_FACTOR`` of it). Each is found in the zigzag model first
+    least enlargement of the drawing, at this module size and, where the curve turns tighter
+    than these modules do, at ``TIGHT_SIZE_FACTOR`` of it (smaller modules cut a sharp turn
+    more closely); the least of them is named. Each is found in the zigzag model first
     (cheap), fitting within ``SUGGEST_SHARE`` of the tolerances (a suggestion is not a knife
     edge), and then designed in full: the suggestion is one that was built."""
     share = (SUGGEST_SHARE * tolerance, SUGGEST_SHARE * end_tolerance)
