@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import DesignError
 from ..kinematics import trace
 from ..numerics import rigid_fit
 from .curvature import LEG_RATIO
@@ -184,12 +185,12 @@ def fold_onto_drawing(network, scale: float, modules: int, curve, *,
 
     Raises
     ------
-    RuntimeError
+    DesignError
         The chain does not reach its final state.
     """
     traj = trace(network, "d1", to=to, method="constructive", samples=2)
     if str(traj.status) != "finished" or not traj.max_edge_error <= EDGE_ATOL:
-        raise RuntimeError(f"the chain does not reach its final state: {traj.message}")
+        raise DesignError(f"the chain does not reach its final state: {traj.message}")
     return fit_final_state(network, np.asarray(traj.positions[-1]) * scale, modules, curve)
 
 
