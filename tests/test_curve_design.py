@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import shlex
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,8 +15,10 @@ import pytest
 import fabkit
 from fabkit.cli import main
 from fabkit.design import design_curve_chain, read_curve
+from fabkit.design.curve import chain_plan, curve_radius, tightest_radius
 from fabkit.design.curvature import APEX_RANGE_DEG, LEG_RATIO, design_curvature_type
 from fabkit.errors import FabkitError
+from fabkit.design.drawing_fit import fit_onto_drawing, fold_onto_drawing
 from fabkit.design.letters import chain_centerline
 from fabkit.maps import module_map
 
@@ -258,3 +261,128 @@ def test_a_one_mm_curve_is_a_refusal_like_any_other(tmp_path, capsys):
     code, out, err = run_cli(["design", "--curve", src, "--curve-scale", "100", "-o",
                               tmp_path / "o"], capsys)
     assert code == 0, err
+
+
+# --- sharp curves at their own size, measured on the drawing (issue 50) -------------------------
+
+#: The bundled curves of this source tree (the installed package may point at another copy).
+CURVES = Path(__file__).resolve().parents[1] / "templates" / "curves"
+
+
+def suggestion(line):
+    """The option set a refusal names, split as a shell would."""
+    return shlex.split(line.rsplit("nearest feasible: ", 1)[1])
+
+
+def measured(folder, name, src, scale):
+    """The chain written to ``folder``, traced and laid on its drawing (``src`` times
+    ``scale``) by fabkit.design.drawing_fit."""
+    design = fabkit.load_template(folder / f"{name}.toml")
+    curve = read_curve(src.read_bytes(), str(src)).points * scale
+    k = len(design.raw["chain"]["modules"])
+    return fold_onto_drawing(design.network, design.fabrication["laser"]["scale"], k, curve)
+
+
+def test_the_drawing_fit_finds_the_motion_and_can_fail():
+    t = np.linspace(0.0, np.pi / 2, 400)
+    arc = 100.0 * np.column_stack([np.cos(t), np.sin(t)])
+    turn = np.array([[math.cos(1.0), -math.sin(1.0)], [math.sin(1.0), math.cos(1.0)]])
+    pts = arc[::21] @ turn.T + [300.0, -40.0]
+    rot, shift = fit_onto_drawing(pts, arc)
+    assert np.abs(pts @ rot.T + shift - arc[::21]).max() < 1e-3
+    # the same points on an arc of 110 mm cannot lie on the 100 mm one: the fit says so
+    wide = 1.1 * arc[::21] @ turn.T
+    rot, shift = fit_onto_drawing(wide, arc)
+    from scipy.spatial import cKDTree
+
+    gap = cKDTree(arc).query(wide @ rot.T + shift)[0]
+    assert 1.0 < gap.mean() < 10.0
+
+
+def test_the_drawing_fit_of_a_written_chain_agrees_with_the_designer(arcs):
+    src = arcs["quarter"].parent / "quarter.svg"
+    fit = measured(arcs["quarter"], "quarter", src, 1.0)
+    report = json.loads((arcs["quarter"] / "quarter_fit.json").read_text())
+    own = report["fit_error_fraction_of_size"]
+    assert fit.mean <= 0.001 and abs(fit.mean - own["mean"]) < 0.0005
+    assert fit.start <= 0.002 and fit.end <= 0.002
+    # the designed nodes lie half a module's width from the curve: 36 mm of a 354 mm drawing
+    assert 0.08 < fit.nodes_mean < 0.12
+    assert report["drawing_fit_percent_of_size"]["mean"] == pytest.approx(100 * fit.mean,
+                                                                          abs=1e-6)
+
+
+def test_tightest_radius_is_what_the_module_sizes_turn_along():
+    r = tightest_radius()
+    assert 110.0 < r < 130.0
+    # 2 m / (sharpest turn per two modules) at every size is at least that
+    for m in (16.0, 20.0, 25.0, 30.0, 50.0):
+        turn = math.radians(chain_plan(m)["turn_deg"])
+        assert 2 * m / turn >= r - 1e-9
+    t = np.linspace(0.0, np.pi / 2, 2000)
+    assert curve_radius(60.0 * np.column_stack([np.cos(t), np.sin(t)]), 85.0) \
+        == pytest.approx(60.0, rel=0.01)
+
+
+def test_l_corner_folds_onto_its_drawing_at_its_own_size(tmp_path, capsys):
+    # two 400 mm legs at 90 deg: 50 mm modules cut the corner 1.1 % off on average; smaller
+    # modules cut it closer (the round no module turns tighter than stays): the refusal names
+    # a module size at the drawing's own size, and pasted alone it designs the L
+    src = CURVES / "l_corner.csv"
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "no module size turns a chain tighter than" in line
+    options = suggestion(line)
+    assert options[:2] == ["--curve", str(src)]
+    assert float(options[options.index("--curve-scale") + 1]) == 1.0
+    assert float(options[options.index("--module-size") + 1]) < 50.0
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+    fit = measured(tmp_path / "o", "l_corner", src, 1.0)
+    assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02
+
+
+def test_a_petal_is_enlarged_less_with_smaller_modules(tmp_path, capsys):
+    # one petal of the quadrifolium r = 162 sin 2theta mm: its tip (r = 32 mm) is tighter than
+    # any module turns, so the drawing is enlarged; the least enlargement is bisected below the
+    # one where the curve turns no faster than the modules, and smaller modules need less
+    t = np.linspace(0.0, np.pi / 2, 400)
+    r = 162.0 * np.sin(2 * t)
+    src = tmp_path / "petal.csv"
+    src.write_text("x,y\n" + "\n".join(f"{a:.6f},{b:.6f}" for a, b in
+                                       zip(r * np.cos(t), r * np.sin(t))) + "\n")
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "its sharpest turn has a radius of about 32" in line
+    options = suggestion(line)
+    scale = float(options[options.index("--curve-scale") + 1])
+    module = float(options[options.index("--module-size") + 1])
+    # 50 mm modules turn no faster than the curve from 6.9 times the drawing on; cut tips
+    # within the tolerance need less, and 25 mm modules less again
+    assert 2.0 <= scale <= 3.5 and module < 50.0
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+    fit = measured(tmp_path / "o", "petal", src, scale)
+    assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02
+
+
+@pytest.mark.slow
+def test_quadrifolium_at_its_own_size_is_refused_with_options_that_fold_onto_it(tmp_path,
+                                                                               capsys):
+    # r = 162 sin 2theta mm, the authors' chain at its own size (353 mm across the diagonal)
+    src = CURVES / "quadrifolium.csv"
+    drawing = read_curve(src.read_bytes(), str(src)).points
+    assert np.abs(drawing).max() == pytest.approx(124.7, abs=0.1)
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "its sharpest turn has a radius of about 32" in line
+    options = suggestion(line)
+    scale = float(options[options.index("--curve-scale") + 1])
+    assert scale <= 3.5  # 7 before the least enlargement was sought with smaller modules
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+    fit = measured(tmp_path / "o", "quadrifolium", src, scale)
+    assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,9 +20,9 @@ from scipy.spatial import cKDTree
 import fabkit
 from fabkit.cli import main
 from fabkit.design.letters import chain_centerline
-from fabkit.templates import bundled_folder
 
-CURVES = bundled_folder() / "curves"
+#: The bundled curves of this source tree (an installed package may point at another copy).
+CURVES = Path(__file__).resolve().parents[1] / "templates" / "curves"
 
 
 def read_csv(path):
@@ -78,10 +79,10 @@ def turn(points):
 
 
 def design(tmp_path, name, *extra):
-    """``fabkit design --curve NAME.csv`` (a bundled curve, by its bare name), following the
-    suggestion once when refused. Returns the output folder and the options that built."""
+    """``fabkit design --curve CURVES/NAME.csv``. Returns the output folder and the exit
+    status."""
     out = tmp_path / name
-    args = ["design", "--curve", f"{name}.csv", *extra, "-o", str(out)]
+    args = ["design", "--curve", str(CURVES / f"{name}.csv"), *extra, "-o", str(out)]
     code = main(args)
     return out, code
 
@@ -136,21 +137,24 @@ def test_s_curve_of_two_arcs_end_to_end(tmp_path, capsys):
 
 
 def test_l_with_a_right_angle_is_cut_within_the_tolerance(tmp_path, capsys):
+    # two 400 mm legs: 50 mm modules cut the corner 1.1 % off on average and are refused
+    # (tests/test_curve_design.py); the refusal names 30 mm modules at the drawing's size
     curve = read_csv(CURVES / "l_corner.csv")
-    out, code = design(tmp_path, "l_corner")
+    out, code = design(tmp_path, "l_corner", "--module-size", "30")
     capsys.readouterr()
     assert code == 0
     fit = check_chain(out, "l_corner", curve)
-    # the chain turns 90 deg over about 6 modules (at most 32 deg per two): it cuts the corner
-    # along a round of radius r ~ 150 mm, which is shorter than the legs by (2 - pi / 2) r
-    assert_follows(fit, curve, 50.0, corner_cut=(2 - math.pi / 2) * 150.0)
+    # the chain turns 90 deg at its fastest (no module size turns tighter than r ~ 122 mm): it
+    # cuts the corner along a round of radius r ~ 150 mm at most, shorter than the legs by
+    # (2 - pi / 2) r
+    assert_follows(fit, curve, 30.0, corner_cut=(2 - math.pi / 2) * 150.0)
     assert 80.0 <= math.degrees(turn(fit["centre"])) <= 100.0  # south, then east: 90 deg left
 
 
 def test_spiral_turns_the_way_it_is_drawn(tmp_path, capsys):
-    # at 50 mm the spiral's inner turn (r = 100 mm: 57 deg per two modules) is too sharp, and
-    # smaller modules turn less sharply themselves; the refusal's suggestion
-    # (test_spiral_refused_with_a_suggestion_that_builds) is the drawing 2.2 times larger
+    # at 50 mm the spiral's inner turn (r = 100 mm: 57 deg per two modules) is too sharp; the
+    # drawing 2.2 times larger follows it (the refusal names 30 mm modules at its own size:
+    # test_spiral_refused_with_a_suggestion_that_builds)
     curve = read_csv(CURVES / "spiral.csv") * 2.2
     out, code = design(tmp_path, "spiral", "--curve-scale", "2.2")
     capsys.readouterr()
@@ -164,14 +168,16 @@ def test_spiral_turns_the_way_it_is_drawn(tmp_path, capsys):
     assert drawn > 540 and abs(chain - drawn) <= 15.0
 
 
-def test_quadrifolium_at_the_suggested_scale(tmp_path, capsys):
-    curve = read_csv(CURVES / "quadrifolium.csv") * 70
-    out, code = design(tmp_path, "quadrifolium", "--curve-scale", "70")
+def test_quadrifolium_at_the_suggested_scale(tmp_path, capsys, scale="2.9", module="25"):
+    # r = 162 sin 2theta mm drawn; its tips (r = 32 mm) are tighter than any module turns
+    # (r ~ 122 mm), so the drawing is enlarged until the cut tips fit
+    curve = read_csv(CURVES / "quadrifolium.csv") * float(scale)
+    out, code = design(tmp_path, "quadrifolium", "--curve-scale", scale, "--module-size",
+                       module)
     stdout = capsys.readouterr().out
     assert code == 0
     fit = check_chain(out, "quadrifolium", curve)
-    assert_follows(fit, curve, 50.0)
-    assert fit["mean"] <= 0.002
+    assert_follows(fit, curve, float(module))
     assert 1000 <= math.degrees(turn(fit["centre"])) <= 1100  # four petals: three turns
     proportions = fit["report"]["proportions"]["curve"]
     assert proportions["closed"] and "chord" not in proportions
@@ -185,8 +191,12 @@ def test_quadrifolium_refused_with_a_scale_that_builds(tmp_path, capsys):
     assert code == 2
     (line,) = err.strip().splitlines()
     # the whole option set, pasteable: the file, the absolute scale, the module size
-    assert "nearest feasible: --curve " in line and " --curve-scale 70 --module-size " in line
-    test_quadrifolium_at_the_suggested_scale(tmp_path, capsys)
+    assert "nearest feasible: --curve " in line and " --curve-scale " in line
+    options = line.rsplit("nearest feasible: ", 1)[1].split()
+    scale = options[options.index("--curve-scale") + 1]
+    assert float(scale) <= 3.5  # was 7 (70 of r = 16.2 mm) before smaller modules were tried
+    test_quadrifolium_at_the_suggested_scale(tmp_path / "paste", capsys, scale,
+                                             options[options.index("--module-size") + 1])
 
 
 @pytest.mark.slow
@@ -195,8 +205,17 @@ def test_spiral_refused_with_a_suggestion_that_builds(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2
     (line,) = err.strip().splitlines()
-    assert "nearest feasible: --curve " in line and " --curve-scale 2.2 --module-size " in line
+    # smaller modules cut the inner turn (tighter than any module turns along) closely enough
+    assert line.endswith(f"nearest feasible: --curve {CURVES / 'spiral.csv'} --curve-scale 1 "
+                         "--module-size 30")
     assert not out.exists()
+    out, code = design(tmp_path, "spiral", "--module-size", "30")
+    assert code == 0
+    fit = check_chain(out, "spiral", read_csv(CURVES / "spiral.csv"))
+    # within the tolerance; where the inner turn is cut the chain wavers (69 mm longer than the
+    # 2378 mm curve), so the length is not held to a module here
+    assert fit["mean"] <= 0.01 and fit["start"] <= 0.02 and fit["end"] <= 0.02
+    assert abs(fit["length"] - 2378.1) <= 0.05 * 2378.1
 
 
 def test_fit_summary_says_only_what_fits_the_curve(tmp_path, capsys):

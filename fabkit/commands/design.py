@@ -39,9 +39,10 @@ EXAMPLES = [
             "a module super-stable at 1.6 with a second fixed point at 1.1"),
     Example("fabkit design --cycle 1.4,1.8 --name two_cycle",
             "a module whose map has the 2-cycle 1.4 <-> 1.8; out/design/two_cycle.toml"),
-    Example("fabkit design --curve quadrifolium.csv --curve-scale 70 -o out/quad",
-            "a chain whose final state follows a bundled curve, 70 times the drawing",
-            cheap=False),
+    Example("fabkit design --curve quadrifolium.csv --curve-scale 2.9 --module-size 25 "
+            "-o out/quad",
+            "a chain whose final state follows a bundled curve, 2.9 times the drawing, in "
+            "modules of 25 mm", cheap=False),
 ]
 
 #: Largest curve file read (an SVG of a hand-drawn curve is a few kB).
@@ -320,12 +321,16 @@ def _pasteable(nearest: str | None, args) -> str | None:
         return nearest
     words = nearest.split()
     scale, size = args.curve_scale, args.module_size
-    if words[:1] == ["--curve-scale"]:
-        scale = float(f"{args.curve_scale * float(words[1]):.6g}")
-    elif words[:1] == ["--module-size"]:
-        size = float(words[1])
-    else:
+    if words[:1] not in (["--curve-scale"], ["--module-size"]):
         return nearest
+    # the options lead the suggestion (words in brackets may follow): each one a value
+    for option, value in zip(words[::2], words[1::2]):
+        if option == "--curve-scale":
+            scale = float(f"{args.curve_scale * float(value):.6g}")
+        elif option == "--module-size":
+            size = float(value)
+        else:
+            break
     tail = f" --types {args.types}" if args.types is not None else ""
     return (f"--curve {shlex.quote(str(args.curve))} --curve-scale {scale:g} --module-size "
             f"{size:g}{tail}")

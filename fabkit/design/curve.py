@@ -27,8 +27,13 @@ The curve (mm) and the module size (mm per module along the curve) fix everythin
 A chain is accepted when its centre line lies within ``FIT_TOLERANCE`` of the curve's size
 (mean) and its ends within ``END_TOLERANCE``. A curve that turns faster than modules of this
 size can (or has corners sharper than they can cut within the tolerance) is refused, naming
-the nearest module size or enlargement of the drawing that builds: computed (the turn the
-curve needs against the turn the modules give), then tried.
+the nearest wish that builds: a smaller module size at the drawing's size, else the least
+enlargement of the drawing (at this module size, and at a smaller one where the curve turns
+tighter than these modules), modelled, then built. No module size turns a chain tighter than
+:func:`tightest_radius` (about 122 mm: the narrow apex angles need room for the screws), so a
+sharper turn is always cut; the refusal says so. The report carries the chain as measured on
+the drawing by :func:`~fabkit.design.drawing_fit.fit_final_state` (its own fit of the traced
+port midpoints, and the designed nodes).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -47,15 +53,17 @@ from .assemble import chain
 from .curvature import (APEX_RANGE_DEG, design_curvature_type, GRID_SLACK_DEG, LEG_RATIO,
                         lowest_apex, MIN_PAIR_APEX_DEG)
 from .curve_files import Curve, resampled_curve
-from .fit import arclength, describe_curve, fit_to_curve, point_at, polyline_distance
+from .drawing_fit import fit_final_state
+from .fit import (arclength, curve_size, describe_curve, fit_to_curve, point_at,
+                  polyline_distance)
 from .letters import chain_centerline, curvature_modules
 from .sequence import BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline, track
 from .toml_text import chain_template, curvature_template
 from .wishes import WishError
 
 __all__ = ["CurveDesign", "design_curve_chain", "needed_turn", "scaled", "chain_plan",
-           "MAX_MODULES", "MAX_TYPES", "MIN_JOINT_MM", "FIT_TOLERANCE", "END_TOLERANCE",
-           "REFERENCE_APEX_DEG"]
+           "tightest_radius", "curve_radius", "MAX_MODULES", "MAX_TYPES", "MIN_JOINT_MM",
+           "FIT_TOLERANCE", "END_TOLERANCE", "REFERENCE_APEX_DEG"]
 
 #: The most modules a curve may need (each is 6 bars and 2 variable joints).
 MAX_MODULES = 2000
@@ -97,8 +105,24 @@ TURN_SHARE = 0.8
 #: enlargement of the drawing sought.
 SIZE_FACTORS = (0.9, 0.8, 0.7, 0.6, 0.5)
 MAX_CURVE_SCALE = 1000.0
-#: A suggestion must fit within this share of the tolerances.
-SUGGEST_SHARE = 0.5
+#: A suggestion must fit within this share of the tolerances (the full design is then built
+#: to it, so a suggestion pasted alone designs with room to spare).
+SUGGEST_SHARE = 0.75
+#: Enlargements are also sought at this share of the module size asked (and at least
+#: ``TIGHT_SIZE_FLOOR`` times the smallest module size): modules of 20-30 mm turn along about
+#: the tightest radius any size turns along (:func:`tightest_radius`), and cut sharp turns
+#: more closely than 50 mm ones.
+TIGHT_SIZE_FACTOR = 0.5
+TIGHT_SIZE_FLOOR = 1.3
+#: The least enlargement is bisected (in ratio) this many times, down to at most
+#: ``BISECT_RANGE`` times below the first that fits.
+BISECT_STEPS = 4
+BISECT_RANGE = 3.0
+#: tightest_radius(): module sizes scanned (mm), and their step.
+RADIUS_SIZES_TO = 80.0
+RADIUS_SIZE_STEP = 0.5
+#: curve_radius(): the window (fraction of the curve's size) its turn is measured over.
+RADIUS_WINDOW = 0.01
 #: Enlargements tried, each 1.2 times the last, from the one computed.
 SCALE_TRIES = 12
 #: A bin that holds no module still counts this much when bins are merged (its own angle).
@@ -409,50 +433,105 @@ def _say(progress, text: str) -> None:
         progress(text)
 
 
+def tightest_radius() -> float:
+    """The tightest radius (mm) a chain of curvature modules turns along, over every module
+    size: 2 m / (sharpest turn per two modules) at module size m, least over the sizes from
+    :func:`smallest_module_size` up to ``RADIUS_SIZES_TO`` mm. Small modules leave the
+    narrow apex angles no room for the screws (9.5 mm apart) and large ones turn over a long
+    stretch, so it is about 125 mm whatever the size: a drawing that turns tighter (a corner,
+    a petal's tip) is cut there, and only an enlargement brings it within the tolerance."""
+    return _tightest()[0]
+
+
+@lru_cache(maxsize=1)
+def _tightest() -> tuple[float, float]:
+    best = (math.inf, math.nan)
+    m = smallest_module_size()
+    while m <= RADIUS_SIZES_TO:
+        turn = _plan(m).turn_deg
+        if turn > 0:
+            best = min(best, (2.0 * m / math.radians(turn), m))
+        m = round(m + RADIUS_SIZE_STEP, 6)
+    return best
+
+
+def curve_radius(points, size: float) -> float:
+    """The tightest radius of curvature (mm) of a drawn curve, measured over ``window``-long
+    chords (:func:`needed_turn`) with a window of ``RADIUS_WINDOW`` of its size: about the
+    radius of its sharpest round, and a few windows for a corner."""
+    window = RADIUS_WINDOW * size
+    turn = needed_turn(points, window)
+    return 2.0 * window / turn if turn > 0 else math.inf
+
+
 def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: float,
              end_tolerance: float, progress, stop) -> str | None:
-    """The nearest wish that builds: a smaller module size, else the smallest enlargement of
-    the drawing at this module size. Each is computed in the zigzag model first (cheap), and
-    the first that fits there within ``SUGGEST_SHARE`` of the tolerances (a suggestion is not
-    a knife edge) is designed in full: the suggestion is one that was built."""
+    """The nearest wish that builds: a smaller module size at the drawing's own size, else the
+    least enlargement of the drawing, at this module size and, where the curve turns tighter
+    than these modules do, at ``TIGHT_SIZE_FACTOR`` of it (smaller modules cut a sharp turn
+    more closely); the least of them is named. Each is found in the zigzag model first
+    (cheap), fitting within ``SUGGEST_SHARE`` of the tolerances (a suggestion is not a knife
+    edge), and then designed in full: the suggestion is one that was built."""
+    share = (SUGGEST_SHARE * tolerance, SUGGEST_SHARE * end_tolerance)
+
     def builds(c, m) -> bool:
         _say(progress, f"trying --module-size {m:g}" + ("" if c is curve else
                                                         f" with the drawing {c.length / curve.length:.4g}x larger"))
         try:
-            design_curve_chain(c, module_size=m, types=types, beam=beam,
-                               tolerance=SUGGEST_SHARE * tolerance,
-                               end_tolerance=SUGGEST_SHARE * end_tolerance, progress=None,
-                               _suggest=False, _stop=stop)
+            design_curve_chain(c, module_size=m, types=types, beam=beam, tolerance=share[0],
+                               end_tolerance=share[1], progress=None, _suggest=False,
+                               _stop=stop)
         except FabkitError:
             return False
         return True
 
     def model_fits(c, m) -> bool:
-        if c.length < 2 * m:
+        if c.length < 2 * m or c.length / m > MAX_MODULES:
             return False
         plan = _plan(m)
         if plan.low is None:
             return False
         model = _model(c, plan, types, beam, stop)
-        return model is not None and model.fits(SUGGEST_SHARE * tolerance,
-                                                SUGGEST_SHARE * end_tolerance)
+        return model is not None and model.fits(*share)
 
     smallest = smallest_module_size()
+    # smaller modules at the drawing's own size: they cut corners and sharp turns more
+    # closely (down to the tightest radius any module turns along, tightest_radius())
     for f in SIZE_FACTORS:
         m = float(f"{module_size * f:.3g}")
         if m < smallest:
             break
-        # smaller modules are offered only where they follow the curve's turns (they turn
-        # less sharply themselves: their joints leave fewer apex angles); corners and turns
-        # too sharp for any of them are for an enlargement
-        p = _plan(m)
-        if (curve.length < 2 * m or p.low is None
-                or math.degrees(needed_turn(curve.points, m)) > TURN_SHARE * p.turn_deg):
-            continue
         _say(progress, f"modelling --module-size {m:g}")
         if model_fits(curve, m) and builds(curve, m):
             return f"--module-size {m:g}"
-    # enlargements: from the turn the curve needs against the turn the modules give, then up
+    # enlargements, at this module size and, where the curve turns tighter than these
+    # modules do, at the size that follows sharp turns more closely
+    sizes = [module_size]
+    tight = float(f"{max(TIGHT_SIZE_FACTOR * module_size, TIGHT_SIZE_FLOOR * smallest):.3g}")
+    turn = _plan(module_size).turn_deg
+    radius = 2.0 * module_size / math.radians(turn) if turn > 0 else math.inf
+    if tight < module_size and curve_radius(curve.points, curve_size(curve.points)) < radius:
+        sizes.append(tight)
+    found = []
+    for m in sizes:
+        factor = _least_enlargement(curve, m, model_fits, progress)
+        if factor is not None:
+            found.append((factor, -m))
+    for factor, neg_m in sorted(found):
+        m = -neg_m
+        if builds(scaled(curve, factor), m):
+            if m == module_size:
+                return f"--curve-scale {factor:g} (the drawing {factor:g}x larger)"
+            return (f"--curve-scale {factor:g} --module-size {m:g} (the drawing {factor:g}x "
+                    "larger)")
+    return None
+
+
+def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -> float | None:
+    """The least enlargement (two digits) of the drawing whose chain of this module size fits
+    in the zigzag model: from the one where the curve turns no faster than ``TURN_SHARE`` of
+    what the modules turn (or 1.25 for a corner) up by 1.2 until one fits, then bisected down
+    toward the last that did not (a sharp turn cut within the tolerance needs less)."""
     plan = _plan(module_size)
     if plan.low is None:
         return None
@@ -469,18 +548,33 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
     else:  # a corner: no enlargement makes it a curve; cut it, relatively smaller
         start = 1.25
     # and the curve at least two modules long
-    factor = _round_up(max(start, 2.0 * module_size / curve.length))
+    least = max(1.0, 2.0 * module_size / curve.length)
+    factor = _round_up(max(start, least))
+
+    def fits(f):
+        _say(progress, f"modelling --curve-scale {f:g} --module-size {module_size:g}")
+        return model_fits(scaled(curve, f), module_size)
+
+    failed = max(least, factor / BISECT_RANGE)
     for _ in range(SCALE_TRIES):
-        if factor > MAX_CURVE_SCALE:
-            break
-        c = scaled(curve, factor)
-        if c.length / module_size > MAX_MODULES:
+        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > MAX_MODULES:
             return None
-        _say(progress, f"modelling --curve-scale {factor:g}")
-        if model_fits(c, module_size) and builds(c, module_size):
-            return f"--curve-scale {factor:g} (the drawing {factor:g}x larger)"
+        if fits(factor):
+            break
+        failed = factor
         factor = _round_up(factor * 1.2)
-    return None
+    else:
+        return None
+    # bisect (in ratio) between the last that failed (or a lower bound) and the first that fit
+    for _ in range(BISECT_STEPS):
+        mid = _round_up(math.sqrt(failed * factor))
+        if mid >= factor or mid <= failed:
+            break
+        if fits(mid):
+            factor = mid
+        else:
+            failed = mid
+    return factor
 
 
 def _round_up(x: float) -> float:
@@ -575,6 +669,12 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
         why = (f"the curve turns by {turn:.1f} deg within two modules "
                f"({2 * module_size:g} mm); modules of {module_size:g} mm turn a chain by at "
                f"most {plan.turn_deg:g} deg per two")
+        sharp, tightest = curve_radius(pts, curve_size(pts)), tightest_radius()
+        if sharp < tightest:
+            why += (f"; its sharpest turn has a radius of about {sharp:.3g} mm, and no module "
+                    f"size turns a chain tighter than {tightest:.0f} mm (the narrow apex "
+                    f"angles need room for screws {MIN_JOINT_MM:g} mm apart), so the chain "
+                    "cuts it")
         if e is not None:
             why += (f", and the closest chain misses it by {100 * e['mean_fraction']:.2g} % of "
                     f"its size on average (ends {100 * e['start_fraction']:.2g} % / "
@@ -611,6 +711,7 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
     errors["nodes_mean"], errors["nodes_max"] = float(nodes.mean()), float(nodes.max())
     errors["nodes_mean_fraction"] = errors["nodes_mean"] / errors["size"]
     props = {"curve": describe_curve(pts), "chain": describe_curve(center)}
+    drawn = fit_final_state(net, traj.positions[-1] * plan.scale, k, pts)
     counts = {n: names.count(n) for n in files}
     report = {
         "curve": {"source": curve.source, "length_mm": curve.length, "strokes": curve.strokes,
@@ -628,6 +729,7 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
         "model_fit_fraction_of_size": {k2[:-9]: v for k2, v in model.errors.items()
                                        if k2.endswith("_fraction")},
         "proportions": props,
+        "drawing_fit_percent_of_size": drawn.percent(),
         "trace": {"method": traj.method, "status": str(traj.status),
                   "max_edge_error": float(traj.max_edge_error)},
         "seconds": time.perf_counter() - start,
