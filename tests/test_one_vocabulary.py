@@ -65,6 +65,30 @@ def test_one_status_enum_in_fabkit():
     assert others == sorted(NOT_STATUSES)
 
 
+def _status_spelt_out(tree) -> list[int]:
+    """Lines where a status is compared as text: ``str(x.status) == "finished"`` and the like
+    (a status is compared as a member, ``x.status is Status.FINISHED``, or by ``x.success``)."""
+    lines = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Compare):
+            continue
+        sides = [node.left, *node.comparators]
+        spelt = any(isinstance(n, ast.Call) and getattr(n.func, "id", "") == "str" and n.args
+                    and isinstance(n.args[0], ast.Attribute) and n.args[0].attr == "status"
+                    for n in sides)
+        if spelt:
+            lines.append(node.lineno)
+    return lines
+
+
+def test_no_status_is_compared_as_text():
+    found = {str(p.relative_to(ROOT.parent)): _status_spelt_out(ast.parse(p.read_text("utf-8")))
+             for p in sorted(ROOT.rglob("*.py"))}
+    assert {f: lines for f, lines in found.items() if lines} == {}
+    # the walk sees the case it exists for
+    assert _status_spelt_out(ast.parse('ok = str(t.status) == "finished"')) == [1]
+
+
 def test_every_public_status_is_the_one_enum():
     import fabkit.kinematics
     import fabkit.pipeline

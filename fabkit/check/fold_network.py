@@ -281,7 +281,7 @@ def refold(model: RebuiltFold, drive: str, to: float) -> Refold:
             traj = fold_through(net, drive, to, score=_agreement(model),
                                 step_off_size=model.step_off, method="auto",
                                 samples=model.samples - 1)
-            if str(traj.status) != "finished":
+            if not traj.success:
                 raise FabricationError(f"folding stopped: {traj.message}")
             return Refold(traj.positions, traj.stats.get("branch"), names)
         d0 = float(net.port_distance(drive))

@@ -89,6 +89,6 @@ def compare_motion(design, built, rtol: float, reference) -> dict:
         if diff >= worst:
             worst, port = diff, p
     limit = rtol * net.size
-    same_end = ref.n_steps == got.n_steps and str(ref.status) == str(got.status)
+    same_end = ref.n_steps == got.n_steps and ref.status is got.status
     return {"ok": worst <= limit and same_end, "worst": worst, "port": port, "limit": limit,
             "same_end": same_end, "status": str(got.status)}

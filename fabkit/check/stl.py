@@ -475,7 +475,7 @@ def sequential_transition(net: Network, module: Network, copies: int, fixed: dic
     stages = [trace(net, drive=(pa, pb), to=target, method="projected")]
     labels = [f"({pa}, {pb})"]
     start = float(stages[0].drive[0])
-    if str(stages[0].status) == "finished" and not settled(stages[0]):
+    if stages[0].success and not settled(stages[0]):
         # the pulled distance passes its all-D2* value on the way: pull on to its turning point
         stages.append(trace(net, drive=(pa, pb), to=max(target + (target - start), 1e-3 * target),
                             method="projected", start=stages[-1].positions[-1]))
@@ -494,7 +494,7 @@ def sequential_transition(net: Network, module: Network, copies: int, fixed: dic
     seq = all(o is not None for o in order) and bool(np.all(np.diff(order) >= 0))
     end = dist_k[-1]
     dev = float(np.abs(end - d2s).max())
-    ok = str(stages[-1].status) == "finished" and dev <= tol and seq
+    ok = stages[-1].success and dev <= tol and seq
     result = {
         "ok": bool(ok),
         "pulled": [pa, pb],

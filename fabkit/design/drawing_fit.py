@@ -189,7 +189,7 @@ def fold_onto_drawing(network, scale: float, modules: int, curve, *,
         The chain does not reach its final state.
     """
     traj = trace(network, "d1", to=to, method="constructive", samples=2)
-    if str(traj.status) != "finished" or not traj.max_edge_error <= EDGE_ATOL:
+    if not traj.success or not traj.max_edge_error <= EDGE_ATOL:
         raise DesignError(f"the chain does not reach its final state: {traj.message}")
     return fit_final_state(network, np.asarray(traj.positions[-1]) * scale, modules, curve)
 

@@ -330,7 +330,7 @@ def fold_model(model: OrigamiModel, drive: str, to: float, samples=None, *,
         if model.flat_start:
             bif = analyze_bifurcation(net)
             report, names = bif.summary(), [b.describe() for b in bif.branches]
-            if str(traj.status) != "finished":
+            if not traj.success:
                 raise FabricationError(f"{model.name}: folding stopped: {traj.message}")
         else:
             report, names = "", []

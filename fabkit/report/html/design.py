@@ -3,6 +3,7 @@ them."""
 
 from __future__ import annotations
 
+from ...status import Status
 from ..text import MADE_FOR
 from .checks import checks_section, verdict_section
 from .common import esc, exported, PROCESSES
@@ -62,7 +63,7 @@ def design_html(report, files: dict, listing: dict, frames: dict | None = None) 
     name = d["name"]
     v = report.verdict
     badge = {"ok": "#a5d6a7", "by design": "#d7ccc8"}.get(str(v.status), "#ef9a9a")
-    word = "flagged by design" if str(v.status) == "by design" else str(v.status)
+    word = "flagged by design" if v.status is Status.BY_DESIGN else str(v.status)
     head = (f"<header><h1>{esc(name)} <span style=\"color:{badge}\">{esc(word)}</span>"
             f"</h1><p>{esc(d.get('description', ''))}"
             + (f" · {esc(d['figure'])}" if d.get("figure") else "")
