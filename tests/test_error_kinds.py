@@ -132,3 +132,22 @@ def test_an_input_file_error_says_its_kind(tmp_path):
     with pytest.raises(ValueError):
         InputFileError("a.toml", "gone", kind="vanished")
 
+
+
+def test_a_folder_given_as_a_file_is_refused_with_its_kind(tmp_path):
+    """A folder where a file is read: a typed refusal with kind "not_regular", from the
+    bounded reader and from the as-built check alike (the reader raised a bare
+    IsADirectoryError when it made a file object of the folder before looking at it)."""
+    from fabkit.check import check_file
+    from fabkit.errors import InputFileError
+    from fabkit.io.inputs import read_regular
+
+    folder = tmp_path / "kit.dxf"
+    folder.mkdir()
+    for read in (lambda: read_regular(folder, 100), lambda: check_file(folder)):
+        with pytest.raises(InputFileError) as err:
+            read()
+        assert err.value.kind == "not_regular"
+    with pytest.raises(InputFileError) as err:
+        check_file(tmp_path / "absent.dxf")
+    assert err.value.kind == "missing"

@@ -69,11 +69,12 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     try:
         st = os.stat(path)
     except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
+        raise InputFileError(path, "no such file", kind="missing") from None
     except OSError as exc:
-        raise InputFileError(path, exc.strerror or str(exc)) from None
+        raise InputFileError(path, exc.strerror or str(exc), kind="unreadable") from None
     if not stat.S_ISREG(st.st_mode):
-        raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)")
+        raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)",
+                             kind="not_regular")
     require(f"{path}", ("file byte", st.st_size))  # refused before the checker is loaded
     if motion is not None:  # the design's motion traced once by the pipeline
         return module.check_file(path, design=design, settings=settings, motion=motion)
@@ -110,9 +111,11 @@ def require_files(paths) -> None:
         try:
             st = os.stat(p)
         except OSError as exc:
-            raise InputFileError(p, f"cannot read: {exc.strerror or exc}") from None
+            raise InputFileError(p, f"cannot read: {exc.strerror or exc}",
+                                 kind="unreadable") from None
         if not stat.S_ISREG(st.st_mode):
-            raise InputFileError(p, f"is {file_kind(st.st_mode)}, not a regular file: refused")
+            raise InputFileError(p, f"is {file_kind(st.st_mode)}, not a regular file: refused",
+                                 kind="not_regular")
         total += st.st_size
     paths = [Path(p) for p in paths]
     where = str(paths[0]) if len(paths) == 1 else (

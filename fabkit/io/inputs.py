@@ -71,11 +71,12 @@ def read_regular(path, limit: int, *, what: str = "bytes",
         raise InputFileError(path, "no such file", kind="missing") from None
     except OSError as exc:
         raise InputFileError(path, f"cannot read: {exc.strerror or exc}") from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):  # before a file object is made of it: a folder's is refused
+        os.close(fd)            # with a bare IsADirectoryError
+        raise InputFileError(path, f"is {file_kind(mode)}, not a regular file: refused",
+                             kind="not_regular")
     with os.fdopen(fd, "rb") as fh:
-        mode = os.fstat(fd).st_mode
-        if not stat.S_ISREG(mode):
-            raise InputFileError(path, f"is {file_kind(mode)}, not a regular file: refused",
-                                 kind="not_regular")
         size = os.fstat(fd).st_size
         if size > limit and not large:
             raise BoundsError(str(path), what, size, limit, override)
