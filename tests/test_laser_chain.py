@@ -20,8 +20,10 @@ def _chain8(folder, mirror: bool):
     lines = [ln for ln in (TEMPLATES / "super_stable_chain8.toml").read_text().splitlines()
              if not ln.strip().startswith("mirror")]
     text = "\n".join(lines) + "\n"
-    if mirror:  # the strip of the paper's Fig. 3f: every second module mirrored
-        text = text.replace("copies = 8", 'copies = 8\nmirror = "alternate"')
+    # the strip of the paper's Fig. 3f (every second module mirrored), or every module joined
+    # as it is (said: a [chain] without mirror picks the mirroring by itself)
+    text = text.replace("copies = 8", 'copies = 8\nmirror = "alternate"' if mirror
+                        else 'copies = 8\nmirror = "none"')
     (folder / "chain8.toml").write_text(text)
     return fabkit.load_template(folder / "chain8.toml")
 

@@ -139,7 +139,7 @@ def test_coinciding_joints_are_refused_with_a_fix():
     from fabkit.design.assemble import chain
 
     module = fabkit.load_template(TEMPLATES / "super_stable.toml")
-    net = chain(module.network, 8)   # unmirrored: every third module lies on the first
+    net = chain(module.network, 8, mirror="none")   # unmirrored: every third module lies on the first
     s = laser_settings()
     sweep = sample_motion(net, module.motion, s.scale, s.sample_step)
     with pytest.raises(fabkit.FabricationError) as info:

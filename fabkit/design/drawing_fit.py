@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import DesignError
 from ..kinematics import trace
-from ..numerics import rigid_fit
+from ..numerics import rigid_fit, TINY
 from .curvature import LEG_RATIO
 from .fit import arclength, curve_size, fit_to_curve, point_at
 from .letters import chain_centerline
@@ -89,7 +89,7 @@ class DrawingFit:
 
 def _dense(curve: np.ndarray) -> np.ndarray:
     s = arclength(curve)
-    n = int(min(2_000_000, max(2, math.ceil(DENSE * s[-1] / max(curve_size(curve), 1e-300)))))
+    n = int(min(2_000_000, max(2, math.ceil(DENSE * s[-1] / max(curve_size(curve), TINY)))))
     return point_at(curve, s, np.linspace(0.0, s[-1], n + 1))
 
 
@@ -101,7 +101,7 @@ def _moved(points: np.ndarray, p: np.ndarray, size: float) -> np.ndarray:
 def _start(points: np.ndarray, curve: np.ndarray, size: float) -> np.ndarray:
     """The rigid motion (angle, shift / size) of the points at equal arclength (Kabsch)."""
     s_c, s_k = arclength(points), arclength(curve)
-    ref = point_at(curve, s_k, s_c * s_k[-1] / max(s_c[-1], 1e-300))
+    ref = point_at(curve, s_k, s_c * s_k[-1] / max(s_c[-1], TINY))
     move = rigid_fit(points, ref, handedness="proper")
     rot = np.asarray(move.rotation, dtype=np.float64)
     return np.array([math.atan2(rot[1, 0], rot[0, 0]), *(np.asarray(move.shift) / size)])
