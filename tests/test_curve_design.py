@@ -343,6 +343,20 @@ def test_l_corner_folds_onto_its_drawing_at_its_own_size(tmp_path, capsys):
     assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02
 
 
+def _refused_then_pasted(src, name, tmp_path, capsys):
+    """A curve with a tip of r = 32 mm refused at its own size, its suggestion pasted alone and
+    designed: (the options suggested, their --curve-scale, the traced chain's fit)."""
+    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
+    assert code == 2
+    (line,) = err.strip().splitlines()
+    assert "its sharpest turn has a radius of about 32" in line
+    options = suggestion(line)
+    scale = float(options[options.index("--curve-scale") + 1])
+    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
+    assert code == 0, err
+    return options, scale, measured(tmp_path / "o", name, src, scale)
+
+
 def test_a_petal_is_enlarged_less_with_smaller_modules(tmp_path, capsys):
     # one petal of the quadrifolium r = 162 sin 2theta mm: its tip (r = 32 mm) is tighter than
     # any module turns, so the drawing is enlarged; the least enlargement is bisected below the
@@ -352,19 +366,11 @@ def test_a_petal_is_enlarged_less_with_smaller_modules(tmp_path, capsys):
     src = tmp_path / "petal.csv"
     src.write_text("x,y\n" + "\n".join(f"{a:.6f},{b:.6f}" for a, b in
                                        zip(r * np.cos(t), r * np.sin(t))) + "\n")
-    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
-    assert code == 2
-    (line,) = err.strip().splitlines()
-    assert "its sharpest turn has a radius of about 32" in line
-    options = suggestion(line)
-    scale = float(options[options.index("--curve-scale") + 1])
+    options, scale, fit = _refused_then_pasted(src, "petal", tmp_path, capsys)
     module = float(options[options.index("--module-size") + 1])
     # 50 mm modules turn no faster than the curve from 6.9 times the drawing on; cut tips
     # within the tolerance need less, and 25 mm modules less again
     assert 2.0 <= scale <= 3.5 and module < 50.0
-    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
-    assert code == 0, err
-    fit = measured(tmp_path / "o", "petal", src, scale)
     assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02
 
 
@@ -375,14 +381,6 @@ def test_quadrifolium_at_its_own_size_is_refused_with_options_that_fold_onto_it(
     src = CURVES / "quadrifolium.csv"
     drawing = read_curve(src.read_bytes(), str(src)).points
     assert np.abs(drawing).max() == pytest.approx(124.7, abs=0.1)
-    code, out, err = run_cli(["design", "--curve", src, "-o", tmp_path / "o"], capsys)
-    assert code == 2
-    (line,) = err.strip().splitlines()
-    assert "its sharpest turn has a radius of about 32" in line
-    options = suggestion(line)
-    scale = float(options[options.index("--curve-scale") + 1])
+    options, scale, fit = _refused_then_pasted(src, "quadrifolium", tmp_path, capsys)
     assert scale <= 3.5  # 7 before the least enlargement was sought with smaller modules
-    code, out, err = run_cli(["design", *options, "-o", tmp_path / "o"], capsys)
-    assert code == 0, err
-    fit = measured(tmp_path / "o", "quadrifolium", src, scale)
     assert fit.mean <= 0.01 and fit.start <= 0.02 and fit.end <= 0.02

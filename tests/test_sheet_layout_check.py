@@ -49,13 +49,18 @@ def test_a_written_sheet_keeps_its_parts_the_spacing_apart(plan):
 
 
 
-def test_a_bar_moved_half_its_width_onto_its_neighbour_is_caught(plan):
-    sheet = plan.sheets[0]
+def _lowest_bar_and_the_one_above(sheet):
+    """The lowest bar of a sheet and the nearest bar above it that overlaps it along x."""
     bars = sorted((p for p in sheet.parts if p.kind == "bar"), key=lambda p: p.bbox[1])
     a = bars[0]
-    # the bar nearest above a (overlapping it along x): moved down onto it
     above = min((p for p in bars[1:] if p.bbox[0] < a.bbox[2] and a.bbox[0] < p.bbox[2]
                  and p.bbox[1] > a.bbox[1]), key=lambda p: p.bbox[1])
+    return a, above
+
+
+def test_a_bar_moved_half_its_width_onto_its_neighbour_is_caught(plan):
+    sheet = plan.sheets[0]
+    a, above = _lowest_bar_and_the_one_above(sheet)  # the bar above moved down onto a
     drop = above.bbox[1] - a.bbox[3] + 0.5 * (a.bbox[3] - a.bbox[1])
     moved = _shift_part(sheet, above.id, 0.0, -drop)
     gap, pair = least_gap(_read(moved, plan))
@@ -64,10 +69,7 @@ def test_a_bar_moved_half_its_width_onto_its_neighbour_is_caught(plan):
 
 def test_a_gap_narrower_than_the_web_is_measured(plan):
     sheet = plan.sheets[0]
-    bars = sorted((p for p in sheet.parts if p.kind == "bar"), key=lambda p: p.bbox[1])
-    a = bars[0]
-    above = min((p for p in bars[1:] if p.bbox[0] < a.bbox[2] and a.bbox[0] < p.bbox[2]
-                 and p.bbox[1] > a.bbox[1]), key=lambda p: p.bbox[1])
+    a, above = _lowest_bar_and_the_one_above(sheet)
     gap_before = above.bbox[1] - a.bbox[3]  # both horizontal: the boxes' gap is the true gap
     want = 0.4
     moved = _shift_part(sheet, above.id, 0.0, -(gap_before - want))
