@@ -388,7 +388,7 @@ def test_tessellation_builder(tmp_path):
 
 def test_core_does_not_import_fabrication_layers():
     code = ("import sys, fabkit.design.assemble, fabkit.design.letters, fabkit.plots.animate\n"
-            "bad = [m for m in sys.modules if m.startswith(('fabkit.fab', 'fabkit.export', "
+            "bad = [m for m in sys.modules if m.startswith(('fabkit.fab', 'fabkit.writers', "
             "'fabkit.check', 'fabkit.cli', 'fabkit.commands'))]\n"
             "assert not bad, bad\n")
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -132,7 +132,7 @@ def applies(design):
 
 
 def export_design(design, settings):
-    from fabkit.export import ExportResult
+    from fabkit.writers import ExportResult
 
     text = "\\n".join(f"{v:.12g}" for v in design.network.edge_lengths) + "\\n"
     return ExportResult(files={"lengths.txt": text.encode()}, report={"edges": 4})
@@ -142,13 +142,13 @@ def export_design(design, settings):
 def test_one_bad_design_does_not_stop_the_others(tmp_path, capsys, monkeypatch):
     """A minimal format of our own (a module file, so the export's worker processes import it
     too): one text file with the edge lengths, independent of the real formats."""
-    import fabkit.export
+    import fabkit.writers
 
     mods = tmp_path / "mods"
     mods.mkdir()
     (mods / "fabkit_bad_input_text_format.py").write_text(TEXT_FORMAT)
     monkeypatch.syspath_prepend(str(mods))
-    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"lengths": "fabkit_bad_input_text_format"})
+    monkeypatch.setattr(fabkit.writers, "EXPORTERS", {"lengths": "fabkit_bad_input_text_format"})
     good = Path(__file__).resolve().parents[1] / "templates" / "fourbar.toml"
     out = tmp_path / "out"
     rc = main(["export", str(BAD / "rigid_network.toml"), str(good), "-o", str(out),
@@ -302,7 +302,7 @@ def test_bad_sizes_and_values_of_options_exit_2_before_work(args, words, tmp_pat
 
 
 def test_check_against_another_design_is_a_failed_check_not_a_crash(tmp_path, capsys):
-    from fabkit.export import export
+    from fabkit.writers import export
     from fabkit.templates import load_template
 
     # the file, as the exporter writes it (in this process: the subject is the check)

@@ -32,7 +32,7 @@ SOURCE = textwrap.dedent('''
         return design.network.dim == 2
 
     def export_design(design, settings):
-        from fabkit.export import ExportResult
+        from fabkit.writers import ExportResult
 
         text = "".join(f"{v:.12g}\\n" for v in design.network.edge_lengths)
         return ExportResult(files={design.name + "_lengths.txt": text.encode()},
@@ -149,9 +149,9 @@ def test_a_dead_worker_leaves_the_previous_export_untouched(tmp_path, lengths, m
 
 
 def test_the_command_line_reports_the_death_and_exits_1(tmp_path, lengths, monkeypatch, capsys):
-    import fabkit.export
+    import fabkit.writers
 
-    monkeypatch.setattr(fabkit.export, "EXPORTERS", dict(lengths))
+    monkeypatch.setattr(fabkit.writers, "EXPORTERS", dict(lengths))
     monkeypatch.setenv(FAULT_ENV, f"{VICTIM}@taken")
     out = tmp_path / "out"
     rc = main(["export", *[str(TEMPLATES / f"{n}.toml") for n in DESIGNS], "-o", str(out),

@@ -28,7 +28,7 @@ import trimesh
 
 import fabkit
 from fabkit.check import check_file
-from fabkit.export import export
+from fabkit.writers import export
 from fabkit.settings.printing import design_print_settings
 
 from conftest import TEMPLATES

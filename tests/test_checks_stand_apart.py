@@ -1,7 +1,7 @@
 """The as-built checks stand apart from the writers they check.
 
 A check that reused a writer's code would reproduce the writer's bug instead of catching it. So
-``fabkit/check`` imports nothing from ``fabkit/export`` nor from ``fabkit/fab``, the plans the
+``fabkit/check`` imports nothing from ``fabkit/writers`` nor from ``fabkit/fab``, the plans the
 writers draw from (the laser kit, the pinned print, the layer stacking, the hinges, the crease
 patterns): it reads the written file with its own reader, rebuilds the network from the file's
 geometry and re-simulates it. What a design asks for (``fabkit/settings``) both sides read. Here
@@ -24,7 +24,7 @@ import pytest
 
 import fabkit
 from fabkit.check import check_file
-from fabkit.export import export
+from fabkit.writers import export
 
 from conftest import ROOT, TEMPLATES
 
@@ -54,7 +54,7 @@ def test_the_checks_import_nothing_from_the_writers():
     for path in files:
         for module, name in _imports(path):
             where = f"{path.name}: from {module} import {name}"
-            for writer in ("fabkit.export", "fabkit.fab"):
+            for writer in ("fabkit.writers", "fabkit.fab"):
                 assert module != writer and not module.startswith(writer + "."), where
             if module.startswith("fabkit.settings."):
                 seen_settings.add(module)
@@ -65,7 +65,7 @@ def test_the_checks_import_nothing_from_the_writers():
 
 
 def test_the_settings_import_no_stage_that_plans_draws_or_checks():
-    banned = ("fabkit.fab", "fabkit.export", "fabkit.check", "fabkit.tolerance", "fabkit.motion",
+    banned = ("fabkit.fab", "fabkit.writers", "fabkit.check", "fabkit.tolerance", "fabkit.motion",
               "fabkit.pipeline", "fabkit.report")
     files = sorted((CHECK.parent / "settings").glob("*.py"))
     assert len(files) >= 6

@@ -288,7 +288,7 @@ def test_no_option_is_taken_from_its_abbreviation(argv, option, capsys):
 
 def test_export_help_lists_every_format_with_its_process(capsys):
     from fabkit.commands.export import FORMAT_PROCESS
-    from fabkit.export import EXPORTERS
+    from fabkit.writers import EXPORTERS
     from fabkit.tolerance import PROCESS_FORMATS
 
     assert set(FORMAT_PROCESS) == set(EXPORTERS)

@@ -112,7 +112,7 @@ def test_fit_error_is_written_with_the_template(arcs):
 @pytest.mark.parametrize("name", ["quarter", "half"])
 def test_arc_chains_export_a_laser_kit_that_passes_its_check(arcs, tmp_path, name):
     from fabkit.check import check_file
-    from fabkit.export import export
+    from fabkit.writers import export
 
     design = fabkit.load_template(arcs[name] / f"{name}.toml")
     paths, report = export(design, "dxf", tmp_path)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import fabkit.export
+import fabkit.writers
 from fabkit.cli import main
 from fabkit.pipeline import Status, export_many
 from fabkit.commands.export import parse_formats
@@ -48,7 +48,7 @@ FAKE_SOURCE = textwrap.dedent('''
         return design.network.dim == 2
 
     def export_design(design, settings):
-        from fabkit.export import ExportResult
+        from fabkit.writers import ExportResult
 
         table = dict(design.fabrication.get("lengths", {}))
         table.update(settings.get("lengths", {}))
@@ -67,7 +67,7 @@ def lengths_format(tmp_path, monkeypatch):
     (mods / f"{FAKE_MODULE}.py").write_text(FAKE_SOURCE)
     monkeypatch.syspath_prepend(str(mods))
     monkeypatch.setenv("PYTHONPATH", str(mods) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"lengths": FAKE_MODULE})
+    monkeypatch.setattr(fabkit.writers, "EXPORTERS", {"lengths": FAKE_MODULE})
     return mods
 
 
@@ -209,7 +209,7 @@ def test_other_commands_outputs_survive_an_export(tmp_path, lengths_format, caps
     source = (lengths_format / f"{FAKE_MODULE}.py").read_text()
     (lengths_format / "fabkit_test_widths_format.py").write_text(
         source.replace('"_lengths.txt"', '"_widths.txt"'))
-    monkeypatch.setattr(fabkit.export, "EXPORTERS", {"widths": "fabkit_test_widths_format"})
+    monkeypatch.setattr(fabkit.writers, "EXPORTERS", {"widths": "fabkit_test_widths_format"})
     assert main(["export", fourbar, "-o", str(out), "--no-previews"]) == 0
     second = snapshot(out / "fourbar")
     assert {k: second[k] for k in others} == others
@@ -262,11 +262,11 @@ RUNNER = textwrap.dedent('''
     import os, sys, time
     from pathlib import Path
 
-    import fabkit.export
+    import fabkit.writers
     from fabkit.pipeline import export_many
 
-    fabkit.export.EXPORTERS.clear()
-    fabkit.export.EXPORTERS["lengths"] = sys.argv[3]
+    fabkit.writers.EXPORTERS.clear()
+    fabkit.writers.EXPORTERS["lengths"] = sys.argv[3]
     marker, victim = Path(sys.argv[2]), sys.argv[4]
     real_fdopen = os.fdopen
 
@@ -437,7 +437,7 @@ def test_formats_are_checked_against_the_registry(capsys, tmp_path):
     rc = main(["export", str(TEMPLATES / "fourbar.toml"), "--to", "gcode", "-o", str(tmp_path)])
     assert rc == 2
     assert capsys.readouterr().err.strip() == (
-        "fabkit: error: --to: unknown format 'gcode'; valid: " + ", ".join(fabkit.export.EXPORTERS))
+        "fabkit: error: --to: unknown format 'gcode'; valid: " + ", ".join(fabkit.writers.EXPORTERS))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -601,7 +601,7 @@ SLOW_FORMAT = textwrap.dedent('''
     FORMAT = "slow"
 
     def export_design(design, settings):
-        from fabkit.export import ExportResult
+        from fabkit.writers import ExportResult
 
         marks = Path(os.environ["FABKIT_TEST_MARKS"])
         (marks / f"started-{os.getpid()}").write_text(design.name)
@@ -616,12 +616,12 @@ SLOW_FORMAT = textwrap.dedent('''
 SLOW_RUNNER = textwrap.dedent('''
     import sys
 
-    import fabkit.export
+    import fabkit.writers
     from fabkit.cli import main
 
     if __name__ == "__main__":  # spawned workers import this file too
-        fabkit.export.EXPORTERS.clear()
-        fabkit.export.EXPORTERS["slow"] = "fabkit_test_slow_format"
+        fabkit.writers.EXPORTERS.clear()
+        fabkit.writers.EXPORTERS["slow"] = "fabkit_test_slow_format"
         sys.exit(main(sys.argv[1:]))
 ''')
 

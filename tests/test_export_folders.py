@@ -206,7 +206,7 @@ def test_export_many_takes_bundled_names_and_suggests_for_misspelt_ones(tmp_path
 def test_a_library_export_into_a_locked_folder_fails_and_writes_nothing(tmp_path):
     import fabkit
     from fabkit.errors import LockedError
-    from fabkit.export import export
+    from fabkit.writers import export
     from fabkit.io.outputs import OutputLock
 
     design = fabkit.load_template("fourbar")
@@ -225,7 +225,7 @@ def test_a_library_export_into_a_locked_folder_fails_and_writes_nothing(tmp_path
 
 def test_a_library_export_leaves_an_exported_design_folder_alone(tmp_path, capsys):
     import fabkit
-    from fabkit.export import export
+    from fabkit.writers import export
 
     out = tmp_path / "out"
     assert _export(TEMPLATES / "fourbar.toml", out, "--to", "dxf", capsys=capsys)[0] == 0

@@ -42,7 +42,7 @@ import matplotlib
 matplotlib.use("pdf")
 import sys
 import fabkit
-from fabkit.export import export
+from fabkit.writers import export
 d = fabkit.load_template({str(TEMPLATES / "super_stable.toml")!r})
 export(d, "dxf", {str(tmp_path)!r})
 print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)

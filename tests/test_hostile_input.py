@@ -494,10 +494,10 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
      "beyond ±1e+09 design units"),
     (lambda n: fabkit.Network("nodes", [[0, 1]]), ValueError, "`nodes` must be an array"),
     (lambda n: fabkit.load_template(None), TypeError, "path must be a file path"),
-    (lambda n: __import__("fabkit.export").export.export(
+    (lambda n: __import__("fabkit.writers").export.export(
         fabkit.load_template("fourbar"), "dxf", "/nonexistent", lazer={"kerf": 0.2}),
      ValueError, "lazer: unknown section"),
-    (lambda n: __import__("fabkit.export").export.export(
+    (lambda n: __import__("fabkit.writers").export.export(
         fabkit.load_template("fourbar"), ["dxf"], "/nonexistent"), FabkitError,
      "unknown export format ['dxf']"),
     (lambda n: fabkit.count_modes(n, np.zeros((4, 2))), ValueError,
@@ -517,9 +517,9 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
     (lambda n: fabkit.load_template("a\x00b"), ValueError,
      "path holds a NUL character, which no file name has"),
     (lambda n: fabkit.design_map([1e300]), FabkitError, "--fixed-point 1e+300: "),
-    (lambda n: __import__("fabkit.export").export.export(None, "dxf", "/nonexistent"),
+    (lambda n: __import__("fabkit.writers").export.export(None, "dxf", "/nonexistent"),
      TypeError, "design must be a fabkit Design (fabkit.load_template), got NoneType"),
-    (lambda n: __import__("fabkit.export").export.export(fabkit.load_template("fourbar"),
+    (lambda n: __import__("fabkit.writers").export.export(fabkit.load_template("fourbar"),
                                                          "dxf", 5),
      FabkitError, "outdir: must be a folder path, got int"),
 ])

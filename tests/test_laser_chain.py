@@ -10,7 +10,7 @@ import pytest
 
 import fabkit
 from fabkit.check import check_file
-from fabkit.export import export
+from fabkit.writers import export
 
 from conftest import TEMPLATES
 

@@ -12,7 +12,7 @@ import pytest
 import fabkit
 from fabkit.check.dxf import check_documents
 from fabkit.errors import FabricationError
-from fabkit.export.dxf import export_design
+from fabkit.writers.dxf import export_design
 from fabkit.fab.laser_plan import laser_plan
 from fabkit.fab.layers import Conflicts
 from fabkit.fab.layers.propagate import deep_search, propagate_layers

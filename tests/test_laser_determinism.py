@@ -8,14 +8,14 @@ import subprocess
 import sys
 
 import fabkit
-from fabkit.export.dxf import sheet_dxf
+from fabkit.writers.dxf import sheet_dxf
 from fabkit.fab.laser_plan import laser_plan
 
 from conftest import TEMPLATES
 
 _CODE = """
 import hashlib, fabkit
-from fabkit.export.dxf import sheet_dxf
+from fabkit.writers.dxf import sheet_dxf
 from fabkit.fab.laser_plan import laser_plan
 plan = laser_plan(fabkit.load_template({path!r}), {{"laser": {{"flavour": {flavour!r}}}}})
 print(hashlib.sha256(b"".join(sheet_dxf(s, plan, len(plan.sheets)) for s in plan.sheets)).hexdigest())

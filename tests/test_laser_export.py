@@ -12,8 +12,8 @@ import pytest
 import fabkit
 from fabkit.check import check_file
 from fabkit.check.dxf import check_documents
-from fabkit.export import export, get_exporter
-from fabkit.export.dxf import applies, export_design
+from fabkit.writers import export, get_exporter
+from fabkit.writers.dxf import applies, export_design
 
 from conftest import TEMPLATES
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.export.dxf import bill_of_materials
+from fabkit.writers.dxf import bill_of_materials
 from fabkit.fab.laser_plan import laser_plan
 from fabkit.fab.guide import assembly_picture, guide_pages, motion_picture
 
@@ -437,7 +437,7 @@ def test_the_laser_kit_of_a_long_designed_chain_has_its_guide(tmp_path):
     --curve`, exported as a laser kit: its guide used to fail in row_axes (a negative width)
     when the motion test's table of every port left no room for its pictures."""
     from fabkit.cli import main
-    from fabkit.export import export
+    from fabkit.writers import export
 
     x = np.linspace(0.0, 8700.0, 2000)
     np.savetxt(tmp_path / "sine.csv", np.c_[x, 300.0 * np.sin(2 * np.pi * x / 2000.0)],

@@ -15,7 +15,7 @@ import pytest
 import fabkit
 from fabkit.check.dxf import check_documents
 from fabkit.errors import FabricationError
-from fabkit.export.dxf import export_design
+from fabkit.writers.dxf import export_design
 from fabkit.settings.fasteners import (CATALOGUE, DEFAULT_SCREW, MAX_AXIAL_PLAY, MAX_EXTENSIONS,
                                        PINS, WASHER_CLEARANCE, WASHERS, ScrewSpec, choose_washer,
                                        fit_fastener, inch_text, screw_spec)

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.export import skip_reason
-from fabkit.export.dxf import export_design
+from fabkit.writers import skip_reason
+from fabkit.writers.dxf import export_design
 from fabkit.kinematics.constructive import place, plan_construction
 
 from conftest import TEMPLATES
@@ -165,7 +165,7 @@ def test_dense_resampling_finds_the_stacking_clear(name):
 def test_assembly_guide_has_a4_pages_and_no_overlapping_labels(chain24):
     import re
 
-    from fabkit.export.dxf import bill_of_materials
+    from fabkit.writers.dxf import bill_of_materials
     from fabkit.fab.laser_plan import laser_plan
     from fabkit.fab.guide import guide_pages
 

@@ -7,7 +7,7 @@ import pytest
 
 import fabkit
 from fabkit.errors import FabkitError, FabricationError, SettingsError
-from fabkit.export import export
+from fabkit.writers import export
 from fabkit.fab.bars import bar_set
 from fabkit.settings.fasteners import CATALOGUE, choose_length, screw_spec
 from fabkit.settings.laser import laser_settings

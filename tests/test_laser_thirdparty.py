@@ -17,7 +17,7 @@ import ezdxf
 import pytest
 
 import fabkit
-from fabkit.export.dxf import export_design
+from fabkit.writers.dxf import export_design
 
 from conftest import TEMPLATES
 

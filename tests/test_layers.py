@@ -54,7 +54,7 @@ LAYERS = {
     "fab": 9,
     "motion": 8,
     "tolerance": 10,
-    "export": 11,
+    "writers": 11,
     "check": 12,
     "report.text": 13,
     "report.html": 13,
@@ -158,9 +158,9 @@ def test_only_the_template_reader_reads_templates(path):
 
 def test_the_walk_sees_imports_inside_functions():
     # An upward import hidden in a function body is caught, with its line; a downward one is not.
-    src = ("import numpy\n\ndef f():\n    from ..export import stl\n"
+    src = ("import numpy\n\ndef f():\n    from ..writers import stl\n"
            "    from .network import Network\n")
-    assert _upward(ROOT / "model" / "rigidity.py", src) == [(4, "fabkit.export")]
+    assert _upward(ROOT / "model" / "rigidity.py", src) == [(4, "fabkit.writers")]
     assert _upward(ROOT / "fab" / "bars.py", "def g():\n    from ..check import dxf\n") == [
         (2, "fabkit.check")]
     assert _upward(ROOT / "fab" / "bars.py", "from fabkit import pipeline\n") == [

@@ -5,7 +5,7 @@ folder that holds an export's kit and report, and writes nothing when it refuses
 import pytest
 
 from fabkit.errors import LockedError, OutputError
-from fabkit.export import export
+from fabkit.writers import export
 from fabkit.io.outputs import LOCK_NAME, OutputLock
 from fabkit.templates import load_template
 from fabkit.pipeline import export_many

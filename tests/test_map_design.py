@@ -208,7 +208,7 @@ def test_buildability_of_the_choice():
 
 def test_the_template_exports_and_passes_its_as_built_check(tmp_path):
     from fabkit.check import check_file
-    from fabkit.export import export
+    from fabkit.writers import export
 
     result = design_map([(1.6, 0.0), 1.1], name="ss")
     path = tmp_path / "ss.toml"

@@ -10,7 +10,7 @@ import pytest
 
 import fabkit
 from fabkit.check import check_file
-from fabkit.export import export
+from fabkit.writers import export
 from fabkit.fab.creases import fold_model, origami_model, sheet_chain
 from fabkit.numerics import rigid_fit
 from fabkit.kinematics.branching import analyze_bifurcation, step_off
@@ -162,7 +162,7 @@ def test_the_plan_lays_out_the_pages_and_the_writer_draws_them(design):
     # plan's (fab/creases/layout.py); the SVG writer draws them where the plan says
     from dataclasses import replace
 
-    from fabkit.export import svg
+    from fabkit.writers import svg
     from fabkit.fab.creases.layout import place
     from fabkit.fab.plans import make_plan
 

@@ -14,7 +14,7 @@ import pytest
 
 import fabkit
 from fabkit.check import check_file
-from fabkit.export import export, get_exporter
+from fabkit.writers import export, get_exporter
 from conftest import ROOT, TEMPLATES
 
 SVG = "{http://www.w3.org/2000/svg}"

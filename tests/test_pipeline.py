@@ -69,7 +69,7 @@ def test_an_export_traces_each_motion_window_once(monkeypatch, tmp_path, name, w
 
 
 #: The modules that are handed the traced motion and must never trace the design themselves.
-NO_TRACE = sorted([*(ROOT / "export").glob("*.py"), *(ROOT / "check").glob("*.py"),
+NO_TRACE = sorted([*(ROOT / "writers").glob("*.py"), *(ROOT / "check").glob("*.py"),
                    ROOT / "report" / "text.py", *(ROOT / "report" / "html").glob("*.py"),
                    ROOT / "pipeline" / "formats.py",
                    ROOT / "pipeline" / "design.py", ROOT / "pipeline" / "stages.py"])
@@ -159,7 +159,7 @@ def test_an_origami_export_traces_its_motion_once(monkeypatch, tmp_path, name, f
 
 @pytest.mark.parametrize("name", ["origami_sheet", "origami_chain12"])
 def test_the_fold_is_made_of_the_motion_stage_trace(name):
-    from fabkit.export import EXPORTERS
+    from fabkit.writers import EXPORTERS
     from fabkit.fab.plans import make_plan
     from fabkit.pipeline.formats import choose_formats, traced_for
 
@@ -195,7 +195,7 @@ def test_a_flat_sheet_its_motion_does_not_leave_is_folded_by_its_plan(tmp_path):
 
 def test_a_writer_takes_a_plan_and_plans_nothing():
     # writers of a process's plan: no planner, tracer or settings reader is imported in them
-    from fabkit.export import EXPORTERS
+    from fabkit.writers import EXPORTERS
     from fabkit.fab.plans import PLANNERS
 
     import importlib

@@ -12,7 +12,7 @@ import pytest
 
 import fabkit
 from fabkit.errors import FabricationError
-from fabkit.export import export
+from fabkit.writers import export
 from fabkit.fab.printers import bed_layout, best_orientation, chain_pieces
 from fabkit.settings.printers import DEFAULT_PRINTER, PRINTERS, printer_profile
 

@@ -9,7 +9,7 @@ import trimesh
 import fabkit
 from fabkit.check import check_file
 from fabkit.check.stl import module_fixed_points
-from fabkit.export import export
+from fabkit.writers import export
 
 from conftest import TEMPLATES
 

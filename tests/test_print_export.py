@@ -12,8 +12,8 @@ import trimesh
 
 import fabkit
 from fabkit.errors import SettingsError
-from fabkit.export import export, get_exporter
-from fabkit.export.stl import applies, binary_stl, export_design, stored_mesh_is_closed
+from fabkit.writers import export, get_exporter
+from fabkit.writers.stl import applies, binary_stl, export_design, stored_mesh_is_closed
 from fabkit.fab.hinges import print_geometry
 from fabkit.settings.printing import print_settings
 
@@ -189,7 +189,7 @@ def test_3mf_vertices_read_back_as_the_same_float32_coordinates(tmp_path):
     import trimesh
 
     from fabkit.check.threemf import read_package
-    from fabkit.export.threemf import threemf_package
+    from fabkit.writers.threemf import threemf_package
 
     rng = np.random.default_rng(7)
     box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))

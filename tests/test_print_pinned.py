@@ -16,8 +16,8 @@ from fabkit.check import check_file
 from fabkit.check.threemf import read_package
 from fabkit.cli import main
 from fabkit.errors import BoundsError, FabricationError, SettingsError
-from fabkit.export import export
-from fabkit.export.stl import export_design
+from fabkit.writers import export
+from fabkit.writers.stl import export_design
 from fabkit.fab.pinned import bar_body, pin_profile, pinned_print
 from fabkit.fab.printers import chain_pieces
 from fabkit.settings.printing import default_linkage, design_print_settings, print_settings
@@ -397,7 +397,7 @@ def test_a_window_the_motion_cannot_reach_fails_the_export_with_its_reason(tmp_p
 def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     """The preview's fixed layout leaves room for every tick label, bed title and the heading
     (wrapped to the figure's width: on one bed it ran off both edges)."""
-    from fabkit.export.pinned import preview_figure
+    from fabkit.writers.pinned import preview_figure
     from fabkit.plots.viz import clipped_texts
 
     design = fabkit.load_template(TEMPLATES / f"{name}.toml")
@@ -416,7 +416,7 @@ def test_a_print_cut_into_pieces_lists_every_part_it_does_not_print(tmp_path):
     geometry only."""
     import re
 
-    from fabkit.export import export
+    from fabkit.writers import export
 
     design = fabkit.load_template(TEMPLATES / "fourbar_chain.toml")
     _, report = export(design, "stl", tmp_path, print={"preview": False})

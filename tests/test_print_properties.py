@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from fabkit.design.assemble import chain
 from fabkit.errors import FabricationError
-from fabkit.export.stl import binary_stl
+from fabkit.writers.stl import binary_stl
 from fabkit.fab.hinges import print_geometry, print_solid, solid_mesh
 from fabkit.settings.printing import print_settings
 from fabkit.bench.print_network import printed_module

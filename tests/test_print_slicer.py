@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.export import export
+from fabkit.writers import export
 
 from conftest import TEMPLATES
 

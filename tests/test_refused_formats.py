@@ -67,7 +67,7 @@ def test_a_template_that_opts_out_is_refused_when_asked(tmp_path, capsys):
 
 
 def test_a_format_not_installed_is_refused_when_asked(tmp_path):
-    registry = {"dxf": "fabkit.export.dxf", "gcode": "fabkit.export.no_such_module"}
+    registry = {"dxf": "fabkit.writers.dxf", "gcode": "fabkit.writers.no_such_module"}
     [res] = export_many([TEMPLATES / "fourbar.toml"], ["gcode"], tmp_path, jobs=1,
                         isolate=False, tolerance_samples=0, previews=False, exporters=registry)
     assert res.status is Status.REFUSED and not res.ok and res.error_code == "refused"

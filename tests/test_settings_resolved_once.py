@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
 
 #: The stages below the entry: they read typed settings only.
-TYPED_STAGES = ("export", "fab", "tolerance", "check", "report")
+TYPED_STAGES = ("writers", "fab", "tolerance", "check", "report")
 
 #: Names that hold settings in fabkit's code.
 SETTINGS_NAMES = {"settings", "overrides"}
@@ -56,7 +56,7 @@ def _counted(monkeypatch, module_name: str, name: str) -> list:
 def test_each_design_resolves_its_settings_once(template, fmt, tmp_path, monkeypatch):
     # every module that may read settings is imported first, so the count sees them all
     for name in ("fabkit.check.dxf", "fabkit.check.stl", "fabkit.check.threemf",
-                 "fabkit.export.dxf", "fabkit.export.stl", "fabkit.fab.laser_plan",
+                 "fabkit.writers.dxf", "fabkit.writers.stl", "fabkit.fab.laser_plan",
                  "fabkit.fab.print_plan", "fabkit.tolerance.spec", "fabkit.tolerance.elastic"):
         importlib.import_module(name)
     laser = _counted(monkeypatch, "fabkit.settings.laser", "laser_settings")
@@ -133,7 +133,7 @@ def test_no_stage_below_the_entry_probes_a_raw_settings_dict(stage):
 
 def test_the_writers_take_the_slicer_settings_from_the_plan():
     for name in ("stl.py", "pinned.py"):
-        tree = ast.parse((ROOT / "fabkit" / "export" / name).read_text())
+        tree = ast.parse((ROOT / "fabkit" / "writers" / name).read_text())
         imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
         assert "fab.slicer" not in {m.lstrip(".") for m in imported if m}, name
     from fabkit.fab.plans import make_plan

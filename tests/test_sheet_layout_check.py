@@ -16,7 +16,7 @@ import pytest
 
 from fabkit.check.dxf import read_sheet
 from fabkit.check.sheet_layout import least_gap, MIN_WEB_MM, part_shapes
-from fabkit.export.dxf import sheet_dxf
+from fabkit.writers.dxf import sheet_dxf
 from fabkit.fab.laser_plan import laser_plan
 from fabkit.templates import load_template
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..check.stl import (as_built_tolerance, check_mesh, module_fixed_points, rebuild_linkage,
                          sequential_transition, slab_sections)
 from ..design.assemble import chain
-from ..export.stl import binary_stl
+from ..writers.stl import binary_stl
 from ..model.network import Network
 from ..model.rigidity import count_modes
 

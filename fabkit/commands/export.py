@@ -35,7 +35,7 @@ EXAMPLES = [
 ]
 
 
-#: The process that makes each format (every format of :data:`fabkit.export.EXPORTERS`, the
+#: The process that makes each format (every format of :data:`fabkit.writers.EXPORTERS`, the
 #: inverse of :data:`fabkit.tolerance.PROCESS_FORMATS`; tests/test_cli_help.py holds them equal),
 #: stated here for the help, which must not import the exporters or the tolerance analysis.
 FORMAT_PROCESS = {"dxf": "laser", "svg": "origami", "fold": "origami", "cp": "origami",
@@ -81,7 +81,7 @@ def add_arguments(p):
 
 def parse_formats(text: str | None) -> list[str] | None:
     """``"dxf,stl"`` → ``["dxf", "stl"]``; None stays None (every format that applies)."""
-    from ..export import EXPORTERS
+    from ..writers import EXPORTERS
 
     if text is None:
         return None

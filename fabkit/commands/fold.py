@@ -115,7 +115,7 @@ def run(args) -> int:
         print(describe(design, plan.model, plan.fold))
         if out:
             from ..check import check_file
-            from ..export import get_exporter
+            from ..writers import get_exporter
 
             files: dict[str, bytes] = {}
             for fmt in ("svg", "fold", "cp"):

@@ -7,7 +7,7 @@ same schema check (:mod:`fabkit.io.schema`) and the same did-you-mean for a miss
 from __future__ import annotations
 
 from ..errors import SettingsError, UsageError
-from ..export import check_export_settings
+from ..writers import check_export_settings
 from ..templates import tomllib
 
 

@@ -2,7 +2,7 @@
 
 From the design, its ``[fabrication.laser]`` settings resolved once and its traced motion (the
 Motion stage's, or traced here for the Python API), the plan decides everything the laser
-writers draw (:mod:`fabkit.export.dxf`, :mod:`fabkit.export.laser_svg`) and the guide lays out
+writers draw (:mod:`fabkit.writers.dxf`, :mod:`fabkit.writers.laser_svg`) and the guide lays out
 (:mod:`fabkit.fab.guide`): no writer plans, and no writer traces.
 """
 

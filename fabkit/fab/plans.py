@@ -4,7 +4,7 @@ A plan is everything decided about a design's fabrication by one process, from t
 settings and its traced motion: the laser plan (:mod:`fabkit.fab.laser_plan`: bars, layers,
 parts, sheets), the print plan (:mod:`fabkit.fab.print_plan`: bodies, pins, beds) and
 the origami plan (:mod:`fabkit.fab.creases.plan`: the sheets and their
-fold). The writers of a process (:mod:`fabkit.export`) turn its plan into files and nothing
+fold). The writers of a process (:mod:`fabkit.writers`) turn its plan into files and nothing
 else; the batch engine builds each process's plan once for all of that process's formats.
 """
 

@@ -3,7 +3,7 @@
 A network of rigid triangles prints as one hinged solid (:mod:`fabkit.fab.hinges`: plates,
 hinges, the solid and its mesh, and how far the hinges bend along the traced motion); a bar
 linkage prints in place with pins (:func:`fabkit.fab.pinned.pinned_print`: layers, pins,
-pieces, beds). The print writers (:mod:`fabkit.export.stl`) turn the plan into STL and 3MF
+pieces, beds). The print writers (:mod:`fabkit.writers.stl`) turn the plan into STL and 3MF
 files and nothing else.
 """
 

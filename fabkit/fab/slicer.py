@@ -19,7 +19,7 @@ Printer, bed shape and nozzle are never written: they stay the user's (the repor
 how to keep them when opening the file in the window).
 
 :func:`slicer_settings` gives both parts with the reason for every key; the 3MF writer
-(:func:`fabkit.export.stl.threemf_package`) writes them.
+(:func:`fabkit.writers.stl.threemf_package`) writes them.
 """
 
 from __future__ import annotations

@@ -384,7 +384,7 @@ def check_settings(settings, where: str = "", sections: dict | None = None) -> d
 
     ``sections`` adds sections declared elsewhere (name → :class:`Section` model): an export
     format of one's own declares its settings as ``SETTINGS`` in its module (see
-    :func:`fabkit.export.check_export_settings`).
+    :func:`fabkit.writers.check_export_settings`).
 
     Raises
     ------

@@ -48,7 +48,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import BoundsError, FabkitError, UsageError
-from ..export import check_export_settings
+from ..writers import check_export_settings
 from ..io.outputs import OutputLock
 from ..io.schema import refuse_unused
 from ..templates import allow_large as large_allowed
@@ -119,7 +119,7 @@ def _refuse_unused_settings(settings, designs, formats, exporters, tolerance_sam
 def _resolved(paths, settings, exporters, tolerance_samples, allow_large):
     """The templates' paths, the checked settings and the format registry, before any design:
     one bad key or size fails them all alike."""
-    from ..export import EXPORTERS
+    from ..writers import EXPORTERS
     from ..templates import resolve_template
 
     if tolerance_samples is not None and tolerance_samples > MAX_SAMPLES and not allow_large:
@@ -201,7 +201,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
         no library's set or dict ordering can make two runs differ; False with ``jobs=1`` runs
         in this process.
     exporters : dict of str to str, optional
-        Format registry (default :data:`fabkit.export.EXPORTERS`, as it is now).
+        Format registry (default :data:`fabkit.writers.EXPORTERS`, as it is now).
     previews : bool
         Draw the preview pictures.
     debug : bool

@@ -155,7 +155,7 @@ def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
 def _load(path, settings, outdir, formats, exporters):
     """The Load stage: the design with ``--set`` applied, its folder, and what an earlier export
     left there (formats still current stay, stale ones go)."""
-    from ..export import EXPORTERS
+    from ..writers import EXPORTERS
     from ..templates import load_template, with_settings
 
     loaded = load_template(path)
@@ -199,7 +199,7 @@ def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, 
                    motion) -> dict:
     """report.md, report.json and report.html of a design into its staging folder, rendered
     from the typed results (none is read back); returns the design's card for index.html."""
-    from ..export import write_atomic
+    from ..writers import write_atomic
 
     md, js = report_markdown(rep), report_json(report_dict(rep))
     write_atomic(stage_dir / "report.md", md)
@@ -216,7 +216,7 @@ def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, 
 def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *, check,
             tolerance_samples, exporters, previews, allow_large, swap) -> None:
     """The stages of :func:`export_one`, filling ``res``; raises what stops them."""
-    from ..export import write_atomic, write_outputs
+    from ..writers import write_atomic, write_outputs
 
     clock(Stage.LOAD)
     design, digest, folder, earlier, registry, kept, removed, chosen = _load(

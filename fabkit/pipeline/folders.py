@@ -137,7 +137,7 @@ def swap_in(stage: Path, folder: Path, earlier_files=None) -> None:
 
     What other commands wrote into ``folder`` is carried over first (:func:`carry_over`, with
     ``earlier_files`` as its ``ours``), under the folder's own lock: a library
-    :func:`fabkit.export.export` writing into it holds that lock, and the swap is then refused
+    :func:`fabkit.writers.export` writing into it holds that lock, and the swap is then refused
     rather than made under it.
 
     Raises

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from ..check import CHECKERS
 from ..errors import BoundsError, FabkitError, TemplateError, UnavailableError
-from ..export import get_exporter, skip_reason
+from ..writers import get_exporter, skip_reason
 from ..fab.plans import make_plan, PLANNERS, trace_needs
 from ..motion import trace_motion
 from ..report.text import design_facts
@@ -120,7 +120,7 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
         Monte Carlo builds of the tolerance analysis (0 skips it; None: the template's setting,
         else the analysis's default).
     exporters : dict of str to str, optional
-        Format registry (default :data:`fabkit.export.EXPORTERS`).
+        Format registry (default :data:`fabkit.writers.EXPORTERS`).
     allow_large : bool
         Lift the bound on Monte Carlo samples.
     kept : iterable of str
@@ -136,7 +136,7 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
     FabkitError
         Bad tolerance settings, too many samples.
     """
-    from ..export import EXPORTERS
+    from ..writers import EXPORTERS
 
     settings = design_settings(design, settings)  # resolved already: handed back as they are
     exporters = dict(EXPORTERS if exporters is None else exporters)
@@ -300,7 +300,7 @@ def build_outputs(design, formats, settings, tolerance_samples=None, exporters=N
     FabkitError
         Bad template content, impossible motion, or an exporter's refusal (one line).
     """
-    from ..export import EXPORTERS
+    from ..writers import EXPORTERS
 
     stage = stage or (lambda s: None)
     stage(Stage.MOTION)

@@ -27,7 +27,7 @@ from .. import __version__
 from ..errors import FabkitError, OutputError
 from ..io.inputs import read_regular
 from ..report.text import jsonable
-from ..export import get_exporter
+from ..writers import get_exporter
 
 __all__ = ["MANIFEST", "SCHEMA", "SCHEMA_VERSION", "FormatOrigin", "Manifest", "read_manifest",
            "design_digest", "format_settings", "stale_reason", "sort_earlier", "new_manifest"]

@@ -1,6 +1,6 @@
 """What a design asks of each process, and the catalogues it chooses from.
 
-The writers (:mod:`fabkit.fab`, :mod:`fabkit.export`) plan and draw from these; the as-built
+The writers (:mod:`fabkit.fab`, :mod:`fabkit.writers`) plan and draw from these; the as-built
 checks (:mod:`fabkit.check`) hold the written files to them. Neither side's code is in here, so
 a check that reads the settings shares nothing with the way a file was drawn.
 

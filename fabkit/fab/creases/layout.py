@@ -3,7 +3,7 @@ assignment and fold angles, its paper, its crease table, and for a chain of shee
 (which corners meet, their numbers, their thread holes) and the pages of the medium each sheet
 goes on (:func:`crease_layout`).
 
-The crease SVG and its cut sheets (:mod:`fabkit.export.svg`, :mod:`fabkit.export.svg_cut`) only
+The crease SVG and its cut sheets (:mod:`fabkit.writers.svg`, :mod:`fabkit.writers.svg_cut`) only
 draw this layout. The sizes of the legend's text (:data:`FONT`, :data:`LINE`, the wrapping width)
 are here because a page holds as many sheets as leave room for its legend; the writer draws the
 legend with the same sizes and the same words (:func:`join_legend_lines`).

@@ -56,7 +56,7 @@ def guide_pages(plan, bom: dict, *, dpi: int = 100, pngs: bool = False,
     ----------
     plan : fabkit.fab.laser_plan.LaserPlan
     bom : dict
-        Its bill of materials (:func:`fabkit.export.dxf.bill_of_materials`): hardware per
+        Its bill of materials (:func:`fabkit.writers.dxf.bill_of_materials`): hardware per
         joint and the part names the guide uses.
     dpi : int
         Resolution of the page PNGs.

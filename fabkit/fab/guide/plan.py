@@ -675,7 +675,7 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     ----------
     plan : fabkit.fab.laser_plan.LaserPlan
     bom : dict
-        Its bill of materials (:func:`fabkit.export.dxf.bill_of_materials`): the hardware of
+        Its bill of materials (:func:`fabkit.writers.dxf.bill_of_materials`): the hardware of
         every joint and the names of the parts.
 
     Returns

@@ -74,7 +74,7 @@ def img(name: str, data: bytes, alt: str, caption: str | None = None) -> str:
 
 
 def blocks_html(blocks, fold_rows: int | None = None) -> str:
-    """Blocks of text and tables (:func:`fabkit.export.dxf.bom_blocks`) as HTML; a table longer
+    """Blocks of text and tables (:func:`fabkit.writers.dxf.bom_blocks`) as HTML; a table longer
     than ``fold_rows`` rows is folded under its heading (``<details>``)."""
     out, heading = [], ""
     for block in blocks:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...export import write_atomic
+from ...writers import write_atomic
 from ..text import MADE_FOR
 from .common import esc, exported, level_span, PROCESSES
 from .folder import not_exported

@@ -27,7 +27,7 @@ def laser_section(files: dict, ident: str = "laser") -> str:
 
 def laser_bom(report, ident: str = "bom") -> str:
     """The kit's bill of materials (``""`` when no laser kit was written)."""
-    from ...export.dxf import bom_blocks
+    from ...writers.dxf import bom_blocks
 
     bom = exporter_report(report.formats, "dxf")
     if not bom:

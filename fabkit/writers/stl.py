@@ -5,7 +5,7 @@ Two kinds of print (``linkage`` in ``[fabrication.print]``, :mod:`fabkit.setting
 * ``"hinges"`` (the default for a network made of rigid triangles): plates and hinges as one
   watertight body (:mod:`fabkit.fab.hinges`), described below;
 * ``"pins"`` (the default for every other planar network): bars stacked in layers on printed
-  pins, one body per bar, printed in place (:mod:`fabkit.export.pinned`).
+  pins, one body per bar, printed in place (:mod:`fabkit.writers.pinned`).
 
 Files of a hinge print (``NAME`` is the design's name; ``_bed<k>`` when it needs more than one
 bed):

@@ -11,7 +11,7 @@ The pipeline (all pure, nothing is written here):
 5. one DXF per sheet (R2010, ``$INSUNITS = 4`` mm, ``$EXTMIN``/``$EXTMAX`` set; layers CUT,
    CUT_INNER, ENGRAVE and REFERENCE; closed LWPOLYLINE with bulges or LINE + ARC; CIRCLE
    holes; labels as glyph outlines by default), identical bytes for identical input, and a
-   laser-ready SVG of the same sheet (:mod:`fabkit.export.laser_svg`);
+   laser-ready SVG of the same sheet (:mod:`fabkit.writers.laser_svg`);
 6. the as-built check is not run here (an exporter never imports the checks): the batch engine
    behind ``fabkit export`` reads the written sheets back with :mod:`fabkit.check.dxf` and marks
    the design failed when they do not rebuild the designed network.
@@ -485,7 +485,7 @@ def export_design(design, settings=None, *, motion=None) -> ExportResult:
     Examples
     --------
     >>> import fabkit
-    >>> from fabkit.export.dxf import export_design
+    >>> from fabkit.writers.dxf import export_design
     >>> design = fabkit.load_template("templates/fourbar.toml")   # doctest: +SKIP
     >>> sorted(export_design(design).files)[:2]                   # doctest: +SKIP
     ['laser_assembly.png', 'laser_bom.json']

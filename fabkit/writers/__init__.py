@@ -29,11 +29,11 @@ __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason"
 #: Format name → module implementing it (imported only when the format is used, so a missing
 #: optional dependency matters only to its own format).
 EXPORTERS: dict[str, str] = {
-    "dxf": "fabkit.export.dxf",
-    "svg": "fabkit.export.svg",
-    "fold": "fabkit.export.fold",
-    "stl": "fabkit.export.stl",
-    "cp": "fabkit.export.cp",
+    "dxf": "fabkit.writers.dxf",
+    "svg": "fabkit.writers.svg",
+    "fold": "fabkit.writers.fold",
+    "stl": "fabkit.writers.stl",
+    "cp": "fabkit.writers.cp",
 }
 
 

@@ -1,8 +1,8 @@
 """The STL file itself: binary STL bytes of a mesh, where its origin lies on the bed, and
 whether a mesh stays closed once stored as an STL stores it (float32, merged by position).
 
-Shared by the hinge print (:mod:`fabkit.export.stl`) and the print-in-place linkage
-(:mod:`fabkit.export.pinned`).
+Shared by the hinge print (:mod:`fabkit.writers.stl`) and the print-in-place linkage
+(:mod:`fabkit.writers.pinned`).
 """
 
 from __future__ import annotations

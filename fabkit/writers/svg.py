@@ -1,5 +1,5 @@
 """SVG crease patterns a folder can use, in the conventions origami software reads (Origami
-Simulator), and a cut-ready variant (:mod:`fabkit.export.svg_cut`).
+Simulator), and a cut-ready variant (:mod:`fabkit.writers.svg_cut`).
 
 Every crease or boundary segment is one ``<line>`` that is a direct child of ``<svg>`` (no
 transforms), in mm. Stroke colour: black boundary, red (#ff0000) mountain, blue (#0000ff)
@@ -352,7 +352,7 @@ def export_design(design, settings: dict | None = None, *, motion=None) -> Expor
 
 def write(plan) -> ExportResult:
     """Crease pattern SVG (``<name>.svg``, or the layout of all sheets ``<name>_layout.svg``)
-    and the cut-ready sheet(s) (``<name>_cut.svg``, :mod:`fabkit.export.svg_cut`) of an origami
+    and the cut-ready sheet(s) (``<name>_cut.svg``, :mod:`fabkit.writers.svg_cut`) of an origami
     plan (:class:`fabkit.fab.creases.plan.OrigamiPlan`): its layout, drawn."""
     from dataclasses import replace
 
