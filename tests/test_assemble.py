@@ -405,3 +405,17 @@ def test_chains_load_without_the_designer():
                          check=True).stdout.splitlines()
     assert out[0] == "['fabkit.design.assemble']"
     assert out[1:] == ["True", "fabkit.design.module"]
+
+
+def test_a_chain_that_closes_a_ring_late_is_mirrored(tmp_path):
+    # a designed module whose copies, joined as they are, turn round and close a ring: its
+    # nodes stand on the first copy's only after a few modules, past a short prefix
+    import fabkit
+
+    module = fabkit.design_map([(1.0, 0.0), 2.0]).network
+    straight = chain(module, 20, mirror="none")
+    assert _coincident_pairs(chain(module, 3, mirror="none")) == 0
+    assert _coincident_pairs(straight) > 0
+    picked = chain(module, 20)  # "auto"
+    assert picked.assembly.mirrored.tolist() == [False, True] * 10
+    assert _coincident_pairs(picked) == 0

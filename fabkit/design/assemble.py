@@ -342,25 +342,33 @@ def _stacked_nodes(net: Network) -> int:
     return len(cKDTree(net.nodes).query_pairs(tol))
 
 
-def _auto_mirror(base, d_in: str, d_out: str) -> str:
-    """The mirroring a sequence of modules needs: ``"none"`` when joined as they are no two
-    nodes of a short chain of them (the sequence, its first module again) stand on one another,
-    else ``"alternate"`` when every second one mirrored keeps them apart.
+#: Modules of a chain that ``mirror="auto"`` builds to look for nodes standing on one another:
+#: the whole chain up to this length (then it is the chain returned), its first modules beyond.
+#: A module whose copies turn by 360°/n closes a ring after n copies, so a short prefix misses
+#: it (a designed module with a fixed point at 1 stacks its 7th copy on its 1st).
+AUTO_PROBE_MODULES = 256
+
+
+def _auto_chain(seq: list, d_in: str, d_out: str):
+    """The chain of ``seq`` joined as it is when no two of its nodes stand on one another, else
+    with every second module mirrored, with the rule used; (network, rule) or (None, rule) when
+    only a prefix was probed (the caller builds the whole chain with that rule).
 
     Raises
     ------
     FabkitError
         Neither keeps the nodes apart (pass ``mirror`` as a list of booleans).
     """
-    prefix = list(base) * 2 + [base[0]] if len(base) == 1 else list(base) + [base[0]]
+    probe = seq[:AUTO_PROBE_MODULES]
     found = {}
     for rule in ("none", "alternate"):
-        found[rule] = _stacked_nodes(chain(prefix, d_in=d_in, d_out=d_out, mirror=rule))
+        net = chain(probe, d_in=d_in, d_out=d_out, mirror=rule)
+        found[rule] = _stacked_nodes(net)
         if not found[rule]:
-            return rule
+            return (net if len(probe) == len(seq) else None), rule
     raise FabkitError(f"the modules stand on one another however they are chained: joined as "
                       f"they are, {found['none']} pair(s) of nodes of the first "
-                      f"{len(prefix)} modules coincide, every second one mirrored "
+                      f"{len(probe)} modules coincide, every second one mirrored "
                       f"{found['alternate']}; pass mirror as a list of booleans, one per module")
 
 
@@ -383,8 +391,9 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
         pair lies the other way round from their input pair), none (``"none"`` or None), or the
         modules flagged True. ``"auto"`` (the default) picks what planar modules need: none when
         joined as they are no two nodes of the chain stand on one another, else
-        ``"alternate"`` (3D modules: none); the chain's ``assembly.mirrored`` says which copies
-        it mirrored.
+        ``"alternate"`` (3D modules: none); the whole chain is looked at up to
+        :data:`AUTO_PROBE_MODULES` modules, its first ones beyond; the chain's
+        ``assembly.mirrored`` says which copies it mirrored.
 
     Returns
     -------
@@ -436,7 +445,11 @@ def chain(modules, copies: int | None = None, *, d_in: str = "d1", d_out: str = 
     if isinstance(mirror, str) and mirror == "auto":
         # planar modules: a mirror image is the module's other handedness; a 3D module's
         # mirror is through a plane of the designer's choosing, so it is never guessed
-        mirror = _auto_mirror(base, d_in, d_out) if k > 1 and base[0].dim == 2 else "none"
+        mirror = "none"
+        if k > 1 and base[0].dim == 2:
+            whole, mirror = _auto_chain(seq, d_in, d_out)
+            if whole is not None:
+                return whole
     flags = _mirror_flags(mirror, k)
     dim = seq[0].dim
     # Per distinct module: ports, the local ranks of the nodes that a joined copy adds, and a
