@@ -43,7 +43,7 @@ _LAZY = {
     "fold_through": "fabkit.kinematics.branching",
     "analyze_bifurcation": "fabkit.kinematics.branching",
     "sweep": "fabkit.sweep",
-    "export": "fabkit.api",
+    "export": "fabkit.pipeline.api",
     "laser_builds": "fabkit.tolerance.builds",
 }
 
@@ -87,4 +87,5 @@ __all__ = [
     "rigidity_matrix",
     "trace",
     *sorted(_LAZY),
+    *_SUBMODULES,
 ]

@@ -28,6 +28,7 @@ reason.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 import re
@@ -41,11 +42,12 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from .errors import (BoundsError, brief, FabkitError, InputFileError, NetworkError, SettingsError,
-                      TemplateError, UnsafeNameError)
+from .errors import (ArgumentTypeError, BoundsError, brief, FabkitError, InputFileError,
+                     NetworkError, SettingsError, TemplateError, UnsafeNameError)
 from .kinematics import METHODS, trace
 from .model.network import Network
 from .io.outputs import check_name
+from .io.toml_writer import TomlDocument
 from .io.suggest import close_names, nearest_file
 from .io.workload import require
 
@@ -235,11 +237,7 @@ class Design:
         >>> d.name, d.motion.drive, d.motion.to, d.network.n_nodes
         ('three', 'd1', 1.2, 11)
         """
-        from dataclasses import replace
-
         if not isinstance(network, Network):
-            from .errors import ArgumentTypeError
-
             raise ArgumentTypeError("network", f"must be a fabkit.Network, got "
                                                f"{type(network).__name__}")
         motion = {"drive": drive, "to": to, "method": method, "hold": list(hold),
@@ -249,7 +247,7 @@ class Design:
                "fabrication": dict(fabrication or {})}
         raw = {k: v for k, v in raw.items() if v not in ("", {})}
         design = _from_raw(raw, Path(f"<{name}>"), network=network)
-        return replace(design, path=None)
+        return dataclasses.replace(design, path=None)
 
     def save(self, path) -> Path:
         """Write the design's template (TOML) that :func:`load_template` reads back to an equal
@@ -290,8 +288,6 @@ def network_section(network: Network) -> dict:
 
 def template_text(design: "Design") -> str:
     """The TOML text of a design's template (:meth:`Design.save`)."""
-    from .io.toml_writer import TomlDocument
-
     raw = dict(design.raw)
     builder = next((k for k in BUILDERS if k in raw), None)
     if builder not in SELF_CONTAINED:

@@ -59,7 +59,6 @@ LAYERS = {
     "report.text": 13,
     "report.html": 13,
     "pipeline": 14,
-    "api": 14,
     "plot": 14,
     "sweep": 14,
     "bench": 15,

@@ -10,7 +10,6 @@ import numpy as np
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
 from ..io.workload import require
-from ..maps.of_design import cobweb_starts as default_d1, map_of as design_map
 from ..numerics import DOMAIN_RTOL
 from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
@@ -99,15 +98,16 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     """Compute everything for one template and write its files; returns the summary.
     ``progress``: a :class:`~fabkit.io.progress.Progress` told each stage."""
     from ..plots.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
+    from ..maps.of_design import cobweb_starts, map_of  # scipy: not for every --help
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
     progress.stage(f"{design.name}: the map")
-    fmap = design_map(design, d_in, d_out)
+    fmap = map_of(design, d_in, d_out)
     progress.stage(f"{design.name}: fixed points and cycles")
     fixed = fmap.fixed_points()
     cycles = [c for m in periods for c in fmap.cycles(m)]
-    values = default_d1(fmap, fixed) if d1 is None else list(d1)
+    values = cobweb_starts(fmap, fixed) if d1 is None else list(d1)
     lo, hi = fmap.domain
     for v in values:
         slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)

@@ -1,13 +1,16 @@
 """The command line's work as Python functions: :func:`export` runs ``fabkit export`` on a design.
 
-Imported on first use (``fabkit.export``), so that ``import fabkit`` stays light; it stands at
-the batch engine's level (:mod:`fabkit.pipeline`), which does the work.
+Imported on first use (``fabkit.export``), so that ``import fabkit`` stays light; it is part of
+the batch engine (:mod:`fabkit.pipeline`), which does the work.
 """
 
 from __future__ import annotations
 
-from .errors import ArgumentTypeError, ArgumentValueError
-from .pipeline import DesignResult, export_many
+from ..errors import ArgumentTypeError, ArgumentValueError
+from ..io.suggest import did_you_mean
+from ..templates import Design
+from ..writers import EXPORTERS
+from . import DesignResult, export_many
 
 __all__ = ["export"]
 
@@ -15,9 +18,6 @@ __all__ = ["export"]
 def _formats(to) -> list[str] | None:
     """``"dxf,stl"``, ``["dxf", "stl"]`` or None (every format that applies), checked against
     the format registry."""
-    from .io.suggest import did_you_mean
-    from .writers import EXPORTERS
-
     if to is None:
         return None
     if isinstance(to, str):
@@ -99,8 +99,6 @@ def export(design, to=None, out="out", *, settings: dict | None = None, check: b
     ...     result.ok, result.exported_formats, all(c.ok for c in result.checks)
     (True, ['dxf'], True)
     """
-    from .templates import Design
-
     if not isinstance(design, Design) and not isinstance(design, str) \
             and not hasattr(design, "__fspath__"):
         raise ArgumentTypeError("design", f"must be a fabkit Design, a template file or a "

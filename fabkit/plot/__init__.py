@@ -9,7 +9,20 @@ and ``fabkit export`` (``laser_assembly.png``, ``NAME_print.png``).
 
 from __future__ import annotations
 
-from .errors import ArgumentTypeError
+from ..errors import ArgumentTypeError
+from ..fab.guide import guide_plan
+from ..fab.guide.pictures import assembly_figure
+from ..fab.laser_plan import LaserPlan
+from ..fab.print_plan import PrintPlan
+from ..kinematics import Trajectory
+from ..maps import Map1D
+from ..maps.of_design import cobweb_starts, map_of
+from ..plots.mapplots import cobweb_figure
+from ..plots.viz import motion_figure
+from ..tolerance import ToleranceResult, tolerance_figure
+from ..writers.dxf import bill_of_materials
+from ..writers.pinned import preview_figure as pinned_figure
+from ..writers.stl import preview_figure
 
 __all__ = ["cobweb", "motion", "tolerance", "kit"]
 
@@ -42,9 +55,6 @@ def cobweb(source, d1=None, steps: int = 16, *, d_in: str = "d1", d_out: str = "
     >>> type(fig).__name__, len(fig.axes)
     ('Figure', 1)
     """
-    from .maps import Map1D
-    from .maps.of_design import cobweb_starts, map_of
-    from .plots.mapplots import cobweb_figure
 
     name = getattr(source, "name", "")
     if isinstance(source, Map1D):
@@ -76,8 +86,6 @@ def motion(trajectory, *, frames: int = 3, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from .kinematics import Trajectory
-    from .plots.viz import motion_figure
 
     if not isinstance(trajectory, Trajectory):
         raise ArgumentTypeError("trajectory", f"must be a fabkit Trajectory (fabkit.trace), got "
@@ -99,7 +107,6 @@ def tolerance(result, *, title: str | None = None):
     -------
     matplotlib.figure.Figure
     """
-    from .tolerance import ToleranceResult, tolerance_figure
 
     if not isinstance(result, ToleranceResult):
         raise ArgumentTypeError("result", f"must be a ToleranceResult "
@@ -129,22 +136,15 @@ def kit(plan, *, title: str | None = None):
     ArgumentTypeError
         Any other object (an origami plan's pictures are its crease-pattern SVG files).
     """
-    from .fab.laser_plan import LaserPlan
-    from .fab.print_plan import PrintPlan
 
     if isinstance(plan, LaserPlan):
-        from .fab.guide import guide_plan
-        from .fab.guide.pictures import assembly_figure
-        from .writers.dxf import bill_of_materials
 
         return assembly_figure(plan, guide_plan(plan, bill_of_materials(plan, {})))[0]
     if isinstance(plan, PrintPlan):
         name = title or plan.design.name
         if plan.pinned is not None:
-            from .writers.pinned import preview_figure as pinned_figure
 
             return pinned_figure(plan.pinned, name)
-        from .writers.stl import preview_figure
 
         return preview_figure(plan.geo, name)
     raise ArgumentTypeError("plan", f"must be a laser or print plan "
