@@ -51,8 +51,8 @@ from .io.toml_writer import TomlDocument
 from .io.suggest import close_names, nearest_file
 from .io.workload import require
 
-__all__ = ["Design", "Motion", "network_section", "template_text", "TemplateContext", "load_template", "parse_template", "BUILDERS",
-           "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
+__all__ = ["Design", "Motion", "network_section", "template_text", "TemplateContext",
+           "load_template", "parse_template", "BUILDERS", "SELF_CONTAINED", "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
            "is_template_name", "resolve_template", "with_settings"]
 
 #: Sections that build the network: name → "module:function". The function takes the section

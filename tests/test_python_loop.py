@@ -1,5 +1,5 @@
-"""The researcher's loop in Python, without a template written by hand: wishes → ``design_map`` →
-``chain`` → ``Design.from_network`` → ``fabkit.export`` → checks, and the pictures of
+"""The researcher's loop in Python, with no template written by hand: wishes → ``design_map``
+→ ``chain`` → ``Design.from_network`` → ``fabkit.export`` → checks, and the pictures of
 ``fabkit.plot``. Files are read back with the libraries a maker's tools use (ezdxf, trimesh)."""
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
 """The batch engine behind ``fabkit export``: many templates in, one folder per design out.
 
-Callable from Python::
+Callable from Python: :func:`fabkit.export` exports one design (a template, or a design made in
+code) in this process and returns its :class:`DesignResult`; many at once::
 
     from fabkit.pipeline import export_many
     results = export_many(["fourbar", "templates/fourbar_chain.toml"], outdir="out", jobs=2)
@@ -160,8 +161,8 @@ def _loaded(paths, finished):
         if name in owners:
             finished(i, DesignResult(str(source_label(p)), name, error_code="template",
                                      message=f"{source_label(p)}: name: {name!r} is also the "
-                                             f"name of {source_label(owners[name])}; each design needs its own name "
-                                             "(its output folder)"))
+                                             f"name of {source_label(owners[name])}; each "
+                                             "design needs its own name (its output folder)"))
             continue
         owners[name] = p
         names[i] = name

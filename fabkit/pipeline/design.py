@@ -176,7 +176,8 @@ def _load(path, settings, outdir, formats, exporters):
     try:
         folder = inside(outdir, design.name)  # before the work, not after it
     except UnsafeNameError as exc:  # a Design made in code, not read from a template
-        raise TemplateError(source_label(path), "name", f"{brief(design.name)} {exc.reason}") from None
+        raise TemplateError(source_label(path), "name",
+                            f"{brief(design.name)} {exc.reason}") from None
     check_replaceable(folder)
     staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
     # a folder caught between the two renames of a killed run is put back first: its record
