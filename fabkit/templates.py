@@ -255,7 +255,9 @@ class Design:
         fabrication settings.
 
         A template built from other files (``[chain]``, ``[tessellation]``) is written with its
-        network explicit, so that the file stands alone wherever it is saved.
+        network explicit, so that the file stands alone wherever it is saved; an explicit
+        network keeps no record of the modules it was assembled from (``network.assembly``,
+        which a laser kit's guide pages by): export the design itself to keep it.
 
         Parameters
         ----------

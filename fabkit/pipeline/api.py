@@ -28,12 +28,12 @@ def _formats(to) -> list[str] | None:
         raise ArgumentTypeError("to", f"must be a format name or a list of them, got "
                                       f"{type(to).__name__}")
     if not names:
-        raise ArgumentValueError("to", "give at least one format, e.g. to=\"dxf\"")
+        raise ArgumentValueError("to", "names no format; give at least one, e.g. to=\"dxf\"")
     for name in names:
         if name not in EXPORTERS:
             hint = did_you_mean(name, EXPORTERS)
-            raise ArgumentValueError("to", f"unknown format {name!r}; " + (f"{hint} " if hint
-                                                                           else "")
+            raise ArgumentValueError("to", f"names an unknown format {name!r}; "
+                                     + (f"{hint} " if hint else "")
                                      + f"valid: {', '.join(EXPORTERS)}")
     return list(dict.fromkeys(names))
 
