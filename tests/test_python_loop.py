@@ -159,8 +159,11 @@ def test_the_plots_are_figures(designed):
     assert isinstance(fabkit.plot.motion(traj), Figure)
     assert isinstance(fabkit.plot.cobweb(designed), Figure)  # a designed module: its own map
     assert isinstance(fabkit.plot.cobweb(designed.map, d1=[1.2], steps=4), Figure)
-    plan = make_plan("laser", fabkit.load_template("super_stable"))
-    assert isinstance(fabkit.plot.kit(plan), Figure)
+    super_stable = fabkit.load_template("super_stable")
+    assert isinstance(fabkit.plot.kit(make_plan("laser", super_stable)), Figure)
+    assert isinstance(fabkit.plot.kit(make_plan("print", super_stable)), Figure)  # pins
+    hinged = make_plan("print", fabkit.load_template("printed_planar_chain10"))
+    assert hinged.pinned is None and isinstance(fabkit.plot.kit(hinged), Figure)
     with pytest.raises(TypeError, match="Trajectory"):
         fabkit.plot.motion(chaotic)
 
