@@ -43,7 +43,13 @@ _LAZY = {
     "fold_through": "fabkit.kinematics.branching",
     "analyze_bifurcation": "fabkit.kinematics.branching",
     "sweep": "fabkit.sweep",
+    "export": "fabkit.pipeline.api",
+    "laser_builds": "fabkit.tolerance.builds",
 }
+
+# Modules of the package imported on first use (``fabkit.plot.cobweb(...)`` after
+# ``import fabkit``).
+_SUBMODULES = ("plot",)
 
 
 def __getattr__(name):
@@ -51,11 +57,13 @@ def __getattr__(name):
 
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
     raise AttributeError(f"module 'fabkit' has no attribute {name!r}")
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))
 
 
 __all__ = [
@@ -79,4 +87,5 @@ __all__ = [
     "rigidity_matrix",
     "trace",
     *sorted(_LAZY),
+    *_SUBMODULES,
 ]

@@ -28,6 +28,7 @@ reason.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import math
 import re
@@ -41,16 +42,17 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from .errors import (BoundsError, brief, FabkitError, InputFileError, NetworkError, SettingsError,
-                      TemplateError, UnsafeNameError)
+from .errors import (ArgumentTypeError, BoundsError, brief, FabkitError, InputFileError,
+                     NetworkError, SettingsError, TemplateError, UnsafeNameError)
 from .kinematics import METHODS, trace
 from .model.network import Network
 from .io.outputs import check_name
+from .io.toml_writer import TomlDocument
 from .io.suggest import close_names, nearest_file
 from .io.workload import require
 
-__all__ = ["Design", "Motion", "TemplateContext", "load_template", "parse_template", "BUILDERS",
-           "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
+__all__ = ["Design", "Motion", "network_section", "template_text", "TemplateContext",
+           "load_template", "parse_template", "BUILDERS", "SELF_CONTAINED", "TOP_LEVEL_KEYS", "BUNDLED_PACKAGE", "bundled_folder", "bundled_names", "bundled_template",
            "is_template_name", "resolve_template", "with_settings"]
 
 #: Sections that build the network: name → "module:function". The function takes the section
@@ -189,6 +191,117 @@ class Design:
                                 "no [motion] with a drive port and a target `to` is given")
         opts = {**m.options, **overrides}
         return trace(self.network, drive=m.drive, to=to, method=method, hold=m.hold, **opts)
+
+    @classmethod
+    def from_network(cls, network: Network, *, drive: str = "d1", to: float | None = None,
+                     name: str = "design", description: str = "", method: str = "auto",
+                     hold=(), options: dict | None = None, ends: dict | None = None,
+                     intent: str | None = None, fabrication: dict | None = None) -> "Design":
+        """A design made from a network in code: a chain, a tessellation, a designed module.
+
+        It is what the template :meth:`save` writes describes (an explicit ``[network]``, its
+        ``[motion]`` and ``[fabrication]``), checked as a template is; the network itself is
+        kept, with its assembly record (a chain's modules, which the laser guide pages by).
+
+        Parameters
+        ----------
+        network : Network
+        drive : str
+            The port the motion drives (``[motion] drive``).
+        to : float, optional
+            The drive's target (None: geometry only, nothing to trace).
+        name : str
+            The design's name, also its output folder's (letters, digits, ``_ . + -``).
+        description : str
+        method, hold, options, ends, intent
+            The other keys of ``[motion]`` (see :mod:`fabkit.templates`), when given.
+        fabrication : dict, optional
+            The ``[fabrication]`` section, nested by process (``{"print": {"scale": 20}}``).
+
+        Returns
+        -------
+        Design
+            ``path`` is None until it is saved and loaded.
+
+        Raises
+        ------
+        TemplateError
+            A drive or held port the network does not have, a bad option, a bad name or
+            fabrication setting; the message names the key.
+
+        Examples
+        --------
+        >>> import fabkit
+        >>> net = fabkit.chain(fabkit.load_template("super_stable").network, copies=3)
+        >>> d = fabkit.Design.from_network(net, drive="d1", to=1.2, name="three")
+        >>> d.name, d.motion.drive, d.motion.to, d.network.n_nodes
+        ('three', 'd1', 1.2, 11)
+        """
+        if not isinstance(network, Network):
+            raise ArgumentTypeError("network", f"must be a fabkit.Network, got "
+                                               f"{type(network).__name__}")
+        motion = {"drive": drive, "to": to, "method": method, "hold": list(hold),
+                  "options": options, "ends": ends, "intent": intent}
+        raw = {"name": name, "description": description, "network": network_section(network),
+               "motion": {k: v for k, v in motion.items() if v not in (None, [], {})},
+               "fabrication": dict(fabrication or {})}
+        raw = {k: v for k, v in raw.items() if v not in ("", {})}
+        design = _from_raw(raw, Path(f"<{name}>"), network=network)
+        return dataclasses.replace(design, path=None)
+
+    def save(self, path) -> Path:
+        """Write the design's template (TOML) that :func:`load_template` reads back to an equal
+        design: the same name, network (nodes to the last bit, edges, ports, labels), motion and
+        fabrication settings.
+
+        A template built from other files (``[chain]``, ``[tessellation]``) is written with its
+        network explicit, so that the file stands alone wherever it is saved; an explicit
+        network keeps no record of the modules it was assembled from (``network.assembly``,
+        which a laser kit's guide pages by): export the design itself to keep it.
+
+        Parameters
+        ----------
+        path : str or pathlib.Path
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
+        path = Path(path)
+        path.write_text(template_text(self), encoding="utf-8")
+        return path
+
+
+#: Builder sections that stand alone (no other file named in them): kept as written when a
+#: design is saved; any other is saved as the explicit network it built.
+SELF_CONTAINED = ("network", "design")
+
+
+def network_section(network: Network) -> dict:
+    """The ``[network]`` section that builds ``network`` (nodes, edges, ports, labels)."""
+    section = {"nodes": network.nodes.tolist(), "edges": network.edges.tolist(),
+               "ports": {str(k): [int(i), int(j)] for k, (i, j) in network.ports.items()}}
+    if network.labels is not None:
+        section["labels"] = [str(x) for x in network.labels]
+    return section
+
+
+def template_text(design: "Design") -> str:
+    """The TOML text of a design's template (:meth:`Design.save`)."""
+    raw = dict(design.raw)
+    builder = next((k for k in BUILDERS if k in raw), None)
+    if builder not in SELF_CONTAINED:
+        raw.pop(builder, None)
+        raw = {"network": network_section(design.network), **raw}
+    raw["name"] = design.name
+    first = ("name", "description")
+    order = [k for k in first if k in raw] + [k for k in raw if k not in first]
+    doc = TomlDocument()
+    doc.mapping({k: raw[k] for k in order},
+                per_line={"network.nodes": 1, "network.edges": 6, "network.labels": 8})
+    return doc.text()
 
 
 class _Loading:
@@ -469,6 +582,13 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=(),
     except RecursionError:  # the parser recurses once per level of [[[...]]] or {a={b=...}}
         raise TemplateError(path, "", "not a template: arrays or tables nested too deeply "
                                       "for TOML to parse") from None
+    return _from_raw(raw, path, _stack, _loading)
+
+
+def _from_raw(raw: dict, path: Path, _stack=(), _loading: _Loading | None = None,
+              network: Network | None = None) -> Design:
+    """The design of a parsed template; ``network``, when given, is the network its builder
+    section describes (a network made in code: kept as it is, with its assembly record)."""
     ctx = TemplateContext(path, raw, tuple(_stack), _loading)
     present = [k for k in BUILDERS if k in raw]
     if not present:
@@ -481,17 +601,7 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=(),
     builder_key = present[0]
     section = ctx.get(raw, builder_key, "", dict)
     _check_sizes(ctx, builder_key, section, raw)
-    module_name, func_name = BUILDERS[builder_key].split(":")
-    try:
-        builder: Callable = getattr(importlib.import_module(module_name), func_name)
-    except (ImportError, AttributeError):
-        raise ctx.error(builder_key, f"this fabkit cannot build [{builder_key}] sections") from None
-    try:
-        net = builder(section, ctx)
-    except (TemplateError, BoundsError):
-        raise
-    except FabkitError as exc:
-        raise ctx.error(builder_key, str(exc)) from None
+    net = network if network is not None else _built(ctx, builder_key, section)
     description = ctx.get(raw, "description", "", str, required=False, default="")
     if "motion" in raw:
         motion = _parse_motion(ctx, ctx.get(raw, "motion", "", dict), net)
@@ -505,6 +615,21 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=(),
         ctx.load(origami["sheet"], "fabrication.origami.sheet")
     return Design(name=name, description=description, path=path, network=net, motion=motion,
                   fabrication=fabrication, raw=raw, meta=ctx.meta, references=ctx.references)
+
+
+def _built(ctx: TemplateContext, builder_key: str, section: dict) -> Network:
+    """The network a template's builder section builds."""
+    module_name, func_name = BUILDERS[builder_key].split(":")
+    try:
+        builder: Callable = getattr(importlib.import_module(module_name), func_name)
+    except (ImportError, AttributeError):
+        raise ctx.error(builder_key, f"this fabkit cannot build [{builder_key}] sections") from None
+    try:
+        return builder(section, ctx)
+    except (TemplateError, BoundsError):
+        raise
+    except FabkitError as exc:
+        raise ctx.error(builder_key, str(exc)) from None
 
 
 def load_template(path, *, _stack=(), _loading: _Loading | None = None) -> Design:

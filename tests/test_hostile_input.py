@@ -494,10 +494,10 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
      "beyond ±1e+09 design units"),
     (lambda n: fabkit.Network("nodes", [[0, 1]]), ValueError, "`nodes` must be an array"),
     (lambda n: fabkit.load_template(None), TypeError, "path must be a file path"),
-    (lambda n: __import__("fabkit.writers").export.export(
+    (lambda n: __import__("fabkit.writers").writers.export(
         fabkit.load_template("fourbar"), "dxf", "/nonexistent", lazer={"kerf": 0.2}),
      ValueError, "lazer: unknown section"),
-    (lambda n: __import__("fabkit.writers").export.export(
+    (lambda n: __import__("fabkit.writers").writers.export(
         fabkit.load_template("fourbar"), ["dxf"], "/nonexistent"), FabkitError,
      "unknown export format ['dxf']"),
     (lambda n: fabkit.count_modes(n, np.zeros((4, 2))), ValueError,
@@ -517,9 +517,18 @@ def test_library_warnings_do_not_reach_the_terminal(exported, capsys):
     (lambda n: fabkit.load_template("a\x00b"), ValueError,
      "path holds a NUL character, which no file name has"),
     (lambda n: fabkit.design_map([1e300]), FabkitError, "--fixed-point 1e+300: "),
-    (lambda n: __import__("fabkit.writers").export.export(None, "dxf", "/nonexistent"),
+    (lambda n: fabkit.export(None), TypeError,
+     "design must be a fabkit Design, a template file or a bundled template's name, got "
+     "NoneType"),
+    (lambda n: fabkit.export("fourbar", to="stll"), ValueError,
+     "to names an unknown format 'stll'; did you mean 'stl'?"),
+    (lambda n: fabkit.Design.from_network(None), TypeError,
+     "network must be a fabkit.Network, got NoneType"),
+    (lambda n: fabkit.plot.motion(n), TypeError,
+     "trajectory must be a fabkit Trajectory (fabkit.trace), got Network"),
+    (lambda n: __import__("fabkit.writers").writers.export(None, "dxf", "/nonexistent"),
      TypeError, "design must be a fabkit Design (fabkit.load_template), got NoneType"),
-    (lambda n: __import__("fabkit.writers").export.export(fabkit.load_template("fourbar"),
+    (lambda n: __import__("fabkit.writers").writers.export(fabkit.load_template("fourbar"),
                                                          "dxf", 5),
      FabkitError, "outdir: must be a folder path, got int"),
 ])

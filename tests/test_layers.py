@@ -59,6 +59,7 @@ LAYERS = {
     "report.text": 13,
     "report.html": 13,
     "pipeline": 14,
+    "plot": 14,
     "sweep": 14,
     "bench": 15,
     "commands": 16,

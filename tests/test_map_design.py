@@ -112,7 +112,7 @@ def test_the_nearest_feasible_wish_can_be_built(wish):
 def test_nearest_reach_is_the_farthest_tried_that_builds():
     from functools import partial
 
-    from fabkit.commands.design import laser_builds
+    from fabkit.tolerance.builds import laser_builds
 
     # steps from the reach (1.6 x 2.5 = 4) inward: 4, 3.6, 3.2, 2.8. Without builds, and with
     # the laser's builds at its settings (bar length σ 0.05 mm, kerf σ 0.03 mm; hole play is

@@ -42,7 +42,7 @@ def _paper(module: dict) -> str:
 def _designed(wish: str) -> str:
     """The wished fixed points of the module ``fabkit design`` builds, from its template."""
     import fabkit
-    from fabkit.commands.design import laser_builds
+    from fabkit.tolerance.builds import laser_builds
     from fabkit.design import design_map
 
     points = wish.replace("--fixed-point", "").split()

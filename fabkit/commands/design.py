@@ -10,7 +10,6 @@ from pathlib import Path
 
 from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal,
                       parse_fixed_point, read_curve, WishError)
-from ..design.robustness import BUILDS
 from ..design.toml_text import builds_line, fit_lines, margin_lines
 from ..errors import BoundsError, brief, InputFileError, UnsafeNameError, UsageError
 from ..numerics import printed, printed_residual
@@ -227,6 +226,8 @@ def _run_module(args, name, out, figure_png) -> int:
     progress.stage(f"{name}: a module from its map wishes, judged against simulated laser "
                    "builds")
     settings = args.settings
+    from ..tolerance.builds import laser_builds  # scipy: not for every --help
+
     result = design_map(wishes, cycle, name=name, progress=progress.stage,
                         sample_builds=lambda design: laser_builds(design, settings))
     progress.stage(f"{name}: drawing and writing")
@@ -276,41 +277,6 @@ def settings_toml(settings: dict) -> str:
         for key, value in table.items():
             doc.value(key, value)
     return doc.text()
-
-
-def laser_builds(design, settings=None):
-    """Bar lengths of simulated laser-cut builds of a design: the tolerance analysis's laser
-    model (bar length and kerf errors; hole play is the joints' freedom, not a length error)
-    at the scale the kit of this template
-    is cut at, ``BUILDS`` builds, a fixed seed. What :func:`fabkit.design.design_map` judges
-    its wishes and suggestions against (``sample_builds``).
-
-    Parameters
-    ----------
-    design : Design
-    settings : dict, optional
-        ``--set`` overrides nested by section (``laser``, ``tolerance``), over the template's.
-
-    Returns
-    -------
-    lengths : numpy.ndarray, shape (M, E)
-        Design units, in the order of the design's edges.
-    scale : float
-        mm per design unit.
-    model : str
-        The errors in words.
-    """
-    import numpy as np
-
-    from ..tolerance import model_summary, tolerance_spec
-    from ..tolerance.processes import ProcessGeometry, sample_lengths
-
-    spec = tolerance_spec(design, settings, process="laser", samples=BUILDS, seed=0)
-    net = design.network
-    lengths = np.linalg.norm(net.nodes[net.edges[:, 0]] - net.nodes[net.edges[:, 1]], axis=1)
-    geo = ProcessGeometry(nodes=net.nodes, edges=net.edges, lengths=lengths)
-    built = sample_lengths(geo, spec, np.random.default_rng(spec.seed))
-    return built, float(spec.scale), model_summary(spec)
 
 
 def _pasteable(nearest: str | None, args) -> str | None:

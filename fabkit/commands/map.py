@@ -7,10 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConstructionError, DesignError, FabkitError, MotionError, UsageError
+from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
 from ..io.workload import require
-from ..kinematics import Status
 from ..numerics import DOMAIN_RTOL
 from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
@@ -93,61 +92,22 @@ def parse_values(text: str) -> list[float]:
     return out
 
 
-def design_map(design, d_in="d1", d_out="d2"):
-    """The map of a loaded template: constructive where possible, else read off a projected
-    trace of the template's motion."""
-    from ..maps import map_from_trajectory, module_map
-
-    net = design.network
-    for port in (d_in, d_out):
-        if port not in net.ports:
-            known = ", ".join(sorted(net.ports)) or "none"
-            raise FabkitError(f"{design.path}: no port {port!r} (the network has: {known})")
-    try:
-        try:
-            # `toward` only matters when the start is a turning point of d1 (on two branches)
-            return module_map(net, d_in, d_out, toward=design.motion.to, name=design.name)
-        except DesignError:  # the target lies beyond the branch: still map the start's branch
-            return module_map(net, d_in, d_out, name=design.name)
-    except ConstructionError as exc:
-        if design.motion.to is None:
-            raise FabkitError(f"{design.path}: {exc}; and the template gives no motion.to to "
-                              "trace instead") from None
-        traj = design.trace(method="projected")
-        if traj.status is Status.FAILED:  # a failed trace is no map, not even of a stretch
-            raise MotionError(design.path, "motion", f"the trace failed: {traj.message}",
-                              status=str(traj.status)) from None
-        return map_from_trajectory(traj, d_in, d_out, name=design.name)
-
-
-def default_d1(fmap, fixed) -> list[float]:
-    lo, hi = fmap.domain
-    vals = [p.value for p in fixed if lo <= p.value <= hi][:3]
-    if len(vals) >= 2:
-        vals.insert(1, 0.5 * (vals[0] + vals[1]))
-    elif vals:
-        v = vals[0]
-        vals.append(v + (0.02 if v + 0.02 * (hi - lo) < hi else -0.02) * (hi - lo))
-    else:
-        vals = [0.5 * (lo + hi)]
-    return vals
-
-
 def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapunov=False,
                orbits=1000, discard=5000, average=20000, d_in="d1", d_out="d2",
                progress=None) -> dict:
     """Compute everything for one template and write its files; returns the summary.
     ``progress``: a :class:`~fabkit.io.progress.Progress` told each stage."""
     from ..plots.mapplots import cobweb_figure, lyapunov_figure, map_figure, solution_space_figure
+    from ..maps.of_design import cobweb_starts, map_of  # scipy: not for every --help
 
     progress = progress or Progress("", show=False)
     folder = inside(outdir, design.name)  # before the work
     progress.stage(f"{design.name}: the map")
-    fmap = design_map(design, d_in, d_out)
+    fmap = map_of(design, d_in, d_out)
     progress.stage(f"{design.name}: fixed points and cycles")
     fixed = fmap.fixed_points()
     cycles = [c for m in periods for c in fmap.cycles(m)]
-    values = default_d1(fmap, fixed) if d1 is None else list(d1)
+    values = cobweb_starts(fmap, fixed) if d1 is None else list(d1)
     lo, hi = fmap.domain
     for v in values:
         slack = DOMAIN_RTOL * max(abs(lo), abs(hi), 1.0)

@@ -28,12 +28,13 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..errors import DesignError, FabkitError
-from ..templates import parse_template
+from ..templates import Design, parse_template
 from ..model.network import Network
 from ..numerics import TINY
 from .branch import branch_margins, MIN_BRANCH_MARGIN, on_branch
@@ -118,39 +119,58 @@ class _Candidate:
 
 
 @dataclass(frozen=True, eq=False)
-class MapDesign:
-    """A module designed from map wishes.
+class MapDesign(Design):
+    """A module designed from map wishes: a :class:`~fabkit.Design` (trace it, chain its
+    network, export it, save it) that also carries what its design found.
 
-    Iterating gives ``(design, report)``, so ``design, report = fabkit.design_map(...)`` works.
+    Unpacking gives the same object and its report, ``design, report = fabkit.design_map(...)``,
+    so ``design`` has every attribute below whether the result was unpacked or not.
 
     Attributes
     ----------
-    design : fabkit.Design
-        The template, parsed back from :attr:`template` (its network is built by the
-        ``[design]`` section from the specification written in it).
     report : dict
         The wishes, what the map recomputed by :func:`fabkit.module_map` gives for each (value,
         residual, slope), every fixed point and 2-cycle of the branch, the free choices made and
         the buildability measures; JSON-ready.
     template : str
-        The template text (TOML, commented).
+        The template text (TOML, commented): what :meth:`save` writes.
     map : Map1D
         The designed module's map on the branch through its reference.
     wish : MapWish
+    design : MapDesign
+        The object itself (the design it is).
+
+    Examples
+    --------
+    >>> design, report = design_map([(1.6, 0.0), 1.1])
+    >>> design.map.fixed_points()[0].value == report["map"]["fixed_points"][0]["value"]
+    True
+    >>> design.design is design, design.network.n_nodes
+    (True, 5)
     """
 
-    design: object
-    report: dict
-    template: str
-    map: object
-    wish: MapWish
+    report: dict = field(default_factory=dict)
+    template: str = ""
+    map: object = None
+    wish: MapWish | None = None
+
+    @classmethod
+    def of(cls, design: Design, **found) -> "MapDesign":
+        """The design parsed from the designer's template, with what the design found."""
+        return cls(**{f.name: getattr(design, f.name) for f in fields(Design)}, **found)
 
     @property
-    def network(self) -> Network:
-        return self.design.network
+    def design(self) -> "MapDesign":
+        return self
+
+    def save(self, path) -> Path:
+        """Write :attr:`template` (the commented template) to ``path``; returns the path."""
+        path = Path(path)
+        path.write_text(self.template, encoding="utf-8")
+        return path
 
     def __iter__(self):
-        return iter((self.design, self.report))
+        return iter((self, self.report))
 
 
 def _specs(wish: MapWish) -> list[_Spec]:
@@ -501,12 +521,13 @@ def design_map(fixed_points=(), cycle=None, *, name: str = "designed_module",
         simulated builds of a template (in its network's edge order), mm per design unit and the
         error model in words. Given, the design reports what the builds keep and a nearest
         wish is named only when at least 95 % of its builds keep it. ``fabkit design`` passes
-        the laser process's errors (:func:`fabkit.commands.design.laser_builds`).
+        the laser process's errors (:func:`fabkit.laser_builds`).
 
     Returns
     -------
     MapDesign
-        ``design, report = design_map(...)`` also works.
+        A :class:`~fabkit.Design` with ``report``, ``template``, ``map`` and ``wish``;
+        ``design, report = design_map(...)`` unpacks it into itself and its report.
 
     Raises
     ------
@@ -551,7 +572,8 @@ def design_map(fixed_points=(), cycle=None, *, name: str = "designed_module",
     report = _report(wish, best, fmap, met, design, n_specs, n_cands,
                      time.perf_counter() - start)
     report["builds"] = builds.as_dict() if builds is not None else None
-    return MapDesign(design=design, report=report, template=text, map=fmap, wish=wish)
+    return MapDesign.of(replace(design, path=None), report=report, template=text, map=fmap,
+                        wish=wish)
 
 
 def _report(wish, best, fmap, met, design, n_specs, n_cands, seconds) -> dict:

@@ -127,6 +127,30 @@ class TomlDocument:
             self._lines.append("")
         self._lines.append("[" + ".".join(toml_key(part) for part in name.split(".")) + "]")
 
+    def mapping(self, data: Mapping, where: tuple = (), *, per_line=None) -> None:
+        """Every key of ``data``: its values first, then each non-empty table under its header
+        (``[motion]``, ``[motion.options]``), however deep.
+
+        Parameters
+        ----------
+        data : mapping
+        where : tuple of str
+            The keys of the table ``data`` is (empty: the top level, no header).
+        per_line : dict of str to int, optional
+            Arrays written over several lines, by dotted key (``{"network.nodes": 1}``).
+        """
+        per_line = per_line or {}
+        if where:
+            if self._lines and self._lines[-1] != "":
+                self._lines.append("")
+            self._lines.append("[" + ".".join(toml_key(k) for k in where) + "]")
+        tables = [k for k, v in data.items() if isinstance(v, Mapping) and v]
+        for key, value in data.items():
+            if key not in tables:
+                self.value(key, value, per_line=per_line.get(".".join((*where, key))))
+        for key in tables:
+            self.mapping(data[key], (*where, key), per_line=per_line)
+
     def blank(self) -> None:
         """An empty line."""
         self._lines.append("")

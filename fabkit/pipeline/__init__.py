@@ -1,6 +1,7 @@
 """The batch engine behind ``fabkit export``: many templates in, one folder per design out.
 
-Callable from Python::
+Callable from Python: :func:`fabkit.export` exports one design (a template, or a design made in
+code) in this process and returns its :class:`DesignResult`; many at once::
 
     from fabkit.pipeline import export_many
     results = export_many(["fourbar", "templates/fourbar_chain.toml"], outdir="out", jobs=2)
@@ -51,10 +52,10 @@ from ..errors import BoundsError, FabkitError, UsageError
 from ..writers import check_export_settings
 from ..io.outputs import OutputLock
 from ..io.schema import refuse_unused
-from ..templates import allow_large as large_allowed
+from ..templates import allow_large as large_allowed, Design
 from ..report.html import write_index
 from ..tolerance import key_process, made_process
-from .design import export_one
+from .design import export_one, source_label
 from .folders import prepare_outdir
 from .formats import build_outputs, choose_formats, MAX_SAMPLES, RESERVED, run_checks
 from .motion import traced_motion
@@ -128,7 +129,8 @@ def _resolved(paths, settings, exporters, tolerance_samples, allow_large):
     exporters = dict(EXPORTERS if exporters is None else exporters)
     settings = check_export_settings(settings or {}, exporters)
     # a bare name is a template of the current folder or a bundled one, as on the command line
-    return [resolve_template(p) for p in paths], settings, exporters
+    return ([p if isinstance(p, Design) else resolve_template(p) for p in paths], settings,
+            exporters)
 
 
 def _write_index(outdir: Path, results) -> None:
@@ -145,11 +147,11 @@ def _loaded(paths, finished):
     indices to export, their designs, names and costs (edges, the measure of work)."""
     from ..templates import load_template
 
-    owners: dict[str, Path] = {}
+    owners: dict[str, object] = {}
     todo, designs, names, cost = [], {}, {}, {}
     for i, p in enumerate(paths):
         try:
-            design = designs[i] = load_template(p)
+            design = designs[i] = p if isinstance(p, Design) else load_template(p)
             name = design.name
             cost[i] = design.network.n_edges
         except FabkitError as exc:
@@ -157,10 +159,10 @@ def _loaded(paths, finished):
             finished(i, DesignResult(str(p), p.stem, message=str(exc), error_code=exc.code))
             continue
         if name in owners:
-            finished(i, DesignResult(str(p), name, error_code="template",
-                                     message=f"{p}: name: {name!r} is also the name of "
-                                             f"{owners[name]}; each design needs its own name "
-                                             "(its output folder)"))
+            finished(i, DesignResult(str(source_label(p)), name, error_code="template",
+                                     message=f"{source_label(p)}: name: {name!r} is also the "
+                                             f"name of {source_label(owners[name])}; each "
+                                             "design needs its own name (its output folder)"))
             continue
         owners[name] = p
         names[i] = name
@@ -177,9 +179,10 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
 
     Parameters
     ----------
-    paths : sequence of path or str
+    paths : sequence of path, str or Design
         Template files, or bare names (``"super_stable"``): a template of that name in the
-        current folder, else the bundled one, as ``fabkit export NAME`` takes them.
+        current folder, else the bundled one, as ``fabkit export NAME`` takes them; or designs
+        made in code (:meth:`fabkit.Design.from_network`).
     formats : list of str or None
         Formats to export (None: every format that applies to each design).
     outdir : path

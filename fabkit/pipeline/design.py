@@ -14,6 +14,7 @@ from ..io.outputs import inside
 from ..report.html import design_html, index_card, motion_frames
 from ..report.text import design_facts, report_json, report_markdown
 from ..settings.design import design_settings
+from ..templates import Design
 from .folders import check_replaceable, recover_folder, staging_folders, swap_in
 from .formats import (choose_formats, make_artefacts, motion_facts, plan_design, RESERVED,
                       run_checks, traced_for)
@@ -22,6 +23,14 @@ from .manifest import (design_digest, MANIFEST, MAX_KEPT_BYTES, new_manifest, re
 from ..status import Status
 from .results import DesignResult, FormatResult, Stage
 from .stages import Artefacts, Checks, DesignReport, judge_design
+
+
+def source_label(source):
+    """What names a design in messages and results: its template file, or ``<name>`` for a
+    design made in code that was never saved."""
+    if isinstance(source, Design):
+        return source.path if source.path is not None else f"<{source.name}>"
+    return source
 
 
 # --- one design ------------------------------------------------------------------------------
@@ -75,8 +84,8 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
 
     Parameters
     ----------
-    path : path
-        The template.
+    path : path or Design
+        The template, or a design made in code (:meth:`fabkit.Design.from_network`).
     formats, settings, tolerance_samples, exporters, previews, allow_large
         See :func:`fabkit.pipeline.formats.build_outputs`.
     outdir : path
@@ -97,7 +106,8 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     DesignResult
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
-    res = DesignResult(path=str(path), name=Path(path).stem)
+    res = DesignResult(path=str(source_label(path)),
+                       name=path.name if isinstance(path, Design) else Path(path).stem)
     clock = _StageClock(res, progress, t0)
     staged = [None]  # the staging folder while it holds an unfinished export
     try:
@@ -105,13 +115,13 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
                 tolerance_samples=tolerance_samples, exporters=exporters, previews=previews,
                 allow_large=allow_large, swap=swap)
     except (Interrupted, KeyboardInterrupt):
-        res.status, res.message, res.error_code = Status.INTERRUPTED, f"{path}: interrupted", \
+        res.status, res.message, res.error_code = Status.INTERRUPTED, f"{res.path}: interrupted", \
             "interrupted"
         raise
     except Exception as exc:  # a bug must not stop the other designs; say where it happened
         if debug and not isinstance(exc, (FabkitError, OSError)):
             raise
-        res.message, res.error_code = _failure(exc, path, outdir)
+        res.message, res.error_code = _failure(exc, res.path, outdir)
     finally:
         if staged[0] is not None and staged[0].exists():
             shutil.rmtree(staged[0], ignore_errors=True)
@@ -158,7 +168,7 @@ def _load(path, settings, outdir, formats, exporters):
     from ..writers import EXPORTERS
     from ..templates import load_template, with_settings
 
-    loaded = load_template(path)
+    loaded = path if isinstance(path, Design) else load_template(path)
     # what the files are made from, as the template says (--set is compared on its own)
     digest = design_digest(loaded)
     design = with_settings(loaded, settings)  # --set motion.to=...
@@ -166,7 +176,8 @@ def _load(path, settings, outdir, formats, exporters):
     try:
         folder = inside(outdir, design.name)  # before the work, not after it
     except UnsafeNameError as exc:  # a Design made in code, not read from a template
-        raise TemplateError(path, "name", f"{brief(design.name)} {exc.reason}") from None
+        raise TemplateError(source_label(path), "name",
+                            f"{brief(design.name)} {exc.reason}") from None
     check_replaceable(folder)
     staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
     # a folder caught between the two renames of a killed run is put back first: its record
@@ -266,9 +277,9 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     res.status, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
     res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(removed)
     if outcome is Status.REFUSED:
-        res.message, res.error_code = f"{path}: cannot produce {'; '.join(refused)}", "refused"
+        res.message, res.error_code = f"{res.path}: cannot produce {'; '.join(refused)}", "refused"
     elif outcome is Status.CHECK_FAILED:
         bad = [c.file for f in fmts.values() for c in f.checks if not c.ok]
-        res.message = (f"{path}: as-built check failed for {', '.join(bad)} "
+        res.message = (f"{res.path}: as-built check failed for {', '.join(bad)} "
                      f"(see {folder / 'report.md'})")
         res.error_code = "check"

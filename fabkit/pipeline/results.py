@@ -179,6 +179,11 @@ class DesignResult:
         return (self.level or self.status.value) if self.ok else self.status.value
 
     @property
+    def checks(self) -> list:
+        """Every as-built check of the written files (:class:`CheckResult`), format by format."""
+        return [c for f in self.formats.values() for c in f.checks]
+
+    @property
     def exported_formats(self) -> list[str]:
         return [f for f, v in self.formats.items() if v.status.produced]
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from ..errors import OutputError, internal_error_line
 from ..executor import SILENCE, LocalExecutor, Task, report
-from .design import export_one
+from .design import export_one, source_label
 from .folders import is_safe_name, recover_folder, swap_in
 from ..status import Status
 from .results import DesignResult
@@ -127,14 +127,15 @@ def run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                 i = todo[end.index]
                 pending.discard(i)
                 if end.status is Status.DONE:
-                    finished(i, _swapped_in(end.value, args[i][0], names[i], outdir))
+                    finished(i, _swapped_in(end.value, source_label(args[i][0]), names[i],
+                                            outdir))
                     continue
                 if is_safe_name(names[i]):
                     try:  # its staging folder, whatever it holds
                         recover_folder(outdir, names[i])
                     except (OSError, OutputError):  # pragma: no cover - the next run removes it
                         pass
-                finished(i, _failed(end, args[i][0], names[i]))
+                finished(i, _failed(end, source_label(args[i][0]), names[i]))
     except BaseException:
         # the executor has stopped the workers (half a second to unwind): a worker killed
         # between two writes leaves its staging folder, so remove those of the designs in

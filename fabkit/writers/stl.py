@@ -43,6 +43,7 @@ from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
 __all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "binary_stl", "threemf_package",
+           "preview_figure",
            "stored_mesh_is_closed", "hinge_layout", "piece_network", "stl_origin"]
 
 FORMAT = "stl"
@@ -197,7 +198,13 @@ def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[
     return files, report
 
 
-def _preview_png(geo, title: str) -> bytes:
+def preview_figure(geo, title: str):
+    """A hinged solid seen from above: plates grey, hinges orange, joints as dots.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     from matplotlib.collections import PolyCollection
 
     w, h, _ = geo.size
@@ -216,8 +223,7 @@ def _preview_png(geo, title: str) -> bytes:
     ax.set_title(f"{title}: {len(geo.plates)} plates, {len(geo.joints)} hinges ({s.hinge_style}, "
                  f"{s.material}), {w:.1f} x {h:.1f} x {s.plate_thickness:g} mm", fontsize=9)
     fig.tight_layout()
-    png = figure_png(fig)
-    return png
+    return fig
 
 
 def _safe(name: str) -> str:
@@ -281,7 +287,7 @@ def write(plan) -> ExportResult:
     if not s.threemf:
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
-        files[f"{name}_print.png"] = _preview_png(geo, design.name)
+        files[f"{name}_print.png"] = figure_png(preview_figure(geo, design.name))
 
     hinges = plan.hinges
     warnings = []

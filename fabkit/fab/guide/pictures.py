@@ -15,7 +15,7 @@ from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Label
                    page_brackets, row_axes)
 from .plan import bar_name, frame_caption, GuidePlan
 
-__all__ = ["assembly_picture", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
+__all__ = ["assembly_picture", "assembly_figure", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
 
 #: Width of the pictures (inches at :data:`_DPI`: 1100 pixels, the width of a report's column,
 #: where they show at their own size).
@@ -39,7 +39,8 @@ def _legend(fig, n_layers: int):
 
 
 def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
-    """Bars in the reference configuration, by layer, cut into rows between guide pages.
+    """Bars in the reference configuration, by layer, cut into rows between guide pages
+    (:func:`assembly_figure`), as PNG.
 
     Returns
     -------
@@ -47,6 +48,20 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     stats : dict
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
+    """
+    fig, stats = assembly_figure(plan, gp)
+    png, stats["clipped"] = checked_png(fig, dpi=_DPI)
+    return png, stats
+
+
+def assembly_figure(plan, gp: GuidePlan):
+    """The figure of :func:`assembly_picture`, drawn for :data:`_DPI` dots per inch.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    stats : dict
+        ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``.
     """
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
@@ -96,8 +111,7 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
                  f"{len(rows)} row{'s' if len(rows) > 1 else ''}, {scale * _DPI:.2g} px per mm"
                  f"{pages_note}", fontsize=11, y=1 - 0.3 / height)
     _legend(fig, plan.stacking.n_layers)
-    png, stats["clipped"] = checked_png(fig, dpi=_DPI)
-    return png, stats
+    return fig, stats
 
 
 def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
