@@ -84,8 +84,6 @@ def test_a_short_designed_chain_prints(designed, tmp_path):
     assert all(c.ok for c in result.checks)
 
 
-@pytest.mark.xfail(reason="issue 51 item 1: a 20-module designed chain split over its beds "
-                          "has joints with holes and no pin (pins -> joints)", strict=False)
 def test_twenty_designed_modules_print_and_pass_their_checks(designed, tmp_path):
     result, beds, meshes = _print_export(designed, tmp_path, 20)
     assert len(beds) >= 1 and all(len(m.faces) > 0 for m in meshes)

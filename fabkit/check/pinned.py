@@ -224,17 +224,12 @@ def _place(joints, bar_joints, design, s):
     pinned = np.array([any(f[1] == "pin" for f in jf) for jf in joints])
     holes = np.array([sum(f[1] == "hole" for f in jf) for jf in joints])
 
-    def pins_agree(places) -> bool:
-        """A joint is cut between pieces exactly where it has plain holes and no pin."""
-        node = np.empty(len(joints), dtype=np.int64)
-        for members, pl in zip(pieces, places):
-            node[members] = pl.match
-        cut = np.bincount(node, minlength=net.n_nodes)[node] >= 2
-        return bool(not (cut & pinned).any() and not (~cut & ~pinned & (holes >= 2)).any())
-
+    # a joint is cut between pieces exactly where it has plain holes and no pin
+    rule = np.where(pinned, -1, np.where(holes >= 2, 1, 0))
     placed = place_pieces([(centres[m], local[bar_joints[bars_of[p]]])
                            for p, m in enumerate(pieces)],
-                          net.nodes * s.scale, net.edges, tol=NODE_TOL_MM, accept=pins_agree)
+                          net.nodes * s.scale, net.edges, tol=NODE_TOL_MM,
+                          shared=[rule[m] for m in pieces])
     node = np.full(len(joints), -1, dtype=np.int64)
     dev = np.full(len(joints), np.inf)
     for members, pl in zip(pieces, placed):

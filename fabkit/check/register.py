@@ -103,7 +103,7 @@ def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
 
 
 def place_pieces(pieces, design_xy, design_edges, *, tol: float,
-                 accept=None) -> list[Placement | None]:
+                 shared=None) -> list[Placement | None]:
     """Lay every piece onto the design (see the module docstring).
 
     Parameters
@@ -117,10 +117,13 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
     tol : float
         Largest joint deviation (mm) of a piece built as designed; places within it are
         preferred, and together must cover every design edge once.
-    accept : callable, optional
-        ``accept(places) -> bool``: what else the file says about a choice of places (a
-        print-in-place linkage has no pin where it is cut between pieces); the first choice it
-        accepts wins, else the first that covers the design.
+    shared : list of numpy.ndarray of int, optional
+        What else the file says about each piece's joints (a print-in-place linkage is cut
+        between pieces where a joint has plain holes and no pin, and nowhere it has a pin): per
+        piece, per joint, +1 where another piece must meet it, -1 where none may, 0 either way.
+        The first choice of places that keeps them wins, else the first that covers the design.
+        They are kept while the places are chosen, not only tested at the end: identical pieces
+        (the modules of a chain) leave too many choices to try one by one.
 
     Returns
     -------
@@ -146,39 +149,66 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
         options.append(([p for p, c in zip(good, covered) if c is not None],
                         [c for c in covered if c is not None],
                         fits[0][2] if fits else None))
-    for test in ((accept,) if accept is not None else ()) + (None,):
-        chosen = _cover(options, len(design_edges), test)
+    for rules in ((shared,) if shared is not None else ()) + (None,):
+        chosen = _cover(options, len(design_edges), len(design_xy), rules)
         if chosen is not None:
             return chosen
     # no exact cover: each piece's best place, for the checks to say what is wrong
     return [best for _, _, best in options]
 
 
-def _cover(options, n_edges: int, accept=None):
+def _cover(options, n_edges: int, n_nodes: int, shared=None):
     """One place per piece so that every design edge is built once (depth-first, pieces with
-    the fewest places first), or None."""
+    the fewest places first) and every joint is shared or alone as ``shared`` says, or None."""
     order = sorted(range(len(options)), key=lambda k: len(options[k][0]))
     if any(not options[k][0] for k in order):
         return None
+    rules = ([np.asarray(r, dtype=np.int64) for r in shared] if shared is not None
+             else [np.zeros(len(options[k][0][0].match), dtype=np.int64)
+                   for k in range(len(options))])
+    # the places (piece, option) that put a joint on each design node, for the look-ahead
+    at_node: list[list] = [[] for _ in range(n_nodes)]
+    for k in range(len(options)):
+        for o, place in enumerate(options[k][0]):
+            for j, v in enumerate(place.match.tolist()):
+                if rules[k][j] >= 0:
+                    at_node[v].append((k, o))
     chosen: dict[int, Placement] = {}
     used: set = set()
+    holders = np.zeros(n_nodes, dtype=np.int64)
+    alone = np.zeros(n_nodes, dtype=bool)   # a placed piece's joint no other piece may meet
+    needs = np.zeros(n_nodes, dtype=np.int64)  # placed joints that another piece must meet
     budget = [20000]
+
+    def fits(k, place, edges) -> bool:
+        nodes, rule = place.match, rules[k]
+        return not (used & edges) and not alone[nodes].any() and \
+            not (holders[nodes[rule < 0]] > 0).any()
+
+    def can_still_meet(v) -> bool:
+        return any(k not in chosen and not (used & options[k][1][o]) for k, o in at_node[v])
 
     def go(depth: int) -> bool:
         if depth == len(order):
-            return len(used) == n_edges and (accept is None or accept(
-                [chosen[k] for k in range(len(options))]))
+            return len(used) == n_edges and not ((needs > 0) & (holders < 2)).any()
         k = order[depth]
         for place, edges in zip(*options[k][:2]):
             budget[0] -= 1
-            if budget[0] < 0:
-                return False
-            if used & edges:
+            if budget[0] < 0 or not fits(k, place, edges):
                 continue
+            nodes, rule = place.match, rules[k]
             used.update(edges)
             chosen[k] = place
-            if go(depth + 1):
+            holders[nodes] += 1
+            alone[nodes[rule < 0]] = True
+            np.add.at(needs, nodes[rule > 0], 1)
+            lonely = np.flatnonzero((needs > 0) & (holders < 2))
+            if all(can_still_meet(int(v)) for v in lonely) and go(depth + 1):
                 return True
+            np.add.at(needs, nodes[rule > 0], -1)
+            alone[nodes[rule < 0]] = False
+            holders[nodes] -= 1
+            del chosen[k]
             used.difference_update(edges)
         return False
 
