@@ -91,8 +91,10 @@ def _where_defined(name: str, obj):
 
     from sphinx.pycode import ModuleAnalyzer
 
-    if inspect.ismodule(obj) and hasattr(obj, name):  # a function named as its module
-        obj = getattr(obj, name)
+    if inspect.ismodule(obj):
+        if not hasattr(obj, name):  # a module of its own (fabkit.<name> is its page)
+            return "mod", obj.__name__
+        obj = getattr(obj, name)  # a function named as its module, which is imported
     if inspect.isclass(obj):
         return "class", f"{obj.__module__}.{obj.__qualname__}"
     if inspect.isfunction(obj):
@@ -119,7 +121,8 @@ def _names_of_fabkit() -> list:
         lines.append(f":{role}:`fabkit.{name} <{target}>`" if role else f"``fabkit.{name}``")
         documented = getattr(obj, name, obj) if inspect.ismodule(obj) else obj
         summary = (inspect.getdoc(documented) or "").split("\n\n")[0].replace("\n", " ")
-        if not (inspect.isclass(documented) or inspect.isfunction(documented)):
+        if not (inspect.isclass(documented) or inspect.isfunction(documented)
+                or inspect.ismodule(documented)):
             summary = f"a {type(documented).__name__}"
         lines += [f"   {_escape_bars(summary) or '(no description)'}", ""]
     return lines
@@ -135,7 +138,7 @@ def _check_every_name_is_documented(app, exception) -> None:
         return
     html = "".join(p.read_text(encoding="utf-8")
                    for p in Path(app.outdir).rglob("*.html"))
-    ids = set(re.findall(r'id="(fabkit[\w.]*)"', html))
+    ids = set(re.findall(r'id="((?:module-)?fabkit[\w.]*)"', html))
     missing = []
     for module in _public_modules():
         for name, obj in vars(module).items():
@@ -146,7 +149,7 @@ def _check_every_name_is_documented(app, exception) -> None:
     for name in fabkit.__all__:
         role, target = _where_defined(name, getattr(fabkit, name))
         if f"fabkit.{name}<" not in re.sub(r"<span[^>]*>|</span>", "", top) \
-                or (role and target not in ids):
+                or (role and ("module-" * (role == "mod") + target) not in ids):
             missing.append(f"fabkit.{name} (from fabkit.__all__)")
     if missing:
         from sphinx.errors import ExtensionError

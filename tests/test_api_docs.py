@@ -2,7 +2,8 @@
 it with warnings as errors, and fails by itself when a public function or class, or a name of
 ``fabkit.__all__``, is left out. Here: the docstrings' plain-text bars stay text, and every name
 of ``fabkit.__all__`` (those imported on first use too) is linked to the page that documents it.
-Skipped without the documentation tools (``pip install -e '.[docs]'``)."""
+Those that read the configuration skip without the documentation tools (``pip install -e
+'.[docs]'``); CI's entry point builds the reference, and a failed build fails it."""
 
 from __future__ import annotations
 
@@ -11,15 +12,14 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("sphinx")
-pytest.importorskip("numpydoc")
-pytest.importorskip("myst_parser")
-
-CONF = Path(__file__).resolve().parents[1] / "docs" / "conf.py"
+ROOT = Path(__file__).resolve().parents[1]
+CONF = ROOT / "docs" / "conf.py"
 
 
 @pytest.fixture(scope="module")
 def conf():
+    for tool in ("sphinx", "numpydoc", "myst_parser"):
+        pytest.importorskip(tool)
     spec = importlib.util.spec_from_file_location("fabkit_docs_conf", CONF)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -53,3 +53,13 @@ def test_the_guide_and_the_reference_are_found_not_listed():
     assert ":glob:" in index and "\n   *\n" in index  # every docs/*.md page, as it comes
     reference = (CONF.parent / "api" / "reference.rst").read_text()
     assert ":recursive:" in reference and "\n   fabkit\n" in reference  # every public module
+
+
+def test_ci_builds_the_reference_with_warnings_as_errors():
+    run = (ROOT / ".ci" / "run").read_text()
+    assert "set -euo pipefail" in run  # any failed step fails the run
+    assert [line.split("#")[0].strip() for line in run.splitlines()
+            if line.startswith("make ")] == ["make test", "make docs"]
+    recipe = (ROOT / "Makefile").read_text().split("\ndocs:", 1)[1].split("\n\n", 1)[0]
+    build = [line for line in recipe.splitlines() if "-m sphinx" in line]
+    assert len(build) == 1 and " -W " in build[0] and " -E " in build[0], recipe
