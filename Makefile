@@ -1,10 +1,11 @@
-# Two entry points for a newcomer: `make demo` and `make test`.
+# Two entry points for a newcomer: `make demo` and `make test`; `make docs` builds the reference.
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.docs-installed
 
-.PHONY: demo test test-all clean venv
+.PHONY: demo test test-all docs clean venv
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,9 +17,14 @@ venv: $(STAMP)
 
 # Runs the main job on the bundled templates: every design simulated, exported in every format
 # that applies, checked as built, with report.md/report.json per design; everything in out/.
-# Its last line names the page to open, after any design's error, and keeps export's exit code.
+# A progress line per stage and per finished design goes to stderr, terminal or not (a CI log);
+# then how long it took, and last the page to open, after any design's error; export's exit
+# code is kept.
 demo: $(STAMP)
-	@$(VENV)/bin/fabkit export templates -o out --jobs 2; status=$$?; \
+	@start=$$(date +%s); \
+	$(VENV)/bin/fabkit export templates -o out --jobs 2 --progress; status=$$?; \
+	took=$$(( $$(date +%s) - start )); \
+	echo "The demo took $$(( took / 60 )) min $$(( took % 60 )) s."; \
 	if [ -f out/index.html ]; then \
 		echo "Open out/index.html in a browser: every design's report, files and checks."; \
 	fi; exit $$status
@@ -30,5 +36,17 @@ test: $(STAMP)
 test-all: $(STAMP)
 	$(PY) -m pytest -q
 
+# The guide (docs/*.md) and the API reference (every public module, from the docstrings) as
+# HTML in out/docs/ (open out/docs/index.html); built afresh, any warning fails it, and so does
+# a public function or class, or a name of fabkit.__all__, that the reference leaves out.
+$(DOCS_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[docs]'
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/api/_autosummary
+	$(PY) -m sphinx -E -W --keep-going -q -b html docs out/docs
+	@echo "Open out/docs/index.html in a browser: the guide and the API reference."
+
 clean:
-	rm -rf $(VENV) out/*/ .pytest_cache
+	rm -rf $(VENV) out/*/ .pytest_cache docs/api/_autosummary

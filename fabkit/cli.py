@@ -2,8 +2,10 @@
 
 Subcommands live one per file in :mod:`fabkit.commands`; each module defines ``NAME``, ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``. They are discovered at start-up, so a new
-command needs no edit here. :func:`main` returns an exit code; fabkit errors print as one line
-(``fabkit: error: ...``), tracebacks only with ``--debug``.
+command needs no edit here: their names and help are read from their source, and only the
+module of the command run is imported (``fabkit --help`` imports none, ``fabkit templates`` only
+its own), so that the command line starts at once. :func:`main` returns an exit code; fabkit
+errors print as one line (``fabkit: error: ...``), tracebacks only with ``--debug``.
 
 Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
 2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
@@ -18,6 +20,7 @@ import importlib
 import pkgutil
 import signal
 import sys
+from dataclasses import dataclass
 from enum import IntEnum
 
 from . import commands
@@ -36,15 +39,67 @@ class ExitCode(IntEnum):
     INTERRUPTED = 130
 
 
-def _commands():
+@dataclass(frozen=True)
+class _Command:
+    """A subcommand as its module's source states it, before the module is imported."""
+
+    module: str
+    name: str
+    help: str
+    description: str
+
+
+def _command_index() -> list:
+    """Every subcommand (a module of :mod:`fabkit.commands` with ``NAME`` and ``run``), read
+    from the modules' source: ``NAME``, ``HELP`` and ``DESCRIPTION`` when they are written as
+    strings, else from the module, imported."""
     found = []
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith("_"):
             continue
-        mod = importlib.import_module(f"{commands.__name__}.{info.name}")
-        if hasattr(mod, "NAME") and hasattr(mod, "run"):
-            found.append(mod)
+        module = f"{commands.__name__}.{info.name}"
+        stated = _stated(module)
+        if stated is None or not isinstance(stated.get("HELP", ""), str) \
+                or not isinstance(stated.get("DESCRIPTION", ""), str):
+            mod = importlib.import_module(module)  # no source, or its help is computed
+            stated = {key: getattr(mod, key) for key in ("NAME", "HELP", "DESCRIPTION", "run")
+                      if hasattr(mod, key)}
+        if isinstance(stated.get("NAME"), str) and "run" in stated:
+            found.append(_Command(module, stated["NAME"], stated.get("HELP", ""),
+                                  stated.get("DESCRIPTION", stated.get("HELP", ""))))
     return found
+
+
+def _stated(module: str) -> dict | None:
+    """The top-level string constants of a module's source, and ``run`` when it defines that
+    function; None when there is no source to read. A constant that is not a string literal
+    is given as None."""
+    import ast
+    import importlib.util
+    from pathlib import Path
+
+    try:
+        origin = importlib.util.find_spec(module).origin
+        tree = ast.parse(Path(origin).read_text(encoding="utf-8"))
+    except (ImportError, AttributeError, TypeError, ValueError, OSError, SyntaxError):
+        return None
+    stated: dict = {}
+    for node in tree.body:
+        if isinstance(node, ast.FunctionDef) and node.name == "run":
+            stated["run"] = True
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            for target in targets:
+                if isinstance(target, ast.Name) and target.id in ("NAME", "HELP", "DESCRIPTION"):
+                    value = node.value
+                    stated[target.id] = value.value if isinstance(value, ast.Constant) \
+                        and isinstance(value.value, str) else None
+    return stated
+
+
+def _commands():
+    """The modules of every subcommand, imported."""
+    return [importlib.import_module(c.module) for c in _command_index()]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -124,7 +179,15 @@ Progress of long commands goes to stderr, shown when it is a terminal (--progres
 -q: never); results go to stdout. Exit codes: 0 ok, 1 a design or check failed, 2 usage error."""
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of the command line.
+
+    Parameters
+    ----------
+    only : str, optional
+        Build the arguments of this command alone (``""``: of none); every other command is its
+        name and help, and its module is not imported. Default: every command's arguments.
+    """
     parser = _Parser(
         prog="fabkit",
         description="Design mechanical networks as iterated maps, simulate their motion, and "
@@ -137,17 +200,31 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--allow-large", action="store_true",
                         help="lift the size bounds (modules, samples, periods) checked before work")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for mod in _commands():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=getattr(mod, "DESCRIPTION", mod.HELP),
-                           epilog=examples_epilog(mod.EXAMPLES), formatter_class=_Formatter)
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+    for command in _command_index():
+        p = sub.add_parser(command.name, help=command.help, description=command.description,
+                           formatter_class=_Formatter)
+        if only is None or command.name == only:
+            mod = importlib.import_module(command.module)
+            p.epilog = examples_epilog(mod.EXAMPLES)
+            mod.add_arguments(p)
+            p.set_defaults(_run=mod.run)
     return parser
+
+
+def _command_word(argv) -> str:
+    """The command named on a command line (``""`` when none is): its first word that is not
+    an option, since no option before the command takes a value."""
+    for word in sys.argv[1:] if argv is None else argv:
+        if word == "--":
+            break
+        if not word.startswith("-"):
+            return word
+    return ""
 
 
 def main(argv=None) -> int:
     """Run the command line; returns the exit code."""
-    parser = build_parser()
+    parser = build_parser(only=_command_word(argv))
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse exits 2 on usage errors, 0 on --help

@@ -286,14 +286,58 @@ def test_no_option_is_taken_from_its_abbreviation(argv, option, capsys):
     assert err.count("\n") == 1 and f"unrecognized arguments: {option}" in err
 
 
-def test_export_help_lists_every_format_with_its_process(capsys):
-    from fabkit.commands.export import FORMAT_PROCESS
-    from fabkit.writers import EXPORTERS
-    from fabkit.tolerance import PROCESS_FORMATS
+def test_every_parser_refuses_abbreviations():
+    parser, commands = _commands()
+    assert parser.allow_abbrev is False
+    assert {name for name, p in commands.items() if p.allow_abbrev is not False} == set()
 
-    assert set(FORMAT_PROCESS) == set(EXPORTERS)
-    assert FORMAT_PROCESS == {f: p for p, fs in PROCESS_FORMATS.items() for f in fs}
+
+def test_export_help_lists_every_format_with_its_process(capsys, monkeypatch):
+    import importlib
+    import sys
+
+    import fabkit.writers
+    from fabkit.tolerance import PROCESS_FORMATS
+    from fabkit.writers import EXPORTERS, format_process
+
+    for name in EXPORTERS.values():  # read from the source, as a fresh `fabkit export --help`
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    read = {fmt: format_process(fmt) for fmt in EXPORTERS}
+    monkeypatch.undo()
+    assert read == {fmt: importlib.import_module(name).PROCESS for fmt, name in EXPORTERS.items()}
+    assert read == {f: p for p, fs in PROCESS_FORMATS.items() for f in fs}
     assert main(["export", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "dxf (a laser-cut acrylic kit, its guide and BOM); svg, fold, cp (origami crease " \
            "patterns and cut sheets); stl (a 3D print, STL and 3MF)" in text
+    # a format of one's own, registered, is listed too: the help is the registry's
+    monkeypatch.setattr(fabkit.writers, "EXPORTERS", {**EXPORTERS, "lengths": "no_such_module"})
+    assert main(["export", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "stl (a 3D print, STL and 3MF); lengths (a format of one's own)" in text
+
+
+@pytest.mark.parametrize("command", ["export", "map", "simulate", "info", "tolerance", "fold"])
+def test_a_misspelt_template_is_one_line_in_every_command(command, tmp_path, monkeypatch,
+                                                            capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([command, "super_stabel"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.count("\n") == 1 and captured.err.startswith(
+        "fabkit: error: super_stabel: no such file, nor a bundled template of that name")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_export_says_each_error_once_beside_the_designs_that_worked(tmp_path, capsys):
+    rc = main(["export", "fourbar", "super_stabel", "--to", "dxf", "--no-previews",
+               "--tolerance-samples", "0", "-o", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert rc == 1
+    assert err.count("\n") == 1 and err.startswith("fabkit: error: super_stabel: no such file")
+    assert (out + err).count("nor a bundled template") == 1
+    rows = {line.split()[0]: line for line in out.splitlines()}
+    assert rows["super_stabel"].split()[1] == "failed"
+    assert rows["super_stabel"].endswith("(error below)")
+    assert rows["fourbar"].endswith(str(tmp_path / "fourbar"))
+    assert "1 exported, 1 failed" in out

@@ -168,8 +168,9 @@ MAKEFILE = Path(__file__).resolve().parents[1] / "Makefile"
 @pytest.mark.parametrize("status", [0, 1])
 def test_make_demo_ends_by_naming_the_page_to_open_and_keeps_the_exit_code(status, tmp_path):
     """The demo recipe, run with a stand-in for ``fabkit`` (the real export is the suite's
-    business elsewhere): its last line names out/index.html, after the export's own last
-    words, whether the export succeeded or not, and the export's exit code is make's."""
+    business elsewhere): it asks for progress lines even off a terminal, says how long it took,
+    and its last line names out/index.html, after the export's own last words, whether the
+    export succeeded or not; the export's exit code is make's."""
     if shutil.which("make") is None:
         pytest.skip("make is not installed")
     venv = tmp_path / "venv"
@@ -188,10 +189,12 @@ def test_make_demo_ends_by_naming_the_page_to_open_and_keeps_the_exit_code(statu
     proc = subprocess.run(["make", "--no-print-directory", "-f", str(MAKEFILE), "-C",
                            str(tmp_path), "demo", f"VENV={venv}"], capture_output=True,
                           text=True, timeout=60)
-    assert (tmp_path / "called.txt").read_text() == "fabkit export templates -o out --jobs 2\n"
-    assert proc.stdout.splitlines() == [
-        "1 exported, 0 failed",
-        "Open out/index.html in a browser: every design's report, files and checks."]
+    assert (tmp_path / "called.txt").read_text() == \
+        "fabkit export templates -o out --jobs 2 --progress\n"
+    said = proc.stdout.splitlines()
+    assert said[0] == "1 exported, 0 failed" and len(said) == 3
+    assert re.fullmatch(r"The demo took 0 min \d+ s\.", said[1]), said
+    assert said[2] == "Open out/index.html in a browser: every design's report, files and checks."
     if status:
         assert proc.returncode == 2  # make's own code for a recipe that failed
         assert proc.stderr.splitlines()[0] == "fabkit: error: a design failed"
@@ -201,4 +204,5 @@ def test_make_demo_ends_by_naming_the_page_to_open_and_keeps_the_exit_code(statu
     fake.write_text("#!/bin/sh\necho 'fabkit: error: -o: out is a file' >&2\nexit 2\n")
     proc = subprocess.run(["make", "-s", "-f", str(MAKEFILE), "-C", str(tmp_path), "demo",
                            f"VENV={venv}"], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 2 and proc.stdout == ""  # no page to open: none is named
+    assert proc.returncode == 2  # no page to open: none is named
+    assert re.fullmatch(r"The demo took 0 min \d+ s\.\n", proc.stdout), proc.stdout

@@ -2,10 +2,12 @@
 heavy libraries that only the work needs (scipy, matplotlib, pydantic, the mesh and DXF
 libraries).
 
-Building the parser imports every command's module (:func:`fabkit.cli.build_parser`), so a
-module-level import of a heavy library anywhere on the way from a command to the core would
-load it for ``fabkit --help`` too. Each run is in a fresh interpreter, where ``sys.modules``
-shows what was imported. How fast it starts is measured by benchmarks, not asserted here.
+The command line reads its commands' names and help from their source and imports the module
+of the command run alone (:func:`fabkit.cli.build_parser`), so ``fabkit --help`` imports no
+command's module; ``fabkit CMD --help`` imports that command's, so a module-level import of a
+heavy library anywhere on the way from a command to the core would load it for its help too.
+Each run is in a fresh interpreter, where ``sys.modules`` shows what was imported. How fast it
+starts is measured by benchmarks, not asserted here.
 """
 
 from __future__ import annotations
@@ -19,11 +21,6 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Libraries that no help and no listing of the templates may import.
 HEAVY = ("scipy", "matplotlib", "pydantic", "trimesh", "ezdxf", "shapely", "manifold3d")
-
-#: Libraries ``fabkit templates`` may import: listing a template loads it, and loading checks
-#: its fabrication settings against the schema (pydantic) and builds its network, whose
-#: designed modules count their modes (scipy.sparse, scipy.linalg).
-LISTING_NEEDS = ("scipy", "pydantic")
 
 # Runs ``main`` once per command line given as a JSON list of argument lists (``null``: every
 # ``CMD --help`` of the parser, after ``--help``), and prints, per heavy library loaded, the
@@ -69,11 +66,28 @@ def test_help_of_the_command_line_and_of_every_command_imports_no_heavy_library(
     assert not found["first"], "imported by the help: " + _leaks(found)
 
 
-def test_listing_the_templates_imports_no_plotting_mesh_or_dxf_library():
-    heavy = tuple(lib for lib in HEAVY if lib not in LISTING_NEEDS)
-    found = _run([["templates"]], heavy)
+def test_listing_the_bundled_templates_imports_no_heavy_library():
+    # the listing reads the templates' files; it builds none (that needs scipy and pydantic)
+    found = _run([["templates"]])
     assert found["codes"] == {"templates": 0}
     assert not found["first"], "imported by the listing: " + _leaks(found)
+
+
+def _command_modules() -> tuple:
+    from fabkit.cli import _command_index
+
+    return tuple(c.module for c in _command_index())
+
+
+def test_the_help_imports_no_command_and_a_command_only_its_own():
+    modules = _command_modules()
+    assert len(modules) >= 12 and "fabkit.commands.templates" in modules
+    found = _run([["--help"]], modules)
+    assert found["codes"] == {"--help": 0} and not found["first"], _leaks(found)
+    for argv, own in ((["templates"], "templates"), (["map", "--help"], "map"),
+                      (["--debug", "info", "--help"], "info")):
+        found = _run([argv], modules)
+        assert set(found["first"]) == {f"fabkit.commands.{own}"}, _leaks(found)
 
 
 def test_the_defaults_named_in_the_help_are_those_of_the_models():

@@ -529,7 +529,16 @@ def test_templates_lists_every_bundled_template(capsys):
     names = [load_template(TEMPLATES / f"{s}.toml").name for s in stems]
     assert [ln.split()[0] for ln in lines] == names
     fourbar = next(ln for ln in lines if ln.startswith("fourbar "))
+    assert "[Fig 1a-c, 2a-c]" in fourbar and "d1 * d2 = 4" in fourbar
+
+
+def test_templates_of_a_folder_are_loaded_with_their_size(tmp_path, capsys):
+    (tmp_path / "fourbar.toml").write_bytes((TEMPLATES / "fourbar.toml").read_bytes())
+    (tmp_path / "broken.toml").write_text("name = \"broken\"\n[motion]\ndrive = \"d1\"\n")
+    assert main(["templates", str(tmp_path)]) == 0
+    broken, fourbar = capsys.readouterr().out.strip().splitlines()
     assert "2D 4n/4e" in fourbar and "d1 * d2 = 4" in fourbar
+    assert broken.startswith("broken ") and "(invalid: " in broken
 
 
 def test_templates_of_a_missing_folder_is_an_error(tmp_path, capsys):

@@ -134,7 +134,7 @@ def write_table(name: str, table: str) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if a page's table differs from the code's")
     parser.add_argument("--fast", action="store_true",

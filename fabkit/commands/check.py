@@ -1,4 +1,4 @@
-"""``fabkit check FILE... [--design TEMPLATE]``: the as-built check of exported files alone.
+"""``fabkit check FILE [FILE ...] [--design TEMPLATE]``: the as-built check of exported files alone.
 
 Reads an exported DXF, FOLD or STL file back (through :func:`fabkit.check.check_file`), rebuilds
 the network from it and, given the design's template, compares mode count and motion with the

@@ -1,4 +1,4 @@
-"""``fabkit export PATH... [--to dxf,svg,fold,stl] [-o DIR] [-j N] [--set KEY=VALUE ...]``.
+"""``fabkit export PATH [PATH ...] [--to FORMATS] [-o DIR] [-j N] [--set KEY=VALUE ...]``.
 
 Exports templates (files, folders of ``*.toml``, glob patterns) into one folder per design:
 the files of every format that applies (or of the formats asked for), ``report.json``,
@@ -35,16 +35,25 @@ EXAMPLES = [
 ]
 
 
-#: The process that makes each format (every format of :data:`fabkit.writers.EXPORTERS`, the
-#: inverse of :data:`fabkit.tolerance.PROCESS_FORMATS`; tests/test_cli_help.py holds them equal),
-#: stated here for the help, which must not import the exporters or the tolerance analysis.
-FORMAT_PROCESS = {"dxf": "laser", "svg": "origami", "fold": "origami", "cp": "origami",
-                  "stl": "print"}
-
-#: What each process makes, in the help's words.
+#: What each process makes, in the help's words (the formats of each come from the registry,
+#: :data:`fabkit.writers.EXPORTERS`, and each format's ``PROCESS``).
 PROCESS_WORDS = {"laser": "a laser-cut acrylic kit, its guide and BOM",
                  "origami": "origami crease patterns and cut sheets",
                  "print": "a 3D print, STL and 3MF"}
+
+
+def formats_help() -> str:
+    """The formats of :data:`fabkit.writers.EXPORTERS` grouped by the process that makes each
+    (``dxf (a laser-cut acrylic kit, its guide and BOM); svg, fold, cp (origami ...)``), read
+    without importing the writers."""
+    from ..writers import EXPORTERS, format_process
+
+    by_process: dict = {}
+    for fmt in EXPORTERS:
+        by_process.setdefault(format_process(fmt), []).append(fmt)
+    return "; ".join(", ".join(fmts) + (f" ({PROCESS_WORDS.get(proc, f'the {proc} process')})"
+                                        if proc else " (a format of one's own)")
+                     for proc, fmts in by_process.items())
 
 
 def add_arguments(p):
@@ -52,10 +61,7 @@ def add_arguments(p):
                    help="template files, folders of *.toml templates, or glob patterns")
     p.add_argument("--to", default=None, metavar="FORMATS",
                    help="comma-separated formats, each made by its process: "
-                        + "; ".join(f"{', '.join(f for f, q in FORMAT_PROCESS.items() if q == p)} "
-                                    f"({PROCESS_WORDS[p]})"
-                                    for p in dict.fromkeys(FORMAT_PROCESS.values()))
-                        + " (default: every format that applies to a design)")
+                        + formats_help() + " (default: every format that applies to a design)")
     add_out_dir(p, "out", "output folder (default: out); each design goes to DIR/<name>/")
     add_jobs(p, 1, "designs exported in parallel processes (default: 1)")
     add_settings(p, "override a fabrication setting, e.g. --set laser.kerf=0.2 (repeatable; "
@@ -123,7 +129,8 @@ def run(args) -> int:
                           debug=getattr(args, "debug", False), wait=args.wait,
                           allow_large=getattr(args, "allow_large", False), **timeout)
     progress.close()
-    print(summary_table(results))
+    if any(r.folder for r in results):  # else the error lines below are all there is to say
+        print(summary_table(results, messages=False))  # each error once: on stderr, below
     for r in results:  # the verdict of a design that is not plainly ok, in one line each
         if r.ok and r.level not in ("", Status.OK.value):
             print(f"{r.name}: {r.headline}")

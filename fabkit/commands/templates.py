@@ -1,5 +1,9 @@
 """``fabkit templates [FOLDER]``: the bundled templates, one line each, and where they live.
 
+The bundled templates are listed from their files' top-level keys (name, figure, description),
+none of them built, so that the listing is instant; those of a FOLDER are loaded, each line with
+the template's size, or the reason it does not load.
+
 ``fabkit templates --copy NAME [DIR]`` copies a bundled template, with the templates it refers to
 (a chain's module), into DIR to be edited; the references still resolve in the copy.
 """
@@ -41,6 +45,26 @@ def template_line(path: Path, width: int = 28) -> str:
     net = design.network
     size = f"{net.dim}D {net.n_nodes}n/{net.n_edges}e"
     return f"{design.name:<{width}}  {size:<13} {fig}{design.description}".rstrip()
+
+
+def header_line(path: Path, width: int = 28) -> str:
+    """``name  [figure]  description`` of a template, read from its file's top-level keys alone:
+    nothing is built (the bundled listing; ``fabkit info NAME`` gives the sizes). A file that
+    cannot be read as TOML is listed with the reason."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        return f"{path.stem:<{width}}  (invalid: {' '.join(str(exc).split())})"
+    name, fig, text = (raw.get(key) for key in ("name", "figure", "description"))
+    name = name if isinstance(name, str) and name else path.stem
+    fig = f"[{fig}] " if isinstance(fig, str) and fig else ""
+    text = text if isinstance(text, str) else ""
+    return f"{name:<{width}}  {fig}{text}".rstrip()
 
 
 def add_arguments(p):
@@ -144,8 +168,8 @@ def _list_bundled() -> int:
                           "incomplete, reinstall fabkit")
     width = max(len(p.stem) for p in paths)
     print(f"{len(paths)} bundled templates in {folder}:")
-    for p in paths:
-        line = template_line(p, width)
+    for p in paths:  # the bundled templates load (tests/test_bundled.py): read, not built
+        line = header_line(p, width)
         own = resolve_template(p.stem)
         if own.resolve() != p.resolve():  # a user's own file of this name wins
             line += f"  [{own} in this folder is used instead]"

@@ -1,4 +1,4 @@
-"""``fabkit tolerance TEMPLATE... [-o DIR] [--samples N] [--seed S] [--set tolerance.key=value]``.
+"""``fabkit tolerance TEMPLATE [TEMPLATE ...] [-o DIR] [--samples N] [--seed S] [--set KEY=VALUE]``.
 
 Monte Carlo over the manufacturing errors of the design's process (laser: bar length, kerf,
 hole play, sheet thickness; print: xy accuracy, shrinkage, line width, hinge flexure; origami:

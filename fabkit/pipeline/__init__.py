@@ -73,12 +73,22 @@ __all__ = ["Status", "Stage", "CheckResult", "FormatResult", "DesignResult",
 
 # --- many designs ----------------------------------------------------------------------------
 
-def summary_table(results) -> str:
+def summary_table(results, messages: bool = True) -> str:
     """The table printed at the end: one line per design, its status that of its reports'
-    verdict (:attr:`DesignResult.word`)."""
+    verdict (:attr:`DesignResult.word`).
+
+    Parameters
+    ----------
+    results : list of DesignResult
+    messages : bool
+        Give a failed design's error in its row. ``fabkit export`` says each error once, as a
+        ``fabkit: error:`` line on stderr after the table, so its rows name the design's folder
+        (where report.md says why) or ``(error below)`` instead.
+    """
     header = ("design", "status", "formats", "files", "time", "cpu", "output or error")
     body = [(r.name, r.word, ",".join(r.exported_formats) or "-", str(r.files),
-             f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s", r.folder if r.ok else r.message)
+             f"{r.seconds:.1f}s", f"{r.cpu_seconds:.1f}s",
+             r.folder if r.ok else r.message if messages else r.folder or "(error below)")
             for r in results]
     widths = [max(len(x[i]) for x in [header, *body]) for i in range(6)]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r[:6], widths)) + "  " + r[6]

@@ -14,8 +14,8 @@ Laser (acrylic bars and Chicago screws; defaults from docs/fabrication notes)
     sum of its two holes' radial clearances (:attr:`BuildLengths.room`). The sheet's thickness
     only lets a bar tilt within that same play, and sets the stack and the screw lengths.
 
-Print, ``linkage = "hinges"`` (triangle plates joined by flexure hinges, printed flat in one
-piece)
+Print, ``linkage = "hinges"``
+    Triangle plates joined by flexure hinges, printed flat in one piece.
     ``xy accuracy``: every joint printed ``N(0, xy_sigma)`` off per in-plane coordinate (typical
     FDM dimensional accuracy 0.1-0.2 mm); ``shrinkage``: the part shrinks by a fraction
     ``N(shrinkage, shrinkage_sigma)`` per build as it cools (material default; 0 if the slicer
@@ -39,9 +39,10 @@ Print, ``linkage = "pins"`` (bars printed in place on pins, :mod:`fabkit.fab.pin
     ``pin_clearance`` of it, so a bar's pin distance may take any value within ``room``, the
     sum of its ends' radial play. No flexure bends: no hinge flexure source.
 
-Origami (sheets of paper, the paper's bar-and-joint idealisation: creases and boundary edges
-are rigid bars, crease intersections are joints). A sheet is made flat: its vertex errors lie in
-its flat pattern, so that every build can lie flat, as paper does.
+Origami
+    Sheets of paper, the paper's bar-and-joint idealisation: creases and boundary edges are
+    rigid bars, crease intersections are joints. A sheet is made flat: its vertex errors lie in
+    its flat pattern, so that every build can lie flat, as paper does.
     ``crease position``: every crease vertex folded ``N(0, crease_sigma)`` off its drawn place
     per in-plane coordinate of its sheet's pattern (hand folding along a printed line);
     ``cut``: boundary corners ``N(0, cut_sigma)`` off (knife or cutter); a bar two glued sheets

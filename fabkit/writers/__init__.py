@@ -23,8 +23,8 @@ from ..errors import ArgumentTypeError, FabkitError, OutputError, UnavailableErr
 from ..io.outputs import LOCK_NAME, output_folder, OutputLock, write_atomic, write_files
 from ..templates import Design
 
-__all__ = ["EXPORTERS", "ExportResult", "get_exporter", "applies", "skip_reason", "write_atomic",
-           "write_outputs", "export", "check_export_settings"]
+__all__ = ["EXPORTERS", "ExportResult", "get_exporter", "format_process", "applies",
+           "skip_reason", "write_atomic", "write_outputs", "export", "check_export_settings"]
 
 #: Format name → module implementing it (imported only when the format is used, so a missing
 #: optional dependency matters only to its own format).
@@ -95,6 +95,41 @@ def get_exporter(fmt: str, exporters: dict | None = None):
         return importlib.import_module(name)
     except ImportError as exc:
         raise UnavailableError(f"export format {fmt!r}", str(exc)) from None
+
+
+def format_process(fmt: str, exporters: dict | None = None) -> str | None:
+    """The process (``PROCESS``) of a registered format's module, read without importing the
+    module when it is not imported yet (``fabkit export --help`` names every format with its
+    process, and must not load the DXF, mesh and plotting libraries the writers use).
+
+    The module's source is parsed for a top-level ``PROCESS = "..."``; None when the format
+    has none that can be read so (an exporter of one's own that computes it, or one without a
+    source file), or is not registered.
+
+    Examples
+    --------
+    >>> format_process("dxf"), format_process("stl"), format_process("png")
+    ('laser', 'print', None)
+    """
+    import ast
+    import importlib.util
+    import sys
+
+    name = (EXPORTERS if exporters is None else exporters).get(fmt)
+    if name is None:
+        return None
+    if name in sys.modules:
+        return getattr(sys.modules[name], "PROCESS", None)
+    try:
+        spec = importlib.util.find_spec(name)
+        tree = ast.parse(Path(spec.origin).read_text(encoding="utf-8"))
+    except (ImportError, ValueError, AttributeError, TypeError, OSError, SyntaxError):
+        return None  # not found or not a source file: no process to name
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Constant) and any(
+                isinstance(t, ast.Name) and t.id == "PROCESS" for t in node.targets):
+            return node.value.value if isinstance(node.value.value, str) else None
+    return None
 
 
 def skip_reason(design, fmt: str) -> str | None:
