@@ -58,7 +58,7 @@ def test_pages_overview_method_modules_and_motion_test(chain):
     two = _text(guide, 2)
     assert "how to build" in two and "up from below" in two
     assert "shims the page lists: on top, under the screw head" in two
-    assert "A LONG CHAIN, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
+    assert "BUILD ORDER, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
     for k, im in enumerate(guide.images):  # A4 at 100 dpi
         assert im[:8] == b"\x89PNG\r\n\x1a\n"
         from PIL import Image
@@ -309,14 +309,6 @@ def _words_in_page_box(pdf: bytes):
                             r'yMax="([-\d.]+)">(.*?)</word>', m.group(3))]
         pages.append((float(m.group(1)), float(m.group(2)), words))
     return pages
-
-
-@pytest.fixture(scope="module")
-def gate():
-    design = fabkit.load_template(TEMPLATES / "and_gate.toml")
-    plan = laser_plan(design)
-    bom = bill_of_materials(plan, [])
-    return plan, bom, guide_pages(plan, bom, check=True)
 
 
 def test_the_and_gates_guide_sets_every_stack_once_inside_a_page(gate):

@@ -51,7 +51,7 @@ from . import ExportResult
 from .laser_svg import sheet_svg
 
 __all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "sheet_dxf",
-           "bill_of_materials", "bom_verdict", "verdict_files", "with_verdict", "VERDICT_FILES", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
+           "bill_of_materials", "bom_verdict", "bom_json", "verdict_files", "with_verdict", "VERDICT_FILES", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
            "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
@@ -249,10 +249,9 @@ def bom_verdict(plan: LaserPlan, verdict: dict | None) -> dict:
 
 
 def bill_of_materials(plan: LaserPlan, files, verdict: dict | None = None) -> dict:
-    """Parts, sheets and hardware to buy, screws by length, spacer rings and the stack at
-    every joint (JSON-able). Every piece of hardware is named as a shop lists it
-    (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares; headed by the
-    design's ``verdict`` in words (:func:`bom_verdict`)."""
+    """The verdict (:func:`bom_verdict`), parts, sheets and hardware to buy, screws by length,
+    spacer rings and the stack at every joint (JSON-able). Every piece of hardware is named as
+    a shop lists it (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
     fasteners = [js.fastener for js in st.joints]
@@ -473,7 +472,7 @@ def write(plan: LaserPlan) -> ExportResult:
 VERDICT_FILES = ("laser_guide.pdf", "laser_guide_page1.png", "laser_bom.json", "laser_bom.md")
 
 
-def _bom_json(bom: dict) -> bytes:
+def bom_json(bom: dict) -> bytes:
     """laser_bom.json with its verdict first (what a reader meets at its head), the rest in
     key order."""
     def ordered(v):
@@ -510,7 +509,7 @@ def verdict_files(plan: LaserPlan, names, verdict: dict | None) -> tuple:
     bom = bill_of_materials(plan, listed, verdict)
     guide = guide_pages(plan, bom, verdict=verdict)  # hardware per page as the BOM names it
     files = {"laser_guide.pdf": guide.pdf, "laser_guide_page1.png": guide.images[0],
-             "laser_bom.json": _bom_json(bom), "laser_bom.md": bom_markdown(bom).encode("utf-8")}
+             "laser_bom.json": bom_json(bom), "laser_bom.md": bom_markdown(bom).encode("utf-8")}
     return bom, guide, files
 
 
