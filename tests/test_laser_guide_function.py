@@ -114,6 +114,11 @@ def test_the_gate_is_tested_as_a_gate_a_only_b_only_and_both(gate, tmp_path):
         assert head in text
     for name, start, stop in b.moved[:3]:
         assert re.search(rf"{name}: {start:.1f} → {stop:.1f} mm", text)
+    # A stops where the tracer stops it, short of its target, and the page says so in words
+    name, end, target, why = a.reached[0]
+    assert why and end - target > 0.1
+    assert (f"A (d1) stops at {end:.1f} mm, {end - target:.1f} mm short of {target:.1f} mm: "
+            f"{why}; do not force it") in text
 
 
 def test_a_design_with_one_input_has_no_functional_test():

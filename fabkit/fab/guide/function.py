@@ -20,11 +20,16 @@ import numpy as np
 
 from ...errors import FabkitError
 from ...kinematics import trace
+from ...status import Status
 from .flow import Block
 
 __all__ = ["InputCase", "FunctionTest", "function_test", "MOVES_MM", "design_inputs", "port_key",
            "function_blocks"]
 
+#: Why a pushed input stops before its target, in a maker's words (by the tracer's status).
+_STOPS = {Status.TURNING_POINT: "the motion turns back there",
+          Status.BRANCH_POINT: "the motion reaches a branch point there",
+          None: "the network locks there: it cannot follow this push further"}
 #: A port counts as moving in a case when its centre-to-centre distance changes by at least
 #: this much (mm): what a maker reads off a ruler at once.
 MOVES_MM = 0.5
@@ -40,7 +45,7 @@ class InputCase:
         The inputs pushed, in the order they are pushed.
     reached : tuple of (str, float, float, str)
         Each pushed input: its name, where it ends (mm), its target (mm), and "" when it got
-        there, else why it stopped (the tracer's message).
+        there, else why it stopped (from the tracer's status, in words).
     moved : list of (str, float, float)
         Ports whose distance changes by at least :data:`MOVES_MM`: name, start and end (mm).
     still : list of str
@@ -100,11 +105,12 @@ def _case(design, inputs, pushed, scale: float) -> InputCase:
         try:
             tr = trace(net, drive=p, to=target, method=m.method, start=x, hold=held,
                        keep="ports", **m.options)
-        except FabkitError as exc:  # it cannot even start: it stays where it is
-            reached.append((p, float(net.port_distance(p, x)) * scale, target * scale, str(exc)))
+        except FabkitError:  # it cannot even start: it stays where it is
+            reached.append((p, float(net.port_distance(p, x)) * scale, target * scale,
+                            "it does not move at all from there"))
             continue
         x = np.asarray(tr.positions[-1], dtype=np.float64)
-        why = "" if tr.success else str(tr.message)
+        why = "" if tr.success else _STOPS.get(tr.status, _STOPS[None])
         reached.append((p, float(net.port_distance(p, x)) * scale, target * scale, why))
     moved, still = [], []
     for name in sorted(net.ports, key=port_key):
@@ -182,8 +188,8 @@ def function_blocks(ft: FunctionTest, net, barrel: float) -> list:
         for p, end, target, why in case.reached:
             rows.append(f"{ft.letters[p]} ({p}) reaches {end:.1f} mm (target {target:.1f} mm)"
                         if not why else
-                        f"{ft.letters[p]} ({p}) stops at {end:.1f} mm, short of {target:.1f} mm: "
-                        f"do not force it (the simulation stops there: {why})")
+                        f"{ft.letters[p]} ({p}) stops at {end:.1f} mm, {abs(end - target):.1f} mm short "
+                        f"of {target:.1f} mm: {why}; do not force it")
         rows += [f"{name:>6}: {a:7.1f} → {b:7.1f} mm" for name, a, b in case.moved]
         rows.append(f"Stay within {MOVES_MM:g} mm: {_names(case.still)}")
         blocks.append(Block(head, tuple(rows)))

@@ -103,6 +103,11 @@ def _page_spans(x, edges, pages, idx):
     return out
 
 
+def _method_page(gp: GuidePlan) -> int:
+    """The page that says how to build (after the overview and the pages that continue it)."""
+    return next((s.number for s in gp.sheets if s.kind == "method"), 2)
+
+
 def _title(gp: GuidePlan, sheet) -> str:
     what = {"overview": "overview", "method": "how to build", "motion": "motion test",
             "pictures": "motion test, pictures", "function": "functional test of the inputs"}
@@ -126,7 +131,7 @@ def _overview(fig, gp: GuidePlan, sheet, plan, x, edges, r, labellers):
                  if all(p.modules for p in pages) else
                  "p<page> marks the page of this guide that draws each part")
         size += (f"Build on a flat table at least {gp.size_mm[0] + 100:.0f} mm long, or in "
-                 f"sections (page 2). {where}; red rings mark the screws two pages share: the "
+                 f"sections (page {_method_page(gp)}). {where}; red rings mark the screws two pages share: the "
                  "later page closes them.")
     else:
         size += f"Page {pages[0].number} draws every bar and lists every screw."
