@@ -452,3 +452,16 @@ def test_the_laser_kit_of_a_long_designed_chain_has_its_guide(tmp_path):
     # every joint's stack once
     joints = {int(m) for m in re.findall(r"(?m)^J(\d+): ", text)}
     assert joints == {int(j["joint"]) for j in report["joints"]}
+
+
+def test_a_chains_motion_test_lists_the_order_its_modules_move_in(chain):
+    """The ports that follow the drive, in the order they pass half their change: the modules
+    of a super-stable chain one after another from the pushed end."""
+    plan, bom, guide = chain
+    m = guide.plan.motion
+    assert m.order == "forward"
+    seq = [p[0] for p in sorted(m.followers, key=lambda p: p[3])]
+    assert seq[:5] == ["d2", "d3", "d4", "d5", "d6"]
+    words = " ".join(" ".join(line for line in page) for page in guide.texts)
+    assert "The order in which they should move: d2 → d3 → d4 → d5 → d6 → ..." in \
+        " ".join(words.split())
