@@ -283,15 +283,15 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     refused = [f"{f}: {v.message}" for f, v in fmts.items() if v.status is Status.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
         outcome = Status.REFUSED
+    verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
+    carry_verdict(stage_dir, plan, art, verdict)  # before the record: it keeps the reports
     record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry, digest,
                           time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     write_atomic(stage_dir / MANIFEST, record.to_bytes())
     names = [p.name for p in written] + [MANIFEST, "report.json", "report.md", "report.html"]
-    verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
     rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
                        outcome, tuple(f"{line} (format refused)" for line in refused),
                        tuple(names), record.formats, removed)
-    carry_verdict(stage_dir, plan, art, verdict)
     res.card = _write_reports(stage_dir, rep, art, written, record, motion)
     res.level, res.headline = str(verdict.status), verdict.headline
     # files of other commands stay; those of earlier exports are ours to keep or drop
