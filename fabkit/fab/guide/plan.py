@@ -579,8 +579,10 @@ def modules_text(page: GuidePage) -> str:
 def build_words(page: GuidePage) -> str:
     """Where a page stands in the build order, in words: what it starts from, and at which
     screws its part joins the part built on earlier pages."""
-    if page.parent is None:
+    if page.parent is None and page.previous is None:
         return "Build order: start here; this page's part is the first."
+    if page.parent is None:  # a part that shares no screw with another
+        return "Build order: a part of its own: it shares no screw with the other pages."
     joins = "; ".join(f"p{q} at {', '.join(f'J{j}' for j in js)}"
                       for q, js in page.joins.items())
     how = (f"continue from page {page.parent}" if page.parent == page.previous else
