@@ -65,3 +65,24 @@ def dense_copies(monkeypatch) -> list:
 
         monkeypatch.setattr(cls, "toarray", toarray)
     return shapes
+
+
+#: A verdict as ``fabkit export`` hands it to the report stage (report.json's ``verdict``).
+FLAG = {"level": "FLAG", "headline": "FLAG: tolerance as laser builds: none of the 40 builds "
+        "assembles within its play", "text": "tolerance as laser builds: none of the 40 builds "
+        "assembles within its play",
+        "findings": [{"level": "FLAG", "about": "tolerance", "text": "none of the 40 builds"}]}
+
+
+@pytest.fixture(scope="session")
+def gate():
+    """The AND gate's plan, bill of materials and guide, headed with a FLAG (as the report
+    stage makes them again once the export has judged it); made once for every test file."""
+    from fabkit.fab.guide import guide_pages
+    from fabkit.fab.laser_plan import laser_plan
+    from fabkit.writers.dxf import bill_of_materials
+
+    design = fabkit.load_template(TEMPLATES / "and_gate.toml")
+    plan = laser_plan(design)
+    bom = bill_of_materials(plan, [], FLAG)
+    return plan, bom, guide_pages(plan, bom, verdict=FLAG, check=True)

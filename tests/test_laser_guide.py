@@ -58,7 +58,7 @@ def test_pages_overview_method_modules_and_motion_test(chain):
     two = _text(guide, 2)
     assert "how to build" in two and "up from below" in two
     assert "shims the page lists: on top, under the screw head" in two
-    assert "A LONG CHAIN, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
+    assert "BUILD ORDER, PAGE BY PAGE" in two and "Work from page 3 to page 14" in two
     for k, im in enumerate(guide.images):  # A4 at 100 dpi
         assert im[:8] == b"\x89PNG\r\n\x1a\n"
         from PIL import Image
@@ -311,14 +311,6 @@ def _words_in_page_box(pdf: bytes):
     return pages
 
 
-@pytest.fixture(scope="module")
-def gate():
-    design = fabkit.load_template(TEMPLATES / "and_gate.toml")
-    plan = laser_plan(design)
-    bom = bill_of_materials(plan, [])
-    return plan, bom, guide_pages(plan, bom, check=True)
-
-
 def test_the_and_gates_guide_sets_every_stack_once_inside_a_page(gate):
     """The and-gate's 98 screws (a network that is not a chain): its drawing is cut into parts
     of the network a page each, where every 7 pt label finds a place, and every stack line
@@ -460,3 +452,16 @@ def test_the_laser_kit_of_a_long_designed_chain_has_its_guide(tmp_path):
     # every joint's stack once
     joints = {int(m) for m in re.findall(r"(?m)^J(\d+): ", text)}
     assert joints == {int(j["joint"]) for j in report["joints"]}
+
+
+def test_a_chains_motion_test_lists_the_order_its_modules_move_in(chain):
+    """The ports that follow the drive, in the order they pass half their change: the modules
+    of a super-stable chain one after another from the pushed end."""
+    plan, bom, guide = chain
+    m = guide.plan.motion
+    assert m.order == "forward"
+    seq = [p[0] for p in sorted(m.followers, key=lambda p: p[3])]
+    assert seq[:5] == ["d2", "d3", "d4", "d5", "d6"]
+    words = " ".join(" ".join(line for line in page) for page in guide.texts)
+    assert "The order in which they should move: d2 → d3 → d4 → d5 → d6 → ..." in \
+        " ".join(words.split())

@@ -161,3 +161,32 @@ def test_a_print_only_export_is_reported_and_judged_as_a_print(pages):
     assert "error model of the process: print (pin-jointed): xy accuracy σ 0.1 mm" in md
     card = _card(out, "print", "super_stable")
     assert "made for a 3D print · formats: stl · 2 files read back" in card
+
+
+def test_the_and_gates_guide_and_bill_of_materials_carry_the_reports_verdict(pages, tmp_path):
+    """The report stage makes the guide and the bill of materials again with the verdict: the
+    first page of laser_guide.pdf (as poppler reads it) and the head of laser_bom.md and .json
+    say what report.json's verdict says, in whole sentences; the format's report says so too."""
+    import shutil
+    import subprocess
+
+    folder = pages / "and_gate" / "and_gate"
+    report = json.loads((folder / "report.json").read_text(encoding="utf-8"))
+    verdict = report["verdict"]
+    bom = json.loads((folder / "laser_bom.json").read_text(encoding="utf-8"))
+    assert next(iter(bom)) == "verdict"
+    assert bom["verdict"]["level"] == verdict["level"] != "not judged"
+    assert bom["verdict"]["headline"] == verdict["headline"]
+    assert report["formats"]["dxf"]["report"]["verdict"] == bom["verdict"]
+    md = (folder / "laser_bom.md").read_text(encoding="utf-8").splitlines()
+    assert md[2] == f"## Verdict: {verdict['level']}"
+    said = f"Verdict: {verdict['level']}. {verdict['text'][:1].upper()}{verdict['text'][1:]}"
+    assert md[4] == f"- {said}"
+    if shutil.which("pdftotext") is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    page1 = subprocess.run(["pdftotext", "-f", "1", "-l", "1", str(folder / "laser_guide.pdf"),
+                            "-"], check=True, capture_output=True, timeout=120).stdout.decode()
+    assert " ".join(said.split()) in " ".join(page1.split())
+    # nowhere is the verdict cut inside a word
+    for text in (verdict["headline"], md[4], page1):
+        assert "…" not in text

@@ -206,6 +206,45 @@ def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Che
     return outcome, Checks(by_format)
 
 
+def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
+    """The report stage's one change to the files made: those that carry the verdict (a laser
+    kit's guide and bill of materials) are made again from their process's plan, now that the
+    checks and the tolerance analysis have judged the design, and written over the staged
+    ones. A format whose writer has no ``with_verdict`` keeps its files as made; a format kept
+    from an earlier export (no plan made now) too. Returns the names written again.
+
+    Parameters
+    ----------
+    stage_dir : Path
+        The staging folder (the files are already written there).
+    plan : Plan
+        The Plan stage (the formats made and their writers).
+    art : Artefacts
+        Its files and format results are updated in place.
+    verdict : Verdict
+
+    Returns
+    -------
+    list of str
+    """
+    from ..writers import write_atomic
+
+    again = []
+    for fmt, module in plan.chosen:
+        hook = getattr(module, "with_verdict", None)
+        made = art.plans.get(getattr(module, "PROCESS", None))
+        result = art.formats.get(fmt)
+        if hook is None or made is None or result is None or not result.status.produced:
+            continue
+        files, report = hook(made, list(result.files), verdict.as_dict())
+        for name, data in files.items():
+            write_atomic(stage_dir / name, data)
+            art.files[name] = data
+            again.append(name)
+        result.report.update(report)
+    return again
+
+
 def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, record,
                    motion) -> dict:
     """report.md, report.json and report.html of a design into its staging folder, rendered
@@ -255,11 +294,12 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     refused = [f"{f}: {v.message}" for f, v in fmts.items() if v.status is Status.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
         outcome = Status.REFUSED
+    verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
+    carry_verdict(stage_dir, plan, art, verdict)  # before the record: it keeps the reports
     record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry, digest,
                           time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
     write_atomic(stage_dir / MANIFEST, record.to_bytes())
     names = [p.name for p in written] + [MANIFEST, "report.json", "report.md", "report.html"]
-    verdict = judge_design(outcome, fmts, checks, motion, art.tolerance, refused)
     rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
                        outcome, tuple(f"{line} (format refused)" for line in refused),
                        tuple(names), record.formats, removed)

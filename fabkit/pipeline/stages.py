@@ -21,6 +21,7 @@ next (as scipy's ``solve_ivp`` hands back one result with a status and a message
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from ..status import Status, VERDICT, expect
 
@@ -142,8 +143,25 @@ class Verdict:
                              for f in self.findings]}
 
 
-def _first_clause(text: str, limit: int = 240) -> str:
-    return text if len(text) <= limit else text[:limit - 1].rstrip() + "…"
+#: Longest finding (characters) a verdict's line carries; the rest is in the report's
+#: tolerance section.
+FINDING_CHARS = 240
+#: Said where a finding's clauses stop short of its whole text.
+MORE = " (more in the report)"
+
+
+def _first_clause(text: str, limit: int = FINDING_CHARS) -> str:
+    """``text`` whole when it fits in ``limit`` characters, else its first clauses (cut at
+    "; ", never inside a word) that fit, and :data:`MORE`; a first clause longer than
+    the limit is cut at the last space that fits."""
+    if len(text) <= limit:
+        return text
+    room = limit - len(MORE)
+    cuts = [m.start() for m in re.finditer(r"; ", text) if m.start() <= room]
+    if not cuts:
+        cuts = [m.start() for m in re.finditer(r" ", text) if 0 < m.start() <= room]
+    end = max(cuts) if cuts else len(text)
+    return text[:end].rstrip(" ,;:") + (MORE if end < len(text) else "")
 
 
 def _tolerance_finding(tolerance) -> Finding:

@@ -21,6 +21,12 @@ Files: ``laser_sheet<k>.dxf``, ``laser_sheet<k>.svg``, ``laser_bom.json``, ``las
 :mod:`fabkit.fab.guide`), ``laser_guide_page1.png``, the kerf and fit test coupon
 ``laser_coupon.dxf`` / ``.svg`` / ``.md`` (:mod:`fabkit.fab.coupon`) and, with
 ``uncompensated = true``, ``laser_sheet<k>_uncompensated.dxf`` / ``.svg`` drawn at true size.
+
+The guide's first page and the head of the bill of materials carry the design's verdict. A
+writer cannot know it (the checks come after the files are written): :func:`write` says "not
+judged", and ``fabkit export``'s report stage, once it has judged the design, calls
+:func:`with_verdict` to make those four files (:data:`VERDICT_FILES`) again from the same plan
+and the verdict, and nothing else.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ import numpy as np
 from ..errors import FabricationError
 from ..fab.bars import bulge_primitives
 from ..fab.coupon import COUPON_NAME, coupon_sheet, COUPON_SPACING, coupon_text
-from ..fab.guide import assembly_picture, guide_pages, motion_picture
+from ..fab.guide import assembly_picture, guide_pages, motion_picture, NOT_JUDGED, verdict_rows
 from ..fab.hardware import part_family, part_lines, spares
 from ..fab.laser import kerf_note
 from ..fab.nest import label_outlines, utilisation
@@ -45,7 +51,7 @@ from . import ExportResult
 from .laser_svg import sheet_svg
 
 __all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "sheet_dxf",
-           "bill_of_materials", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
+           "bill_of_materials", "bom_verdict", "bom_json", "verdict_files", "with_verdict", "VERDICT_FILES", "bom_markdown", "bom_blocks", "kerf_note", "LAYERS", "APPID",
            "SHEET_MATERIAL"]
 
 FORMAT = "dxf"
@@ -232,10 +238,20 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
 SHEET_MATERIAL = "cast acrylic (PMMA) sheet"
 
 
-def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
-    """Parts, sheets and hardware to buy, screws by length, spacer rings and the stack at
-    every joint (JSON-able). Every piece of hardware is named as a shop lists it
-    (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
+def bom_verdict(plan: LaserPlan, verdict: dict | None) -> dict:
+    """The head of the bill of materials: the design's verdict (``level``, ``text``,
+    ``findings``, as ``fabkit export`` judges it; None when no export judged it), with what to
+    expect, what to adjust and which joints to watch (:func:`fabkit.fab.guide.verdict_rows`),
+    each sentence whole."""
+    return {"level": str(verdict.get("level")) if verdict else NOT_JUDGED,
+            "headline": str(verdict.get("headline", "")) if verdict else "",
+            "words": verdict_rows(verdict, plan)}
+
+
+def bill_of_materials(plan: LaserPlan, files, verdict: dict | None = None) -> dict:
+    """The verdict (:func:`bom_verdict`), parts, sheets and hardware to buy, screws by length,
+    spacer rings and the stack at every joint (JSON-able). Every piece of hardware is named as
+    a shop lists it (:mod:`fabkit.fab.hardware`), with the count the kit uses and spares."""
     s, st, bars = plan.settings, plan.stacking, plan.bars
     sheet_of = {p.id: sh.index for sh in plan.sheets for p in sh.parts}
     fasteners = [js.fastener for js in st.joints]
@@ -255,6 +271,7 @@ def bill_of_materials(plan: LaserPlan, files: dict) -> dict:
     motion = plan.design.motion
     nominal = [f.play_nominal for f in fasteners]
     return {
+        "verdict": bom_verdict(plan, verdict),
         "design": plan.design.name,
         "scale_mm_per_unit": s.scale,
         "settings": s.as_dict(),
@@ -343,6 +360,8 @@ def bom_blocks(bom: dict) -> list[tuple]:
     sh = buy["sheets"]
     blocks: list[tuple] = [
         ("title", f"Laser-cut kit: {bom['design']}"),
+        ("heading", f"Verdict: {bom['verdict']['level']}"),
+        *(("item", text) for text in bom["verdict"]["words"]),
         ("text", f"Scale {bom['scale_mm_per_unit']:g} mm per design unit; {s['thickness']:g} mm "
                  f"acrylic; bars {s['bar_width']:g} mm wide; {bom['layers']['proof']}. The "
                  f"stack is {bom['layers']['depth_mm']:g} mm deep."),
@@ -440,19 +459,82 @@ def write(plan: LaserPlan) -> ExportResult:
             files[f"laser_sheet{sheet.index}_uncompensated.svg"] = sheet_svg(sheet, raw.settings)
     files.update(coupon_files(plan))
 
-    names = sorted([*files, "laser_assembly.png", "laser_layers_motion.png", "laser_guide.pdf",
-                    "laser_guide_page1.png", "laser_bom.json", "laser_bom.md"])
-    bom = bill_of_materials(plan, names)
-    guide = guide_pages(plan, bom)  # hardware per page as the bill of materials names it
-    files["laser_guide.pdf"] = guide.pdf
-    files["laser_guide_page1.png"] = guide.images[0]
+    bom, guide, carried = verdict_files(plan, sorted(files), None)
+    files.update(carried)
     files["laser_assembly.png"] = assembly_picture(plan, guide.plan)[0]
     files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)[0]
-    files["laser_bom.json"] = (json.dumps(bom, indent=2, sort_keys=True) + "\n").encode("utf-8")
-    files["laser_bom.md"] = bom_markdown(bom).encode("utf-8")
     # the guide's page count rides with the report (a report never counts a PDF's pages)
     return ExportResult(files=files, report={"format": FORMAT, **bom,
                                              "guide_pages": int(guide.stats["pages"])})
+
+
+#: The files that carry the verdict: made again once ``fabkit export`` has judged the design.
+VERDICT_FILES = ("laser_guide.pdf", "laser_guide_page1.png", "laser_bom.json", "laser_bom.md")
+
+
+def bom_json(bom: dict) -> bytes:
+    """laser_bom.json with its verdict first (what a reader meets at its head), the rest in
+    key order."""
+    def ordered(v):
+        if isinstance(v, dict):
+            return {k: ordered(v[k]) for k in sorted(v)}
+        return [ordered(x) for x in v] if isinstance(v, list) else v
+
+    head = {"verdict": ordered(bom["verdict"])}
+    head.update(ordered({k: v for k, v in bom.items() if k != "verdict"}))
+    return (json.dumps(head, indent=2) + "\n").encode("utf-8")
+
+
+def verdict_files(plan: LaserPlan, names, verdict: dict | None) -> tuple:
+    """The bill of materials and the assembly guide of a laser plan, headed with a verdict.
+
+    Parameters
+    ----------
+    plan : LaserPlan
+    names : list of str
+        The sheet, coupon and uncompensated files the kit is written as (the bill of materials
+        lists them with its own files).
+    verdict : dict or None
+        ``level``, ``headline``, ``text``, ``findings`` (report.json's ``verdict``); None when
+        the design has not been judged.
+
+    Returns
+    -------
+    bom : dict
+    guide : fabkit.fab.guide.Guide
+    files : dict of str to bytes
+        :data:`VERDICT_FILES`.
+    """
+    listed = sorted({*names, "laser_assembly.png", "laser_layers_motion.png", *VERDICT_FILES})
+    bom = bill_of_materials(plan, listed, verdict)
+    guide = guide_pages(plan, bom, verdict=verdict)  # hardware per page as the BOM names it
+    files = {"laser_guide.pdf": guide.pdf, "laser_guide_page1.png": guide.images[0],
+             "laser_bom.json": bom_json(bom), "laser_bom.md": bom_markdown(bom).encode("utf-8")}
+    return bom, guide, files
+
+
+def with_verdict(plan: LaserPlan, names, verdict: dict) -> tuple:
+    """The files of a written laser kit that carry the verdict, made again with it (the batch
+    engine's report stage calls this once the design is judged; nothing else is rewritten).
+
+    Parameters
+    ----------
+    plan : LaserPlan
+    names : list of str
+        The files the format wrote.
+    verdict : dict
+        report.json's ``verdict``.
+
+    Returns
+    -------
+    files : dict of str to bytes
+        :data:`VERDICT_FILES`.
+    report : dict
+        What changes in the format's report: ``verdict`` and ``guide_pages``.
+    """
+    kit = [n for n in names if n not in VERDICT_FILES]
+    bom, guide, files = verdict_files(plan, kit, verdict)
+    return files, {"verdict": bom["verdict"], "guide_pages": int(guide.stats["pages"])}
 
 
 def export_design(design, settings=None, *, motion=None) -> ExportResult:

@@ -13,6 +13,11 @@
    hardware for this page.
 4. **Motion test**: which two joints to push, from what distance to what, what every port
    should read, and pictures of the collapse on its way.
+5. **Functional test** (a design with more than one input): each input pushed alone, then all
+   of them, and every port that moves, start → end.
+
+The first page heads with the design's verdict (:mod:`.verdict`) and each module page with its
+place in the build order.
 
 Lists longer than a page continue on the pages that follow (:mod:`.flow`, decided with the
 page numbers in :func:`.plan.guide_plan`); every line is a text of its own at the pitch the
@@ -98,9 +103,14 @@ def _page_spans(x, edges, pages, idx):
     return out
 
 
+def _method_page(gp: GuidePlan) -> int:
+    """The page that says how to build (after the overview and the pages that continue it)."""
+    return next((s.number for s in gp.sheets if s.kind == "method"), 2)
+
+
 def _title(gp: GuidePlan, sheet) -> str:
     what = {"overview": "overview", "method": "how to build", "motion": "motion test",
-            "pictures": "motion test, pictures"}
+            "pictures": "motion test, pictures", "function": "functional test of the inputs"}
     if sheet.kind == "module":
         text = f"{gp.name}: page {sheet.number} of {gp.n_pages}, {modules_text(sheet.page)}"
     else:
@@ -121,7 +131,7 @@ def _overview(fig, gp: GuidePlan, sheet, plan, x, edges, r, labellers):
                  if all(p.modules for p in pages) else
                  "p<page> marks the page of this guide that draws each part")
         size += (f"Build on a flat table at least {gp.size_mm[0] + 100:.0f} mm long, or in "
-                 f"sections (page 2). {where}; red rings mark the screws two pages share: the "
+                 f"sections (page {_method_page(gp)}). {where}; red rings mark the screws two pages share: the "
                  "later page closes them.")
     else:
         size += f"Page {pages[0].number} draws every bar and lists every screw."
@@ -348,6 +358,10 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             return lambda fig, labs: _method(fig, gp, sheet, plan)
         if sheet.kind == "module":
             return lambda fig, labs: _module_page(fig, gp, sheet, plan, x, edges, r, labs)
+        if sheet.kind == "function":
+            top = _text_top("function" if sheet.first else "continued")
+            return lambda fig, labs: (_header(fig, _title(gp, sheet)),
+                                      _draw_blocks(fig, sheet.blocks, top))
         return lambda fig, labs: _motion_page(fig, gp, sheet, plan, edges, r)
 
     # TrueType (Type 42) subsets: every reader draws the glyphs measured here (a reader that

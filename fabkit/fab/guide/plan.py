@@ -22,6 +22,8 @@ from ...errors import FabkitError, FabricationError
 from ...kinematics import place, plan_construction
 from ...numerics import MM_SLACK
 from .flow import Block, block_height, flow
+from .function import design_inputs, function_blocks, FunctionTest, function_test, port_key
+from .verdict import verdict_rows
 
 __all__ = ["MODULES_PER_PAGE", "GuidePlan", "GuidePage", "MotionTest", "Sheet", "guide_plan",
            "screw_part", "page_groups", "frame_caption", "MEASURABLE_MM", "bar_name",
@@ -51,7 +53,7 @@ MEASURABLE_MM = 0.01
 #: overview's drawing, the method's screw diagram, a module page's drawing; below the title of
 #: a page that continues one) to the bottom margin (0.45 in); :mod:`.pages` draws to these.
 ROOM_PT = {"overview": 370.0, "method": 506.0, "module": 283.0, "motion": 763.0,
-           "continued": 750.0}
+           "function": 763.0, "continued": 750.0}
 #: Size of a module page's drawing (points: the page's width by half its height).
 DRAWING_PT = (7.17 * 72.0, 0.5 * 11.69 * 72.0)
 #: A page's drawing keeps at least this many points per mm: at 1.0 every 7 pt label of the
@@ -87,6 +89,14 @@ class GuidePage:
         Part name and count for the joints this page closes.
     part : (int, int)
         Which part of a network that is not a chain this page draws, of how many.
+    joins : dict
+        Earlier page → the joints this page's bars share with it (where this page's part is
+        joined to the part built so far).
+    parent : int or None
+        The page this one grows from in the build order (None for the first): the page
+        before it, or, where the network branches, the page it branches from.
+    previous : int or None
+        The module page before this one (None for the first).
     """
 
     number: int
@@ -98,6 +108,9 @@ class GuidePage:
     bar_page: dict
     hardware: list
     part: tuple = (1, 1)
+    joins: dict = field(default_factory=dict)
+    parent: int | None = None
+    previous: int | None = None
 
 
 @dataclass(frozen=True)
@@ -199,6 +212,10 @@ class GuidePlan:
     motion : MotionTest or None
     sheets : list of Sheet
         Every page of the PDF in order, with the text each sets.
+    function : FunctionTest or None
+        The functional test of a design with more than one input.
+    verdict : dict or None
+        The verdict the first page heads with (None: not judged).
     """
 
     name: str
@@ -210,6 +227,8 @@ class GuidePlan:
     totals: list
     motion: MotionTest | None
     sheets: list = field(default_factory=list)
+    function: FunctionTest | None = None
+    verdict: dict | None = None
 
     @property
     def n_pages(self) -> int:
@@ -264,6 +283,54 @@ def page_groups(network, per_page: int = MODULES_PER_PAGE, *, scale: float | Non
         return cut(np.sort(order[:half])) + cut(np.sort(order[half:]))
 
     return [(g, ()) for g in cut(np.arange(n_e))]
+
+
+def build_order(groups: list, edges: np.ndarray, joints, start: int) -> tuple:
+    """The order in which the parts of a network are built, and the part each grows from.
+
+    The parts (pages) are nodes of a graph whose links are the screws two parts share. The
+    build walks it depth first from the part that holds ``start`` (the first input's joint):
+    along one arm to its end (from a part, on to the neighbour whose bars are nearest in number:
+    a chain numbers its bars module by module), then back to the nearest part with an arm not
+    yet built (a branch), so every part is joined to a part already built. A chain's pages are
+    already in that order.
+
+    Parameters
+    ----------
+    groups : list of (numpy.ndarray, tuple)
+        Bars and modules of each part (:func:`page_groups`).
+    edges : numpy.ndarray, shape (E, 2)
+    joints : set of int
+        The joints that take a screw.
+    start : int
+        The joint the build starts from.
+
+    Returns
+    -------
+    order : list of int
+        Indices into ``groups`` in build order.
+    parent : dict
+        Index → the index of the part it grows from (absent for the first).
+    """
+    sets = [{int(j) for j in edges[bars].ravel() if int(j) in joints} for bars, _ in groups]
+    mid = [float(np.median(bars)) if len(bars) else 0.0 for bars, _ in groups]
+    first = next((k for k, js in enumerate(sets) if start in js), 0)
+    order, parent, seen, stack = [], {}, set(), [(first, None)]
+    while stack:
+        k, up = stack.pop()
+        if k in seen:
+            continue
+        seen.add(k)
+        order.append(k)
+        if up is not None:
+            parent[k] = up
+        # bars are numbered module by module along each chain: the neighbour whose bars are
+        # nearest in number continues the same chain, and is taken next (pushed last)
+        nxt = [m for m in range(len(groups)) if m not in seen and sets[k] & sets[m]]
+        nxt.sort(key=lambda m: (abs(mid[m] - mid[k]), m), reverse=True)
+        stack += [(m, k) for m in nxt]
+    order += [k for k in range(len(groups)) if k not in seen]  # parts that share no screw
+    return order, parent
 
 
 def screw_part(bom: dict, length: float) -> str:
@@ -373,11 +440,6 @@ def _totals(bom: dict) -> list:
     return out
 
 
-def _port_key(name: str):
-    m = re.fullmatch(r"([A-Za-z_]*)(\d+)", name)
-    return (m.group(1), int(m.group(2)), "") if m else (name, -1, name)
-
-
 def _dense_motion(plan):
     """Drive values (design units) and positions along the motion, spaced evenly and
     geometrically towards the target (a sequential collapse happens close to it), placed by
@@ -430,7 +492,7 @@ def _motion_test(plan) -> MotionTest | None:
     drive = np.linalg.norm(x[:, a] - x[:, b], axis=1)
     change = abs(float(drive[-1] - drive[0]))
     ports, past = [], np.zeros(x.shape[0], dtype=np.int64)
-    for name in sorted(net.ports, key=_port_key):
+    for name in sorted(net.ports, key=port_key):
         i, j = net.port(name)
         d = np.linalg.norm(x[:, i] - x[:, j], axis=1)
         moved = np.abs(d - d[0])
@@ -514,6 +576,20 @@ def modules_text(page: GuidePage) -> str:
     return f"modules {a}-{b}" if b > a else f"module {a}"
 
 
+def build_words(page: GuidePage) -> str:
+    """Where a page stands in the build order, in words: what it starts from, and at which
+    screws its part joins the part built on earlier pages."""
+    if page.parent is None and page.previous is None:
+        return "Build order: start here; this page's part is the first."
+    if page.parent is None:  # a part that shares no screw with another
+        return "Build order: a part of its own: it shares no screw with the other pages."
+    joins = "; ".join(f"p{q} at {', '.join(f'J{j}' for j in js)}"
+                      for q, js in page.joins.items())
+    how = (f"continue from page {page.parent}" if page.parent == page.previous else
+           f"a branch: it grows from page {page.parent}, not from page {page.previous}")
+    return f"Build order: {how}. Join this part to the part built so far: {joins}."
+
+
 def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
     rows = []
     for j in page.closes:
@@ -521,7 +597,8 @@ def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
         fastener = (js.fastener.describe() if js.fastener is not None
                     else f"post {js.screw_length:g} mm")
         rows.append(stack_row(js, page, fastener))
-    blocks = [Block("Stacks of the screws this page closes, bottom to top", tuple(rows))]
+    blocks = [Block(None, (build_words(page),), style="body"),
+              Block("Stacks of the screws this page closes, bottom to top", tuple(rows))]
     if page.open_joints:
         later = ", ".join(f"J{j}→p{q}" for j, q in sorted(page.open_joints.items()))
         blocks.append(Block(None, (f"Left loose on this page (closed later): {later}",),
@@ -531,34 +608,56 @@ def _module_blocks(page: GuidePage, stacks: dict, settings) -> list:
     return blocks
 
 
-def _overview_blocks(pages: list, totals: list) -> list:
+def _overview_blocks(pages: list, totals: list, head: list) -> list:
     joins = []
     for p in pages:
         later: dict = {}
         for j, q in sorted(p.open_joints.items()):
             later.setdefault(q, []).append(f"J{j}")
         how = "; ".join(f"leaves {', '.join(v)} loose for p{q}" for q, v in sorted(later.items()))
-        joins.append(f"p{p.number}: {modules_text(p)}" + (f"; {how}" if how else ""))
-    return [Block("How the pages join" if len(pages) > 1 else "Pages", tuple(joins),
+        grows = (f"; grows from p{p.parent}" if p.parent is not None and p.parent != p.previous
+                 else "")
+        joins.append(f"p{p.number}: {modules_text(p)}{grows}" + (f"; {how}" if how else ""))
+    return [Block("What this kit will do (the export's verdict)", tuple(head), style="body"),
+            Block("How the pages join" if len(pages) > 1 else "Pages", tuple(joins),
                   columns=2 if len(joins) > 8 else 1),
             Block("Kit contents (as laser_bom.md lists them)",
                   tuple(f"{n:>4} × {name}" for name, n in totals))]
 
 
-def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: str) -> list:
+def _order_text(pages: list) -> str:
+    """How to work through the module pages: their order follows the network (its arms, then
+    its branches), each page saying what it joins."""
     first, last = pages[0].number, pages[-1].number
+    branches = [p for p in pages if p.parent is not None and p.parent != p.previous]
+    if branches:
+        where = "; ".join(f"page {p.number} starts a branch from page {p.parent}"
+                          for p in branches)
+        route = (f"Work from page {first} to page {last} in page order: the order follows the "
+                 f"network, one arm to its end, then back to where a branch leaves it ({where}). "
+                 "Each page says, at its top, which earlier page its part joins and at which "
+                 "screws.")
+    else:
+        route = (f"Work from page {first} to page {last} in page order: each page continues "
+                 "the part of the page before it, and says at its top at which screws.")
+    return (route + " Each page closes the screws it lists (a page with more screws than fit "
+            "continues on the next). A joint marked '→p<k>' belongs to a later page: leave the "
+            "bars that reach it loose (do not thread them) until page k, which draws them "
+            "hatched and threads them into its stack. Keep the finished part flat on the table "
+            "and slide it along as it grows; support any part that hangs over the edge. Do not "
+            "lift it by one end: the modules fold.")
+
+
+def _method_blocks(pages: list, settings, tests: dict, sheet_text: str) -> list:
+    first = pages[0].number
     if len(pages) > 1:
-        order = (f"Work from page {first} to page {last}, left to right. Each page closes the "
-                 "screws it lists (a page with more screws than fit continues on the next). A "
-                 "joint marked '→p<k>' belongs to a later page: leave the bars that reach it "
-                 "loose (do not thread them) until page k, which draws them hatched and threads "
-                 "them into its stack. Keep the finished part flat on the table and slide it "
-                 "along as the chain grows; support any part that hangs over the edge. Do not "
-                 "lift the chain by one end: the modules fold.")
+        order = _order_text(pages)
     else:
         order = (f"Page {first} draws every bar and lists every screw: lay the bars out as "
                  "drawn, then close the screws one by one.")
-    motion = f" Page {motion_page} is the motion test." if motion_page else ""
+    motion = f" Page {tests['motion']} is the motion test." if tests.get("motion") else ""
+    if tests.get("function"):
+        motion += f" Page {tests['function']} tests each input alone and all together."
     sections = [
         ("BEFORE YOU START",
          "Cut the test coupon first (laser_coupon.md). Cut the sheets; check that the 100 mm "
@@ -573,7 +672,7 @@ def _method_blocks(pages: list, settings, motion_page: int | None, sheet_text: s
          "with no bar. Put the shims the page lists on top, then screw the screw in from "
          "above until it is snug: the bars must still turn freely."),
         ("YOUR SHEET", sheet_text),
-        ("A LONG CHAIN, PAGE BY PAGE" if len(pages) > 1 else "ORDER", order),
+        ("BUILD ORDER, PAGE BY PAGE" if len(pages) > 1 else "ORDER", order),
         ("CHECK AS YOU GO",
          "After each page, the part built should move freely by hand without forcing; a bar "
          "that rubs is usually a screw that is too tight or a bar on the wrong layer (check "
@@ -598,7 +697,7 @@ def motion_words(m: MotionTest, barrel: float) -> str:
              "backward": f"one after another, starting at the far end and travelling towards "
                          f"{name}",
              "together": "all together",
-             "mixed": "not in order along the chain (see the table)",
+             "mixed": "in the order listed below (not one after another along the chain)",
              "none": "not at all: only the pushed part moves"}[m.order]
     names = [p[0] for p in fol]
     # a long chain's list is shortened: the table below gives every port
@@ -616,6 +715,11 @@ def motion_words(m: MotionTest, barrel: float) -> str:
             + f"{len(fol)} of the {len(m.ports) - 1} other ports make at least half of their "
             f"change ({moved}); the table gives where each starts and ends. The pictures "
             "show the kit on its way, to one scale, with the pushed pair in red.")
+    if len(fol) > 1 and m.order != "together":
+        seq = [p[0] for p in sorted(fol, key=lambda p: p[3])]
+        shown = (" → ".join(seq) if len(seq) <= 12 else
+                 " → ".join(seq[:5]) + f" → ... ({len(seq) - 7} more) ... → " + " → ".join(seq[-2:]))
+        text += f" The order in which they should move: {shown}."
     if len(m.frames) > 2 and m.order in ("forward", "backward") and len(fol) > 1:
         away = abs(m.drive_mm[m.frames[len(m.frames) // 2]] - m.end_mm)
         if away < MEASURABLE_MM:
@@ -663,13 +767,48 @@ def motion_sheets(m: MotionTest, barrel: float, number: int) -> list:
     return out
 
 
-def guide_plan(plan, bom: dict) -> GuidePlan:
+def _make_pages(groups, parent: dict, starts, edges, stacks: dict, bom: dict) -> tuple:
+    """The module pages, their numbers from ``starts`` (groups in build order), and the page
+    that closes each joint."""
+    bom_joint = {int(j["joint"]): j for j in bom.get("joints", [])}
+    page_of_bar = np.empty(edges.shape[0], dtype=np.int64)
+    for k, (bars, _) in enumerate(groups):
+        page_of_bar[bars] = starts[k]
+    closing = {j: int(max(page_of_bar[b] for b in js.bars)) for j, js in stacks.items()}
+    pages = []
+    for k, (bars, modules) in enumerate(groups):
+        number = int(starts[k])
+        joints = sorted({int(j) for j in edges[bars].ravel() if int(j) in stacks})
+        closes = tuple(j for j in joints if closing[j] == number)
+        ghosts = tuple(sorted({int(b) for j in closes for b in stacks[j].bars
+                               if page_of_bar[b] != number}))
+        open_joints = {j: closing[j] for j in joints if closing[j] != number}
+        bar_page = {int(b): number for b in bars}
+        bar_page.update({b: int(page_of_bar[b]) for b in ghosts})
+        hardware = _hardware(bom, [bom_joint[j] for j in closes if j in bom_joint])
+        joins: dict = {}
+        for j in joints:  # where this page's part meets the part built on earlier pages
+            for b in stacks[j].bars:
+                q = int(page_of_bar[b])
+                if q < number:
+                    joins.setdefault(q, set()).add(j)
+        pages.append(GuidePage(number, modules, tuple(int(b) for b in bars), closes,
+                               ghosts, open_joints, bar_page, hardware, (k + 1, len(groups)),
+                               {q: tuple(sorted(v)) for q, v in sorted(joins.items())},
+                               int(starts[parent[k]]) if k in parent else None,
+                               int(starts[k - 1]) if k else None))
+    return pages, closing
+
+
+def guide_plan(plan, bom: dict, verdict: dict | None = None) -> GuidePlan:
     """Decide the pages of a laser kit's assembly guide.
 
     Every list is cut into pages where it runs out of room (:func:`.flow.flow`), so the
     page numbers (a page's own, and those the pages give each other) are decided here,
     before anything is drawn: they are settled by laying the pages out again until they no
-    longer change (a number's digits may move a line to the next page).
+    longer change (a number's digits may move a line to the next page). The module pages
+    follow the build order (:func:`build_order`); a design with more than one input ends with
+    its functional test (:mod:`.function`).
 
     Parameters
     ----------
@@ -677,6 +816,9 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     bom : dict
         Its bill of materials (:func:`fabkit.writers.dxf.bill_of_materials`): the hardware of
         every joint and the names of the parts.
+    verdict : dict, optional
+        The design's verdict (``level``, ``text``, ``findings``), set at the head of the first
+        page (:func:`.verdict.verdict_rows`); None: the guide says it is not judged.
 
     Returns
     -------
@@ -687,37 +829,30 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
     edges = np.asarray(plan.bars.edges)
     groups = page_groups(net, scale=s.scale, radius=0.5 * s.bar_width)
     stacks = {js.joint: js for js in plan.stacking.joints}
-    bom_joint = {int(j["joint"]): j for j in bom.get("joints", [])}
+    inputs = design_inputs(plan.design) if plan.design.motion.drive in net.ports else ()
+    start = int(net.port(inputs[0])[0]) if inputs else int(edges[0, 0])
+    order, parent = build_order(groups, edges, set(stacks), start)
+    groups = [groups[k] for k in order]
+    parent = {order.index(k): order.index(v) for k, v in parent.items()}
     totals = _totals(bom)
     motion = _motion_test(plan)
+    ft = function_test(plan.design, s.scale)
+    barrel = s.screw.barrel_diameter
+    n_motion = len(motion_sheets(motion, barrel, 0)) if motion is not None else 0
+    fblocks = function_blocks(ft, net, barrel) if ft is not None else []
+    head = verdict_rows(verdict, plan)
     sheet_text = sheet_advice(bom)
     # pages each part takes: start from one each and lay out until the numbers settle
     n_over, n_method, n_group = 1, 1, [1] * len(groups)
     for _ in range(8):
         first = 1 + n_over + n_method
         starts = np.concatenate([[first], first + np.cumsum(n_group)]).astype(int)
-        page_of_bar = np.empty(edges.shape[0], dtype=np.int64)
-        for k, (bars, _) in enumerate(groups):
-            page_of_bar[bars] = starts[k]
-        closing = {j: int(max(page_of_bar[b] for b in js.bars)) for j, js in stacks.items()}
-        pages = []
-        for k, (bars, modules) in enumerate(groups):
-            number = int(starts[k])
-            joints = sorted({int(j) for j in edges[bars].ravel() if int(j) in stacks})
-            closes = tuple(j for j in joints if closing[j] == number)
-            ghosts = tuple(sorted({int(b) for j in closes for b in stacks[j].bars
-                                   if page_of_bar[b] != number}))
-            open_joints = {j: closing[j] for j in joints if closing[j] != number}
-            bar_page = {int(b): number for b in bars}
-            bar_page.update({b: int(page_of_bar[b]) for b in ghosts})
-            hardware = _hardware(bom, [bom_joint[j] for j in closes if j in bom_joint])
-            pages.append(GuidePage(number, modules, tuple(int(b) for b in bars), closes,
-                                   ghosts, open_joints, bar_page, hardware,
-                                   (k + 1, len(groups))))
-        motion_page = int(starts[-1]) if motion is not None else None
-        laid = {"overview": flow(_overview_blocks(pages, totals), ROOM_PT["overview"],
+        pages, closing = _make_pages(groups, parent, starts, edges, stacks, bom)
+        tests = {"motion": int(starts[-1]) if motion is not None else None,
+                 "function": int(starts[-1]) + n_motion if ft is not None else None}
+        laid = {"overview": flow(_overview_blocks(pages, totals, head), ROOM_PT["overview"],
                                  ROOM_PT["continued"]),
-                "method": flow(_method_blocks(pages, s, motion_page, sheet_text),
+                "method": flow(_method_blocks(pages, s, tests, sheet_text),
                                ROOM_PT["method"], ROOM_PT["continued"]),
                 "module": [flow(_module_blocks(p, stacks, s), ROOM_PT["module"],
                                 ROOM_PT["continued"]) for p in pages]}
@@ -740,10 +875,13 @@ def guide_plan(plan, bom: dict) -> GuidePlan:
         for k, b in enumerate(parts):
             add("module", b, k == 0, p)
     if motion is not None:
-        sheets += motion_sheets(motion, s.screw.barrel_diameter, len(sheets) + 1)
+        sheets += motion_sheets(motion, barrel, len(sheets) + 1)
+    for k, b in enumerate(flow(fblocks, ROOM_PT["function"], ROOM_PT["continued"])
+                          if fblocks else []):
+        add("function", b, k == 0)
     margin = 0.5 * max(s.bar_width, s.screw.head_diameter)
     x0 = net.nodes * s.scale
     moving = motion.positions if motion is not None else x0
     return GuidePlan(plan.design.name, pages, int(starts[0]), closing,
                      _size(x0, edges, margin), _size(moving, edges, margin), totals, motion,
-                     sheets)
+                     sheets, ft, verdict)
