@@ -663,6 +663,15 @@ def bundled_template(name: str) -> Path:
     return path
 
 
+def _present(path: Path) -> bool:
+    """Something is at ``path`` (a link too); a name the system cannot look up (too long) is
+    not there, and reading it says why."""
+    try:
+        return path.exists() or path.is_symlink()
+    except OSError:
+        return False
+
+
 def resolve_template(name, base=None) -> Path:
     """The template file that ``name`` stands for: a path, or a bundled template by name.
 
@@ -691,13 +700,13 @@ def resolve_template(name, base=None) -> Path:
     """
     folder = Path(base) if base is not None else Path()
     given = folder / name
-    if not is_template_name(name) or given.exists() or given.is_symlink():
+    if not is_template_name(name) or _present(given):
         return given
     text = name
     if not text.endswith(".toml"):
         own = folder / f"{text}.toml"
-        if own.exists() or own.is_symlink():
+        if _present(own):
             return own
     bundled = bundled_folder() / f"{text.removesuffix('.toml')}.toml"
-    return bundled if bundled.is_file() else given
+    return bundled if _present(bundled) and bundled.is_file() else given
 

@@ -125,6 +125,11 @@ RADIUS_SIZE_STEP = 0.5
 RADIUS_WINDOW = 0.01
 #: Enlargements tried, each 1.2 times the last, from the one computed.
 SCALE_TRIES = 12
+#: The search for a nearest feasible wish models chains of at most this many modules (0.05 to
+#: 0.1 s a module, each): a drawing that needs a longer chain to be followed (a 70-byte
+#: corner, 320 times larger) is refused with its reason, not searched for minutes. The
+#: bundled suggestions need 2 to 180 modules.
+MAX_SUGGEST_MODULES = 250
 #: A bin that holds no module still counts this much when bins are merged (its own angle).
 EMPTY_BIN_WEIGHT = 1e-12
 #: Round-off forgiven when a scale is rounded up to two digits (2.2 stays 2.2).
@@ -557,7 +562,8 @@ def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -
 
     failed = max(least, factor / BISECT_RANGE)
     for _ in range(SCALE_TRIES):
-        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > MAX_MODULES:
+        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > min(
+                MAX_MODULES, MAX_SUGGEST_MODULES):
             return None
         if fits(factor):
             break
