@@ -38,6 +38,10 @@ EXAMPLES = [
 
 #: Rates are points per second over at least this long (a run that finished at once).
 MIN_SECONDS = 1e-9
+#: Longest wait for a scheduler (an hour: a longer one is a typo, or a wait for nothing).
+MAX_CONNECT_TIMEOUT = 3600.0
+#: Most points a task (and a chunk file) holds: a chunk is rewritten whole when it ends.
+MAX_CHUNK_SIZE = 100_000
 
 
 def add_arguments(p):
@@ -157,11 +161,17 @@ def run(args) -> int:
                               "integers ORBITS:DISCARD:AVERAGE, e.g. 32:1000:4000")
             from dataclasses import replace
 
-            protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
-                               lyapunov_average=avg)
+            try:
+                protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
+                                   lyapunov_average=avg)
+            except SweepError as exc:
+                _usage(f"--lyapunov-protocol {args.lyapunov_protocol}: {exc}")
         check_number("--point-timeout", args.point_timeout)
-        if not args.connect_timeout > 0:
-            _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
+        if not 0 < args.connect_timeout <= MAX_CONNECT_TIMEOUT:
+            _usage(f"--connect-timeout must be a number of seconds above 0 and at most "
+                   f"{MAX_CONNECT_TIMEOUT:g}, got {args.connect_timeout}")
+        if args.chunk_size is not None and args.chunk_size > MAX_CHUNK_SIZE:
+            _usage(f"--chunk-size must be at most {MAX_CHUNK_SIZE}, got {args.chunk_size}")
         check_jobs("--jobs", args.jobs)
         if args.chunk_size is not None and args.chunk_size < 1:
             _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
