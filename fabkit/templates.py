@@ -469,6 +469,9 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=(),
     except RecursionError:  # the parser recurses once per level of [[[...]]] or {a={b=...}}
         raise TemplateError(path, "", "not a template: arrays or tables nested too deeply "
                                       "for TOML to parse") from None
+    except ValueError:  # Python's own bound on the digits of an integer (4300)
+        raise TemplateError(path, "", "not a template: a number of thousands of digits (no "
+                                      "measure has that many)") from None
     ctx = TemplateContext(path, raw, tuple(_stack), _loading)
     present = [k for k in BUILDERS if k in raw]
     if not present:

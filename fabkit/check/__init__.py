@@ -109,12 +109,13 @@ def require_triangles(path, triangles: int, design=None):
     """
     from ..io.formats import refuse_count
 
+    est = require_checked(f"{path}", ("placed triangle", triangles))
     net = getattr(design, "network", None)
     if net is not None:
         refuse_count(path, f"triangles for a design of {len(net.edges)} bars", triangles,
                      MAX_TRIANGLES_PER_EDGE * max(1, len(net.edges)),
                      f" ({MAX_TRIANGLES_PER_EDGE} a bar): not this design's print")
-    return require_checked(f"{path}", ("placed triangle", triangles))
+    return est
 
 
 def require_files(paths) -> None:

@@ -45,6 +45,9 @@ def parse_settings(items) -> dict:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except (tomllib.TOMLDecodeError, RecursionError):
             value = text.strip()
+        except ValueError:  # Python's bound on an integer's digits (4300)
+            raise UsageError("--set", f"{key}: a number of thousands of digits: no setting "
+                                      "has that many") from None
         node = out
         for part in parts[:-1]:
             node = node.setdefault(part, {})

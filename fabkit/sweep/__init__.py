@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import BoundsError, FabkitError, InputFileError, OutputError
 from ..executor import LocalExecutor, Task
 from ..io.formats import load_json
+from .peer import probe_scheduler
 from ..io.inputs import read_regular
 from ..io.outputs import inside, output_folder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
@@ -204,7 +205,7 @@ def read_sweep_file(path) -> SweepFile | None:
         raise
     except BoundsError:
         raise
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+    except (OSError, ValueError, RecursionError):  # TOMLDecodeError, digits, depth
         return None  # not ours: the template loader reports it properly
     sec = raw.get("sweep")
     if not isinstance(sec, dict):
@@ -294,6 +295,9 @@ def _connect(scheduler, timeout: float):
                           "this installation lacks: pip install 'fabkit[cluster]'") from None
     if isinstance(scheduler, Client):
         return scheduler, False
+    # dask bounds the connection, not the handshake after it: read the scheduler's first
+    # message ourselves, within the timeout and a bound on its size
+    probe_scheduler(str(scheduler), timeout)
     try:
         client = Client(str(scheduler), timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
