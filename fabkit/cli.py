@@ -200,8 +200,13 @@ def main(argv=None) -> int:
             raise
         if exc.filename == "standard output":  # its last flush on the way out fails too
             _silence_stdout()
-        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"fabkit: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        folder = getattr(args, "out_dir", None)
+        # an error of a library writing through its own file object carries no name: the
+        # output folder it was writing under is the one to look at
+        named = getattr(exc, "filename", None)
+        where = f"{named}: " if named else ""
+        also = f" (output folder {folder})" if folder and not named else ""
+        print(f"fabkit: error: {where}{exc.strerror or exc}{also}", file=sys.stderr)
         return ExitCode.FAILED
     except Exception as exc:  # a bug: one line that says where, the traceback with --debug
         if args.debug:

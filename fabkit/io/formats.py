@@ -1,4 +1,4 @@
-"""Every parser behind one boundary: JSON, TOML and XML read with bounds checked before the work.
+"""Every parser behind one boundary: JSON and XML read with bounds checked before the work.
 
 A file's bytes are read by :func:`fabkit.io.inputs.read_regular` (regular, bounded in size);
 what a parser then does with them is bounded here. Nesting depth, the digits of a number and the
@@ -15,7 +15,7 @@ Examples
 >>> load_json(b"[" * 100_000 + b"]" * 100_000, "deep.fold")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-fabkit.errors.InputFileError: deep.fold: nested 100,000 levels deep, over the limit of 64 ...
+fabkit.errors.InputFileError: deep.fold: nested 100,000 levels deep, over the limit of 64: ...
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ import numpy as np
 from ..errors import InputFileError
 from .workload import allow_large
 
-__all__ = ["MAX_DEPTH", "MAX_DIGITS", "load_json", "load_toml", "parse_xml", "damaged",
+__all__ = ["MAX_DEPTH", "MAX_DIGITS", "load_json", "parse_xml", "damaged",
            "refuse_count"]
 
-#: Deepest nesting of arrays and objects (tables) a JSON or TOML file fabkit reads may have:
-#: FOLD, a sweep's spec and chunks and templates nest four or five levels.
+#: Deepest nesting of arrays and objects a JSON file fabkit reads may have: FOLD, a sweep's
+#: spec and chunks and the export record nest four or five levels.
 MAX_DEPTH = 64
 #: Most digits one number in a file may have: a float64 holds 17 significant digits, so even
 #: ``0.000…1`` written out in full stays far below.
@@ -42,8 +42,6 @@ MAX_DIGITS = 400
 MAX_XML_DEPTH = 256
 
 _JSON_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"', re.S)
-_TOML_STRING = re.compile(rb'"""(?:[^\\]|\\.)*?"""|\'\'\'.*?\'\'\'|"(?:[^"\\\n]|\\.)*"|'
-                          rb"'[^'\n]*'|#[^\n]*", re.S)
 _LONG_NUMBER = re.compile(rb"[0-9_]{%d,}" % (MAX_DIGITS + 1))
 
 
@@ -109,21 +107,6 @@ def load_json(data: bytes, path, *, max_depth: int = MAX_DEPTH, max_items: int |
         raise damaged(path, f"not {what}: not UTF-8 text (byte {exc.start:,})") from None
     except (ValueError, RecursionError) as exc:  # JSONDecodeError is a ValueError
         raise damaged(path, f"not {what} ({' '.join(str(exc).split())[:120]})") from None
-
-
-def load_toml(text: str, path, *, max_depth: int = MAX_DEPTH) -> dict:
-    """A TOML document, its depth and digits bounded before parsing; errors as
-    :func:`load_json`'s."""
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python < 3.11
-        import tomli as tomllib
-
-    _shape(_TOML_STRING.sub(b'""', text.encode("utf-8", "surrogatepass")), path, max_depth)
-    try:
-        return tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, ValueError, RecursionError) as exc:
-        raise damaged(path, f"not TOML ({' '.join(str(exc).split())[:120]})") from None
 
 
 def parse_xml(data: bytes, path, *, max_elements: int, max_depth: int = MAX_XML_DEPTH,
