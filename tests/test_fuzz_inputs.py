@@ -35,7 +35,7 @@ MUTANTS = 500
 #: Mutants of each format whose every mutant runs a full as-built check (about 0.2 s each).
 CHECK_MUTANTS = 24
 #: Mutants of each format that is cheap to read (a template, a CSV curve, a sweep's files).
-CHEAP_MUTANTS = 100
+CHEAP_MUTANTS = 60
 #: Template mutants (each read builds its network: about 0.4 s).
 TEMPLATE_MUTANTS = 30
 

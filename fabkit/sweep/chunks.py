@@ -158,7 +158,7 @@ def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
         why = None
         try:
             # a FIFO or a device under a chunk's name is set aside, never waited on
-            records = load_json(read_regular(f, MAX_CHUNK_BYTES), f, what="a sweep's chunk")
+            records = load_json(read_regular(f, MAX_CHUNK_BYTES), f)
             if not isinstance(records, list) or not records:
                 raise ValueError("not a list of records")
             for rec in records:
