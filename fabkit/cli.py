@@ -224,6 +224,11 @@ def _command_word(argv) -> str:
 
 def main(argv=None) -> int:
     """Run the command line; returns the exit code."""
+    if sys.stdout is None:  # started with stdout closed (>&-): Python gives no stream at all
+        if sys.stderr is not None:
+            print("fabkit: error: standard output is closed; give it a file or /dev/null "
+                  "(> /dev/null)", file=sys.stderr)
+        return ExitCode.FAILED
     parser = build_parser(only=_command_word(argv))
     try:
         args = parser.parse_args(argv)
@@ -248,8 +253,9 @@ def main(argv=None) -> int:
         warnings.simplefilter("ignore")
     try:
         _check_output_option(args)
+        sys.stdout = _NamedStream(sys.stdout, "standard output")
         code = int(args._run(args))
-        sys.stdout.flush()  # a closed pipe shows here, inside the handlers, not at exit
+        sys.stdout.flush()  # a closed pipe or a full disk shows here, not at exit
         return code
     except BrokenPipeError:
         # the reader went away (fabkit templates | head -1): end quietly, as after SIGPIPE
@@ -269,8 +275,15 @@ def main(argv=None) -> int:
     except OSError as exc:  # a file-system condition met while working (disk full, permissions)
         if args.debug:
             raise
-        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"fabkit: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        if exc.filename == "standard output":  # its last flush on the way out fails too
+            _silence_stdout()
+        folder = getattr(args, "out_dir", None)
+        # an error of a library writing through its own file object carries no name: the
+        # output folder it was writing under is the one to look at
+        named = getattr(exc, "filename", None)
+        where = f"{named}: " if named else ""
+        also = f" (output folder {folder})" if folder and not named else ""
+        print(f"fabkit: error: {where}{exc.strerror or exc}{also}", file=sys.stderr)
         return ExitCode.FAILED
     except Exception as exc:  # a bug: one line that says where, the traceback with --debug
         if args.debug:
@@ -278,6 +291,8 @@ def main(argv=None) -> int:
         print(f"fabkit: {internal_error_line(exc)}", file=sys.stderr)
         return ExitCode.INTERNAL
     finally:
+        if isinstance(sys.stdout, _NamedStream):
+            sys.stdout = sys.stdout.stream
         quiet.__exit__(None, None, None)
         _restore_signal_handlers(previous)
         if saved_large is None:
@@ -298,6 +313,32 @@ def _check_output_option(args) -> None:
         value = getattr(args, dest, None)
         if isinstance(value, str):
             check_output_folder(value)
+
+
+class _NamedStream:
+    """A text stream whose write errors name it (``standard output: No space left on
+    device``): the error of a full disk under stdout carries no file name of its own."""
+
+    def __init__(self, stream, name: str):
+        self.stream = stream
+        self.name = name
+
+    def _named(self, call, *args):
+        try:
+            return call(*args)
+        except BrokenPipeError:  # the reader went away: ended quietly by main()
+            raise
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, self.name) from None
+
+    def write(self, text):
+        return self._named(self.stream.write, text)
+
+    def flush(self):
+        return self._named(self.stream.flush)
+
+    def __getattr__(self, attr):
+        return getattr(self.stream, attr)
 
 
 def _silence_stdout() -> None:

@@ -285,13 +285,17 @@ class InputFileError(FabkitError):
     kind : str
         What is wrong, for code that must tell the cases apart (never the message's text):
         ``"missing"`` (no such file), ``"not_regular"`` (a folder, a FIFO, a device, a socket),
-        ``"loop"`` (a symbolic-link loop) or ``"unreadable"`` (anything else).
+        ``"loop"`` (a symbolic-link loop), ``"unreadable"`` (anything else), ``"damaged"`` (the
+        file's parser refused it: not its format, cut short, nested too deeply) or
+        ``"bounds"`` (past one of the readers' bounds on depth, digits, counts or expansion,
+        checked before the work). The last two exit with status 2, as a usage error: the
+        file given cannot be used as it is.
     """
 
     code = "input_file"
 
     #: Values of :attr:`kind`.
-    KINDS = ("missing", "not_regular", "loop", "unreadable")
+    KINDS = ("missing", "not_regular", "loop", "unreadable", "damaged", "bounds")
 
     def __init__(self, path, reason: str, kind: str = "unreadable"):
         if kind not in self.KINDS:
@@ -299,6 +303,8 @@ class InputFileError(FabkitError):
         self.path = str(path)
         self.reason = reason
         self.kind = kind
+        if kind in ("damaged", "bounds"):
+            self.exit_code = 2
         super().__init__(f"{self.path}: {reason}")
 
 

@@ -582,6 +582,9 @@ def parse_template(text: str, path: Path | str = "<string>", _stack=(),
     except RecursionError:  # the parser recurses once per level of [[[...]]] or {a={b=...}}
         raise TemplateError(path, "", "not a template: arrays or tables nested too deeply "
                                       "for TOML to parse") from None
+    except ValueError:  # Python's own bound on the digits of an integer (4300)
+        raise TemplateError(path, "", "not a template: a number of thousands of digits (no "
+                                      "measure has that many)") from None
     return _from_raw(raw, path, _stack, _loading)
 
 
@@ -788,6 +791,15 @@ def bundled_template(name: str) -> Path:
     return path
 
 
+def _present(path: Path) -> bool:
+    """Something is at ``path`` (a link too); a name the system cannot look up (too long) is
+    not there, and reading it says why."""
+    try:
+        return path.exists() or path.is_symlink()
+    except OSError:
+        return False
+
+
 def resolve_template(name, base=None) -> Path:
     """The template file that ``name`` stands for: a path, or a bundled template by name.
 
@@ -816,13 +828,13 @@ def resolve_template(name, base=None) -> Path:
     """
     folder = Path(base) if base is not None else Path()
     given = folder / name
-    if not is_template_name(name) or given.exists() or given.is_symlink():
+    if not is_template_name(name) or _present(given):
         return given
     text = name
     if not text.endswith(".toml"):
         own = folder / f"{text}.toml"
-        if own.exists() or own.is_symlink():
+        if _present(own):
             return own
     bundled = bundled_folder() / f"{text.removesuffix('.toml')}.toml"
-    return bundled if bundled.is_file() else given
+    return bundled if _present(bundled) and bundled.is_file() else given
 

@@ -224,7 +224,7 @@ def test_bad_curve_input_is_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.svg"
     bad.write_text("<svg><path d=")
     code, _, err = run_cli(["design", "--curve", bad, "-o", tmp_path / "o"], capsys)
-    assert code == 1 and len(err.strip().splitlines()) == 1 and "bad.svg" in err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "bad.svg" in err
     code, _, err = run_cli(["design", "--curve", tmp_path / "none.svg", "-o", tmp_path / "o"],
                            capsys)
     assert code == 1 and "no such curve file" in err

@@ -1,4 +1,5 @@
-"""Mutation fuzz of the files fabkit reads from users: drawn curves (SVG) and 3MF print files.
+"""Mutation fuzz of every file format fabkit reads: drawn curves (SVG, CSV), 3MF, STL, DXF and
+FOLD files read back by the as-built check, templates (TOML) and a sweep's own files (JSON).
 
 Each mutant is a real file changed the way damaged and hostile files are: numbers replaced by
 extremes (1e300, nan, 10^23, text), attributes removed, elements repeated up to thousands of
@@ -31,6 +32,12 @@ from fabkit.stoppable import StepLimitError, keep_to, run_stoppable
 from fabkit.io.workload import require
 
 MUTANTS = 500
+#: Mutants of each format whose every mutant runs a full as-built check (about 0.2 s each).
+CHECK_MUTANTS = 24
+#: Mutants of each format that is cheap to read (a template, a CSV curve, a sweep's files).
+CHEAP_MUTANTS = 60
+#: Template mutants (each read builds its network: about 0.4 s).
+TEMPLATE_MUTANTS = 30
 
 #: Values a damaged or hostile file puts where a number belongs.
 EXTREMES = ["1e300", "-1e300", "1e308", "1e400", "nan", "NaN", "inf", "-inf", "-0", "", "abc",
@@ -290,3 +297,167 @@ def test_3mf_mutants_end_in_a_report_or_one_error(prints, tmp_path):
     _assert_clean(outcomes)
     results = [r for _, r in outcomes.values()]
     assert results.count("ok") > 25 and results.count("refused") > 100
+
+
+# --- every other format: FOLD, DXF, STL, TOML templates, CSV curves, a sweep's JSON -----------
+
+def _json_repeat(text: str, rng: random.Random) -> str:
+    """An array's first element repeated up to 20 000 times (edges, faces, frames)."""
+    spans = [m.span() for m in re.finditer(r"\[\[[^\[\]]*\]", text)]
+    if not spans:
+        return text
+    a, b = rng.choice(spans)
+    first = text[a + 1:b]
+    return text[:a + 1] + (first + ",") * rng.choice([2, 100, 20_000]) + text[a + 1:]
+
+
+def _json_deep(text: str, rng: random.Random) -> str:
+    k = rng.randrange(len(text))
+    depth = rng.choice([50, 1000, 100_000])
+    return text[:k] + "[" * depth + "1" + "]" * depth + text[k:]
+
+
+def _json_digits(text: str, rng: random.Random) -> str:
+    """A number replaced by one of thousands of digits (Python refuses more than 4300)."""
+    spans = [m.span() for m in NUMBER.finditer(text)]
+    if not spans:
+        return text
+    a, b = rng.choice(spans)
+    return text[:a] + "1" * rng.choice([20, 4301, 5001]) + text[b:]
+
+
+JSON_MUTATIONS = [_json_repeat, _json_deep, _json_digits]
+
+
+def _bytes_mutant(data: bytes, seed: int) -> tuple[bytes, list[str]]:
+    """A binary file changed: bytes flipped, cut short, a span repeated, NaNs written."""
+    rng = random.Random(seed)
+    data = bytearray(data)
+    kind = rng.choice(["flip", "cut", "repeat", "nan", "count"])
+    if kind == "flip":
+        for _ in range(rng.choice([1, 10, 100])):
+            data[rng.randrange(len(data))] = rng.randrange(256)
+    elif kind == "cut":
+        data = data[:rng.randrange(len(data))]
+    elif kind == "repeat":
+        a = rng.randrange(84, len(data))
+        data = data[:a] + data[a:a + 50] * rng.choice([2, 100, 1000]) + data[a:]
+    elif kind == "nan":
+        for _ in range(rng.choice([1, 10])):
+            k = rng.randrange(84, len(data) - 4)
+            data[k:k + 4] = np.float32(rng.choice([np.nan, np.inf, 1e38])).tobytes()
+    else:  # the header's triangle count
+        data[80:84] = int(rng.choice([0, 1, 2**31, 2**32 - 1, len(data)])).to_bytes(4, "little")
+    return bytes(data), [kind]
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    """A laser kit (DXF), a folded sheet (FOLD) and a print (STL), each checked once here so
+    that what a check computes once per process is ready before the mutants fork."""
+    out = tmp_path_factory.mktemp("exports")
+    for name, fmt in (("fourbar", "dxf"), ("origami_sheet", "fold"), ("printed_planar", "stl")):
+        assert main(["export", name, "--to", fmt, "-o", str(out), "--tolerance-samples", "0",
+                     "--no-previews", "-q"]) == 0
+    from fabkit.templates import load_template
+
+    files = {"dxf": (out / "fourbar" / "laser_sheet1.dxf", "fourbar"),
+             "fold": (out / "origami_sheet" / "origami_sheet.fold", "origami_sheet"),
+             "stl": (out / "printed_planar" / "printed_planar.stl", "printed_planar")}
+    for path, name in files.values():
+        assert check_file(path, design=load_template(name))["ok"]
+    return {fmt: (path.read_bytes(), load_template(name)) for fmt, (path, name) in files.items()}
+
+
+@pytest.mark.parametrize("fmt", ["fold", "dxf", "stl"])
+def test_files_read_back_by_the_check_end_in_a_report_or_one_error(exports, fmt, tmp_path):
+    base, design = exports[fmt]
+    outcomes = {}
+    for seed in range(CHECK_MUTANTS):
+        if fmt == "stl":
+            data, how = _bytes_mutant(base, seed)
+        else:
+            text, how = mutate_text(base.decode("utf-8"), seed,
+                                    JSON_MUTATIONS * 2 if fmt == "fold" else ())
+            data = text.encode("utf-8", "surrogatepass")
+        path = tmp_path / f"mutant{seed}.{fmt}"
+        path.write_bytes(data)
+        outcomes[seed] = (how, _outcome(_check_as_the_command_does, path,
+                                        design if seed % 2 else None))
+    _assert_clean(outcomes)
+    results = [r for _, r in outcomes.values()]
+    assert results.count("refused") + results.count("ok") == CHECK_MUTANTS
+
+
+def _toml_deep(text: str, rng: random.Random) -> str:
+    depth = rng.choice([100, 10_000])
+    return text + "\nextra = " + "[" * depth + "1" + "]" * depth + "\n"
+
+
+def _load_template_file(path):
+    from fabkit.templates import load_template
+
+    return load_template(path).name
+
+
+def test_template_mutants_end_in_a_design_or_one_error(tmp_path):
+    from fabkit.templates import resolve_template
+
+    base = resolve_template("fourbar").read_text(encoding="utf-8")
+    outcomes = {}
+    for seed in range(TEMPLATE_MUTANTS):
+        text, how = mutate_text(base, seed, [_toml_deep, _json_digits] * 2)
+        path = tmp_path / f"mutant{seed}.toml"
+        path.write_bytes(text.encode("utf-8", "surrogatepass"))
+        outcomes[seed] = (how, _outcome(_load_template_file, path))
+    _assert_clean(outcomes)
+
+
+def _read_csv_curve(data: bytes):
+    curve = read_curve(data, "mutant.csv")
+    assert np.isfinite(curve.points).all()
+    return len(curve.points)
+
+
+def test_csv_curve_mutants_end_in_a_curve_or_one_error():
+    rows = "x,y\n" + "".join(f"{100 * np.cos(t):.4f},{100 * np.sin(t):.4f}\n"
+                              for t in np.linspace(0, 3, 40))
+    outcomes = {}
+    for seed in range(CHEAP_MUTANTS):
+        text, how = mutate_text(rows, seed)
+        outcomes[seed] = (how, _outcome(_read_csv_curve, text.encode("utf-8", "surrogatepass")))
+    _assert_clean(outcomes)
+    results = [r for _, r in outcomes.values()]
+    assert results.count("ok") > 10 and results.count("refused") > 10
+
+
+@pytest.fixture(scope="module")
+def finished_sweep(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sweep") / "s"
+    assert main(SWEEP + ["-o", str(out)]) == 0
+    return out
+
+
+SWEEP = ["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--measure", "fixed_points",
+         "-j", "1", "--no-plots", "-q"]
+
+
+def _resume(folder):
+    rc = main(SWEEP + ["-o", str(folder)])
+    if rc not in (0, 1, 2):  # 70: what the command line reports as an internal error
+        raise RuntimeError(f"exit status {rc}")
+    return rc
+
+
+def test_a_sweeps_own_files_mutated_end_in_a_result_or_one_error(finished_sweep, tmp_path):
+    import shutil
+
+    outcomes = {}
+    for seed in range(CHECK_MUTANTS):
+        folder = tmp_path / f"s{seed}"
+        shutil.copytree(finished_sweep, folder)
+        target = sorted((folder / "chunks").glob("*.json"))[seed % 3]  # a chunk or spec.json
+        text, how = mutate_text(target.read_text(encoding="utf-8"), seed, JSON_MUTATIONS * 2)
+        target.write_bytes(text.encode("utf-8", "surrogatepass"))
+        outcomes[seed] = (how, _outcome(_resume, folder))
+    _assert_clean(outcomes)

@@ -24,7 +24,12 @@ from ..io.inputs import file_kind, read_regular
 from ..io.workload import require
 
 __all__ = ["CHECKERS", "checker_for", "check_file", "read_set", "require_files",
-           "require_checked"]
+           "require_checked", "require_triangles", "MAX_TRIANGLES_PER_EDGE"]
+
+#: Most triangles a printed file may hold per bar of the design it is checked against: the
+#: bundled prints hold 30 (printed_planar) to 650 (physical_fourbar, round pin holes) a bar. A
+#: file far past that is not this design's print, and its check would run for minutes.
+MAX_TRIANGLES_PER_EDGE = 5000
 
 #: Format name → module implementing its as-built check.
 CHECKERS: dict[str, str] = {
@@ -88,6 +93,28 @@ def require_checked(where: str, *parts):
 
     est = require(where, *parts)
     keep_to(est)
+    return est
+
+
+def require_triangles(path, triangles: int, design=None):
+    """The check of ``triangles`` placed triangles within the estimate, and, against a
+    design, within :data:`MAX_TRIANGLES_PER_EDGE` a bar of it, before any mesh is built.
+
+    Raises
+    ------
+    InputFileError
+        ``kind="bounds"``: far more triangles than the design's print holds.
+    BoundsError
+        Past the estimate.
+    """
+    from ..io.formats import refuse_count
+
+    est = require_checked(f"{path}", ("placed triangle", triangles))
+    net = getattr(design, "network", None)
+    if net is not None:
+        refuse_count(path, f"triangles for a design of {len(net.edges)} bars", triangles,
+                     MAX_TRIANGLES_PER_EDGE * max(1, len(net.edges)),
+                     f" ({MAX_TRIANGLES_PER_EDGE} a bar): not this design's print")
     return est
 
 

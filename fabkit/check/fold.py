@@ -24,12 +24,11 @@ code that wrote the file.
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import FabkitError, FabricationError
+from ..io.formats import damaged, load_json
+from ..io.inputs import read_regular
 from ..kinematics import place, plan_construction
 from ..model.network import Network
 from ..numerics import apply_fit, FLAT_RTOL, rigid_fit
@@ -43,6 +42,9 @@ FORMAT = "fold"
 READS = ("origami",)
 SUFFIXES = (".fold",)
 
+#: Most values (numbers, strings, arrays) a FOLD file may hold, counted on its bytes before it is
+#: parsed: origami_chain12 with its frames holds about 30 000; the rest is room for long traces.
+MAX_FOLD_VALUES = 2_000_000
 #: Largest difference of a port distance between the file and the re-folded network.
 MAP_TOL = 1e-8
 
@@ -62,15 +64,20 @@ DESIGN_CHECKS = ("design_geometry", "design_map")
 
 
 def read_fold(path) -> dict:
-    """Parse a FOLD file; FabricationError naming the file when it is not FOLD JSON."""
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FabricationError(f"{path}: no such file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FabricationError(f"{path}: not FOLD JSON ({exc})") from None
+    """Parse a FOLD file through the bounded readers (:mod:`fabkit.io.formats`).
+
+    Raises
+    ------
+    InputFileError
+        Missing or not a regular file; not FOLD JSON (``kind="damaged"``); nested deeper, with
+        longer numbers or more values than any FOLD file fabkit reads (``kind="bounds"``).
+    """
+    from ..io.workload import MAX_BYTES
+
+    doc = load_json(read_regular(path, MAX_BYTES), path, max_items=MAX_FOLD_VALUES,
+                    what="FOLD JSON")
     if not isinstance(doc, dict):
-        raise FabricationError(f"{path}: not FOLD JSON (the top level is not an object)")
+        raise damaged(path, "not FOLD JSON (the top level is not an object)")
     return doc
 
 

@@ -34,7 +34,7 @@ from ..kinematics import trace
 from ..model.network import Network
 from ..model.rigidity import count_modes
 from ..numerics import START_RTOL
-from . import read_set, require_checked
+from . import read_set, require_triangles
 from .beds import bed_set
 from .items import Check, check, finish, not_run, not_run_after
 from .register import pieces_of, place_pieces
@@ -665,8 +665,7 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     """
     paths = bed_set(path)
     data = read_set(paths)
-    require_checked(f"{path}", ("placed triangle",
-                                sum(stl_triangles(d, p) for p, d in data.items())))
+    require_triangles(path, sum(stl_triangles(d, p) for p, d in data.items()), design)
     meshes = [_load(d, p) for p, d in data.items()]
     pinned = all(PINNED_HEADER in d[:80] for d in data.values())
     # where the beds lie (an STL is centred on its bed's centre) does not matter: every piece

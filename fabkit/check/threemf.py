@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..settings.filaments import FILAMENTS
-from . import read_set, require_checked
+from . import read_set, require_checked, require_triangles
 from .beds import bed_set
 from .items import Check, check
 from .stl import check_meshes, MAX_COORDINATE_MM
@@ -314,8 +314,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     paths = bed_set(path)
     parsed = {p: _parse_package(p, data) for p, data in read_set(paths).items()}
     # every bed's build items place their objects: all of them counted before any is placed
-    require_checked(f"{path}: {sum(len(q['items']) for q in parsed.values())} build items",
-                    ("placed triangle", sum(map(_placed_triangles, parsed.values()))))
+    require_triangles(f"{path}: {sum(len(q['items']) for q in parsed.values())} build items",
+                      sum(map(_placed_triangles, parsed.values())), design)
     packages = [_place(p, q) for p, q in parsed.items()]
     names = [p.name for p in paths]
     pinned = all(any(o["parts"] > 1 for o in pkg["objects"]) for pkg in packages)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from ..design import (design_curve_chain, design_map, parse_cycle, parse_decimal,
                       parse_fixed_point, read_curve, WishError)
+from ..design.curve_files import MAX_CURVE_BYTES
 from ..design.toml_text import builds_line, fit_lines, margin_lines
 from ..errors import BoundsError, brief, InputFileError, UnsafeNameError, UsageError
 from ..numerics import printed, printed_residual
@@ -44,8 +45,6 @@ EXAMPLES = [
             "modules of 25 mm", cheap=False),
 ]
 
-#: Largest curve file read (an SVG of a hand-drawn curve is a few kB).
-MAX_CURVE_BYTES = 16 * 2**20
 #: Output names: a plain file stem, so every file stays inside -o.
 
 

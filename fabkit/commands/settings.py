@@ -20,13 +20,18 @@ def parse_settings(items) -> dict:
     Raises
     ------
     UsageError
-        An item without ``=`` or without a dotted key, a key given twice, or settings that the
+        An item without ``=`` or without a dotted key, a control character (a newline), a key
+        given twice, or settings that the
         schema (:mod:`fabkit.io.schema`) refuses: an unknown section or key, a wrong type, a value
         out of range.
     """
 
     out: dict = {}
     for item in items:
+        bad = [c for c in item if ord(c) < 32 or ord(c) == 127]
+        if bad:  # a newline would end the TOML value: the rest would be dropped or misread
+            raise UsageError("--set", f"{item[:60]!r}: holds a control character "
+                                      f"({bad[0]!r}); give one SECTION.KEY=VALUE per --set")
         key, eq, text = item.partition("=")
         key = key.strip()
         if not eq or not key:
@@ -40,6 +45,9 @@ def parse_settings(items) -> dict:
             value = tomllib.loads(f"v = {text.strip()}")["v"]
         except (tomllib.TOMLDecodeError, RecursionError):
             value = text.strip()
+        except ValueError:  # Python's bound on an integer's digits (4300)
+            raise UsageError("--set", f"{key}: a number of thousands of digits: no setting "
+                                      "has that many") from None
         node = out
         for part in parts[:-1]:
             node = node.setdefault(part, {})

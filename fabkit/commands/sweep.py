@@ -38,6 +38,10 @@ EXAMPLES = [
 
 #: Rates are points per second over at least this long (a run that finished at once).
 MIN_SECONDS = 1e-9
+#: Longest wait for a scheduler (an hour: a longer one is a typo, or a wait for nothing).
+MAX_CONNECT_TIMEOUT = 3600.0
+#: Most points a task (and a chunk file) holds: a chunk is rewritten whole when it ends.
+MAX_CHUNK_SIZE = 100_000
 
 
 def add_arguments(p):
@@ -126,6 +130,37 @@ def _with_target(design, settings, axes):
     return replace(design, raw=raw, motion=replace(design.motion, to=float(target)))
 
 
+def _checked_options(args, protocol):
+    """The protocol with ``--lyapunov-protocol`` applied, and every numeric option checked
+    against its range, before any work (one line, exit status 2)."""
+    from dataclasses import replace
+
+    from ..sweep import SweepError
+
+    if args.lyapunov_protocol is not None:
+        parts = args.lyapunov_protocol.split(":")
+        try:
+            k, dis, avg = (int(v) for v in parts)
+        except ValueError:
+            _usage(f"--lyapunov-protocol {args.lyapunov_protocol!r}: expected three "
+                   "integers ORBITS:DISCARD:AVERAGE, e.g. 32:1000:4000")
+        try:
+            protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
+                               lyapunov_average=avg)
+        except SweepError as exc:
+            _usage(f"--lyapunov-protocol {args.lyapunov_protocol}: {exc}")
+    check_number("--point-timeout", args.point_timeout)
+    if not 0 < args.connect_timeout <= MAX_CONNECT_TIMEOUT:
+        _usage(f"--connect-timeout must be a number of seconds above 0 and at most "
+               f"{MAX_CONNECT_TIMEOUT:g}, got {args.connect_timeout}")
+    if args.chunk_size is not None and args.chunk_size > MAX_CHUNK_SIZE:
+        _usage(f"--chunk-size must be at most {MAX_CHUNK_SIZE}, got {args.chunk_size}")
+    check_jobs("--jobs", args.jobs)
+    if args.chunk_size is not None and args.chunk_size < 1:
+        _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
+    return protocol
+
+
 def run(args) -> int:
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..templates import load_template
@@ -148,23 +183,7 @@ def run(args) -> int:
                           "with vary = [...])")
         if args.measure is not None:
             measures = args.measure
-        if args.lyapunov_protocol is not None:
-            parts = args.lyapunov_protocol.split(":")
-            try:
-                k, dis, avg = (int(v) for v in parts)
-            except ValueError:
-                _usage(f"--lyapunov-protocol {args.lyapunov_protocol!r}: expected three "
-                              "integers ORBITS:DISCARD:AVERAGE, e.g. 32:1000:4000")
-            from dataclasses import replace
-
-            protocol = replace(protocol, lyapunov_orbits=k, lyapunov_discard=dis,
-                               lyapunov_average=avg)
-        check_number("--point-timeout", args.point_timeout)
-        if not args.connect_timeout > 0:
-            _usage(f"--connect-timeout must be positive, got {args.connect_timeout}")
-        check_jobs("--jobs", args.jobs)
-        if args.chunk_size is not None and args.chunk_size < 1:
-            _usage(f"--chunk-size must be at least 1, got {args.chunk_size}")
+        protocol = _checked_options(args, protocol)
         progress = progress_for(args, NAME)
         size = 1
         for axis in axes:

@@ -283,6 +283,8 @@ def branch(trunk: Network, limb: Network, *, at: str, end: str, mirror: bool = F
     ------
     FabkitError
         Unknown ports or distances that differ between the two ports.
+    ArgumentTypeError
+        ``trunk`` or ``limb`` not a Network, ``at`` or ``end`` not a port name.
 
     Examples
     --------
@@ -291,7 +293,11 @@ def branch(trunk: Network, limb: Network, *, at: str, end: str, mirror: bool = F
     >>> net.n_nodes, sorted(net.ports), net.nodes[3].tolist()
     (4, ['p', 'p_b'], [2.0, -0.5])
     """
+    trunk, limb = checked_network("trunk", trunk), checked_network("limb", limb)
     for net, p, which in ((trunk, at, "trunk"), (limb, end, "limb")):
+        if not isinstance(p, str):
+            raise ArgumentTypeError("at" if which == "trunk" else "end",
+                                    f"must be a port name, got {type(p).__name__}")
         if p not in net.ports:
             raise FabkitError(f"the {which} has no port {p!r}")
     (a0, a1), (b0, b1) = trunk.port(at), limb.port(end)

@@ -125,6 +125,13 @@ RADIUS_SIZE_STEP = 0.5
 RADIUS_WINDOW = 0.01
 #: Enlargements tried, each 1.2 times the last, from the one computed.
 SCALE_TRIES = 12
+#: The search for a nearest feasible wish models chains of at most this many modules (0.05 to
+#: 0.1 s a module, each), or of the drawing enlarged at most ``SUGGEST_GROWTH`` times when
+#: that is more: a drawing that needs a far longer chain to be followed (a 70-byte corner, 320
+#: times larger: 360 modules) is refused with its reason, not searched for minutes. The
+#: bundled suggestions need 2 to 180 modules (quadrifolium: 2.9 times larger, found from 5).
+MAX_SUGGEST_MODULES = 250
+SUGGEST_GROWTH = 20.0
 #: A bin that holds no module still counts this much when bins are merged (its own angle).
 EMPTY_BIN_WEIGHT = 1e-12
 #: Round-off forgiven when a scale is rounded up to two digits (2.2 stays 2.2).
@@ -557,7 +564,9 @@ def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -
 
     failed = max(least, factor / BISECT_RANGE)
     for _ in range(SCALE_TRIES):
-        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > MAX_MODULES:
+        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > min(
+                MAX_MODULES, max(MAX_SUGGEST_MODULES, SUGGEST_GROWTH * curve.length /
+                                 module_size)):
             return None
         if fits(factor):
             break

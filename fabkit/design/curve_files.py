@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FabkitError
+from ..errors import ArgumentTypeError, FabkitError, InputFileError
+from ..io.formats import damaged, parse_xml, refuse_count
 
 __all__ = ["Curve", "CurveFileError", "read_curve", "curve_from_svg", "curve_from_csv",
            "svg_work", "MM_PER_PX"]
@@ -31,6 +32,18 @@ MAX_SAMPLES = 20_000
 MAX_TOTAL_SAMPLES = 200_000
 #: No drawing reaches this far (mm): coordinates beyond are a damaged or hostile file.
 MAX_COORDINATE_MM = 1e6
+#: Largest curve file read, by the command line and by :func:`read_curve` alike.
+MAX_CURVE_BYTES = 16 * 2**20
+#: Most elements of an SVG drawing, counted while it is parsed and again with every ``<use>``
+#: expanded (29 levels of ``<use>`` each doubling the one below would be 5e8), before
+#: svgelements builds any of them.
+MAX_SVG_ELEMENTS = 100_000
+#: Most numbers in the path data (``d``, ``points``) of a drawing, ``<use>`` expanded, counted
+#: before a segment is made: svgelements takes 14 s for 2e6 of them; a drawn curve has
+#: thousands.
+MAX_SVG_NUMBERS = 200_000
+#: Most rows of a CSV curve (the curve is resampled to :data:`MAX_SAMPLES` points).
+MAX_CSV_ROWS = 200_000
 #: Strokes shorter than this (mm) are specks, not curves.
 MIN_LENGTH_MM = 1.0
 
@@ -106,6 +119,64 @@ def svg_work(data: bytes) -> tuple:
     return (("SVG byte", len(data)), ("SVG close scan", scans))
 
 
+_XINCLUDE = "{http://www.w3.org/2001/XInclude}"
+_XLINK_HREF = "{http://www.w3.org/1999/xlink}href"
+
+
+def _numbers(element) -> int:
+    import re
+
+    text = (element.get("d") or "") + " " + (element.get("points") or "")
+    return len(re.findall(r"[0-9.]+", text)) if text.strip() else 0
+
+
+def svg_bounds(data: bytes, name: str) -> None:
+    """Refuse a drawing past the bounds before svgelements reads it: its elements and their
+    depth (counted while parsing, :func:`fabkit.io.formats.parse_xml`), and its elements and
+    path numbers with every ``<use>`` expanded (each counted once per place it is used, from
+    the counts of what it refers to: nothing is expanded to count it). XInclude is refused.
+
+    Raises
+    ------
+    InputFileError
+        ``kind="bounds"`` past :data:`MAX_SVG_ELEMENTS` or :data:`MAX_SVG_NUMBERS`;
+        ``kind="damaged"`` not XML, or an XInclude.
+    """
+    root = parse_xml(data, name, max_elements=MAX_SVG_ELEMENTS, what="an SVG file")
+    ids, elements = {}, list(root.iter())
+    for el in elements:
+        if str(el.tag).startswith(_XINCLUDE):
+            raise damaged(name, "holds an XInclude (xi:include): fabkit reads a drawing from "
+                                "its own file only; paste the included content in")
+        if el.get("id") is not None:
+            ids.setdefault(el.get("id"), el)
+    sizes: dict = {}
+
+    def size(el, stack=()) -> tuple[int, int]:  # (elements, numbers), <use> expanded
+        key = id(el)
+        if key in sizes:
+            return sizes[key]
+        if key in stack:  # a <use> loop: svgelements stops it; counted once here
+            return (1, 0)
+        n_el, n_num = 1, _numbers(el)
+        href = el.get("href") or el.get(_XLINK_HREF) or ""
+        targets = [ids[href[1:]]] if str(el.tag).endswith("use") and href[1:] in ids else []
+        for child in [*el, *targets]:
+            e, k = size(child, stack + (key,))
+            n_el, n_num = min(n_el + e, 2**62), min(n_num + k, 2**62)
+        sizes[key] = (n_el, n_num)
+        return sizes[key]
+
+    try:
+        n_el, n_num = size(root)
+    except RecursionError:  # <use> of <use> of ...: thousands deep
+        raise InputFileError(name, "<use> elements that refer to each other thousands deep",
+                             kind="bounds") from None
+    refuse_count(name, "elements with every <use> expanded", n_el, MAX_SVG_ELEMENTS)
+    refuse_count(name, "numbers in its path data with every <use> expanded", n_num,
+                 MAX_SVG_NUMBERS, " (a drawn curve has thousands)")
+
+
 def curve_from_svg(data: bytes, name: str = "curve.svg") -> Curve:
     """The longest stroke of an SVG document, sampled in mm.
 
@@ -123,11 +194,12 @@ def curve_from_svg(data: bytes, name: str = "curve.svg") -> Curve:
     """
     import svgelements as se
 
+    svg_bounds(data, name)
     try:
         doc = se.SVG.parse(io.BytesIO(data))
     except Exception as exc:  # svgelements raises the XML parser's own errors
-        raise FabkitError(f"{name}: not a readable SVG file ({type(exc).__name__}: "
-                          f"{' '.join(str(exc).split())[:120]})") from None
+        raise damaged(name, f"not a readable SVG file ({type(exc).__name__}: "
+                            f"{' '.join(str(exc).split())[:120]})") from None
     if not isinstance(doc, se.SVG):  # XML whose root is not <svg>
         raise FabkitError(f"{name}: not an SVG document (its root element is not <svg>)")
     subpaths = []
@@ -178,10 +250,12 @@ def curve_from_csv(data: bytes, name: str = "curve.csv") -> Curve:
     FabkitError
         A row that is not two numbers, or fewer than two distinct points.
     """
+    refuse_count(name, "lines", data.count(b"\n") + 1, MAX_CSV_ROWS,
+                 " (a curve is resampled to 20 000 points)")
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
-        raise FabkitError(f"{name}: not a text file (CSV rows x,y in mm)") from None
+        raise damaged(name, "not a text file (CSV rows x,y in mm)") from None
     rows = []
     for n, line in enumerate(text.splitlines(), start=1):
         line = line.split("#", 1)[0].strip()
@@ -265,7 +339,17 @@ def read_curve(data: bytes, name: str) -> Curve:
     ------
     FabkitError
         Another suffix, or a file that holds no curve.
+    InputFileError
+        Past the readers' bounds (:data:`MAX_CURVE_BYTES`, elements, numbers, rows), or
+        damaged (``kind="damaged"``).
+    ArgumentTypeError
+        ``data`` is not bytes (a path or the text itself: read the file in binary mode).
     """
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ArgumentTypeError("data", f"must be the file's content as bytes, got "
+                                        f"{type(data).__name__} (open(path, 'rb').read())")
+    data = bytes(data)
+    refuse_count(name, "bytes", len(data), MAX_CURVE_BYTES)
     suffix = str(name).lower().rsplit(".", 1)[-1] if "." in str(name) else ""
     if suffix == "svg":
         return curve_from_svg(data, name)

@@ -21,6 +21,7 @@ the wish and says why; :func:`fabkit.design.design_map` adds the nearest wish it
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -64,6 +65,9 @@ DECIMAL = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
 #: The largest |slope| designed: steeper slopes put the variable nodes next to the designed
 #: ones (a nearly flat module); 10 is already a chain that amplifies errors 10x per module.
 MAX_SLOPE = 10.0
+#: Most fixed points a wish may list (read before any is checked: a module designs two, and
+#: the nearby pairs offered instead grow as the square of the count).
+MAX_GIVEN = 16
 
 
 class WishError(DesignError):
@@ -274,7 +278,14 @@ def check_wish(fixed_points=(), cycle=None) -> MapWish:
     ...
     fabkit.design.wishes.WishError: --fixed-point 1.6:0 --fixed-point 1.6:0.5: two slopes at one point: a map has one slope at each point
     """
-    fps = [_fp(v) for v in fixed_points]
+    if isinstance(fixed_points, (str, bytes)) or not hasattr(fixed_points, "__iter__"):
+        fixed_points = [fixed_points]  # one wish given alone
+    given = list(itertools.islice(iter(fixed_points), MAX_GIVEN + 1))
+    if len(given) > MAX_GIVEN:
+        raise WishError("fixed_points", f"more than {MAX_GIVEN} fixed points given: one "
+                                        "module's construction designs two states (its "
+                                        "initial one and one more)")
+    fps = [_fp(v) for v in given]
     if isinstance(cycle, str):
         cycle = parse_cycle(cycle)
     if cycle is not None:

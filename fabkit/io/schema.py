@@ -98,7 +98,8 @@ class LaserSection(Section):
     thickness_tolerance: Optional[float] = _mm("how far one sheet may differ", ge=0)
     kerf: Optional[float] = _mm("width the laser burns away (0: the service compensates)", ge=0)
     min_web: Optional[float] = _mm("least material between a hole and an edge", ge=0)
-    clearance: Optional[float] = _mm("least gap between bars of one layer over the motion", gt=0)
+    clearance: Optional[float] = _mm("least gap between bars of one layer over the motion", gt=0,
+                                     le=50)
     sheet_width: Optional[float] = _mm("sheet width", gt=0)
     sheet_height: Optional[float] = _mm("sheet height", gt=0)
     spacing: Optional[float] = _mm("gap between parts on a sheet", ge=0)

@@ -229,11 +229,16 @@ class Network:
 
     def __post_init__(self):
         try:
-            nodes = np.array(self.nodes, dtype=np.float64, copy=True)
+            complex_ = np.asarray(self.nodes).dtype.kind == "c"
+            nodes = np.array(np.real(self.nodes) if complex_ else self.nodes, dtype=np.float64,
+                             copy=True)
         except (TypeError, ValueError):
             raise NetworkError("`nodes` must be an array of coordinates, shape (N, 2) or (N, 3) "
                                f"(got {type(self.nodes).__name__} that is not one)",
                                "nodes") from None
+        if complex_:  # float64 keeps the real part alone
+            raise NetworkError("`nodes` must be real coordinates, shape (N, 2) or (N, 3) (got "
+                               "complex numbers: give x and y as two columns)", "nodes")
         if nodes.ndim != 2 or nodes.shape[1] not in (2, 3):
             raise NetworkError(f"`nodes` must have shape (N, 2) or (N, 3), got {nodes.shape}",
                                "nodes")

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__
-from ..errors import FabkitError, OutputError
+from ..errors import FabkitError, InputFileError, OutputError
+from ..io.formats import load_json
 from ..io.inputs import read_regular
 from ..report.text import jsonable
 from ..writers import get_exporter
@@ -196,9 +197,11 @@ def read_manifest(folder) -> Manifest | None:
     if path.is_symlink() or not path.is_file():
         raise _bad(path, "not a regular file")
     try:
-        data = json.loads(read_regular(path, MAX_BYTES, what="export record"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise _bad(path, f"not JSON ({exc})") from None
+        data = load_json(read_regular(path, MAX_BYTES, what="export record"), path)
+    except InputFileError as exc:
+        if exc.kind not in ("damaged", "bounds"):
+            raise
+        raise _bad(path, exc.reason) from None
     except OSError as exc:
         raise OutputError(path, f"cannot read the export record: {exc.strerror or exc}") from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:

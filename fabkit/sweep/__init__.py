@@ -31,8 +31,10 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from ..errors import BoundsError, FabkitError, InputFileError
+from ..errors import BoundsError, FabkitError, InputFileError, OutputError
 from ..executor import LocalExecutor, Task
+from ..io.formats import load_json
+from .peer import probe_scheduler
 from ..io.inputs import read_regular
 from ..io.outputs import inside, output_folder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
@@ -203,7 +205,7 @@ def read_sweep_file(path) -> SweepFile | None:
         raise
     except BoundsError:
         raise
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+    except (OSError, ValueError, RecursionError):  # TOMLDecodeError, digits, depth
         return None  # not ours: the template loader reports it properly
     sec = raw.get("sweep")
     if not isinstance(sec, dict):
@@ -239,16 +241,46 @@ def read_sweep_file(path) -> SweepFile | None:
                      protocol=Protocol(**prot))
 
 
+#: The files a sweep writes at the top of its folder (plots besides, when asked for).
+TOP_FILES = ("sweep.csv", "sweep.json")
+
+
+def _refuse_in_the_way(outdir: Path, names) -> None:
+    """A folder where the sweep writes a file, or a file where it keeps ``chunks/``, refused
+    with its own name, before anything is written (none of the files is replaced)."""
+    for name in names:
+        where = outdir / name
+        if not os.path.isdir(where) or os.path.islink(where):
+            continue
+        raise OutputError(where, "is a folder where the sweep writes its file; remove it or "
+                                 "choose another -o")
+    chunks = outdir / CHUNKS_FOLDER
+    if os.path.lexists(chunks) and not os.path.islink(chunks) and not os.path.isdir(chunks):
+        raise OutputError(chunks, "is a file where the sweep keeps its folder of finished "
+                                  "chunks; remove it or choose another -o")
+
+
 def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
     output_folder(outdir)
+    _refuse_in_the_way(outdir, TOP_FILES)
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
     marker = inside(outdir, CHUNKS_FOLDER, SPEC_FILE, replace_last=True)
     if os.path.lexists(marker):
-        try:  # a FIFO or a device there is refused, never waited on
-            old = json.loads(read_regular(marker, MAX_SPEC_BYTES)).get("fingerprint")
-        except (ValueError, AttributeError):
-            old = None
-        if old != spec.fingerprint():
+        # a FIFO or a device there is refused, never waited on; a spec cut short or
+        # damaged is said to be so (it is not another sweep's)
+        try:
+            old = load_json(read_regular(marker, MAX_SPEC_BYTES), marker, what="a sweep's spec")
+        except InputFileError as exc:
+            if exc.kind not in ("damaged", "bounds"):
+                raise
+            raise InputFileError(marker, f"damaged ({exc.reason}); delete "
+                                         f"{outdir / CHUNKS_FOLDER} to start the sweep again",
+                                 kind="damaged") from None
+        if not isinstance(old, dict) or not isinstance(old.get("fingerprint"), str):
+            raise InputFileError(marker, "damaged (no fingerprint of a sweep in it); delete "
+                                         f"{outdir / CHUNKS_FOLDER} to start the sweep again",
+                                 kind="damaged")
+        if old["fingerprint"] != spec.fingerprint():
             raise FabkitError(f"{outdir} holds the chunks of a different sweep (another template, "
                               "grid, measure or protocol); choose another -o or delete "
                               f"{outdir / CHUNKS_FOLDER}")
@@ -263,6 +295,9 @@ def _connect(scheduler, timeout: float):
                           "this installation lacks: pip install 'fabkit[cluster]'") from None
     if isinstance(scheduler, Client):
         return scheduler, False
+    # dask bounds the connection, not the handshake after it: read the scheduler's first
+    # message ourselves, within the timeout and a bound on its size
+    probe_scheduler(str(scheduler), timeout)
     try:
         client = Client(str(scheduler), timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -504,6 +539,7 @@ def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
     summary["files"] = sorted(files) + ["sweep.json"]
     files["sweep.json"] = (json.dumps(summary, indent=1, default=json_default, allow_nan=False)
                            + "\n").encode()
+    _refuse_in_the_way(out, files)
     written = tuple(write_files(out, files))
     return dataclasses.replace(result, files=written)
 

@@ -17,6 +17,7 @@ from typing import Annotated, Literal, Optional, Sequence
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import FabkitError, InputFileError
+from ..io.formats import load_json
 from ..io.inputs import read_regular
 from ..io.outputs import write_files
 from ..status import SWEEP_POINT
@@ -157,7 +158,7 @@ def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
         why = None
         try:
             # a FIFO or a device under a chunk's name is set aside, never waited on
-            records = json.loads(read_regular(f, MAX_CHUNK_BYTES).decode("utf-8"))
+            records = load_json(read_regular(f, MAX_CHUNK_BYTES), f)
             if not isinstance(records, list) or not records:
                 raise ValueError("not a list of records")
             for rec in records:

@@ -82,6 +82,10 @@ class Axis:
             raise SweepError(f"{key}: the number of values must be a positive integer, got {num}")
         if not (math.isfinite(start) and math.isfinite(stop)):
             raise SweepError(f"{key}: START and STOP must be finite numbers")
+        if max(abs(start), abs(stop)) > MAX_VALUE:
+            raise SweepError(f"{key}: START and STOP must lie within ±{MAX_VALUE:g} (no "
+                             f"coordinate or length of a design is larger), got {start:g} and "
+                             f"{stop:g}")
         if start == stop and num > 1:
             raise SweepError(f"{key}: START = STOP = {start:g} gives {num} equal values; give "
                              "different ends, or N = 1 for one value")
@@ -215,6 +219,16 @@ def assign_value(raw: dict, tokens: list, value) -> None:
 # --------------------------------------------------------------------------------------------
 # How to measure
 # --------------------------------------------------------------------------------------------
+#: Bounds of a sweep's protocol, checked when it is made (as ``map --orbits``, ``--discard``
+#: and ``--average`` are): orbits, iterations, and Lyapunov map evaluations a point (1e-7 s
+#: each: 100 s a point).
+MAX_ORBITS = 100_000
+MAX_ITERATIONS = 10_000_000
+MAX_POINT_EVALUATIONS = 10**9
+#: Largest magnitude of a value a sweep gives a key (the largest coordinate a network takes).
+MAX_VALUE = 1e9
+
+
 @dataclass(frozen=True)
 class Protocol:
     """Numerical protocol of the measures (part of a sweep's identity).
@@ -247,6 +261,16 @@ class Protocol:
             low = 0 if name in ("discard", "lyapunov_discard") else 1
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
                 raise SweepError(f"protocol {name} must be an integer >= {low}, got {v!r}")
+            top = MAX_ORBITS if "orbits" in name else MAX_ITERATIONS
+            if v > top:
+                raise SweepError(f"protocol {name} must be at most {top:,}, got {v:,}")
+        evaluations = self.lyapunov_orbits * (self.lyapunov_discard + self.lyapunov_average)
+        if evaluations > MAX_POINT_EVALUATIONS:
+            raise SweepError(f"the Lyapunov protocol {self.lyapunov_orbits}:"
+                             f"{self.lyapunov_discard}:{self.lyapunov_average} evaluates the "
+                             f"map {evaluations:,} times a point, over the limit of "
+                             f"{MAX_POINT_EVALUATIONS:,} (the paper's 1000:5000:20000 is "
+                             "2.5e7)")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,326 @@
+"""Every reader behind one boundary, every network peer bounded, nothing taken silently.
+
+Each case is a file, an option or an API call that used to end in an internal error (exit 70), a
+raw Python exception, or minutes of work: it now ends in one line naming the file, the stream or
+the option, with the documented exit status, before the work.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import struct
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fabkit
+from fabkit.cli import main
+from fabkit.errors import (ArgumentTypeError, FabkitError, InputFileError, NetworkError,
+                           TemplateError)
+from fabkit.io.formats import load_json, MAX_DEPTH, MAX_DIGITS, parse_xml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("fabkit: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+FOLD = {"file_spec": 1.1, "vertices_coords": [[0, 0], [1, 0], [1, 1], [0, 1]],
+        "edges_vertices": [[0, 1], [1, 2], [2, 3], [3, 0], [0, 2]],
+        "edges_assignment": ["B", "B", "B", "B", "M"], "faces_vertices": [[0, 1, 2], [0, 2, 3]]}
+
+
+# --- the readers ------------------------------------------------------------------------------
+
+def test_json_depth_digits_and_values_are_counted_before_parsing():
+    with pytest.raises(InputFileError) as info:
+        load_json(b"[" * 100_000 + b"]" * 100_000, "deep.json")
+    assert info.value.kind == "bounds" and info.value.exit_code == 2
+    assert f"over the limit of {MAX_DEPTH}" in str(info.value)
+    with pytest.raises(InputFileError) as info:
+        load_json(b"[" + b"7" * 5001 + b"]", "digits.json")
+    assert info.value.kind == "bounds" and f"more than {MAX_DIGITS} digits" in str(info.value)
+    # brackets and digits inside strings are text, not structure
+    assert load_json(b'{"a": "[[[[' + b"9" * 5000 + b'"}', "s.json")["a"].startswith("[[[[9")
+    with pytest.raises(InputFileError) as info:
+        load_json(b"[1, 2, 3]", "many.json", max_items=2)
+    assert info.value.kind == "bounds" and "3 values" in str(info.value)
+    with pytest.raises(InputFileError) as info:
+        load_json(b'{"a": ', "cut.json")
+    assert info.value.kind == "damaged" and str(info.value).startswith("cut.json: not JSON")
+
+
+def test_xml_elements_are_counted_while_parsing():
+    with pytest.raises(InputFileError) as info:
+        parse_xml(b"<a>" + b"<b/>" * 100_000 + b"</a>", "many.xml", max_elements=1000)
+    assert info.value.kind == "bounds" and "elements, over the limit of 1,000" in str(info.value)
+    with pytest.raises(InputFileError) as info:
+        parse_xml(b"<a>" * 300 + b"</a>" * 300, "deep.xml", max_elements=10_000)
+    assert info.value.kind == "bounds"
+    with pytest.raises(InputFileError) as info:
+        parse_xml(b"<a><b></a>", "bad.xml", max_elements=10)
+    assert info.value.kind == "damaged"
+
+
+@pytest.mark.parametrize("name, text, words", [
+    ("deep.fold", "[" * 100_000 + "]" * 100_000, "nested 100,000 levels deep"),
+    ("digits.fold", json.dumps(FOLD).replace('"file_spec": 1.1', '"file_spec": ' + "1" * 5001),
+     "a number of more than 400 digits"),
+    ("values.fold", json.dumps({**FOLD, "edges_vertices": [[0, 1]] * 1_100_000}),
+     "2,200,020 values, over the limit of 2,000,000"),
+    ("cut.fold", json.dumps(FOLD)[:40], "not FOLD JSON"),
+])
+def test_a_fold_file_past_the_readers_bounds_is_one_line_and_exit_2(tmp_path, capsys, name,
+                                                                      text, words):
+    path = tmp_path / name
+    path.write_text(text)
+    rc = main(["check", str(path)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert line.startswith(f"fabkit: error: {path}: ") and words in line
+
+
+def test_a_fold_file_with_its_edges_repeated_is_a_failed_check(tmp_path, capsys):
+    path = tmp_path / "repeated.fold"
+    path.write_text(json.dumps({**FOLD, "edges_vertices": FOLD["edges_vertices"] * 20_000,
+                                "edges_assignment": FOLD["edges_assignment"] * 20_000}))
+    assert main(["check", str(path)]) == 1
+    assert "FAIL  structure" in capsys.readouterr().out
+
+
+def _use_doubling(levels: int) -> str:
+    parts = ['<svg xmlns="http://www.w3.org/2000/svg" xmlns:xlink="http://www.w3.org/1999/xlink"'
+             ' width="100mm" height="100mm" viewBox="0 0 100 100"><defs>'
+             '<path id="u0" d="M 0 0 L 10 10 L 20 5"/>']
+    parts += [f'<g id="u{i}"><use xlink:href="#u{i - 1}"/><use href="#u{i - 1}"/></g>'
+              for i in range(1, levels + 1)]
+    return "".join(parts) + f'</defs><use href="#u{levels}"/></svg>'
+
+
+@pytest.mark.parametrize("name, text, words", [
+    ("use.svg", _use_doubling(29), "elements with every <use> expanded, over the limit of "
+                                   "100,000"),
+    ("long.svg", '<svg xmlns="http://www.w3.org/2000/svg"><path d="M 0 0'
+                 + " l1 0" * 10**6 + '"/></svg>', "2,000,002 numbers in its path data"),
+    ("xinclude.svg", '<svg xmlns="http://www.w3.org/2000/svg" xmlns:xi="http://www.w3.org/2001/'
+                     'XInclude"><path d="M 0 0 L 100 0"><xi:include href="x.txt" parse="text"/>'
+                     '</path></svg>', "holds an XInclude"),
+])
+def test_an_svg_curve_past_the_bounds_is_refused_before_svgelements_reads_it(tmp_path, capsys,
+                                                                           name, text, words):
+    path = tmp_path / name
+    path.write_text(text)
+    rc = main(["design", "--curve", str(path), "-o", str(tmp_path / "out")])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2 and words in line and str(path) in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_70_byte_corner_gets_its_nearest_feasible_wish_from_a_bounded_search(tmp_path,
+                                                                               capsys):
+    path = tmp_path / "corner.svg"
+    path.write_text('<svg xmlns="http://www.w3.org/2000/svg"><path d="M 0 0 L 100 0 L 200 50"/>'
+                    "</svg>")
+    rc = main(["design", "--curve", str(path), "-o", str(tmp_path / "out")])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert "is shorter than two modules" in line and "nearest feasible: --curve" in line
+
+
+def test_a_print_with_far_more_triangles_than_its_design_is_refused(tmp_path, capsys):
+    assert main(["export", "printed_planar", "--to", "stl", "-o", str(tmp_path / "e"),
+                 "--tolerance-samples", "0", "--no-previews", "-q"]) == 0
+    data = (tmp_path / "e" / "printed_planar" / "printed_planar.stl").read_bytes()
+    n = struct.unpack("<I", data[80:84])[0]
+    big = tmp_path / "big.stl"
+    big.write_bytes(data[:80] + struct.pack("<I", n * 2000) + data[84:84 + 50 * n] * 2000)
+    capsys.readouterr()
+    rc = main(["check", str(big), "--design", "printed_planar"])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert f"{n * 2000:,} triangles for a design of 12 bars, over the limit of 60,000" in line
+
+
+# --- the Python API ---------------------------------------------------------------------------
+
+def test_read_curve_is_bounded_and_takes_bytes_only():
+    with pytest.raises(InputFileError) as info:
+        fabkit.read_curve(b"0,0\n" * 12 * 2**20, "x.csv")
+    assert info.value.kind == "bounds" and "over the limit of 16,777,216" in str(info.value)
+    with pytest.raises(InputFileError) as info:
+        fabkit.read_curve(b"0,0\n" * 300_000, "x.csv")
+    assert "300,001 lines, over the limit of 200,000" in str(info.value)
+    with pytest.raises(ArgumentTypeError, match="must be the file's content as bytes, got str"):
+        fabkit.read_curve("0,0\n1,1\n", "x.csv")
+
+
+def test_design_map_counts_the_fixed_points_before_reading_them():
+    with pytest.raises(FabkitError, match="more than 16 fixed points given"):
+        fabkit.design_map(fixed_points=np.linspace(1.0, 2.0, 10**6))
+
+
+def test_load_template_with_a_name_too_long_for_the_system():
+    with pytest.raises(TemplateError, match="cannot read: File name too long"):
+        fabkit.load_template("y" * 300)
+
+
+def test_a_network_of_complex_nodes_is_refused():
+    with pytest.raises(NetworkError, match="must be real coordinates"):
+        fabkit.Network(np.array([[0, 0], [1, 0], [0, 1j]]), [[0, 1], [1, 2], [0, 2]])
+
+
+def test_branch_names_an_argument_that_is_not_a_network():
+    with pytest.raises(ArgumentTypeError, match="trunk must be a fabkit.Network, got None"):
+        fabkit.branch(None, None, at="d2", end="d1")
+    rod = fabkit.Network([[0, 0], [1, 0], [2, 0.5]], [[0, 2], [1, 2]], ports={"p": (0, 1)})
+    with pytest.raises(ArgumentTypeError, match="end must be a port name, got NoneType"):
+        fabkit.branch(rod, rod, at="p", end=None)
+
+
+# --- network peers ----------------------------------------------------------------------------
+
+def _peer(first: bytes | None):
+    """A local server that accepts every connection and sends ``first`` (None: nothing)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    held = []
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            held.append(conn)
+            if first is not None:
+                conn.sendall(first)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return server
+
+
+@pytest.mark.parametrize("first, words", [
+    (None, "did not answer within the connect timeout of 1 s"),
+    (struct.pack("Q", 2**63 - 1), "announces a first message of 9,223,372,036,854,775,807 "
+                                  "bytes, over the limit of 1,048,576"),
+    (struct.pack("Q", 100) + b"x" * 10, "did not answer within the connect timeout"),
+])
+def test_a_scheduler_that_never_speaks_or_announces_exabytes_is_refused(tmp_path, capsys,
+                                                                        first, words):
+    pytest.importorskip("distributed")
+    server = _peer(first)
+    try:
+        port = server.getsockname()[1]
+        rc = main(["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--scheduler",
+                   f"tcp://127.0.0.1:{port}", "--connect-timeout", "1", "--no-plots", "-q",
+                   "-o", str(tmp_path / "s")])
+    finally:
+        server.close()
+    line = one_line(capsys.readouterr().err)
+    assert rc == 1 and words in line and f"tcp://127.0.0.1:{port}" in line
+
+
+# --- nothing taken silently -------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, words", [
+    (["export", "fourbar", "--to", "dxf", "--set", "laser.kerf=0.2\nlaser.kerf=5"],
+     "holds a control character ('\\n')"),
+    (["export", "fourbar", "--to", "dxf", "--set", "laser.clearance=100000"],
+     "laser.clearance: must be <= 50, got 100000"),
+    (["export", "fourbar", "--to", "dxf", "--set", "laser.kerf=" + "1" * 5000],
+     "a number of thousands of digits"),
+    (["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--lyapunov-protocol",
+      "1000000000:1000000000:1000000000"], "lyapunov_orbits must be at most 100,000"),
+    (["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--lyapunov-protocol",
+      "100000:10000000:10000000"], "over the limit of 1,000,000,000"),
+    (["sweep", "chaotic", "--vary", "nodes[4].x=-1e308:1e308:3"],
+     "START and STOP must lie within ±1e+09"),
+    (["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--connect-timeout", "inf"],
+     "--connect-timeout must be a number of seconds above 0 and at most 3600"),
+])
+def test_a_value_out_of_range_is_one_line_and_exit_2_before_work(tmp_path, capsys, argv, words):
+    rc = main(argv + ["-o", str(tmp_path / "o")])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2 and words in line
+    assert not (tmp_path / "o").exists()
+
+
+def _fabkit(args, **kwargs):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "fabkit", *args], env=env,
+                          capture_output=True, **kwargs)
+
+
+def test_a_closed_stdout_is_one_line():
+    proc = subprocess.run([sys.executable, "-m", "fabkit", "templates"], stdout=None,
+                          stderr=subprocess.PIPE, close_fds=True, pass_fds=(),
+                          env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                          preexec_fn=lambda: os.close(1))
+    assert proc.returncode == 1
+    assert proc.stderr.decode().strip() == ("fabkit: error: standard output is closed; give it a "
+                                            "file or /dev/null (> /dev/null)")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_full_stdout_is_named():
+    with open("/dev/full", "w") as full:
+        proc = subprocess.run([sys.executable, "-m", "fabkit", "templates"], stdout=full,
+                              stderr=subprocess.PIPE,
+                              env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert proc.returncode == 1
+    assert proc.stderr.decode().strip() == ("fabkit: error: standard output: No space left on "
+                                            "device")
+
+
+SWEEP = ["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--measure", "fixed_points",
+         "-j", "1", "--no-plots", "-q"]
+
+
+def test_a_sweeps_folder_in_the_way_is_named_and_nothing_is_replaced(tmp_path, capsys):
+    out = tmp_path / "s"
+    assert main(SWEEP + ["-o", str(out)]) == 0
+    csv_before = (out / "sweep.csv").read_bytes()
+    (out / "sweep.json").unlink()
+    (out / "sweep.json").mkdir()
+    capsys.readouterr()
+    rc = main(SWEEP[:3] + ["nodes[4].x=-0.3:-0.2:3"] + SWEEP[4:] + ["-o", str(out)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 1
+    assert line == (f"fabkit: error: {out / 'sweep.json'}: is a folder where the sweep writes "
+                    "its file; remove it or choose another -o")
+    assert (out / "sweep.csv").read_bytes() == csv_before
+    (out / "sweep.json").rmdir()
+    for f in (out / "chunks").iterdir():
+        f.unlink()
+    (out / "chunks").rmdir()
+    (out / "chunks").write_text("")
+    rc = main(SWEEP + ["-o", str(out)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 1 and line == (f"fabkit: error: {out / 'chunks'}: is a file where the sweep "
+                                "keeps its folder of finished chunks; remove it or choose "
+                                "another -o")
+
+
+def test_a_truncated_spec_is_called_damaged(tmp_path, capsys):
+    out = tmp_path / "s"
+    assert main(SWEEP + ["-o", str(out)]) == 0
+    spec = out / "chunks" / "spec.json"
+    spec.write_bytes(spec.read_bytes()[:20])
+    capsys.readouterr()
+    rc = main(SWEEP + ["-o", str(out)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert line.startswith(f"fabkit: error: {spec}: damaged (not a sweep's spec")
+    assert line.endswith(f"delete {out / 'chunks'} to start the sweep again")
+    assert "different sweep" not in line
