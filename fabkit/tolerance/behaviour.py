@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConstructionError, DesignError, KinematicsError
+from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError
 from ..kinematics import place
 from ..maps import module_map
 from ..motion.intent import end_fixed_point, map_fixed_points, nominal_lock, template_intent
@@ -390,7 +390,11 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
         notes = [t for t in notes if not t.startswith("the motion locks")]
     folds = None
     if end == "state" or any(c.role == "start" for c in crystals):
-        folds = fold_states(design, spec, modules, x_start, x_end)
+        try:
+            folds = fold_states(design, spec, modules, x_start, x_end)
+        except FabkitError as e:  # said, not hidden: the states fall back to port distance
+            notes.append(f"the sheets' faces could not be read ({e}): its states are judged "
+                         "by port distance, not by their folds")
     return Behaviour(intent=intent, end=end, end_at=end_at, end_drive=float(end_drive),
                      start_drive=start, module_start=float(p0[0]) if p0.size else start,
                      module_end=float(p1[0]) if p1.size else float(end_drive),

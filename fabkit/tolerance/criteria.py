@@ -52,6 +52,10 @@ ROOT_BISECTIONS = 30
 #: end traced to within 1e-10 of its way still folds by about 0.002°.
 FLAT_DEG = 0.01
 
+#: Where a sheet locks flat it is placed this far (design units) inside its branch: a fold
+#: angle there is about 150° times the square root of it, 0.005°.
+LOCK_INSET = 1e-9
+
 #: d_in values across the interval each module crosses between its states.
 TRANSIT_POINTS = 9
 
@@ -259,6 +263,8 @@ def _fold_off(maps, builds, crystal, tol, toward, at, designed, folds) -> np.nda
         not np.any(np.abs(designed) > FLAT_DEG)
     if flat:
         _, _, at = _crystal_distance(maps.as_made(), builds, crystal, tol, toward)
+        # a hair inside the branch: at its end itself a node's place hangs on round-off
+        at = at + np.sign(toward - at) * LOCK_INSET
     elif crystal is not None:
         at = _refine_root(maps, builds, at, 2.0 * tol / (WINDOW_POINTS - 1))
     x, margin = maps.place_at(builds, at, bend=not flat)

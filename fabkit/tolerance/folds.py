@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FabkitError
 from ..fab.creases import fold_angles, origami_model
 from ..settings.origami import origami_settings
 
@@ -87,15 +86,17 @@ def fold_states(design, spec, modules, x_start, x_end) -> FoldStates | None:
     Returns
     -------
     FoldStates or None
-        None when the design is not origami, has no modules, or its faces cannot be read.
+        None when the design is not origami or has no modules.
+
+    Raises
+    ------
+    FabkitError
+        Its origami settings or sheets cannot be read.
     """
     if spec.process != "origami" or not modules:
         return None
-    try:
-        settings = spec.origami_settings or origami_settings(design)
-        faces = origami_model(design, settings).faces
-    except FabkitError:
-        return None
+    settings = spec.origami_settings or origami_settings(design)
+    faces = origami_model(design, settings).faces
     first = modules[0]
     local = {int(g): i for i, g in enumerate(first.nodes)}
     mine = tuple(tuple(local[int(v)] for v in f) for f in faces

@@ -180,6 +180,8 @@ class ModuleMaps:
         first = self.modules[0]
         x = np.full((m, n) + first.network.nodes.shape, np.nan)
         margin = np.full((m, n), -np.inf)
+        # each module placed by its group's plan, as evaluate places it (the same round-off)
+        plans = {k: self.modules[g[0]].plan for g in self.groups for k in g}
         for k, mod in enumerate(self.modules):
             here = np.isfinite(v[:, k])
             if not here.any():
@@ -190,7 +192,7 @@ class ModuleMaps:
                 lengths = lengths - builds.bend[:, mod.edges] * self._shortening(mod, q)
             mask = mod.eidx >= 0
             r = np.where(mask[None], lengths[:, np.maximum(mod.eidx, 0)], 0.0)
-            xk, mg, _ = place(mod.plan, q, radii=r)
+            xk, mg, _ = place(plans[k], q, radii=r)
             ok = here & (mg >= 0)
             x[ok, k] = xk[ok]
             margin[:, k] = np.where(here, mg, -np.inf)
