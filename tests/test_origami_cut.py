@@ -67,12 +67,13 @@ def test_layers_in_cutting_order_with_their_perforation(design, tmp_path):
     root = ET.parse(tmp_path / "origami_sheet_cut.svg").getroot()
     assert root.get("width") == "170mm" and root.get("viewBox") == "0 0 170 170"
     groups = root.findall(f"{SVG}g")
-    assert [g.get("id") for g in groups] == ["valley-perforations", "mountain-perforations",
-                                            "outline"]
+    assert [g.get("id") for g in groups] == ["engrave", "valley-perforations",
+                                            "mountain-perforations", "outline"]
     assert all(g.get(f"{INK}groupmode") == "layer" for g in groups)
-    assert groups[0].get(f"{INK}label") == "valley perforations (2 mm cut, 1 mm gap)"
-    colours = [g.find(f"{SVG}path").get("stroke") for g in groups]
-    assert colours == ["#0000ff", "#ff0000", "#000000"]
+    assert groups[1].get(f"{INK}label") == "valley perforations (2 mm cut, 1 mm gap)"
+    colours = [g.find(f"{SVG}path").get("stroke") for g in groups[1:]]
+    # no cut is black: black is the engraving (filled marks), as on the laser sheets
+    assert colours == ["#0000ff", "#ff0000", "#ff00ff"]
     assert not root.findall(f".//{SVG}text")  # nothing a cutter would cut as letters
     assert report["cut_file"] == "origami_sheet_cut.svg"
     assert report["cut"]["perforation"] == {"dash_mm": 2.0, "gap_mm": 1.0, "stop_mm": 3.0}
@@ -207,3 +208,90 @@ def _seg_point(a, b, p) -> float:
     from shapely.geometry import LineString
 
     return LineString([a, b]).distance(p)
+
+
+def _polys(d: str) -> list:
+    """Closed polylines of a path of 'M x y L x y ... Z' parts (drawing mm)."""
+    return [np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", part)]).reshape(-1, 2)
+            for part in d.split("Z") if part.strip()]
+
+
+def _check_marks(root, want_joins: bool) -> dict:
+    """Every sheet of a cut page carries its engraved marks: filled, in a colour no cut has,
+    inside its own sheet and at least 0.9 mm clear of every cut. Returns the marks' texts per
+    sheet (read from each mark's title)."""
+    from shapely.geometry import LineString, Polygon
+    from shapely.ops import unary_union
+
+    layers = _layers(root)
+    engrave = layers["engrave"]
+    cut_colours = {el.get("stroke") for k, g in layers.items() if k != "engrave"
+                   for el in g.iter() if el.get("stroke") not in (None, "none")}
+    sheets = _polys(layers["outline"].find(f"{SVG}path").get("d"))
+    sheet_polys = [Polygon(s) for s in sheets]
+    perf = np.concatenate([_cuts(layers[k].find(f"{SVG}path").get("d"))
+                           for k in ("valley-perforations", "mountain-perforations")])
+    cuts = unary_union([LineString(s) for s in perf] + [p.exterior for p in sheet_polys]
+                       + [LineString([(float(c.get("cx")) + float(c.get("r")) * np.cos(t),
+                                       float(c.get("cy")) + float(c.get("r")) * np.sin(t))
+                                      for t in np.linspace(0, 2 * np.pi, 33)])
+                          for c in (layers["join-holes"].findall(f"{SVG}circle")
+                                    if "join-holes" in layers else [])])
+    texts = {}
+    marks = engrave.findall(f"{SVG}path")
+    assert marks
+    for m in marks:
+        assert m.get("fill") not in cut_colours and m.get("stroke") == "none"
+        glyphs = _polys(m.get("d"))
+        pts = np.concatenate(glyphs)
+        box = Polygon([pts.min(axis=0), (pts[:, 0].max(), pts[:, 1].min()), pts.max(axis=0),
+                       (pts[:, 0].min(), pts[:, 1].max())])
+        owner = [k for k, sh in enumerate(sheet_polys) if sh.contains(box)]
+        assert len(owner) == 1, m.get("id")  # inside exactly one sheet
+        assert box.distance(cuts) >= 0.9, m.get("id")  # clear of every cut
+        texts.setdefault(owner[0], []).append(m.find(f"{SVG}title").text)
+    assert sorted(texts) == list(range(len(sheets)))  # every sheet has marks
+    for got in texts.values():
+        assert "FRONT" in got and any(t.startswith("sheet ") for t in got)
+        corners = sorted(t for t in got if t[0] in "ABCD")
+        assert [c[0] for c in corners] == ["A", "B", "C", "D"]
+        if want_joins:  # the joined corners carry their join numbers
+            assert sum("·" in c for c in corners) >= 3
+    # no two marks overlap
+    boxes = []
+    for m in marks:
+        pts = np.concatenate(_polys(m.get("d")))
+        boxes.append(Polygon([pts.min(axis=0), (pts[:, 0].max(), pts[:, 1].min()),
+                              pts.max(axis=0), (pts[:, 0].min(), pts[:, 1].max())]))
+    assert all(not a.intersects(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+    return texts
+
+
+def test_the_sheet_cut_file_engraves_its_corners_and_front(design, tmp_path):
+    report = _write(design, tmp_path)
+    root = ET.parse(tmp_path / "origami_sheet_cut.svg").getroot()
+    texts = _check_marks(root, want_joins=False)
+    assert sorted(texts[0]) == ["A", "B", "C", "D", "FRONT", "sheet 1"]
+    assert report["cut"]["marks"] == [{"sheet": 1, "texts": ["sheet 1", "FRONT", "A", "B", "C",
+                                                             "D"], "unplaced": []}]
+    # FRONT is not mirrored: read left to right its first glyph (F) lies left of its last (T)
+    front = _layers(root)["engrave"].find(f"{SVG}path[@id='sheet1-front']")
+    glyphs = _polys(front.get("d"))
+    assert glyphs[0][:, 0].mean() < glyphs[-1][:, 0].mean()
+    assert "FRONT" in root.find(f"{SVG}desc").text
+
+
+def test_every_sheet_of_the_chain_keeps_its_number_corners_and_joins_when_cut(tmp_path):
+    chain = fabkit.load_template(TEMPLATES / "origami_chain12.toml")
+    report = _write(chain, tmp_path)
+    marks = {}
+    for name in report["cut_files"]:
+        texts = _check_marks(ET.parse(tmp_path / name).getroot(), want_joins=True)
+        for got in texts.values():
+            number = next(int(t.split()[1]) for t in got if t.startswith("sheet "))
+            marks[number] = got
+    assert sorted(marks) == list(range(1, 13))
+    # the corners of one join carry one number, as the template joins them (sheet k+1's B on
+    # sheet k's C, its A on sheet k-1's C): join 2 is sheet 1's C, sheet 2's B, sheet 3's A
+    assert "C·2" in marks[1] and "B·2" in marks[2] and "A·2" in marks[3]
+    assert all(not m["unplaced"] for m in report["cut"]["marks"])

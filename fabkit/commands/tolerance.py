@@ -117,11 +117,14 @@ def _criterion_text(c: dict, d: dict) -> str:
             text += (f"; observed along the motion: {100 * obs['monotone_fraction']:.1f}% "
                      f"monotone ({obs['samples']} instants)")
         return text
+    u = " mm" if c.get("unit", "mm") == "mm" else c["unit"]  # 22 mm, 41.4°
     if c["p95_mm"] is None or not math.isfinite(c["p95_mm"]):
         return (f"{pct:.1f}% of builds; {c['missing']} with no such state within "
-                f"{c['limit_mm']:.3g} mm")
-    text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g} mm (95%: "
-            f"{printed(c['p95_mm'], '.3g')} mm, worst {printed(c['worst_mm'], '.3g')} mm)")
+                f"{c['limit_mm']:.3g}{u}")
+    text = (f"{pct:.1f}% of builds within {c['limit_mm']:.3g}{u} (95%: "
+            f"{printed(c['p95_mm'], '.3g')}{u}, worst {printed(c['worst_mm'], '.3g')}{u})")
+    if c.get("unit") == "°":
+        text += " of a crease's designed fold angle"
     slopes = (c["detail"] or {}).get("slopes")
     if isinstance(slopes, list):
         text += f"; built slopes {slopes[0]:.3g}..{slopes[1]:.3g}"

@@ -107,6 +107,12 @@ def _table(header, rows) -> list[str]:
     return lines
 
 
+def _in_unit(value, criterion: dict):
+    """A criterion's number, with its unit when it is not mm (an origami state's folds, °)."""
+    unit = criterion.get("unit", "mm")
+    return value if unit == "mm" or value is None else f"{_fmt(value)}{unit}"
+
+
 def tolerance_markdown(result) -> list[str]:
     """The tolerance section of report.md: the process's own error model, what the design is
     for, each criterion, the verdict and its margin.
@@ -143,16 +149,20 @@ def tolerance_markdown(result) -> list[str]:
             parts.append(f"the front runs {b['order']}")
         parts.append(f"judged at the end by its {b.get('end')} ({b.get('end_at')}, drive "
                      f"{_fmt(b.get('end_drive'))})")
+        folds = b.get("folds")
+        kept = (f"while every crease's fold angle stays within {_fmt(folds['limit_deg'])}° of "
+                f"the designed state's ({_fmt(folds['fraction'])} of the "
+                f"{_fmt(folds['apart_deg'])}° its states lie apart)" if folds else
+                f"within {_fmt(b.get('state_tolerance_mm'))} mm")
         out += [f"What the design is for ({how}): " + "; ".join(parts) + ". A state is kept "
-                f"within {_fmt(b.get('state_tolerance_mm'))} mm, a port distance within "
-                f"{_fmt(b.get('limit_mm'))} mm.", ""]
+                f"{kept}, a port distance within {_fmt(b.get('limit_mm'))} mm.", ""]
         for note in b.get("notes", []):
             out += [f"- {note}"]
         if b.get("notes"):
             out.append("")
     rows = [(c["criterion"], f"{100 * c['kept_fraction']:.1f}%",
-             c["p95_mm"] if c["criterion"] != "order" else "-",
-             c["limit_mm"] if c["criterion"] != "order" else "-",
+             _in_unit(c["p95_mm"], c) if c["criterion"] != "order" else "-",
+             _in_unit(c["limit_mm"], c) if c["criterion"] != "order" else "-",
              c["missing"]) for c in tol.get("criteria", [])]
     if rows:
         out += _table(["criterion", "builds that keep it", "95% of builds (mm)", "allowed (mm)",

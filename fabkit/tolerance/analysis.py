@@ -580,13 +580,18 @@ def _failure(name, j, spec, behaviour, ports) -> str | None:
     lost = 100.0 * (1.0 - float(j.ok.mean()))
     v = j.value_mm
     p95 = float(np.percentile(v, 95, method="higher")) if v.size else math.inf
+    u = " mm" if j.unit == "mm" else j.unit
+    folds = j.unit != "mm"  # an origami state, judged by the built sheet's folds
     if name == "crystals":
         missing = int(np.sum(~np.isfinite(v)))
         what = ", ".join(f"{c.value:.6g} ({c.kind})" for c in behaviour.crystals
                          if c.role == "start")
-        tail = (f"in {missing} builds a module has none of its kind within "
-                f"{j.limit_mm:.3g} mm" if missing else
+        tail = (f"in {missing} builds a module has none of its kind" if missing else
+                f"a sheet there folds up to {p95:.3g}{u} off the designed fold angles (95% of "
+                f"builds; allowed {j.limit_mm:.3g}{u})" if folds else
                 f"they move by up to {p95:.3g} mm (95% of builds; allowed {j.limit_mm:.3g} mm)")
+        if missing and not folds:
+            tail += f" within {j.limit_mm:.3g} mm"
         return f"{lost:.1f}% of builds lose a crystal at {what}: {tail}"
     if name == "order":
         return (f"{lost:.1f}% of builds lose the order: a module meets the diagonal, turns "
@@ -596,7 +601,10 @@ def _failure(name, j, spec, behaviour, ports) -> str | None:
         what = f"the crystal {end[0].value:.6g} ({end[0].kind})" if end else \
             f"its lock at {behaviour.end_lock[0]:.6g}"
         missing = int(np.sum(~np.isfinite(v)))
-        tail = (f"in {missing} builds some module has none within {j.limit_mm:.3g} mm" if missing
+        tail = (f"in {missing} builds some module has none" + ("" if folds else
+                f" within {j.limit_mm:.3g} mm") if missing
+                else f"a sheet ends folded up to {p95:.3g}{u} off its designed fold angles (95% "
+                     f"of builds; allowed {j.limit_mm:.3g}{u})" if folds
                 else f"a module ends up to {p95:.3g} mm from it (95% of builds; allowed "
                      f"{j.limit_mm:.3g} mm)")
         return f"{lost:.1f}% of builds miss the end state, {what}: {tail}"
@@ -642,8 +650,9 @@ def _verdict(spec, behaviour, judged, frac, flagged, margin, bound, source_margi
                 parts.append(name)
             else:
                 front = f", {j.detail['front']}" if "front" in j.detail else ""
+                u = " mm" if j.unit == "mm" else j.unit
                 parts.append(f"{name} within {printed(np.percentile(j.value_mm, 95), '.3g')} "
-                             f"of {j.limit_mm:.3g} mm{front}")
+                             f"of {j.limit_mm:.3g}{u}{front}")
         return (f"ok, margin {head_margin}: {100 * frac:.1f}% of {unit} keep the behaviour "
                 f"({'; '.join(parts)})")
     shrink = "" if bound == "below" else f"; errors must shrink to {margin:.2g}×"

@@ -39,11 +39,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConstructionError, DesignError, KinematicsError
+from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError
 from ..kinematics import place
 from ..maps import module_map
 from ..motion.intent import end_fixed_point, map_fixed_points, nominal_lock, template_intent
 from ..motion.modules import chain_modules
+from .folds import fold_states, FoldStates
 
 __all__ = ["Behaviour", "Crystal", "infer_behaviour"]
 
@@ -140,6 +141,10 @@ class Behaviour:
     modules : list of Module or None
     notes : list of str
         One sentence per inference.
+    folds : FoldStates or None
+        An origami design's designed states by their fold angles: its states (crystals, the
+        end state) are then judged by the built sheet's folds (:mod:`fabkit.tolerance.folds`),
+        the state tolerance only bounding where they are looked for.
     """
 
     intent: str
@@ -163,6 +168,7 @@ class Behaviour:
     end_config: np.ndarray = field(repr=False, default=None)
     end_ports: np.ndarray = field(repr=False, default=None)
     notes: list = field(default_factory=list)
+    folds: FoldStates | None = None
 
     @property
     def criteria(self) -> list[str]:
@@ -188,6 +194,7 @@ class Behaviour:
             "limit_mm": self.limit_mm, "shape_limit_mm": self.shape_limit_mm,
             "chaos": self.chaos, "modules": 0 if self.modules is None else len(self.modules),
             "notes": list(self.notes),
+            "folds": None if self.folds is None else self.folds.as_dict(),
         }
 
 
@@ -381,6 +388,13 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
         x_end = place(plan, [to])[0][0]
         end_ports = _ports(x_end, pairs)
         notes = [t for t in notes if not t.startswith("the motion locks")]
+    folds = None
+    if end == "state" or any(c.role == "start" for c in crystals):
+        try:
+            folds = fold_states(design, spec, modules, x_start, x_end)
+        except FabkitError as e:  # said, not hidden: the states fall back to port distance
+            notes.append(f"the sheets' faces could not be read ({e}): its states are judged "
+                         "by port distance, not by their folds")
     return Behaviour(intent=intent, end=end, end_at=end_at, end_drive=float(end_drive),
                      start_drive=start, module_start=float(p0[0]) if p0.size else start,
                      module_end=float(p1[0]) if p1.size else float(end_drive),
@@ -388,4 +402,4 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
                      order=order, travel=travel, state_tol=state_tol, limit_mm=limit_mm,
                      shape_limit_mm=float(shape_limit), transit=transit, chaos=chaos,
                      modules=modules, scale=scale, end_config=x_end, end_ports=end_ports,
-                     notes=notes)
+                     notes=notes, folds=folds)

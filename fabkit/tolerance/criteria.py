@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fab.creases import fold_angles
 from ..numerics import FIXED_POINT_RTOL, rigid_fit
 
 __all__ = ["Judged", "judge_modules", "judge_ports", "judge_port_states", "judge_shape",
@@ -41,6 +42,19 @@ __all__ = ["Judged", "judge_modules", "judge_ports", "judge_port_states", "judge
 #: d_in values per window around a state (a crystal or a lock), across twice the state
 #: tolerance: roots of f(d) - d are bracketed between them and placed by linear interpolation.
 WINDOW_POINTS = 9
+
+#: Bisections of a built fixed point whose folds are judged (an origami state): 2^-30 of a
+#: window's step, far below round-off of a fold angle.
+ROOT_BISECTIONS = 30
+
+#: A designed origami state whose every fold angle is below this (degrees) is flat: a fold
+#: angle goes as the square root of the drive's distance to the flat turning point, so a flat
+#: end traced to within 1e-10 of its way still folds by about 0.002°.
+FLAT_DEG = 0.01
+
+#: Where a sheet locks flat it is placed this far (design units) inside its branch: a fold
+#: angle there is about 150° times the square root of it, 0.005°.
+LOCK_INSET = 1e-9
 
 #: d_in values across the interval each module crosses between its states.
 TRANSIT_POINTS = 9
@@ -62,6 +76,9 @@ class Judged:
         Extra figures (slopes of the built crystals, ...).
     per_part : numpy.ndarray, shape (M, K) or None
         The number per module (module criteria) or per port (``end ports``), mm.
+    unit : str
+        The unit of ``value_mm``, ``limit_mm`` and ``per_part``: ``"mm"``, or ``"°"`` for an
+        origami state judged by its folds (:mod:`fabkit.tolerance.folds`).
     """
 
     name: str
@@ -70,6 +87,7 @@ class Judged:
     limit_mm: float
     detail: dict = field(default_factory=dict)
     per_part: np.ndarray | None = field(default=None, repr=False)
+    unit: str = "mm"
 
 
 def _window(center: float, tol: float) -> np.ndarray:
@@ -78,7 +96,9 @@ def _window(center: float, tol: float) -> np.ndarray:
 
 def _crystal_distance(maps, builds, crystal, tol: float, toward: float):
     """Distance of each built module's nearest fixed point of the crystal's stability from it
-    (design units, inf if none in the window), and that fixed point's slope, (M, n)."""
+    (design units, inf if none in the window), that fixed point's slope, and where the state
+    is (its d_in; for a turning-point crystal the branch end where the module locks, when it
+    locks within the window; NaN if none), each (M, n)."""
     q = _window(crystal.value, tol)
     f, _ = maps.evaluate(builds, q)
     g = f - q
@@ -113,10 +133,17 @@ def _crystal_distance(maps, builds, crystal, tol: float, toward: float):
     best = np.argmin(dist, axis=-1)
     d = np.take_along_axis(dist, best[..., None], axis=-1)[..., 0]
     s = np.take_along_axis(np.where(cross, slope, np.nan), best[..., None], axis=-1)[..., 0]
+    where = np.concatenate([root, np.broadcast_to(q, g.shape)], axis=-1)
+    at = np.where(np.isfinite(d),
+                  np.take_along_axis(where, best[..., None], axis=-1)[..., 0], np.nan)
     if crystal.at_turning:
         lock = np.maximum(np.abs(end - crystal.value), np.abs(f_end - crystal.value))
-        d = np.fmin(d, np.where(np.isfinite(lock), lock, np.inf))
-    return d, s
+        lock = np.where(np.isfinite(lock), lock, np.inf)
+        # where the built sheet locks (flat) it is in the designed state whatever its fixed
+        # point does: that is where its folds are judged
+        at = np.where(np.isfinite(lock), end, at)
+        d = np.fmin(d, lock)
+    return d, s, at
 
 
 def judge_modules(behaviour, maps, builds) -> dict:
@@ -141,13 +168,13 @@ def judge_modules(behaviour, maps, builds) -> dict:
         per = np.zeros((m, len(maps.modules)))
         slopes = {}
         for c in starts:
-            d, s = _crystal_distance(maps, builds, c, tol, b.module_end)
+            d, s, at = _crystal_distance(maps, builds, c, tol, b.module_end)
+            if b.folds is not None:  # origami: the built sheet's folds there (degrees)
+                d = _fold_off(maps, builds, c, tol, b.module_end, at, b.folds.start, b.folds)
             per = np.maximum(per, d)
             slopes[f"{c.value:.6g}"] = [float(np.nanmin(s)), float(np.nanmax(s))] \
                 if np.isfinite(s).any() else None
-        worst = per.max(axis=1)
-        out["crystals"] = Judged("crystals", worst <= tol, worst * scale, tol * scale,
-                                 {"slopes": slopes}, per * scale)
+        out["crystals"] = _state_judged("crystals", b, per, {"slopes": slopes})
     if b.order and b.transit is not None:
         lo, hi, sign, rise = b.transit
         q = np.linspace(lo, hi, TRANSIT_POINTS)
@@ -165,7 +192,7 @@ def judge_modules(behaviour, maps, builds) -> dict:
     ends = [c for c in b.crystals if c.role == "end"]
     if b.end == "state":
         if ends:
-            per, s = _crystal_distance(maps, builds, ends[0], tol, b.module_start)
+            per, s, at = _crystal_distance(maps, builds, ends[0], tol, b.module_start)
             detail = {"crystal": ends[0].value,
                       "slopes": [float(np.nanmin(s)), float(np.nanmax(s))]
                       if np.isfinite(s).any() else None}
@@ -174,11 +201,76 @@ def judge_modules(behaviour, maps, builds) -> dict:
             end, f_end, _, _ = maps.branch_end(builds, _window(t, tol), b.module_start)
             lock = np.maximum(np.abs(end - t), np.abs(f_end - ft))
             per = np.where(np.isfinite(lock), lock, np.inf)
+            at = np.where(np.isfinite(lock), end, np.nan)
             detail = {"lock": [t, ft]}
-        worst = per.max(axis=1)
-        out["end state"] = Judged("end state", worst <= tol, worst * scale, tol * scale,
-                                  detail, per * scale)
+        if b.folds is not None:
+            per = _fold_off(maps, builds, ends[0] if ends else None, tol, b.module_start, at,
+                            b.folds.end, b.folds)
+        out["end state"] = _state_judged("end state", b, per, detail)
     return out
+
+
+def _state_judged(name: str, b, per, detail: dict) -> "Judged":
+    """A state criterion of (M, n) numbers: by port distance (design units, judged in mm
+    within the state tolerance), or for origami by the built sheet's fold angles (degrees,
+    within the folds' limit)."""
+    worst = per.max(axis=1)
+    if b.folds is not None:
+        lim = b.folds.limit_deg
+        return Judged(name, worst <= lim, worst, lim, {**detail, "folds": b.folds.as_dict()},
+                      per, unit="°")
+    return Judged(name, worst <= b.state_tol, worst * b.scale, b.state_tol * b.scale, detail,
+                  per * b.scale)
+
+
+def _refine_root(maps, builds, at, half: float) -> np.ndarray:
+    """Fixed points found by linear interpolation across a window's step, bisected to
+    round-off (a fold angle next to a folded state changes by tens of degrees per design unit:
+    the interpolation's error would show): the sign change of f(d) - d nearest ``at`` among
+    :data:`WINDOW_POINTS` values within ``half`` of it (some may be off the branch) is
+    bisected. NaN stays NaN; a root without a sign change around it stays where it was."""
+    q = at[..., None] + half * np.linspace(-1.0, 1.0, WINDOW_POINTS)
+    f, _ = maps.evaluate(builds, np.where(np.isfinite(q), q, 0.0))
+    g = f - q
+    cross = np.isfinite(g[..., :-1]) & np.isfinite(g[..., 1:]) \
+        & (np.sign(g[..., :-1]) != np.sign(g[..., 1:]))
+    gap = np.where(cross, np.abs(0.5 * (q[..., :-1] + q[..., 1:]) - at[..., None]), np.inf)
+    k = np.argmin(gap, axis=-1)[..., None]
+    ok = np.isfinite(np.take_along_axis(gap, k, axis=-1)[..., 0])
+    if not ok.any():
+        return at
+    lo = np.where(ok, np.take_along_axis(q[..., :-1], k, axis=-1)[..., 0], at)
+    hi = np.where(ok, np.take_along_axis(q[..., 1:], k, axis=-1)[..., 0], at)
+    g_lo = np.take_along_axis(g[..., :-1], k, axis=-1)[..., 0]
+    for _ in range(ROOT_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        fm, _ = maps.evaluate(builds, mid[..., None])
+        same = np.sign(fm[..., 0] - mid) == np.sign(g_lo)
+        lo, hi = np.where(ok & same, mid, lo), np.where(ok & ~same, mid, hi)
+    return np.where(ok, 0.5 * (lo + hi), at)
+
+
+def _fold_off(maps, builds, crystal, tol, toward, at, designed, folds) -> np.ndarray:
+    """Largest |fold angle - designed| of each built module in its state (degrees, shape
+    (M, n); inf where it has no such state or cannot be placed there).
+
+    The state is at ``at`` (d_in, (M, n); ``crystal`` None: a lock, placed there). A flat
+    crystal at a turning point is where the sheet, unfolded, locks flat: no crease is folded
+    there and none gives, so the sheet as made (without the crease compliance of a folded
+    state) is placed where it locks. Any other crystal's fixed point is first bisected to
+    round-off."""
+    flat = crystal is not None and crystal.at_turning and \
+        not np.any(np.abs(designed) > FLAT_DEG)
+    if flat:
+        _, _, at = _crystal_distance(maps.as_made(), builds, crystal, tol, toward)
+        # a hair inside the branch: at its end itself a node's place hangs on round-off
+        at = at + np.sign(toward - at) * LOCK_INSET
+    elif crystal is not None:
+        at = _refine_root(maps, builds, at, 2.0 * tol / (WINDOW_POINTS - 1))
+    x, margin = maps.place_at(builds, at, bend=not flat)
+    theta = fold_angles(folds.edges, folds.faces, x)  # (M, n, E)
+    off = np.max(np.abs(theta - designed), axis=-1)
+    return np.where(np.isfinite(at) & (margin >= 0) & np.isfinite(off), off, np.inf)
 
 
 def judge_ports(behaviour, driven, limit_mm: float) -> "Judged":

@@ -83,7 +83,8 @@ def tolerance_figure(result: ToleranceResult, *, title: str | None = None):
         missing = int(np.sum(~np.isfinite(v)))
         y = k + 0.3 * (np.random.default_rng(k).random(v.size) - 0.5)
         ax.plot(np.maximum(ratio, LOG_FLOOR), y, ".", ms=3, color=f"C{k}")
-        text = f"{name}: {100 * j.ok.mean():.0f}% within {j.limit_mm:.3g} mm"
+        text = f"{name}: {100 * j.ok.mean():.0f}% within {j.limit_mm:.3g}" + \
+            (" mm" if j.unit == "mm" else j.unit)
         if missing:
             text += f" ({missing} with no such state)"
         ax.annotate(text, (0.02, k + 0.3), xycoords=("axes fraction", "data"), fontsize=8)

@@ -12,6 +12,8 @@ value is one column of one :func:`fabkit.kinematics.place` call per kind of modu
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..errors import ConstructionError, FabkitError
@@ -145,6 +147,56 @@ class ModuleMaps:
                 f[:, k, :] = out[sl].reshape(m, q)
                 margin[:, k, :] = mg[sl].reshape(m, q)
         return f, margin
+
+    def as_made(self) -> "ModuleMaps":
+        """The same maps of the modules as made: no state takes anything off their bars."""
+        out = copy.copy(self)
+        out.bending = False
+        return out
+
+    def place_at(self, builds: BuildLengths, values,
+                 bend: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Every built module placed at its own d_in value (its state), with its build's bar
+        lengths as :meth:`evaluate` places it.
+
+        Parameters
+        ----------
+        builds : BuildLengths
+        values : numpy.ndarray, shape (M, n)
+            d_in per build and module (NaN: not placed).
+        bend : bool
+            False: the bars as made, without what a folded state takes off them.
+
+        Returns
+        -------
+        x : numpy.ndarray, shape (M, n, V, d)
+            The module's nodes in its local order (NaN where not placed); every module has
+            the first one's nodes.
+        margin : numpy.ndarray, shape (M, n)
+            Smallest intersection margin (negative: no configuration).
+        """
+        m, n = builds.base.shape[0], len(self.modules)
+        v = np.asarray(values, dtype=np.float64)
+        first = self.modules[0]
+        x = np.full((m, n) + first.network.nodes.shape, np.nan)
+        margin = np.full((m, n), -np.inf)
+        # each module placed by its group's plan, as evaluate places it (the same round-off)
+        plans = {k: self.modules[g[0]].plan for g in self.groups for k in g}
+        for k, mod in enumerate(self.modules):
+            here = np.isfinite(v[:, k])
+            if not here.any():
+                continue
+            q = np.where(here, v[:, k], float(mod.network.port_distance("in")))
+            lengths = builds.base[:, mod.edges]
+            if bend and self.bending and np.any(builds.bend):
+                lengths = lengths - builds.bend[:, mod.edges] * self._shortening(mod, q)
+            mask = mod.eidx >= 0
+            r = np.where(mask[None], lengths[:, np.maximum(mod.eidx, 0)], 0.0)
+            xk, mg, _ = place(plans[k], q, radii=r)
+            ok = here & (mg >= 0)
+            x[ok, k] = xk[ok]
+            margin[:, k] = np.where(here, mg, -np.inf)
+        return x, margin
 
     def branch_end(self, builds: BuildLengths, window, toward: float):
         """Where each built module's branch ends inside ``window``, walking from the side

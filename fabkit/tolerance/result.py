@@ -106,6 +106,7 @@ class ToleranceResult:
                 "worst_mm": float(v.max()) if v.size else None,
                 "missing": int((~fin).sum()),
                 "limit_mm": float(j.limit_mm),
+                "unit": j.unit,
                 "detail": j.detail,
             })
         return out

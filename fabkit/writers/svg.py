@@ -373,7 +373,9 @@ def write(plan) -> ExportResult:
         for page, cut_name in zip(lay.pages, cut_names):
             sub = replace(lay.drawn, sheets=tuple(lay.drawn.sheets[k] for k in page.indices))
             cut, rep = cut_svg(sub, perf, page.offsets, lay.size,
-                               holes=[list(s.holes) for s in page.sheets], hole=JOIN_HOLE)
+                               holes=[list(s.holes) for s in page.sheets], hole=JOIN_HOLE,
+                               numbers=[lay.numbers[k] for k in page.indices],
+                               sheet_numbers=[k + 1 for k in page.indices])
             files[cut_name] = cut
             cut_report = rep if cut_report is None else _merge_cut(cut_report, rep)
         name, cut_name = names[0], cut_names[0]
@@ -388,6 +390,7 @@ def _merge_cut(a: dict, b: dict) -> dict:
     out = dict(a)
     out["cuts"] = {k: a["cuts"].get(k, 0) + b["cuts"].get(k, 0) for k in {*a["cuts"], *b["cuts"]}}
     out["short_creases"] = a["short_creases"] + b["short_creases"]
+    out["marks"] = a["marks"] + b["marks"]
     vals = [v for v in (a["closest_cut_to_a_vertex_mm"], b["closest_cut_to_a_vertex_mm"])
             if v is not None]
     out["closest_cut_to_a_vertex_mm"] = min(vals) if vals else None

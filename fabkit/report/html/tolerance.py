@@ -9,6 +9,12 @@ from ..text import jsonable, MADE_FOR
 from .common import esc, fmt_value, img, LAYER_COLOURS
 
 
+
+def _unit(criterion: dict) -> str:
+    """The unit after a criterion's number when it is not mm (an origami state's folds, °)."""
+    unit = criterion.get("unit", "mm")
+    return "" if unit == "mm" else unit
+
 def keep_chart_svg(tol: dict) -> str:
     """Inline SVG: fraction of builds that keep the design's behaviour against the error scale
     (log axis, 0.1× to 10× the process's errors), a curve per error source alone and a thick one
@@ -103,8 +109,8 @@ def tolerance_section(report, files: dict) -> str:
         parts.append(f"<p>What the design is for ({how}): {esc('; '.join(bits))}.</p>")
     rows = "".join(
         f"<tr><td>{esc(c['criterion'])}</td><td>{100 * c['kept_fraction']:.1f}%</td>"
-        f"<td>{fmt_value(c['p95_mm']) if c['criterion'] != 'order' else '–'}</td>"
-        f"<td>{fmt_value(c['limit_mm']) if c['criterion'] != 'order' else '–'}</td>"
+        f"<td>{fmt_value(c['p95_mm']) + _unit(c) if c['criterion'] != 'order' else '–'}</td>"
+        f"<td>{fmt_value(c['limit_mm']) + _unit(c) if c['criterion'] != 'order' else '–'}</td>"
         f"<td>{c['missing']}</td></tr>" for c in tol["criteria"])
     if rows:
         parts.append("<div class=\"scroll\"><table><tr><th>criterion</th><th>builds that keep "
