@@ -103,7 +103,7 @@ def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
 
 
 def place_pieces(pieces, design_xy, design_edges, *, tol: float,
-                 accept=None) -> list[Placement | None]:
+                 accept=None, partial: bool = False) -> list[Placement | None]:
     """Lay every piece onto the design (see the module docstring).
 
     Parameters
@@ -121,6 +121,9 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
         ``accept(places) -> bool``: what else the file says about a choice of places (a
         print-in-place linkage has no pin where it is cut between pieces); the first choice it
         accepts wins, else the first that covers the design.
+    partial : bool
+        The pieces build part of the design (each design edge at most once); ``accept`` judges
+        what is left (a print-in-place linkage's bars laid flat, found by their lengths).
 
     Returns
     -------
@@ -147,16 +150,16 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
                         [c for c in covered if c is not None],
                         fits[0][2] if fits else None))
     for test in ((accept,) if accept is not None else ()) + (None,):
-        chosen = _cover(options, len(design_edges), test)
+        chosen = _cover(options, None if partial else len(design_edges), test)
         if chosen is not None:
             return chosen
     # no exact cover: each piece's best place, for the checks to say what is wrong
     return [best for _, _, best in options]
 
 
-def _cover(options, n_edges: int, accept=None):
-    """One place per piece so that every design edge is built once (depth-first, pieces with
-    the fewest places first), or None."""
+def _cover(options, n_edges: int | None, accept=None):
+    """One place per piece so that every design edge is built once (``n_edges`` None: at most
+    once) (depth-first, pieces with the fewest places first), or None."""
     order = sorted(range(len(options)), key=lambda k: len(options[k][0]))
     if any(not options[k][0] for k in order):
         return None
@@ -166,7 +169,7 @@ def _cover(options, n_edges: int, accept=None):
 
     def go(depth: int) -> bool:
         if depth == len(order):
-            return len(used) == n_edges and (accept is None or accept(
+            return (n_edges is None or len(used) == n_edges) and (accept is None or accept(
                 [chosen[k] for k in range(len(options))]))
         k = order[depth]
         for place, edges in zip(*options[k][:2]):
