@@ -11,7 +11,10 @@ clearance, nozzle; nothing of the writer's plan or layout is used):
 * **pieces**: holes and pins that share a centre on one bed are one joint; bars joined at
   joints are one piece; each piece is laid onto the design's nodes by a rigid motion found from
   its own bars (:mod:`fabkit.check.register`), every design edge built once; a design node held
-  by two pieces is a joint where the print is cut, to be joined by hand;
+  by two pieces is a joint where the print is cut, to be joined by hand. A piece of one bar with
+  a plain hole at each end is a bar laid flat (no printed pin joins it): the stacked pieces are
+  laid onto the design first, and the flat bars take the edges left over, shortest with
+  shortest;
 * **pins -> joints**: every joint of two or more bars has exactly one pin, but the joints
   where the print is cut (plain holes);
 * **pin clearance**: the smallest radial gap between a pin and a hole around it (the hole's
