@@ -36,7 +36,9 @@ def exported(tmp_path_factory):
 @pytest.mark.parametrize("name", NAMES)
 def test_one_watertight_body_with_the_analytic_volume(exported, name):
     design, folder, paths, report = exported[name]
-    assert sorted(p.name for p in paths) == [f"{name}.3mf", f"{name}.stl", f"{name}_print.png"]
+    assert sorted(p.name for p in paths) == sorted([f"{name}.3mf", f"{name}.stl",
+                                                    f"{name}_print.png", "print_bom.json",
+                                                    "print_bom.md"])
     mesh = trimesh.load(folder / f"{name}.stl")
     assert mesh.is_watertight
     assert mesh.is_winding_consistent
@@ -60,15 +62,17 @@ def test_one_watertight_body_with_the_analytic_volume(exported, name):
 
 
 def test_the_bare_stl_fits_the_bed_turned():
-    # 207 mm long as designed: turned by 34 degrees, it fits PrusaSlicer's 200 x 200 mm bed
-    # within the 10 mm kept free along its edges
+    # 207 mm long as designed: turned by 38 degrees, it fits PrusaSlicer's 200 x 200 mm bed
+    # 13.8 mm from its edges (the 10 mm kept free, and the skirt 3 mm out with its loop)
     design = fabkit.load_template(TEMPLATES / "printed_planar_chain10.toml")
     res = export_design(design, {"print": {"preview": False}})
     mesh = trimesh.load(io.BytesIO(res.files["printed_planar_chain10.stl"]), file_type="stl")
     ext = mesh.bounds[1] - mesh.bounds[0]
     assert res.report["size_mm"][0] > 200.0
-    assert ext[0] == pytest.approx(179.76, abs=0.01) and ext[1] == pytest.approx(127.94, abs=0.01)
-    assert res.report["printer"]["pieces"][0]["angle_deg"] == 34.0
+    assert res.report["printer"]["parts_margin_mm"] == pytest.approx(13.8)
+    assert ext[0] == pytest.approx(172.11, abs=0.01) and ext[1] == pytest.approx(139.01, abs=0.01)
+    assert ext.max() <= 200.0 - 2 * 13.8
+    assert res.report["printer"]["pieces"][0]["angle_deg"] == 38.0
 
 
 def test_chain_dimensions(exported):

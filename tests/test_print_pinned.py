@@ -195,12 +195,17 @@ def test_counts(exported):
     assert exported["super_stable"][3]["printed_pins"] == 5
     assert exported["super_stable"][3]["layers"] == 3
     fc = exported["fourbar_chain"][3]
-    assert fc["bars"] == 16 and fc["printer"]["beds"] == 4  # one 107 mm module per bed
+    # the two end modules (107 mm) on a bed each, the two middle ones' bars (no printed pin
+    # joins them) laid flat beside them and on a third bed
+    assert fc["bars"] == 16 and fc["printer"]["beds"] == 3
+    assert fc["printer"]["laid_flat"] == list(range(4, 12))
     # the chain is cut at the ports between modules: those joints get holes, no pins
     assert fc["cut_joints"] == [2, 3, 4, 5, 6, 7]
     assert fc["printed_pins"] == 10 - 6
     ch = exported["super_stable_chain8"][3]
-    assert ch["bars"] == 48 and len(ch["printer"]["pieces"]) == 2
+    # the parts keep 17.6 mm from the bed's edges (10 mm and the slicer's support and skirt):
+    # three runs of modules
+    assert ch["bars"] == 48 and len(ch["printer"]["pieces"]) == 3
     assert ch["printer"]["join"] and "bolt" in ch["printer"]["join"]
     assert {b["standard"] for b in ch["print_bom"]["buy"]} == {"ISO 4762", "ISO 7089",
                                                                "ISO 10511"}
@@ -215,7 +220,8 @@ def test_threemf_carries_the_bars_as_parts_and_the_settings(exported):
     assert pkg["project"]["first_layer_height"] == "0.2"
     assert pkg["per_object"] == [{"layer_height": "0.2", "brim_width": "0", "perimeters": "4",
                                   "support_material": "1",
-                                  "support_material_buildplate_only": "1"}]
+                                  "support_material_buildplate_only": "1",
+                                  "raft_first_layer_expansion": "3"}]
     # and in the project part too, so PrusaSlicer's G-code header shows what was applied
     assert {k: pkg["project"][k] for k in pkg["per_object"][0]} == pkg["per_object"][0]
     assert (pkg["project"]["skirts"], pkg["project"]["skirt_distance"]) == ("1", "3")
@@ -318,12 +324,12 @@ def test_without_a_design_every_body_is_checked(exported):
 
 def test_the_beds_of_a_split_print_are_read_together(checked):
     stl, mf = checked["super_stable_chain8"]
-    assert stl["files"] == ["super_stable_chain8_bed1.stl", "super_stable_chain8_bed2.stl"]
-    assert mf["files"] == ["super_stable_chain8_bed1.3mf", "super_stable_chain8_bed2.3mf"]
+    assert stl["files"] == [f"super_stable_chain8_bed{b}.stl" for b in (1, 2, 3)]
+    assert mf["files"] == [f"super_stable_chain8_bed{b}.3mf" for b in (1, 2, 3)]
     c = _by_name(stl)["pins -> joints"]
-    # 26 joints; those of the cut (port d5) have holes in every bar, for a bolt
-    assert c["value"] == [26, 24] and c["limit"] == [26, None]
-    assert stl["as_built"]["pieces"] == 2 and len(stl["as_built"]["cut_joints"]) == 2
+    # 26 joints; those of the two cuts have holes in every bar, for a bolt
+    assert c["value"] == [26, 22] and c["limit"] == [26, None]
+    assert stl["as_built"]["pieces"] == 3 and len(stl["as_built"]["cut_joints"]) == 4
 
 
 # --- the command line -----------------------------------------------------------------------
@@ -339,7 +345,8 @@ def test_fabkit_export_to_stl_writes_a_print_in_place_linkage(tmp_path, capsys, 
     assert stl["report"]["linkage"] == "pins"
     assert stl["checks"] and all(c["ok"] for c in stl["checks"])
     kinds = sorted({f.rsplit(".", 1)[1] for f in stl["files"]})
-    assert kinds == ["3mf", "png", "stl"]
+    assert kinds == ["3mf", "json", "md", "png", "stl"]
+    assert {"print_bom.json", "print_bom.md"} <= set(stl["files"])
     assert math.isclose(stl["report"]["clearances_mm"]["pin_radial"], 0.3)
 
 
@@ -393,7 +400,7 @@ def test_a_window_the_motion_cannot_reach_fails_the_export_with_its_reason(tmp_p
     assert report is None or report["formats"]["stl"]["status"] != "exported"
 
 
-@pytest.mark.parametrize("name, beds", [("fourbar", 1), ("super_stable_chain", 6)])
+@pytest.mark.parametrize("name, beds", [("fourbar", 1), ("super_stable_chain", 8)])
 def test_the_print_preview_keeps_every_text_inside_one_bed_or_many(name, beds):
     """The preview's fixed layout leaves room for every tick label, bed title and the heading
     (wrapped to the figure's width: on one bed it ran off both edges)."""

@@ -11,7 +11,10 @@ clearance, nozzle; nothing of the writer's plan or layout is used):
 * **pieces**: holes and pins that share a centre on one bed are one joint; bars joined at
   joints are one piece; each piece is laid onto the design's nodes by a rigid motion found from
   its own bars (:mod:`fabkit.check.register`), every design edge built once; a design node held
-  by two pieces is a joint where the print is cut, to be joined by hand;
+  by two pieces is a joint where the print is cut, to be joined by hand. A piece of one bar with
+  a plain hole at each end is a bar laid flat (no printed pin joins it): the stacked pieces are
+  laid onto the design first, and the flat bars take the edges left over, shortest with
+  shortest;
 * **pins -> joints**: every joint of two or more bars has exactly one pin, but the joints
   where the print is cut (plain holes);
 * **pin clearance**: the smallest radial gap between a pin and a hole around it (the hole's
@@ -41,7 +44,7 @@ import numpy as np
 from ..errors import FabkitError
 from ..model.network import Network
 from ..model.rigidity import count_modes
-from ..numerics import project_to_lengths
+from ..numerics import apply_fit, project_to_lengths, rigid_fit
 from .beds import split_bodies
 from .clearance import fine_motion, point_gap, same_layer_gaps
 from .items import Check, check, finish
@@ -206,6 +209,10 @@ def _place(joints, bar_joints, design, s):
     """Each joint's design node and each bar's design edge, from the pieces laid onto the
     design (:func:`fabkit.check.register.place_pieces`).
 
+    A piece of one bar with a hole at each end and nothing else at them is a bar laid flat (no
+    printed pin joins it): the stacked pieces are laid onto the design first, then the flat
+    bars go to the edges left over, matched by length (shortest with shortest).
+
     Returns
     -------
     dict
@@ -213,6 +220,7 @@ def _place(joints, bar_joints, design, s):
         (mm), ``piece`` (of each joint), ``edge`` (design edge of each bar, -1: none).
     """
     net = design.network
+    design_xy = net.nodes * s.scale
     centres = np.array([np.mean([f[2] for f in jf], axis=0) for jf in joints]).reshape(-1, 2)
     pieces = pieces_of(len(joints), bar_joints)
     local = np.empty(len(joints), dtype=np.int64)
@@ -223,24 +231,91 @@ def _place(joints, bar_joints, design, s):
     bars_of = [np.flatnonzero(piece_of[bar_joints[:, 0]] == p) for p in range(len(pieces))]
     pinned = np.array([any(f[1] == "pin" for f in jf) for jf in joints])
     holes = np.array([sum(f[1] == "hole" for f in jf) for jf in joints])
+    flat = [p for p, m in enumerate(pieces)
+            if len(bars_of[p]) == 1 and len(m) == 2 and (holes[m] == 1).all()]
+    stacked = [p for p in range(len(pieces)) if p not in set(flat)]
+    flat_len = np.array([float(np.linalg.norm(np.subtract(*centres[pieces[p]])))
+                         for p in flat])
 
-    # a joint is cut between pieces exactly where it has plain holes and no pin
-    rule = np.where(pinned, -1, np.where(holes >= 2, 1, 0))
-    placed = place_pieces([(centres[m], local[bar_joints[bars_of[p]]])
-                           for p, m in enumerate(pieces)],
-                          net.nodes * s.scale, net.edges, tol=NODE_TOL_MM,
-                          shared=[rule[m] for m in pieces])
+    def left_over(places):
+        """The design edges no stacked piece builds, and each stacked joint's node."""
+        node = np.full(len(joints), -1, dtype=np.int64)
+        used = set()
+        for p, pl in zip(stacked, places):
+            node[pieces[p]] = pl.match
+            used |= {tuple(e) for e in np.sort(pl.match[local[bar_joints[bars_of[p]]]],
+                                               axis=1).tolist()}
+        rest = [k for k, e in enumerate(np.sort(net.edges, axis=1).tolist())
+                if tuple(e) not in used]
+        return node, np.asarray(rest, dtype=np.int64)
+
+    def pins_agree(places, lengths: bool = True) -> bool:
+        """The flat bars are the edges left over (by their lengths too, with ``lengths``), and
+        a joint is cut between pieces exactly where it has plain holes and no pin."""
+        node, rest = left_over(places)
+        if len(rest) != len(flat) or (lengths and not _lengths_pair(flat_len,
+                                                                     _edge_mm(net, rest, s))):
+            return False
+        held = np.bincount(np.concatenate([node[node >= 0], net.edges[rest].ravel()]),
+                           minlength=net.n_nodes)
+        at = node >= 0
+        cut = np.zeros(len(joints), dtype=bool)
+        cut[at] = held[node[at]] >= 2
+        return bool(not (cut & pinned).any() and not (at & ~cut & ~pinned & (holes >= 2)).any())
+
+    stacks = [(centres[pieces[p]], local[bar_joints[bars_of[p]]]) for p in stacked]
+    # a joint is cut between pieces exactly where it has plain holes and no pin: kept while
+    # the pieces are placed (a pin alone always; plain holes met by another piece only when
+    # no bar lies flat, since a flat bar may be what meets them)
+    rule = np.where(pinned, -1, np.where((holes >= 2) & (not flat), 1, 0))
+    shared = [rule[pieces[p]] for p in stacked]
+    placed = place_pieces(stacks, design_xy, net.edges, tol=NODE_TOL_MM, accept=pins_agree,
+                          shared=shared, partial=bool(flat))
+    if flat and None not in placed and not pins_agree(placed):
+        # no flat bar is as long as its edge: the stacks placed by their pins alone, and the
+        # flat bars' lengths left for the checks to measure
+        placed = place_pieces(stacks, design_xy, net.edges, tol=NODE_TOL_MM, partial=True,
+                              shared=shared,
+                              accept=lambda places: pins_agree(places, lengths=False))
     node = np.full(len(joints), -1, dtype=np.int64)
     dev = np.full(len(joints), np.inf)
-    for members, pl in zip(pieces, placed):
+    for p, pl in zip(stacked, placed):
         if pl is not None:
-            node[members], dev[members] = pl.match, pl.deviation
+            node[pieces[p]], dev[pieces[p]] = pl.match, pl.deviation
+    if flat and all(pl is not None for pl in placed):
+        _place_flat(flat, pieces, centres, left_over(placed)[1], flat_len, design_xy, net,
+                    node, dev)
     designed = {tuple(e): k for k, e in enumerate(np.sort(net.edges, axis=1).tolist())}
     ends = np.sort(node[bar_joints], axis=1)
     edge = np.array([designed.get(tuple(e), -1) if e[0] >= 0 else -1 for e in ends.tolist()],
                     dtype=np.int64)
     return {"node": node, "deviation": dev, "piece": piece_of, "edge": edge,
-            "pieces": len(pieces), "centres": centres}
+            "pieces": len(pieces), "centres": centres, "flat": len(flat)}
+
+
+def _edge_mm(net, edges, s) -> np.ndarray:
+    x = net.nodes * s.scale
+    e = net.edges[edges]
+    return np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+
+
+def _lengths_pair(a, b) -> bool:
+    """The lengths ``a`` and ``b`` pair up, shortest with shortest, within twice the joint
+    tolerance (each end of a bar within it of its node)."""
+    return bool(len(a) == len(b) and (np.abs(np.sort(a) - np.sort(b)) <= 2 * NODE_TOL_MM).all())
+
+
+def _place_flat(flat, pieces, centres, rest, flat_len, design_xy, net, node, dev) -> None:
+    """The flat bars onto the edges left over, shortest with shortest; fills ``node`` and
+    ``dev`` (the distance of each end from its node once the bar is laid onto its edge)."""
+    lengths = np.linalg.norm(design_xy[net.edges[rest, 0]] - design_xy[net.edges[rest, 1]],
+                             axis=1)
+    for p, k in zip(np.asarray(flat)[np.argsort(flat_len, kind="stable")],
+                    rest[np.argsort(lengths, kind="stable")]):
+        m = pieces[p]
+        fit = rigid_fit(centres[m], design_xy[net.edges[k]])
+        node[m] = net.edges[k]
+        dev[m] = np.linalg.norm(apply_fit(fit, centres[m]) - design_xy[net.edges[k]], axis=1)
 
 
 def _bars_check(meshes, names, net, s, checks):

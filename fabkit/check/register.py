@@ -103,7 +103,8 @@ def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
 
 
 def place_pieces(pieces, design_xy, design_edges, *, tol: float,
-                 shared=None) -> list[Placement | None]:
+                 shared=None, accept=None, partial: bool = False
+                 ) -> list[Placement | None]:
     """Lay every piece onto the design (see the module docstring).
 
     Parameters
@@ -124,6 +125,13 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
         The first choice of places that keeps them wins, else the first that covers the design.
         They are kept while the places are chosen, not only tested at the end: identical pieces
         (the modules of a chain) leave too many choices to try one by one.
+    accept : callable, optional
+        ``accept(places) -> bool``: what else a whole choice of places must meet (a
+        print-in-place linkage's bars laid flat are the edges the pieces leave, found by their
+        lengths); the first choice it accepts wins, else the first that covers the design.
+    partial : bool
+        The pieces build part of the design (each design edge at most once); ``accept`` judges
+        what is left.
 
     Returns
     -------
@@ -149,17 +157,20 @@ def place_pieces(pieces, design_xy, design_edges, *, tol: float,
         options.append(([p for p, c in zip(good, covered) if c is not None],
                         [c for c in covered if c is not None],
                         fits[0][2] if fits else None))
-    for rules in ((shared,) if shared is not None else ()) + (None,):
-        chosen = _cover(options, len(design_edges), len(design_xy), rules)
+    tests = [(shared, accept)] if shared is not None or accept is not None else []
+    for rules, test in tests + [(None, None)]:
+        chosen = _cover(options, None if partial else len(design_edges), len(design_xy),
+                        rules, test)
         if chosen is not None:
             return chosen
     # no exact cover: each piece's best place, for the checks to say what is wrong
     return [best for _, _, best in options]
 
 
-def _cover(options, n_edges: int, n_nodes: int, shared=None):
-    """One place per piece so that every design edge is built once (depth-first, pieces with
-    the fewest places first) and every joint is shared or alone as ``shared`` says, or None."""
+def _cover(options, n_edges: int | None, n_nodes: int, shared=None, accept=None):
+    """One place per piece so that every design edge is built once (``n_edges`` None: at most
+    once) (depth-first, pieces with the fewest places first), every joint shared or alone as
+    ``shared`` says and the whole choice accepted by ``accept``, or None."""
     order = sorted(range(len(options)), key=lambda k: len(options[k][0]))
     if any(not options[k][0] for k in order):
         return None
@@ -190,7 +201,9 @@ def _cover(options, n_edges: int, n_nodes: int, shared=None):
 
     def go(depth: int) -> bool:
         if depth == len(order):
-            return len(used) == n_edges and not ((needs > 0) & (holders < 2)).any()
+            return (n_edges is None or len(used) == n_edges) and \
+                not ((needs > 0) & (holders < 2)).any() and (accept is None or accept(
+                    [chosen[k] for k in range(len(options))]))
         k = order[depth]
         for place, edges in zip(*options[k][:2]):
             budget[0] -= 1

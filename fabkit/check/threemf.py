@@ -318,7 +318,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
                       sum(map(_placed_triangles, parsed.values())), design)
     packages = [_place(p, q) for p, q in parsed.items()]
     names = [p.name for p in paths]
-    pinned = all(any(o["parts"] > 1 for o in pkg["objects"]) for pkg in packages)
+    # a bed may hold only bars laid flat (one object, a part each): one multi-part object says it
+    pinned = any(any(o["parts"] > 1 for o in pkg["objects"]) for pkg in packages)
     report = check_meshes([pkg["mesh"] for pkg in packages], names, design, settings,
                           fmt=FORMAT, pinned=pinned, motion=motion)
     if design is not None:

@@ -20,6 +20,13 @@ is ``layer_gap`` above and ``pin_clearance`` around every other body. A chain to
 bed is cut between modules (:func:`fabkit.fab.printers.split_to_fit`); the joints of a cut get
 plain holes in every bar and are joined by the maker (a bolt through the stack).
 
+A bar that no printed pin joins (both its joints are cut, or free ends) has nothing to stand in
+the stack for: it is taken out of its piece and **laid flat** on the bed, a piece of its own
+(:attr:`PinnedPrint.flat`), lowered to z = 0 and arranged beside the others by the bed layout
+(:func:`fabkit.fab.printers.bed_layout`). The bed layout keeps every part
+:func:`fabkit.fab.slicer.placement_margin` from the bed's edges: the printer's margin plus what
+the slicer prints around the parts.
+
 Circles are regular polygons (:data:`CIRCLE_SEGMENTS`): pins, caps, collars and bar ends are
 inscribed in their nominal circles and holes circumscribe theirs, so every clearance is at
 least its nominal value. Volumes are exact for those polygons (:attr:`PinnedPrint.volumes`).
@@ -40,12 +47,13 @@ from ..settings.fasteners import ScrewSpec
 from .hinges import manifold3d
 from ..settings.laser import LaserSettings
 from .layers import plan_layers, sample_chain, sample_motion
-from .printers import split_to_fit
+from .printers import bed_layout, split_to_fit
+from .slicer import placement_margin
 from ..settings.printing import PrintSettings
 from ..motion.window import motion_window
 
 __all__ = ["CIRCLE_SEGMENTS", "PinnedPrint", "pinned_print", "printed_design", "stack_settings", "bar_body",
-           "pin_profile", "polygon_area", "circle_polygon"]
+           "pin_profile", "polygon_area", "circle_polygon", "outline_of"]
 
 #: Sides of the polygons standing for circles (pins, holes, caps, bar ends): a 3 mm pin loses
 #: 0.007 mm to the chords.
@@ -156,7 +164,8 @@ class PinnedPrint:
     cut_joints : tuple of int
         Joints where the print is cut between pieces: plain holes, joined by the maker.
     pieces : list of dict
-        ``bars`` (indices), ``nodes``, ``joined_at`` (port name or ``""``).
+        ``bars`` (indices), ``nodes``, ``joined_at`` (port name or ``""``), ``flat`` (a bar no
+        printed pin joins, laid flat on the bed alone).
     layout : list of Placement
         Where each piece goes on which bed (:func:`fabkit.fab.printers.bed_layout`).
     """
@@ -178,6 +187,11 @@ class PinnedPrint:
     @property
     def n_bars(self) -> int:
         return int(self.edges.shape[0])
+
+    @property
+    def flat(self) -> list[int]:
+        """The bars laid flat on the bed, each a piece of its own (no printed pin joins them)."""
+        return [int(p["bars"][0]) for p in self.pieces if p.get("flat")]
 
     @property
     def beds(self) -> int:
@@ -347,6 +361,26 @@ def pinned_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     return _PLANS[key]
 
 
+def outline_of(positions, edges, half: float) -> np.ndarray:
+    """Every corner of the round-ended outlines of the bars ``edges`` (mm): what the bed layout
+    turns and arranges."""
+    return np.concatenate([stadium_polygon(positions[i], positions[j], half,
+                                           n=CIRCLE_SEGMENTS // 2 + 1) for i, j in edges])
+
+
+def _lay_flat(pieces: list, pinned: np.ndarray, edges: np.ndarray) -> list:
+    """The pieces without the bars no printed pin joins, then each such bar a flat piece."""
+    out, flat = [], []
+    for piece in pieces:
+        bars = np.asarray(piece["bars"], dtype=np.int64)
+        keep = bars[pinned[bars]]
+        if keep.size:
+            out.append({**piece, "bars": keep, "nodes": np.unique(edges[keep])})
+        flat += [{"bars": np.array([b]), "nodes": np.sort(edges[b]),
+                  "joined_at": piece["joined_at"], "flat": True} for b in bars[~pinned[bars]]]
+    return out + flat
+
+
 def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     kit = None
     if motion is not None:  # the pipeline's motion: its window traced once for every process
@@ -376,18 +410,18 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     def outline(nodes):
         keep = np.zeros(net.n_nodes, dtype=bool)
         keep[nodes] = True
-        bars = np.flatnonzero(keep[edges].all(axis=1))
-        return np.concatenate([stadium_polygon(positions[edges[b, 0]], positions[edges[b, 1]],
-                                               half, n=CIRCLE_SEGMENTS // 2 + 1) for b in bars])
+        return outline_of(positions, edges[keep[edges].all(axis=1)], half)
 
-    split, layout = split_to_fit(net, outline, s.printer_profile())
+    margin = placement_margin(s)
+    split, layout = split_to_fit(net, outline, s.printer_profile(), margin=margin)
     pieces, owner = [], np.full(len(edges), -1)
     for p, (nodes, cut) in enumerate(split):
         keep = np.zeros(net.n_nodes, dtype=bool)
         keep[nodes] = True
         bars = np.flatnonzero(keep[edges].all(axis=1) & (owner < 0))
         owner[bars] = p
-        pieces.append({"bars": bars, "nodes": np.asarray(nodes), "joined_at": cut})
+        pieces.append({"bars": bars, "nodes": np.asarray(nodes), "joined_at": cut,
+                       "flat": False})
     cut_joints = sorted({int(v) for _, cut in split if cut for v in net.port(cut)})
     # the bars of every joint, lowest layer first (one sort, not a search per joint)
     ends = edges.ravel()
@@ -397,6 +431,11 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     incidence = dict(zip(nodes.tolist(), np.split(bars_at[order], starts[1:])))
     cut = set(cut_joints)
     carrier = {j: int(b[0]) for j, b in incidence.items() if len(b) >= 2 and j not in cut}
+    pinned = np.isin(edges, list(carrier)).any(axis=1)
+    if not pinned.all():  # bars no printed pin joins lie flat, each a piece of its own
+        pieces = _lay_flat(pieces, pinned, edges)
+        layout = bed_layout([outline_of(positions, edges[p["bars"]], half) for p in pieces],
+                            s.printer_profile(), margin=margin)
     return PinnedPrint(settings=s, edges=edges, positions=positions, offset=offset, sweep=sweep,
                        stacking=stacking, layer=layer, carrier=carrier, incidence=incidence,
                        cut_joints=tuple(cut_joints), pieces=pieces, layout=layout,

@@ -146,7 +146,7 @@ def bed_layout(outlines, printer: Printer, *, margin: float | None = None,
             long, short = _min_size(pts)
             raise FabricationError(
                 f"piece {k + 1} needs a bed of at least {math.ceil(long + 2 * margin):d} x "
-                f"{math.ceil(short + 2 * margin):d} mm (turned to fit, {margin:g} mm margins); "
+                f"{math.ceil(short + 2 * margin):d} mm (turned to fit, {margin:g} mm from each edge); "
                 f"the {printer.name} bed is {printer.width:g} x {printer.depth:g} mm: choose a "
                 f"larger printer (print.printer = {', '.join(PRINTERS)}) or lower print.scale")
         oriented.append(fit)

@@ -10,7 +10,10 @@ Files (``NAME`` is the design's name; ``_bed<k>`` when the print needs more than
   coordinates), with the print settings the design needs
   (:mod:`fabkit.fab.slicer`), unless ``threemf = false``;
 * ``NAME_print.png`` — the beds seen from above, bars coloured by layer, unless
-  ``preview = false``.
+  ``preview = false``;
+* ``print_bom.json``, ``print_bom.md`` — the print's bill of materials
+  (:mod:`fabkit.writers.print_bom`): beds, parts per bed, filament, and the bolts (with their
+  lengths), washers and lock nuts of the joints where the print is cut.
 
 Pure: returns bytes. The as-built check (:mod:`fabkit.check.pinned`) reads the STL or 3MF
 back, finds the bars, pins and holes, rebuilds the joints and re-simulates the motion.
@@ -26,6 +29,8 @@ from ..errors import FabricationError
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit
 from . import ExportResult
+from ..fab.slicer import placement_margin
+from .print_bom import print_bom_document, print_bom_files
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
@@ -100,7 +105,8 @@ def preview_figure(plan, title: str):
     heading = textwrap.wrap(
         f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers (colour = layer), "
         f"{len(plan.carrier)} printed pins (white caps), {printer.width:g} x {printer.depth:g} mm "
-        f"bed, {printer.margin:g} mm kept free along its edges (dashed)",
+        f"bed, {printer.margin:g} mm kept free along its edges (dashed) and the parts "
+        f"{placement_margin(s):g} mm from them (dotted: room for the skirt and support)",
         int(width * 72 / (9 * 0.62)))
     top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
     height = _BED_IN * rows + top - _TITLE_IN + 0.25
@@ -123,6 +129,9 @@ def preview_figure(plan, title: str):
         m = printer.margin
         ax.add_patch(figure_kit.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
                                    fill=False, lw=0.6, ec="0.6", ls="--"))
+        m = placement_margin(s)
+        ax.add_patch(figure_kit.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
+                                          fill=False, lw=0.6, ec="0.6", ls=":"))
         polys, colours = [], []
         for k in order:
             p = int(piece_of[k])
@@ -219,13 +228,14 @@ def _bed_bodies(plan, meshes, b: int, name: str, origin) -> tuple[list, list, li
     object per piece (for the 3MF)."""
     verts, faces, offset = [], [], 0
     objects = []
-    for p, piece in enumerate(plan.pieces):
-        if plan.layout[p].bed != b:
-            continue
-        m = plan.placement_matrix(p)
+    on_bed = [p for p in range(len(plan.pieces)) if plan.layout[p].bed == b]
+    stacks = [[p] for p in on_bed if not plan.pieces[p].get("flat")]
+    flat = [p for p in on_bed if plan.pieces[p].get("flat")]
+    for group in stacks + ([flat] if flat else []):
         pv, pf, volumes = [], [], []
         first = poff = 0
-        for k in piece["bars"]:
+        for p, k in ((p, k) for p in group for k in plan.pieces[p]["bars"]):
+            m = plan.placement_matrix(p)
             v, f = meshes[k]
             placed = _placed(v, m)
             if not (stored_mesh_is_closed(placed, f)
@@ -240,14 +250,15 @@ def _bed_bodies(plan, meshes, b: int, name: str, origin) -> tuple[list, list, li
             pf.append(f + poff)
             poff += len(v)
             i, j = plan.edges[k]
-            volumes.append((first, first + len(f) - 1,
-                            f"bar {k} (joints {i}-{j}), layer {int(plan.layer[k]) + 1}"))
+            where = (f"laid flat, layer {int(plan.layer[k]) + 1} when bolted" if group is flat
+                     else f"layer {int(plan.layer[k]) + 1}")
+            volumes.append((first, first + len(f) - 1, f"bar {k} (joints {i}-{j}), {where}"))
             first += len(f)
         # placed in the mesh itself: PrusaSlicer 2.5 applies a build item's transform to
         # the first part of an object only
-        objects.append((np.concatenate(pv), np.concatenate(pf),
-                        name if len(plan.pieces) == 1 else f"{name}_piece{p + 1}", None,
-                        volumes))
+        title = (f"{name}_flat_bars" if group is flat else
+                 name if len(plan.pieces) == 1 else f"{name}_piece{group[0] + 1}")
+        objects.append((np.concatenate(pv), np.concatenate(pf), title, None, volumes))
     return verts, faces, objects
 
 
@@ -300,10 +311,12 @@ def write_pinned(plan, s, name: str, design, slicer) -> ExportResult:
     pieces = [{"piece": p + 1, "bed": plan.layout[p].bed + 1, "angle_deg": plan.layout[p].angle,
                "offset_mm": list(plan.layout[p].offset), "size_mm": list(plan.layout[p].size),
                "lowered_mm": plan.piece_floor(p), "bars": [int(k) for k in piece["bars"]],
-               "joined_at": piece["joined_at"] or None} for p, piece in enumerate(plan.pieces)]
+               "joined_at": piece["joined_at"] or None, "flat": bool(piece.get("flat"))}
+              for p, piece in enumerate(plan.pieces)]
     printer = s.printer_profile()
     split = len(plan.pieces) > 1
     bom = print_bom(plan)
+    files.update(print_bom_files(_bom_document(plan, s, design.name, bom, stl_names, mf_names)))
     report = {
         "linkage": "pins",
         "settings": s.as_dict(),
@@ -323,6 +336,7 @@ def write_pinned(plan, s, name: str, design, slicer) -> ExportResult:
         "body_volumes_mm3": [float(v) for v in volumes],
         "mesh": {"triangles": int(triangles), "bodies": plan.n_bars},
         "printer": {"printer": printer.as_dict(), "beds": beds, "pieces": pieces,
+                    "parts_margin_mm": placement_margin(s), "laid_flat": plan.flat,
                     "join": JOIN_PINNED.format(fill=bom["washers_per_empty_layer"] * 0.5)
                     if split else None,
                     "files": sorted(n for n in files if n.endswith((".stl", ".3mf"))),
@@ -333,6 +347,69 @@ def write_pinned(plan, s, name: str, design, slicer) -> ExportResult:
         "files": sorted(files),
     }
     return ExportResult(files=files, report=report)
+
+
+def _bed_parts(plan, b: int) -> list[dict]:
+    """What bed ``b`` holds, as the print's bill of materials lists it."""
+    s = plan.settings
+    out = []
+    for p, piece in enumerate(plan.pieces):
+        if plan.layout[p].bed != b:
+            continue
+        bars = [int(k) for k in piece["bars"]]
+        if piece.get("flat"):
+            k = bars[0]
+            i, j = (int(v) for v in plan.edges[k])
+            length = float(np.linalg.norm(plan.positions[i] - plan.positions[j]))
+            out.append({"piece": p + 1, "bars": bars, "flat": True,
+                        "text": f"bar {k} (joints {i}-{j}), {length:.1f} mm between its holes, "
+                                f"laid flat: no printed pin joins it; it is bolted in layer "
+                                f"{int(plan.layer[k]) + 1} of its joints' stacks"})
+            continue
+        pins = sorted(j for j, k in plan.carrier.items() if k in bars)
+        layers = sorted({int(plan.layer[k]) for k in bars})
+        joined = f", joined to the next piece at {piece['joined_at']}" if piece["joined_at"] else ""
+        out.append({"piece": p + 1, "bars": bars, "flat": False, "printed_pins": pins,
+                    "text": f"piece {p + 1}: bars {', '.join(map(str, bars))} printed in place "
+                            f"in {len(layers)} layers of {s.layer_pitch:g} mm on {len(pins)} "
+                            f"printed pins (joints {', '.join(map(str, pins)) or 'none'})"
+                            + joined})
+    return out
+
+
+def _bom_document(plan, s, name: str, bom: dict, stl_names, mf_names) -> dict:
+    """The print's bill of materials (:mod:`fabkit.writers.print_bom`) of a pinned plan."""
+    volumes = plan.volumes
+    piece_of = plan.piece_of_bar()
+    beds = []
+    for b in range(plan.beds):
+        on_bed = [k for k in range(plan.n_bars) if plan.layout[int(piece_of[k])].bed == b]
+        beds.append({"bed": b + 1,
+                     "files": [stl_names[b]] + ([mf_names[b]] if s.threemf else []),
+                     "parts": _bed_parts(plan, b), "bars": len(on_bed),
+                     "volume_mm3": float(volumes[on_bed].sum())})
+    stacks = {int(st.joint): st for st in plan.stacking.joints}
+    joints = []
+    for j, parts in sorted(bom["joints"].items()):
+        st = stacks[j]
+        order = sorted(zip(st.layers, st.bars))
+        joints.append({"joint": j, "bars": [int(k) for _, k in order],
+                       "layers": [int(layer) + 1 for layer, _ in order],
+                       "empty_layers": [int(v) + 1 for v in st.spacers], "parts": parts})
+    printer = s.printer_profile()
+    notes = [JOIN_PINNED.format(fill=bom["washers_per_empty_layer"] * 0.5)
+             if len(plan.pieces) > 1 else "one piece: nothing to join",
+             "after printing, turn each printed joint by hand to break the first layer of "
+             "the gaps free"]
+    if plan.flat:
+        notes.append(f"{len(plan.flat)} bars no printed pin joins are printed lying flat "
+                     f"(bars {', '.join(map(str, plan.flat))}): bolt each into its joints' "
+                     "stacks in the layer the table gives")
+    return print_bom_document(
+        name, "print-in-place bar linkage", s,
+        {"name": printer.name, "bed_mm": [printer.width, printer.depth],
+         "margin_mm": printer.margin, "parts_margin_mm": placement_margin(s)},
+        beds, bom["buy"], joints, notes)
 
 
 def _threemf(objects, slicer, title: str) -> bytes:

@@ -18,7 +18,9 @@ bed):
 * ``NAME.3mf`` — the same bed as a 3MF package (each piece an object placed by its build item),
   with the print settings the design needs (:mod:`fabkit.fab.slicer`), unless ``threemf =
   false``;
-* ``NAME_print.png`` — a top view of plates and hinges, unless ``preview = false``.
+* ``NAME_print.png`` — a top view of plates and hinges, unless ``preview = false``;
+* ``print_bom.json``, ``print_bom.md`` — the print's bill of materials
+  (:mod:`fabkit.writers.print_bom`): beds, files and parts per bed, filament.
 
 Pure: returns bytes, never opens a file. The report gives the analytic volume the STL is checked
 against, the narrowest features, the largest hinge rotation along the design's motion and the
@@ -38,13 +40,15 @@ from ..model.network import Network
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit, figure_png
 from . import ExportResult
+from ..fab.slicer import placement_margin
 from .pinned import bed_file_names
+from .print_bom import print_bom_document, print_bom_files
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
 
 __all__ = ["FORMAT", "PROCESS", "applies", "write", "export_design", "binary_stl", "threemf_package",
-           "preview_figure",
-           "stored_mesh_is_closed", "hinge_layout", "piece_network", "stl_origin"]
+           "preview_figure", "stored_mesh_is_closed", "hinge_layout", "piece_network",
+           "stl_origin", "mesh_volume"]
 
 FORMAT = "stl"
 
@@ -122,7 +126,7 @@ def hinge_layout(design, s, geo=None):
             geos[key] = print_geometry(piece_network(net, nodes), s)
         return _outline(geos[key])
 
-    pieces, layout = split_to_fit(net, outline, s.printer_profile())
+    pieces, layout = split_to_fit(net, outline, s.printer_profile(), margin=placement_margin(s))
     return pieces, [geos[tuple(np.asarray(n).tolist())] for n, _ in pieces], layout
 
 
@@ -157,7 +161,7 @@ def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[
     printer = s.printer_profile()
     xy = np.asarray(verts)[:, :2]
     w, h = np.ptp(xy, axis=0)
-    margin = printer.margin  # the skirt, brim and support print there
+    margin = placement_margin(s)  # the printer's margin, and room for the skirt around that
     fits = bool(w <= printer.width - 2 * margin and h <= printer.depth - 2 * margin)
     pieces, geos, layout = hinge_layout(design, s, geo)
     meshes = [(verts, faces)] if len(pieces) == 1 else [_piece_solid(g) for g in geos]
@@ -190,12 +194,45 @@ def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[
                                             per_object=slicer.per_object,
                                             title=f"fabkit print settings for {design.name}")
     report = {"printer": printer.as_dict(), "fits_as_designed": fits, "beds": beds,
+              "parts_margin_mm": margin,
               "pieces": [{"piece": p.piece + 1, "bed": p.bed + 1, "angle_deg": p.angle,
                           "offset_mm": list(p.offset), "size_mm": list(p.size),
                           "nodes": int(len(pieces[p.piece][0])),
+                          "plates": len(geos[p.piece].plates),
+                          "hinges": int(len(geos[p.piece].joints)),
+                          "volume_mm3": mesh_volume(*meshes[p.piece]),
                           "joined_at": pieces[p.piece][1] or None} for p in layout],
               "join": JOIN if len(pieces) > 1 else None, "files": sorted(files)}
     return files, report
+
+
+def mesh_volume(vertices, faces) -> float:
+    """Volume (mm^3) of a closed, outward-wound triangle mesh (divergence theorem)."""
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64)]
+    return float(np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6.0)
+
+
+def _bom(design, s, layout: dict) -> dict:
+    """The hinge print's bill of materials (:mod:`fabkit.writers.print_bom`)."""
+    beds = []
+    for b in range(layout["beds"]):
+        on_bed = [p for p in layout["pieces"] if p["bed"] == b + 1]
+        names = [n for n in layout["files"] if n.endswith(".stl") or n.endswith(".3mf")]
+        mine = [n for n in names if layout["beds"] == 1 or f"_bed{b + 1}." in n]
+        parts = [{"piece": p["piece"], "text": f"piece {p['piece']}: {p['plates']} plates "
+                                               f"joined by {p['hinges']} printed hinges, one "
+                                               "body, nothing to assemble"
+                                               + (f" (joined to the next piece at "
+                                                  f"{p['joined_at']})" if p["joined_at"] else "")}
+                 for p in on_bed]
+        beds.append({"bed": b + 1, "files": mine, "parts": parts,
+                     "volume_mm3": sum(p["volume_mm3"] for p in on_bed)})
+    printer = s.printer_profile()
+    return print_bom_document(
+        design.name, "triangle-hinge solid", s,
+        {"name": printer.name, "bed_mm": [printer.width, printer.depth],
+         "margin_mm": printer.margin, "parts_margin_mm": layout["parts_margin_mm"]},
+        beds, [], [], [layout["join"] or "one piece per bed: nothing to join"])
 
 
 def preview_figure(geo, title: str):
@@ -288,6 +325,7 @@ def write(plan) -> ExportResult:
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
         files[f"{name}_print.png"] = figure_png(preview_figure(geo, design.name))
+    files.update(print_bom_files(_bom(design, s, layout)))
 
     hinges = plan.hinges
     warnings = []

@@ -17,6 +17,8 @@ FILE_ROLES = (
     (r"laser_sheet(\d+)\.svg", "sheet {0} to cut (SVG for laser programs, mm)"),
     (r"laser_bom\.md", "bill of materials (to read)"),
     (r"laser_bom\.json", "bill of materials (data)"),
+    (r"print_bom\.md", "print bill of materials: beds, parts, filament, bolts (to read)"),
+    (r"print_bom\.json", "print bill of materials (data)"),
     (r"laser_assembly\.png", "picture: the kit by layer, in rows"),
     (r"laser_layers_motion\.png", "picture: the motion test with the layers"),
     (r".*_cut\.svg", "cut-ready sheet: perforated creases and the outline (laser or vinyl cutter)"),
