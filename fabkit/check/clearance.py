@@ -251,9 +251,10 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     says which pairs count and ``measure(x, s, a, b)`` gives their gaps at samples ``s``, never
     below the distance of their boxes less ``rad[a] + rad[b]``. Per block of samples only the
     pairs whose boxes come within a reach in a window of samples (:func:`_near`) are measured,
-    and only at the samples of that window; the reach grows until the smallest gap found lies within it (no pair left
-    out can then do better) or it covers the whole motion, or no pair within it can beat the
-    smallest gap of the blocks before. Ties go to the earliest sample, then the lowest pair.
+    and only at the samples of that window; the reach grows until the smallest gap found lies
+    within it (no pair left out can then do better) or it covers the whole motion, or no pair
+    within it can beat the smallest gap of the blocks before. Ties go to the earliest sample,
+    then the lowest pair.
 
     Returns
     -------
