@@ -20,6 +20,13 @@ joint moves more than a bound between two samples, and every gap is measured on 
 Between two samples no point of a bar moves more than the larger move of its two joints, so a
 gap can shrink by at most twice the largest joint step between samples; the checks ask for a
 margin that covers it.
+
+Only the pairs that come near are measured, and only where they do: the samples are taken in
+windows of a few (:data:`WINDOW_SAMPLES`), each part boxed over a window, and a sort and sweep
+per window and layer keeps the pairs whose boxes come within a reach; the reach grows until the
+smallest gap found lies within it. A gap is never below the distance of the parts' boxes, so
+the answer (smallest gap, which parts, which sample; ties to the earliest sample, then the
+lowest pair) is that of measuring every pair at every sample.
 """
 
 from __future__ import annotations
@@ -38,6 +45,16 @@ __all__ = ["FineMotion", "fine_motion", "same_layer_gaps", "segment_gap", "point
 MAX_SAMPLES = 200_000
 #: Elements of one block of pair-by-sample distances (bounds the memory of a measurement).
 BLOCK_ELEMENTS = 2**21
+#: Pairs at samples measured at once (a dozen temporaries of this length).
+MEASURE_ELEMENTS = 2**18
+#: Slack (mm) on the box distances that choose the pairs to measure: far above the rounding of
+#: coordinates of a few metres, so rounding never leaves out a pair that holds the minimum.
+BOX_SLACK = 1e-6
+#: Samples boxed together: a part's box over a few samples is barely larger than at one (joints
+#: move a fraction of the clearance per sample), and the boxes to sort are that many times fewer.
+WINDOW_SAMPLES = 16
+#: Growth of the reach searched per round when no gap is found within it.
+REACH_GROWTH = 4.0
 
 
 @dataclass(frozen=True)
@@ -179,26 +196,113 @@ def segment_gap(p1, q1, p2, q2) -> np.ndarray:
     return np.where(crossing, 0.0, d)
 
 
-def _least(pairs, lower, measure, x):
-    """Smallest gap over samples among candidate pairs, nearest bounds first.
+def _windows(x):
+    """Each joint's box over each window of :data:`WINDOW_SAMPLES` samples of ``x``: (lo, hi),
+    shape (W, N, 2) each. At every sample of a window a segment lies within the box of its two
+    joints' boxes."""
+    starts = np.arange(0, x.shape[0], WINDOW_SAMPLES)
+    return np.minimum.reduceat(x, starts, axis=0), np.maximum.reduceat(x, starts, axis=0)
 
-    ``lower``: a lower bound of each pair's gap (from swept boxes); ``measure(x, idx)``: the
-    gaps (S, P) of the pairs ``idx``. Returns (gap, pair index, sample) or (inf, -1, -1).
+
+def _near(lo, hi, group, rad, reach: float, allowed):
+    """The parts that come near in a window: (window, a, b), a < b, of one group, whose boxes
+    ``lo``, ``hi`` (W, M, 2) lie within ``reach + rad[a] + rad[b]`` of each other in x and in y
+    in that window.
+
+    Sort and sweep per window and group along the axis the parts spread most: each box meets
+    the boxes that start within its reach along that axis, not the whole layer. Returns None
+    when the block of windows would give more than :data:`BLOCK_ELEMENTS` pairs at samples
+    (the caller splits it).
     """
-    best, where, sample = math.inf, -1, -1
-    if pairs == 0:
-        return best, where, sample
-    order = np.argsort(lower, kind="stable")
-    block = max(1, BLOCK_ELEMENTS // max(1, x.shape[0]))
-    for start in range(0, pairs, block):
-        idx = order[start:start + block]
-        if lower[idx[0]] >= best:
-            break
-        g = measure(x, idx)
-        k = np.unravel_index(int(np.argmin(g)), g.shape)
-        if g[k] < best:
-            best, where, sample = float(g[k]), int(idx[k[1]]), int(k[0])
-    return best, where, sample
+    n_s, n_m = lo.shape[:2]
+    axis = int(np.argmax(hi.max(axis=(0, 1)) - lo.min(axis=(0, 1))))
+    run = (np.arange(n_s)[:, None] * (int(group.max() - group.min()) + 1)
+           + (group - group.min())[None, :]).ravel()
+    start = lo[..., axis].ravel()
+    stop = (hi[..., axis] + (rad + reach + float(rad.max()) + 2.0 * BOX_SLACK)[None, :]).ravel()
+    order = np.lexsort((start, run))
+    pos = np.empty_like(order)
+    pos[order] = np.arange(order.size)
+    # where each box's reach ends among the sorted starts of its run: sort the ends in with
+    # the starts (an end after the starts it equals) and count the starts before it
+    merged = np.lexsort((np.r_[np.zeros(order.size, np.int8), np.ones(order.size, np.int8)],
+                         np.r_[start, stop], np.r_[run, run]))
+    ends = np.flatnonzero(merged >= order.size)
+    last = np.empty(order.size, dtype=np.int64)
+    last[merged[ends] - order.size] = ends - np.arange(order.size)
+    counts = np.maximum(last - pos - 1, 0)
+    total = int(counts.sum())
+    if total * WINDOW_SAMPLES > BLOCK_ELEMENTS and n_s > 1:
+        return None
+    fi = np.repeat(np.arange(order.size), counts)
+    fj = order[np.repeat(pos + 1 - np.cumsum(counts) + counts, counts) + np.arange(total)]
+    flat_lo, flat_hi = lo.reshape(-1, 2), hi.reshape(-1, 2)
+    a, b = np.minimum(fi % n_m, fj % n_m), np.maximum(fi % n_m, fj % n_m)
+    sep = np.maximum(flat_lo[fj] - flat_hi[fi], flat_lo[fi] - flat_hi[fj]).max(axis=1)
+    ok = (sep <= reach + rad[a] + rad[b] + BOX_SLACK) & allowed(a, b)
+    return fi[ok] // n_m, a[ok], b[ok]
+
+
+def _least(x, ends, group, rad, allowed, measure, reach: float):
+    """Smallest gap over samples and pairs of parts, exactly, and where.
+
+    Parts are segments between joints (``ends``, a column from its joint to itself) in
+    ``group`` (a layer), ``rad`` the half width each part adds to its segment; ``allowed(a, b)``
+    says which pairs count and ``measure(x, s, a, b)`` gives their gaps at samples ``s``, never
+    below the distance of their boxes less ``rad[a] + rad[b]``. Per block of samples only the
+    pairs whose boxes come within a reach in a window of samples (:func:`_near`) are measured,
+    and only at the samples of that window; the reach grows until the smallest gap found lies
+    within it (no pair left out can then do better) or it covers the whole motion, or no pair
+    within it can beat the smallest gap of the blocks before. Ties go to the earliest sample,
+    then the lowest pair.
+
+    Returns
+    -------
+    (gap, sample, a, b)
+        ``(inf, -1, -1, -1)`` when no pair counts.
+    """
+    best = (math.inf, -1, -1, -1)
+    if ends.shape[0] < 2:
+        return best
+    lo_all, hi_all = x.min(axis=(0, 1)), x.max(axis=(0, 1))
+    limit = float((hi_all - lo_all).max())
+    joint_lo, joint_hi = _windows(x)
+    size = WINDOW_SAMPLES * max(1, BLOCK_ELEMENTS // (8 * ends.shape[0]))
+    todo = [(s, min(s + size, x.shape[0])) for s in range(0, x.shape[0], size)][::-1]
+    while todo:
+        s0, s1 = todo.pop()
+        w0, w1 = s0 // WINDOW_SAMPLES, -(-s1 // WINDOW_SAMPLES)
+        lo = np.minimum(joint_lo[w0:w1, ends[:, 0]], joint_lo[w0:w1, ends[:, 1]])
+        hi = np.maximum(joint_hi[w0:w1, ends[:, 0]], joint_hi[w0:w1, ends[:, 1]])
+        r = min(reach, best[0])
+        while True:
+            near = _near(lo, hi, group, rad, r, allowed)
+            if near is None:  # too many candidates at once: half the windows each
+                mid = s0 + (lo.shape[0] // 2) * WINDOW_SAMPLES
+                todo += [(mid, s1), (s0, mid)]
+                break
+            w, a, b = near
+            s = (s0 + WINDOW_SAMPLES * w)[:, None] + np.arange(WINDOW_SAMPLES)
+            inside = s < s1
+            s, a, b = s[inside], np.repeat(a, inside.sum(1)), np.repeat(b, inside.sum(1))
+            found, best = _smallest(measure, x, s, a, b, best)
+            if found <= r or r >= min(best[0], limit):
+                break
+            r = min(REACH_GROWTH * max(r, BOX_SLACK), best[0], limit)
+    return best
+
+
+def _smallest(measure, x, s, a, b, best):
+    """The smallest gap measured at (s, a, b), and ``best`` updated: (gap, sample, a, b)."""
+    found = math.inf
+    for k in range(0, s.size, MEASURE_ELEMENTS):
+        g = measure(x, s[k:k + MEASURE_ELEMENTS], a[k:k + MEASURE_ELEMENTS],
+                    b[k:k + MEASURE_ELEMENTS])
+        i = np.flatnonzero(g == g.min()) + k
+        first = i[np.lexsort((b[i], a[i], s[i]))[0]]
+        found = min(found, float(g.min()))
+        best = min(best, (float(g.min()), int(s[first]), int(a[first]), int(b[first])))
+    return found, best
 
 
 def _layer_pairs(layer):
@@ -210,12 +314,6 @@ def _layer_pairs(layer):
         out_a.append(idx[i])
         out_b.append(idx[j])
     return np.concatenate(out_a), np.concatenate(out_b)
-
-
-def _box_gap(lo_a, hi_a, lo_b, hi_b) -> np.ndarray:
-    """Distance between axis-aligned boxes (0 when they overlap)."""
-    d = np.maximum(0.0, np.maximum(lo_a - hi_b, lo_b - hi_a))
-    return np.sqrt((d * d).sum(-1))
 
 
 def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
@@ -248,68 +346,69 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     edges = np.asarray(edges, dtype=np.int64)
     layer = np.asarray(layer, dtype=np.int64)
     half = 0.5 * np.broadcast_to(np.asarray(widths, dtype=np.float64), (len(edges),))
-    lo_n, hi_n = x.min(axis=0), x.max(axis=0)
-    bar_lo = np.minimum(lo_n[edges[:, 0]], lo_n[edges[:, 1]])
-    bar_hi = np.maximum(hi_n[edges[:, 0]], hi_n[edges[:, 1]])
+    reach = 2.0 * float(half.max(initial=0.0))  # a bar's width: where neighbours stand
     out = {"bar_gap": math.inf, "bar_pair": None, "sample": None, "joint_gap": math.inf,
            "joint_pair": None, "screw_gap": math.inf, "screw_at": None, "column_gap": math.inf,
            "column_pair": None}
-    # bar pairs of one layer (formed layer by layer); those on a shared joint overlap there
+    # bar pairs of one layer (formed layer by layer) on a shared joint overlap there
     a, b = _layer_pairs(layer)
-    keep = (edges[a, 0] != edges[b, 0]) & (edges[a, 0] != edges[b, 1]) \
-        & (edges[a, 1] != edges[b, 0]) & (edges[a, 1] != edges[b, 1])
+    keep = _apart(edges[a], edges[b])
     if not keep.all():
         overlap = -(half[a[~keep]] + half[b[~keep]])
         k = int(np.argmin(overlap))
         out.update(joint_gap=float(overlap[k]),
                    joint_pair=[int(a[~keep][k]), int(b[~keep][k])])
-    a, b = a[keep], b[keep]
-    lower = _box_gap(bar_lo[a], bar_hi[a], bar_lo[b], bar_hi[b]) - half[a] - half[b]
 
-    def bars(xs, idx):
-        ia, ib = edges[a[idx]], edges[b[idx]]
-        return segment_gap(xs[:, ia[:, 0]], xs[:, ia[:, 1]], xs[:, ib[:, 0]],
-                           xs[:, ib[:, 1]]) - half[a[idx]] - half[b[idx]]
+    def bars(xs, s, i, j):
+        ei, ej = edges[i], edges[j]
+        return segment_gap(xs[s, ei[:, 0]], xs[s, ei[:, 1]], xs[s, ej[:, 0]],
+                           xs[s, ej[:, 1]]) - half[i] - half[j]
 
-    gap, k, s = _least(len(a), lower, bars, x)
-    if k >= 0:
-        out.update(bar_gap=gap, bar_pair=[int(a[k]), int(b[k])], sample=s)
+    gap, s, i, j = _least(x, edges, layer, half, lambda i, j: _apart(edges[i], edges[j]), bars,
+                          reach)
+    if i >= 0:
+        out.update(bar_gap=gap, bar_pair=[i, j], sample=s)
     if not columns or not len(columns["joints"]):
         return out
     jid = np.asarray(columns["joints"], dtype=np.int64)
     low, high = np.asarray(columns["low"]), np.asarray(columns["high"])
     in_lo, in_hi = np.asarray(columns["inner_low"]), np.asarray(columns["inner_high"])
     r, r_in = float(columns["radius"]), float(columns["inner_radius"])
+    # a column stands on every layer from its low to its high one: one part per layer
+    col = np.repeat(np.arange(len(jid)), np.maximum(high - low + 1, 0))
+    z = low[col] + np.arange(col.size) - np.repeat(np.cumsum(high - low + 1) - (high - low + 1),
+                                                   np.maximum(high - low + 1, 0))
+    radius = np.where((z >= in_lo[col]) & (z <= in_hi[col]), max(r, r_in), r)
     # a bar and a column whose layers it occupies, the column not at one of its joints
-    bb_parts, jk_parts = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
-    for z in np.unique(layer):
-        on, over = np.flatnonzero(layer == z), np.flatnonzero((low <= z) & (high >= z))
-        bb_parts.append(np.repeat(on, over.size))
-        jk_parts.append(np.tile(over, on.size))
-    bb, jk = np.concatenate(bb_parts), np.concatenate(jk_parts)
-    keep = (edges[bb, 0] != jid[jk]) & (edges[bb, 1] != jid[jk])
-    bb, jk = bb[keep], jk[keep]
-    radius = np.where((layer[bb] >= in_lo[jk]) & (layer[bb] <= in_hi[jk]), max(r, r_in), r)
-    lower = _box_gap(bar_lo[bb], bar_hi[bb], lo_n[jid[jk]], hi_n[jid[jk]]) - half[bb] - radius
+    n_e = len(edges)
+    ends = np.concatenate([edges, np.stack([jid[col], jid[col]], axis=1)])
 
-    def screws(xs, idx):
-        e = edges[bb[idx]]
-        return point_gap(xs[:, jid[jk[idx]]], xs[:, e[:, 0]], xs[:, e[:, 1]]) \
-            - half[bb[idx]] - radius[idx]
+    def bar_and_column(i, j):  # i < j: i a bar, j a column
+        return (i < n_e) & (j >= n_e) & _apart(ends[i], ends[j])
 
-    gap, k, _ = _least(len(bb), lower, screws, x)
-    if k >= 0:
-        out.update(screw_gap=gap, screw_at=[int(bb[k]), int(jid[jk[k]])])
-    ia, ib = np.triu_indices(len(jid), k=1)
-    keep = (low[ia] <= high[ib]) & (low[ib] <= high[ia])
-    ia, ib = ia[keep], ib[keep]
-    lower = _box_gap(lo_n[jid[ia]], hi_n[jid[ia]], lo_n[jid[ib]], hi_n[jid[ib]]) - 2.0 * r
+    def screws(xs, s, i, j):
+        e = edges[i]
+        return point_gap(xs[s, ends[j, 0]], xs[s, e[:, 0]], xs[s, e[:, 1]]) \
+            - half[i] - radius[j - n_e]
 
-    def cols(xs, idx):
-        d = xs[:, jid[ia[idx]]] - xs[:, jid[ib[idx]]]
+    gap, s, i, j = _least(x, ends, np.concatenate([layer, z]), np.concatenate([half, radius]),
+                          bar_and_column, screws, reach)
+    if i >= 0:
+        out.update(screw_gap=gap, screw_at=[i, int(jid[col[j - n_e]])])
+    # two columns that share a layer (met on each layer they share; the first is kept)
+
+    def cols(xs, s, i, j):
+        d = xs[s, jid[col[i]]] - xs[s, jid[col[j]]]
         return np.sqrt((d * d).sum(-1)) - 2.0 * r
 
-    gap, k, _ = _least(len(ia), lower, cols, x)
-    if k >= 0:
-        out.update(column_gap=gap, column_pair=[int(jid[ia[k]]), int(jid[ib[k]])])
+    gap, s, i, j = _least(x, ends[n_e:], z, np.full(col.size, r), lambda i, j: col[i] != col[j],
+                          cols, reach)
+    if i >= 0:
+        out.update(column_gap=gap, column_pair=[int(jid[col[i]]), int(jid[col[j]])])
     return out
+
+
+def _apart(e, f) -> np.ndarray:
+    """True where segments with joints ``e`` (K, 2) and ``f`` (K, 2) share no joint."""
+    return (e[:, 0] != f[:, 0]) & (e[:, 0] != f[:, 1]) & (e[:, 1] != f[:, 0]) \
+        & (e[:, 1] != f[:, 1])

@@ -208,8 +208,9 @@ def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Che
 
 def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
     """The report stage's one change to the files made: those that carry the verdict (a laser
-    kit's guide and bill of materials) are made again from their process's plan, now that the
-    checks and the tolerance analysis have judged the design, and written over the staged
+    kit's guide and bill of materials, left empty by its writer: see
+    :func:`fabkit.pipeline.formats.make_artefacts`) are made from their process's plan, now that
+    the checks and the tolerance analysis have judged the design, and written over the staged
     ones. A format whose writer has no ``with_verdict`` keeps its files as made; a format kept
     from an earlier export (no plan made now) too. Returns the names written again.
 
@@ -279,7 +280,8 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     motion = traced_for(design, chosen, resolved)  # once: every later stage reads this one
     plan = plan_design(design, formats, resolved, motion, tolerance_samples, exporters,
                        allow_large=allow_large, kept=kept)
-    art = make_artefacts(design, plan, resolved, motion, previews, stage=clock)
+    # the guide and bill of materials are drawn once, judged, by carry_verdict
+    art = make_artefacts(design, plan, resolved, motion, previews, stage=clock, verdict_later=True)
     if kept:
         art = keep_formats(art, folder, kept, list(registry))
     fmts = art.formats

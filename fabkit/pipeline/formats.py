@@ -161,15 +161,19 @@ def _accepts_motion(function) -> bool:
     return "motion" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
 
 
-def _write_format(module, design, settings, motion, plans: dict):
+def _write_format(module, design, settings, motion, plans: dict, verdict_later: bool):
     """One format's files: a writer of a process's plan (``PROCESS`` and ``write``) gets the
-    plan built once for every format of that process, from the resolved settings; an exporter
-    of one's own (``export_design``) gets the design, the overrides as a dict (its contract)
-    and, when it takes it, the motion."""
+    plan built once for every format of that process, from the resolved settings (and, when
+    ``verdict_later`` and it has ``with_verdict``, ``verdict_pages=False``: the files that
+    carry the verdict are made once, judged, by :func:`fabkit.pipeline.design.carry_verdict`);
+    an exporter of one's own (``export_design``) gets the design, the overrides as a dict (its
+    contract) and, when it takes it, the motion."""
     process = getattr(module, "PROCESS", None)
     if process in PLANNERS and callable(getattr(module, "write", None)):
         if process not in plans:
             plans[process] = make_plan(process, design, settings, motion)
+        if verdict_later and callable(getattr(module, "with_verdict", None)):
+            return module.write(plans[process], verdict_pages=False)
         return module.write(plans[process])
     overrides = settings.overrides_dict()
     if _accepts_motion(module.export_design):
@@ -178,7 +182,7 @@ def _write_format(module, design, settings, motion, plans: dict):
 
 
 def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
-                   stage=None) -> Artefacts:
+                   stage=None, verdict_later: bool = False) -> Artefacts:
     """The Artefacts stage: every file of the design's folder in memory (nothing is written).
 
     Every exporter, the previews and the tolerance analysis take the one traced motion; none
@@ -194,6 +198,10 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
         Draw preview_motion.png, preview_map.png and preview_tolerance.png.
     stage : callable, optional
         Called with each :class:`Stage` as it starts (progress and timing).
+    verdict_later : bool
+        The files that carry the verdict stand empty, to be made once the design is judged
+        (:func:`fabkit.pipeline.design.carry_verdict`, which ``fabkit export`` runs); False:
+        they are complete, headed "not judged".
 
     Returns
     -------
@@ -218,7 +226,7 @@ def make_artefacts(design, plan: Plan, settings, motion, previews=True, *,
     plans: dict = {}  # one plan per process, for all of its formats
     for fmt, module in plan.chosen:
         try:
-            result = _write_format(module, design, settings, motion, plans)
+            result = _write_format(module, design, settings, motion, plans, verdict_later)
         except FabkitError as exc:
             if singular is not None:
                 raise singular from None  # the root cause, not its consequence in this format

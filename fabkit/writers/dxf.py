@@ -41,7 +41,8 @@ import numpy as np
 from ..errors import FabricationError
 from ..fab.bars import bulge_primitives
 from ..fab.coupon import COUPON_NAME, coupon_sheet, COUPON_SPACING, coupon_text
-from ..fab.guide import assembly_picture, guide_pages, motion_picture, NOT_JUDGED, verdict_rows
+from ..fab.guide import (assembly_picture, guide_pages, guide_plan, motion_picture, NOT_JUDGED,
+                        verdict_rows)
 from ..fab.hardware import part_family, part_lines, spares
 from ..fab.laser import kerf_note
 from ..fab.nest import label_outlines, utilisation
@@ -430,13 +431,18 @@ def bom_markdown(bom: dict) -> str:
 
 # -- entry ----------------------------------------------------------------------------------
 
-def write(plan: LaserPlan) -> ExportResult:
+def write(plan: LaserPlan, *, verdict_pages: bool = True) -> ExportResult:
     """Laser-cut files of a laser plan (pure: returns bytes, writes nothing).
 
     Parameters
     ----------
     plan : LaserPlan
         The laser process's plan (:func:`fabkit.fab.laser_plan.laser_plan`).
+    verdict_pages : bool
+        Draw the files that carry the verdict (:data:`VERDICT_FILES`: the guide and the bill
+        of materials), headed "not judged". False: they stand empty in ``files`` and the report
+        has no ``guide_pages``, for :func:`with_verdict` to make once the design is judged (the
+        batch engine does this, so the guide is drawn once per export).
 
     Returns
     -------
@@ -459,13 +465,17 @@ def write(plan: LaserPlan) -> ExportResult:
             files[f"laser_sheet{sheet.index}_uncompensated.svg"] = sheet_svg(sheet, raw.settings)
     files.update(coupon_files(plan))
 
-    bom, guide, carried = verdict_files(plan, sorted(files), None)
+    if verdict_pages:
+        bom, guide, carried = verdict_files(plan, sorted(files), None)
+        gp, pages = guide.plan, {"guide_pages": int(guide.stats["pages"])}
+    else:  # the pictures need the guide's plan, not its pages
+        bom = bill_of_materials(plan, _listed(sorted(files)), None)
+        gp, pages, carried = guide_plan(plan, bom, None), {}, dict.fromkeys(VERDICT_FILES, b"")
     files.update(carried)
-    files["laser_assembly.png"] = assembly_picture(plan, guide.plan)[0]
-    files["laser_layers_motion.png"] = motion_picture(plan, guide.plan)[0]
+    files["laser_assembly.png"] = assembly_picture(plan, gp)[0]
+    files["laser_layers_motion.png"] = motion_picture(plan, gp)[0]
     # the guide's page count rides with the report (a report never counts a PDF's pages)
-    return ExportResult(files=files, report={"format": FORMAT, **bom,
-                                             "guide_pages": int(guide.stats["pages"])})
+    return ExportResult(files=files, report={"format": FORMAT, **bom, **pages})
 
 
 #: The files that carry the verdict: made again once ``fabkit export`` has judged the design.
@@ -505,12 +515,16 @@ def verdict_files(plan: LaserPlan, names, verdict: dict | None) -> tuple:
     files : dict of str to bytes
         :data:`VERDICT_FILES`.
     """
-    listed = sorted({*names, "laser_assembly.png", "laser_layers_motion.png", *VERDICT_FILES})
-    bom = bill_of_materials(plan, listed, verdict)
+    bom = bill_of_materials(plan, _listed(names), verdict)
     guide = guide_pages(plan, bom, verdict=verdict)  # hardware per page as the BOM names it
     files = {"laser_guide.pdf": guide.pdf, "laser_guide_page1.png": guide.images[0],
              "laser_bom.json": bom_json(bom), "laser_bom.md": bom_markdown(bom).encode("utf-8")}
     return bom, guide, files
+
+
+def _listed(names) -> list:
+    """The files a bill of materials lists: the kit's and its own."""
+    return sorted({*names, "laser_assembly.png", "laser_layers_motion.png", *VERDICT_FILES})
 
 
 def with_verdict(plan: LaserPlan, names, verdict: dict) -> tuple:
