@@ -29,12 +29,14 @@ demo: $(STAMP)
 		echo "Open out/index.html in a browser: every design's report, files and checks."; \
 	fi; exit $$status
 
-# The fast suite (what CI runs); `make test-all` adds the slow studies.
+# The fast suite (what CI runs), on every core up to four (pytest-xdist; a test file stays on one
+# worker, so its module fixtures are made once); `make test-all` adds the slow studies.
+TEST_WORKERS := -n auto --maxprocesses 4 --dist loadfile
 test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" $(TEST_WORKERS)
 
 test-all: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(TEST_WORKERS)
 
 # The guide (docs/*.md) and the API reference (every public module, from the docstrings) as
 # HTML in out/docs/ (open out/docs/index.html); built afresh, any warning fails it, and so does
