@@ -20,7 +20,7 @@ import signal
 import sys
 from enum import IntEnum
 
-from . import commands
+from . import commands, signals
 from .commands import check_output_folder, examples_epilog
 from .errors import FabkitError, internal_error_line, Interrupted
 from .io.suggest import did_you_mean
@@ -160,7 +160,7 @@ def main(argv=None) -> int:
     saved_large = os.environ.get("FABKIT_ALLOW_LARGE")
     if args.allow_large:  # an environment variable, so that worker processes see it too
         os.environ["FABKIT_ALLOW_LARGE"] = "1"
-    previous = _install_signal_handlers()
+    previous = signals.install()
     import warnings
 
     quiet = warnings.catch_warnings()
@@ -202,7 +202,7 @@ def main(argv=None) -> int:
         return ExitCode.INTERNAL
     finally:
         quiet.__exit__(None, None, None)
-        _restore_signal_handlers(previous)
+        signals.restore(previous)
         if saved_large is None:
             os.environ.pop("FABKIT_ALLOW_LARGE", None)
         else:
@@ -233,32 +233,6 @@ def _silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):  # stdout is not a real file (a test's capture)
         pass
-
-
-def _raise_interrupted(signum, frame):
-    raise Interrupted(signum)
-
-
-def _install_signal_handlers() -> dict:
-    """SIGINT and SIGTERM raise :class:`~fabkit.errors.Interrupted` in the main thread, so that
-    every command cleans up (temporary files, staging folders, worker processes) the same way
-    for both; returns the previous handlers."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, _raise_interrupted)
-        except (ValueError, OSError):  # not settable here (embedded interpreter)
-            pass
-    return previous
-
-
-def _restore_signal_handlers(previous: dict) -> None:
-    for sig, handler in previous.items():
-        signal.signal(sig, handler)
 
 
 def entry() -> None:

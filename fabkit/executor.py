@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Iterator
 
 from .errors import FabkitError, Interrupted, internal_error_line
+from .signals import group_blocked, worker_ignores
 from .status import Status, TASK, expect
 
 __all__ = ["Task", "TaskEnd", "TaskError", "LocalExecutor", "report", "overdue",
@@ -348,9 +349,9 @@ def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -
         limits = blas_limits(blas_threads, threadpoolctl.threadpool_info())
         if limits:
             threadpoolctl.threadpool_limits(limits)  # for the life of the worker
-    # Ctrl-C in a terminal reaches the whole process group: the parent alone decides, and stops
-    # the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C, Ctrl-\ and a hang-up reach the whole process group: the parent alone decides,
+    # and stops the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
+    worker_ignores()
 
     def on_term(signum, frame):
         raise Interrupted(signum)
@@ -563,7 +564,8 @@ class LocalExecutor:
                                      args=(os.getpid(), theirs, blas,
                                            heartbeat_interval(self.silence)),
                                      name=f"{self.name}-{self._started}")
-            proc.start()
+            with group_blocked():  # no Ctrl-C traceback from a worker that is still starting
+                proc.start()
         finally:
             theirs.close()  # the worker's end lives in the worker: its death closes the pipe
             if saved is None:
