@@ -31,6 +31,7 @@ __all__ = [
     "WriteError",
     "UnsafeNameError",
     "LockedError",
+    "FolderChangedError",
     "MotionError",
     "SingularStartError",
     "UnavailableError",
@@ -378,6 +379,24 @@ class UnsafeNameError(OutputError, ValueError):
         FabkitError.__init__(self, f"{what} {brief(name)} {reason}")
         self.path = str(name)
         self.reason = reason
+
+
+class FolderChangedError(OutputError):
+    """The output folder was removed, renamed, or replaced by a link or another folder while
+    fabkit worked in it; fabkit stopped, wrote nothing more and nothing elsewhere.
+
+    Parameters
+    ----------
+    path : str
+        The output folder.
+    """
+
+    code = "output_changed"
+
+    def __init__(self, path):
+        super().__init__(path, "the output folder was moved, removed or replaced (by a link or "
+                               "another folder) while fabkit worked in it; fabkit stopped and "
+                               "wrote nothing more, nothing elsewhere: run the command again")
 
 
 class LockedError(OutputError):
