@@ -398,6 +398,9 @@ class FolderChangedError(OutputError):
                                "another folder) while fabkit worked in it; fabkit stopped and "
                                "wrote nothing more, nothing elsewhere: run the command again")
 
+    def __reduce__(self):  # from a worker process to its parent, as it was
+        return (FolderChangedError, (self.path,))
+
 
 class LockedError(OutputError):
     """Another fabkit process is exporting into the same output folder.

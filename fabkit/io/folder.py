@@ -23,6 +23,7 @@ removed again if the first set of files written into it fails.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import secrets
@@ -85,6 +86,17 @@ class OutputFolder:
         if os.path.lexists(p):
             handle.fd  # noqa: B018 - opened now: the folder it names now is the one held
         return handle
+
+    @classmethod
+    @contextlib.contextmanager
+    def held(cls, folder, option: str = "-o"):
+        """``with OutputFolder.held(x) as handle``: ``x`` itself when it is a handle (left
+        open), else a handle opened on the path ``x`` for the block (closed after it)."""
+        if isinstance(folder, OutputFolder):
+            yield folder
+            return
+        with cls.open(folder, option) as handle:
+            yield handle
 
     @property
     def fd(self) -> int:
@@ -200,6 +212,9 @@ class OutputFolder:
 
     def __repr__(self) -> str:
         return f"OutputFolder({str(self.path)!r})"
+
+    def __str__(self) -> str:
+        return str(self.path)
 
     def __fspath__(self) -> str:
         return str(self.path)
