@@ -23,6 +23,7 @@ from enum import IntEnum
 from . import commands, signals
 from .commands import check_output_folder, examples_epilog
 from .errors import FabkitError, internal_error_line, Interrupted
+from .io.outputs import OutputFolder
 from .io.suggest import did_you_mean
 
 __all__ = ["main", "entry", "ExitCode"]
@@ -221,6 +222,8 @@ def _check_output_option(args) -> None:
         value = getattr(args, dest, None)
         if isinstance(value, str):
             check_output_folder(value)
+            # held from here on (opened now when it exists): a folder swapped later is noticed
+            args.out_folder = OutputFolder.open(value)
 
 
 def _silence_stdout() -> None:

@@ -403,6 +403,7 @@ class OutputFolder:
                                 f"{type(data).__name__}")
             plan.append(("/".join(parts[:-1]), parts[-1], data))
         first = self.parent is None and self._fd is None
+        self.verify()  # a commit point before the first byte, and again before the renames
         made: list[tuple[OutputFolder, str]] = []  # folders this call created
         staged: list[tuple[OutputFolder, str, str]] = []
         try:

@@ -92,6 +92,7 @@ def new_staging(outdir: OutputFolder, name: str) -> tuple[str, OutputFolder]:
     """Create the staging folder of design ``name`` (it must not exist), marked as fabkit's;
     returns its name and handle."""
     stage = staging_folders(outdir, name)[0]
+    outdir.verify()  # the folder held is still the one its path names
     try:
         os.mkdir(stage, 0o777, dir_fd=outdir.fd)
     except OSError as exc:
