@@ -7,6 +7,7 @@ exporter that a worker runs), never after a sleep.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import shutil
@@ -99,8 +100,8 @@ def test_a_link_in_place_of_a_file_of_its_own_is_not_read(tmp_path):
     (tmp_path / "edited.json").write_text('{"edited": true}')
     (out / "mine.json").unlink()
     (out / "mine.json").symlink_to(tmp_path / "edited.json")
-    with pytest.raises(OutputError, match="mine.json: is a symbolic link where fabkit keeps a "
-                                          "file of its own; fabkit does not read through it"):
+    with pytest.raises(OutputError, match="mine.json: is a symbolic link, not a regular file: "
+                                          "refused"):
         held.read_bytes("mine.json")
 
 
@@ -200,3 +201,33 @@ def test_export_into_a_folder_swapped_midway_writes_nothing_elsewhere(tmp_path, 
     assert proc.returncode == 1 and len(err) == 1, proc.stderr
     assert "the output folder was moved, removed or replaced" in err[0]
     assert _files(victim) == []  # no fourbar/, no index.html, no staging folder, no lock
+
+
+# --- the sweep's chunks -----------------------------------------------------------------------
+
+SWEEP = ["sweep", "chaotic", "--vary", "nodes[4].x=-0.4:-0.3:2", "--measure", "fixed_points",
+         "--jobs", "1", "--no-plots", "--chunk-size", "1", "-q"]
+
+
+def test_a_chunk_replaced_by_a_link_to_an_edited_file_is_set_aside_not_read(tmp_path, capsys):
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    outside.mkdir()
+    assert main([*SWEEP, "-o", str(out)]) == 0
+    first = (out / "sweep.csv").read_text()
+    chunk = out / "chunks" / "chunk-0000001-0000001.json"
+    records = json.loads(chunk.read_text())
+    records[0]["domain_lo"] = 12345.5  # the edit that must never reach sweep.csv
+    edited = outside / chunk.name
+    edited.write_text(json.dumps(records))
+    chunk.unlink()
+    chunk.symlink_to(edited)
+    capsys.readouterr()
+    assert main([*SWEEP, "-o", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "damaged chunk chunk-0000001-0000001.json set aside" in said
+    assert "is a symbolic link, not a regular file: refused" in said
+    assert "12345.5" not in (out / "sweep.csv").read_text()
+    assert (out / "sweep.csv").read_text() == first  # the point computed again, as before
+    assert (out / "chunks" / (chunk.name + ".damaged")).is_symlink()  # the link set aside
+    assert chunk.is_file() and not chunk.is_symlink()
+    assert json.loads(edited.read_text()) == records  # the file outside untouched

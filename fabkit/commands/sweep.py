@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside
-from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
+from . import (out_folder, add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
                Example, progress_for)
 from .settings import read_settings
 
@@ -171,7 +171,7 @@ def run(args) -> int:
             size *= len(axis.values)
         progress.stage(f"{template}: {size} points", total=size, unit="points")
         design = _with_target(load_template(template), settings, axes)
-        outdir = (Path(args.out_dir) if args.out_dir
+        outdir = (out_folder(args) if args.out_dir  # the folder held since the start
                   else inside(Path("out"), f"sweep-{design.name}"))
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
         where = f"the scheduler {scheduler}" if scheduler else (
@@ -191,8 +191,8 @@ def run(args) -> int:
             # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
             # command line report the interruption itself
             if bar.started:
-                print(f"fabkit: finished chunks are in {outdir / 'chunks'}: run the same command "
-                      "again to resume", file=sys.stderr)
+                print(f"fabkit: finished chunks are in {Path(outdir) / 'chunks'}: run the same "
+                      "command again to resume", file=sys.stderr)
             raise
     except SweepError as exc:
         _usage(str(exc))

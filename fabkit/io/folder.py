@@ -320,18 +320,18 @@ class OutputFolder:
                 raise
             st = self.lstat(name)
             if st is not None and stat.S_ISLNK(st.st_mode):
-                raise OutputError(path, "is a symbolic link where fabkit keeps a file of its "
-                                        "own; fabkit does not read through it: remove it"
-                                  ) from None
+                raise OutputError(path, "is a symbolic link, not a regular file: refused "
+                                        "(fabkit reads its own files back, never through a "
+                                        "link)") from None
             if st is not None and not stat.S_ISREG(st.st_mode):
-                raise OutputError(path, f"is {file_kind(st.st_mode)} where fabkit keeps a "
-                                        "file of its own; remove it") from None
+                raise OutputError(path, f"is {file_kind(st.st_mode)}, not a regular file: "
+                                        "refused") from None
             raise OutputError(path, f"cannot be read: {exc.strerror or exc}") from None
         try:
             st = os.fstat(fd)
             if not stat.S_ISREG(st.st_mode):
-                raise OutputError(path, f"is {file_kind(st.st_mode)} where fabkit keeps a "
-                                        "file of its own; remove it")
+                raise OutputError(path, f"is {file_kind(st.st_mode)}, not a regular file: "
+                                        "refused")
             if st.st_size > limit:
                 raise OutputError(path, f"holds {st.st_size} bytes, more than the {limit} "
                                         "fabkit writes there; remove it")

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import BoundsError, FabkitError, InputFileError
 from ..executor import LocalExecutor, Task
 from ..io.inputs import read_regular
-from ..io.outputs import inside, output_folder, write_files
+from ..io.outputs import inside, OutputFolder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
 from ..status import Status
@@ -239,19 +239,24 @@ def read_sweep_file(path) -> SweepFile | None:
                      protocol=Protocol(**prot))
 
 
-def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    output_folder(outdir)
+def _check_outdir(outdir, spec: SweepSpec) -> OutputFolder:
+    """The sweep's output folder, held (:class:`~fabkit.io.folder.OutputFolder`), checked
+    before any work: chunks/ never a link, and its spec this sweep's."""
+    held = OutputFolder.open(outdir)
+    outdir = held.path
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
     marker = inside(outdir, CHUNKS_FOLDER, SPEC_FILE, replace_last=True)
-    if os.path.lexists(marker):
-        try:  # a FIFO or a device there is refused, never waited on
-            old = json.loads(read_regular(marker, MAX_SPEC_BYTES)).get("fingerprint")
-        except (ValueError, AttributeError):
-            old = None
+    if os.path.lexists(marker) and held.is_folder(CHUNKS_FOLDER):
+        with held.folder(CHUNKS_FOLDER, create=False) as chunks:
+            try:  # through the folder held: a link, a FIFO or a device there is refused
+                old = json.loads(chunks.read_bytes(SPEC_FILE, MAX_SPEC_BYTES)).get("fingerprint")
+            except (ValueError, AttributeError):
+                old = None
         if old != spec.fingerprint():
             raise FabkitError(f"{outdir} holds the chunks of a different sweep (another template, "
                               "grid, measure or protocol); choose another -o or delete "
                               f"{outdir / CHUNKS_FOLDER}")
+    return held
 
 
 def _connect(scheduler, timeout: float):
@@ -344,9 +349,8 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
     0.31
     """
     spec = make_spec(template, vary, measure, protocol)
-    out = Path(outdir) if outdir is not None else None
-    if out is not None:
-        _check_outdir(out, spec)
+    # the output folder held from here on: every chunk, read or written, goes through it
+    out = _check_outdir(outdir, spec) if outdir is not None else None
     if not (isinstance(point_timeout, (int, float)) and not isinstance(point_timeout, bool)
             and point_timeout > 0):
         raise SweepError(f"point_timeout must be a positive number of seconds, got "
@@ -370,12 +374,10 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     damaged: list = []
     folder = None
     if out is not None:
-        from ..io.outputs import inside, write_files
-
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
         write_files(out, {f"{CHUNKS_FOLDER}/{SPEC_FILE}": json.dumps(
             marker, indent=1, default=json_default).encode()})
-        folder = inside(out, CHUNKS_FOLDER)
+        folder = out.folder(CHUNKS_FOLDER, create=False)
         done, damaged = read_chunks(folder, spec)
     todo = [i for i in range(spec.size) if i not in done]
     if client is not None:
@@ -397,7 +399,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     def arrived(chunk):
         records = chunk["records"]
         if folder is not None:
-            write_chunk(out, records)
+            write_chunk(folder, records)
         for r in records:
             done[r["index"]] = r
         cpu[0] += chunk["cpu"]
@@ -412,12 +414,13 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
             _run_processes(workers, payload, chunks, arrived, point_timeout)
     seconds = time.perf_counter() - t0
     records = [done[i] for i in range(spec.size)]
-    result = SweepResult(spec=spec, records=records, outdir=out, computed=len(todo),
+    result = SweepResult(spec=spec, records=records, outdir=out.path if out else None,
+                         computed=len(todo),
                          damaged=tuple(damaged),
                          seconds=seconds, workers=workers, where=where, cpu_seconds=cpu[0])
     if out is None:
         return result
-    return _write_outputs(result, plots)
+    return _write_outputs(result, plots, out)
 
 
 def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
@@ -491,8 +494,7 @@ def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
         raise
 
 
-def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
-    out = result.outdir
+def _write_outputs(result: SweepResult, plots: bool, out: OutputFolder) -> SweepResult:
     files = {"sweep.csv": result.table_csv()}
     if plots:
         from ..plots.viz import figure_png
