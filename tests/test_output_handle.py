@@ -231,3 +231,50 @@ def test_a_chunk_replaced_by_a_link_to_an_edited_file_is_set_aside_not_read(tmp_
     assert (out / "chunks" / (chunk.name + ".damaged")).is_symlink()  # the link set aside
     assert chunk.is_file() and not chunk.is_symlink()
     assert json.loads(edited.read_text()) == records  # the file outside untouched
+
+
+# --- leftovers of a killed export: only fabkit's own folders are removed ----------------------
+
+EXPORT = ["export", "fourbar", "--to", "dxf", "--tolerance-samples", "0", "--no-previews", "-q"]
+
+
+def test_a_backup_folder_fabkit_did_not_make_is_never_removed(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main([*EXPORT, "-o", str(out)]) == 0
+    mine = out / ".fourbar.old"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("the user's own\n")
+    rc = main([*EXPORT, "-o", str(out)])
+    line = _one_line(capsys)
+    assert rc == 1
+    assert line == (f"fabkit: error: {mine}: is in the way: a folder fabkit did not make (it "
+                    "lacks fabkit's mark .fabkit-folder); move it away")
+    assert (mine / "notes.txt").read_text() == "the user's own\n"
+    assert (out / "fourbar" / "exports.json").is_file()  # the export before stays as it was
+
+
+def test_a_backup_folder_left_by_a_killed_export_is_removed(tmp_path, capsys):
+    from fabkit.pipeline.folders import MARK
+
+    out = tmp_path / "out"
+    assert main([*EXPORT, "-o", str(out)]) == 0
+    # killed after its two renames, before the backup's removal: the backup holds the mark
+    shutil.copytree(out / "fourbar", out / ".fourbar.old")
+    (out / ".fourbar.old" / MARK).write_text("made by fabkit export\n")
+    assert main([*EXPORT, "-o", str(out)]) == 0, capsys.readouterr().err
+    assert not (out / ".fourbar.old").exists()
+    assert not (out / "fourbar" / MARK).exists()  # a design's folder carries no mark
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
+
+
+def test_a_backup_folder_put_back_when_the_new_one_never_arrived(tmp_path, capsys):
+    from fabkit.pipeline.folders import MARK
+
+    out = tmp_path / "out"
+    assert main([*EXPORT, "-o", str(out)]) == 0
+    before = (out / "fourbar" / "exports.json").read_bytes()
+    (out / "fourbar" / MARK).write_text("made by fabkit export\n")
+    (out / "fourbar").rename(out / ".fourbar.old")  # killed between the two renames
+    assert main([*EXPORT, "-o", str(out)]) == 0, capsys.readouterr().err
+    assert (out / "fourbar" / "exports.json").read_bytes() == before
+    assert not (out / ".fourbar.old").exists() and not (out / "fourbar" / MARK).exists()

@@ -121,6 +121,8 @@ def recover_folder(outdir: OutputFolder, name: str) -> None:
     stage, old = staging_folders(outdir, name)
     if outdir.is_folder(old) and not outdir.exists(name):
         outdir.replace(old, name)
+        with outdir.folder(name, create=False) as back:
+            back.unlink(MARK)
     for leftover in (stage, old):
         if outdir.is_folder(leftover) and _marked(outdir, leftover):
             outdir.remove(leftover)
