@@ -20,9 +20,10 @@ import signal
 import sys
 from enum import IntEnum
 
-from . import commands, signals
+from . import commands
 from .commands import check_output_folder, examples_epilog
 from .errors import FabkitError, internal_error_line, Interrupted
+from .executor import install_signals, restore_signals
 from .io.outputs import OutputFolder
 from .io.suggest import did_you_mean
 
@@ -161,7 +162,7 @@ def main(argv=None) -> int:
     saved_large = os.environ.get("FABKIT_ALLOW_LARGE")
     if args.allow_large:  # an environment variable, so that worker processes see it too
         os.environ["FABKIT_ALLOW_LARGE"] = "1"
-    previous = signals.install()
+    previous = install_signals()
     import warnings
 
     quiet = warnings.catch_warnings()
@@ -203,7 +204,7 @@ def main(argv=None) -> int:
         return ExitCode.INTERNAL
     finally:
         quiet.__exit__(None, None, None)
-        signals.restore(previous)
+        restore_signals(previous)
         if saved_large is None:
             os.environ.pop("FABKIT_ALLOW_LARGE", None)
         else:

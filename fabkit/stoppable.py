@@ -30,8 +30,7 @@ import signal
 import sys
 
 from .errors import FabkitError
-from .executor import die_with_parent
-from .signals import default_in_child
+from .executor import default_in_child, die_with_parent
 from .io.workload import describe_bytes, estimate as combine
 
 __all__ = ["run_stoppable", "keep_to", "TIME_FACTOR", "MIN_SECONDS", "MEMORY_FACTOR",

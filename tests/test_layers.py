@@ -22,7 +22,6 @@ LAYERS = {
     "io": 0,
     "io.outputs": 0,
     "stoppable": 0,
-    "signals": 0,
     "status": 0,
     "io.inputs": 0,
     "io.workload": 0,
