@@ -7,8 +7,9 @@ command needs no edit here. :func:`main` returns an exit code; fabkit errors pri
 
 Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
 2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
-that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM,
-141 when the reader of the output closed the pipe, quietly).
+that says where, and how to report it); 128 + N after signal N, for every terminating signal
+(129 SIGHUP, 130 Ctrl-C, 131 SIGQUIT, 138/140 SIGUSR1/2, 143 SIGTERM; 141 when the reader of the
+output closed the pipe, quietly).
 """
 
 from __future__ import annotations
