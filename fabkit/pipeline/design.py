@@ -205,7 +205,8 @@ def _write_reports(stage_dir: OutputFolder, rep: DesignReport, art: Artefacts, w
     """report.md, report.json and report.html of a design into its staging folder, rendered
     from the typed results (none is read back); returns the design's card for index.html."""
     md, js = report_markdown(rep), report_json(report_dict(rep))
-    stage_dir.write_files({"report.md": md, "report.json": js})
+    stage_dir.write("report.md", md)
+    stage_dir.write("report.json", js)
     traj = motion.trajectory if motion.traced else None
     frames = motion_frames(rep.design, traj, rep.formats, art.plans)
     listing = {p.name: len(art.files[p.name]) for p in written}
