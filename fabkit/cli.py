@@ -187,7 +187,8 @@ def main(argv=None) -> int:
         print(f"fabkit: error: {exc}", file=sys.stderr)
         return int(exc.exit_code)
     except Interrupted as exc:
-        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        hint = f"; {exc.hint}" if exc.hint else ""  # what a command adds: where to resume
+        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name}){hint}", file=sys.stderr)
         return 128 + exc.signum
     except KeyboardInterrupt:
         print("fabkit: interrupted", file=sys.stderr)

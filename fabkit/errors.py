@@ -474,6 +474,8 @@ class Interrupted(BaseException):
 
     def __init__(self, signum: int):
         self.signum = int(signum)
+        #: What the interrupted command adds to its one line (where to resume), or "".
+        self.hint = ""
         super().__init__(f"interrupted by signal {self.signum}")
 
 

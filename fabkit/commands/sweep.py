@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import FabkitError, UsageError
+from ..errors import FabkitError, Interrupted, UsageError
 from ..io.outputs import inside
 from . import (out_folder, add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
                Example, progress_for)
@@ -187,12 +187,16 @@ def run(args) -> int:
                               else {"point_timeout": args.point_timeout}))
         except FabkitError:
             raise
-        except BaseException:
+        except BaseException as exc:
             # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
-            # command line report the interruption itself
+            # command line report the interruption itself (a signal: in its one line)
             if bar.started:
-                print(f"fabkit: finished chunks are in {Path(outdir) / 'chunks'}: run the same "
-                      "command again to resume", file=sys.stderr)
+                hint = (f"finished chunks are in {Path(outdir) / 'chunks'}: run the same "
+                        "command again to resume")
+                if isinstance(exc, Interrupted):
+                    exc.hint = hint
+                else:
+                    print(f"fabkit: {hint}", file=sys.stderr)
             raise
     except SweepError as exc:
         _usage(str(exc))
