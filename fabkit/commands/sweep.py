@@ -126,6 +126,17 @@ def _with_target(design, settings, axes):
     return replace(design, raw=raw, motion=replace(design.motion, to=float(target)))
 
 
+def _say_where_to_resume(exc: BaseException, outdir) -> None:
+    """Ctrl-C, a signal, or a crash mid-run: say where the finished work is; the command line
+    reports the interruption itself (a signal: with this in its one line)."""
+    hint = (f"finished chunks are in {Path(outdir) / 'chunks'}: run the same command again to "
+            "resume")
+    if isinstance(exc, Interrupted):
+        exc.hint = hint
+    else:
+        print(f"fabkit: {hint}", file=sys.stderr)
+
+
 def run(args) -> int:
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..templates import load_template
@@ -188,15 +199,8 @@ def run(args) -> int:
         except FabkitError:
             raise
         except BaseException as exc:
-            # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
-            # command line report the interruption itself (a signal: in its one line)
             if bar.started:
-                hint = (f"finished chunks are in {Path(outdir) / 'chunks'}: run the same "
-                        "command again to resume")
-                if isinstance(exc, Interrupted):
-                    exc.hint = hint
-                else:
-                    print(f"fabkit: {hint}", file=sys.stderr)
+                _say_where_to_resume(exc, outdir)
             raise
     except SweepError as exc:
         _usage(str(exc))
