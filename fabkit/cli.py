@@ -9,8 +9,9 @@ errors print as one line (``fabkit: error: ...``), tracebacks only with ``--debu
 
 Exit codes: 0 ok; 1 a design or input failed (bad template, impossible motion, failed check);
 2 usage error (bad option value, bad output folder choice); 70 internal error (a bug: one line
-that says where, and how to report it); 128 + N after signal N (130 for Ctrl-C, 143 for SIGTERM,
-141 when the reader of the output closed the pipe, quietly).
+that says where, and how to report it); 128 + N after signal N, for every terminating signal
+(129 SIGHUP, 130 Ctrl-C, 131 SIGQUIT, 138/140 SIGUSR1/2, 143 SIGTERM; 141 when the reader of the
+output closed the pipe, quietly).
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from enum import IntEnum
 from . import commands
 from .commands import check_output_folder, examples_epilog
 from .errors import FabkitError, internal_error_line, Interrupted
+from .executor import install_signals, restore_signals
+from .io.outputs import OutputFolder
 from .io.suggest import did_you_mean
 
 __all__ = ["main", "entry", "ExitCode"]
@@ -242,7 +245,7 @@ def main(argv=None) -> int:
     saved_large = os.environ.get("FABKIT_ALLOW_LARGE")
     if args.allow_large:  # an environment variable, so that worker processes see it too
         os.environ["FABKIT_ALLOW_LARGE"] = "1"
-    previous = _install_signal_handlers()
+    previous = install_signals()
     import warnings
 
     quiet = warnings.catch_warnings()
@@ -267,7 +270,8 @@ def main(argv=None) -> int:
         print(f"fabkit: error: {exc}", file=sys.stderr)
         return int(exc.exit_code)
     except Interrupted as exc:
-        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        hint = f"; {exc.hint}" if exc.hint else ""  # what a command adds: where to resume
+        print(f"fabkit: interrupted ({signal.Signals(exc.signum).name}){hint}", file=sys.stderr)
         return 128 + exc.signum
     except KeyboardInterrupt:
         print("fabkit: interrupted", file=sys.stderr)
@@ -294,7 +298,7 @@ def main(argv=None) -> int:
         if isinstance(sys.stdout, _NamedStream):
             sys.stdout = sys.stdout.stream
         quiet.__exit__(None, None, None)
-        _restore_signal_handlers(previous)
+        restore_signals(previous)
         if saved_large is None:
             os.environ.pop("FABKIT_ALLOW_LARGE", None)
         else:
@@ -313,6 +317,8 @@ def _check_output_option(args) -> None:
         value = getattr(args, dest, None)
         if isinstance(value, str):
             check_output_folder(value)
+            # held from here on (opened now when it exists): a folder swapped later is noticed
+            args.out_folder = OutputFolder.open(value)
 
 
 class _NamedStream:
@@ -351,32 +357,6 @@ def _silence_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
     except (OSError, ValueError):  # stdout is not a real file (a test's capture)
         pass
-
-
-def _raise_interrupted(signum, frame):
-    raise Interrupted(signum)
-
-
-def _install_signal_handlers() -> dict:
-    """SIGINT and SIGTERM raise :class:`~fabkit.errors.Interrupted` in the main thread, so that
-    every command cleans up (temporary files, staging folders, worker processes) the same way
-    for both; returns the previous handlers."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        try:
-            previous[sig] = signal.signal(sig, _raise_interrupted)
-        except (ValueError, OSError):  # not settable here (embedded interpreter)
-            pass
-    return previous
-
-
-def _restore_signal_handlers(previous: dict) -> None:
-    for sig, handler in previous.items():
-        signal.signal(sig, handler)
 
 
 def entry() -> None:

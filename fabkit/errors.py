@@ -31,6 +31,7 @@ __all__ = [
     "WriteError",
     "UnsafeNameError",
     "LockedError",
+    "FolderChangedError",
     "MotionError",
     "SingularStartError",
     "UnavailableError",
@@ -386,6 +387,27 @@ class UnsafeNameError(OutputError, ValueError):
         self.reason = reason
 
 
+class FolderChangedError(OutputError):
+    """The output folder was removed, renamed, or replaced by a link or another folder while
+    fabkit worked in it; fabkit stopped, wrote nothing more and nothing elsewhere.
+
+    Parameters
+    ----------
+    path : str
+        The output folder.
+    """
+
+    code = "output_changed"
+
+    def __init__(self, path):
+        super().__init__(path, "the output folder was moved, removed or replaced (by a link or "
+                               "another folder) while fabkit worked in it; fabkit stopped and "
+                               "wrote nothing more, nothing elsewhere: run the command again")
+
+    def __reduce__(self):  # from a worker process to its parent, as it was
+        return (FolderChangedError, (self.path,))
+
+
 class LockedError(OutputError):
     """Another fabkit process is exporting into the same output folder.
 
@@ -458,6 +480,8 @@ class Interrupted(BaseException):
 
     def __init__(self, signum: int):
         self.signum = int(signum)
+        #: What the interrupted command adds to its one line (where to resume), or "".
+        self.hint = ""
         super().__init__(f"interrupted by signal {self.signum}")
 
 

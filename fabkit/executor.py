@@ -13,8 +13,8 @@ What it guarantees:
   tasks remain; so does a worker that stops answering (every worker says it is alive several
   times within the silence limit, from a thread of its own) or dies (killed by the system, a
   crash);
-- SIGINT or SIGTERM (as :class:`~fabkit.errors.Interrupted` or KeyboardInterrupt in this
-  process), or any exception while the tasks run, stops every worker within a second (SIGTERM,
+- a terminating signal (:data:`TERMINATING`, as :class:`~fabkit.errors.Interrupted` or
+  KeyboardInterrupt in this process), or any exception while the tasks run, stops every worker within a second (SIGTERM,
   which unwinds the task in hand, then SIGKILL) before it propagates; and a worker ends with
   this process however that ends, SIGKILL included (Linux: ``PR_SET_PDEATHSIG``; elsewhere a
   thread that watches the parent).
@@ -38,6 +38,7 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import signal
@@ -51,6 +52,8 @@ from .errors import FabkitError, Interrupted, internal_error_line
 from .status import Status, TASK, expect
 
 __all__ = ["Task", "TaskEnd", "TaskError", "LocalExecutor", "report", "overdue",
+           "TERMINATING", "GROUP", "install_signals", "restore_signals", "group_blocked",
+           "worker_ignores", "default_in_child",
            "heartbeat_interval", "die_with_parent", "blas_limits", "user_thread_variables",
            "HEARTBEAT", "SILENCE", "STARTUP", "GRACE", "THREAD_VARIABLES"]
 
@@ -87,6 +90,107 @@ THREAD_VARIABLES = {
     "blis": ("BLIS_NUM_THREADS", "OMP_NUM_THREADS"),
     "openmp": ("OMP_NUM_THREADS",),
 }
+
+
+# --- the signals that end a command ---------------------------------------------------------
+#
+# Every terminating signal (TERMINATING: TERM, INT, HUP, QUIT, USR1, USR2) raises Interrupted in
+# the main thread (install_signals): the command unwinds as for an error (workers stopped,
+# staging folders and temporary files removed, the lock released), prints one line and exits
+# with 128 + the signal. SIGPIPE stays with Python: a closed pipe is a BrokenPipeError (141).
+# The first signal starts the clean-up; any later one (a second Ctrl-C) is ignored to the end of
+# the process, so it can neither cut the clean-up short nor print a traceback; the clean-up is
+# bounded (GRACE seconds, then SIGKILL). A terminal sends INT, QUIT and HUP to its whole
+# process group (GROUP): workers have them blocked while they start (group_blocked) and ignore
+# them from then on (worker_ignores); the parent alone decides, and stops them with SIGTERM.
+
+#: The signals that end a command the same way (those this platform has).
+TERMINATING = tuple(getattr(signal, name) for name in
+                    ("SIGTERM", "SIGINT", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGUSR2")
+                    if hasattr(signal, name))
+#: The signals a terminal sends to a whole process group.
+GROUP = tuple(getattr(signal, name) for name in ("SIGINT", "SIGQUIT", "SIGHUP")
+              if hasattr(signal, name))
+
+
+#: The signal that is ending the command, once one came (:func:`restore_signals` then leaves the
+#: signals ignored: the process is on its way out).
+_ending = {"signum": None}
+
+
+def _raise_interrupted(signum, frame):
+    # the clean-up this starts must not be cut short by a second signal (a second Ctrl-C)
+    _ending["signum"] = signum
+    for sig in TERMINATING:
+        try:
+            signal.signal(sig, signal.SIG_IGN)
+        except (ValueError, OSError):  # pragma: no cover - not settable here
+            pass
+    raise Interrupted(signum)
+
+
+def install_signals() -> dict:
+    """Make every signal of :data:`TERMINATING` raise :class:`~fabkit.errors.Interrupted` in the
+    main thread; returns the previous handlers for :func:`restore_signals` (nothing outside the main
+    thread, where handlers cannot be set).
+
+    Returns
+    -------
+    dict
+        Signal number → previous handler.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous = {}
+    _ending["signum"] = None
+    for sig in TERMINATING:
+        try:
+            previous[sig] = signal.signal(sig, _raise_interrupted)
+        except (ValueError, OSError):  # not settable here (embedded interpreter)
+            pass
+    return previous
+
+
+def restore_signals(previous: dict) -> None:
+    """Put back the handlers :func:`install_signals` returned, unless a signal is ending the command:
+    then they stay ignored, so that a second Ctrl-C between the end of the clean-up and the
+    end of the process (the interpreter's teardown) cannot print a traceback either."""
+    if _ending["signum"] is not None:
+        return
+    for sig, handler in previous.items():
+        signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+
+@contextlib.contextmanager
+def group_blocked():
+    """Block :data:`GROUP` in this thread while a worker process starts: the worker inherits
+    the mask and so cannot die of a Ctrl-C while it imports (a traceback from its bootstrap),
+    before :func:`worker_ignores` runs. A signal that arrives meanwhile is delivered here when
+    the block ends."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, set(GROUP))
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def worker_ignores() -> None:
+    """In a worker: ignore :data:`GROUP` (the parent decides and stops it with SIGTERM), then
+    unblock them (:func:`group_blocked`); one that arrived meanwhile is discarded."""
+    for sig in GROUP:
+        signal.signal(sig, signal.SIG_IGN)
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, set(GROUP))
+
+
+def default_in_child() -> None:
+    """In a forked child that its parent kills: every signal of :data:`TERMINATING` ends it at
+    once (the parent's handlers are not for it)."""
+    for sig in TERMINATING:
+        signal.signal(sig, signal.SIG_DFL)
 
 
 @dataclass(frozen=True)
@@ -348,9 +452,9 @@ def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -
         limits = blas_limits(blas_threads, threadpoolctl.threadpool_info())
         if limits:
             threadpoolctl.threadpool_limits(limits)  # for the life of the worker
-    # Ctrl-C in a terminal reaches the whole process group: the parent alone decides, and stops
-    # the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C, Ctrl-\ and a hang-up reach the whole process group: the parent alone decides,
+    # and stops the workers with SIGTERM, which unwinds the task in hand (its finally blocks run)
+    worker_ignores()
 
     def on_term(signum, frame):
         raise Interrupted(signum)
@@ -563,7 +667,8 @@ class LocalExecutor:
                                      args=(os.getpid(), theirs, blas,
                                            heartbeat_interval(self.silence)),
                                      name=f"{self.name}-{self._started}")
-            proc.start()
+            with group_blocked():  # no Ctrl-C traceback from a worker that is still starting
+                proc.start()
         finally:
             theirs.close()  # the worker's end lives in the worker: its death closes the pipe
             if saved is None:

@@ -30,7 +30,7 @@ import signal
 import sys
 
 from .errors import FabkitError
-from .executor import die_with_parent
+from .executor import default_in_child, die_with_parent
 from .io.workload import describe_bytes, estimate as combine
 
 __all__ = ["run_stoppable", "keep_to", "TIME_FACTOR", "MIN_SECONDS", "MEMORY_FACTOR",
@@ -264,8 +264,7 @@ def _child_main(conn, parent_pid, func, args, kwargs) -> None:
     """The child: die with the parent, compute, send the result or the error, exit."""
     global _to_parent
     _to_parent = conn
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, signal.SIG_DFL)  # the parent decides; the child just ends
+    default_in_child()  # the parent decides; the child just ends
     die_with_parent(parent_pid)
     try:
         resource.setrlimit(resource.RLIMIT_CORE, (0, 0))  # a stopped step leaves no core file

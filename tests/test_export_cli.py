@@ -648,7 +648,7 @@ def slow_export(tmp_path):
     marks.mkdir()
     procs = []
 
-    def start(out, sleep=60.0, wait_workers=2):
+    def start(out, sleep=60.0, wait_workers=2, group=False):
         env = {**os.environ, "FABKIT_TEST_MARKS": str(marks), "FABKIT_TEST_SLEEP": str(sleep),
                "PYTHONPATH": str(mods) + os.pathsep + os.environ.get("PYTHONPATH", "")}
         proc = subprocess.Popen([sys.executable, str(runner), "export",
@@ -657,7 +657,7 @@ def slow_export(tmp_path):
                                  "--jobs", "2", "--no-check", "--no-previews",
                                  "--tolerance-samples", "0"],
                                 env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                text=True)
+                                text=True, start_new_session=group)
         procs.append(proc)
         deadline = time.monotonic() + 120
         while len(list(marks.glob("started-*"))) < wait_workers:
@@ -694,7 +694,8 @@ def _wait_dead(pids, timeout):
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT,
+                                    signal.SIGUSR1, signal.SIGUSR2])
 def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_export, signum):
     out = tmp_path / "out"
     # the exporters would sleep for an hour: the export ends only if its signal stops them
@@ -707,6 +708,28 @@ def test_a_signal_stops_every_worker_promptly_and_leaves_no_file(tmp_path, slow_
     assert list((tmp_path / "marks").glob("finished-*")) == []  # no exporter ran to its end
     err = proc.stderr.read().strip().splitlines()
     assert err == [f"fabkit: interrupted ({signal.Signals(signum).name})"]
+    assert snapshot(out) == {}  # no design folder, no staging folder, no lock file
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="needs /proc (Linux)")
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP, signal.SIGQUIT])
+def test_signals_a_terminal_sends_to_the_group_twice_end_in_one_line(tmp_path, slow_export,
+                                                                       signum):
+    # a terminal sends Ctrl-C (Ctrl-\, a hang-up) to every process of the group, workers too;
+    # the second comes while the first one's clean-up runs
+    out = tmp_path / "out"
+    proc, workers = slow_export(out, sleep=3600.0, group=True)
+    os.killpg(proc.pid, signum)
+    time.sleep(0.2)
+    try:
+        os.killpg(proc.pid, signum)
+    except ProcessLookupError:  # every process of the group had already ended
+        pass
+    assert proc.wait(timeout=300) == 128 + signum
+    assert _wait_dead(workers, 30) == []
+    err = proc.stderr.read()
+    assert "Traceback" not in err
+    assert err.strip().splitlines() == [f"fabkit: interrupted ({signal.Signals(signum).name})"]
     assert snapshot(out) == {}  # no design folder, no staging folder, no lock file
 
 

@@ -300,7 +300,10 @@ def test_cli_interrupt_then_restart_resumes(tmp_path, reference_run):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130
-    assert b"run the same command again to resume" in err and not (out / "sweep.csv").exists()
+    assert err.decode().strip().splitlines() == [
+        f"fabkit: interrupted (SIGINT); finished chunks are in {out / 'chunks'}: run the same "
+        "command again to resume"]
+    assert not (out / "sweep.csv").exists()
     done = len(list((out / "chunks").glob("chunk-*.json")))
     assert 2 <= done < 6
     # the same command again finishes the rest, and gives the table of an uninterrupted run

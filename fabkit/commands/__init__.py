@@ -13,11 +13,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BoundsError, FabkitError, InputFileError, UsageError
-from ..io.outputs import output_folder
+from ..io.outputs import output_folder, OutputFolder
 from ..templates import allow_large, resolve_template
 from ..io.progress import Progress
 
-__all__ = ["expand_templates", "each_template", "check_output_folder", "check_count",
+__all__ = ["expand_templates", "each_template", "check_output_folder", "out_folder", "check_count",
            "check_jobs", "check_number", "Example", "examples_epilog", "add_out_dir",
            "add_jobs", "add_settings", "add_progress_options", "progress_for",
            "short_list", "TOLERANCE_SAMPLES"]
@@ -219,6 +219,21 @@ def check_output_folder(path, option: str = "-o") -> Path:
     OutputError
     """
     return output_folder(path, option)
+
+
+def out_folder(args, dest: str = "out_dir"):
+    """The handle on the command's output folder (:class:`fabkit.io.folder.OutputFolder`):
+    the one the command line opened before any work (``args.out_folder``), else one opened now
+    on ``args.<dest>``; every file of the command is written through it.
+
+    Returns
+    -------
+    OutputFolder
+    """
+    held = getattr(args, "out_folder", None)
+    if held is None:
+        held = args.out_folder = OutputFolder.open(getattr(args, dest))
+    return held
 
 
 def check_count(option: str, value, minimum: int = 1, maximum: int | None = None,

@@ -21,7 +21,7 @@ from ..io.toml_writer import TomlDocument
 from ..io.workload import require
 from ..plots.designplots import curve_design_figure, module_design_figure
 from ..plots.viz import figure_png
-from . import add_out_dir, add_progress_options, add_settings, Example, progress_for
+from . import add_out_dir, add_progress_options, add_settings, Example, out_folder, progress_for
 from .settings import read_settings
 
 NAME = "design"
@@ -135,9 +135,9 @@ def _name(args) -> str:
     return "module"
 
 
-def write_files(out: Path, files: dict[str, bytes]) -> list[Path]:
-    """Write every file inside the output folder ``out``, all or nothing, refusing any name
-    that would leave it (the one place this command writes:
+def write_files(out, files: dict[str, bytes]) -> list[Path]:
+    """Write every file inside the output folder ``out`` (its handle, held since the start),
+    all or nothing, refusing any name that would leave it (the one place this command writes:
     :func:`fabkit.io.outputs.write_files`)."""
     return write_all(out, files)
 
@@ -190,7 +190,7 @@ def _check_curve_size(curve, module_size: float) -> None:
 
 def run(args) -> int:
     name = _name(args)
-    out = Path(args.out_dir)
+    out = out_folder(args)
     if args.curve is not None and args.settings:
         read_settings(args, {}, "a chain designed from a curve reads no settings")
     args.settings = read_settings(
@@ -238,7 +238,7 @@ def _run_module(args, name, out, figure_png) -> int:
     }
     write_files(out, files)
     print(f"{name}: module designed from {report['wish']} in {report['seconds']:.2f} s "
-          f"-> {out / (name + '.toml')}")
+          f"-> {out.path / (name + '.toml')}")
     met = report["wishes_met"]
     for p in met["fixed_points"]:
         wished = "" if p["wished_slope"] is None else f"; wished {p['wished_slope']:g}"
@@ -258,7 +258,7 @@ def _run_module(args, name, out, figure_png) -> int:
         print(f"  {line}")
     if report["builds"] is not None:
         print(f"  {builds_line(report['builds'])}")
-    print(f"  export: fabkit export {out / (name + '.toml')} --to dxf")
+    print(f"  export: fabkit export {out.path / (name + '.toml')} --to dxf")
     return 0
 
 
@@ -341,7 +341,7 @@ def _run_curve(args, name, out, figure_png) -> int:
     print(f"{name}: {report['modules']} modules ({len(result.types)} types) following a "
           f"{curve.length:.1f} mm curve ({curve.source}), module size {args.module_size:g} mm, "
           f"scale {result.scale:.4g} mm/unit in {report['seconds']:.2f} s "
-          f"-> {out / (name + '.toml')}")
+          f"-> {out.path / (name + '.toml')}")
     print(f"  traced final state on the curve: mean {100 * e['mean_fraction']:.2g} % of its "
           f"size, ends {100 * e['start_fraction']:.2g} % / {100 * e['end_fraction']:.2g} % "
           f"(accepted: {100 * report['tolerance']['mean_fraction']:g} %, ends "
@@ -355,5 +355,5 @@ def _run_curve(args, name, out, figure_png) -> int:
                       for t in report["types"]))
     if curve.strokes > 1:
         print(f"  the file holds {curve.strokes} strokes; the longest was followed")
-    print(f"  laser kit: fabkit export {out / (name + '.toml')} --to dxf")
+    print(f"  laser kit: fabkit export {out.path / (name + '.toml')} --to dxf")
     return 0

@@ -19,7 +19,7 @@ import sys
 from ..errors import UsageError
 from ..status import Status
 from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, Example,
-               expand_templates, progress_for, TOLERANCE_SAMPLES)
+               expand_templates, out_folder, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
 
 NAME = "export"
@@ -123,7 +123,7 @@ def run(args) -> int:
     jobs = min(args.jobs, len(paths)) or 1
     progress.stage(f"{len(paths)} design{'s' * (len(paths) != 1)} into {args.out_dir}, "
                    f"{jobs} at a time", total=len(paths), unit="designs")
-    results = export_many(paths, formats, args.out_dir, settings, jobs=args.jobs,
+    results = export_many(paths, formats, out_folder(args), settings, jobs=args.jobs,
                           check=not args.no_check, tolerance_samples=args.tolerance_samples,
                           progress=DesignProgress(progress), previews=not args.no_previews,
                           debug=getattr(args, "debug", False), wait=args.wait,

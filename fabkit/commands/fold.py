@@ -9,12 +9,11 @@ the FOLD file by re-folding it.
 
 from __future__ import annotations
 
-from pathlib import Path
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
 from ..templates import with_settings
-from . import (add_out_dir, add_progress_options, add_settings, check_number, each_template,
+from . import (out_folder, add_out_dir, add_progress_options, add_settings, check_number, each_template,
                Example, progress_for)
 from .settings import read_settings
 
@@ -95,8 +94,8 @@ def run(args) -> int:
     def one(path) -> bool:
         progress.stage(f"{path.name}: the crease pattern")
         design = with_settings(load_template(path), settings)
-        out = args.out_dir
-        folder = inside(Path(out), design.name) if out else None  # before the work
+        out = out_folder(args) if args.out_dir else None
+        folder = inside(out.path, design.name) if out else None  # before the work
         overrides = {**settings.get("origami", {}),
                      **{k: v for k, v in (("branch", args.branch), ("sign", args.sign))
                         if v is not None}}
@@ -122,7 +121,8 @@ def run(args) -> int:
                 module = get_exporter(fmt)
                 if module.applies(design):
                     files.update(module.write(plan).files)
-            paths = write_files(folder, files)  # every format computed first: all or nothing
+            # every format computed first: all or nothing, through the output folder's handle
+            paths = write_files(out, {f"{design.name}/{n}": d for n, d in files.items()})
             print("wrote        " + ", ".join(str(p) for p in paths))
             progress.stage(f"{design.name}: checking {design.name}.fold by folding it again")
             try:

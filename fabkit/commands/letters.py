@@ -15,7 +15,7 @@ from ..io.outputs import write_files
 from ..templates import with_settings
 from ..kinematics import trace
 from ..plots.viz import draw_network, figure_kit, figure_png
-from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number, Example,
+from . import (out_folder, add_out_dir, add_progress_options, add_settings, check_count, check_number, Example,
                progress_for)
 from .settings import read_settings
 
@@ -196,7 +196,7 @@ def run(args) -> int:
         })
     files[f"{word.lower()}.png"] = figure_png(word_figure(word, fits, sims), dpi=100)
     files[f"{word.lower()}_fit.json"] = (json.dumps(report, indent=1) + "\n").encode()
-    out = Path(args.out_dir)
+    out = out_folder(args)
     write_files(out, files)
     progress.close()
     print(f"{word}: {len(word)} chains -> {out}")
@@ -205,5 +205,5 @@ def run(args) -> int:
         print(f"{row['letter']:>6}  {row['modules']:7d}  {row['rms_error']:10.4f}  "
               f"{row['max_error']:10.4f}  {row['end_error']:10.4f}")
     worst = max(r["rms_error"] for r in report["letters"])
-    print(f"worst rms fit error {worst:.4f} of the letter height; PNG: {out / (word.lower() + '.png')}")
+    print(f"worst rms fit error {worst:.4f} of the letter height; PNG: {out.path / (word.lower() + '.png')}")
     return 0

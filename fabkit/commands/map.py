@@ -12,7 +12,7 @@ from ..io.outputs import inside, write_files
 from ..io.workload import require
 from ..numerics import DOMAIN_RTOL
 from ..plots.viz import figure_png
-from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
+from . import (out_folder, add_out_dir, add_progress_options, add_settings, check_count, each_template,
                Example, progress_for)
 from ..io.progress import Progress
 from .settings import read_settings
@@ -101,7 +101,7 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
     from ..maps.of_design import cobweb_starts, map_of  # scipy: not for every --help
 
     progress = progress or Progress("", show=False)
-    folder = inside(outdir, design.name)  # before the work
+    inside(outdir, design.name)  # before the work: a name that would leave it is refused
     progress.stage(f"{design.name}: the map")
     fmap = map_of(design, d_in, d_out)
     progress.stage(f"{design.name}: fixed points and cycles")
@@ -162,7 +162,8 @@ def map_design(design, outdir: Path, *, d1=None, steps=16, periods=(2,), lyapuno
                                                                    title=design.name))
     text = json.dumps(summary, indent=2, default=_json_default) + "\n"
     files["map.json"] = text.encode()
-    write_files(folder, files)  # everything computed first: all or nothing
+    # everything computed first: all or nothing, through the output folder's handle
+    write_files(outdir, {f"{design.name}/{n}": data for n, data in files.items()})
     return summary
 
 
@@ -209,7 +210,7 @@ def run(args) -> int:
 
     def one(path) -> bool:
         design = with_settings(load_template(path), settings)
-        summary = map_design(design, Path(args.out_dir), d1=d1, steps=args.steps,
+        summary = map_design(design, out_folder(args), d1=d1, steps=args.steps,
                              periods=periods, lyapunov=args.lyapunov, orbits=args.orbits,
                              discard=args.discard, average=args.average, d_in=args.d_in,
                              d_out=args.d_out, progress=progress)

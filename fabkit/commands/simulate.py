@@ -15,7 +15,7 @@ from ..kinematics import METHODS, Status
 from ..motion import judge_ends
 from ..motion.spread import module_spread, shape_missed
 from ..plots.viz import elastic_figure, figure_png, motion_figure
-from . import (add_out_dir, add_progress_options, add_settings, check_count, check_number,
+from . import (out_folder, add_out_dir, add_progress_options, add_settings, check_count, check_number,
                each_template, Example, progress_for)
 from .settings import read_settings
 
@@ -131,7 +131,8 @@ def simulate_design(design, outdir: Path, method=None, to=None, gif=False, progr
         np.savez_compressed(buf, **run.arrays())
         files["elastic.npz"] = buf.getvalue()
         files["elastic.png"] = figure_png(elastic_figure(run, title=f"{design.name}, elastic"))
-    write_files(folder, files)
+    # through the output folder's handle, never by its name again
+    write_files(outdir, {f"{design.name}/{n}": data for n, data in files.items()})
     return traj, folder, run
 
 
@@ -172,7 +173,7 @@ def run(args) -> int:
 
         design = with_settings(load_template(path), settings)
         traj, folder, run = simulate_design(
-            design, Path(args.out_dir), args.method, args.to, args.gif, progress,
+            design, out_folder(args), args.method, args.to, args.gif, progress,
             {"steps": steps, "settings": settings} if elastic else None, args.branch)
         print(f"== {design.name} -> {folder}")
         if run is not None:

@@ -7,9 +7,9 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import FabkitError, UsageError
+from ..errors import FabkitError, Interrupted, UsageError
 from ..io.outputs import inside
-from . import (add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
+from . import (out_folder, add_jobs, add_out_dir, add_progress_options, add_settings, check_jobs, check_number,
                Example, progress_for)
 from .settings import read_settings
 
@@ -161,6 +161,17 @@ def _checked_options(args, protocol):
     return protocol
 
 
+def _say_where_to_resume(exc: BaseException, outdir) -> None:
+    """Ctrl-C, a signal, or a crash mid-run: say where the finished work is; the command line
+    reports the interruption itself (a signal: with this in its one line)."""
+    hint = (f"finished chunks are in {Path(outdir) / 'chunks'}: run the same command again to "
+            "resume")
+    if isinstance(exc, Interrupted):
+        exc.hint = hint
+    else:
+        print(f"fabkit: {hint}", file=sys.stderr)
+
+
 def run(args) -> int:
     from ..sweep import Protocol, SweepError, parse_vary, read_sweep_file, sweep
     from ..templates import load_template
@@ -190,7 +201,7 @@ def run(args) -> int:
             size *= len(axis.values)
         progress.stage(f"{template}: {size} points", total=size, unit="points")
         design = _with_target(load_template(template), settings, axes)
-        outdir = (Path(args.out_dir) if args.out_dir
+        outdir = (out_folder(args) if args.out_dir  # the folder held since the start
                   else inside(Path("out"), f"sweep-{design.name}"))
         scheduler = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
         where = f"the scheduler {scheduler}" if scheduler else (
@@ -206,12 +217,9 @@ def run(args) -> int:
                               else {"point_timeout": args.point_timeout}))
         except FabkitError:
             raise
-        except BaseException:
-            # Ctrl-C, a signal, or a crash mid-run: say where the finished work is, then let the
-            # command line report the interruption itself
+        except BaseException as exc:
             if bar.started:
-                print(f"fabkit: finished chunks are in {outdir / 'chunks'}: run the same command "
-                      "again to resume", file=sys.stderr)
+                _say_where_to_resume(exc, outdir)
             raise
     except SweepError as exc:
         _usage(str(exc))

@@ -14,7 +14,6 @@ so scripts can gate on it.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from ..errors import FabkitError, UsageError
 from ..io.outputs import inside, write_files
@@ -22,7 +21,7 @@ from ..numerics import printed
 from ..report.text import report_json
 from ..plots.viz import figure_png
 from . import (add_out_dir, add_progress_options, add_settings, check_count, each_template,
-               Example, progress_for, TOLERANCE_SAMPLES)
+               Example, out_folder, progress_for, TOLERANCE_SAMPLES)
 from .settings import parse_settings
 
 NAME = "tolerance"
@@ -170,7 +169,8 @@ def run(args) -> int:
         design = with_settings(load_template(path), settings)
         # --set of another process has no effect here: refused as a key of another process is
         refuse_foreign(settings, design_process(design), design.name)
-        folder = inside(Path(args.out_dir), design.name)  # before the work
+        held = out_folder(args)
+        folder = inside(held.path, design.name)  # before the work
         progress.stage(f"{design.name}: tracing the motion")
         traj = traced_motion(design)
         if traj is None:
@@ -187,8 +187,8 @@ def run(args) -> int:
             "tolerance.json": report_json(result.as_dict()),
             "tolerance.png": figure_png(tolerance_figure(result, title=design.name)),
         }
-        if files:
-            write_files(folder, files)
+        if files:  # through the folder held since the start, never by its name
+            write_files(held, {f"{design.name}/{n}": data for n, data in files.items()})
         print(f"== {design.name}" + (f" -> {folder}" if files else ""))
         print(describe(result))
         return bool(result.flagged)

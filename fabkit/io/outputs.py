@@ -25,138 +25,19 @@ from __future__ import annotations
 
 import errno
 import os
-import re
 import stat
-import tempfile
 import time
 from pathlib import Path
 
-from ..errors import LockedError, OutputError, UnsafeNameError, WriteError
+from ..errors import LockedError, OutputError, UnsafeNameError
+from .folder import OutputFolder
 from .inputs import file_kind
+from .names import (check_name, MAX_NAME_LENGTH, NAME_PATTERN, output_folder, OWN_PATTERN,
+                    RESERVED_NAMES)
 
-__all__ = ["NAME_PATTERN", "MAX_NAME_LENGTH", "RESERVED_NAMES", "check_name", "output_folder",
-           "inside", "own_entry", "open_own_file", "write_files", "write_atomic", "LOCK_NAME",
+__all__ = ["NAME_PATTERN", "MAX_NAME_LENGTH", "RESERVED_NAMES", "OWN_PATTERN", "check_name",
+           "output_folder", "OutputFolder", "inside", "own_entry", "open_own_file", "write_files", "write_atomic", "LOCK_NAME",
            "OutputLock"]
-
-#: What a name fabkit writes may look like: letters, digits and ``_ . + -``, starting with a
-#: letter or digit (so never ``.``, ``..`` or a hidden file, and never an option like ``-x``).
-NAME_PATTERN = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
-
-#: Longest name accepted: file systems allow 255 bytes, and fabkit adds suffixes of its own
-#: (``.staging``, ``.<random>.part``) to the names it stages.
-MAX_NAME_LENGTH = 120
-
-#: Names that fabkit itself writes at the top of an output folder (a design named like one of
-#: them would overwrite it or be overwritten), and names that Windows reserves for devices (an
-#: output folder shared with a Windows machine could not hold them). Compared without case and,
-#: for the device names, without extension.
-RESERVED_NAMES = frozenset({"index.html", "sweep.csv", "sweep.json", "chunks", "bench"})
-_DEVICE_NAMES = frozenset({"con", "prn", "aux", "nul", *(f"com{i}" for i in range(10)),
-                           *(f"lpt{i}" for i in range(10))})
-
-
-def check_name(name, what: str = "name", *, reserved: bool = True) -> str:
-    """Return ``name`` when it is safe as one file or folder name inside an output folder.
-
-    Parameters
-    ----------
-    name : str
-        The name (one path component).
-    what : str
-        What the name is, for the message (``"template name"``, ``"file name"``).
-    reserved : bool
-        Also refuse the names fabkit writes at the top of an output folder
-        (:data:`RESERVED_NAMES`); device names are refused always.
-
-    Raises
-    ------
-    UnsafeNameError
-        Not a string, empty, too long, with a separator, ``..``, a control character or any
-        character outside :data:`NAME_PATTERN`, or a reserved name. The message says why.
-
-    Examples
-    --------
-    >>> check_name("super_stable_chain")
-    'super_stable_chain'
-    >>> check_name("../../escaped")
-    Traceback (most recent call last):
-    ...
-    fabkit.errors.UnsafeNameError: name '../../escaped' would leave the output folder (it holds '/' or '..'); use letters, digits, '_', '-', '.' and '+'
-    """
-    if not isinstance(name, str):
-        raise UnsafeNameError(what, name, f"must be a string, got {type(name).__name__}")
-    if not name:
-        raise UnsafeNameError(what, name, "is empty; every output needs a name of its own")
-    if any(ord(c) < 32 or ord(c) == 127 for c in name):
-        raise UnsafeNameError(what, name, "holds a control character")
-    if "/" in name or "\\" in name or name in (".", "..") or name.startswith(".."):
-        raise UnsafeNameError(what, name, "would leave the output folder (it holds '/' or "
-                                          "'..')" + _ALLOWED)
-    if len(name) > MAX_NAME_LENGTH:
-        raise UnsafeNameError(what, name, f"is {len(name)} characters long; at most "
-                                          f"{MAX_NAME_LENGTH}")
-    if not NAME_PATTERN.match(name):
-        first = next((c for c in name if not re.match(r"[A-Za-z0-9_.+-]", c)), name[0])
-        why = (f"may not start with {first!r}" if NAME_PATTERN.match("a" + name[1:])
-               else f"holds {first!r}")
-        raise UnsafeNameError(what, name, why + _ALLOWED)
-    lower = name.lower()
-    if lower.split(".", 1)[0] in _DEVICE_NAMES:
-        raise UnsafeNameError(what, name, "is a device name that Windows reserves; choose "
-                                          "another")
-    if reserved and lower in RESERVED_NAMES:
-        raise UnsafeNameError(what, name, "is a name fabkit writes itself at the top of an "
-                                          "output folder; choose another")
-    return name
-
-
-_ALLOWED = "; use letters, digits, '_', '-', '.' and '+'"
-
-
-def output_folder(path, option: str = "-o") -> Path:
-    """Check an output folder the user chose, before any work (one line on refusal).
-
-    The folder need not exist (it is created when the first file is written), but it must be
-    given, it must not be a file, and the nearest existing folder above it must be writable.
-
-    Parameters
-    ----------
-    path : str or path-like
-    option : str
-        The option that gave it, for the message.
-
-    Returns
-    -------
-    pathlib.Path
-
-    Raises
-    ------
-    OutputError
-    """
-    text = os.fspath(path) if isinstance(path, os.PathLike) else path
-    if not isinstance(text, str):
-        raise OutputError(repr(path), f"{option}: must be a folder path, got "
-                                      f"{type(path).__name__}")
-    if not text.strip():
-        raise OutputError(repr(text), f"{option}: is empty; give an output folder (e.g. "
-                                      f"{option} out)")
-    if any(ord(c) < 32 or ord(c) == 127 for c in text):
-        raise OutputError(repr(text), f"{option}: holds a control character")
-    p = Path(text)
-    probe = p
-    while not probe.exists() and not probe.is_symlink() and probe != probe.parent:
-        probe = probe.parent
-    if probe.is_symlink() and not probe.exists():
-        raise OutputError(p, f"{option}: {probe} is a broken symbolic link")
-    if not probe.is_dir():
-        what = "exists and is not a folder" if probe == p else f"cannot be created: {probe} is " \
-                                                              "not a folder"
-        raise OutputError(p, f"{option}: {what}; choose another output folder")
-    if not os.access(probe, os.W_OK | os.X_OK):
-        what = "is not writable" if probe == p else f"cannot be created: {probe} is not writable"
-        raise OutputError(p, f"{option}: {what}; choose another output folder")
-    return p
-
 
 def inside(folder, *names: str, what: str = "name", replace_last: bool = False) -> Path:
     """``folder / name / ...`` with every name checked by :func:`check_name`.
@@ -207,11 +88,6 @@ def _refuse_escape(root: Path, path: Path) -> None:
                                          f"folder {root}; fabkit does not write through it")
 
 
-#: What the hidden entries fabkit keeps in an output folder look like: ``.fabkit.lock``,
-#: ``.<design>.staging``, ``.<design>.old``.
-_OWN_PATTERN = re.compile(r"^\.[A-Za-z0-9][A-Za-z0-9_.+-]*$")
-
-
 def own_entry(folder, name: str, kind: str = "folder") -> Path:
     """``folder / name`` for a hidden entry that fabkit itself keeps there, checked.
 
@@ -227,7 +103,7 @@ def own_entry(folder, name: str, kind: str = "folder") -> Path:
     OutputError
         The entry is a symbolic link, or not a ``kind``; the message names it.
     """
-    if not isinstance(name, str) or not _OWN_PATTERN.match(name) or len(name) > 255:
+    if not isinstance(name, str) or not OWN_PATTERN.match(name) or len(name) > 255:
         raise UnsafeNameError("entry name", name, "is not a name fabkit keeps in an output "
                                                   "folder")
     path = Path(folder) / name
@@ -288,31 +164,29 @@ def open_own_file(path) -> int:
 def write_atomic(path, data: bytes) -> Path:
     """Write bytes to ``path`` through a temporary file in the same folder and ``os.replace``.
 
-    The primitive under :func:`write_files`; a failure removes the temporary file and raises
+    The folder is held as an :class:`~fabkit.io.folder.OutputFolder` (given one, the file is
+    written into it); a failure removes the temporary file and raises
     :class:`~fabkit.errors.OutputError` naming ``path``.
     """
     path = Path(path)
-    tmp = _stage(path, data)
-    try:
-        os.replace(tmp, path)
-    except BaseException:
-        _unlink(tmp)
-        raise
-    return path
+    with OutputFolder.open(path.parent, "folder") as folder:
+        return folder.write(path.name, data)
 
 
 def write_files(folder, files: dict, *, what: str = "file name") -> list[Path]:
     """Write every ``name → bytes`` of ``files`` under ``folder``, all or nothing.
 
     Names are checked with :func:`inside` before anything is written. Each file is written in
-    full to a temporary file beside its target (and synced); only when every one of them is
-    complete are they renamed into place, so a failure leaves none of the new files and no
-    temporary file. Renames do not need space, so a full disk can only stop the first phase.
+    full to a temporary file beside its target first (and synced), through the folder's handle
+    (:class:`~fabkit.io.folder.OutputFolder`: no link is ever followed); only when every one
+    of them is complete, and the folder is still the one held, are they renamed into place, so
+    a failure leaves none of the new files and no temporary file. Renames do not need space, so
+    a full disk can only stop the first phase.
 
     Parameters
     ----------
-    folder : path
-        The folder to write into (created if needed).
+    folder : path or OutputFolder
+        The folder to write into (created if needed); a handle is written through as it is.
     files : dict of str to bytes
         Name (a file name, or a relative POSIX path below ``folder``) → content.
 
@@ -325,75 +199,15 @@ def write_files(folder, files: dict, *, what: str = "file name") -> list[Path]:
     ------
     UnsafeNameError, OutputError
         A name that would leave ``folder``; a file that could not be written (the message
-        names it and says why, e.g. "No space left on device").
+        names it and says why, e.g. "No space left on device"); the folder was replaced while
+        fabkit worked (:class:`~fabkit.errors.FolderChangedError`).
     """
-    targets = [(inside(folder, name, what=what, replace_last=True), data)
-               for name, data in sorted(files.items())]
-    staged: list[tuple[Path, Path]] = []
-    created: list[Path] = []
-    try:
-        for path, data in targets:
-            created += _new_folders(path.parent)
-            staged.append((_stage(path, data), path))
-        for tmp, path in staged:
-            os.replace(tmp, path)
-    except BaseException:
-        for tmp, _ in staged:
-            _unlink(tmp)
-        for made in reversed(created):  # the folders this call created, deepest first
-            try:
-                made.rmdir()
-            except OSError:
-                pass
-        raise
-    return [path for path, _ in targets]
-
-
-def _new_folders(folder: Path) -> list[Path]:
-    """The folders that do not exist yet from the top down to ``folder``."""
-    missing = []
-    while not folder.exists() and folder != folder.parent:
-        missing.append(folder)
-        folder = folder.parent
-    return missing[::-1]
-
-
-def _stage(path: Path, data) -> Path:
-    """Write ``data`` to a synced temporary file beside ``path``; returns its path."""
-    if not isinstance(data, (bytes, bytearray, memoryview)):
-        raise TypeError(f"{path.name}: file content must be bytes, got {type(data).__name__}")
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-        tmp = Path(name)
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600 files; use the usual permissions
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-    except OSError as exc:
-        if tmp is not None:
-            _unlink(tmp)
-        raise WriteError(path, exc.strerror or str(exc)) from None
-    except BaseException:
-        if tmp is not None:
-            _unlink(tmp)
-        raise
-    return tmp
-
-
-def _unlink(path: Path) -> None:
-    try:
-        os.unlink(path)
-    except FileNotFoundError:
-        pass
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    if isinstance(folder, OutputFolder):
+        return folder.write_files(files)
+    for name in files:
+        inside(folder, name, what=what, replace_last=True)
+    with OutputFolder.open(folder, "folder") as handle:
+        return handle.write_files(files)
 
 
 # --- the lock of an output folder ----------------------------------------------------------
@@ -406,11 +220,12 @@ class OutputLock:
     """An exclusive lock on an output folder: ``<out>/.fabkit.lock`` held with ``flock``.
 
     The kernel drops the lock when the holder dies, even by SIGKILL, so a stale lock file never
-    blocks anyone; the file is removed on release.
+    blocks anyone; the file is removed on release. The lock file is opened, checked and removed
+    through the folder's handle (:class:`~fabkit.io.folder.OutputFolder`), never through a link.
 
     Parameters
     ----------
-    outdir : path
+    outdir : path or OutputFolder
     wait : bool
         Wait for the other export to finish instead of refusing.
     poll : float
@@ -418,33 +233,35 @@ class OutputLock:
     """
 
     def __init__(self, outdir, wait=False, poll=0.2):
+        self.folder = outdir if isinstance(outdir, OutputFolder) else None
         self.outdir = Path(outdir)
         self.wait = wait
         self.poll = poll
         self.fd = None
+        self._own = None  # a handle this lock opened itself
 
     def __enter__(self):
         import fcntl
 
-        path = self.outdir / LOCK_NAME
+        if self.folder is None:
+            self.folder = self._own = OutputFolder.open(self.outdir, "folder")
+        folder = self.folder
         while True:
-            fd = open_own_file(path)  # never through a link, never blocked on a FIFO
+            fd = folder.open_own(LOCK_NAME)  # never through a link, never blocked on a FIFO
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
                 pid = _lock_holder(fd)
                 os.close(fd)
                 if not self.wait:
+                    self._close_own()
                     raise LockedError(self.outdir, pid) from None
                 time.sleep(self.poll)
                 continue
             # the holder before us may have removed the file after we opened it: lock the file
             # that is at the path now
-            try:
-                same = os.fstat(fd).st_ino == os.lstat(path).st_ino
-            except FileNotFoundError:
-                same = False
-            if not same:
+            st = folder.lstat(LOCK_NAME)
+            if st is None or st.st_ino != os.fstat(fd).st_ino:
                 os.close(fd)
                 continue
             os.ftruncate(fd, 0)
@@ -454,15 +271,21 @@ class OutputLock:
 
     def __exit__(self, *exc):
         if self.fd is not None:
-            path = self.outdir / LOCK_NAME
             try:  # only the file this lock holds: not a link or a file put there since
-                if os.lstat(path).st_ino == os.fstat(self.fd).st_ino:
-                    os.unlink(path)
-            except FileNotFoundError:
+                st = self.folder.lstat(LOCK_NAME)
+                if st is not None and st.st_ino == os.fstat(self.fd).st_ino:
+                    self.folder.unlink(LOCK_NAME)
+            except OSError:  # the folder went away under the lock: nothing to remove
                 pass
             os.close(self.fd)  # closing drops the flock
             self.fd = None
+        self._close_own()
         return False
+
+    def _close_own(self) -> None:
+        if self._own is not None:
+            self._own.close()
+            self.folder = self._own = None
 
 
 def _lock_holder(fd) -> int | None:

@@ -46,7 +46,6 @@ What it guarantees:
 
 from __future__ import annotations
 
-from pathlib import Path
 
 from ..errors import BoundsError, FabkitError, UsageError
 from ..writers import check_export_settings
@@ -143,7 +142,7 @@ def _resolved(paths, settings, exporters, tolerance_samples, allow_large):
             exporters)
 
 
-def _write_index(outdir: Path, results) -> None:
+def _write_index(outdir, results) -> None:
     """index.html from the cards the exports handed back (no page is read back); the folders
     of earlier runs are linked by name."""
     cards = [r.card for r in results if r is not None and r.folder and r.card is not None]
@@ -267,7 +266,7 @@ def export_many(paths, formats=None, outdir="out", settings=None, *, jobs=1, che
     kwargs = dict(check=check, tolerance_samples=tolerance_samples, exporters=exporters,
                   previews=previews, debug=debug, allow_large=allow_large)
     args = {i: (paths[i], formats, outdir, settings) for i in todo}
-    with OutputLock(outdir, wait=wait):
+    with outdir, OutputLock(outdir, wait=wait):  # the folder held, and locked, to the end
         if (isolate or jobs > 1) and not debug:
             # largest designs first (edges as the measure of work): a long design started last
             # would run alone at the end while the other workers idle

@@ -3,19 +3,17 @@ the motion once, plan, compute every file in memory, stage, check, judge, report
 
 from __future__ import annotations
 
-import shutil
 import time
 from pathlib import Path
 
-from ..errors import (brief, FabkitError, internal_error_line, Interrupted, TemplateError,
-                      UnsafeNameError, WriteError)
-from ..io.inputs import read_regular
-from ..io.outputs import inside
+from ..errors import (brief, FabkitError, FolderChangedError, internal_error_line, Interrupted,
+                      TemplateError, UnsafeNameError, WriteError)
+from ..io.outputs import check_name, OutputFolder
 from ..report.html import design_html, index_card, motion_frames
 from ..report.text import design_facts, report_json, report_markdown
 from ..settings.design import design_settings
 from ..templates import Design
-from .folders import check_replaceable, recover_folder, staging_folders, swap_in
+from .folders import check_replaceable, new_staging, recover_folder, staging_folders, swap_in
 from .formats import (choose_formats, make_artefacts, motion_facts, plan_design, RESERVED,
                       run_checks, traced_for)
 from .manifest import (design_digest, MANIFEST, MAX_KEPT_BYTES, new_manifest, read_manifest,
@@ -58,7 +56,7 @@ def report_dict(rep: DesignReport) -> dict:
     return out
 
 
-def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefacts:
+def keep_formats(art: Artefacts, folder: OutputFolder, kept: dict, order=()) -> Artefacts:
     """The Artefacts stage with the formats an earlier export left in ``folder`` added: their
     files as they are (read back as data, to be written again, checked again as built and shown
     in the report) and their results from the folder's record (:mod:`fabkit.pipeline.manifest`).
@@ -68,7 +66,7 @@ def keep_formats(art: Artefacts, folder: Path, kept: dict, order=()) -> Artefact
     for fmt, origin in sorted(kept.items()):
         for name in origin.files:
             if name not in files:
-                files[name] = read_regular(folder / name, MAX_KEPT_BYTES, what="kept file")
+                files[name] = folder.read_bytes(name, MAX_KEPT_BYTES)  # never through a link
         formats[fmt] = FormatResult(fmt, Status.EXPORTED, sorted(origin.files),
                                     dict(origin.report), "")
     rank = {f: i for i, f in enumerate(order)}
@@ -109,22 +107,28 @@ def export_one(path, formats, outdir, settings, check=True, tolerance_samples=No
     res = DesignResult(path=str(source_label(path)),
                        name=path.name if isinstance(path, Design) else Path(path).stem)
     clock = _StageClock(res, progress, t0)
-    staged = [None]  # the staging folder while it holds an unfinished export
+    staged = [None]  # the staging folder's name while it holds an unfinished export
+    outdir = OutputFolder.open(outdir, "outdir")  # one handle on the folder from here on
     try:
         _export(path, formats, outdir, settings, res, clock, staged, check=check,
                 tolerance_samples=tolerance_samples, exporters=exporters, previews=previews,
                 allow_large=allow_large, swap=swap)
-    except (Interrupted, KeyboardInterrupt):
-        res.status, res.message, res.error_code = Status.INTERRUPTED, f"{res.path}: interrupted", \
-            "interrupted"
+    except (Interrupted, KeyboardInterrupt, FolderChangedError) as exc:
+        # a signal, or a folder swapped under the export: the whole run stops
+        if not isinstance(exc, FolderChangedError):
+            res.status, res.message, res.error_code = Status.INTERRUPTED, \
+                f"{res.path}: interrupted", "interrupted"
         raise
     except Exception as exc:  # a bug must not stop the other designs; say where it happened
         if debug and not isinstance(exc, (FabkitError, OSError)):
             raise
         res.message, res.error_code = _failure(exc, res.path, outdir)
     finally:
-        if staged[0] is not None and staged[0].exists():
-            shutil.rmtree(staged[0], ignore_errors=True)
+        if staged[0] is not None:  # in the folder held, whatever its path names now
+            try:
+                outdir.remove(staged[0])
+            except OSError:
+                pass
         clock(None)
         res.seconds = time.perf_counter() - t0
         res.cpu_seconds = time.process_time() - cpu0
@@ -172,18 +176,19 @@ def _load(path, settings, outdir, formats, exporters):
     # what the files are made from, as the template says (--set is compared on its own)
     digest = design_digest(loaded)
     design = with_settings(loaded, settings)  # --set motion.to=...
-    outdir = Path(outdir)
     try:
-        folder = inside(outdir, design.name)  # before the work, not after it
+        check_name(design.name)  # before the work, not after it
     except UnsafeNameError as exc:  # a Design made in code, not read from a template
         raise TemplateError(source_label(path), "name",
                             f"{brief(design.name)} {exc.reason}") from None
-    check_replaceable(folder)
+    check_replaceable(outdir, design.name)
     staging_folders(outdir, design.name)  # a link at .NAME.staging or .NAME.old: refused now
     # a folder caught between the two renames of a killed run is put back first: its record
     # says what it holds
     recover_folder(outdir, design.name)
-    earlier = read_manifest(folder) if folder.is_dir() and not folder.is_symlink() else None
+    folder = (outdir.folder(design.name, create=False) if outdir.is_folder(design.name)
+              else None)
+    earlier = read_manifest(folder) if folder is not None else None
     registry = dict(EXPORTERS if exporters is None else exporters)
     chosen = choose_formats(design, formats, registry)[0]
     kept, removed = sort_earlier(folder, earlier, design, settings, [f for f, _ in chosen],
@@ -206,7 +211,7 @@ def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Che
     return outcome, Checks(by_format)
 
 
-def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
+def carry_verdict(stage_dir: OutputFolder, plan, art: Artefacts, verdict) -> list[str]:
     """The report stage's one change to the files made: those that carry the verdict (a laser
     kit's guide and bill of materials, left empty by its writer: see
     :func:`fabkit.pipeline.formats.make_artefacts`) are made from their process's plan, now that
@@ -216,8 +221,8 @@ def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
 
     Parameters
     ----------
-    stage_dir : Path
-        The staging folder (the files are already written there).
+    stage_dir : OutputFolder
+        The staging folder, held (the files are already written there).
     plan : Plan
         The Plan stage (the formats made and their writers).
     art : Artefacts
@@ -228,8 +233,6 @@ def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
     -------
     list of str
     """
-    from ..writers import write_atomic
-
     again = []
     for fmt, module in plan.chosen:
         hook = getattr(module, "with_verdict", None)
@@ -239,35 +242,33 @@ def carry_verdict(stage_dir: Path, plan, art: Artefacts, verdict) -> list[str]:
             continue
         files, report = hook(made, list(result.files), verdict.as_dict())
         for name, data in files.items():
-            write_atomic(stage_dir / name, data)
+            stage_dir.write(name, data)
             art.files[name] = data
             again.append(name)
         result.report.update(report)
     return again
 
 
-def _write_reports(stage_dir: Path, rep: DesignReport, art: Artefacts, written, record,
-                   motion) -> dict:
+def _write_reports(stage_dir: OutputFolder, rep: DesignReport, art: Artefacts, written,
+                   record, motion) -> dict:
     """report.md, report.json and report.html of a design into its staging folder, rendered
     from the typed results (none is read back); returns the design's card for index.html."""
-    from ..writers import write_atomic
-
     md, js = report_markdown(rep), report_json(report_dict(rep))
-    write_atomic(stage_dir / "report.md", md)
-    write_atomic(stage_dir / "report.json", js)
+    stage_dir.write("report.md", md)
+    stage_dir.write("report.json", js)
     traj = motion.trajectory if motion.traced else None
     frames = motion_frames(rep.design, traj, rep.formats, art.plans)
     listing = {p.name: len(art.files[p.name]) for p in written}
     listing.update({"report.md": len(md), "report.json": len(js),
                     MANIFEST: len(record.to_bytes())})
-    write_atomic(stage_dir / "report.html", design_html(rep, art.files, listing, frames))
+    stage_dir.write("report.html", design_html(rep, art.files, listing, frames))
     return index_card(rep, rep.design.name, frames)
 
 
 def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *, check,
             tolerance_samples, exporters, previews, allow_large, swap) -> None:
     """The stages of :func:`export_one`, filling ``res``; raises what stops them."""
-    from ..writers import write_atomic, write_outputs
+    from ..writers import write_outputs
 
     clock(Stage.LOAD)
     design, digest, folder, earlier, registry, kept, removed, chosen = _load(
@@ -286,8 +287,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
         art = keep_formats(art, folder, kept, list(registry))
     fmts = art.formats
     clock(Stage.WRITE)
-    stage_dir = staged[0] = staging_folders(Path(outdir), design.name)[0]
-    stage_dir.mkdir(parents=True)
+    staged[0], stage_dir = new_staging(outdir, design.name)
     written = write_outputs(art.files, stage_dir)
     outcome, checks = Status.OK, Checks({})
     if check:
@@ -300,7 +300,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     carry_verdict(stage_dir, plan, art, verdict)  # before the record: it keeps the reports
     record = new_manifest(design.name, earlier, kept, fmts, design, settings, registry, digest,
                           time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime()))
-    write_atomic(stage_dir / MANIFEST, record.to_bytes())
+    stage_dir.write(MANIFEST, record.to_bytes())
     names = [p.name for p in written] + [MANIFEST, "report.json", "report.md", "report.html"]
     rep = DesignReport(design, design_facts(design), motion, plan, art, checks, verdict,
                        outcome, tuple(f"{line} (format refused)" for line in refused),
@@ -310,12 +310,14 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     # files of other commands stay; those of earlier exports are ours to keep or drop
     ours = None if earlier is None else (
         {f for o in earlier.formats.values() for f in o.files} | set(RESERVED) | {MANIFEST})
+    stage_dir.close()
     if swap:
-        swap_in(stage_dir, folder, ours)
+        swap_in(outdir, staged[0], design.name, ours)
     else:
-        res.staged, res.earlier_files = str(stage_dir), (
+        res.staged, res.earlier_files = str(stage_dir.path), (
             None if ours is None else tuple(sorted(ours)))
     staged[0] = None
+    folder = outdir.path / design.name
     res.status, res.formats, res.folder, res.files = outcome, fmts, str(folder), len(names)
     res.notes = [f"{fmt} kept from {kept[fmt].line()}" for fmt in sorted(kept)] + list(removed)
     if outcome is Status.REFUSED:

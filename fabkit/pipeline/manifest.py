@@ -20,13 +20,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__
 from ..errors import FabkitError, InputFileError, OutputError
 from ..io.formats import load_json
-from ..io.inputs import read_regular
+from ..io.outputs import OutputFolder
 from ..report.text import jsonable
 from ..writers import get_exporter
 
@@ -191,13 +192,17 @@ def read_manifest(folder) -> Manifest | None:
         The record is not a regular file, not JSON, not this schema and version, or has a field
         of the wrong type; the message names the file.
     """
-    path = Path(folder) / MANIFEST
-    if not path.exists() and not path.is_symlink():
+    if not isinstance(folder, OutputFolder):
+        with OutputFolder.open(folder, "folder") as held:
+            return read_manifest(held)
+    path = folder.path / MANIFEST
+    st = folder.lstat(MANIFEST)
+    if st is None:
         return None
-    if path.is_symlink() or not path.is_file():
+    if not stat.S_ISREG(st.st_mode):
         raise _bad(path, "not a regular file")
     try:
-        data = load_json(read_regular(path, MAX_BYTES, what="export record"), path)
+        data = load_json(folder.read_bytes(MANIFEST, MAX_BYTES), path)  # never through a link
     except InputFileError as exc:
         if exc.kind not in ("damaged", "bounds"):
             raise
@@ -243,8 +248,8 @@ def sort_earlier(folder, earlier: Manifest | None, design, settings, made, expor
 
     Parameters
     ----------
-    folder : Path
-        The design's folder.
+    folder : OutputFolder or None
+        The design's folder (held; None when there is none).
     earlier : Manifest or None
     design : Design
     settings : dict
@@ -277,8 +282,7 @@ def sort_earlier(folder, earlier: Manifest | None, design, settings, made, expor
         except FabkitError as exc:  # the format is no longer installed or known
             why = f"its exporter is not available: {exc}"
         if why is None:
-            gone = [f for f in old.files if not (Path(folder) / f).is_file()
-                    or (Path(folder) / f).is_symlink()]
+            gone = [f for f in old.files if not _regular(folder, f)]
             if gone:
                 why = f"its file{'s' if len(gone) > 1 else ''} {', '.join(gone)} went missing"
         if why is None:
@@ -287,6 +291,12 @@ def sort_earlier(folder, earlier: Manifest | None, design, settings, made, expor
             removed.append(f"{fmt} ({', '.join(old.files)}) from export {old.export} removed: "
                            f"{why}")
     return kept, tuple(removed)
+
+
+def _regular(folder: OutputFolder | None, name: str) -> bool:
+    """True when ``name`` is a regular file in ``folder`` (not a link to one)."""
+    st = folder.lstat(name) if folder is not None else None
+    return st is not None and stat.S_ISREG(st.st_mode)
 
 
 def new_manifest(name: str, earlier: Manifest | None, kept: dict, formats: dict, design,

@@ -8,7 +8,7 @@ import os
 import time
 from pathlib import Path
 
-from ..errors import OutputError, internal_error_line
+from ..errors import FolderChangedError, internal_error_line, OutputError
 from ..executor import SILENCE, LocalExecutor, Task, report
 from .design import export_one, source_label
 from .folders import is_safe_name, recover_folder, swap_in
@@ -130,6 +130,8 @@ def run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
                     finished(i, _swapped_in(end.value, source_label(args[i][0]), names[i],
                                             outdir))
                     continue
+                if isinstance(end.value, FolderChangedError):  # in a worker: the run stops
+                    raise end.value
                 if is_safe_name(names[i]):
                     try:  # its staging folder, whatever it holds
                         recover_folder(outdir, names[i])
@@ -152,8 +154,10 @@ def run_pool(todo, args, names, kwargs, jobs, outdir, progress, finished, *,
 def _swapped_in(res: DesignResult, path, name: str, outdir) -> DesignResult:
     """The result of a design exported by a worker, its staged folder swapped in."""
     if res.staged:
-        try:
-            swap_in(Path(res.staged), Path(res.folder), res.earlier_files)
+        try:  # by name, in the folder this process holds: whatever the worker's paths said
+            swap_in(outdir, Path(res.staged).name, name, res.earlier_files)
+        except FolderChangedError:
+            raise  # the whole run stops
         except (OSError, OutputError) as exc:
             try:
                 recover_folder(outdir, name)

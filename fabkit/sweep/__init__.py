@@ -36,7 +36,7 @@ from ..executor import LocalExecutor, Task
 from ..io.formats import load_json
 from .peer import probe_scheduler
 from ..io.inputs import read_regular
-from ..io.outputs import inside, output_folder, write_files
+from ..io.outputs import inside, OutputFolder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
 from .chunks import read_chunks, run_chunk, split_chunks, write_chunk
 from ..status import Status
@@ -245,37 +245,41 @@ def read_sweep_file(path) -> SweepFile | None:
 TOP_FILES = ("sweep.csv", "sweep.json")
 
 
-def _refuse_in_the_way(outdir: Path, names) -> None:
+def _refuse_in_the_way(held: OutputFolder, names) -> None:
     """A folder where the sweep writes a file, or a file where it keeps ``chunks/``, refused
     with its own name, before anything is written (none of the files is replaced)."""
+    outdir = held.path
     for name in names:
-        where = outdir / name
-        if not os.path.isdir(where) or os.path.islink(where):
-            continue
-        raise OutputError(where, "is a folder where the sweep writes its file; remove it or "
-                                 "choose another -o")
+        if held.is_folder(name):
+            raise OutputError(outdir / name, "is a folder where the sweep writes its file; "
+                                             "remove it or choose another -o")
     chunks = outdir / CHUNKS_FOLDER
-    if os.path.lexists(chunks) and not os.path.islink(chunks) and not os.path.isdir(chunks):
+    if os.path.lexists(chunks) and not os.path.islink(chunks) and not held.is_folder(
+            CHUNKS_FOLDER):
         raise OutputError(chunks, "is a file where the sweep keeps its folder of finished "
                                   "chunks; remove it or choose another -o")
 
 
-def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
-    output_folder(outdir)
-    _refuse_in_the_way(outdir, TOP_FILES)
+def _check_outdir(outdir, spec: SweepSpec) -> OutputFolder:
+    """The sweep's output folder, held (:class:`~fabkit.io.folder.OutputFolder`), checked
+    before any work: no folder in the way of its files, chunks/ never a link, and its spec
+    this sweep's (a spec cut short or damaged is said to be so, not another sweep's)."""
+    held = OutputFolder.open(outdir)
+    outdir = held.path
+    _refuse_in_the_way(held, TOP_FILES)
     # chunks/ and its spec: never through a link out of the folder (refused before any work)
     marker = inside(outdir, CHUNKS_FOLDER, SPEC_FILE, replace_last=True)
-    if os.path.lexists(marker):
-        # a FIFO or a device there is refused, never waited on; a spec cut short or
-        # damaged is said to be so (it is not another sweep's)
-        try:
-            old = load_json(read_regular(marker, MAX_SPEC_BYTES), marker, what="a sweep's spec")
-        except InputFileError as exc:
-            if exc.kind not in ("damaged", "bounds"):
-                raise
-            raise InputFileError(marker, f"damaged ({exc.reason}); delete "
-                                         f"{outdir / CHUNKS_FOLDER} to start the sweep again",
-                                 kind="damaged") from None
+    if os.path.lexists(marker) and held.is_folder(CHUNKS_FOLDER):
+        with held.folder(CHUNKS_FOLDER, create=False) as chunks:
+            try:  # through the folder held: a link, a FIFO or a device there is refused
+                old = load_json(chunks.read_bytes(SPEC_FILE, MAX_SPEC_BYTES), marker,
+                                what="a sweep's spec")
+            except InputFileError as exc:
+                if exc.kind not in ("damaged", "bounds"):
+                    raise
+                raise InputFileError(marker, f"damaged ({exc.reason}); delete "
+                                             f"{outdir / CHUNKS_FOLDER} to start the sweep "
+                                             "again", kind="damaged") from None
         if not isinstance(old, dict) or not isinstance(old.get("fingerprint"), str):
             raise InputFileError(marker, "damaged (no fingerprint of a sweep in it); delete "
                                          f"{outdir / CHUNKS_FOLDER} to start the sweep again",
@@ -284,6 +288,7 @@ def _check_outdir(outdir: Path, spec: SweepSpec) -> None:
             raise FabkitError(f"{outdir} holds the chunks of a different sweep (another template, "
                               "grid, measure or protocol); choose another -o or delete "
                               f"{outdir / CHUNKS_FOLDER}")
+    return held
 
 
 def _connect(scheduler, timeout: float):
@@ -379,9 +384,8 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
     0.31
     """
     spec = make_spec(template, vary, measure, protocol)
-    out = Path(outdir) if outdir is not None else None
-    if out is not None:
-        _check_outdir(out, spec)
+    # the output folder held from here on: every chunk, read or written, goes through it
+    out = _check_outdir(outdir, spec) if outdir is not None else None
     if not (isinstance(point_timeout, (int, float)) and not isinstance(point_timeout, bool)
             and point_timeout > 0):
         raise SweepError(f"point_timeout must be a positive number of seconds, got "
@@ -405,12 +409,10 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     damaged: list = []
     folder = None
     if out is not None:
-        from ..io.outputs import inside, write_files
-
         marker = {"fingerprint": spec.fingerprint(), "spec": spec.as_dict()}
         write_files(out, {f"{CHUNKS_FOLDER}/{SPEC_FILE}": json.dumps(
             marker, indent=1, default=json_default).encode()})
-        folder = inside(out, CHUNKS_FOLDER)
+        folder = out.folder(CHUNKS_FOLDER, create=False)
         done, damaged = read_chunks(folder, spec)
     todo = [i for i in range(spec.size) if i not in done]
     if client is not None:
@@ -432,7 +434,7 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     def arrived(chunk):
         records = chunk["records"]
         if folder is not None:
-            write_chunk(out, records)
+            write_chunk(folder, records)
         for r in records:
             done[r["index"]] = r
         cpu[0] += chunk["cpu"]
@@ -447,12 +449,13 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
             _run_processes(workers, payload, chunks, arrived, point_timeout)
     seconds = time.perf_counter() - t0
     records = [done[i] for i in range(spec.size)]
-    result = SweepResult(spec=spec, records=records, outdir=out, computed=len(todo),
+    result = SweepResult(spec=spec, records=records, outdir=out.path if out else None,
+                         computed=len(todo),
                          damaged=tuple(damaged),
                          seconds=seconds, workers=workers, where=where, cpu_seconds=cpu[0])
     if out is None:
         return result
-    return _write_outputs(result, plots)
+    return _write_outputs(result, plots, out)
 
 
 def _run_processes(workers, payload, chunks, arrived, point_timeout) -> None:
@@ -526,8 +529,7 @@ def _run_dask(client, payload, chunks, fingerprint, arrived) -> None:
         raise
 
 
-def _write_outputs(result: SweepResult, plots: bool) -> SweepResult:
-    out = result.outdir
+def _write_outputs(result: SweepResult, plots: bool, out: OutputFolder) -> SweepResult:
     files = {"sweep.csv": result.table_csv()}
     if plots:
         from ..plots.viz import figure_png

@@ -16,10 +16,9 @@ from typing import Annotated, Literal, Optional, Sequence
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from ..errors import FabkitError, InputFileError
+from ..errors import FabkitError, InputFileError, OutputError
 from ..io.formats import load_json
-from ..io.inputs import read_regular
-from ..io.outputs import write_files
+from ..io.outputs import OutputFolder
 from ..status import SWEEP_POINT
 from .model import Axis, Protocol, SweepSpec, json_default
 from .point import evaluate_point
@@ -119,13 +118,13 @@ def split_chunks(indices: list, size: int) -> list:
 MAX_CHUNK_BYTES = 256 * 2**20
 
 
-def write_chunk(out: Path, records: list) -> Path:
-    """Write a chunk of records to ``out/chunks/`` through the output guard.
+def write_chunk(chunks: OutputFolder, records: list) -> Path:
+    """Write a chunk of records into the sweep's ``chunks/`` folder, through its handle.
 
     Parameters
     ----------
-    out : pathlib.Path
-        The sweep's output folder.
+    chunks : OutputFolder
+        The sweep's ``chunks/`` folder, held.
     records : list of dict
         The chunk's records, in index order (the file is named after the first and last).
 
@@ -136,16 +135,18 @@ def write_chunk(out: Path, records: list) -> Path:
     """
     first, last = records[0]["index"], records[-1]["index"]
     text = json.dumps(records, default=json_default, allow_nan=False)
-    return write_files(out, {f"chunks/chunk-{first:07d}-{last:07d}.json": text.encode()})[0]
+    return chunks.write(f"chunk-{first:07d}-{last:07d}.json", text.encode())
 
 
-def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
+def read_chunks(folder: OutputFolder, spec: SweepSpec) -> tuple[dict, list]:
     """Records already on disk, by index, and the chunks that were damaged.
 
     A chunk cut off mid-write never exists (writes are atomic), but a chunk can still be
     damaged or edited: each must be JSON, a list of records that :class:`SweepRecord` accepts,
-    for points of this grid with this grid's parameters. A damaged chunk is renamed
-    ``<name>.damaged`` (kept, never read again) and its points are computed again.
+    for points of this grid with this grid's parameters. Chunks are read through the folder's
+    handle, never through a link: a link (wherever it points), a FIFO or a device under a
+    chunk's name is damaged too. A damaged chunk is renamed ``<name>.damaged`` (kept, never
+    read again) and its points are computed again.
 
     Returns
     -------
@@ -154,11 +155,13 @@ def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
         (file name, why) of every chunk set aside.
     """
     done, damaged = {}, []
-    for f in sorted(folder.glob("chunk-*.json")):
+    for name in folder.names():
+        if not (name.startswith("chunk-") and name.endswith(".json")):
+            continue
         why = None
         try:
-            # a FIFO or a device under a chunk's name is set aside, never waited on
-            records = load_json(read_regular(f, MAX_CHUNK_BYTES), f)
+            # a link, a FIFO or a device under a chunk's name is set aside, never read
+            records = load_json(folder.read_bytes(name, MAX_CHUNK_BYTES), folder.path / name)
             if not isinstance(records, list) or not records:
                 raise ValueError("not a list of records")
             for rec in records:
@@ -178,10 +181,10 @@ def read_chunks(folder: Path, spec: SweepSpec) -> tuple[dict, list]:
         except json.JSONDecodeError as exc:
             why = f"not JSON: {exc}"
         except (OSError, UnicodeDecodeError, ValueError, FabkitError) as exc:
-            why = exc.reason if isinstance(exc, InputFileError) else str(exc)
+            why = exc.reason if isinstance(exc, (InputFileError, OutputError)) else str(exc)
         if why is not None:
-            f.rename(f.with_name(f.name + ".damaged"))
-            damaged.append((f.name, why))
+            folder.replace(name, name + ".damaged")  # the link itself, never its target
+            damaged.append((name, why))
             continue
         for rec in records:
             done[rec["index"]] = rec

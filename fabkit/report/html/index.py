@@ -3,10 +3,11 @@ from the typed report in the process that exported it."""
 
 from __future__ import annotations
 
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
-from ...writers import write_atomic
+from ...io.outputs import OutputFolder
 from ..text import MADE_FOR
 from .common import esc, exported, level_span, PROCESSES
 from .folder import not_exported
@@ -146,11 +147,17 @@ def write_index(outdir, cards) -> Path:
     -------
     pathlib.Path
     """
-    outdir = Path(outdir)
     cards = list(cards)
     mine = {c.folder for c in cards}
-    earlier = sorted(p.name for p in outdir.iterdir()
-                     if p.is_dir() and not p.name.startswith(".") and p.name not in mine
-                     and (p / "report.html").is_file())
-    write_atomic(outdir / "index.html", index_html(cards, earlier))
-    return outdir / "index.html"
+    with OutputFolder.held(outdir, "outdir") as held:  # never through a link
+        earlier = sorted(name for name in held.names()
+                         if not name.startswith(".") and name not in mine
+                         and held.is_folder(name) and _has_report(held, name))
+        return held.write("index.html", index_html(cards, earlier))
+
+
+def _has_report(held, name: str) -> bool:
+    """True when folder ``name`` holds a report.html (a regular file, not a link)."""
+    with held.folder(name, create=False) as folder:
+        st = folder.lstat("report.html")
+    return st is not None and stat.S_ISREG(st.st_mode)
