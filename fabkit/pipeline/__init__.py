@@ -46,7 +46,6 @@ What it guarantees:
 
 from __future__ import annotations
 
-
 from ..errors import BoundsError, FabkitError, UsageError
 from ..writers import check_export_settings
 from ..io.outputs import OutputLock
