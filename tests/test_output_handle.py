@@ -170,13 +170,13 @@ SWAPPING_RUNNER = textwrap.dedent('''
     real = dxf.write
 
 
-    def write(plan):
+    def write(plan, **options):
         # the attacker's moment, while the laser kit is made: rm -rf out && ln -s victim out
         out, victim = os.environ["FABKIT_TEST_OUT"], os.environ["FABKIT_TEST_VICTIM"]
         if not os.path.islink(out):
             shutil.rmtree(out)
             os.symlink(victim, out)
-        return real(plan)
+        return real(plan, **options)
 
 
     dxf.write = write  # in spawned workers too: they import this file

@@ -249,6 +249,8 @@ def _refuse_in_the_way(held: OutputFolder, names) -> None:
     """A folder where the sweep writes a file, or a file where it keeps ``chunks/``, refused
     with its own name, before anything is written (none of the files is replaced)."""
     outdir = held.path
+    if not os.path.lexists(outdir):  # made at the first write: nothing is in the way yet
+        return
     for name in names:
         if held.is_folder(name):
             raise OutputError(outdir / name, "is a folder where the sweep writes its file; "
