@@ -85,7 +85,7 @@ def _layer_program():
 def test_the_exact_layer_search_stops_at_its_nodes_whatever_the_clock(monkeypatch):
     """Cut off at 20 nodes, the solver's stacking and bound are the same with no clock at all,
     and a clock run out at once is an error naming the limit, never another stacking."""
-    from fabkit.errors import FabricationError
+    from fabkit.errors import ResourceError
     from fabkit.fab.layers.search import _milp_layers
 
     program = _layer_program()
@@ -95,7 +95,7 @@ def test_the_exact_layer_search_stops_at_its_nodes_whatever_the_clock(monkeypatc
     fast = _milp_layers(*program, 8, node_limit=20)
     assert fast[0].tolist() == layer.tolist() and fast[1:] == (bound, optimal)
     _with_clock(monkeypatch, 1e-9)
-    with pytest.raises(FabricationError, match=r"safety limit of 900 s .* work limit of 20 nodes"):
+    with pytest.raises(ResourceError, match=r"safety limit of 900 s .* work limit of 20 nodes"):
         _milp_layers(*program, 8, node_limit=20)
 
 
@@ -104,7 +104,7 @@ def test_the_rows_of_a_sheet_stop_at_their_nodes_whatever_the_clock(monkeypatch)
     fit, the same with no clock at all; a clock run out at once is an error, never other rows."""
     import fabkit.fab.nest
     import fabkit.fab.shelves as shelves
-    from fabkit.errors import FabricationError
+    from fabkit.errors import ResourceError
 
     calls = []
     real = shelves.shelf_pack
@@ -121,5 +121,5 @@ def test_the_rows_of_a_sheet_stop_at_their_nodes_whatever_the_clock(monkeypatch)
     monkeypatch.setattr(shelves, "MILP_NODES", 2_000)
     assert real(*args) == solved
     _with_clock(monkeypatch, 1e-9)
-    with pytest.raises(FabricationError, match=r"safety limit of 900 s .* work limit of 2000 nodes"):
+    with pytest.raises(ResourceError, match=r"safety limit of 900 s .* work limit of 2000 nodes"):
         real(*args)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-from ..errors import FabricationError
+from ..errors import ResourceError
 
 __all__ = ["shelf_pack"]
 
@@ -43,7 +43,7 @@ def shelf_pack(ids, sizes: dict, bin_w: int, bin_h: int) -> list[tuple] | None:
 
     Raises
     ------
-    FabricationError
+    ResourceError
         The rows' integer program ran past :data:`MILP_SAFETY_SECONDS` before its work limit,
         :data:`MILP_NODES` (a safety net: the packing never depends on the machine's speed).
     """
@@ -195,7 +195,7 @@ def _rows_by_patterns(flat, lying, used, bin_w, rows_per_sheet) -> dict | None:
                options={"node_limit": MILP_NODES, "time_limit": MILP_SAFETY_SECONDS})
     if res.status == 1 and (res.get("mip_node_count") or 0) < MILP_NODES:
         # the clock stopped it, not the work limit: first fit now would depend on the machine
-        raise FabricationError(
+        raise ResourceError(
             f"packing the parts into rows ran past its safety limit of {MILP_SAFETY_SECONDS:g} s "
             f"of wall-clock time before its work limit of {MILP_NODES} nodes; the machine is "
             "too busy or too slow: export again on a quieter one")

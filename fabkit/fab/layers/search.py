@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import FabricationError
+from ...errors import FabricationError, ResourceError
 from .conflicts import Conflicts, find_conflicts
 from .constants import (DEEP_LAYERS, DEEP_NODES, DEEP_TOTAL_NODES, DUAL_BOUND_SLACK,
                         HEAD_LAYERS_SLACK, MILP_BARS, MILP_NODES, MILP_SAFETY_SECONDS,
@@ -485,7 +485,7 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, node_limit=MILP_
 
     Raises
     ------
-    FabricationError
+    ResourceError
         The solver ran past ``safety_seconds`` before its node limit.
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
@@ -558,7 +558,7 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, node_limit=MILP_
                         "disp": False})
     if res.status == 1 and (res.get("mip_node_count") or 0) < node_limit:
         # the clock stopped it, not the work limit: its answer would depend on the machine
-        raise FabricationError(
+        raise ResourceError(
             f"the exact layer search ran past its safety limit of {safety_seconds:g} s of "
             f"wall-clock time before its work limit of {node_limit} nodes; the machine is too "
             "busy or too slow for this kit: export it again on a quieter one")
@@ -593,6 +593,9 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     FabricationError
         When no stacking found keeps bars clear of the screws, or it needs more layers than
         ``max_layers``, or a screw longer than the catalogue has.
+    ResourceError
+        The exact solver ran past its wall-clock safety net (``MILP_SAFETY_SECONDS``)
+        before its work limit: no stacking is given rather than one that depends on the clock.
 
     Examples
     --------
