@@ -152,7 +152,9 @@ class PatternError(FabricationError):
 
 
 class ResourceError(FabkitError):
-    """A computation would need more memory than the machine has (raised before allocating)."""
+    """A computation would need more memory than the machine has (raised before allocating),
+    or an exact search ran past its wall-clock safety net before its count of work (its answer
+    must not depend on the machine's speed, so none is given)."""
 
     code = "resource"
 

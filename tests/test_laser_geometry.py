@@ -403,7 +403,7 @@ def test_a_small_neighbourhood_proves_the_count_of_the_super_stable_chain():
     _, clique, members = _colourings(edges.shape[0], conf.pairs)
     sub = _neighbourhood(edges.shape[0], conf, joint_bars, members, 16)
     assert sub[0] == 16
-    layer, bound, optimal = _milp_layers(*sub, st.head_slots, 6, time_limit=20.0)
+    layer, bound, optimal = _milp_layers(*sub, st.head_slots, 6)
     assert layer is None and bound == 7 and optimal  # no 6-layer stacking of the 16 bars
 
 

@@ -193,3 +193,40 @@ def test_projected_traces_a_chain_of_a_hundred_thousand_fourbars():
     assert proj.success and cons.success
     end = f"d{10**5 + 1}"
     assert proj.distance(end)[-1] == pytest.approx(cons.distance(end)[-1], abs=1e-10)
+
+
+# --- the exact searches stop at a count of work, the same on every machine ------------------
+
+def test_the_exact_searches_are_held_to_named_counts_of_work_not_to_seconds(monkeypatch):
+    """The layer program and the sheet rows' program stop at branch-and-bound node counts; the
+    wall clock is only a far safety net (an error when reached), so a busy machine cannot change
+    a stacking or a sheet."""
+    import scipy.optimize
+    from scipy.optimize._milp import milp as real
+
+    import fabkit.fab.shelves as shelves
+    from fabkit.fab.laser_plan import laser_plan
+    from fabkit.fab.layers import constants
+
+    # the limits, named: about what 20 s, 5 s and 5 s bought on a quiet 2-core machine
+    assert (constants.MILP_NODES, constants.MILP_STEP_NODES, shelves.MILP_NODES) == \
+        (10_000, 2_000, 500)
+    assert constants.MILP_SAFETY_SECONDS == shelves.MILP_SAFETY_SECONDS == 900.0
+    asked = []
+
+    def milp(c, **kw):
+        asked.append(dict(kw["options"]))
+        res = real(c, **kw)
+        asked[-1]["nodes used"] = res.mip_node_count
+        return res
+
+    monkeypatch.setattr(scipy.optimize, "milp", milp)
+    # curvature_contract's kit asks both programs: its colouring stops a layer above the clique
+    plan = laser_plan(fabkit.load_template("curvature_contract"))
+    assert (plan.stacking.n_layers, plan.stacking.lower_bound, len(plan.sheets)) == (5, 5, 1)
+    assert [{k: v for k, v in a.items() if k != "nodes used"} for a in asked] == [
+        {"node_limit": constants.MILP_NODES, "time_limit": constants.MILP_SAFETY_SECONDS,
+         "disp": False},
+        {"node_limit": shelves.MILP_NODES, "time_limit": shelves.MILP_SAFETY_SECONDS}]
+    # both settled far inside their counts (presolve; one node)
+    assert all((a["nodes used"] or 0) <= 1 for a in asked)

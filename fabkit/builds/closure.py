@@ -77,7 +77,9 @@ def play_ratio(stresses, gap, room, *, time_limit: float | None = None) -> np.nd
     room : array_like, shape (E,) or (M, E)
         Each bar's axial room ``c_e >= 0`` (same unit as ``gap``).
     time_limit : float, optional
-        Seconds each build's linear program may take (several states of self-stress).
+        Seconds each build's linear program may take (several states of self-stress): a safety
+        net only, reaching it raises; ``τ`` never depends on the machine's speed (the programs
+        are solved to optimality, without a limit by default; no caller in fabkit sets one).
 
     Returns
     -------
@@ -150,7 +152,8 @@ def play_ratio_sparse(net, gap, room, positions=None, *,
     positions : array_like, shape (N, d), optional
         The configuration (default: the network's own).
     time_limit : float, optional
-        Seconds each build's linear program may take.
+        Seconds each build's linear program may take: a safety net only, reaching it raises
+        (none by default).
 
     Returns
     -------

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from collections import Counter
 
+from ..errors import ResourceError
+
 __all__ = ["shelf_pack"]
 
 
@@ -38,6 +40,12 @@ def shelf_pack(ids, sizes: dict, bin_w: int, bin_h: int) -> list[tuple] | None:
         ``[(sheet, x, y, w, h, part), ...]`` with ``(w, h)`` the part's box as placed (turned
         when it differs from ``sizes[part]``); None when a part fits no row nor sheet (the
         general packers decide then).
+
+    Raises
+    ------
+    ResourceError
+        The rows' integer program ran past :data:`MILP_SAFETY_SECONDS` before its work limit,
+        :data:`MILP_NODES` (a safety net: the packing never depends on the machine's speed).
     """
     if not ids:
         return []
@@ -118,8 +126,15 @@ MAX_PATTERNS = 20000
 #: new row for begun ones (a kit has far fewer than 10^6 rows), so the program asks for the
 #: fewest new rows first and uses no begun row it does not need.
 BEGUN_ROW_COST = 1e-6
-#: Seconds the integer program may take before first fit is used instead.
-MILP_SECONDS = 5.0
+#: Branch-and-bound nodes the integer program may take before first fit is used instead: a
+#: count of work, not a time, so the sheets are the same on every machine, busy or quiet. The
+#: bundled kits whose program is solved need at most 116 nodes (``super_stable_chain``; 108 for
+#: ``and_gate``); ``period_two_chain16``'s needs 10 870 (a minute) and was cut off by the former
+#: 5 s limit on this 2-core machine, so it keeps first fit. 500 nodes cost about 4 s of CPU there.
+MILP_NODES = 500
+#: Safety net on the integer program's wall-clock time (s), far beyond :data:`MILP_NODES` even on
+#: a loaded machine: reaching it raises an error naming it, never different sheets.
+MILP_SAFETY_SECONDS = 900.0
 
 
 def _patterns(lengths: list, cap: int) -> list:
@@ -146,7 +161,7 @@ def _patterns(lengths: list, cap: int) -> list:
 def _rows_by_patterns(flat, lying, used, bin_w, rows_per_sheet) -> dict | None:
     """Parts to rows with the fewest new rows, by integer programming over row patterns
     (the rows already begun by tall parts are filled first); None when the model is too large
-    or not solved in :data:`MILP_SECONDS`."""
+    or not solved within :data:`MILP_NODES` nodes."""
     import numpy as np
     from scipy.optimize import Bounds, LinearConstraint, milp
 
@@ -176,7 +191,14 @@ def _rows_by_patterns(flat, lying, used, bin_w, rows_per_sheet) -> dict | None:
     for c, (_, n_slots) in enumerate(classes[:-1]):
         cons.append(LinearConstraint((owner == c).astype(float)[None, :], lb=0, ub=n_slots))
     res = milp(cost, constraints=cons, integrality=np.ones(len(columns)),
-               bounds=Bounds(0, np.inf), options={"time_limit": MILP_SECONDS})
+               bounds=Bounds(0, np.inf),
+               options={"node_limit": MILP_NODES, "time_limit": MILP_SAFETY_SECONDS})
+    if res.status == 1 and (res.get("mip_node_count") or 0) < MILP_NODES:
+        # the clock stopped it, not the work limit: first fit now would depend on the machine
+        raise ResourceError(
+            f"packing the parts into rows ran past its safety limit of {MILP_SAFETY_SECONDS:g} s "
+            f"of wall-clock time before its work limit of {MILP_NODES} nodes; the machine is "
+            "too busy or too slow: export again on a quieter one")
     if res.x is None or not res.success:
         return None
     counts = np.rint(res.x).astype(int)

@@ -10,11 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...errors import FabricationError
+from ...errors import FabricationError, ResourceError
 from .conflicts import Conflicts, find_conflicts
 from .constants import (DEEP_LAYERS, DEEP_NODES, DEEP_TOTAL_NODES, DUAL_BOUND_SLACK,
-                        HEAD_LAYERS_SLACK, MILP_BARS, MILP_SECONDS, MILP_STEP_SECONDS,
-                        MILP_STEPS)
+                        HEAD_LAYERS_SLACK, MILP_BARS, MILP_NODES, MILP_SAFETY_SECONDS,
+                        MILP_STEP_NODES, MILP_STEPS)
 from .distances import incidence
 from .propagate import PROPAGATE_BARS, added_span, deep_search
 from .sampling import Sweep
@@ -458,7 +458,8 @@ def _neighbourhood(n_bars, conf, joint_bars, seed, size):
     return int(bars.size), sub, sub_bars
 
 
-def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0):
+def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, node_limit=MILP_NODES,
+                 safety_seconds=MILP_SAFETY_SECONDS):
     """Fewest layers (at most ``max_layers``) meeting every rule, by mixed-integer programming
     (HiGHS through SciPy).
 
@@ -468,15 +469,24 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
     column; two close screws stack one above the other). The objective is
     ``top + eps * (total screw span)``: fewest layers first, then shortest screws.
 
+    The solver stops after ``node_limit`` branch-and-bound nodes (a count of work, so the
+    answer is the same on any machine); ``safety_seconds`` of wall-clock time only guard
+    against a solver that never gets there, and reaching them is an error.
+
     Returns
     -------
     layer : numpy.ndarray of int or None
-        The best assignment found (None when none was found in the time limit).
+        The best assignment found (None when none was found within the node limit).
     bound : int
         A proven lower bound on the number of layers (from the solver's dual bound).
     optimal : bool
         True when the solver proved its answer: the layer count minimal, or (no layer given)
         that no stacking fits in ``max_layers`` layers, ``bound = max_layers + 1``.
+
+    Raises
+    ------
+    ResourceError
+        The solver ran past ``safety_seconds`` before its node limit.
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
     from scipy.sparse import coo_matrix
@@ -544,12 +554,19 @@ def _milp_layers(n_bars, conf, joint_bars, head, max_layers, *, time_limit=20.0)
     integrality[ilo:itop] = 0  # spans follow from the integer layers
     res = milp(c, constraints=LinearConstraint(A, lb, ub), integrality=integrality,
                bounds=Bounds(lower, upper),
-               options={"time_limit": float(time_limit), "disp": False})
+               options={"node_limit": int(node_limit), "time_limit": float(safety_seconds),
+                        "disp": False})
+    if res.status == 1 and (res.get("mip_node_count") or 0) < node_limit:
+        # the clock stopped it, not the work limit: its answer would depend on the machine
+        raise ResourceError(
+            f"the exact layer search ran past its safety limit of {safety_seconds:g} s of "
+            f"wall-clock time before its work limit of {node_limit} nodes; the machine is too "
+            "busy or too slow for this kit: export it again on a quieter one")
     if res.status == 2:  # proven infeasible: every stacking needs more than max_layers
         return None, K + 1, True
     dual = getattr(res, "mip_dual_bound", None)
     bound = int(math.floor(dual + DUAL_BOUND_SLACK)) + 1 if dual is not None and np.isfinite(dual) else 0
-    if res.x is None:  # no stacking found in the time; a dual bound past K says no more
+    if res.x is None:  # no stacking found in the nodes; a dual bound past K says no more
         return None, min(bound, K + 1), False
     layer = np.rint(res.x[:E]).astype(np.int64)
     k_found = int(layer.max()) + 1 if E else 0
@@ -576,6 +593,9 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
     FabricationError
         When no stacking found keeps bars clear of the screws, or it needs more layers than
         ``max_layers``, or a screw longer than the catalogue has.
+    ResourceError
+        The exact solver ran past its wall-clock safety net (``MILP_SAFETY_SECONDS``)
+        before its work limit: no stacking is given rather than one that depends on the clock.
 
     Examples
     --------
@@ -642,7 +662,7 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
                 k = int(layer.max()) + 1
     elif k > clique:
         # The colourings stop above the clique bound; the search often reaches it in a fraction
-        # of a second, where the exact solver needs its whole time limit to find the same count
+        # of a second, where the exact solver needs its whole work limit to find the same count
         # (it proves nothing the clique does not already prove once the count meets it).
         found = _search_layers(n_bars, conf, joint_bars, head, range(max(int(clique), 1), k))
         if found is not None:
@@ -660,18 +680,18 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
             if size >= min(n_bars, MILP_BARS) or k <= bound:
                 break
             sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, size)
-            _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=MILP_STEP_SECONDS)
+            _, sub_bound, _ = _milp_layers(*sub, head, fewer, node_limit=MILP_STEP_NODES)
             bound = max(bound, sub_bound)
         if viol or k > bound:  # not proven by a small neighbourhood
             if n_bars > MILP_BARS:
                 # A few bars around the largest clique with only the rules among them: a
                 # relaxation of the whole problem, so its proven bound holds for the whole.
                 sub = _neighbourhood(n_bars, conf, joint_bars, clique_bars, MILP_BARS)
-                _, sub_bound, _ = _milp_layers(*sub, head, fewer, time_limit=MILP_SECONDS)
+                _, sub_bound, _ = _milp_layers(*sub, head, fewer)
                 bound = max(bound, sub_bound)
             else:
                 found, milp_bound, optimal = _milp_layers(n_bars, conf, joint_bars, head,
-                                                          fewer, time_limit=MILP_SECONDS)
+                                                          fewer)
                 if found is not None:
                     layer, k, viol, strategy = found, int(found.max()) + 1, 0, "milp"
                 bound = max(bound, milp_bound)
@@ -705,8 +725,8 @@ def plan_layers(edges, sweep: Sweep, settings) -> Stacking:
                 f"search), more than max_layers = {s.max_layers}: "
                 + _violation_message(layer, joint_bars, conf, head, edges))
         raise FabricationError(
-            f"no stacking found within max_layers = {s.max_layers} in the {MILP_SECONDS:g} s "
-            f"exact search (at least {bound} layers are needed): "
+            f"no stacking found within max_layers = {s.max_layers} in the exact search's "
+            f"{MILP_NODES} nodes (at least {bound} layers are needed): "
             + _violation_message(layer, joint_bars, conf, head, edges))
     if k > s.max_layers:
         found = (f"{k} layers, proven minimal" if proven else
