@@ -46,6 +46,7 @@ from .errors import (ArgumentTypeError, BoundsError, brief, FabkitError, InputFi
                      NetworkError, SettingsError, TemplateError, UnsafeNameError)
 from .kinematics import METHODS, trace
 from .model.network import Network
+from .io.formats import toml_shape
 from .io.outputs import check_name
 from .io.toml_writer import TomlDocument
 from .io.suggest import close_names, nearest_file
@@ -573,8 +574,13 @@ def _design_name(ctx, raw, path: Path) -> str:
 def parse_template(text: str, path: Path | str = "<string>", _stack=(),
                    _loading: _Loading | None = None) -> Design:
     """Parse template text (see the module docstring). ``path`` is used in messages and to
-    resolve relative references."""
+    resolve relative references.
+
+    Its nesting, the digits of its numbers and the count of its values are measured on the
+    text before it is parsed (:func:`fabkit.io.formats.toml_shape`): past them an
+    :class:`~fabkit.errors.InputFileError` of kind ``"bounds"`` names the file."""
     path = Path(path)
+    toml_shape(text, path)
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -76,8 +76,8 @@ EXPECTED = {
     "motion_samples_infinite": ("motion.options.samples", ["must be finite"]),
     "max_steps_huge": ("motion.options.max_steps", ["limit of 1,000,000 steps"]),
     "tolerance_samples_huge": ("fabrication.tolerance.samples", ["Monte Carlo samples"]),
-    "deeply_nested_arrays": ("", ["nested too deeply"]),
-    "deeply_nested_tables": ("", ["nested too deeply"]),
+    "deeply_nested_arrays": ("", ["levels deep, over the limit of 64"]),
+    "deeply_nested_tables": ("", ["levels deep, over the limit of 64"]),
 }
 
 

@@ -14,6 +14,7 @@ import struct
 import subprocess
 import sys
 import threading
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +24,10 @@ import fabkit
 from fabkit.cli import main
 from fabkit.errors import (ArgumentTypeError, FabkitError, InputFileError, NetworkError,
                            TemplateError)
-from fabkit.io.formats import load_json, MAX_DEPTH, MAX_DIGITS, parse_xml
+from fabkit.check.threemf import read_package
+from fabkit.io.formats import (load_json, MAX_DEPTH, MAX_DIGITS, MAX_DXF_ENTITIES,
+                               MAX_TOML_VALUES, MAX_ZIP_ENTRIES, parse_xml, refuse_dxf_entities,
+                               toml_shape)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -149,6 +153,128 @@ def test_a_print_with_far_more_triangles_than_its_design_is_refused(tmp_path, ca
     line = one_line(capsys.readouterr().err)
     assert rc == 2
     assert f"{n * 2000:,} triangles for a design of 12 bars, over the limit of 60,000" in line
+
+
+THREEMF_NS = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
+
+
+def _package(path: Path, model: bytes) -> Path:
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        z.writestr("3D/3dmodel.model", model)
+    return path
+
+
+@pytest.mark.parametrize("name, model, kind, words", [
+    ("many.3mf", f'<model unit="millimeter" xmlns="{THREEMF_NS}"><resources>'.encode()
+     + b"<a/>" * 10**6 + b"</resources></model>", "bounds",
+     "elements, over the limit of 1,000,000"),
+    ("deep.3mf", b"<a>" * 10**5 + b"</a>" * 10**5, "bounds", "elements nested more than 256 deep"),
+    ("dtd.3mf", b'<!DOCTYPE model [<!ENTITY e "x">]><model>&e;</model>', "damaged",
+     "declares a DTD or entities, which a 3MF's 3D/3dmodel.model never needs"),
+    ("cut.3mf", f'<model xmlns="{THREEMF_NS}"><resources>'.encode(), "damaged",
+     "not a 3MF's 3D/3dmodel.model (no element found"),
+])
+def test_a_3mf_model_is_parsed_within_the_xml_bounds(tmp_path, capsys, name, model, kind,
+                                                     words):
+    path = _package(tmp_path / name, model)
+    with pytest.raises(InputFileError) as info:
+        read_package(path)
+    assert info.value.kind == kind and words in str(info.value)
+    assert str(info.value).startswith(f"{path}: ")
+    rc = main(["check", str(path)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2 and line == f"fabkit: error: {info.value}"
+
+
+def _declared_size(data: bytes, size: int) -> bytes:
+    """A ZIP whose central directory declares its one entry inflates to ``size`` bytes."""
+    at = data.index(b"PK\x01\x02") + 24  # the entry's uncompressed size
+    return data[:at] + struct.pack("<I", size) + data[at + 4:]
+
+
+def test_a_3mf_entry_that_lies_about_its_size_is_damaged(tmp_path):
+    model = (f'<model unit="millimeter" xmlns="{THREEMF_NS}"><resources/><build/>'
+             '</model>').encode()
+    data = _package(tmp_path / "true.3mf", model).read_bytes()
+    assert zipfile.ZipFile(tmp_path / "true.3mf").getinfo("3D/3dmodel.model").file_size \
+        == len(model)
+    more = tmp_path / "more.3mf"
+    more.write_bytes(_declared_size(data, len(model) + 1000))
+    with pytest.raises(InputFileError) as info:
+        read_package(more)
+    assert info.value.kind == "damaged"
+    assert str(info.value) == (f"{more}: 3D/3dmodel.model inflates to {len(model):,} bytes, "
+                               f"not the {len(model) + 1000:,} its ZIP directory declares")
+    less = tmp_path / "less.3mf"  # inflated no further than declared: its CRC fails there
+    less.write_bytes(_declared_size(data, 20))
+    with pytest.raises(InputFileError) as info:
+        read_package(less)
+    assert info.value.kind == "damaged" and "3D/3dmodel.model cannot be inflated (Bad CRC-32" \
+        in str(info.value)
+
+
+def test_a_3mf_of_more_zip_entries_than_a_package_holds_is_refused(tmp_path):
+    path = tmp_path / "entries.3mf"
+    with zipfile.ZipFile(path, "w") as z:
+        for k in range(MAX_ZIP_ENTRIES + 1):
+            z.writestr(f"x/{k}", b"")
+    with pytest.raises(InputFileError) as info:
+        read_package(path)
+    assert info.value.kind == "bounds"
+    assert f"{MAX_ZIP_ENTRIES + 1:,} entries in its ZIP directory" in str(info.value)
+
+
+@pytest.mark.parametrize("name, text, words", [
+    ("deep.toml", "[network]\nnodes = " + "[" * 10**5 + "]" * 10**5,
+     "nested 100,000 levels deep, over the limit of 64"),
+    ("tables.toml", "a = " + "{b = " * 10**5 + "1" + "}" * 10**5,
+     "nested 100,000 levels deep, over the limit of 64"),
+    ("digits.toml", "name = 'd'\n[network]\nnodes = [[0, " + "1" * 5001 + "]]",
+     "a number of more than 400 digits"),
+])
+def test_a_template_past_the_toml_bounds_is_refused_before_parsing(tmp_path, capsys, name,
+                                                                   text, words):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        fabkit.load_template(path)
+    assert info.value.kind == "bounds" and words in str(info.value)
+    assert str(info.value).startswith(f"{path}: ")
+    assert info.value.__cause__ is None and info.value.__context__ is None
+    rc = main(["simulate", str(path)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2 and line == f"fabkit: error: {info.value}"
+
+
+def test_toml_strings_and_comments_are_text_not_structure():
+    toml_shape('a = "[[[[' + "9" * 5000 + '"  # ' + "{" * 100 + "\nb = '''" + "[" * 100
+               + "'''\n", "s.toml")
+    with pytest.raises(InputFileError) as info:
+        toml_shape("a = [" + "1," * MAX_TOML_VALUES + "]", "many.toml")
+    assert info.value.kind == "bounds" and "values, over the limit of 2,000,000" in str(info.value)
+
+
+def test_a_dxf_of_two_million_entities_is_refused_before_ezdxf_reads_it(tmp_path, capsys,
+                                                                      monkeypatch):
+    import ezdxf
+    from ezdxf import recover
+
+    def never(*args, **kwargs):
+        raise AssertionError("ezdxf read a file past the bound")
+
+    monkeypatch.setattr(ezdxf, "readfile", never)
+    monkeypatch.setattr(recover, "readfile", never)
+    path = tmp_path / "laser_sheet1.dxf"
+    path.write_bytes(b"  0\nSECTION\n  2\nENTITIES\n" + b"  0\nPOINT\n" * 2 * 10**6
+                     + b"  0\nENDSEC\n  0\nEOF\n")
+    rc = main(["check", str(path)])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert line == (f"fabkit: error: {path}: 2,000,003 DXF entities (group code 0), over the "
+                    f"limit of {MAX_DXF_ENTITIES:,} (about 100 s for ezdxf to read); fabkit "
+                    "--allow-large lifts the limit")
+    # a value 0 (the next line a group code) is no entity
+    assert refuse_dxf_entities(b"  0\nLINE\n  8\n0\n 10\n0\n  0\nEOF\n", "x.dxf") == 2
 
 
 # --- the Python API ---------------------------------------------------------------------------

@@ -40,7 +40,10 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..errors import FabkitError, FabricationError
 from ..settings.fasteners import fit_fastener
 from ..settings.design import design_settings
+from ..io.formats import refuse_dxf_entities
+from ..io.inputs import read_regular
 from ..io.schema import describe_validation_error
+from ..io.workload import MAX_BYTES
 from ..model.network import Network
 from ..model.rigidity import count_modes
 from ..numerics import MM_SLACK, project_to_lengths
@@ -223,6 +226,7 @@ def check_documents(texts: dict, design=None, settings=None, *, motion=None) -> 
     docs = {}
     checks = []
     for name in sorted(texts):
+        refuse_dxf_entities(texts[name], name)
         try:
             docs[name] = ezdxf.read(io.StringIO(texts[name]))
         except Exception as exc:  # ezdxf raises several types for malformed files
@@ -654,6 +658,9 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     ------
     FabkitError
         When the file does not exist.
+    InputFileError
+        ``kind="bounds"``: a sheet of more entities than
+        :data:`fabkit.io.formats.MAX_DXF_ENTITIES` (counted before ezdxf reads it).
     """
     import ezdxf
     from ezdxf import recover
@@ -664,6 +671,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
 
     sheets = _sheet_set(path)
     require_files(sheets)  # every sibling sheet counted before any is read
+    for p in sheets:  # and the entities of every sheet before ezdxf reads one
+        refuse_dxf_entities(read_regular(p, MAX_BYTES), p)
     docs, checks = {}, []
     for p in sheets:
         try:

@@ -12,15 +12,12 @@ the project part and in every object.
 
 from __future__ import annotations
 
-import io
-import zipfile
-import zlib
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FabricationError
+from ..io.formats import open_zip, parse_xml, read_zip_entry
 from ..settings.filaments import FILAMENTS
 from . import read_set, require_checked, require_triangles
 from .beds import bed_set
@@ -39,18 +36,19 @@ SUFFIXES = (".3mf",)
 LAYER_MATCH_MM = 1e-9
 
 _NS = {"m": "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"}
+#: Most XML elements in a 3MF's model (or its slicer settings): the placed triangles its
+#: check accepts (about 800 000 within the estimate) with their vertices come to about this.
+MAX_3MF_ELEMENTS = 1_000_000
 #: Units a 3MF may declare, in millimetres.
 _UNITS = {"micron": 1e-3, "millimeter": 1.0, "centimeter": 10.0, "inch": 25.4, "foot": 304.8,
           "meter": 1000.0}
 
 
-def _xml(data: bytes, what: str):
-    if b"<!DOCTYPE" in data[:4096].upper() or b"<!ENTITY" in data.upper():
-        raise FabricationError(f"{what}: declares a DTD or entities, which a 3MF never needs")
-    try:
-        return ET.fromstring(data)
-    except ET.ParseError as exc:
-        raise FabricationError(f"{what}: not well-formed XML ({exc})") from None
+def _xml(data: bytes, path, part: str):
+    """A part of the package parsed within the bounds of
+    :func:`fabkit.io.formats.parse_xml` (no DTD or entity: a 3MF never needs one)."""
+    return parse_xml(data, path, max_elements=MAX_3MF_ELEMENTS, what=f"a 3MF's {part}",
+                     no_dtd=True)
 
 
 def _parse_config(text: str) -> dict:
@@ -64,16 +62,10 @@ def _parse_config(text: str) -> dict:
 
 
 def _inflate(z, path, names) -> dict:
-    """The XML parts ``names`` of the package, inflated (each held by the reader to the size
-    the ZIP directory declares, which the caller has estimated)."""
-    out = {}
-    for n in names:
-        try:
-            out[n] = z.read(n)
-        except (zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError, OSError,
-                EOFError, ValueError, zlib.error) as exc:
-            raise FabricationError(f"{path}: {n} cannot be inflated: {exc}") from None
-    return out
+    """The XML parts ``names`` of the package, inflated, each held to the size the ZIP
+    directory declares, which the caller has estimated
+    (:func:`fabkit.io.formats.read_zip_entry`)."""
+    return {n: read_zip_entry(z, n, path) for n in names}
 
 
 def _numbers(values: list, path, where, *, integer: bool = False) -> np.ndarray:
@@ -108,11 +100,8 @@ def _parse_package(path, data: bytes) -> dict:
     """The package's parts, parsed and checked, nothing placed yet: ``meshes`` (object id ->
     vertices mm, faces, name), ``items`` (object id, 12-number transform or None), ``xml``
     (the inflated parts by name), ``lower`` (lower-case name -> name), ``scale``."""
-    try:
-        z = zipfile.ZipFile(io.BytesIO(data))
-        infos = {i.filename: i for i in z.infolist()}
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError, OSError) as exc:
-        raise FabricationError(f"{path}: not a 3MF package: {exc}") from None
+    z = open_zip(data, path, what="a 3MF package")
+    infos = {i.filename: i for i in z.infolist()}
     model_name = next((n for n in infos if n.lower().startswith("3d/")
                        and n.lower().endswith(".model")), None)
     if model_name is None:
@@ -124,7 +113,7 @@ def _parse_package(path, data: bytes) -> dict:
     require_checked(f"{path}: inflated XML",
                     ("XML byte", sum(infos[n].file_size for n in wanted)))
     xml = _inflate(z, path, wanted)
-    root = _xml(xml[model_name], f"{path}: {model_name}")
+    root = _xml(xml[model_name], path, model_name)
     unit = root.get("unit", "millimeter")
     if unit not in _UNITS:
         raise FabricationError(f"{path}: unknown unit {unit!r}")
@@ -193,7 +182,7 @@ def _place(path, parsed: dict) -> dict:
                                                                                 "replace"))
     parts = {}
     if "metadata/slic3r_pe_model.config" in lower:
-        cfg = _xml(xml[lower["metadata/slic3r_pe_model.config"]], f"{path}: model config")
+        cfg = _xml(xml[lower["metadata/slic3r_pe_model.config"]], path, "model config")
         for obj in cfg.iterfind("object"):
             per_object.append({m.get("key"): m.get("value") for m in obj.iterfind("metadata")
                                if m.get("type") == "object" and m.get("key") != "name"})
@@ -226,9 +215,13 @@ def read_package(path, data: bytes | None = None) -> dict:
 
     Raises
     ------
+    InputFileError
+        ``kind="damaged"``: not a ZIP, an entry that cannot be inflated or lies about its
+        size, malformed XML, a DTD; ``kind="bounds"``: too many ZIP entries, XML elements or
+        too deep (:mod:`fabkit.io.formats`).
     FabricationError
-        Not a ZIP, no model part, malformed XML, an unknown unit, a value that is not a
-        number, indices out of range, vertices beyond any printer.
+        No model part, an unknown unit, a value that is not a number, indices out of range,
+        vertices beyond any printer.
     BoundsError
         Inflated XML or placed triangles past the bounds.
     """
@@ -308,6 +301,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
 
     Raises
     ------
+    InputFileError
+        A file its readers refuse (see :func:`read_package`).
     FabricationError
         A file that is not a readable 3MF.
     """
