@@ -30,8 +30,9 @@ demo: $(STAMP)
 	fi; exit $$status
 
 # The fast suite (what CI runs), on every core up to four (pytest-xdist; a test file stays on one
-# worker, so its module fixtures are made once); `make test-all` adds the slow studies.
-TEST_WORKERS := -n auto --maxprocesses 4 --dist loadfile
+# worker, so its module fixtures are made once), the 25 slowest tests listed at the end;
+# `make test-all` adds the slow studies.
+TEST_WORKERS := -n auto --maxprocesses 4 --dist loadfile --durations=25
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow" $(TEST_WORKERS)
 

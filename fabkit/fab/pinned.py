@@ -168,6 +168,9 @@ class PinnedPrint:
         printed pin joins, laid flat on the bed alone).
     layout : list of Placement
         Where each piece goes on which bed (:func:`fabkit.fab.printers.bed_layout`).
+    parts_margin : float
+        How far (mm) the layout keeps the parts from the bed's edges
+        (:func:`fabkit.fab.slicer.placement_margin`: the printer's margin and the slicer's reach).
     """
 
     settings: PrintSettings
@@ -182,6 +185,7 @@ class PinnedPrint:
     cut_joints: tuple
     pieces: list
     layout: list
+    parts_margin: float = 0.0
     stats: dict = field(default_factory=dict)
 
     @property
@@ -439,7 +443,7 @@ def _plan_print(design, s: PrintSettings, motion=None) -> PinnedPrint:
     return PinnedPrint(settings=s, edges=edges, positions=positions, offset=offset, sweep=sweep,
                        stacking=stacking, layer=layer, carrier=carrier, incidence=incidence,
                        cut_joints=tuple(cut_joints), pieces=pieces, layout=layout,
-                       stats={"samples": int(sweep.n_samples), "layers": int(stacking.n_layers),
+                       parts_margin=margin, stats={"samples": int(sweep.n_samples), "layers": int(stacking.n_layers),
                               "proof": stacking.proof_text()})
 
 

@@ -17,7 +17,7 @@ from ..errors import FabricationError
 from ..motion import motion_for
 from ..settings.design import design_settings
 from ..status import Status
-from .slicer import slicer_settings, SlicerSettings
+from .slicer import placement_margin, slicer_settings, SlicerSettings
 
 __all__ = ["PrintPlan", "print_plan", "hinge_motion"]
 
@@ -41,6 +41,9 @@ class PrintPlan:
         How far the hinges bend along the design's motion (:func:`hinge_motion`).
     slicer : SlicerSettings
         What the print's 3MF files tell the slicer (:func:`fabkit.fab.slicer.slicer_settings`).
+    parts_margin : float
+        How far (mm) the bed layout keeps the parts from the bed's edges: the printer's margin
+        and the slicer's reach (:func:`fabkit.fab.slicer.placement_margin`).
     """
 
     design: object
@@ -52,6 +55,7 @@ class PrintPlan:
     faces: np.ndarray | None = None
     hinges: dict | None = None
     slicer: SlicerSettings | None = None
+    parts_margin: float = 0.0
 
     @property
     def panels(self) -> list:
@@ -97,13 +101,13 @@ def print_plan(design, settings=None, motion=None) -> PrintPlan:
         from .pinned import pinned_print
 
         return PrintPlan(design, s, pinned=pinned_print(design, s, motion),
-                         slicer=slicer_settings(s))
+                         slicer=slicer_settings(s), parts_margin=placement_margin(s))
     geo = print_geometry(design.network, s)
     body = print_solid(geo)
     verts, faces = solid_mesh(body)
     return PrintPlan(design, s, geo=geo, body=body, verts=verts, faces=faces,
                      hinges=hinge_motion(design, geo, motion_for(design, motion)),
-                     slicer=slicer_settings(s))
+                     slicer=slicer_settings(s), parts_margin=placement_margin(s))
 
 
 def hinge_motion(design, geo, motion) -> dict:

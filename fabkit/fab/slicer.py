@@ -185,13 +185,14 @@ def slicer_settings(s) -> SlicerSettings:
                           per_object=per_object, reasons=reasons, notes=tuple(notes))
 
 
-def _reach(settings: dict, nozzle: float, support: bool) -> float:
-    """See :func:`slicer_reach`; ``support``: whether the print has support from the bed."""
+def _reach(project: dict, nozzle: float, support: bool) -> float:
+    """See :func:`slicer_reach`; ``project``: the slicer's own keys as the 3MF writes them (not
+    fabkit's settings); ``support``: whether the print has support from the bed."""
     line = LINE_WIDTH_FACTOR * nozzle
-    spread = float(settings.get("raft_first_layer_expansion", 0.0)) + line if support else 0.0
-    skirts = int(settings.get("skirts", 0))
-    skirt = (float(settings.get("skirt_distance", 0.0)) + skirts * line) if skirts else 0.0
-    return round(spread + float(settings.get("brim_width", 0.0)) + skirt, 6)
+    spread = float(project.get("raft_first_layer_expansion", 0.0)) + line if support else 0.0
+    skirts = int(project.get("skirts", 0))
+    skirt = (float(project.get("skirt_distance", 0.0)) + skirts * line) if skirts else 0.0
+    return round(spread + float(project.get("brim_width", 0.0)) + skirt, 6)
 
 
 def slicer_reach(settings: SlicerSettings, nozzle: float) -> float:

@@ -29,7 +29,6 @@ from ..errors import FabricationError
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit
 from . import ExportResult
-from ..fab.slicer import placement_margin
 from .print_bom import print_bom_document, print_bom_files
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
 from .threemf import threemf_package
@@ -106,7 +105,7 @@ def preview_figure(plan, title: str):
         f"{title}: {plan.n_bars} bars in {plan.stacking.n_layers} layers (colour = layer), "
         f"{len(plan.carrier)} printed pins (white caps), {printer.width:g} x {printer.depth:g} mm "
         f"bed, {printer.margin:g} mm kept free along its edges (dashed) and the parts "
-        f"{placement_margin(s):g} mm from them (dotted: room for the skirt and support)",
+        f"{plan.parts_margin:g} mm from them (dotted: room for the skirt and support)",
         int(width * 72 / (9 * 0.62)))
     top = 0.15 + _LINE_IN * len(heading) + _TITLE_IN
     height = _BED_IN * rows + top - _TITLE_IN + 0.25
@@ -129,7 +128,7 @@ def preview_figure(plan, title: str):
         m = printer.margin
         ax.add_patch(figure_kit.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
                                    fill=False, lw=0.6, ec="0.6", ls="--"))
-        m = placement_margin(s)
+        m = plan.parts_margin
         ax.add_patch(figure_kit.Rectangle((m, m), printer.width - 2 * m, printer.depth - 2 * m,
                                           fill=False, lw=0.6, ec="0.6", ls=":"))
         polys, colours = [], []
@@ -336,7 +335,7 @@ def write_pinned(plan, s, name: str, design, slicer) -> ExportResult:
         "body_volumes_mm3": [float(v) for v in volumes],
         "mesh": {"triangles": int(triangles), "bodies": plan.n_bars},
         "printer": {"printer": printer.as_dict(), "beds": beds, "pieces": pieces,
-                    "parts_margin_mm": placement_margin(s), "laid_flat": plan.flat,
+                    "parts_margin_mm": plan.parts_margin, "laid_flat": plan.flat,
                     "join": JOIN_PINNED.format(fill=bom["washers_per_empty_layer"] * 0.5)
                     if split else None,
                     "files": sorted(n for n in files if n.endswith((".stl", ".3mf"))),
@@ -408,7 +407,7 @@ def _bom_document(plan, s, name: str, bom: dict, stl_names, mf_names) -> dict:
     return print_bom_document(
         name, "print-in-place bar linkage", s,
         {"name": printer.name, "bed_mm": [printer.width, printer.depth],
-         "margin_mm": printer.margin, "parts_margin_mm": placement_margin(s)},
+         "margin_mm": printer.margin, "parts_margin_mm": plan.parts_margin},
         beds, bom["buy"], joints, notes)
 
 

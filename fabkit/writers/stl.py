@@ -40,7 +40,6 @@ from ..model.network import Network
 from ..numerics import MM_SLACK
 from ..plots.viz import figure_kit, figure_png
 from . import ExportResult
-from ..fab.slicer import placement_margin
 from .pinned import bed_file_names
 from .print_bom import print_bom_document, print_bom_files
 from .stl_file import binary_stl, stl_origin, stored_mesh_is_closed
@@ -85,7 +84,7 @@ def _outline(geo) -> np.ndarray:
                            geo.hubs.reshape(-1, 2)])
 
 
-def hinge_layout(design, s, geo=None):
+def hinge_layout(design, s, geo=None, *, margin: float):
     """Where a hinge print goes on the bed: its pieces, their geometries and placements.
 
     The whole network when it fits the bed in some orientation, else a chain cut into the
@@ -98,6 +97,8 @@ def hinge_layout(design, s, geo=None):
     s : PrintSettings
     geo : PrintGeometry, optional
         The whole network's geometry, when already built.
+    margin : float
+        How far (mm) the parts stand from the bed's edges (the plan's ``parts_margin``).
 
     Returns
     -------
@@ -126,7 +127,7 @@ def hinge_layout(design, s, geo=None):
             geos[key] = print_geometry(piece_network(net, nodes), s)
         return _outline(geos[key])
 
-    pieces, layout = split_to_fit(net, outline, s.printer_profile(), margin=placement_margin(s))
+    pieces, layout = split_to_fit(net, outline, s.printer_profile(), margin=margin)
     return pieces, [geos[tuple(np.asarray(n).tolist())] for n, _ in pieces], layout
 
 
@@ -141,10 +142,11 @@ def _piece_solid(geo):
     return verts, faces
 
 
-def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[dict, dict]:
+def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer, margin: float
+              ) -> tuple[dict, dict]:
     """The bed-ready STL and 3MF file(s) and the layout report (see the module docstring);
-    ``slicer`` is what the 3MF files tell the slicer (the plan's, :attr:`PrintPlan.slicer
-    <fabkit.fab.print_plan.PrintPlan>`).
+    ``slicer`` is what the 3MF files tell the slicer and ``margin`` how far the parts stand
+    from the bed's edges (the plan's, :class:`~fabkit.fab.print_plan.PrintPlan`).
 
     Returns
     -------
@@ -161,9 +163,8 @@ def bed_files(design, s, verts, faces, name: str, geo=None, *, slicer) -> tuple[
     printer = s.printer_profile()
     xy = np.asarray(verts)[:, :2]
     w, h = np.ptp(xy, axis=0)
-    margin = placement_margin(s)  # the printer's margin, and room for the skirt around that
     fits = bool(w <= printer.width - 2 * margin and h <= printer.depth - 2 * margin)
-    pieces, geos, layout = hinge_layout(design, s, geo)
+    pieces, geos, layout = hinge_layout(design, s, geo, margin=margin)
     meshes = [(verts, faces)] if len(pieces) == 1 else [_piece_solid(g) for g in geos]
     beds = 1 + max(p.bed for p in layout)
     files = {}
@@ -320,7 +321,8 @@ def write(plan) -> ExportResult:
         raise FabricationError(
             "the solid has features so close that they merge in the STL's float32 coordinates "
             "(the file would not be watertight); change hinge_width or scale slightly")
-    files, layout = bed_files(design, s, verts, faces, name, geo, slicer=plan.slicer)
+    files, layout = bed_files(design, s, verts, faces, name, geo, slicer=plan.slicer,
+                              margin=plan.parts_margin)
     if not s.threemf:
         layout["files"] = sorted(n for n in files if n.endswith(".stl"))
     if s.preview:
