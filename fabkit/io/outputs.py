@@ -23,7 +23,6 @@ The batch engine (``fabkit export``) adds a staging folder swapped in whole on t
 
 from __future__ import annotations
 
-import errno
 import os
 import stat
 import time
@@ -141,24 +140,8 @@ def open_own_file(path) -> int:
         A link, a FIFO, a device or a folder at ``path``, or a file that cannot be opened.
     """
     path = Path(path)
-    flags = os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
-    try:
-        fd = os.open(path, flags, 0o644)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP or path.is_symlink():
-            raise OutputError(path, "is a symbolic link where fabkit keeps its own file; "
-                                    "fabkit does not follow it: remove it") from None
-        if exc.errno in (errno.ENXIO, errno.EISDIR):  # a FIFO without reader, a folder
-            mode = os.lstat(path).st_mode
-            raise OutputError(path, f"is {file_kind(mode)} where fabkit keeps its own file; "
-                                    "remove it") from None
-        raise OutputError(path, f"cannot be opened: {exc.strerror or exc}") from None
-    mode = os.fstat(fd).st_mode
-    if not stat.S_ISREG(mode):
-        os.close(fd)
-        raise OutputError(path, f"is {file_kind(mode)} where fabkit keeps its own file; "
-                                "remove it")
-    return fd
+    with OutputFolder.open(path.parent, "folder") as folder:  # the folder's fd closes after
+        return folder.open_own(path.name)
 
 
 def write_atomic(path, data: bytes) -> Path:
