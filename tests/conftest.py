@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -18,6 +19,13 @@ import fabkit
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # one BLAS thread per test worker: `make test` runs a worker per core, and each worker's
+    # BLAS taking every core as well would only make them wait on one another
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
 
 
 def _find_modules_json() -> Path:

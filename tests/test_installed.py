@@ -6,12 +6,12 @@ come from the project's metadata); each, and the copy itself as an editable inst
 install -e``, whose output must be free of deprecation warnings too), is installed with ``pip
 --no-deps`` into a new venv under a temporary folder, and the smoke test runs the installed
 ``fabkit`` from a folder outside the repo: the bundled templates, an export and an as-built check
-by name, letters, the quick bench (once, from the wheel: the other installs reach the same
-bundled templates through the commands before it), the copy of a bundled design, and the Python
-API. The new venv gets the dependencies (numpy, scipy, ...) of the environment running the tests
+by name, letters, the quick bench's stability study (once, from the wheel: the other installs
+reach the same bundled templates through the commands before it; the bench's other parts are
+tests/test_bench.py's), the copy of a bundled design, and the Python API. The new venv gets the dependencies (numpy, scipy, ...) of the environment running the tests
 through a folder of links to them, which leaves out fabkit's own editable install, so nothing
 heavy is downloaded; building needs setuptools from the package index (build isolation). About
-80 s on a quiet 2-core machine, half of it the quick bench.
+50 s on a quiet 2-core machine.
 """
 
 from __future__ import annotations
@@ -182,8 +182,8 @@ def test_the_installed_package_runs_from_another_folder(dist, deps, tmp_path, ki
     assert max(row["max_edge_error"] for row in fit["letters"]) < 1e-9
     assert max(row["rms_error"] for row in fit["letters"]) < 0.05
 
-    if kind == "wheel":  # the quick bench once, as a user who installed the wheel runs it
-        fabkit_cli("bench", "--quick", timeout=900)
+    if kind == "wheel":  # the bench once, its stability study (the other parts: test_bench.py)
+        fabkit_cli("bench", "--quick", "--parts", "stability", timeout=900)
         bench = json.loads((here / "out" / "bench" / "bench.json").read_text())
         flat = next(r for r in bench["stability"]["rows"]
                     if r["case"] == "fourbar_flat" and r["method"] == "constructive")

@@ -8,7 +8,6 @@ import re
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import FabkitError, KinematicsError, TemplateError
 from ..io.workload import require
@@ -30,6 +29,7 @@ from ..motion.modules import find_plan
 from .placement import (BUILD_RTOL, chain_ports, Driver, process_geometry,
                         PROJECTED_SAMPLES_CAP, to_drive_frame)
 from .pins import pin_play
+from .play_choices import redundant_choices
 from .processes import nominal_room_mm, sample_builds, spec_sources
 from .result import ToleranceResult
 from .spec import tolerance_spec, ToleranceSpec
@@ -148,12 +148,13 @@ class _Projected:
         self.nominal_start = _port_lengths(net.nodes, pairs)
         # a kit with play: its builds are traced without the edges the design's states of
         # self-stress make redundant, and the loops' play is watched along the motion instead
+        # (every choice of those edges the stresses leave open: see _least_disturbed)
         self.stresses = self_stress_basis(net, net.nodes)
-        self.loop_free = None
-        if self.stresses.shape[1]:
+        self.loop_free: list[np.ndarray] = []
+        for left_out in (redundant_choices(self.stresses) if self.stresses.shape[1] else []):
             keep = np.ones(net.n_edges, dtype=bool)
-            keep[_redundant_edges(self.stresses)] = False
-            self.loop_free = net.edges[keep]
+            keep[left_out] = False
+            self.loop_free.append(net.edges[keep])
         self.states = behaviour.end == "switch"
         if self.states:
             drive = tuple(sorted(net.port(design.motion.drive)))
@@ -183,35 +184,12 @@ class _Projected:
         for s, x in enumerate(starts):
             if x is None:
                 continue
-            played = builds.room is not None and self.loop_free is not None
-            # a build with play moves without the bars its loops make redundant; they take
-            # their lengths within the loops' play until it runs out (checked below)
-            moving = Network(x, self.loop_free, net.ports) if played else net.with_nodes(x)
-            try:
-                tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold)
-            except (KinematicsError, FabkitError):
-                continue
-            # a build that locks short of the target is judged where it locks, as a maker
-            # pushing the drive until it stops would find it: at its own turning point (a
-            # built module's crystal a little off the designed one), where a state of
-            # self-stress it moved with vanishes, or where its loops run out of play (the AND
-            # gate's branch collapsed up to the junction)
-            last = tr.events[-1].kind if tr.events else None
-            locked = last in (EventKind.TURNING_POINT, EventKind.SELF_STRESS_LOST)
-            if tr.status is Status.FAILED and last is not EventKind.SELF_STRESS_LOST:
+            outcome = self._least_disturbed(net, m, x, builds, s)
+            if isinstance(outcome, str):
                 jammed += 1
-                why = why or tr.message
-                continue
-            final = tr.final
-            if played:
-                stop = self._play_runs_out(net, tr.positions, builds, s)
-                if stop == 0:
-                    jammed += 1
-                    why = why or "its loops leave their play as it starts to move"
-                    continue
-                if stop is not None:
-                    final, locked = tr.positions[stop - 1], True
-            if tr.success or locked:
+                why = why or outcome
+            elif outcome is not None:
+                final, locked = outcome
                 locked_count += int(locked)
                 began[s] = _port_lengths(x, self.pairs)
                 dist[s] = _port_lengths(final, self.pairs)
@@ -235,6 +213,69 @@ class _Projected:
                    per_part=err)
         return _Run(j.ok, {"end ports": j}, driven, assembly)
 
+    def _least_disturbed(self, net, m, x, builds, s):
+        """Where build ``s`` (assembled at ``x``) ends: ``(final nodes, locked)``, a jam's reason,
+        or None when no trace could be made.
+
+        A build with play is traced once per choice of the bars that take up its loops' play
+        (:func:`redundant_choices`): a real build has play in all of them, and nothing pushes
+        its still parts, so it moves the way that disturbs them least: it is judged by the
+        choice that moves its still ports least (or, for ``end ports``, ends nearest the
+        design), and it jams only if it jams under every one."""
+        played = builds.room is not None and bool(self.loop_free)
+        best, best_score, jam = None, np.inf, None
+        for edges in (self.loop_free if played else [None]):
+            got = self._trace_build(net, m, x, builds, s, edges)
+            if isinstance(got, str):
+                jam = jam or got
+                continue
+            if got is None:
+                continue
+            score = self._disturbance(x, got[0])
+            if score < best_score:
+                best, best_score = got, score
+        return best if best is not None else jam
+
+    def _disturbance(self, x, final) -> float:
+        """How far a traced build strays from the design: its still ports' largest motion, or
+        its ports' largest distance from their designed end."""
+        dist = _port_lengths(final, self.pairs)
+        if self.states:
+            still = ~np.asarray(self.free, dtype=bool)
+            still[self.driven] = False
+            moved = np.abs(dist - _port_lengths(x, self.pairs))[still]
+            return float(moved.max()) if moved.size else 0.0
+        return float(np.max(np.abs(dist - self.behaviour.end_ports)))
+
+    def _trace_build(self, net, m, x, builds, s, edges):
+        """One build traced without ``edges``' complement (its loops' play watched instead) or,
+        with ``edges`` None, as the design's network: ``(final, locked)``, a jam's reason, or
+        None when the tracer could not run."""
+        # a build with play moves without the bars its loops make redundant; they take their
+        # lengths within the loops' play until it runs out (checked below)
+        moving = net.with_nodes(x) if edges is None else Network(x, edges, net.ports)
+        try:
+            tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold)
+        except (KinematicsError, FabkitError):
+            return None
+        # a build that locks short of the target is judged where it locks, as a maker pushing
+        # the drive until it stops would find it: at its own turning point (a built module's
+        # crystal a little off the designed one), where a state of self-stress it moved with
+        # vanishes, or where its loops run out of play (the AND gate's branch collapsed up to
+        # the junction)
+        last = tr.events[-1].kind if tr.events else None
+        locked = last in (EventKind.TURNING_POINT, EventKind.SELF_STRESS_LOST)
+        if tr.status is Status.FAILED and last is not EventKind.SELF_STRESS_LOST:
+            return tr.message or "its trace failed"
+        end = len(tr.positions) - 1
+        if edges is not None:
+            stop = self._play_runs_out(net, tr.positions, builds, s)
+            if stop == 0:
+                return "its loops leave their play as it starts to move"
+            if stop is not None:
+                end, locked = stop - 1, True
+        return (tr.positions[end], locked) if tr.success or locked else None
+
     def _play_runs_out(self, net, positions, builds, s) -> int | None:
         """Index of the first configuration of a build's motion where its loops no longer close
         within its play (first order over the design's states of self-stress), else None.
@@ -246,13 +287,6 @@ class _Projected:
         ratio = play_ratio(self.stresses, gap, builds.room[s])
         over = np.flatnonzero(ratio > max(1.0, float(ratio[0])) * (1.0 + PLAY_RTOL))
         return int(over[0]) if over.size else None
-
-
-def _redundant_edges(stresses) -> np.ndarray:
-    """One edge per state of self-stress, together independent (column-pivoted QR of the
-    basis): with them left out the network has none."""
-    _, _, piv = scipy.linalg.qr(np.asarray(stresses).T, pivoting=True, mode="economic")
-    return np.sort(piv[:stresses.shape[1]])
 
 
 def _front_sentence(detail: dict) -> str:
