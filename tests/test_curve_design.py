@@ -314,6 +314,10 @@ def test_the_drawing_fit_of_a_written_chain_agrees_with_the_designer(arcs):
     assert fit.start <= 0.002 and fit.end <= 0.002
     # the designed nodes lie half a module's width from the curve: 36 mm of a 354 mm drawing
     assert 0.08 < fit.nodes_mean < 0.12
+    # the designer's model puts them as far from the curve, on average (what the suggestions'
+    # search judges nodes by before it builds)
+    assert report["model_fit_fraction_of_size"]["nodes_mean"] == pytest.approx(fit.nodes_mean,
+                                                                              abs=1e-4)
     assert report["drawing_fit_percent_of_size"]["mean"] == pytest.approx(100 * fit.mean,
                                                                           abs=1e-6)
 

@@ -103,9 +103,9 @@ NODES_TOLERANCE = 0.01
 NODE_BOUND_SLACK = 0.8
 #: When only the nodes miss, the next enlargement tried is the one they ask, times this.
 NODE_JUMP = 1.02
-#: A suggestion's nodes are held to this share of ``NODES_TOLERANCE``: the model places them
-#: where the traced chain has them (to 0.001 % of the size: the pasted wish designs the same
-#: chain), so the share is kept small.
+#: A suggestion's nodes are held to this share of ``NODES_TOLERANCE``: the model's nodes lie
+#: as far from the curve as the traced chain's, on average, to within 0.01 % of the size (and
+#: the pasted wish designs the same chain), so the share is kept small.
 NODES_SHARE = 0.95
 #: A binned chain is as good as the unbinned one when its errors are within this factor of
 #: the unbinned chain's, or within this fraction of the tolerances.

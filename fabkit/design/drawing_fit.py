@@ -23,8 +23,9 @@ a chain is a strip whose nodes lie half a module's width off its centre line on 
 Nodes within 1 % of the size then say that the whole chain, as built, lies on the line drawn
 (its width small against the drawing), which is what a maker sees when the chain is laid on
 the drawing. The model's own node positions would say only that the trace reproduces the
-model, which the midpoints already say (the traced nodes are where the model puts them to
-0.001 % of the size: docs/design.md); an offset curve would hide the width altogether.
+model, which the midpoints nearly say already (the model's nodes lie as far from the curve
+as the traced ones, on average, to within 0.01 % of the size: docs/design.md); an offset curve
+would hide the width altogether.
 """
 
 from __future__ import annotations
