@@ -27,9 +27,13 @@ The curve (mm) and the module size (mm per module along the curve) fix everythin
 A chain is accepted when its centre line lies within ``FIT_TOLERANCE`` of the curve's size
 (mean) and its ends within ``END_TOLERANCE``. A curve that turns faster than modules of this
 size can (or has corners sharper than they can cut within the tolerance) is refused, naming
-the nearest wish that builds: a smaller module size at the drawing's size, else the least
-enlargement of the drawing (at this module size, and at a smaller one where the curve turns
-tighter than these modules), modelled, then built. No module size turns a chain tighter than
+the nearest wish that builds and lays the whole chain on the drawing: its centre line and ends
+within the tolerances and its designed nodes within ``NODES_TOLERANCE`` of the size on average
+(measured against the drawn curve itself: a chain is a strip whose nodes lie half a module's
+width off its centre line, and nodes within 1 % say the strip is narrow against the drawing).
+That is a smaller module size at the drawing's size, else the least enlargement of the drawing
+(with the smallest modules that turn well, and at the size asked and half of it), modelled,
+then built and measured on the drawing. No module size turns a chain tighter than
 :func:`tightest_radius` (about 122 mm: the narrow apex angles need room for the screws), so a
 sharper turn is always cut; the refusal says so. The report carries the chain as measured on
 the drawing by :func:`~fabkit.design.drawing_fit.fit_final_state` (its own fit of the traced
@@ -57,7 +61,8 @@ from .drawing_fit import fit_final_state
 from .fit import (arclength, curve_size, describe_curve, fit_to_curve, point_at,
                   polyline_distance)
 from .letters import chain_centerline, curvature_modules
-from .sequence import BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline, track
+from .sequence import (BEAM_WIDTH, bin_apexes, follow, refine, refit_bins, strip_centreline,
+                       strip_nodes, track)
 from .toml_text import chain_template, curvature_template
 from .wishes import WishError
 
@@ -86,6 +91,22 @@ APEX_STEP_DEG = 1.0
 #: each end to the curve's end, as fractions of the curve's size (bounding-box diagonal).
 FIT_TOLERANCE = 0.01
 END_TOLERANCE = 0.02
+#: A suggested wish also keeps the chain's designed nodes (the ends of its ports, half a
+#: module's width off the centre line) within this fraction of the curve's size on average,
+#: measured against the drawn curve itself: the whole chain, not only its centre line, lies on
+#: the drawing (docs/design.md).
+NODES_TOLERANCE = 0.01
+#: The nodes of a straight stretch at the widest apex angle (:func:`_node_offset`) lie at
+#: least about this share of a chain's mean node distance from its curve (the quadrifolium's
+#: chains: 0.97; a half circle's: 0.87): below it no size is modelled, and enlargements are
+#: sought from there.
+NODE_BOUND_SLACK = 0.8
+#: When only the nodes miss, the next enlargement tried is the one they ask, times this.
+NODE_JUMP = 1.02
+#: A suggestion's nodes are held to this share of ``NODES_TOLERANCE``: the model's nodes lie
+#: as far from the curve as the traced chain's, on average, to within 0.01 % of the size (and
+#: the pasted wish designs the same chain), so the share is kept small.
+NODES_SHARE = 0.95
 #: A binned chain is as good as the unbinned one when its errors are within this factor of
 #: the unbinned chain's, or within this fraction of the tolerances.
 BIN_SLACK = 1.25
@@ -104,14 +125,14 @@ TURN_SHARE = 0.8
 #: Suggestions: smaller module sizes tried (factors of the one asked) and the largest
 #: enlargement of the drawing sought.
 SIZE_FACTORS = (0.9, 0.8, 0.7, 0.6, 0.5)
-MAX_CURVE_SCALE = 1000.0
+MAX_CURVE_SCALE = 10000.0
 #: A suggestion must fit within this share of the tolerances (the full design is then built
 #: to it, so a suggestion pasted alone designs with room to spare).
 SUGGEST_SHARE = 0.75
-#: Enlargements are also sought at this share of the module size asked (and at least
-#: ``TIGHT_SIZE_FLOOR`` times the smallest module size): modules of 20-30 mm turn along about
-#: the tightest radius any size turns along (:func:`tightest_radius`), and cut sharp turns
-#: more closely than 50 mm ones.
+#: Enlargements are also sought at this share of the module size asked and at
+#: ``TIGHT_SIZE_FLOOR`` times the smallest module size: modules of 20-30 mm turn along about
+#: the tightest radius any size turns along (:func:`tightest_radius`), cut sharp turns more
+#: closely than 50 mm ones, and their nodes lie closer to the curve.
 TIGHT_SIZE_FACTOR = 0.5
 TIGHT_SIZE_FLOOR = 1.3
 #: The least enlargement is bisected (in ratio) this many times, down to at most
@@ -129,7 +150,8 @@ SCALE_TRIES = 12
 #: 0.1 s a module, each), or of the drawing enlarged at most ``SUGGEST_GROWTH`` times when
 #: that is more: a drawing that needs a far longer chain to be followed (a 70-byte corner, 320
 #: times larger: 360 modules) is refused with its reason, not searched for minutes. The
-#: bundled suggestions need 2 to 180 modules (quadrifolium: 2.9 times larger, found from 5).
+#: bundled suggestions need 2 to 310 modules (quadrifolium: 4 times larger, with 19.9 mm
+#: modules whose nodes lie within 1 %).
 MAX_SUGGEST_MODULES = 250
 SUGGEST_GROWTH = 20.0
 #: A bin that holds no module still counts this much when bins are merged (its own angle).
@@ -287,11 +309,24 @@ class _Model:
     types: np.ndarray       # per module
     centre: np.ndarray      # mm, the model's centre line fitted onto the curve
     errors: dict
+    nodes: np.ndarray       # mm, the model's designed nodes (the zigzag), by the same fit
 
-    def fits(self, tolerance: float, end_tolerance: float) -> bool:
+    def fits(self, tolerance: float, end_tolerance: float,
+             nodes_tolerance: float | None = None) -> bool:
         e = self.errors
         return (e["mean_fraction"] <= tolerance and e["start_fraction"] <= end_tolerance
-                and e["end_fraction"] <= end_tolerance)
+                and e["end_fraction"] <= end_tolerance
+                and (nodes_tolerance is None or e["nodes_mean_fraction"] <= nodes_tolerance))
+
+
+def _with_nodes(curve: Curve, model: _Model | None) -> _Model | None:
+    """The model with the mean distance of its designed nodes to the curve in its errors
+    (``nodes_mean_fraction``, of the curve's size)."""
+    if model is None:
+        return None
+    near = polyline_distance(model.nodes, curve.points)
+    errors = dict(model.errors, nodes_mean_fraction=float(near.mean()) / model.errors["size"])
+    return _Model(model.plan, model.apexes, model.types, model.centre, errors, model.nodes)
 
 
 def _model(curve: Curve, plan: _Plan, types, beam: int, stop=None) -> _Model | None:
@@ -332,8 +367,8 @@ def _model(curve: Curve, plan: _Plan, types, beam: int, stop=None) -> _Model | N
             if model is not None and (best is None or _worse(best.errors, model.errors)):
                 best = model
         if types is None and best is not None and _as_good(best.errors, fine_fit.errors):
-            return best
-    return best
+            return _with_nodes(curve, best)
+    return _with_nodes(curve, best)
 
 
 def _counts_around(apexes: np.ndarray) -> list[np.ndarray]:
@@ -357,10 +392,10 @@ def _binned(curve, plan, target, centre, bins, beam, stop) -> _Model | None:
         return None
 
     def measured(bins, types):
-        line = strip_centreline(bins[types], LEG_RATIO, start=target[0],
-                                heading=_first_heading(target, bins[types]))
-        f = fit_to_curve(line * plan.scale, curve.points)
-        return _Model(plan, bins, types, f.points, f.errors)
+        nodes = strip_nodes(bins[types], LEG_RATIO, start=target[0],
+                            heading=_first_heading(target, bins[types]))
+        f = fit_to_curve(0.5 * (nodes[:-1] + nodes[1:]) * plan.scale, curve.points)
+        return _Model(plan, bins, types, f.points, f.errors, f.apply(nodes * plan.scale))
 
     best = measured(bins, types)
     for _ in range(BIN_ROUNDS):
@@ -382,7 +417,8 @@ def _binned(curve, plan, target, centre, bins, beam, stop) -> _Model | None:
     used = np.unique(best.types)
     remap = np.full(best.apexes.size, -1)
     remap[used] = np.arange(used.size)
-    return _Model(plan, best.apexes[used], remap[best.types], best.centre, best.errors)
+    return _Model(plan, best.apexes[used], remap[best.types], best.centre, best.errors,
+                  best.nodes)
 
 
 def _first_heading(target, apexes) -> float:
@@ -471,57 +507,74 @@ def curve_radius(points, size: float) -> float:
     return 2.0 * window / turn if turn > 0 else math.inf
 
 
+def _node_offset(module_size: float) -> float:
+    """How far (mm) the designed nodes of a straight stretch of modules of this size lie from
+    its centre line at the widest apex angle on offer (half the height of its triangle, legs
+    D2*): about the least mean distance of a chain's nodes to the curve it follows (every node
+    is a port's end, half a module's width off the centre line)."""
+    hi = math.radians(APEX_RANGE_DEG[1])
+    return 0.5 * LEG_RATIO * math.cos(hi / 2) * _plan(module_size).scale
+
+
 def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: float,
              end_tolerance: float, progress, stop) -> str | None:
     """The nearest wish that builds: a smaller module size at the drawing's own size, else the
-    least enlargement of the drawing, at this module size and, where the curve turns tighter
-    than these modules do, at ``TIGHT_SIZE_FACTOR`` of it (smaller modules cut a sharp turn
-    more closely); the least of them is named. Each is found in the zigzag model first
-    (cheap), fitting within ``SUGGEST_SHARE`` of the tolerances (a suggestion is not a knife
-    edge), and then designed in full: the suggestion is one that was built."""
-    share = (SUGGEST_SHARE * tolerance, SUGGEST_SHARE * end_tolerance)
+    least enlargement of the drawing, at this module size and at ``TIGHT_SIZE_FACTOR`` of it
+    (smaller modules cut a sharp turn more closely, and their nodes lie closer to the curve);
+    the least of them is named. Each is found in the zigzag model first (cheap), fitting within
+    ``SUGGEST_SHARE`` of the tolerances (a suggestion is not a knife edge): its centre line and
+    ends within the tolerances and its designed nodes within ``NODES_TOLERANCE`` of the
+    drawing's size on average; it is then designed in full and measured on the drawing
+    (:func:`~fabkit.design.drawing_fit.fit_final_state`, the same three criteria): the
+    suggestion is one that was built and measured."""
+    share = (SUGGEST_SHARE * tolerance, SUGGEST_SHARE * end_tolerance,
+             NODES_SHARE * NODES_TOLERANCE)
 
     def builds(c, m) -> bool:
-        _say(progress, f"trying --module-size {m:g}" + ("" if c is curve else
-                                                        f" with the drawing {c.length / curve.length:.4g}x larger"))
+        _say(progress, f"trying --module-size {m:g}" + (
+            "" if c is curve else f" with the drawing {c.length / curve.length:.4g}x larger"))
         try:
-            design_curve_chain(c, module_size=m, types=types, beam=beam, tolerance=share[0],
-                               end_tolerance=share[1], progress=None, _suggest=False,
-                               _stop=stop)
+            design = design_curve_chain(c, module_size=m, types=types, beam=beam,
+                                        tolerance=share[0], end_tolerance=share[1],
+                                        progress=None, _suggest=False, _stop=stop)
         except FabkitError:
             return False
-        return True
+        drawn = design.report["drawing_fit_percent_of_size"]
+        return (drawn["mean"] <= 100 * share[0] and drawn["nodes_mean"] <= 100 * share[2]
+                and max(drawn["start"], drawn["end"]) <= 100 * share[1])
 
-    def model_fits(c, m) -> bool:
+    def model(c, m) -> _Model | None:
         if c.length < 2 * m or c.length / m > MAX_MODULES:
-            return False
+            return None
         plan = _plan(m)
         if plan.low is None:
-            return False
-        model = _model(c, plan, types, beam, stop)
-        return model is not None and model.fits(*share)
+            return None
+        return _model(c, plan, types, beam, stop)
 
     smallest = smallest_module_size()
+    size = curve_size(curve.points)
     # smaller modules at the drawing's own size: they cut corners and sharp turns more
-    # closely (down to the tightest radius any module turns along, tightest_radius())
+    # closely (down to the tightest radius any module turns along, tightest_radius()); none
+    # whose nodes lie too far off the centre line for this drawing is modelled
     for f in SIZE_FACTORS:
         m = float(f"{module_size * f:.3g}")
         if m < smallest:
             break
+        if NODE_BOUND_SLACK * _node_offset(m) > share[2] * size:
+            continue
         _say(progress, f"modelling --module-size {m:g}")
-        if model_fits(curve, m) and builds(curve, m):
+        found = model(curve, m)
+        if found is not None and found.fits(*share) and builds(curve, m):
             return f"--module-size {m:g}"
-    # enlargements, at this module size and, where the curve turns tighter than these
-    # modules do, at the size that follows sharp turns more closely
-    sizes = [module_size]
-    tight = float(f"{max(TIGHT_SIZE_FACTOR * module_size, TIGHT_SIZE_FLOOR * smallest):.3g}")
-    turn = _plan(module_size).turn_deg
-    radius = 2.0 * module_size / math.radians(turn) if turn > 0 else math.inf
-    if tight < module_size and curve_radius(curve.points, curve_size(curve.points)) < radius:
-        sizes.append(tight)
+    # enlargements, smallest modules first (they follow sharp turns more closely, and their
+    # nodes lie closer to the curve, so the drawing grows less) and at this size
+    floor = float(f"{TIGHT_SIZE_FLOOR * smallest:.3g}")
+    tight = float(f"{max(TIGHT_SIZE_FACTOR * module_size, floor):.3g}")
+    sizes = sorted({m for m in (floor, tight) if m < module_size} | {module_size})
     found = []
     for m in sizes:
-        factor = _least_enlargement(curve, m, model_fits, progress)
+        below = min(found)[0] if found else math.inf
+        factor = _least_enlargement(curve, m, model, share, progress, below)
         if factor is not None:
             found.append((factor, -m))
     for factor, neg_m in sorted(found):
@@ -534,11 +587,16 @@ def _nearest(curve: Curve, module_size: float, types, beam: int, tolerance: floa
     return None
 
 
-def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -> float | None:
+def _least_enlargement(curve: Curve, module_size: float, model, share, progress,
+                       below: float = math.inf) -> float | None:
     """The least enlargement (two digits) of the drawing whose chain of this module size fits
-    in the zigzag model: from the one where the curve turns no faster than ``TURN_SHARE`` of
-    what the modules turn (or 1.25 for a corner) up by 1.2 until one fits, then bisected down
-    toward the last that did not (a sharp turn cut within the tolerance needs less)."""
+    in the zigzag model within ``share`` (mean, ends, nodes): from the one where the curve turns
+    no faster than ``TURN_SHARE`` of what the modules turn (or 1.25 for a corner), and where
+    its nodes (:func:`_node_offset` off the centre line) lie close enough, up by 1.2 until one
+    fits (straight to the enlargement the measured nodes ask when they alone miss: their
+    distance in mm hardly changes with the drawing's size), then bisected down toward the last
+    that did not (a sharp turn cut within the tolerance needs less). None when none fits, or
+    none below ``below`` (an enlargement already found at another module size)."""
     plan = _plan(module_size)
     if plan.low is None:
         return None
@@ -554,24 +612,38 @@ def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -
         start = hi
     else:  # a corner: no enlargement makes it a curve; cut it, relatively smaller
         start = 1.25
-    # and the curve at least two modules long
-    least = max(1.0, 2.0 * module_size / curve.length)
-    factor = _round_up(max(start, least))
+    # the curve at least two modules long, and large enough for the nodes
+    size = curve_size(curve.points)
+    least = max(1.0, 2.0 * module_size / curve.length,
+                NODE_BOUND_SLACK * _node_offset(module_size) / (share[2] * size))
+    factor = _round_up(max(start, least, _node_offset(module_size) / (share[2] * size)))
+    if factor >= below:
+        return None
 
     def fits(f):
         _say(progress, f"modelling --curve-scale {f:g} --module-size {module_size:g}")
-        return model_fits(scaled(curve, f), module_size)
+        return model(scaled(curve, f), module_size)
+
+    def nodes_need(f, got) -> float:
+        # the nodes' distance (mm) stays as the drawing grows: below this they miss
+        return f * got.errors["nodes_mean_fraction"] / share[2] / NODE_JUMP
 
     failed = max(least, factor / BISECT_RANGE)
     for _ in range(SCALE_TRIES):
-        if factor > MAX_CURVE_SCALE or curve.length * factor / module_size > min(
-                MAX_MODULES, max(MAX_SUGGEST_MODULES, SUGGEST_GROWTH * curve.length /
-                                 module_size)):
+        if factor > MAX_CURVE_SCALE or factor >= below or curve.length * factor / \
+                module_size > min(MAX_MODULES, max(MAX_SUGGEST_MODULES, SUGGEST_GROWTH *
+                                                   curve.length / module_size)):
             return None
-        if fits(factor):
+        got = fits(factor)
+        if got is not None and got.fits(*share):
+            failed = max(failed, nodes_need(factor, got))
             break
         failed = factor
-        factor = _round_up(factor * 1.2)
+        if got is not None and got.fits(share[0], share[1]):  # the nodes alone miss
+            failed = max(failed, nodes_need(factor, got))
+            factor = _round_up(max(failed * NODE_JUMP ** 2, factor * NODE_JUMP))
+        else:
+            factor = _round_up(factor * 1.2)
     else:
         return None
     # bisect (in ratio) between the last that failed (or a lower bound) and the first that fit
@@ -579,10 +651,11 @@ def _least_enlargement(curve: Curve, module_size: float, model_fits, progress) -
         mid = _round_up(math.sqrt(failed * factor))
         if mid >= factor or mid <= failed:
             break
-        if fits(mid):
+        got = fits(mid)
+        if got is not None and got.fits(*share):
             factor = mid
         else:
-            failed = mid
+            failed = max(mid, nodes_need(mid, got)) if got is not None else mid
     return factor
 
 
@@ -645,25 +718,28 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
     pts = curve.points
     wish = f"--curve with --module-size {module_size:g}"
 
-    def suggest():
-        if not _suggest:
-            return None
-        return _nearest(curve, module_size, types, beam, tolerance, end_tolerance, progress,
-                            _stop)
+    def refuse(why: str) -> WishError:
+        """The refusal, with the nearest wish that builds and what it was held to."""
+        nearest = _nearest(curve, module_size, types, beam, tolerance, end_tolerance,
+                           progress, _stop) if _suggest else None
+        if nearest:
+            why += (f"; the nearest wish traced keeps the chain's port midpoints within "
+                    f"{100 * tolerance:g} % of the drawing's size on average (ends "
+                    f"{100 * end_tolerance:g} %) and its designed nodes within "
+                    f"{100 * NODES_TOLERANCE:g} %")
+        return WishError(wish, why, nearest)
 
     smallest = smallest_module_size()
     if module_size < smallest:
-        raise WishError(wish, f"modules under {smallest:g} mm cannot keep their joints "
-                              f"{MIN_JOINT_MM:g} mm apart (Chicago screw heads); module sizes "
-                              f"from {smallest:g} mm to {curve.length / 2:.4g} mm (half the "
-                              "curve) build", suggest())
+        raise refuse(f"modules under {smallest:g} mm cannot keep their joints "
+                     f"{MIN_JOINT_MM:g} mm apart (Chicago screw heads); module sizes from "
+                     f"{smallest:g} mm to {curve.length / 2:.4g} mm (half the curve) build")
     if curve.length < 2 * module_size:
         fit = (f"module sizes from {smallest:g} mm to {curve.length / 2:.4g} mm (half the "
                "curve) fit it" if curve.length >= 2 * smallest else
                f"even the smallest modules ({smallest:g} mm) need a curve of at least "
                f"{2 * smallest:g} mm")
-        raise WishError(wish, f"the curve ({curve.length:.4g} mm) is shorter than two modules; "
-                              f"{fit}", suggest())
+        raise refuse(f"the curve ({curve.length:.4g} mm) is shorter than two modules; {fit}")
     if curve.length / module_size > MAX_MODULES:
         raise WishError(wish, f"the curve ({curve.length:.0f} mm) needs more than {MAX_MODULES} "
                               f"modules of {module_size:g} mm; module sizes from "
@@ -689,16 +765,16 @@ def design_curve_chain(curve, *, module_size: float = 50.0, types: int | None = 
                     f"its size on average (ends {100 * e['start_fraction']:.2g} % / "
                     f"{100 * e['end_fraction']:.2g} %; accepted: {100 * tolerance:g} %, ends "
                     f"{100 * end_tolerance:g} %)")
-        raise WishError(wish, why, suggest())
+        raise refuse(why)
     # the module types, designed with their joints MIN_JOINT_MM apart at the kit's scale
     designed = []
     for apex in model.apexes:
         try:
             designed.append(design_curvature_type(float(apex), plan.min_joint))
         except DesignError as exc:
-            raise WishError(wish, f"no curvature module of {module_size:g} mm with final apex "
-                                  f"{apex:.4g} deg keeps its joints {MIN_JOINT_MM:g} mm apart "
-                                  f"({exc})", suggest()) from None
+            raise refuse(f"no curvature module of {module_size:g} mm with final apex "
+                         f"{apex:.4g} deg keeps its joints {MIN_JOINT_MM:g} mm apart "
+                         f"({exc})") from None
     files = {f"{name}_m{j + 1}.toml": curvature_template(f"{name}_m{j + 1}", t)
              for j, t in enumerate(designed)}
     nets = {f: parse_template(text, f"<{f}>").network for f, text in files.items()}

@@ -15,6 +15,17 @@ Distances are fractions of the drawing's size (the diagonal of its bounding box)
 largest distance of the midpoints to the curve, the distance of the chain's first and last
 midpoint to the drawing's first and last point, and the mean and largest distance of the
 designed nodes to the curve.
+
+The designed nodes (every end of every port, in the traced final state, moved by the fit of
+the midpoints) are measured against the drawn curve itself: not against the curve offset by
+half a module's width, nor against where the designer's model puts them. A drawing is a line;
+a chain is a strip whose nodes lie half a module's width off its centre line on either side.
+Nodes within 1 % of the size then say that the whole chain, as built, lies on the line drawn
+(its width small against the drawing), which is what a maker sees when the chain is laid on
+the drawing. The model's own node positions would say only that the trace reproduces the
+model, which the midpoints nearly say already (the model's nodes lie as far from the curve
+as the traced ones, on average, to within 0.01 % of the size: docs/design.md); an offset curve
+would hide the width altogether.
 """
 
 from __future__ import annotations

@@ -43,7 +43,8 @@ from .fit import arclength, closest_on_curve, point_at
 from .letters import strip_model
 
 __all__ = ["Track", "track", "rounded", "refine", "bin_apexes", "follow", "refit_bins",
-           "centre_of", "neighbours_ok", "strip_centreline", "BEAM_WIDTH", "PAIR_SLACK_DEG"]
+           "centre_of", "neighbours_ok", "strip_centreline", "strip_nodes", "BEAM_WIDTH",
+           "PAIR_SLACK_DEG"]
 
 #: Partial chains kept per module.
 BEAM_WIDTH = 128
@@ -87,11 +88,17 @@ def neighbours_ok(apex_a_deg: float, apex_b_deg: float) -> bool:
 def strip_centreline(apexes_deg, leg: float, start=(0.0, 0.0), heading: float = 0.0):
     """Centre line (K + 1, 2) of the zigzag of these final apex angles: its first step heads
     along ``heading`` from ``start``."""
+    m = strip_nodes(apexes_deg, leg, start, heading)
+    return 0.5 * (m[:-1] + m[1:])
+
+
+def strip_nodes(apexes_deg, leg: float, start=(0.0, 0.0), heading: float = 0.0):
+    """The designed nodes q_0 … q_{K+1} (K + 2, 2) of the zigzag whose centre line is
+    :func:`strip_centreline` (same arguments): the ends of the chain's ports."""
     a = np.radians(np.asarray(apexes_deg, dtype=np.float64))
     mods = [_Apex(float(v), leg) for v in a]
     h0 = heading + 0.5 * (math.pi - float(a[0]))
-    m = strip_model(np.arange(len(a)), mods, start_heading=h0, origin=start)
-    return 0.5 * (m[:-1] + m[1:])
+    return strip_model(np.arange(len(a)), mods, start_heading=h0, origin=start)
 
 
 @dataclass(frozen=True)
