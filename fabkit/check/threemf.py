@@ -281,7 +281,7 @@ def _settings_check(packages, names, design, settings) -> Check:
                  f"first layer; {layer:g} mm layers for every object")
 
 
-def check_file(path, design=None, settings=None, *, motion=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None, folder=None) -> dict:
     """Read an exported 3MF back (with the other beds of its export) and check it.
 
     Parameters
@@ -292,6 +292,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     settings : dict, optional
         The command-line overrides used for the export.
     motion : TracedMotion, optional
+        As for :func:`fabkit.check.stl.check_file`.
+    folder : OutputFolder or ReadBack, optional
         As for :func:`fabkit.check.stl.check_file`.
 
     Returns
@@ -306,8 +308,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     FabricationError
         A file that is not a readable 3MF.
     """
-    paths = bed_set(path)
-    parsed = {p: _parse_package(p, data) for p, data in read_set(paths).items()}
+    paths = bed_set(path, folder)
+    parsed = {p: _parse_package(p, data) for p, data in read_set(paths, folder).items()}
     # every bed's build items place their objects: all of them counted before any is placed
     require_triangles(f"{path}: {sum(len(q['items']) for q in parsed.values())} build items",
                       sum(map(_placed_triangles, parsed.values())), design)

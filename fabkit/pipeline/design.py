@@ -196,10 +196,12 @@ def _load(path, settings, outdir, formats, exporters):
     return design, digest, folder, earlier, registry, kept, removed, chosen
 
 
-def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Checks]:
-    """The Checks stage: every written file checked as built, each result on its format."""
+def _check_written(written, design, settings, motion, fmts, folder
+                   ) -> tuple[Status, Checks]:
+    """The Checks stage: every written file checked as built (read through ``folder``, the
+    staging folder held), each result on its format."""
     outcome, by_format = Status.OK, {}
-    for chk in run_checks(written, design, settings, motion):
+    for chk in run_checks(written, design, settings, motion, folder):
         fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
         if fmt is None:
             continue
@@ -292,7 +294,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     outcome, checks = Status.OK, Checks({})
     if check:
         clock(Stage.CHECK)
-        outcome, checks = _check_written(written, design, resolved, motion, fmts)
+        outcome, checks = _check_written(written, design, resolved, motion, fmts, stage_dir)
     refused = [f"{f}: {v.message}" for f, v in fmts.items() if v.status is Status.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
         outcome = Status.REFUSED
