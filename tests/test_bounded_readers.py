@@ -450,3 +450,49 @@ def test_a_truncated_spec_is_called_damaged(tmp_path, capsys):
     assert line.startswith(f"fabkit: error: {spec}: damaged (not a sweep's spec")
     assert line.endswith(f"delete {out / 'chunks'} to start the sweep again")
     assert "different sweep" not in line
+
+
+# --- sweep specs and --set values pass the TOML bound before the parser -----------------------
+
+def test_a_sweep_spec_nested_too_deeply_is_refused_before_the_parser(tmp_path, capsys):
+    from fabkit.sweep import read_sweep_file
+
+    spec = tmp_path / "deep.toml"
+    spec.write_text('[sweep]\ntemplate = "chaotic"\nvary = ["nodes[4].x=-0.3:-0.2:2"]\n'
+                    f"description = {'[' * 100}1{']' * 100}\n")
+    with pytest.raises(InputFileError) as info:
+        read_sweep_file(spec)
+    assert info.value.kind == "bounds" and info.value.path == str(spec)
+    assert f"nested 100 levels deep, over the limit of {MAX_DEPTH}" in info.value.reason
+    capsys.readouterr()
+    assert main(["sweep", str(spec), "--no-plots", "-q", "-o", str(tmp_path / "s")]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith(f"fabkit: error: {spec}: nested 100 levels deep")
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_sweep_spec_number_of_too_many_digits_is_refused(tmp_path):
+    from fabkit.sweep import read_sweep_file
+
+    spec = tmp_path / "digits.toml"
+    spec.write_text('[sweep]\ntemplate = "chaotic"\nvary = ["nodes[4].x=-0.3:-0.2:2"]\n'
+                    f"protocol = {{ lyapunov_orbits = {'7' * 500} }}\n")
+    with pytest.raises(InputFileError) as info:
+        read_sweep_file(spec)
+    assert info.value.kind == "bounds"
+    assert f"a number of more than {MAX_DIGITS} digits" in info.value.reason
+
+
+@pytest.mark.parametrize("value, words", [
+    ("print.bed=" + "[" * 100 + "]" * 100, "print.bed: nested 100 levels deep, over the limit "
+                                           f"of {MAX_DEPTH}"),
+    ("laser.kerf=" + "1" * 500, f"laser.kerf: a number of more than {MAX_DIGITS} digits"),
+])
+def test_a_set_value_past_the_toml_bounds_is_refused_by_them(value, words):
+    from fabkit.commands.settings import parse_settings
+    from fabkit.errors import UsageError
+
+    with pytest.raises(UsageError) as info:
+        parse_settings([value])
+    assert words in str(info.value)
+    assert len(str(info.value).splitlines()) == 1

@@ -31,9 +31,9 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from ..errors import BoundsError, FabkitError, InputFileError, OutputError
+from ..errors import FabkitError, InputFileError, OutputError
 from ..executor import LocalExecutor, Task
-from ..io.formats import load_json
+from ..io.formats import load_json, load_toml
 from .peer import probe_scheduler
 from ..io.inputs import read_regular
 from ..io.outputs import inside, OutputFolder, write_files
@@ -191,22 +191,19 @@ def read_sweep_file(path) -> SweepFile | None:
     SweepError
         A ``[sweep]`` table with a missing, unknown or malformed entry.
     """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-
     path = Path(path)
     try:  # a FIFO or a device given as the template is refused here, never waited on
-        raw = tomllib.loads(read_regular(path, MAX_FILE_BYTES).decode("utf-8"))
+        data = read_regular(path, MAX_FILE_BYTES)
     except InputFileError as exc:
         if exc.kind == "missing" or not os.path.exists(path):
             return None  # a bundled template's name: the template loader resolves it
         raise
-    except BoundsError:
-        raise
-    except (OSError, ValueError, RecursionError):  # TOMLDecodeError, digits, depth
-        return None  # not ours: the template loader reports it properly
+    try:  # its depth, digits and values bounded before the parser runs
+        raw = load_toml(data, path)
+    except InputFileError as exc:
+        if exc.kind == "bounds":
+            raise
+        return None  # not TOML: not ours; the template loader reports it properly
     sec = raw.get("sweep")
     if not isinstance(sec, dict):
         return None
