@@ -155,7 +155,7 @@ def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
     """(error line, error code) of an export that stopped with ``exc``."""
     if isinstance(exc, WriteError):
         return (f"{path}: cannot write the export to {outdir}: {exc.reason} "
-                f"({Path(exc.path).name}); nothing of it was written"), "output"
+                f"({_destination(exc.path, outdir)}); nothing of it was written"), "output"
     if isinstance(exc, FabkitError):
         return str(exc), exc.code
     if isinstance(exc, OSError):
@@ -164,6 +164,20 @@ def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
             line += f" ({Path(exc.filename).name})"
         return line, "output"
     return f"{path}: {internal_error_line(exc)}", "internal"
+
+
+def _destination(written, outdir) -> Path:
+    """The path a file being written will have once in place: a file of the staging folder
+    ``.NAME.staging/`` is named in the design's folder ``NAME/`` (the staging folder is removed
+    with the failure), any other as it is."""
+    written = Path(written)
+    try:
+        parts = written.relative_to(outdir.path).parts
+    except ValueError:
+        return written
+    if parts and parts[0].startswith(".") and parts[0].endswith(".staging"):
+        parts = (parts[0][1:-len(".staging")], *parts[1:])
+    return outdir.path.joinpath(*parts)
 
 
 def _load(path, settings, outdir, formats, exporters):
