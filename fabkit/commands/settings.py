@@ -7,7 +7,7 @@ same schema check (:mod:`fabkit.io.schema`) and the same did-you-mean for a miss
 from __future__ import annotations
 
 from ..errors import InputFileError, SettingsError, UsageError
-from ..io.formats import load_toml
+from ..io.formats import load_toml, toml_shape
 from ..writers import check_export_settings
 
 
@@ -42,7 +42,8 @@ def parse_settings(items) -> dict:
             raise UsageError("--set", f"{item!r}: the key must name a section and a key, "
                                       "e.g. laser.kerf")
         try:  # its depth, digits and values bounded before the parser runs
-            value = load_toml(f"v = {text.strip()}", f"--set {key}")["v"]
+            toml_shape(text.strip(), key)  # measured on the value itself: its own offsets
+            value = load_toml(f"v = {text.strip()}", key)["v"]
         except InputFileError as exc:
             if exc.kind == "bounds":
                 raise UsageError("--set", f"{key}: {exc.reason}") from None
