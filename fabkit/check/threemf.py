@@ -18,6 +18,8 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..io.formats import open_zip, parse_xml, read_zip_entry
+from ..io.readback import ReadBack
+from ..io.workload import MAX_BYTES
 from ..settings.filaments import FILAMENTS
 from . import read_set, require_checked, require_triangles
 from .beds import bed_set
@@ -226,11 +228,8 @@ def read_package(path, data: bytes | None = None) -> dict:
         Inflated XML or placed triangles past the bounds.
     """
     path = Path(path)
-    if data is None:
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise FabricationError(f"{path}: not a 3MF package: {exc.strerror}") from None
+    if data is None:  # a regular file, of bounded size, as every file a check reads
+        data = ReadBack().read(path, MAX_BYTES)
     parsed = _parse_package(path, data)
     require_checked(f"{path}: {len(parsed['items'])} build items",
                     ("placed triangle", _placed_triangles(parsed)))

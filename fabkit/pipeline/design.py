@@ -161,7 +161,7 @@ def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
     if isinstance(exc, OSError):
         line = f"{path}: cannot write the export to {outdir}: {exc.strerror or exc}"
         if getattr(exc, "filename", None):
-            line += f" ({Path(exc.filename).name})"
+            line += f" ({_destination(exc.filename, outdir)})"
         return line, "output"
     return f"{path}: {internal_error_line(exc)}", "internal"
 
