@@ -47,7 +47,7 @@ from .errors import (ArgumentTypeError, BoundsError, brief, FabkitError, InputFi
 from .kinematics import METHODS, trace
 from .model.network import Network
 from .io.formats import toml_shape
-from .io.outputs import check_name
+from .io.outputs import check_name, write_atomic
 from .io.toml_writer import TomlDocument
 from .io.suggest import close_names, nearest_file
 from .io.workload import require
@@ -269,9 +269,15 @@ class Design:
         -------
         pathlib.Path
             The file written.
+
+        Raises
+        ------
+        OutputError
+            The folder cannot be written, or a full disk (the message names the file; nothing
+            half-written is left: :func:`fabkit.io.outputs.write_atomic`).
         """
         path = Path(path)
-        path.write_text(template_text(self), encoding="utf-8")
+        write_atomic(path, template_text(self).encode("utf-8"))
         return path
 
 

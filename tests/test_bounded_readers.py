@@ -365,7 +365,7 @@ def test_a_scheduler_that_never_speaks_or_announces_exabytes_is_refused(tmp_path
     (["export", "fourbar", "--to", "dxf", "--set", "laser.clearance=100000"],
      "laser.clearance: must be <= 50, got 100000"),
     (["export", "fourbar", "--to", "dxf", "--set", "laser.kerf=" + "1" * 5000],
-     "a number of thousands of digits"),
+     "a number of more than 400 digits (at byte 0)"),
     (["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--lyapunov-protocol",
       "1000000000:1000000000:1000000000"], "lyapunov_orbits must be at most 100,000"),
     (["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--lyapunov-protocol",
@@ -450,3 +450,145 @@ def test_a_truncated_spec_is_called_damaged(tmp_path, capsys):
     assert line.startswith(f"fabkit: error: {spec}: damaged (not a sweep's spec")
     assert line.endswith(f"delete {out / 'chunks'} to start the sweep again")
     assert "different sweep" not in line
+
+
+# --- sweep specs and --set values pass the TOML bound before the parser -----------------------
+
+def test_a_sweep_spec_nested_too_deeply_is_refused_before_the_parser(tmp_path, capsys):
+    from fabkit.sweep import read_sweep_file
+
+    spec = tmp_path / "deep.toml"
+    spec.write_text('[sweep]\ntemplate = "chaotic"\nvary = ["nodes[4].x=-0.3:-0.2:2"]\n'
+                    f"description = {'[' * 100}1{']' * 100}\n")
+    with pytest.raises(InputFileError) as info:
+        read_sweep_file(spec)
+    assert info.value.kind == "bounds" and info.value.path == str(spec)
+    assert f"nested 100 levels deep, over the limit of {MAX_DEPTH}" in info.value.reason
+    capsys.readouterr()
+    assert main(["sweep", str(spec), "--no-plots", "-q", "-o", str(tmp_path / "s")]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith(f"fabkit: error: {spec}: nested 100 levels deep")
+    assert not (tmp_path / "s").exists()
+
+
+def test_a_sweep_spec_number_of_too_many_digits_is_refused(tmp_path):
+    from fabkit.sweep import read_sweep_file
+
+    spec = tmp_path / "digits.toml"
+    spec.write_text('[sweep]\ntemplate = "chaotic"\nvary = ["nodes[4].x=-0.3:-0.2:2"]\n'
+                    f"protocol = {{ lyapunov_orbits = {'7' * 500} }}\n")
+    with pytest.raises(InputFileError) as info:
+        read_sweep_file(spec)
+    assert info.value.kind == "bounds"
+    assert f"a number of more than {MAX_DIGITS} digits" in info.value.reason
+
+
+@pytest.mark.parametrize("value, words", [
+    ("print.bed=" + "[" * 100 + "]" * 100, "print.bed: nested 100 levels deep, over the limit "
+                                           f"of {MAX_DEPTH}"),
+    ("laser.kerf=" + "1" * 500, f"laser.kerf: a number of more than {MAX_DIGITS} digits"),
+])
+def test_a_set_value_past_the_toml_bounds_is_refused_by_them(value, words):
+    from fabkit.commands.settings import parse_settings
+    from fabkit.errors import UsageError
+
+    with pytest.raises(UsageError) as info:
+        parse_settings([value])
+    assert words in str(info.value)
+    assert len(str(info.value).splitlines()) == 1
+
+
+# --- every message of a peer bounded, not only its first --------------------------------------
+
+def _message(payload: bytes) -> bytes:
+    """One dask message of one frame: its size, the frame count and length, the frame."""
+    body = struct.pack("QQ", 1, len(payload)) + payload
+    return struct.pack("Q", len(body)) + body
+
+
+def _scripted_peer(replies):
+    """A local server that, on each connection, sends a handshake message, then answers each
+    read from the client with the next of ``replies`` (bytes sent as they are)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            conn.sendall(_message(b"handshake"))
+            for reply in replies:
+                if not conn.recv(1 << 16):
+                    break
+                conn.sendall(reply)
+
+    threading.Thread(target=serve, daemon=True).start()
+    return server
+
+
+@pytest.mark.parametrize("reply, words", [
+    (struct.pack("Q", 2**63 - 1), "announces a message of 9,223,372,036,854,775,807 bytes, "
+                                  "over the limit of 1,048,576"),
+    (struct.pack("QQQ", 16, 1, 2**40), f"announces a message of {16 + 2**40:,} bytes"),
+    (_message(b"x" * 100)[:30], "did not send the rest of a message within the connect timeout"),
+])
+def test_a_later_message_past_a_bound_is_cut_off_before_it_is_read(reply, words):
+    """The handshake passes; the next message announces exabytes (in its size, or in a frame
+    length sent after the first frames), or stops half-way: the guard cuts it off, says why,
+    and refuses every later connection."""
+    from fabkit.sweep.peer import PeerGuard
+
+    server = _scripted_peer([_message(b"fine"), reply])
+    port = server.getsockname()[1]
+    try:
+        with PeerGuard(f"tcp://127.0.0.1:{port}", ("127.0.0.1", port), 1.0) as guard:
+            host, guarded = guard.address.removeprefix("tcp://").split(":")
+            with socket.create_connection((host, int(guarded)), timeout=10) as client:
+                assert client.recv(1 << 16) == _message(b"handshake")
+                client.sendall(b"register")
+                assert client.recv(1 << 16) == _message(b"fine")  # a message within bounds
+                client.sendall(b"next")
+                rest = b""
+                while part := client.recv(1 << 16):  # cut off: closed, nothing passed on
+                    rest += part
+            assert rest == b""
+            assert guard.failure is not None and words in guard.failure, guard.failure
+            with pytest.raises(OSError):  # and no connection after it
+                socket.create_connection((host, int(guarded)), timeout=2).close()
+    finally:
+        server.close()
+
+
+def test_a_dask_scheduler_that_announces_exabytes_after_its_handshake_is_one_line(tmp_path,
+                                                                                  capsys):
+    """A peer that speaks dask's handshake, then answers the client's registration with a
+    message of 2⁶³−1 bytes: one line and exit 1 (it was a MemoryError, exit 70, after 31 s)."""
+    distributed = pytest.importorskip("distributed")
+    import asyncio
+
+    ready, box = threading.Event(), {}
+
+    async def handler(comm):  # after the handshake dask's listener made: the registration
+        await comm.read()
+        await comm.stream.write(struct.pack("Q", 2**63 - 1))
+        await asyncio.sleep(60)
+
+    async def listen():
+        listener = distributed.comm.listen("tcp://127.0.0.1:0", handler)
+        await listener.start()
+        box["address"], box["loop"] = listener.contact_address, asyncio.get_running_loop()
+        ready.set()
+        await asyncio.sleep(3600)
+
+    threading.Thread(target=asyncio.run, args=(listen(),), daemon=True).start()
+    assert ready.wait(30)
+    rc = main(["sweep", "chaotic", "--vary", "nodes[4].x=-0.3:-0.2:2", "--scheduler",
+               box["address"], "--connect-timeout", "5", "--no-plots", "-q",
+               "-o", str(tmp_path / "s")])
+    line = one_line(capsys.readouterr().err)
+    assert rc == 1, line
+    assert (f"the scheduler at {box['address']} announces a message of "
+            "9,223,372,036,854,775,807 bytes, over the limit of 1,048,576") in line

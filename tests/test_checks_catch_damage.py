@@ -440,11 +440,20 @@ def test_a_bar_shortened_in_a_kit_built_at_a_branch_point_fails_modes(tmp_path):
 
 
 def test_a_sheet_that_is_not_dxf_is_unreadable(laser, tmp_path):
+    """Written by an export (read through its folder): a failed check; given by path: a
+    damaged input, named."""
+    from fabkit.errors import InputFileError
+    from fabkit.io.folder import OutputFolder
+
     design, out = laser
-    bad = tmp_path / "laser_sheet1.dxf"
-    bad.write_bytes(b"\x00\x01 this is no drawing \xff" * 40)
-    c = _failed(check_file(bad, design=design), "readable")
+    held = OutputFolder.open(tmp_path / "staged")
+    held.write("laser_sheet1.dxf", b"\x00\x01 this is no drawing \xff" * 40)
+    bad = held.path / "laser_sheet1.dxf"
+    c = _failed(check_file(bad, design=design, folder=held), "readable")
     assert c["value"] == "laser_sheet1.dxf"
+    with pytest.raises(InputFileError) as info:
+        check_file(bad, design=design)
+    assert info.value.kind == "damaged" and info.value.path == str(bad)
 
 
 # --- the coupon --------------------------------------------------------------------------------

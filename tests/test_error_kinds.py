@@ -151,3 +151,42 @@ def test_a_folder_given_as_a_file_is_refused_with_its_kind(tmp_path):
     with pytest.raises(InputFileError) as err:
         check_file(tmp_path / "absent.dxf")
     assert err.value.kind == "missing"
+
+
+#: A DXF that ezdxf cannot parse, even in its recover mode.
+BROKEN_DXF = "0\nSECTION\n2\nHEADER\n0\nBOGUS\nxx\n"
+
+
+def test_a_dxf_given_that_ezdxf_cannot_parse_is_a_damaged_input(tmp_path, capsys):
+    """A user's DXF ezdxf cannot parse: InputFileError kind "damaged", exit 2, one line naming
+    the file (it was a failed "readable" check, exit 1, with a report of checks)."""
+    from fabkit.check import check_file
+    from fabkit.cli import main
+    from fabkit.errors import InputFileError
+
+    given = tmp_path / "laser_sheet1.dxf"
+    given.write_text(BROKEN_DXF)
+    with pytest.raises(InputFileError) as err:
+        check_file(given)
+    assert err.value.kind == "damaged" and err.value.path == str(given)
+    capsys.readouterr()
+    assert main(["check", str(given)]) == 2
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"fabkit: error: {given}: not a DXF file"), \
+        cap.err
+    assert "FAIL" not in cap.out
+
+
+def test_a_dxf_of_fabkits_own_that_ezdxf_cannot_parse_is_a_failed_check(tmp_path):
+    """The same bytes staged by an export (read through its folder): a failed check."""
+    from fabkit.check import check_file
+    from fabkit.io.folder import OutputFolder
+
+    held = OutputFolder.open(tmp_path / "stage")
+    held.write("laser_sheet1.dxf", BROKEN_DXF.encode())
+    report = check_file(held.path / "laser_sheet1.dxf", folder=held)
+    assert not report["ok"]
+    readable = [c for c in report["checks"] if c["name"] == "readable"]
+    assert len(readable) == 1 and not readable[0]["ok"]
+    assert readable[0]["value"] == "laser_sheet1.dxf"

@@ -225,7 +225,11 @@ def test_check_without_design_and_on_garbage(tmp_path, exported):
     assert not any(c["name"] in ("design", "lengths", "modes") for c in result["checks"])
     junk = tmp_path / "junk.dxf"
     junk.write_bytes(b"\x00\x01 not a dxf")
-    assert not check_file(junk)["ok"]
+    from fabkit.errors import InputFileError
+
+    with pytest.raises(InputFileError) as info:  # a user's file ezdxf cannot read: damaged
+        check_file(junk)
+    assert info.value.kind == "damaged"
 
 
 def test_cli_export_to_dxf(tmp_path, capsys):

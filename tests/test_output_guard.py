@@ -207,6 +207,60 @@ def test_a_full_disk_leaves_nothing_and_names_the_file(argv, tmp_path):
     assert not out.exists()  # not even the folders it would have created
 
 
+def test_a_full_disk_during_an_export_names_the_file_where_it_would_be(tmp_path):
+    """The export writes into its staging folder: the line names the file in the design's
+    folder (``out/fourbar/NAME``), not only its bare name beside the output folder."""
+    import re
+
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "fabkit", "export", "fourbar", "--to", "dxf",
+                           "--tolerance-samples", "0", "--no-previews", "-q", "-o", str(out)],
+                          capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ, PYTHONDONTWRITEBYTECODE="1"),
+                          preexec_fn=_limit_file_size)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 1 and len(lines) == 1, proc.stderr
+    named = re.search(r"File too large \((.+?)\); nothing of it was written", lines[0])
+    assert named, lines[0]
+    assert Path(named.group(1)).parent == out / "fourbar"
+    assert not (out / "fourbar").exists()
+
+
+def test_a_full_disk_under_the_lock_file_names_it(tmp_path, monkeypatch):
+    from fabkit.io.outputs import LOCK_NAME, OutputLock
+
+    real = os.write
+
+    def full(fd, data):  # the lock's process id meets a full disk
+        if os.path.basename(os.readlink(f"/proc/self/fd/{fd}")) == LOCK_NAME:
+            raise OSError(28, "No space left on device")
+        return real(fd, data)
+
+    monkeypatch.setattr(os, "write", full)
+    with pytest.raises(WriteError) as info:
+        with OutputLock(tmp_path):
+            pass
+    assert info.value.path == str(tmp_path / LOCK_NAME)
+    assert "No space left on device" in str(info.value)
+
+
+def test_a_template_saved_onto_a_full_disk_names_the_file(tmp_path):
+    target = tmp_path / "mine.toml"
+    code = ("import resource, signal, fabkit\n"
+            "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+            "design = fabkit.load_template('fourbar')\n"
+            "resource.setrlimit(resource.RLIMIT_FSIZE, (100, 100))\n"
+            "try:\n"
+            f"    design.save({str(target)!r})\n"
+            "except Exception as exc:\n"
+            "    print(type(exc).__name__, exc)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert proc.stdout.strip() == (f"WriteError {target}: cannot write: File too large; "
+                                   "nothing of this output was written"), proc
+    assert not target.exists()  # nothing half-written
+
+
 # --- fabkit's own entries in an output folder: the lock, staging and backup folders ----------
 
 EXPORT = ["export", "fourbar", "--to", "dxf", "--tolerance-samples", "0", "--no-previews", "-q"]

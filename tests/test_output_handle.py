@@ -278,3 +278,130 @@ def test_a_backup_folder_put_back_when_the_new_one_never_arrived(tmp_path, capsy
     assert main([*EXPORT, "-o", str(out)]) == 0, capsys.readouterr().err
     assert (out / "fourbar" / "exports.json").read_bytes() == before
     assert not (out / ".fourbar.old").exists() and not (out / "fourbar" / MARK).exists()
+
+
+# --- the as-built checks read the staged files through the folder held ------------------------
+
+def test_a_check_given_the_held_folder_reads_the_folder_it_holds_not_the_path(tmp_path):
+    from fabkit.check import check_file
+    from fabkit.templates import load_template
+    from fabkit.writers import get_exporter
+
+    design = load_template(TEMPLATES / "origami_sheet.toml")
+    files = get_exporter("fold").export_design(design, {}).files
+    out, victim = tmp_path / "out", tmp_path / "victim"
+    victim.mkdir()
+    held = OutputFolder.open(out)
+    held.write_files(files)
+    name = next(n for n in files if n.endswith(".fold"))
+    (victim / name).write_text('{"file_spec": 1.1, "edited": [[[')  # what the path names now
+    out.rename(tmp_path / "moved")
+    out.symlink_to(victim)
+    report = check_file(out / name, design=design, folder=held)
+    assert report["ok"], report["checks"]  # the file written, read through the handle
+    assert report["max_map_difference"] < 1e-6
+    from fabkit.errors import InputFileError
+
+    with pytest.raises(InputFileError) as info:  # by path: the file the link leads to
+        check_file(out / name, design=design)
+    assert info.value.kind == "damaged"
+
+
+def test_a_staged_file_replaced_by_a_link_is_not_read_by_the_check(tmp_path, monkeypatch):
+    import fabkit.writers as writers
+    from fabkit.pipeline import export_one
+
+    out, outside = tmp_path / "out", tmp_path / "outside"
+    outside.mkdir()
+    (outside / "edited.dxf").write_text("0\nSECTION\n2\nHEADER\n0\nBOGUS\nxx\n")
+    real = writers.write_outputs
+
+    def linked_after_writing(files, stage_dir):  # the staged sheet swapped for a link
+        written = real(files, stage_dir)
+        sheet = stage_dir.path / "laser_sheet1.dxf"
+        sheet.unlink()
+        sheet.symlink_to(outside / "edited.dxf")
+        return written
+
+    monkeypatch.setattr(writers, "write_outputs", linked_after_writing)
+    res = export_one(TEMPLATES / "fourbar.toml", ["dxf"], out, {}, tolerance_samples=0,
+                     previews=False)
+    checks = {c.file: c for c in res.formats["dxf"].checks}
+    sheet = checks["laser_sheet1.dxf"]
+    assert not sheet.ok
+    assert "is a symbolic link, not a regular file: refused" in sheet.error, sheet
+    assert "group code" not in sheet.error  # the edited file was never parsed
+
+
+# --- the library's export, fabkit bench and templates --copy hold their folder too ------------
+
+def _swap_parent_for_link(base: Path, victim: Path) -> None:
+    """A link higher up than the output folder's own name: ``mv base moved && ln -s victim
+    base`` (``base/out`` now names ``victim/out``)."""
+    base.rename(base.parent / "moved")
+    base.symlink_to(victim)
+
+
+def test_the_librarys_export_into_a_folder_swapped_midway_writes_nothing_elsewhere(
+        tmp_path, monkeypatch):
+    import fabkit.writers.dxf as dxf_writer
+    from fabkit.templates import load_template
+    from fabkit.writers import export
+
+    base, victim = tmp_path / "base", tmp_path / "victim"
+    (base / "out").mkdir(parents=True)
+    (victim / "out").mkdir(parents=True)
+    real = dxf_writer.export_design
+
+    def swapped_midway(*args, **kwargs):  # computed; the folder above is swapped meanwhile
+        result = real(*args, **kwargs)
+        _swap_parent_for_link(base, victim)
+        return result
+
+    monkeypatch.setattr(dxf_writer, "export_design", swapped_midway)
+    with pytest.raises(FolderChangedError):
+        export(load_template(TEMPLATES / "fourbar.toml"), "dxf", base / "out")
+    assert _files(victim) == ["out"]  # nothing written through the link
+
+
+def test_bench_into_a_folder_swapped_midway_writes_nothing_elsewhere(tmp_path, monkeypatch,
+                                                                     capsys):
+    import fabkit.bench.study as study
+
+    base, victim = tmp_path / "base", tmp_path / "victim"
+    (base / "out").mkdir(parents=True)
+    (victim / "out").mkdir(parents=True)
+    real = study.finite
+
+    def swapped_midway(doc):  # every result made; the folder above is swapped before writing
+        _swap_parent_for_link(base, victim)
+        return real(doc)
+
+    monkeypatch.setattr(study, "finite", swapped_midway)
+    monkeypatch.setattr("fabkit.commands.bench._parts", lambda parts: [])  # nothing measured
+    rc = main(["bench", "--quick", "-q", "-o", str(base / "out")])
+    line = _one_line(capsys)
+    assert rc == 1 and "the output folder was moved, removed or replaced" in line, line
+    assert _files(victim) == ["out"]
+    assert _files(tmp_path / "moved") == ["out"]  # and nothing half-made in the folder held
+
+
+def test_templates_copy_into_a_folder_swapped_midway_writes_nothing_elsewhere(
+        tmp_path, monkeypatch, capsys):
+    import fabkit.commands.templates as templates_command
+
+    base, victim = tmp_path / "base", tmp_path / "victim"
+    (base / "mine").mkdir(parents=True)
+    (victim / "mine").mkdir(parents=True)
+    real = templates_command.template_files
+
+    def swapped_midway(name):  # the templates found; the folder above swapped meanwhile
+        found = real(name)
+        _swap_parent_for_link(base, victim)
+        return found
+
+    monkeypatch.setattr(templates_command, "template_files", swapped_midway)
+    rc = main(["templates", "--copy", "super_stable_chain", "-o", str(base / "mine")])
+    line = _one_line(capsys)
+    assert rc == 1 and "the output folder was moved, removed or replaced" in line, line
+    assert _files(victim) == ["mine"]

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.progress import Progress
-from ..io.outputs import inside, write_files
+from ..io.outputs import inside, OutputFolder
 from ..plots.viz import figure_png
 from . import (clock_text, cpu_seconds, finite, large, levels as lv, machine_info,
                stability as stab, workprecision as wp)
@@ -348,9 +348,10 @@ def bench_study(out_dir, *, quick: bool = False, parts=PARTS, sizes=None,
 
     Parameters
     ----------
-    out_dir : path
-        The output folder; the results go to ``out_dir/bench/`` (never through a link out of
-        ``out_dir``: checked before the work and again when writing).
+    out_dir : path or OutputFolder
+        The output folder; the results go to ``out_dir/bench/``. It is held from before the
+        work (:class:`~fabkit.io.folder.OutputFolder`) and written through that handle: never
+        through a link, never into a folder put in its place meanwhile.
     quick : bool
         The quick mode's sizes, budgets and cases (:data:`MODES`), else the full study's.
     parts : sequence of str
@@ -373,7 +374,8 @@ def bench_study(out_dir, *, quick: bool = False, parts=PARTS, sizes=None,
     cfg = MODES[mode]
     parts = list(parts)
     say = progress if progress is not None else Progress("fabkit bench", show=False)
-    outdir = inside(out_dir, "bench")
+    held = OutputFolder.open(out_dir)  # one handle, opened before the work (created later)
+    outdir = inside(held.path, "bench")
     t_start, cpu_start = time.perf_counter(), cpu_seconds()
     run = _Run(mode, cfg["sizes"] if sizes is None else sizes,
                cfg["budget"] if budget is None else float(budget), parts, say)
@@ -398,6 +400,6 @@ def bench_study(out_dir, *, quick: bool = False, parts=PARTS, sizes=None,
     run.files["bench.json"] = json.dumps(finite(doc), indent=1, default=_jsonable,
                                          allow_nan=False).encode()
     say.stage(f"writing {len(run.files)} files into {outdir}")
-    write_files(out_dir, {f"bench/{name}": data for name, data in run.files.items()})
+    held.write_files({f"bench/{name}": data for name, data in run.files.items()})
     return BenchStudy(mode, Path(outdir), doc, tuple(run.files), run.scaling, run.comparison,
                       run.study, run.horizon, run.levels)

@@ -1,8 +1,12 @@
 """As-built checks: read exported files back, rebuild the network, re-simulate, compare.
 
 One module per file format, each defining ``FORMAT``, ``SUFFIXES`` (file name endings it reads)
-and ``check_file(path, design=None, settings=None) -> dict``: a JSON-serialisable report with at
-least ``"ok": bool`` and ``"checks"``.
+and ``check_file(path, design=None, settings=None, *, folder=None) -> dict``: a
+JSON-serialisable report with at least ``"ok": bool`` and ``"checks"``. Every file a check
+reads (the one named and the files of its export beside it) is listed, measured and read
+through one :class:`fabkit.io.readback.ReadBack`: by path for a user's file, through the held
+folder (``folder``, an :class:`~fabkit.io.folder.OutputFolder`) for the files an export has
+just staged, which are then never looked up by path again.
 
 Every check is one :class:`fabkit.check.items.Check` (its name, a status of
 :data:`fabkit.status.CHECK`, the value measured, its limit and a one-sentence detail), made with
@@ -19,8 +23,8 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-from ..errors import FabkitError, InputFileError
-from ..io.inputs import file_kind, read_regular
+from ..errors import FabkitError
+from ..io.readback import ReadBack
 from ..io.workload import require
 
 __all__ = ["CHECKERS", "checker_for", "check_file", "read_set", "require_files",
@@ -52,38 +56,41 @@ def checker_for(path):
         raise FabkitError(f"the .{suffix} check is not available: {exc}") from None
 
 
-def check_file(path, design=None, settings=None, *, motion=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None, folder=None) -> dict:
     """Run the as-built check of an exported file (optionally against its design).
 
     The file must be a regular file, and its size goes through the work estimate before it is
     read (readers hold several bytes in memory per byte on disk).
 
+    Parameters
+    ----------
+    path : str or path-like
+    design : Design, optional
+    settings : dict, optional
+    motion : TracedMotion, optional
+        The design's motion traced once by the pipeline.
+    folder : OutputFolder, optional
+        The held folder of fabkit's own that ``path`` lies in (an export's staging folder): the
+        files are read through it, never by path (:class:`fabkit.io.readback.ReadBack`).
+
     Raises
     ------
     InputFileError
-        Not a regular file (a folder, a FIFO, a device), or missing.
+        Not a regular file (a folder, a FIFO, a device), or missing; a file given by path
+        that its parser refuses (``kind="damaged"``).
     BoundsError
         Too large to read back within the bounds (``fabkit --allow-large`` lifts them).
     FabkitError
         No check for the file's suffix.
     """
-    import os
-    import stat
-
     module = checker_for(path)
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise InputFileError(path, "no such file", kind="missing") from None
-    except OSError as exc:
-        raise InputFileError(path, exc.strerror or str(exc), kind="unreadable") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise InputFileError(path, "not a regular file (a folder, a FIFO or a device)",
-                             kind="not_regular")
-    require(f"{path}", ("file byte", st.st_size))  # refused before the checker is loaded
+    source = ReadBack.of(folder)
+    size = source.size(path)
+    require(f"{path}", ("file byte", size))  # refused before the checker is loaded
+    extra = {"folder": source} if folder is not None else {}
     if motion is not None:  # the design's motion traced once by the pipeline
-        return module.check_file(path, design=design, settings=settings, motion=motion)
-    return module.check_file(path, design=design, settings=settings)
+        extra["motion"] = motion
+    return module.check_file(path, design=design, settings=settings, **extra)
 
 
 def require_checked(where: str, *parts):
@@ -118,10 +125,10 @@ def require_triangles(path, triangles: int, design=None):
     return est
 
 
-def require_files(paths) -> None:
+def require_files(paths, folder=None) -> None:
     """Estimate reading the files of one export back together (the beds of a print, the
     sheets of a kit) by their total size, before any of them is read: a sibling far larger
-    than the file named is counted too.
+    than the file named is counted too. ``folder``: as for :func:`check_file`.
 
     Raises
     ------
@@ -130,20 +137,8 @@ def require_files(paths) -> None:
     BoundsError
         Their total size is past the bounds.
     """
-    import os
-    import stat
-
-    total = 0
-    for p in paths:
-        try:
-            st = os.stat(p)
-        except OSError as exc:
-            raise InputFileError(p, f"cannot read: {exc.strerror or exc}",
-                                 kind="unreadable") from None
-        if not stat.S_ISREG(st.st_mode):
-            raise InputFileError(p, f"is {file_kind(st.st_mode)}, not a regular file: refused",
-                                 kind="not_regular")
-        total += st.st_size
+    source = ReadBack.of(folder)
+    total = sum(source.size(p) for p in paths)
     paths = [Path(p) for p in paths]
     where = str(paths[0]) if len(paths) == 1 else (
         f"{paths[0]} with the files of its export beside it "
@@ -151,8 +146,9 @@ def require_files(paths) -> None:
     require_checked(where, ("file byte", total))
 
 
-def read_set(paths) -> dict:
+def read_set(paths, folder=None) -> dict:
     """The bytes of the files of one export, path -> bytes, after :func:`require_files`.
+    ``folder``: as for :func:`check_file`.
 
     Raises
     ------
@@ -161,5 +157,6 @@ def read_set(paths) -> dict:
     """
     from ..io.workload import MAX_BYTES
 
-    require_files(paths)
-    return {p: read_regular(p, MAX_BYTES) for p in paths}
+    source = ReadBack.of(folder)
+    require_files(paths, source)
+    return {p: source.read(p, MAX_BYTES) for p in paths}

@@ -16,17 +16,20 @@ import numpy as np
 __all__ = ["bed_set", "split_bodies"]
 
 
-def bed_set(path) -> list[Path]:
+def bed_set(path, folder=None) -> list[Path]:
     """The bed files of one export: ``NAME_bed<k>.<suffix>`` beside the given one (in bed
-    order), else the file itself."""
+    order), else the file itself; listed through ``folder`` (a
+    :class:`fabkit.io.readback.ReadBack`, or the held folder of fabkit's own they are in)."""
+    from ..io.readback import ReadBack
+
     path = Path(path)
     m = re.fullmatch(r"(.*_bed)(\d+)(\.\w+)", path.name, flags=re.IGNORECASE)
     if not m:
         return [path]
     pattern = re.compile(re.escape(m.group(1)) + r"(\d+)" + re.escape(m.group(3)),
                          flags=re.IGNORECASE)
-    found = [(int(q.group(1)), p) for p in path.parent.iterdir()
-             if (q := pattern.fullmatch(p.name)) and p.is_file()]
+    found = [(int(q.group(1)), p) for p in ReadBack.of(folder).siblings(path)
+             if (q := pattern.fullmatch(p.name))]
     return [p for _, p in sorted(found)] or [path]
 
 

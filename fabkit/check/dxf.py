@@ -37,11 +37,11 @@ from typing import Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from ..errors import FabkitError, FabricationError
+from ..errors import FabricationError
 from ..settings.fasteners import fit_fastener
 from ..settings.design import design_settings
-from ..io.formats import refuse_dxf_entities
-from ..io.inputs import read_regular
+from ..io.formats import damaged, refuse_dxf_entities
+from ..io.readback import ReadBack
 from ..io.schema import describe_validation_error
 from ..io.workload import MAX_BYTES
 from ..model.network import Network
@@ -53,7 +53,8 @@ from .sheet_layout import least_gap, MIN_WEB_MM
 from .items import Check, check, finish
 from .motion import compare_motion, design_window
 
-__all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL"]
+__all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL",
+           "parse_dxf"]
 
 FORMAT = "dxf"
 #: The sections of ``--set`` this check reads (any other has no effect on it).
@@ -623,21 +624,51 @@ def _screws_close(edges, layer, s, thickness: float) -> Check:
                  f"{thickness:g} + {s.thickness_tolerance:g} mm, at joint {where}")
 
 
-def _sheet_set(path: Path) -> list[Path]:
+def _sheet_set(path: Path, source: ReadBack) -> list[Path]:
     """The sheets of one export: ``laser_sheet<k>.dxf`` beside the given one (or the
-    ``laser_sheet<k>_uncompensated.dxf`` set), else itself."""
+    ``laser_sheet<k>_uncompensated.dxf`` set), else itself; listed through ``source``."""
     m = re.fullmatch(r"(.*sheet)(\d+)(_uncompensated)?\.dxf", path.name, flags=re.IGNORECASE)
     if not m:
         return [path]
     # only the numbered siblings: a stray laser_sheet_notes.dxf is not a sheet of the kit
     pattern = re.compile(re.escape(m.group(1)) + r"(\d+)" + re.escape(m.group(3) or "")
                          + r"\.dxf", flags=re.IGNORECASE)
-    found = [(int(q.group(1)), p) for p in path.parent.iterdir()
-             if (q := pattern.fullmatch(p.name)) and p.is_file()]
+    found = [(int(q.group(1)), p) for p in source.siblings(path)
+             if (q := pattern.fullmatch(p.name))]
     return [p for _, p in sorted(found)] or [path]
 
 
-def check_file(path, design=None, settings=None, *, motion=None) -> dict:
+#: The first bytes of a binary DXF file.
+_BINARY_DXF = b"AutoCAD Binary DXF\r\n\x1a\x00"
+
+
+def parse_dxf(data: bytes):
+    """An ezdxf document from a DXF file's bytes (already read, and its entities counted).
+
+    ezdxf's reader takes two thirds of the time of its recover mode on a well-formed file; a
+    file it refuses (and a binary DXF) is read again by recover, which repairs what it can.
+
+    Raises
+    ------
+    Exception
+        Whatever ezdxf raises for a file that is not a DXF at all (several types).
+    """
+    import ezdxf
+    from ezdxf import recover
+    from ezdxf.filemanagement import dxf_stream_info
+
+    if not data.startswith(_BINARY_DXF):
+        try:
+            encoding = dxf_stream_info(io.StringIO(data.decode("utf-8", "ignore"))).encoding
+            return ezdxf.read(io.StringIO(data.decode(encoding, "surrogateescape")))
+        except MemoryError:
+            raise
+        except Exception:  # noqa: BLE001 - ezdxf raises several types: recover tries next
+            pass
+    return recover.read(io.BytesIO(data))[0]
+
+
+def check_file(path, design=None, settings=None, *, motion=None, folder=None) -> dict:
     """As-built check of a laser-cut DXF (and the other sheets of its export beside it).
 
     Parameters
@@ -648,47 +679,43 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     settings : dict, optional
     motion : TracedMotion, optional
         See :func:`check_documents`.
+    folder : OutputFolder or ReadBack, optional
+        Where the sheets are read from (:func:`fabkit.check.check_file`): through the held
+        folder of an export that has just written them, or by path when None.
 
     Returns
     -------
     dict
-        See :func:`check_documents`.
+        See :func:`check_documents`. A sheet of fabkit's own (read through ``folder``) that
+        ezdxf cannot parse is a failed ``readable`` check.
 
     Raises
     ------
-    FabkitError
-        When the file does not exist.
     InputFileError
-        ``kind="bounds"``: a sheet of more entities than
-        :data:`fabkit.io.formats.MAX_DXF_ENTITIES` (counted before ezdxf reads it).
+        A missing sheet; ``kind="bounds"``: a sheet of more entities than
+        :data:`fabkit.io.formats.MAX_DXF_ENTITIES` (counted before ezdxf reads it);
+        ``kind="damaged"``: a sheet given by path (a user's file) that ezdxf cannot parse,
+        named in one line.
     """
-    import ezdxf
-    from ezdxf import recover
-
+    source = ReadBack.of(folder)
     path = Path(path)
-    if not path.is_file():
-        raise FabkitError(f"{path}: no such file")
-
-    sheets = _sheet_set(path)
-    require_files(sheets)  # every sibling sheet counted before any is read
-    for p in sheets:  # and the entities of every sheet before ezdxf reads one
-        refuse_dxf_entities(read_regular(p, MAX_BYTES), p)
+    source.size(path)  # the sheet named is there, whatever its siblings
+    sheets = _sheet_set(path, source)
+    require_files(sheets, source)  # every sibling sheet counted before any is read
+    data = {p: source.read(p, MAX_BYTES) for p in sheets}
+    for p, raw in data.items():  # and the entities of every sheet before ezdxf reads one
+        refuse_dxf_entities(raw, p)
     docs, checks = {}, []
-    for p in sheets:
+    for p, raw in data.items():
         try:
-            # ezdxf's reader takes two thirds of the time of its recover mode on a well-formed
-            # file; a file it refuses is read again by recover, which repairs what it can
-            try:
-                doc = ezdxf.readfile(str(p))
-            except Exception:
-                doc, _ = recover.readfile(str(p))
+            docs[p.name] = parse_dxf(raw)
         except MemoryError:
             raise
-        except Exception as exc:  # not a DXF at all
-            checks.append(check("readable", False, p.name, None,
-                                f"{p.name}: {str(exc) or type(exc).__name__}"))
-            continue
-        docs[p.name] = doc
+        except Exception as exc:  # noqa: BLE001 - not a DXF at all
+            why = " ".join((str(exc) or type(exc).__name__).split())[:200]
+            if not source.own:  # a user's file: a damaged input, not a failed check
+                raise damaged(p, f"not a DXF file ezdxf can read ({why})") from None
+            checks.append(check("readable", False, p.name, None, f"{p.name}: {why}"))
     if checks:
         return finish({"files": [str(p) for p in sheets]}, checks, _expected(design),
                       "a sheet of the kit cannot be read")

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import FabkitError, FabricationError
 from ..io.formats import damaged, load_json
-from ..io.inputs import read_regular
+from ..io.readback import ReadBack
 from ..kinematics import place, plan_construction
 from ..model.network import Network
 from ..numerics import apply_fit, FLAT_RTOL, rigid_fit
@@ -63,8 +63,9 @@ CHECKS = ("structure", "frames_keep_lengths", "modes", "refold_map")
 DESIGN_CHECKS = ("design_geometry", "design_map")
 
 
-def read_fold(path) -> dict:
-    """Parse a FOLD file through the bounded readers (:mod:`fabkit.io.formats`).
+def read_fold(path, folder=None) -> dict:
+    """Parse a FOLD file through the bounded readers (:mod:`fabkit.io.formats`), read by path
+    or through ``folder`` (as for :func:`fabkit.check.check_file`).
 
     Raises
     ------
@@ -74,7 +75,7 @@ def read_fold(path) -> dict:
     """
     from ..io.workload import MAX_BYTES
 
-    doc = load_json(read_regular(path, MAX_BYTES), path, max_items=MAX_FOLD_VALUES,
+    doc = load_json(ReadBack.of(folder).read(path, MAX_BYTES), path, max_items=MAX_FOLD_VALUES,
                     what="FOLD JSON")
     if not isinstance(doc, dict):
         raise damaged(path, "not FOLD JSON (the top level is not an object)")
@@ -291,8 +292,9 @@ def _refold_check(model, fold, motion, stored, sheets) -> Check:
     return check("refold_map", diff <= MAP_TOL, diff, MAP_TOL, detail)
 
 
-def check_file(path, design=None, settings=None) -> dict:
-    """Read a FOLD file back and re-fold it (see the module docstring).
+def check_file(path, design=None, settings=None, *, folder=None) -> dict:
+    """Read a FOLD file back and re-fold it (see the module docstring); ``folder`` as for
+    :func:`fabkit.check.check_file`.
 
     Returns
     -------
@@ -300,8 +302,8 @@ def check_file(path, design=None, settings=None) -> dict:
         ``ok``, ``checks``, ``max_map_difference``, the branch taken and the branches found;
         for a crease pattern ``flat_foldable`` (Maekawa and Kawasaki hold).
     """
-    require_files([path])  # the check is held to the work its size allows
-    doc = read_fold(path)
+    require_files([path], folder)  # the check is held to the work its size allows
+    doc = read_fold(path, folder)
     checks = []
     problems = structure_problems(doc)
     checks.append(check("structure", not problems, len(problems), 0,

@@ -634,7 +634,7 @@ def _module_of(design):
 PINNED_HEADER = b"print-in-place"
 
 
-def check_file(path, design=None, settings=None, *, motion=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None, folder=None) -> dict:
     """Read an exported STL back (with the other beds of its export) and check it (see the
     module docstring).
 
@@ -650,6 +650,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     motion : TracedMotion, optional
         The design's motion traced once by the pipeline (a linkage's window and the design's
         trace to compare with are taken from it).
+    folder : OutputFolder or ReadBack, optional
+        Where the beds are read from (:func:`fabkit.check.check_file`): by path when None.
 
     Returns
     -------
@@ -663,8 +665,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     FabricationError
         A file cannot be read as an STL mesh.
     """
-    paths = bed_set(path)
-    data = read_set(paths)
+    paths = bed_set(path, folder)
+    data = read_set(paths, folder)
     require_triangles(path, sum(stl_triangles(d, p) for p, d in data.items()), design)
     meshes = [_load(d, p) for p, d in data.items()]
     pinned = all(PINNED_HEADER in d[:80] for d in data.values())

@@ -18,6 +18,8 @@ import numpy as np
 
 from ..errors import FabricationError
 from ..io.formats import open_zip, parse_xml, read_zip_entry
+from ..io.readback import ReadBack
+from ..io.workload import MAX_BYTES
 from ..settings.filaments import FILAMENTS
 from . import read_set, require_checked, require_triangles
 from .beds import bed_set
@@ -226,11 +228,8 @@ def read_package(path, data: bytes | None = None) -> dict:
         Inflated XML or placed triangles past the bounds.
     """
     path = Path(path)
-    if data is None:
-        try:
-            data = path.read_bytes()
-        except OSError as exc:
-            raise FabricationError(f"{path}: not a 3MF package: {exc.strerror}") from None
+    if data is None:  # a regular file, of bounded size, as every file a check reads
+        data = ReadBack().read(path, MAX_BYTES)
     parsed = _parse_package(path, data)
     require_checked(f"{path}: {len(parsed['items'])} build items",
                     ("placed triangle", _placed_triangles(parsed)))
@@ -281,7 +280,7 @@ def _settings_check(packages, names, design, settings) -> Check:
                  f"first layer; {layer:g} mm layers for every object")
 
 
-def check_file(path, design=None, settings=None, *, motion=None) -> dict:
+def check_file(path, design=None, settings=None, *, motion=None, folder=None) -> dict:
     """Read an exported 3MF back (with the other beds of its export) and check it.
 
     Parameters
@@ -292,6 +291,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     settings : dict, optional
         The command-line overrides used for the export.
     motion : TracedMotion, optional
+        As for :func:`fabkit.check.stl.check_file`.
+    folder : OutputFolder or ReadBack, optional
         As for :func:`fabkit.check.stl.check_file`.
 
     Returns
@@ -306,8 +307,8 @@ def check_file(path, design=None, settings=None, *, motion=None) -> dict:
     FabricationError
         A file that is not a readable 3MF.
     """
-    paths = bed_set(path)
-    parsed = {p: _parse_package(p, data) for p, data in read_set(paths).items()}
+    paths = bed_set(path, folder)
+    parsed = {p: _parse_package(p, data) for p, data in read_set(paths, folder).items()}
     # every bed's build items place their objects: all of them counted before any is placed
     require_triangles(f"{path}: {sum(len(q['items']) for q in parsed.values())} build items",
                       sum(map(_placed_triangles, parsed.values())), design)

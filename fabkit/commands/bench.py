@@ -22,7 +22,8 @@ import sys
 from ..bench import clock_text, levels as lv
 from ..bench.study import bench_study, BenchStudy, MODES, PARTS
 from ..errors import UsageError
-from . import add_out_dir, add_progress_options, check_count, check_number, Example, progress_for
+from . import (add_out_dir, add_progress_options, check_count, check_number, Example,
+               out_folder, progress_for)
 
 NAME = "bench"
 HELP = "speed against accuracy: work-precision and scaling charts, stability study"
@@ -95,7 +96,7 @@ def run(args) -> int:
     check_number("--budget", budget)
     parts = _parts(args.parts)
     say = progress_for(args, NAME)
-    result = bench_study(args.out_dir, quick=args.quick, parts=parts, sizes=sizes,
+    result = bench_study(out_folder(args), quick=args.quick, parts=parts, sizes=sizes,
                          budget=budget, profile=args.profile, progress=say)
     say.close()
     print_summary(result)

@@ -126,8 +126,9 @@ def run(args) -> int:
             print("wrote        " + ", ".join(str(p) for p in paths))
             progress.stage(f"{design.name}: checking {design.name}.fold by folding it again")
             try:
+                # read back through the folder held, never by a path looked up again
                 report = check_file(folder / f"{design.name}.fold", design=design,
-                                    settings=chosen)
+                                    settings=chosen, folder=out)
             except FabkitError as exc:
                 print(f"check        failed: {exc}")
                 return True

@@ -6,9 +6,9 @@ same schema check (:mod:`fabkit.io.schema`) and the same did-you-mean for a miss
 
 from __future__ import annotations
 
-from ..errors import SettingsError, UsageError
+from ..errors import InputFileError, SettingsError, UsageError
+from ..io.formats import load_toml, toml_shape
 from ..writers import check_export_settings
-from ..templates import tomllib
 
 
 def parse_settings(items) -> dict:
@@ -41,13 +41,13 @@ def parse_settings(items) -> dict:
         if len(parts) < 2 or not all(parts):
             raise UsageError("--set", f"{item!r}: the key must name a section and a key, "
                                       "e.g. laser.kerf")
-        try:
-            value = tomllib.loads(f"v = {text.strip()}")["v"]
-        except (tomllib.TOMLDecodeError, RecursionError):
-            value = text.strip()
-        except ValueError:  # Python's bound on an integer's digits (4300)
-            raise UsageError("--set", f"{key}: a number of thousands of digits: no setting "
-                                      "has that many") from None
+        try:  # its depth, digits and values bounded before the parser runs
+            toml_shape(text.strip(), key)  # measured on the value itself: its own offsets
+            value = load_toml(f"v = {text.strip()}", key)["v"]
+        except InputFileError as exc:
+            if exc.kind == "bounds":
+                raise UsageError("--set", f"{key}: {exc.reason}") from None
+            value = text.strip()  # not a TOML value: a plain string
         node = out
         for part in parts[:-1]:
             node = node.setdefault(part, {})

@@ -10,10 +10,12 @@ the template's size, or the reason it does not load.
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 
 from ..errors import FabkitError, OutputError, UsageError
-from ..io.outputs import write_files
+from ..io.outputs import OutputFolder
 from ..io.suggest import did_you_mean
 from ..templates import bundled_folder, bundled_names, is_template_name, resolve_template
 from . import add_out_dir, check_output_folder, Example
@@ -134,25 +136,44 @@ def copy_template(name: str, folder, force: bool = False) -> list[Path]:
     OutputError
         A file exists (without ``force``), or is not a regular file.
     """
+    held = OutputFolder.open(folder, "FOLDER")  # one handle: looked at and written through it
     files = template_files(name)
-    folder = Path(folder)
-    targets = {rel: folder / rel for rel in files}
-    for rel, target in targets.items():
-        if target.is_symlink() or target.exists():
-            if target.is_dir() or (target.exists() and not target.is_file()):
-                raise OutputError(target, "exists and is not a file; choose another folder")
-            if not force:
-                raise OutputError(target, "exists; give --force to overwrite it, or choose "
-                                          "another folder")
+    for rel in files:
+        st = _entry(held, Path(rel).as_posix())
+        target = held.path / rel
+        if st is None:
+            continue
+        if not stat.S_ISREG(st.st_mode) and not stat.S_ISLNK(st.st_mode):
+            raise OutputError(target, "exists and is not a file; choose another folder")
+        if not force:
+            raise OutputError(target, "exists; give --force to overwrite it, or choose "
+                                      "another folder")
     data = {Path(rel).as_posix(): source.read_bytes() for rel, source in files.items()}
-    written = write_files(folder, data)  # the one guard: all or nothing, never outside folder
+    written = held.write_files(data)  # all or nothing, never through a link, never outside
+    folder = held.path
     first = folder / Path(next(iter(files))).as_posix()
     return sorted(written, key=lambda p: p != first)
 
 
+def _entry(held: OutputFolder, rel: str):
+    """The status of entry ``rel`` (a relative POSIX path) below the folder held, a link's own
+    (never followed), or None when it or a folder above it is missing."""
+    *above, name = rel.split("/")
+    if held.identity is None and not os.path.lexists(held.path):
+        return None  # the folder is created when written: nothing is in the way
+    where = held
+    for part in above:
+        if not where.is_folder(part):
+            return where.lstat(part)  # a file or a link where a folder goes: in the way
+        where = where.folder(part, create=False)
+    return where.lstat(name)
+
+
 def _copy(args) -> int:
-    folder = Path(args.folder) if args.folder else Path()
-    check_output_folder(folder, "FOLDER")
+    folder = getattr(args, "out_folder", None)  # -o: held by the command line already
+    if folder is None:
+        folder = Path(args.folder) if args.folder else Path()
+        check_output_folder(folder, "FOLDER")
     written = copy_template(args.copy, folder, force=args.force)
     for path in written:
         print(f"wrote {path}")

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DesignError, FabkitError
+from ..io.outputs import write_atomic
 from ..templates import Design, parse_template
 from ..model.network import Network
 from ..numerics import TINY
@@ -164,9 +165,11 @@ class MapDesign(Design):
         return self
 
     def save(self, path) -> Path:
-        """Write :attr:`template` (the commented template) to ``path``; returns the path."""
+        """Write :attr:`template` (the commented template) to ``path``; returns the path.
+        Written whole or not at all, and a failure names the file
+        (:func:`fabkit.io.outputs.write_atomic`)."""
         path = Path(path)
-        path.write_text(self.template, encoding="utf-8")
+        write_atomic(path, self.template.encode("utf-8"))
         return path
 
     def __iter__(self):

@@ -274,13 +274,37 @@ class OutputFolder:
         """The names of the entries here, sorted."""
         return sorted(os.listdir(self.fd))
 
+    @contextlib.contextmanager
+    def writing(self, name: str):
+        """``with folder.writing(name):`` around making entry ``name`` here: an OSError met
+        (a full disk, a file-size limit, a quota) becomes a :class:`~fabkit.errors.WriteError`
+        that names the entry's whole path. An error of a call relative to the folder's
+        descriptor (``dir_fd=``) names the bare entry at most, and a write to a descriptor
+        names nothing at all; this is where every write fabkit makes in an output folder gets
+        the name the one-line message shows.
+
+        Raises
+        ------
+        WriteError
+        """
+        try:
+            yield self.path / name
+        except OSError as exc:
+            raise WriteError(self.path / name, exc.strerror or str(exc)) from None
+
     def replace(self, src: str, dst: str, into: "OutputFolder | None" = None) -> None:
         """Rename entry ``src`` here to ``dst`` here (or in ``into``), replacing what is at
-        ``dst`` (a link there is replaced, never followed); a commit point."""
+        ``dst`` (a link there is replaced, never followed); a commit point.
+
+        Raises
+        ------
+        FolderChangedError, WriteError
+        """
         target = into if into is not None else self
         self.verify()
         target.verify()
-        os.replace(src, dst, src_dir_fd=self.fd, dst_dir_fd=target.fd)
+        with target.writing(dst):
+            os.replace(src, dst, src_dir_fd=self.fd, dst_dir_fd=target.fd)
 
     def remove(self, name: str) -> None:
         """Remove entry ``name`` (a folder with all it holds, or a file or link itself); a

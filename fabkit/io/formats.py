@@ -32,7 +32,7 @@ from ..errors import InputFileError
 from .workload import allow_large
 
 __all__ = ["MAX_DEPTH", "MAX_DIGITS", "MAX_ZIP_ENTRIES", "MAX_TOML_VALUES", "load_json",
-           "parse_xml", "open_zip", "read_zip_entry", "toml_shape", "refuse_dxf_entities",
+           "parse_xml", "open_zip", "read_zip_entry", "toml_shape", "load_toml", "refuse_dxf_entities",
            "MAX_DXF_ENTITIES", "damaged", "refuse_count"]
 
 #: Deepest nesting of arrays and objects a JSON file fabkit reads may have: FOLD, a sweep's
@@ -148,6 +148,37 @@ def toml_shape(text: str, path) -> None:
     bare = _TOML_TEXT.sub(b'""', text.encode("utf-8", "surrogatepass"))
     _shape(bare, path, MAX_DEPTH)
     refuse_count(path, "values", bare.count(b",") + bare.count(b"=") + 1, MAX_TOML_VALUES)
+
+
+def load_toml(data: bytes | str, path, *, what: str = "TOML") -> dict:
+    """A TOML document from a file's bytes (or text), its shape bounded by :func:`toml_shape`
+    before ``tomllib`` parses it: the one way fabkit parses TOML it did not write (a sweep's
+    spec, a ``--set`` value; templates add their own messages on top of the same bound).
+
+    Raises
+    ------
+    InputFileError
+        ``kind="bounds"``: as :func:`toml_shape`; ``kind="damaged"``: not UTF-8, not TOML.
+    """
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+
+    if not isinstance(data, str):
+        try:
+            data = bytes(data).decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise damaged(path, f"not {what}: not UTF-8 text (byte {exc.start:,})") from None
+    toml_shape(data, path)
+    try:
+        return tomllib.loads(data)
+    except tomllib.TOMLDecodeError as exc:
+        raise damaged(path, f"not {what} ({' '.join(str(exc).split())[:120]})") from None
+    except RecursionError:  # within the depth bound, yet past the parser's stack: damaged
+        raise damaged(path, f"not {what} (nested too deeply to parse)") from None
+    except ValueError:  # Python's own bound on an integer's digits, should the bound move
+        raise damaged(path, f"not {what} (a number of thousands of digits)") from None
 
 
 def refuse_dxf_entities(data: bytes | str, path) -> int:

@@ -247,8 +247,14 @@ class OutputLock:
             if st is None or st.st_ino != os.fstat(fd).st_ino:
                 os.close(fd)
                 continue
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
+            try:
+                with folder.writing(LOCK_NAME):  # a full disk names the lock file
+                    os.ftruncate(fd, 0)
+                    os.write(fd, f"{os.getpid()}\n".encode())
+            except BaseException:
+                os.close(fd)
+                self._close_own()
+                raise
             self.fd = fd
             return self
 

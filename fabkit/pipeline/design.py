@@ -155,15 +155,29 @@ def _failure(exc: Exception, path, outdir) -> tuple[str, str]:
     """(error line, error code) of an export that stopped with ``exc``."""
     if isinstance(exc, WriteError):
         return (f"{path}: cannot write the export to {outdir}: {exc.reason} "
-                f"({Path(exc.path).name}); nothing of it was written"), "output"
+                f"({_destination(exc.path, outdir)}); nothing of it was written"), "output"
     if isinstance(exc, FabkitError):
         return str(exc), exc.code
     if isinstance(exc, OSError):
         line = f"{path}: cannot write the export to {outdir}: {exc.strerror or exc}"
         if getattr(exc, "filename", None):
-            line += f" ({Path(exc.filename).name})"
+            line += f" ({_destination(exc.filename, outdir)})"
         return line, "output"
     return f"{path}: {internal_error_line(exc)}", "internal"
+
+
+def _destination(written, outdir) -> Path:
+    """The path a file being written will have once in place: a file of the staging folder
+    ``.NAME.staging/`` is named in the design's folder ``NAME/`` (the staging folder is removed
+    with the failure), any other as it is."""
+    written = Path(written)
+    try:
+        parts = written.relative_to(outdir.path).parts
+    except ValueError:
+        return written
+    if parts and parts[0].startswith(".") and parts[0].endswith(".staging"):
+        parts = (parts[0][1:-len(".staging")], *parts[1:])
+    return outdir.path.joinpath(*parts)
 
 
 def _load(path, settings, outdir, formats, exporters):
@@ -196,10 +210,12 @@ def _load(path, settings, outdir, formats, exporters):
     return design, digest, folder, earlier, registry, kept, removed, chosen
 
 
-def _check_written(written, design, settings, motion, fmts) -> tuple[Status, Checks]:
-    """The Checks stage: every written file checked as built, each result on its format."""
+def _check_written(written, design, settings, motion, fmts, folder
+                   ) -> tuple[Status, Checks]:
+    """The Checks stage: every written file checked as built (read through ``folder``, the
+    staging folder held), each result on its format."""
     outcome, by_format = Status.OK, {}
-    for chk in run_checks(written, design, settings, motion):
+    for chk in run_checks(written, design, settings, motion, folder):
         fmt = next((f for f, v in fmts.items() if chk.file in v.files), None)
         if fmt is None:
             continue
@@ -292,7 +308,7 @@ def _export(path, formats, outdir, settings, res: DesignResult, clock, staged, *
     outcome, checks = Status.OK, Checks({})
     if check:
         clock(Stage.CHECK)
-        outcome, checks = _check_written(written, design, resolved, motion, fmts)
+        outcome, checks = _check_written(written, design, resolved, motion, fmts, stage_dir)
     refused = [f"{f}: {v.message}" for f, v in fmts.items() if v.status is Status.REFUSED]
     if refused:  # asked for and not made: a failure with its reason, never "ok"
         outcome = Status.REFUSED

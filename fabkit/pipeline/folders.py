@@ -175,15 +175,17 @@ def carry_over(folder: OutputFolder, stage: OutputFolder, ours=None) -> list[str
 
 def _carry(src: OutputFolder, dst: OutputFolder, name: str) -> bool:
     """Entry ``name`` of ``src`` into ``dst`` (a folder entry by entry); False when it is no
-    kind of file a command writes."""
+    kind of file a command writes. A failure names the entry in ``dst`` (a WriteError)."""
     mode = src.lstat(name).st_mode
     if stat.S_ISDIR(mode):
-        os.mkdir(name, 0o777, dir_fd=dst.fd)
+        with dst.writing(name):
+            os.mkdir(name, 0o777, dir_fd=dst.fd)
         with src.folder(name, create=False) as below, dst.folder(name, create=False) as to:
             for entry in below.names():
                 _carry(below, to, entry)
     elif stat.S_ISLNK(mode):  # a link is carried as the link itself
-        os.symlink(os.readlink(name, dir_fd=src.fd), name, dir_fd=dst.fd)
+        with dst.writing(name):
+            os.symlink(os.readlink(name, dir_fd=src.fd), name, dir_fd=dst.fd)
     elif stat.S_ISREG(mode):
         try:
             os.link(name, name, src_dir_fd=src.fd, dst_dir_fd=dst.fd, follow_symlinks=False)

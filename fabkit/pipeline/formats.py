@@ -149,16 +149,17 @@ def plan_design(design, formats, settings, motion, tolerance_samples=None, expor
     return Plan(tuple(chosen), skipped, process, spec)
 
 
-def _accepts_motion(function) -> bool:
-    """Whether an exporter or checker takes the traced motion (``motion=``): one of one's own
-    written for ``(design, settings)`` is called that way, and traces what it needs itself."""
+def _accepts_motion(function, name: str = "motion") -> bool:
+    """Whether an exporter or checker takes the traced motion (``motion=``, or the keyword
+    ``name``): one of one's own written for ``(design, settings)`` is called that way, and
+    traces what it needs itself."""
     import inspect
 
     try:
         params = inspect.signature(function).parameters
     except (TypeError, ValueError):
         return False
-    return "motion" in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+    return name in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
 
 
 def _write_format(module, design, settings, motion, plans: dict, verdict_later: bool):
@@ -344,7 +345,7 @@ def _load_checker(suffix: str):
         raise UnavailableError(f"the .{suffix} check", str(exc)) from None
 
 
-def run_checks(paths, design, settings, motion=None) -> list[CheckResult]:
+def run_checks(paths, design, settings, motion=None, folder=None) -> list[CheckResult]:
     """As-built check of every written file that has a checker.
 
     The network is re-derived from the files (each checker reads them back); nothing of the
@@ -361,6 +362,9 @@ def run_checks(paths, design, settings, motion=None) -> list[CheckResult]:
     motion : TracedMotion, optional
         The design's motion, traced once: handed to every checker that takes it (the design's
         side of the comparison is not traced again; the network rebuilt from the files is).
+    folder : OutputFolder, optional
+        The held folder the files were written into (the staging folder): every checker that
+        takes it reads the files through it, never by a path looked up again.
 
     Returns
     -------
@@ -375,12 +379,13 @@ def run_checks(paths, design, settings, motion=None) -> list[CheckResult]:
             module = _load_checker(suffix)
         except UnavailableError:
             continue  # that check is not installed: nothing to say about this file
+        extra = {}
+        if motion is not None and _accepts_motion(module.check_file):
+            extra["motion"] = motion
+        if folder is not None and _accepts_motion(module.check_file, "folder"):
+            extra["folder"] = folder
         try:
-            if motion is not None and _accepts_motion(module.check_file):
-                res = dict(module.check_file(p, design=design, settings=settings,
-                                             motion=motion))
-            else:
-                res = dict(module.check_file(p, design=design, settings=settings))
+            res = dict(module.check_file(p, design=design, settings=settings, **extra))
         except FabkitError as exc:
             results.append(CheckResult(p.name, False, [], str(exc)))
             continue

@@ -31,10 +31,10 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from ..errors import BoundsError, FabkitError, InputFileError, OutputError
+from ..errors import FabkitError, InputFileError, Interrupted, OutputError
 from ..executor import LocalExecutor, Task
-from ..io.formats import load_json
-from .peer import probe_scheduler
+from ..io.formats import load_json, load_toml
+from .peer import guard_scheduler, probe_scheduler
 from ..io.inputs import read_regular
 from ..io.outputs import inside, OutputFolder, write_files
 from ..templates import MAX_FILE_BYTES, resolve_template
@@ -191,22 +191,19 @@ def read_sweep_file(path) -> SweepFile | None:
     SweepError
         A ``[sweep]`` table with a missing, unknown or malformed entry.
     """
-    if sys.version_info >= (3, 11):
-        import tomllib
-    else:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-
     path = Path(path)
     try:  # a FIFO or a device given as the template is refused here, never waited on
-        raw = tomllib.loads(read_regular(path, MAX_FILE_BYTES).decode("utf-8"))
+        data = read_regular(path, MAX_FILE_BYTES)
     except InputFileError as exc:
         if exc.kind == "missing" or not os.path.exists(path):
             return None  # a bundled template's name: the template loader resolves it
         raise
-    except BoundsError:
-        raise
-    except (OSError, ValueError, RecursionError):  # TOMLDecodeError, digits, depth
-        return None  # not ours: the template loader reports it properly
+    try:  # its depth, digits and values bounded before the parser runs
+        raw = load_toml(data, path)
+    except InputFileError as exc:
+        if exc.kind == "bounds":
+            raise
+        return None  # not TOML: not ours; the template loader reports it properly
     sec = raw.get("sweep")
     if not isinstance(sec, dict):
         return None
@@ -294,30 +291,45 @@ def _check_outdir(outdir, spec: SweepSpec) -> OutputFolder:
 
 
 def _connect(scheduler, timeout: float):
-    """A dask.distributed Client for an address (or the Client given)."""
+    """A dask.distributed Client for an address (or the Client given), whether this sweep
+    owns it, and the :class:`~fabkit.sweep.peer.PeerGuard` it talks through (None for a
+    Client given or an address not ``tcp://``)."""
     try:
         from distributed import Client
     except ImportError:  # an optional dependency: local processes need nothing more
         raise FabkitError("running on a cluster (--scheduler) needs dask.distributed, which "
                           "this installation lacks: pip install 'fabkit[cluster]'") from None
     if isinstance(scheduler, Client):
-        return scheduler, False
-    # dask bounds the connection, not the handshake after it: read the scheduler's first
-    # message ourselves, within the timeout and a bound on its size
+        return scheduler, False, None
+    # dask bounds the connection, not the messages after it: the scheduler's first message
+    # is read here, within the timeout and a bound on its size, and every message after it by
+    # the guard dask connects through
     probe_scheduler(str(scheduler), timeout)
+    guard = guard_scheduler(str(scheduler), timeout)
     try:
-        client = Client(str(scheduler), timeout=timeout)
+        client = Client(guard.address if guard else str(scheduler), timeout=timeout)
     except (OSError, TimeoutError, ValueError) as exc:
+        _refused_by(guard)
         raise FabkitError(f"cannot reach the dask scheduler at {scheduler}: "
                           f"{type(exc).__name__}") from None
     try:
         client.wait_for_workers(1, timeout=timeout)
     except (OSError, TimeoutError) as exc:
         client.close()
+        _refused_by(guard)
         raise FabkitError(f"the dask scheduler at {scheduler} has no workers (waited "
                           f"{timeout:g} s: {type(exc).__name__}); start some with "
                           f"`dask worker {scheduler}`") from None
-    return client, True
+    return client, True, guard
+
+
+def _refused_by(guard) -> None:
+    """Close ``guard``; raise its one line when it cut the scheduler off."""
+    if guard is None:
+        return
+    guard.close()
+    if guard.failure is not None:
+        raise FabkitError(f"{guard.failure} (check the address given to --scheduler)")
 
 
 def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: int | None = 1,
@@ -396,17 +408,28 @@ def sweep(template, vary, measure=None, *, outdir=None, scheduler=None, jobs: in
         raise SweepError(f"jobs must be a positive integer or None, got {jobs!r}")
     if chunk_size is not None and (isinstance(chunk_size, bool) or int(chunk_size) < 1):
         raise SweepError(f"chunk_size must be a positive integer, got {chunk_size!r}")
-    client, own_client = (None, False)
+    client, own_client, guard = (None, False, None)
     if scheduler is not None:
-        client, own_client = _connect(scheduler, connect_timeout)
+        client, own_client, guard = _connect(scheduler, connect_timeout)
     try:
-        return _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout)
+        return _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout,
+                    scheduler)
+    except BaseException as exc:
+        if guard is not None and guard.failure is not None and \
+                not isinstance(exc, (KeyboardInterrupt, SystemExit, Interrupted)):
+            # the guard cut the scheduler off: dask's own error (a closed connection, its
+            # futures cancelled) says less than the guard's line
+            _refused_by(guard)
+        raise
     finally:
         if own_client:
             client.close()
+        if guard is not None:
+            guard.close()
 
 
-def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) -> SweepResult:
+def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout,
+         scheduler=None) -> SweepResult:
     done: dict = {}
     damaged: list = []
     folder = None
@@ -419,7 +442,9 @@ def _run(spec, out, client, jobs, chunk_size, plots, progress, point_timeout) ->
     todo = [i for i in range(spec.size) if i not in done]
     if client is not None:
         workers = max(1, sum(client.nthreads().values()))
-        where = str(client.scheduler.address)
+        # the scheduler's own address, not the guard's dask connects to
+        where = (client.scheduler.address if not isinstance(scheduler, str) else scheduler
+                 if "://" in scheduler else f"tcp://{scheduler}")
     else:
         workers = (os.cpu_count() or 1) if jobs is None else int(jobs)
         workers = max(1, min(workers, len(todo) or 1))

@@ -14,13 +14,14 @@ half-written file is ever left behind.
 from __future__ import annotations
 
 import contextlib
-
 import importlib
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ArgumentTypeError, FabkitError, OutputError, UnavailableError
-from ..io.outputs import LOCK_NAME, output_folder, OutputLock, write_atomic, write_files
+from ..io.outputs import LOCK_NAME, OutputFolder, OutputLock, write_atomic, write_files
 from ..templates import Design
 
 __all__ = ["EXPORTERS", "ExportResult", "get_exporter", "format_process", "applies",
@@ -163,7 +164,10 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
     design : Design
     fmt : str
         A key of :data:`EXPORTERS`.
-    outdir : path
+    outdir : path or OutputFolder
+        The folder to write into: opened once, before the work, and held
+        (:class:`~fabkit.io.folder.OutputFolder`); the files, the lock and the look for an
+        export's report go through that handle, never through a path looked up again.
     **settings : dict
         Overrides nested by section, as ``--set`` gives them (``laser={"kerf": 0.2}``); every
         section and key is checked against :mod:`fabkit.io.schema`.
@@ -181,21 +185,23 @@ def export(design, fmt: str, outdir, **settings) -> tuple[list[Path], dict]:
         ``design`` is not a Design.
     OutputError
         ``outdir`` is not a folder path, or cannot be created or written.
+    FolderChangedError
+        The folder was moved, removed or replaced while the files were computed.
     """
     check_export_settings(settings)  # a misspelt section (lazer=...) must not pass unnoticed
     if not isinstance(design, Design):
         raise ArgumentTypeError("design", "must be a fabkit Design (fabkit.load_template), got "
                                           f"{type(design).__name__}")
     module = get_exporter(fmt)
-    outdir = output_folder(outdir, "outdir")  # a folder path that can be written, before work
-    refuse_export_folder(outdir)
-    result: ExportResult = module.export_design(design, settings)
-    with export_locks(outdir):
-        refuse_export_folder(outdir)  # it may have become one while we computed
-        return write_outputs(result.files, outdir), result.report
+    with OutputFolder.held(outdir, "outdir") as held:  # one handle, opened before the work
+        refuse_export_folder(held)
+        result: ExportResult = module.export_design(design, settings)
+        with export_locks(held):
+            refuse_export_folder(held)  # it may have become one while we computed
+            return write_outputs(result.files, held), result.report
 
 
-def refuse_export_folder(outdir: Path) -> None:
+def refuse_export_folder(outdir) -> None:
     """Refuse a folder that holds the kit and report of a ``fabkit export``.
 
     One format written there by hand would leave a folder whose report describes other files
@@ -207,7 +213,13 @@ def refuse_export_folder(outdir: Path) -> None:
     OutputError
         ``outdir`` holds ``report.json``.
     """
-    if (outdir / "report.json").is_file():
+    if isinstance(outdir, OutputFolder):  # the folder held: its entry, never through a link
+        st = outdir.lstat("report.json") if outdir.identity is not None or \
+            os.path.lexists(outdir.path) else None
+        found = st is not None and stat.S_ISREG(st.st_mode)
+    else:
+        found = (Path(outdir) / "report.json").is_file()
+    if found:
         raise OutputError(outdir, "holds the kit and report of a `fabkit export` (report.json): "
                                   "write into another folder, or export again with `fabkit "
                                   "export NAME --to FORMAT --set ...` so that the report "
@@ -215,9 +227,10 @@ def refuse_export_folder(outdir: Path) -> None:
 
 
 @contextlib.contextmanager
-def export_locks(outdir: Path):
-    """Hold the lock of ``outdir`` (created if need be) and, when ``fabkit export`` may be
-    writing into the folder above it (its lock file is there), that folder's lock too.
+def export_locks(outdir):
+    """Hold the lock of ``outdir`` (a path or a held :class:`~fabkit.io.folder.OutputFolder`;
+    created if need be) and, when ``fabkit export`` may be writing into the folder above it
+    (its lock file is there), that folder's lock too.
 
     Raises
     ------
@@ -225,12 +238,10 @@ def export_locks(outdir: Path):
         Another export holds either lock.
     """
     with contextlib.ExitStack() as stack:
-        parent = outdir.resolve().parent
-        if (parent / LOCK_NAME).exists():
+        held = stack.enter_context(OutputFolder.held(outdir, "outdir"))
+        parent = Path(os.path.abspath(held.path)).parent
+        if os.path.lexists(parent / LOCK_NAME):
             stack.enter_context(OutputLock(parent))
-        try:
-            outdir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise OutputError(outdir, f"cannot be created ({exc.strerror})") from None
-        stack.enter_context(OutputLock(outdir))
+        held.fd  # noqa: B018 - created (with its parents) and opened now
+        stack.enter_context(OutputLock(held))
         yield
