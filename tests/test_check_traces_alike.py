@@ -94,8 +94,6 @@ def test_the_bisection_measures_the_steps_it_makes():
     """The clearance samples are bisected until no joint moves more than the limit between two
     of them; the bisection measures only the steps next to new samples, and what it returns
     keeps the limit everywhere, as measured on the whole sampling afterwards."""
-    import numpy as np
-
     from fabkit.check.clearance import fine_motion, joint_steps
 
     design = load_template(TEMPLATES / "super_stable_chain.toml")
