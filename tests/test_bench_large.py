@@ -117,7 +117,7 @@ def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch, capsys):
 
 def test_certified_points_record_proved_counts_and_thinned_traces():
     pts = large.certified_points(counts=(100, 1000), traces=(50, 200), projected=100, bundled=20,
-                                 budget=60, repeats=1)
+                                 memory=300, budget=60, repeats=1)
     for p in pts["counts"]:
         assert p["outcome"] == "ok" and p["counts"] == [4, 3, 1, 0] and not p["ambiguous"]
         assert p["certificate"] == "structure"
@@ -135,14 +135,20 @@ def test_certified_points_record_proved_counts_and_thinned_traces():
     assert {"super_stable", "fourbar", "chaotic"} <= names
     counted = [p for p in pts["bundled"] if p["outcome"] == "ok"]
     assert counted and not any(p["ambiguous"] for p in counted)
+    (mem,) = pts["memory"]  # in a process of its own, which reports its peak memory
+    assert mem["outcome"] == "ok" and mem["status"] == "finished" and mem["modules"] == 300
+    assert mem["configurations"] == 101 and mem["max_edge_error"] < 1e-10
+    assert mem["d_end"] == pytest.approx(3 ** 0.5, abs=1e-9)  # the far end keeps D1* = √3
+    assert 10 < mem["peak_rss_mb"] < 10_000 and mem["time_s"] > 0
     goals = large.certified_targets(pts)
     assert goals["no_ambiguous_chain"]["met"]
     assert not goals["count_modes_100000_mirrored"]["met"]  # not measured at 100 000 here
+    assert not goals["trace_memory_1000000"]["met"]  # nor at a million
 
 
-def _cert(counts=None, info=None, traces=None, projected=None):
+def _cert(counts=None, info=None, traces=None, projected=None, memory=None):
     return {"counts": counts or [], "info": info or [], "traces": traces or [],
-            "projected": projected or [], "bundled": []}
+            "projected": projected or [], "bundled": [], "memory": memory or []}
 
 
 def test_certified_targets_judge_the_figures():
@@ -155,7 +161,9 @@ def test_certified_targets_judge_the_figures():
         projected=[{"method": "constructive", "outcome": "ok", "time_s": 0.5,
                     "status": "finished"},
                    {"method": "projected", "outcome": "ok", "time_s": 1.2, "status": "finished",
-                    "stats": {}}])
+                    "stats": {}}],
+        memory=[{"modules": 1_000_000, "outcome": "ok", "time_s": 40.0, "peak_rss_mb": 900.0,
+                 "status": "finished"}])
     goals = large.certified_targets(good)
     assert all(g["met"] for g in goals.values()), goals
     assert goals["constructive_trace_100000"]["ratio"] == pytest.approx(11.0)
@@ -164,7 +172,8 @@ def test_certified_targets_judge_the_figures():
         counts=[{**good["counts"][0], "time_s": 6.0}],
         info=[{**good["info"][0], "ambiguous": True}],
         traces=[{**good["traces"][0]}, {**good["traces"][1], "time_s": 6.5}],
-        projected=[good["projected"][0], {**good["projected"][1], "time_s": 1.6}])
+        projected=[good["projected"][0], {**good["projected"][1], "time_s": 1.6}],
+        memory=[{**good["memory"][0], "peak_rss_mb": 1100.0}])
     bad["counts"].append({"modules": 10, "outcome": "ok", "ambiguous": True})
     goals = large.certified_targets(bad)
     assert not any(g["met"] for g in goals.values())

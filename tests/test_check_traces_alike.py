@@ -56,3 +56,51 @@ def test_retraced_with_the_template_options_only_it_takes_another_branch(and_gat
     cmp = compare_motion(design, design.network, MAP_RTOL, reference)
     assert not cmp["ok"]
     assert cmp["worst"] > OTHER_BRANCH
+
+
+@pytest.mark.parametrize("name", ["super_stable_chain", "and_gate", "fourbar_chain"])
+def test_the_clearance_sampling_starts_from_the_compared_trace(name):
+    """The clearance check samples the rebuilt network's motion from the trace the comparison
+    made (not a second trace of the same network): the same samples, bit for bit, as tracing
+    again; a trace of another method is not taken for it."""
+    import dataclasses
+
+    import numpy as np
+
+    from fabkit.check.clearance import fine_motion
+    from fabkit.model.network import Network
+
+    design = load_template(TEMPLATES / f"{name}.toml")
+    needs = trace_needs({"laser"}, design)
+    kit, reference = design_window(design, None, None, trace_motion(design, **needs))
+    net = design.network
+    built = Network(net.nodes.copy(), net.edges, net.ports)  # as a check rebuilds it
+    cmp = compare_motion(kit, built, MAP_RTOL, reference)
+    assert cmp["ok"] and cmp["trajectory"].network is built
+    again = fine_motion(built, kit.motion, 10.0, 0.5, floor=2.0)
+    reused = fine_motion(built, kit.motion, 10.0, 0.5, floor=2.0, traced=cmp["trajectory"])
+    assert np.array_equal(again.positions, reused.positions)
+    assert (again.max_step, again.status) == (reused.max_step, reused.status)
+    other = "projected" if cmp["trajectory"].method == "constructive" else "constructive"
+    asked = dataclasses.replace(kit.motion, method=other)
+    if other == "constructive":
+        return  # a network without a construction order has no constructive trace to compare
+    mine = fine_motion(built, asked, 10.0, 0.5, floor=2.0, traced=cmp["trajectory"])
+    fresh = fine_motion(built, asked, 10.0, 0.5, floor=2.0)
+    assert np.array_equal(mine.positions, fresh.positions)
+
+
+def test_the_bisection_measures_the_steps_it_makes():
+    """The clearance samples are bisected until no joint moves more than the limit between two
+    of them; the bisection measures only the steps next to new samples, and what it returns
+    keeps the limit everywhere, as measured on the whole sampling afterwards."""
+    from fabkit.check.clearance import fine_motion, joint_steps
+
+    design = load_template(TEMPLATES / "super_stable_chain.toml")
+    fine = fine_motion(design.network, design.motion, 30.0, 0.02, floor=1.0)
+    steps = joint_steps(fine.positions)
+    assert fine.n_samples > 10_000
+    assert steps.max() <= 0.02 and fine.max_step == steps.max()
+    # halving any step would not have been needed: every pair of neighbouring steps of one
+    # bisected interval together exceed the limit
+    assert (steps[:-1] + steps[1:] > 0.02).mean() > 0.5

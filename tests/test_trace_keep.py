@@ -145,3 +145,52 @@ def test_projected_holds_the_still_far_end_of_a_long_chain():
         g = traj.positions[:, [0, 4]]  # the gauge edge near the drive: held still
         np.testing.assert_allclose(g, np.broadcast_to(net.nodes[[0, 4]], g.shape), atol=1e-12)
     assert steps[2000] <= steps[100] + 10
+
+
+@pytest.mark.parametrize("method", ["constructive", "projected"])
+def test_ports_chooses_the_distances_kept_bit_for_bit(method):
+    """A trace that keeps some ports' distances reports, for them, what one that keeps every
+    port, or every configuration's positions (keep=1), reports: the same numbers, bit for bit."""
+    net = chain(40)
+    every = fabkit.trace(net, "d1", to=1.2, method=method, keep="ports")
+    some = fabkit.trace(net, "d1", to=1.2, method=method, keep="ports", ports=["d41", "d1", "d7"])
+    frames = fabkit.trace(net, "d1", to=1.2, method=method, keep=1)
+    assert str(some.status) == str(every.status) == str(frames.status) == "finished"
+    assert some.message == every.message and some.events == every.events
+    for other in (every, frames):
+        for field in ("drive", "arclength", "edge_error"):
+            assert np.array_equal(getattr(some, field), getattr(other, field))
+        assert np.array_equal(some.positions, other.positions[other.kept.searchsorted(some.kept)])
+    assert list(some.port_values) == ["d41", "d1", "d7"] and len(every.port_values) == 41
+    for name in ("d1", "d7", "d41"):
+        assert np.array_equal(some.distance(name), every.distance(name))
+        assert np.array_equal(some.distance(name), frames.distance(name))
+    with pytest.raises(KinematicsError, match="kept the distances of 3 ports"):
+        some.distance("d2")
+
+
+def test_ports_are_checked():
+    net = chain(5)
+    with pytest.raises(KinematicsError, match="'d9', which is not a port"):
+        fabkit.trace(net, "d1", to=1.2, keep="ports", ports=["d1", "d9"])
+    with pytest.raises(KinematicsError, match="keep='all' keeps every configuration"):
+        fabkit.trace(net, "d1", to=1.2, ports=["d1"])
+    with pytest.raises(TypeError, match="list of port names"):
+        fabkit.trace(net, "d1", to=1.2, keep="ports", ports="d1")
+
+
+def test_a_chain_keeps_its_ports_as_one_array():
+    """Every port of a chain kept: one array with a row per port, looked up by the chain's own
+    port table (no dict of a name and an array per module)."""
+    from fabkit.kinematics.record import PortValues
+
+    net = chain(300)
+    traj = fabkit.trace(net, "d1", to=1.2, keep="ports", samples=11)
+    values = traj.port_values
+    assert isinstance(values, PortValues) and values.values.shape == (301, 11)
+    assert values.names is net.ports and "d301" in values and "d302" not in values
+    i, j = net.ports["d150"]
+    assert np.array_equal(values["d150"], traj.distance("d150"))
+    np.testing.assert_allclose(values["d150"][[0, -1]],
+                               np.linalg.norm(traj.positions[:, i] - traj.positions[:, j],
+                                              axis=-1), rtol=1e-13)

@@ -422,9 +422,55 @@ def _info_row(k: int, budget: float, repeats: int) -> dict:
                                  out.splitlines() if line.strip().startswith("certificate")), "")}
 
 
+#: What a child process of :func:`_memory_row` runs: the chain built and traced keeping its end
+#: ports, then one line of JSON with what the trace reports and the process's peak memory.
+_MEMORY_CHILD = """
+import json, resource, sys
+from fabkit.bench.large import mirrored_chain
+from fabkit.bench.workprecision import default_chain_target
+from fabkit.kinematics import trace
+k = int(sys.argv[1])
+net = mirrored_chain(k)
+traj = trace(net, "d1", to=default_chain_target(), method="constructive", keep="ports",
+             ports=["d1", f"d{k + 1}"])
+print(json.dumps({"status": str(traj.status), "configurations": int(traj.n_steps),
+                  "max_edge_error": float(traj.max_edge_error),
+                  "d_end": float(traj.distance(f"d{k + 1}")[-1]),
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def _memory_row(k: int, budget: float) -> dict:
+    """The k-module mirrored chain built and traced (``constructive``, 101 samples, to
+    D₂* + 1e-12, ``keep="ports"`` with its two end ports) in a fresh process: its peak resident
+    memory (``ru_maxrss`` of that process, MB) and CPU time; the kernel stops it past ``budget``
+    CPU seconds."""
+    import json
+    import subprocess
+    import sys
+    import time
+
+    allowance = budget + BUDGET_SLACK
+    c0, w0 = child_cpu_seconds(), time.perf_counter()
+    try:
+        res = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, str(int(k))],
+                             capture_output=True, text=True, timeout=WALL_FACTOR * allowance,
+                             preexec_fn=_limit_cpu_of_child(allowance))
+    except subprocess.TimeoutExpired:
+        return {"modules": k, "outcome": STOPPED, "budget_s": budget, "time_s": None,
+                "message": f"no result within {WALL_FACTOR * allowance:g} s of wall time"}
+    row = {"modules": k, "nodes": 3 * k + 2, "budget_s": budget,
+           **timing([child_cpu_seconds() - c0], {"wall_times": [time.perf_counter() - w0]})}
+    if res.returncode != 0:
+        return {**row, "outcome": STOPPED if res.returncode < 0 else "error",
+                "message": (res.stderr.strip().splitlines() or [f"exit {res.returncode}"])[-1]}
+    return {**row, "outcome": "ok", **json.loads(res.stdout.strip().splitlines()[-1])}
+
+
 def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
                      projected: int | None = 10_000, bundled: int | None = 1000,
-                     budget: float = 60.0, repeats: int = 3, progress=None) -> dict:
+                     memory: int | None = None, budget: float = 60.0, repeats: int = 3,
+                     progress=None) -> dict:
     """The measurements of exact counts and linear traces on the mirrored super-stable chain.
 
     Parameters
@@ -439,6 +485,9 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
         Chain size on which ``projected`` and ``constructive`` are timed in one run.
     bundled : int or None
         Every bundled module chained this many times (plain and mirrored), counted.
+    memory : int or None
+        Chain size built and traced in a process of its own, keeping its end ports, for its
+        peak memory (:func:`_memory_row`).
     budget : float
         CPU seconds per measurement (each in a child process, single-threaded BLAS; every repeat
         a first call: the network remembers no construction plan).
@@ -446,10 +495,11 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     Returns
     -------
     dict
-        ``counts``, ``info``, ``traces``, ``projected``, ``bundled``: lists of rows.
+        ``counts``, ``info``, ``traces``, ``projected``, ``bundled``, ``memory``: lists of
+        rows.
     """
     to = default_chain_target()
-    out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": []}
+    out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": [], "memory": []}
 
     def note(kind, pt):
         out[kind].append(pt)
@@ -476,6 +526,8 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
             pt = _trace_point(net, "d1", to, method, budget, repeats, cold=True)
             pt["modules"] = int(projected)
             note("projected", pt)
+    if memory:
+        note("memory", _memory_row(int(memory), budget))
     if bundled:
         for name in bundled_modules():
             for mirror in (None, "alternate"):
@@ -536,6 +588,15 @@ def certified_targets(points: dict) -> dict:
         "statuses": [c.get("status"), q.get("status")] if c and q else None,
         "stats": q.get("stats") if q else None,
         "met": bool(ratio is not None and ratio <= 3.0 and c.get("status") == q.get("status"))}
+    mem = next((p for p in points.get("memory", []) if p.get("outcome") == "ok"), None)
+    goals["trace_memory_1000000"] = {
+        "target": "the 1 000 000-module mirrored chain built and traced (constructive, keeping "
+                  "its end ports) in under 1 GB of resident memory",
+        "peak_rss_mb": mem.get("peak_rss_mb") if mem else None,
+        "time_s": mem["time_s"] if mem else None, "wall_s": mem.get("wall_s") if mem else None,
+        "status": mem.get("status") if mem else None,
+        "met": bool(mem and mem["modules"] >= 1_000_000 and mem["peak_rss_mb"] < 1024
+                    and mem.get("status") == "finished")}
     counted = [p for p in points.get("counts", []) + points.get("bundled", [])
                if p.get("outcome") == "ok"]
     goals["no_ambiguous_chain"] = {
@@ -551,7 +612,8 @@ def certified_targets(points: dict) -> dict:
 def certified_line(kind: str, p: dict) -> str:
     """One line of progress for a row of :func:`certified_points`."""
     t = clock_text(p)
-    what = {"counts": "count_modes", "info": "fabkit info", "bundled": "count_modes"}.get(kind)
+    what = {"counts": "count_modes", "info": "fabkit info", "bundled": "count_modes",
+            "memory": "trace, peak memory"}.get(kind)
     if kind == "traces":
         what = f"constructive keep={p['keep']}"
     elif kind == "projected":
@@ -563,5 +625,7 @@ def certified_line(kind: str, p: dict) -> str:
             " AMBIGUOUS" if p.get("ambiguous") else "")
     if p.get("status"):
         tail = f"  {p['status']}  edge {p.get('max_edge_error', float('nan')):.1e}"
+    if p.get("peak_rss_mb") is not None:
+        tail += f"  peak {p['peak_rss_mb']:.0f} MB"
     return (f"  {name:<28} {p.get('modules', '-'):>7} modules  {what:<24} "
             f"{p.get('outcome', ''):<12} {t:>26}{tail}")

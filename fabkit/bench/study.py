@@ -48,7 +48,8 @@ MODES = {
                        "chains": (10, 100, 1000, 10000),
                        "lattice": (3, 10, 20, 30, 50, 70, 100),
                        "certified": {"counts": (10000, 100000), "traces": (10000, 100000),
-                                     "projected": 10000, "bundled": 100000}},
+                                     "projected": 10000, "bundled": 100000,
+                                     "memory": 1_000_000}},
              # k = 100: the 10⁴-cell lattice (one sparse LP a build takes about a minute)
              "levels": {"sizes": (3, 10, 30, 100), "builds": 10}},
 }

@@ -545,7 +545,8 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
     out.append(_screws_close(edges, layer, s, thickness))
     # a chain past float64's drive resolution: steps up to the clearance are accepted there and
     # the gap required grows by the excess
-    fine = fine_motion(built, m, scale, 0.25 * s.clearance, floor=s.clearance)
+    fine = fine_motion(built, m, scale, 0.25 * s.clearance, floor=s.clearance,
+                       traced=cmp["trajectory"])
     head = int(math.ceil(s.screw.head_height / thickness - HEAD_LAYERS_SLACK))
     gaps = same_layer_gaps(edges, layer, fine.positions, measured["widths"],
                            columns=_columns(edges, layer, head, 0.5 * s.screw.head_diameter,

@@ -75,7 +75,9 @@ def compare_motion(design, built, rtol: float, reference) -> dict:
     dict
         ``ok``, ``worst`` (largest difference of a port distance at the same step, design
         units), ``port`` (where), ``limit``, ``same_end`` (both traces end alike, with as many
-        steps), ``status`` (the rebuilt network's).
+        steps), ``status`` (the rebuilt network's), ``trajectory`` (the rebuilt network's
+        motion, for the clearance sampling to start from:
+        :func:`fabkit.check.clearance.fine_motion`'s ``traced``).
     """
     net, m = design.network, design.motion
     ref = reference
@@ -91,4 +93,4 @@ def compare_motion(design, built, rtol: float, reference) -> dict:
     limit = rtol * net.size
     same_end = ref.n_steps == got.n_steps and ref.status is got.status
     return {"ok": worst <= limit and same_end, "worst": worst, "port": port, "limit": limit,
-            "same_end": same_end, "status": str(got.status)}
+            "same_end": same_end, "status": str(got.status), "trajectory": got}

@@ -636,7 +636,8 @@ def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[Ch
                      f"largest port-distance difference (design units, at {cmp['port']}) "
                      f"between the design's motion and the rebuilt network's; the rebuilt one "
                      f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
-    fine = fine_motion(built, m, s.scale, 0.25 * s.clearance, floor=s.clearance)
+    fine = fine_motion(built, m, s.scale, 0.25 * s.clearance, floor=s.clearance,
+                       traced=cmp["trajectory"])
     # widths and cap radii as read back; caps and collars above and below every stack
     gaps = same_layer_gaps(net.edges, layer, fine.positions, measured["width"],
                            columns=_pin_columns(net.edges, layer, measured["band"],

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import islice
+
 from ..errors import ConstructionError
 from ..templates import with_settings
 from ..kinematics.constructive import cached_plan
@@ -58,7 +60,8 @@ def describe(design, rank_method: str = "auto") -> str:
                      f"{m.smallest_nonzero:.2e}; {m.method})")
         if m.certificate != "numeric":
             lines.append(f"  cross-check   numeric rank {m.cross_check}")
-    ports = ", ".join(f"{k}={v}" for k, v in list(net.ports.items())[:12])
+    # the first twelve read one by one: a chain's million ports are not listed to show twelve
+    ports = ", ".join(f"{k}={net.ports[k]}" for k in islice(net.ports, 12))
     more = f" ... ({len(net.ports)} ports)" if len(net.ports) > 12 else ""
     lines.append(f"  ports         {ports}{more}")
     drive = design.motion.drive

@@ -610,13 +610,18 @@ def _chain_at_reference(base, repeat, kinds, flags, dim, d_in) -> Network | None
             local[:m.n_nodes] = m.nodes
         edges[e_offset[members][:, None] + np.arange(m.n_edges)] = idx[:, m.edges]
         index.append(idx)
+    ports = ChainPorts(np.concatenate([in_pair[:1], out_pair]))
+    # what the network does not keep goes before it copies what it keeps (the peak of a
+    # million-module build)
+    del val, ptr, out_pair, in_pair, offset, e_counts, e_offset, idx, rows
     src = np.stack([kk["src_ref"] for kk in info])[kid]
     dst = np.stack([kk["dst_ref"] for kk in info])[kid]
     owner = np.repeat(np.arange(k), counts)
+    del counts
     fl = np.asarray(flags, dtype=bool)
     nodes = _place_chain_2d(src, dst, fl, local, owner) if dim == 2 else \
         _place_chain_3d(src, dst, fl, local, owner)
-    ports = ChainPorts(np.concatenate([in_pair[:1], out_pair]))
+    del src, dst, owner, local
     return Network(nodes, edges, ports,
                    assembly=Assembly(tuple(modules), kid, tuple(index), fl, d_in))
 
@@ -665,10 +670,18 @@ def _place_chain_2d(src, dst, flags, local, owner) -> np.ndarray:
     prev[0] = 1.0
     prev[1:] = gr[:-1]
     gt = np.cumsum(prev * tt)
-    z = local[:, 0] + 1j * local[:, 1]
-    z = np.where(gm[owner], np.conj(z), z)
-    out = gr[owner] * z + gt[owner]
-    return np.column_stack([out.real, out.imag])
+    # in place: three temporaries of a million-module chain's nodes, not six
+    # (the operands in the order of `gr * z + gt`: a vectorised complex product need not
+    # round the same with its operands swapped)
+    z = 1j * local[:, 1]
+    np.add(local[:, 0], z, out=z)
+    np.conjugate(z, out=z, where=gm[owner])
+    np.multiply(gr[owner], z, out=z)
+    np.add(z, gt[owner], out=z)
+    out = np.empty((z.size, 2))
+    out[:, 0] = z.real
+    out[:, 1] = z.imag
+    return out
 
 
 def _place_chain_3d(src, dst, flags, local, owner) -> np.ndarray:

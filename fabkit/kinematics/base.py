@@ -117,6 +117,9 @@ class Problem:
     keep : str or int
         What the trajectory keeps of its configurations: ``"all"``, ``"ports"`` or every k-th
         (see :mod:`.record`).
+    ports : tuple of str or None
+        With ``keep`` other than ``"all"``: the ports whose distances are kept at every
+        configuration (None: every port).
     requested : float or None
         The caller's target when it lies beyond the length of all bars (no configuration
         reaches it); the trajectory reports this one.
@@ -131,6 +134,7 @@ class Problem:
     gauge: tuple[int, ...]
     keep: str | int = "all"
     requested: float | None = None
+    ports: tuple | None = None
 
     @property
     def dim(self) -> int:
@@ -299,10 +303,11 @@ def align_to_gauge(positions, reference, gauge) -> np.ndarray:
 
 
 def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
-                 keep="all") -> Problem:
+                 keep="all", ports=None) -> Problem:
     """Validate a tracing request and build the :class:`Problem` every method solves."""
     keep = keep_rule(keep)
     checked_network("net", net)
+    ports = _kept_ports(net, keep, ports)
     pair, name = _resolve_port(net, drive)
     target = arguments.real("to", to, positive=True)
     # No two nodes are farther apart than the length of all bars: a target beyond that is traced
@@ -351,7 +356,27 @@ def make_problem(net: Network, drive, to, *, start=None, hold=(), gauge=None,
         if any(not 0 <= v < net.n_nodes for v in gauge) or len(set(gauge)) != len(gauge):
             raise KinematicsError(f"`gauge` must name distinct nodes of the network, got {gauge}")
     return Problem(network=net, work=work, start=np.array(x0), drive=pair, drive_name=name,
-                   target=target, gauge=gauge, keep=keep, requested=requested)
+                   target=target, gauge=gauge, keep=keep, requested=requested, ports=ports)
+
+
+def _kept_ports(net: Network, keep, ports) -> tuple | None:
+    """The ``ports`` of a trace, checked: names of the network's ports, given with a ``keep``
+    that keeps port distances."""
+    if ports is None:
+        return None
+    if isinstance(ports, str) or not isinstance(ports, (list, tuple)):
+        raise ArgumentTypeError("ports", f"must be a list of port names, got "
+                                         f"{type(ports).__name__}")
+    if keep == "all":
+        raise KinematicsError("`ports` chooses the port distances a trace keeps with "
+                              "keep='ports' or keep=k; keep='all' keeps every configuration")
+    for name in ports:
+        if not isinstance(name, str) or name not in net.ports:
+            raise KinematicsError(f"`ports` names {name!r:.40}, which is not a port of the "
+                                  f"network ({len(net.ports)} ports: d1, ...)"
+                                  if isinstance(name, str) else
+                                  f"`ports` must hold port names, got {name!r:.40}")
+    return tuple(dict.fromkeys(ports))
 
 
 def check_option(method: str, name: str, value) -> None:

@@ -18,7 +18,7 @@ from ..model.construction import (ON_AXIS_RTOL, ConstructionPlan, cached_plan,  
 from ..errors import KinematicsError
 from ..numerics import COLLINEAR_PARENTS_RTOL, rigid_fit
 from .base import Mark, Method, Solved
-from .record import Record, kept_indices
+from .record import kept_indices, port_table, PortValues, Record
 from ..status import Status
 from .trajectory import EventKind
 
@@ -287,7 +287,8 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
     After each block the nodes it placed are moved to the gauge frame (one rigid fit per drive
     value, from the gauge nodes, which the first block places), their steps add to the
     arclength and the kept configurations take their positions; the edges and ports they
-    complete are measured.
+    complete are measured. The plan's radii, signs and rows are made Python numbers a block at
+    a time (the whole plan as lists took 0.9 GB for a million modules).
 
     Returns
     -------
@@ -303,83 +304,43 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
     ref = plan.reference
     n, d = ref.shape
     a, b = plan.seed
-    order, parents, sq, signs = plan.lists
-    m = len(order)
+    m = plan.order.size
     pos = np.empty(n, dtype=np.int64)
     pos[[a, b]] = 0, 1
     pos[plan.order] = np.arange(2, m + 2)
+    gauge = list(p.gauge)
+    ends = _block_ends(plan, max(BLOCK, int(pos[gauge].max()) - 1))
+    run_ends = np.searchsorted(plan.run_table[:, 1], ends, side="right") if d == 2 else None
+    block_end = np.array(ends, dtype=np.int64) + 2  # in positions
+    edges, rest = p.network.edges, p.network.edge_lengths
+    names, pairs = port_table(p.network, p.ports)
+    width = _ring_width(plan, pos, block_end, (edges, pairs))
+    row = (pos % width).astype(np.int32 if n < 2 ** 31 else np.int64)
     at = np.empty(n, dtype=np.int64)  # the node at each position
     at[pos] = np.arange(n)
-    # blocks of placements, ending where a run of placements ends (2D) and not before the
-    # gauge nodes are placed (their fit moves every block to the gauge frame)
-    gauge = list(p.gauge)
-    first = max(BLOCK, int(pos[gauge].max()) - 1)
-    if d == 2:
-        run_stop = plan.run_table[:, 1]
-        ends, last = [], 0
-        for want in list(range(first, m, BLOCK)) + [m]:
-            i = int(np.searchsorted(run_stop, max(want, last + 1)))
-            stop = int(run_stop[min(i, run_stop.size - 1)]) if run_stop.size else 0
-            if stop > last:
-                ends.append(stop)
-                last = stop
-        ends = ends or [0]
-        run_ends = np.searchsorted(run_stop, ends, side="right")
-    else:
-        ends = sorted(set(list(range(first, m, BLOCK)) + [m]))
-    block_end = np.array(ends, dtype=np.int64) + 2  # in positions
-    # how long each node is needed: its children, the edges and the ports it closes
-    edges, rest = p.network.edges, p.network.edge_lengths
-    names = list(p.network.ports)
-    pairs = np.array([p.network.ports[x] for x in names], dtype=np.int64).reshape(-1, 2)
-    need = pos.copy()
-    has = plan.parents >= 0
-    np.maximum.at(need, plan.parents[has],
-                  np.broadcast_to(pos[plan.order][:, None], plan.parents.shape)[has])
-    for pr in (edges, pairs):
-        later = pos[pr].max(axis=1)
-        np.maximum.at(need, pr[:, 0], later)
-        np.maximum.at(need, pr[:, 1], later)
-    alive_to = block_end[np.searchsorted(block_end, need, side="right")]
-    width = int(min(n, (alive_to - pos).max()))
-    row = pos % width
-    # rows of the parents and children, as the placement loops read them
-    order_rows = row[plan.order].tolist()
     u = ref[b] - ref[a]
     u = u / np.linalg.norm(u)
-    r0s = sq[0]
-    c0s = [r0 - r1 for r0, r1 in zip(sq[0], sq[1])]
     if d == 2:
         z = np.empty((width, k), dtype=np.complex128)
         z[row[a]] = complex(ref[a, 0], ref[a, 1])
         z[row[b]] = (ref[a, 0] + dv * u[0]) + 1j * (ref[a, 1] + dv * u[1])
-        table = plan.run_table
-        runs = list(zip(*np.column_stack([table[:, :2], row[table[:, 2:]]]).T.tolist()))
-        radii_rows = _radii_rows(r0s, c0s, signs)
     else:
         X = np.empty((d, width, k))
         for c in range(d):
             X[c, row[a]] = ref[a, c]
             X[c, row[b]] = ref[a, c] + dv * u[c]
-        par_rows = np.where(plan.parents >= 0, row[np.maximum(plan.parents, 0)], -1).T.tolist()
     # what each block completes: edges and ports by their later node, nodes by position
     # (sorted once into contiguous rows: gathering them per block from a large edge array was
     # the one part that did not scale linearly)
-    e_later = pos[edges].max(axis=1)
-    e_sorted = np.argsort(e_later, kind="stable")
-    e_cut = np.searchsorted(e_later[e_sorted], block_end)
-    e_rows = row[edges[e_sorted]]
-    e_rest = rest[e_sorted]
-    p_later = pos[pairs].max(axis=1) if len(names) else np.zeros(0, dtype=np.int64)
-    p_sorted = np.argsort(p_later, kind="stable")
-    p_cut = np.searchsorted(p_later[p_sorted], block_end)
-    p_rows = row[pairs[p_sorted]]
+    e_cut, e_rows, e_rest = _by_block(pos, row, edges, block_end, rest)
+    p_cut, p_rows, p_sorted = _by_block(pos, row, pairs, block_end)
+    del pos
     kept = kept_indices(k, p.keep)
     out = np.empty((kept.size, n, d))
     squares = np.zeros(max(k - 1, 0))
     margin = np.full(k, np.inf)
     err = np.zeros(k)
-    dist = np.empty((len(names), k))
+    dist = np.empty((len(pairs), k))
     buf = np.empty((max(int(np.diff(np.concatenate([[0], ends])).max()), 1), k))
     fit = None
     lo_place = lo_pos = lo_edge = lo_port = 0
@@ -401,13 +362,19 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
 
     with np.errstate(invalid="ignore", divide="ignore"):  # beyond a flat state: NaN
         for blk, stop in enumerate(ends):
+            order_rows, r0s, c0s, r2s, signs = _block_lists(plan, row, lo_place, stop)
             if d == 2:
-                _place_loop_2d(z, buf, lo_place, order_rows, runs[lo_run:run_ends[blk]], r0s,
-                               c0s, signs, radii_rows)
+                table = plan.run_table[lo_run:run_ends[blk]]
+                runs = list(zip(*np.column_stack([table[:, :2] - lo_place,
+                                                  row[table[:, 2:]]]).T.tolist()))
+                _place_loop_2d(z, buf, 0, order_rows, runs, r0s, c0s, signs,
+                               _radii_rows(r0s, c0s, signs))
                 lo_run = int(run_ends[blk])
             else:
-                _place_loop_3d(X, buf, lo_place, order_rows, par_rows, r0s, c0s,
-                               sq[2], signs, plan, lo_place, stop)
+                par = plan.parents[lo_place:stop]
+                par_rows = np.where(par >= 0, row[np.maximum(par, 0)], -1).T.tolist()
+                _place_loop_3d(X, buf, 0, order_rows, par_rows, r0s, c0s, r2s, signs, plan, 0,
+                               stop - lo_place)
             if stop > lo_place:
                 np.minimum(margin, buf[:stop - lo_place].min(axis=0), out=margin)
             lo_place = stop
@@ -446,5 +413,68 @@ def _sweep(plan: ConstructionPlan, values, p) -> tuple[Record, np.ndarray, np.nd
     if p.keep == "all":
         record = Record(out, None, drive, arclength, err, None)
     else:
-        record = Record(out, kept, drive, arclength, err, dict(zip(names, dist)))
+        record = Record(out, kept, drive, arclength, err, PortValues(names, dist))
     return record, margin, err
+
+
+def _block_ends(plan: ConstructionPlan, first: int) -> list[int]:
+    """Where the blocks of :func:`_sweep` end (placement indices): every :data:`BLOCK`
+    placements from ``first`` on (the gauge nodes placed in the first block), in 2D at the end
+    of a run of placements."""
+    m = plan.order.size
+    if plan.dim != 2:
+        return sorted(set(list(range(first, m, BLOCK)) + [m]))
+    run_stop = plan.run_table[:, 1]
+    ends, last = [], 0
+    for want in list(range(first, m, BLOCK)) + [m]:
+        i = int(np.searchsorted(run_stop, max(want, last + 1)))
+        stop = int(run_stop[min(i, run_stop.size - 1)]) if run_stop.size else 0
+        if stop > last:
+            ends.append(stop)
+            last = stop
+    return ends or [0]
+
+
+def _ring_width(plan: ConstructionPlan, pos, block_end, pair_sets) -> int:
+    """The rows of :func:`_sweep`'s ring: the longest a node is needed, from its own block to
+    the last block that places a child of it or completes one of ``pair_sets`` (edges, ports)
+    with it."""
+    need = pos.copy()
+    has = plan.parents >= 0
+    np.maximum.at(need, plan.parents[has],
+                  np.broadcast_to(pos[plan.order][:, None], plan.parents.shape)[has])
+    del has
+    for pr in pair_sets:
+        later = pos[pr].max(axis=1)
+        np.maximum.at(need, pr[:, 0], later)
+        np.maximum.at(need, pr[:, 1], later)
+    alive_to = block_end[np.searchsorted(block_end, need, side="right")]
+    del need
+    alive_to -= pos
+    return int(min(pos.size, alive_to.max()))
+
+
+def _by_block(pos, row, pairs, block_end, rest=None):
+    """Node pairs (edges or ports) sorted by the later of their nodes' positions: where each
+    block's pairs end, their rows in the ring, and (ports) the sorting order or (edges) their
+    rest lengths in that order."""
+    if not len(pairs):
+        return (np.zeros(block_end.size, dtype=np.int64), np.zeros((0, 2), dtype=row.dtype),
+                np.zeros(0, dtype=np.int64) if rest is None else np.zeros(0))
+    later = pos[pairs].max(axis=1)
+    order = np.argsort(later, kind="stable")
+    cut = np.searchsorted(later[order], block_end)
+    del later
+    rows = row[pairs[order]]
+    return cut, rows, (order if rest is None else rest[order])
+
+
+def _block_lists(plan: ConstructionPlan, row, lo: int, hi: int):
+    """Placements ``lo`` to ``hi - 1`` as the placement loops read them, Python numbers: the
+    rows of the nodes placed, the squared radii to the first parent, their differences to the
+    second's, the third's (3D) and the signs."""
+    sq = (plan.radii[lo:hi] ** 2).T.tolist()
+    r0s = sq[0]
+    c0s = [r0 - r1 for r0, r1 in zip(sq[0], sq[1])]
+    return (row[plan.order[lo:hi]].tolist(), r0s, c0s, sq[2] if plan.dim == 3 else None,
+            plan.signs[lo:hi].tolist())

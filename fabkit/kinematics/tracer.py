@@ -38,7 +38,7 @@ def select_method(net: Network, drive, *, start=None) -> str:
 
 
 def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=(), gauge=None,
-          keep="all", **options) -> Trajectory:
+          keep="all", ports=None, **options) -> Trajectory:
     """Trace the motion of a network while a distance (the drive) moves to a target value.
 
     Parameters
@@ -66,6 +66,10 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
         with the positions of the first and last configurations only (``"ports"``) or of every
         k-th as well (an integer k). The rest is streamed, not stored: a 100 000-module chain's
         101 configurations would take 0.5 GB.
+    ports : sequence of str, optional
+        With ``keep="ports"`` or an integer: the ports whose distances are kept at every
+        configuration (default: every port). A million-module chain's ports at 101
+        configurations take 0.8 GB; ``ports=["d1", "d1000001"]`` keeps its ends only.
     **options
         Method options (see each method's docstring); an unknown option raises ``TypeError``.
 
@@ -98,7 +102,8 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
     """
     if to is None:
         raise KinematicsError("`to` (the target value of the drive) is required")
-    problem = make_problem(net, drive, to, start=start, hold=hold, gauge=gauge, keep=keep)
+    problem = make_problem(net, drive, to, start=start, hold=hold, gauge=gauge, keep=keep,
+                           ports=ports)
     if isinstance(method, type) and issubclass(method, Method):
         cls = method
     elif method == "auto":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -94,9 +95,10 @@ class Trajectory:
         Method-specific counters (steps, rejected steps, factorisations, ...).
     kept : numpy.ndarray of int or None
         Indices of the configurations held in ``positions``; None when every one is.
-    port_values : dict of str to numpy.ndarray, or None
-        With ``keep`` other than ``"all"``: the distance of every port of the network at every
-        configuration, shape (S,) each (what :meth:`distance` reads for a port name).
+    port_values : Mapping of str to numpy.ndarray, or None
+        With ``keep`` other than ``"all"``: the distance of every port of the network (or of the
+        ports ``trace(..., ports=...)`` named) at every configuration, shape (S,) each (what
+        :meth:`distance` reads for a port name).
     """
 
     network: Network
@@ -112,7 +114,7 @@ class Trajectory:
     events: tuple[Event, ...] = ()
     stats: dict = field(default_factory=dict)
     kept: np.ndarray | None = None
-    port_values: dict | None = None
+    port_values: Mapping | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "status", expect(self.status, TRACE, "a trace"))
@@ -147,6 +149,10 @@ class Trajectory:
         """
         if isinstance(port, str) and self.port_values is not None:
             self.network.port(port)  # an unknown name raises with the list of ports
+            if port not in self.port_values:
+                raise KinematicsError(
+                    f"the trace kept the distances of {len(self.port_values)} ports (ports=...), "
+                    f"not of {port}; trace with ports that include it")
             return self.port_values[port]
         i, j = self.network.port(port) if isinstance(port, str) else port
         if self.kept is not None:

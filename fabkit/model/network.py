@@ -47,7 +47,8 @@ class ChainPorts(Mapping):
         arr.setflags(write=False)
         self.pairs = arr
 
-    def _row(self, name) -> int:
+    def row(self, name) -> int:
+        """The row of ``pairs`` that holds a port, -1 for a name that is not one of them."""
         if isinstance(name, str) and len(name) > 1 and name[0] == "d" and name[1:].isdigit() \
                 and name[1] != "0":
             i = int(name[1:]) - 1
@@ -56,14 +57,14 @@ class ChainPorts(Mapping):
         return -1
 
     def __getitem__(self, name):
-        i = self._row(name)
+        i = self.row(name)
         if i < 0:
             raise KeyError(name)
         a, b = self.pairs[i]
         return (int(a), int(b))
 
     def __contains__(self, name) -> bool:
-        return self._row(name) >= 0
+        return self.row(name) >= 0
 
     def __iter__(self):
         return (f"d{i}" for i in range(1, self.pairs.shape[0] + 1))
@@ -95,6 +96,34 @@ def _checked_ports(given, n_nodes: int):
                 bool(((arr >= 0) & (arr < n_nodes)).all()) and bool((arr[:, 0] != arr[:, 1]).all()):
             return dict(zip(names, map(tuple, arr.tolist())))
     return {str(name): _as_port(name, pair, n_nodes) for name, pair in dict(given).items()}
+
+
+def _refuse_duplicate_edges(edges, n: int) -> None:
+    """Raise NetworkError naming the first two edges that join the same nodes (its temporaries,
+    four integers per edge, freed on return: a million-module chain's build peaked on them)."""
+    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    # one integer per unordered pair: sorting a million of them is cheap, unlike rows
+    code = lo * np.int64(n) + hi
+    del lo, hi
+    ordered = np.sort(code)
+    same = ordered[1:] == ordered[:-1]
+    if same.any():
+        dup = ordered[1:][same][0]
+        dup_key = (int(dup // n), int(dup % n))
+        where = np.flatnonzero(code == dup)
+        raise NetworkError(
+            f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}",
+            f"edges[{where[0]}]"
+        )
+
+
+def _edge_lengths(nodes, edges) -> np.ndarray:
+    """The edges' lengths, as ``np.linalg.norm`` of the differences gives them, bit for bit
+    (squared in place: one temporary of the differences, not two)."""
+    diff = nodes[edges[:, 0]]
+    diff -= nodes[edges[:, 1]]
+    np.multiply(diff, diff, out=diff)
+    return np.sqrt(np.add.reduce(diff, axis=1))
 
 
 def _extent(nodes) -> float:
@@ -287,21 +316,8 @@ class Network:
         if loops.any():
             k = int(np.flatnonzero(loops)[0])
             raise NetworkError(f"edge {k} joins node {edges[k, 0]} to itself", f"edges[{k}]")
-        lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
-        # one integer per unordered pair: sorting a million of them is cheap, unlike rows
-        code = lo * np.int64(n) + hi
-        ordered = np.sort(code)
-        same = ordered[1:] == ordered[:-1]
-        if same.any():
-            dup = ordered[1:][same][0]
-            dup_key = (int(dup // n), int(dup % n))
-            where = np.flatnonzero(code == dup)
-            raise NetworkError(
-                f"edges {where[0]} and {where[1]} both join nodes {dup_key[0]} and {dup_key[1]}",
-                f"edges[{where[0]}]"
-            )
-        diff = nodes[edges[:, 0]] - nodes[edges[:, 1]]
-        lengths = np.sqrt(np.add.reduce(diff * diff, axis=1))  # as np.linalg.norm, bit for bit
+        _refuse_duplicate_edges(edges, n)
+        lengths = _edge_lengths(nodes, edges)
         scale = _extent(nodes) or 1.0
         short = lengths <= _ZERO_LENGTH_RTOL * scale
         if short.any():
