@@ -33,6 +33,13 @@ demo: $(STAMP)
 # worker, so its module fixtures are made once), the 25 slowest tests listed at the end;
 # `make test-all` adds the slow studies.
 TEST_WORKERS := -n auto --maxprocesses 4 --dist loadfile --durations=25
+# One BLAS and OpenMP thread per process while testing, unless the shell sets its own: the test
+# workers already take every core, the commands the tests start would each take them all again,
+# and two threads on a design's small matrices cost 4 to 9 times the CPU of one (the AND gate's
+# tolerance builds: 4.8 s with one thread, 18-44 s with two). tests/conftest.py limits the
+# workers themselves; this reaches the processes they start.
+test test-all: export OMP_NUM_THREADS ?= 1
+
 test: $(STAMP)
 	$(PY) -m pytest -q -m "not slow" $(TEST_WORKERS)
 
