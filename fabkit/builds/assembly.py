@@ -225,17 +225,21 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         active = excess != 0.0
         # a bar past its play is a spring; within it, a spring INNER_STIFFNESS as stiff
         sk = np.sqrt(k * np.where(active, 1.0, INNER_STIFFNESS))
-        jac = sp.csr_matrix(((sk[:, None] * np.concatenate([u, -u], axis=1)).ravel(),
-                             (bar_rows, bar_cols)), shape=(e.shape[0], nx))
+        rows = sk[:, None] * np.concatenate([u, -u], axis=1)  # each bar's row of the Jacobian
         pull = np.where(active, excess, ell - r)
-        grad = jac.T @ (sk * pull) + mu * (x - x_ref).ravel()
-        hess = (jac.T @ jac + (mu + damping) * sp.identity(nx)).tocsr()
+        grad = np.bincount(bar_cols, (rows * (sk * pull)[:, None]).ravel(), minlength=nx) \
+            + mu * (x - x_ref).ravel()
         hu = hd / np.maximum(hl, TINY)[:, None]
-        cons = sp.csr_matrix((np.concatenate([hu, -hu], axis=1).ravel(), (held_rows, held_cols)),
-                             shape=(p, nx))
-        kkt = sp.bmat([[hess, cons.T], [cons, None]], format="csc")
+        cons_vals = np.concatenate([hu, -hu], axis=1).ravel()
         rhs = np.concatenate([-grad, -(hl - ht)])
-        sol = (np.linalg.solve(kkt.toarray(), rhs) if dense else spla.spsolve(kkt, rhs))
+        if dense:
+            sol = np.linalg.solve(_dense_kkt(rows, bar_cols, cons_vals, held_rows, held_cols,
+                                             nx, p, mu + damping), rhs)
+        else:
+            jac = sp.csr_matrix((rows.ravel(), (bar_rows, bar_cols)), shape=(e.shape[0], nx))
+            hess = (jac.T @ jac + (mu + damping) * sp.identity(nx)).tocsr()
+            cons = sp.csr_matrix((cons_vals, (held_rows, held_cols)), shape=(p, nx))
+            sol = spla.spsolve(sp.bmat([[hess, cons.T], [cons, None]], format="csc"), rhs)
         dx = sol[:nx].reshape(n, d)
         if p:
             penalty = max(penalty, 2.0 * float(np.abs(sol[nx:]).max()) + TINY)
@@ -263,6 +267,26 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     slack = delta - excess
     energy = 0.5 * float(np.sum(k * excess ** 2))
     return Assembled(x, ell, slack, excess, energy, bool(inside.all()), it)
+
+
+def _dense_kkt(rows, cols, cons_vals, held_rows, held_cols, nx: int, p: int,
+               shift: float) -> np.ndarray:
+    """The step's saddle-point matrix ``[[JᵀJ + shift·I, Cᵀ], [C, 0]]``, dense.
+
+    ``rows`` holds each bar's nonzero Jacobian entries (shape (E, 2d)) at its columns ``cols``
+    (flattened, E·2d); ``JᵀJ`` is the sum of each bar's outer product, added up with one
+    ``bincount`` (a few hundred unknowns: building sparse matrices per step cost several times
+    the solve itself). ``C`` (the held pairs) has ``cons_vals`` at ``held_rows``, ``held_cols``.
+    """
+    size = nx + p
+    c = cols.reshape(rows.shape)
+    flat = (c[:, :, None] * size + c[:, None, :]).ravel()
+    m = np.bincount(flat, (rows[:, :, None] * rows[:, None, :]).ravel(),
+                    minlength=size * size).reshape(size, size)
+    m[np.arange(nx), np.arange(nx)] += shift
+    m[nx + held_rows, held_cols] = cons_vals
+    m[held_cols, nx + held_rows] = cons_vals
+    return m
 
 
 def bar_stress(assembled: Assembled, rest, youngs) -> np.ndarray:
