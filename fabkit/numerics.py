@@ -16,11 +16,14 @@ Examples
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
 __all__ = [
+    "one_blas_thread",
+    "SMALL_DENSE",
     "EPS",
     "FLAT_RTOL",
     "RANK_RTOL",
@@ -488,3 +491,43 @@ def printed(value: float, spec: str = ".6g") -> str:
 def printed_residual(value: float) -> str:
     """A residual as ``"= 3.1e-09"``, or ``"< 1e-12"`` below :data:`ROUNDOFF_PRINT`."""
     return f"< {ROUNDOFF_PRINT:g}" if abs(value) < ROUNDOFF_PRINT else f"= {value:.1e}"
+
+
+# -- one BLAS thread for small dense work -------------------------------------------------------
+# Dense linear algebra on a network's small matrices (a trace's banded solves, a build's few
+# hundred unknowns, the SVD of a rigidity matrix of a few hundred rows) gains nothing from BLAS
+# threads: they only contend for the cores and spin between calls. The AND gate's tolerance
+# builds took 16 s of CPU with OpenBLAS's default two threads on a two-core machine and 11 s with
+# one (the SVD of its self-stresses alone: 4.7 s against 0.08 s). Work of that size runs inside
+# one_blas_thread(); large dense work keeps the threads the process has (the user's setting, or
+# the worker's share of the cores: fabkit.executor).
+
+#: A dense matrix with at most this many rows and columns is small: its factorisation takes
+#: milliseconds (an SVD of 1000 x 1000: ~0.5 s on one core), where threads cost more in start-up
+#: and spinning than they save; larger work keeps the process's threads.
+SMALL_DENSE = 1000
+
+#: threadpoolctl's controller of the loaded BLAS and OpenMP libraries, with the number of
+#: modules loaded when it looked them up: looking them up costs milliseconds (as much as a small
+#: trace), so it is done again only after a module was imported (a library loads with the
+#: module that needs it, as scipy.linalg brings its own OpenBLAS).
+_controller: tuple[int, object] | None = None
+
+
+def one_blas_thread():
+    """Context manager: every loaded BLAS and OpenMP library on one thread within it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> with one_blas_thread():
+    ...     float(np.linalg.svd(np.eye(3), compute_uv=False).sum())
+    3.0
+    """
+    global _controller
+    import threadpoolctl
+
+    loaded = len(sys.modules)
+    if _controller is None or _controller[0] != loaded:
+        _controller = (loaded, threadpoolctl.ThreadpoolController())
+    return _controller[1].limit(limits=1)

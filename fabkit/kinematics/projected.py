@@ -45,7 +45,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import threadpoolctl
 
 from ..errors import KinematicsError
 from ..model.rigidity import count_modes
@@ -54,6 +53,7 @@ from .base import choose_gauge
 from .bordered import BorderedSystem, gauge_rows, permutation_parity
 from .stepping import Step, StepMethod, Stop
 from ..status import Status
+from ..numerics import one_blas_thread
 from .trajectory import EventKind
 
 __all__ = ["Projected", "gauge_rows", "permutation_parity", "singular_start_threshold"]
@@ -159,7 +159,7 @@ class Projected(StepMethod):
     def solve(self):
         # banded solves and vector operations on one trace: BLAS threads only contend (a
         # 3000-module chain took 3.5 s with them on a busy two-core machine, 1.1 s without)
-        with threadpoolctl.threadpool_limits(1):
+        with one_blas_thread():
             return super().solve()
 
     # -- set-up ---------------------------------------------------------------------------------

@@ -14,12 +14,12 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-import threadpoolctl
 
 from . import rigidity
 from ..errors import KinematicsError, NetworkError
 from .network import Network
 from ..numerics import RANK_RTOL
+from ..numerics import one_blas_thread
 from .matrix import (AMBIGUOUS_GAP, Undecided, require_dense_memory, rigidity_matrix, sigma_max,
                      smallest_singular)
 from .rigidity import count_modes
@@ -272,7 +272,7 @@ def independent_edges(net: Network, positions=None, *, rank: int | None = None,
         return _dense_rows(r, rank)
     p0, p1 = _band_positions(edges, n, d)
     try:
-        with threadpoolctl.threadpool_limits(1):  # small dense blocks: threads only contend
+        with one_blas_thread():  # small dense blocks: threads only contend
             keep = _windowed_rows(diff / length[:, None], p0, p1, rtol,
                                   None if block is None else int(block))
             _check_rows(r, keep, rank, rtol)

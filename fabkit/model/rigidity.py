@@ -13,17 +13,18 @@ construction order in :mod:`fabkit.model.certificate`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-import threadpoolctl
 
 from .. import arguments
 from ..errors import ConstructionError
 from .network import checked_network, Network
 from ..numerics import RANK_RTOL
+from ..numerics import one_blas_thread, SMALL_DENSE
 from .certificate import Uncertified, certify
 from .matrix import (AMBIGUOUS_GAP, Undecided, available_memory, orthonormal, rank_dense,
                      require_dense_memory, rigid_body_basis, rigid_body_count, rigidity_matrix,
@@ -492,7 +493,7 @@ def _numeric_rank(net: Network, x, rtol: float, method: str):
         try:
             # Dense work here is on tall, thin blocks (8 columns), which threads do not speed
             # up; on a shared machine they slow it down several times.
-            with threadpoolctl.threadpool_limits(1):
+            with one_blas_thread():
                 if net.n_edges - d * n + (3 if d == 2 else 6) > MAX_BLOCK // 2:
                     # surely many self-stresses: count the few zero modes alone
                     rank, gap, smallest, note = _rank_sparse_normal(r, rtol)
@@ -542,7 +543,8 @@ def self_stresses(net: Network, positions=None, *, rtol: float = RANK_RTOL) -> n
     x = net.nodes if positions is None else np.asarray(positions, dtype=np.float64)
     r = rigidity_matrix(net, x, normalized=True)
     require_dense_memory(*r.shape, vectors=True)
-    u, s, _ = np.linalg.svd(r.toarray(), full_matrices=True)
+    with one_blas_thread() if max(r.shape) <= SMALL_DENSE else contextlib.nullcontext():
+        u, s, _ = np.linalg.svd(r.toarray(), full_matrices=True)
     tol = rtol * max(s[0] if s.size else 0.0, 1.0)
     rank = int((s > tol).sum())
     return u[:, rank:]

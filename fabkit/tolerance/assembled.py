@@ -22,6 +22,7 @@ from ..builds.closure import play_ratio, play_ratio_sparse, self_stress_basis
 from ..builds.materials import bar_stiffness, Material, process_material
 from ..builds.slop import port_slop
 from ..numerics import TINY
+from ..numerics import one_blas_thread
 from .processes import bar_play_ends, nominal_room_mm
 
 __all__ = ["Assemblies", "assemble_builds", "slop_summary", "MODEL_NAMES"]
@@ -167,6 +168,12 @@ def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
     Returns
     -------
     Assemblies
+
+    Notes
+    -----
+    The builds' steps solve small dense systems (a few hundred unknowns) on one BLAS thread:
+    more threads only contend there (the AND gate's 104 builds took several times the CPU with
+    two).
     """
     s = spec.scale
     rest = builds.base * s
@@ -187,9 +194,11 @@ def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
     force = np.zeros(m)
     joint = np.full(m, -1)
     positions = np.repeat(np.asarray(start, dtype=np.float64)[None], m, axis=0)
-    for b in range(m):
-        k = bar_stiffness(material, area, rest[b])
-        a = assemble(net.edges, rest[b], room[b], x0, stiffness=k)
+    with one_blas_thread():
+        assembled = [assemble(net.edges, rest[b], room[b], x0,
+                              stiffness=bar_stiffness(material, area, rest[b]))
+                     for b in range(m)]
+    for b, a in enumerate(assembled):
         positions[b] = a.positions / s
         closes[b] = a.closes
         if not a.closes:
