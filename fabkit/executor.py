@@ -669,15 +669,17 @@ class LocalExecutor:
                                      name=f"{self.name}-{self._started}")
             with group_blocked():  # no Ctrl-C traceback from a worker that is still starting
                 proc.start()
+                # known before a signal held back meanwhile is delivered (as the block ends):
+                # the interrupt it raises must find this worker among those it stops
+                worker = _Worker(proc, mine)
+                self.workers.append(worker)
+                self._started += 1
         finally:
             theirs.close()  # the worker's end lives in the worker: its death closes the pipe
             if saved is None:
                 os.environ.pop("PYTHONHASHSEED", None)
             else:
                 os.environ["PYTHONHASHSEED"] = saved
-        self._started += 1
-        worker = _Worker(proc, mine)
-        self.workers.append(worker)
         return worker
 
     @staticmethod

@@ -191,6 +191,37 @@ def test_leaving_the_run_early_stops_the_workers():
     assert pool.pids == [] and _wait_dead(workers, 10) == []
 
 
+def test_an_interrupt_held_back_while_a_worker_starts_stops_that_worker(monkeypatch):
+    """A Ctrl-C that arrives while a worker starts is delivered as the signals are unblocked,
+    after the start: the interrupt it raises must find the new worker among those it stops."""
+    import contextlib
+
+    import fabkit.executor as executor
+
+    started = []
+
+    @contextlib.contextmanager
+    def delivered_at_the_end():
+        yield
+        started.extend(p.pid for p in __import__("multiprocessing").active_children())
+        raise KeyboardInterrupt  # the held-back signal, delivered as the block ends
+
+    stopped = []
+    stop = LocalExecutor.stop
+
+    def stop_and_tell(self, *args, **kwargs):
+        stopped.extend(self.pids)
+        stop(self, *args, **kwargs)
+
+    monkeypatch.setattr(executor, "group_blocked", delivered_at_the_end)
+    monkeypatch.setattr(LocalExecutor, "stop", stop_and_tell)
+    with pytest.raises(KeyboardInterrupt):
+        with LocalExecutor(1) as pool:
+            list(pool.run([Task(time.sleep, (60.0,))]))
+    assert len(started) == 1 and started[0] in stopped and pool.pids == []
+    assert _wait_dead(started, 10) == []
+
+
 def test_bad_jobs_are_refused():
     for jobs in (0, -1, True):
         with pytest.raises(ValueError, match="jobs must be a positive integer"):
