@@ -365,8 +365,10 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
         return lambda fig, labs: _motion_page(fig, gp, sheet, plan, edges, r)
 
     # TrueType (Type 42) subsets: every reader draws the glyphs measured here (a reader that
-    # substitutes a font for an unembedded one sets "S tand" for "Stand")
-    with matplotlib.rc_context({"pdf.fonttype": 42}), \
+    # substitutes a font for an unembedded one sets "S tand" for "Stand"). matplotlib's PDF
+    # writer sizes its font subsets by ``ps.fonttype``: at its default (3) every character past
+    # the first 256 (→, ×, …) goes to a second subset of the same font, embedded again
+    with matplotlib.rc_context({"pdf.fonttype": 42, "ps.fonttype": 42}), \
             PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
                                     "Producer": "fabkit"}) as pdf:
         for k, sheet in enumerate(gp.sheets):
