@@ -431,9 +431,8 @@ def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
     order, lengths, dev = rebuilt
     # layers count within a piece: each piece is lowered onto its bed, and pieces joined by
     # hand stack as their bill of materials says; the pieces' layers are kept apart here
-    piece_of_bar = where["piece"][bar_joints[:, 0]]
     band = int(layer.max(initial=0)) + 2 * pins["head_slots"] + 2
-    edge_layer = (layer + band * piece_of_bar)[order]
+    edge_layer = layer[order] + band * _piece_bands(where["piece"][bar_joints[order, 0]])
     # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
     widths = [b["width"] for b in bars if b["width"] is not None]
     measured = {"width": _to_resolution(max(widths)),
@@ -447,6 +446,16 @@ def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
                                                  reference))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
         return [check("motion re-simulated", False, detail=str(exc))], {}
+
+
+def _piece_bands(piece) -> np.ndarray:
+    """Each design edge's piece (``piece``, as numbered read back), numbered again in the order
+    of the design's edges: the pieces of one design the same whatever order a file holds its
+    bodies in (the STL and the 3MF of one export then share one simulation)."""
+    _, first, inverse = np.unique(piece, return_index=True, return_inverse=True)
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+    return rank[inverse.ravel()]
 
 
 def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
