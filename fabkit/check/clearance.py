@@ -300,8 +300,8 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     and only at the samples of that window; the reach grows until the smallest gap found lies
     within it (no pair left out can then do better) or it covers the whole motion, or no pair
     within it can beat the smallest gap of the blocks before. A grown reach measures only the
-    pairs and windows the smaller one left out. Ties go to the earliest sample, then the lowest
-    pair.
+    pairs and windows the smaller one left out, and so do the halves of a block split at a
+    grown reach. Ties go to the earliest sample, then the lowest pair.
 
     Returns
     -------
@@ -315,42 +315,44 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     limit = float((hi_all - lo_all).max())
     joint_lo, joint_hi = _windows(x)
     size = WINDOW_SAMPLES * max(1, BLOCK_ELEMENTS // (8 * ends.shape[0]))
-    todo = [(s, min(s + size, x.shape[0])) for s in range(0, x.shape[0], size)][::-1]
+    # (first sample, end, reach measured already, reach to measure next)
+    todo = [(s, min(s + size, x.shape[0]), -math.inf, reach)
+            for s in range(0, x.shape[0], size)][::-1]
     while todo:
-        s0, s1 = todo.pop()
+        s0, s1, done, r = todo.pop()
+        if done >= best[0]:  # no pair farther than done apart can beat best
+            continue
         w0, w1 = s0 // WINDOW_SAMPLES, -(-s1 // WINDOW_SAMPLES)
         lo = np.minimum(joint_lo[w0:w1, ends[:, 0]], joint_lo[w0:w1, ends[:, 1]])
         hi = np.maximum(joint_hi[w0:w1, ends[:, 0]], joint_hi[w0:w1, ends[:, 1]])
-        r, done, found = min(reach, best[0]), -math.inf, math.inf
+        r = min(r, best[0])
         while True:
             near = _near(lo, hi, group, rad, r, allowed, done)
             if near is None:  # too many candidates at once: half the windows each
                 mid = s0 + (lo.shape[0] // 2) * WINDOW_SAMPLES
-                todo += [(mid, s1), (s0, mid)]
+                todo += [(mid, s1, done, r), (s0, mid, done, r)]
                 break
             w, a, b = near
             s = (s0 + WINDOW_SAMPLES * w)[:, None] + np.arange(WINDOW_SAMPLES)
             inside = s < s1
             s, a, b = s[inside], np.repeat(a, inside.sum(1)), np.repeat(b, inside.sum(1))
-            got, best = _smallest(measure, x, s, a, b, best)
-            found = min(found, got)  # over every pair and window within r
-            if found <= r or r >= min(best[0], limit):
+            best = _smallest(measure, x, s, a, b, best)
+            # every pair within r measured: none left out can beat best once it lies within r
+            if r >= min(best[0], limit):
                 break
             done, r = r, min(REACH_GROWTH * max(r, BOX_SLACK), best[0], limit)
     return best
 
 
 def _smallest(measure, x, s, a, b, best):
-    """The smallest gap measured at (s, a, b), and ``best`` updated: (gap, sample, a, b)."""
-    found = math.inf
+    """``best`` (gap, sample, a, b) updated with the gaps measured at (s, a, b)."""
     for k in range(0, s.size, MEASURE_ELEMENTS):
         g = measure(x, s[k:k + MEASURE_ELEMENTS], a[k:k + MEASURE_ELEMENTS],
                     b[k:k + MEASURE_ELEMENTS])
         i = np.flatnonzero(g == g.min()) + k
         first = i[np.lexsort((b[i], a[i], s[i]))[0]]
-        found = min(found, float(g.min()))
         best = min(best, (float(g.min()), int(s[first]), int(a[first]), int(b[first])))
-    return found, best
+    return best
 
 
 def _layer_pairs(layer):
