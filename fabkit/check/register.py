@@ -28,6 +28,9 @@ ANCHORS = 3
 MAX_CANDIDATES = 4000
 #: Most alternative places kept per piece for the joint choice.
 MAX_PLACES = 64
+#: Joints moved by candidate motions and looked up at once (bounds the memory of a piece of
+#: many joints: its candidates are tried in groups of this many joints).
+MOVED_JOINTS = 2**16
 
 
 @dataclass(frozen=True)
@@ -86,32 +89,37 @@ def _candidates(xy, bars, design_xy, design_edges, length_tol: float):
 def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
     """Candidate places of one piece: (joints within ``reach``, rms, Placement), best first.
 
-    Every candidate motion is tried at once; each set of joints it brings onto design nodes
-    (the first candidate to bring it) is then refined by a least-squares fit, the fits of as
-    many joints made together (:func:`fabkit.numerics.rigid_fit` is batched)."""
+    The candidate motions are tried many at once (:data:`MOVED_JOINTS` joints moved and looked
+    up together); each set of joints one brings onto design nodes (the first candidate to bring
+    it) is then refined by a least-squares fit, the fits of as many joints made together
+    (:func:`fabkit.numerics.rigid_fit` is batched)."""
     from scipy.spatial import cKDTree
 
     tree = cKDTree(design_xy)
     anchor, start, turn = _candidates(xy, bars, design_xy, design_edges, length_tol)
-    if turn.size == 0:
+    seen, hits, nears = set(), [], []
+    step = max(1, MOVED_JOINTS // len(xy))
+    for c0 in range(0, turn.size, step):
+        c, s = np.cos(turn[c0:c0 + step]), np.sin(turn[c0:c0 + step])
+        rot = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
+        moved = (xy[None] - xy[anchor[c0:c0 + step]][:, None]) @ np.swapaxes(rot, -1, -2) \
+            + design_xy[start[c0:c0 + step]][:, None]
+        dist, near = tree.query(moved.reshape(-1, 2), distance_upper_bound=reach)
+        hit = np.isfinite(dist).reshape(-1, len(xy))
+        near = np.where(hit, near.reshape(hit.shape), -1)
+        for r in np.flatnonzero(hit.sum(axis=1) >= min(3, len(xy))).tolist():
+            key = near[r].tobytes()
+            if key not in seen:  # each set of joints on nodes once, where first met
+                seen.add(key)
+                hits.append(hit[r])
+                nears.append(near[r])
+    if not hits:
         return []
-    c, s = np.cos(turn), np.sin(turn)
-    rot = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)  # (C, 2, 2)
-    moved = (xy[None] - xy[anchor][:, None]) @ np.swapaxes(rot, -1, -2) \
-        + design_xy[start][:, None]
-    dist, near = tree.query(moved.reshape(-1, 2), distance_upper_bound=reach)
-    hit = np.isfinite(dist).reshape(len(turn), len(xy))
-    near = near.reshape(hit.shape)
+    hit, near = np.array(hits), np.array(nears)
     count = hit.sum(axis=1)
-    keys = np.where(hit, near, -1)
-    tried = np.flatnonzero(count >= min(3, len(xy)))
-    if tried.size == 0:
-        return []
-    _, first = np.unique(keys[tried], axis=0, return_index=True)
-    tried = tried[np.sort(first)]  # each set of joints on nodes once, where first met
     found = {}
-    for k in np.unique(count[tried]):
-        group = tried[count[tried] == k]
+    for k in np.unique(count):
+        group = np.flatnonzero(count == k)
         fit = rigid_fit(np.broadcast_to(xy, (len(group), *xy.shape))[hit[group]].reshape(-1, k, 2),
                         design_xy[near[group][hit[group]]].reshape(-1, k, 2))
         # every joint to its nearest design node under the refined motion
@@ -120,7 +128,7 @@ def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
         for g, n in enumerate(group.tolist()):
             found[n] = (fit.rotation[g], fit.shift[g], dev[g], match[g])
     out = []
-    for n in tried.tolist():
+    for n in range(len(hit)):
         rotation, shift, dev, match = found[n]
         if np.linalg.det(rotation) < 0:  # pragma: no cover - a proper fit
             continue
