@@ -59,7 +59,7 @@ def test_retraced_with_the_template_options_only_it_takes_another_branch(and_gat
 
 
 @pytest.mark.parametrize("name", ["super_stable_chain", "and_gate", "fourbar_chain"])
-def test_the_clearance_sampling_starts_from_the_compared_trace(name):
+def test_the_clearance_sampling_starts_from_the_compared_trace(name, monkeypatch):
     """The clearance check samples the rebuilt network's motion from the trace the comparison
     made (not a second trace of the same network): the same samples, bit for bit, as tracing
     again; a trace of another method is not taken for it."""
@@ -67,6 +67,7 @@ def test_the_clearance_sampling_starts_from_the_compared_trace(name):
 
     import numpy as np
 
+    from fabkit.check import clearance
     from fabkit.check.clearance import fine_motion
     from fabkit.model.network import Network
 
@@ -77,10 +78,21 @@ def test_the_clearance_sampling_starts_from_the_compared_trace(name):
     built = Network(net.nodes.copy(), net.edges, net.ports)  # as a check rebuilds it
     cmp = compare_motion(kit, built, MAP_RTOL, reference)
     assert cmp["ok"] and cmp["trajectory"].network is built
+    traces, trace = {}, clearance.trace
+
+    def counted(*args, **kwargs):
+        traces[key] = traces.get(key, 0) + 1
+        return trace(*args, **kwargs)
+
+    monkeypatch.setattr(clearance, "trace", counted)
+    key = "again"
     again = fine_motion(built, kit.motion, 10.0, 0.5, floor=2.0)
+    key = "reused"
     reused = fine_motion(built, kit.motion, 10.0, 0.5, floor=2.0, traced=cmp["trajectory"])
+    traces.setdefault("reused", 0)
     assert np.array_equal(again.positions, reused.positions)
     assert (again.max_step, again.status) == (reused.max_step, reused.status)
+    assert traces["reused"] == traces["again"] - 1  # held ports too (the AND gate holds d1)
     other = "projected" if cmp["trajectory"].method == "constructive" else "constructive"
     asked = dataclasses.replace(kit.motion, method=other)
     if other == "constructive":

@@ -332,6 +332,29 @@ def test_the_beds_of_a_split_print_are_read_together(checked):
     assert stl["as_built"]["pieces"] == 3 and len(stl["as_built"]["cut_joints"]) == 4
 
 
+def test_the_stl_and_the_3mf_of_one_export_simulate_the_rebuilt_network_once(exported,
+                                                                             monkeypatch):
+    """Both read back the same joints: the second check takes the first one's re-simulation and
+    sampling (its own layers still measured), and reports the same motion."""
+    from fabkit.check import pinned
+
+    monkeypatch.setattr(pinned, "_MEMO", {})
+    compare, calls = pinned.compare_motion, []
+
+    def counted(*args, **kwargs):
+        calls.append(1)
+        return compare(*args, **kwargs)
+
+    monkeypatch.setattr(pinned, "compare_motion", counted)
+    design, _, paths, _ = exported["super_stable_chain8"]
+    stl, mf = (check_file(next(p for p in paths if p.suffix == suffix), design=design)
+               for suffix in (".stl", ".3mf"))
+    assert len(calls) == 1
+    assert stl["ok"] and mf["ok"]
+    assert stl["motion"]["samples"] == mf["motion"]["samples"] > 1000
+    assert stl["motion"]["max_node_step_mm"] == mf["motion"]["max_node_step_mm"]
+
+
 # --- the command line -----------------------------------------------------------------------
 
 @pytest.mark.parametrize("name", ["super_stable", "fourbar_chain"])

@@ -24,9 +24,10 @@ margin that covers it.
 Only the pairs that come near are measured, and only where they do: the samples are taken in
 windows of a few (:data:`WINDOW_SAMPLES`), each part boxed over a window, and a sort and sweep
 per window and layer keeps the pairs whose boxes come within a reach; the reach grows until the
-smallest gap found lies within it. A gap is never below the distance of the parts' boxes, so
-the answer (smallest gap, which parts, which sample; ties to the earliest sample, then the
-lowest pair) is that of measuring every pair at every sample.
+smallest gap found lies within it, each time measuring only what the smaller reach left out. A
+gap is never below the distance of the parts' boxes, so the answer (smallest gap, which parts,
+which sample; ties to the earliest sample, then the lowest pair) is that of measuring every
+pair at every sample.
 """
 
 from __future__ import annotations
@@ -159,10 +160,11 @@ def _same_trace(net, motion, traced) -> bool:
     """``traced`` is what tracing ``net`` as ``motion`` says gives: the same method (asked for,
     or the one ``"auto"`` chooses) on the same network, drive, target, held ports and
     options, whose trace is deterministic."""
-    if traced is None or traced.network is not net or motion.hold:
+    if traced is None or traced.network is not net:
         return False
     if motion.method == "auto":
-        return traced.method == select_method(net, motion.drive)
+        # under auto, held ports (virtual edges) may change the method chosen: traced again
+        return not motion.hold and traced.method == select_method(net, motion.drive)
     return traced.method == motion.method
 
 
@@ -229,6 +231,12 @@ def segment_gap(p1, q1, p2, q2) -> np.ndarray:
     return np.where(crossing, 0.0, d)
 
 
+def _at(x, row, joint) -> np.ndarray:
+    """``x[s, joint]`` of a C-contiguous ``x`` (S, N, 2), given ``row = s * N``: one gather by
+    flat index, several times faster than indexing two axes."""
+    return np.take(x.reshape(-1, x.shape[-1]), row + joint, axis=0)
+
+
 def _windows(x):
     """Each joint's box over each window of :data:`WINDOW_SAMPLES` samples of ``x``: (lo, hi),
     shape (W, N, 2) each. At every sample of a window a segment lies within the box of its two
@@ -237,10 +245,11 @@ def _windows(x):
     return np.minimum.reduceat(x, starts, axis=0), np.maximum.reduceat(x, starts, axis=0)
 
 
-def _near(lo, hi, group, rad, reach: float, allowed):
+def _near(lo, hi, group, rad, reach: float, allowed, done: float = -math.inf):
     """The parts that come near in a window: (window, a, b), a < b, of one group, whose boxes
     ``lo``, ``hi`` (W, M, 2) lie within ``reach + rad[a] + rad[b]`` of each other in x and in y
-    in that window.
+    in that window, and not within ``done + rad[a] + rad[b]`` (taken at a smaller reach
+    already).
 
     Sort and sweep per window and group along the axis the parts spread most: each box meets
     the boxes that start within its reach along that axis, not the whole layer. Returns None
@@ -271,8 +280,12 @@ def _near(lo, hi, group, rad, reach: float, allowed):
     fj = order[np.repeat(pos + 1 - np.cumsum(counts) + counts, counts) + np.arange(total)]
     flat_lo, flat_hi = lo.reshape(-1, 2), hi.reshape(-1, 2)
     a, b = np.minimum(fi % n_m, fj % n_m), np.maximum(fi % n_m, fj % n_m)
-    sep = np.maximum(flat_lo[fj] - flat_hi[fi], flat_lo[fi] - flat_hi[fj]).max(axis=1)
+    lo_i, lo_j = np.take(flat_lo, fi, axis=0), np.take(flat_lo, fj, axis=0)
+    sep = np.maximum(lo_j - np.take(flat_hi, fi, axis=0),
+                     lo_i - np.take(flat_hi, fj, axis=0)).max(axis=1)
     ok = (sep <= reach + rad[a] + rad[b] + BOX_SLACK) & allowed(a, b)
+    if done > -math.inf:
+        ok &= ~(sep <= done + rad[a] + rad[b] + BOX_SLACK)
     return fi[ok] // n_m, a[ok], b[ok]
 
 
@@ -286,8 +299,9 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     pairs whose boxes come within a reach in a window of samples (:func:`_near`) are measured,
     and only at the samples of that window; the reach grows until the smallest gap found lies
     within it (no pair left out can then do better) or it covers the whole motion, or no pair
-    within it can beat the smallest gap of the blocks before. Ties go to the earliest sample,
-    then the lowest pair.
+    within it can beat the smallest gap of the blocks before. A grown reach measures only the
+    pairs and windows the smaller one left out, and so do the halves of a block split at a
+    grown reach. Ties go to the earliest sample, then the lowest pair.
 
     Returns
     -------
@@ -301,41 +315,44 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     limit = float((hi_all - lo_all).max())
     joint_lo, joint_hi = _windows(x)
     size = WINDOW_SAMPLES * max(1, BLOCK_ELEMENTS // (8 * ends.shape[0]))
-    todo = [(s, min(s + size, x.shape[0])) for s in range(0, x.shape[0], size)][::-1]
+    # (first sample, end, reach measured already, reach to measure next)
+    todo = [(s, min(s + size, x.shape[0]), -math.inf, reach)
+            for s in range(0, x.shape[0], size)][::-1]
     while todo:
-        s0, s1 = todo.pop()
+        s0, s1, done, r = todo.pop()
+        if done >= best[0]:  # no pair farther than done apart can beat best
+            continue
         w0, w1 = s0 // WINDOW_SAMPLES, -(-s1 // WINDOW_SAMPLES)
         lo = np.minimum(joint_lo[w0:w1, ends[:, 0]], joint_lo[w0:w1, ends[:, 1]])
         hi = np.maximum(joint_hi[w0:w1, ends[:, 0]], joint_hi[w0:w1, ends[:, 1]])
-        r = min(reach, best[0])
+        r = min(r, best[0])
         while True:
-            near = _near(lo, hi, group, rad, r, allowed)
+            near = _near(lo, hi, group, rad, r, allowed, done)
             if near is None:  # too many candidates at once: half the windows each
                 mid = s0 + (lo.shape[0] // 2) * WINDOW_SAMPLES
-                todo += [(mid, s1), (s0, mid)]
+                todo += [(mid, s1, done, r), (s0, mid, done, r)]
                 break
             w, a, b = near
             s = (s0 + WINDOW_SAMPLES * w)[:, None] + np.arange(WINDOW_SAMPLES)
             inside = s < s1
             s, a, b = s[inside], np.repeat(a, inside.sum(1)), np.repeat(b, inside.sum(1))
-            found, best = _smallest(measure, x, s, a, b, best)
-            if found <= r or r >= min(best[0], limit):
+            best = _smallest(measure, x, s, a, b, best)
+            # every pair within r measured: none left out can beat best once it lies within r
+            if r >= min(best[0], limit):
                 break
-            r = min(REACH_GROWTH * max(r, BOX_SLACK), best[0], limit)
+            done, r = r, min(REACH_GROWTH * max(r, BOX_SLACK), best[0], limit)
     return best
 
 
 def _smallest(measure, x, s, a, b, best):
-    """The smallest gap measured at (s, a, b), and ``best`` updated: (gap, sample, a, b)."""
-    found = math.inf
+    """``best`` (gap, sample, a, b) updated with the gaps measured at (s, a, b)."""
     for k in range(0, s.size, MEASURE_ELEMENTS):
         g = measure(x, s[k:k + MEASURE_ELEMENTS], a[k:k + MEASURE_ELEMENTS],
                     b[k:k + MEASURE_ELEMENTS])
         i = np.flatnonzero(g == g.min()) + k
         first = i[np.lexsort((b[i], a[i], s[i]))[0]]
-        found = min(found, float(g.min()))
         best = min(best, (float(g.min()), int(s[first]), int(a[first]), int(b[first])))
-    return found, best
+    return best
 
 
 def _layer_pairs(layer):
@@ -379,6 +396,8 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     edges = np.asarray(edges, dtype=np.int64)
     layer = np.asarray(layer, dtype=np.int64)
     half = 0.5 * np.broadcast_to(np.asarray(widths, dtype=np.float64), (len(edges),))
+    x = np.ascontiguousarray(x)  # gathered by flat index (:func:`_at`)
+    n_joints = x.shape[1]
     reach = 2.0 * float(half.max(initial=0.0))  # a bar's width: where neighbours stand
     out = {"bar_gap": math.inf, "bar_pair": None, "sample": None, "joint_gap": math.inf,
            "joint_pair": None, "screw_gap": math.inf, "screw_at": None, "column_gap": math.inf,
@@ -393,9 +412,9 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
                    joint_pair=[int(a[~keep][k]), int(b[~keep][k])])
 
     def bars(xs, s, i, j):
-        ei, ej = edges[i], edges[j]
-        return segment_gap(xs[s, ei[:, 0]], xs[s, ei[:, 1]], xs[s, ej[:, 0]],
-                           xs[s, ej[:, 1]]) - half[i] - half[j]
+        ei, ej, row = np.take(edges, i, axis=0), np.take(edges, j, axis=0), s * n_joints
+        return segment_gap(_at(xs, row, ei[:, 0]), _at(xs, row, ei[:, 1]),
+                           _at(xs, row, ej[:, 0]), _at(xs, row, ej[:, 1])) - half[i] - half[j]
 
     gap, s, i, j = _least(x, edges, layer, half, lambda i, j: _apart(edges[i], edges[j]), bars,
                           reach)
@@ -420,8 +439,8 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
         return (i < n_e) & (j >= n_e) & _apart(ends[i], ends[j])
 
     def screws(xs, s, i, j):
-        e = edges[i]
-        return point_gap(xs[s, ends[j, 0]], xs[s, e[:, 0]], xs[s, e[:, 1]]) \
+        e, row = np.take(edges, i, axis=0), s * n_joints
+        return point_gap(_at(xs, row, ends[j, 0]), _at(xs, row, e[:, 0]), _at(xs, row, e[:, 1])) \
             - half[i] - radius[j - n_e]
 
     gap, s, i, j = _least(x, ends, np.concatenate([layer, z]), np.concatenate([half, radius]),
@@ -431,7 +450,8 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     # two columns that share a layer (met on each layer they share; the first is kept)
 
     def cols(xs, s, i, j):
-        d = xs[s, jid[col[i]]] - xs[s, jid[col[j]]]
+        row = s * n_joints
+        d = _at(xs, row, jid[col[i]]) - _at(xs, row, jid[col[j]])
         return np.sqrt((d * d).sum(-1)) - 2.0 * r
 
     gap, s, i, j = _least(x, ends[n_e:], z, np.full(col.size, r), lambda i, j: col[i] != col[j],

@@ -78,16 +78,18 @@ CHECKS = ("one closed body per bar", "bars read back", "pins -> joints", "pin cl
 
 
 #: Work shared by the checks of one export's files (its STL and its 3MF rebuild the same
-#: network): results of pure functions, keyed by everything they depend on; a few entries only.
+#: network): results of pure functions, keyed by everything they depend on; a few entries only
+#: (one export's design window, re-simulation and clearances, and the next one's).
 _MEMO: dict = {}
-_MEMO_SIZE = 4
+_MEMO_SIZE = 6
 
 
 def _memo(key, compute):
     if key not in _MEMO:
+        value = compute()  # may memoise work of its own first
         while len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
-        _MEMO[key] = compute()
+        _MEMO[key] = value
     return _MEMO[key]
 
 
@@ -431,9 +433,8 @@ def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
     order, lengths, dev = rebuilt
     # layers count within a piece: each piece is lowered onto its bed, and pieces joined by
     # hand stack as their bill of materials says; the pieces' layers are kept apart here
-    piece_of_bar = where["piece"][bar_joints[:, 0]]
     band = int(layer.max(initial=0)) + 2 * pins["head_slots"] + 2
-    edge_layer = (layer + band * piece_of_bar)[order]
+    edge_layer = layer[order] + band * _piece_bands(where["piece"][bar_joints[order, 0]])
     # sizes to the files' resolution: the STL and 3MF of one export then share one simulation
     widths = [b["width"] for b in bars if b["width"] is not None]
     measured = {"width": _to_resolution(max(widths)),
@@ -447,6 +448,16 @@ def _moved_checks(design, reference, rebuilt, read, pins, where, bar_joints, s):
                                                  reference))
     except FabkitError as exc:  # the rebuilt network cannot be simulated or sampled
         return [check("motion re-simulated", False, detail=str(exc))], {}
+
+
+def _piece_bands(piece) -> np.ndarray:
+    """Each design edge's piece (``piece``, as numbered read back), numbered again in the order
+    of the design's edges: the pieces of one design the same whatever order a file holds its
+    bodies in (the STL and the 3MF of one export then share one simulation)."""
+    _, first, inverse = np.unique(piece, return_index=True, return_inverse=True)
+    rank = np.empty(first.size, dtype=np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(first.size)
+    return rank[inverse.ravel()]
 
 
 def check_pinned(meshes, names, design, s, report, motion=None) -> dict:
@@ -615,29 +626,40 @@ def _joints_mm(net, lengths, s) -> np.ndarray:
     return np.ascontiguousarray(x_mm)
 
 
+def _simulated(design, x_mm, s, reference):
+    """The rebuilt network (joints ``x_mm``) simulated: its modes, the design's conformational
+    motions, its motion compared with the design's (``reference``) and sampled for the
+    clearances. FabkitError when it cannot be simulated or sampled."""
+    net = design.network
+    built = Network(x_mm / s.scale, net.edges, net.ports, net.labels)
+    modes = count_modes(built)
+    # a print is faithful when it moves as its design does
+    designed = modes.conformational if modes.conformational == 1 else count_modes(
+        net).conformational
+    cmp = compare_motion(design, built, MAP_RTOL, reference)
+    fine = fine_motion(built, design.motion, s.scale, 0.25 * s.clearance, floor=s.clearance,
+                       traced=cmp["trajectory"])
+    return modes, designed, cmp, fine
+
+
 def _motion_checks(design, layer, x_mm, s, measured, reference) -> tuple[list[Check], dict]:
     """Modes, the re-simulated motion and every clearance along it (see the module docstring);
     the checks and the report's ``motion`` facts. ``reference``: the design's motion as the
     Motion stage traced it."""
     net = design.network
     out = []
-    built = Network(x_mm / s.scale, net.edges, net.ports, net.labels)
-    modes = count_modes(built)
-    # a print is faithful when it moves as its design does
-    designed = modes.conformational if modes.conformational == 1 else count_modes(
-        net).conformational
+    # the rebuilt network's motion does not depend on the layers read back: the STL and the
+    # 3MF of one export share it even where they lay identical pieces in other places
+    modes, designed, cmp, fine = _memo(("simulated",) + _design_key(design, s) + (
+        x_mm.tobytes(),), lambda: _simulated(design, x_mm, s, reference))
     out.append(check("modes", modes.conformational == designed,
                      modes.conformational, designed,
                      f"conformational motions of the rebuilt network ({modes.self_stress} states "
                      "of self-stress)"))
-    m = design.motion
-    cmp = compare_motion(design, built, MAP_RTOL, reference)
     out.append(check("motion re-simulated", cmp["ok"], cmp["worst"], cmp["limit"],
                      f"largest port-distance difference (design units, at {cmp['port']}) "
                      f"between the design's motion and the rebuilt network's; the rebuilt one "
                      f"{cmp['status']}" + ("" if cmp["same_end"] else ", the design's not")))
-    fine = fine_motion(built, m, s.scale, 0.25 * s.clearance, floor=s.clearance,
-                       traced=cmp["trajectory"])
     # widths and cap radii as read back; caps and collars above and below every stack
     gaps = same_layer_gaps(net.edges, layer, fine.positions, measured["width"],
                            columns=_pin_columns(net.edges, layer, measured["band"],

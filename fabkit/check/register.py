@@ -28,6 +28,9 @@ ANCHORS = 3
 MAX_CANDIDATES = 4000
 #: Most alternative places kept per piece for the joint choice.
 MAX_PLACES = 64
+#: Joints moved by candidate motions and looked up at once (bounds the memory of a piece of
+#: many joints: its candidates are tried in groups of this many joints).
+MOVED_JOINTS = 2**16
 
 
 @dataclass(frozen=True)
@@ -62,42 +65,75 @@ def pieces_of(n_joints: int, bars) -> list[np.ndarray]:
     return [np.flatnonzero(label == k) for k in range(n)]
 
 
+def _candidates(xy, bars, design_xy, design_edges, length_tol: float):
+    """The rigid motions tried for one piece, in the order they are tried (its longest bars
+    first, each onto every design edge of its length, both ways round; at most
+    :data:`MAX_CANDIDATES`): (anchor joint, design node it goes to, turn), one array each."""
+    d_len = np.linalg.norm(design_xy[design_edges[:, 0]] - design_xy[design_edges[:, 1]], axis=1)
+    b_len = np.linalg.norm(xy[bars[:, 0]] - xy[bars[:, 1]], axis=1)
+    anchor, start, turn = [], [], []
+    for k in np.argsort(-b_len, kind="stable")[:ANCHORS]:
+        a, b = bars[k]
+        u = xy[b] - xy[a]
+        ends = design_edges[np.flatnonzero(np.abs(d_len - b_len[k]) <= length_tol)]
+        ij = np.stack([ends, ends[:, ::-1]], axis=1).reshape(-1, 2)  # each edge both ways
+        v = design_xy[ij[:, 1]] - design_xy[ij[:, 0]]
+        anchor.append(np.full(len(ij), a))
+        start.append(ij[:, 0])
+        turn.append(np.arctan2(v[:, 1], v[:, 0]) - np.arctan2(u[1], u[0]))
+    if not anchor:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    return tuple(np.concatenate(c)[:MAX_CANDIDATES] for c in (anchor, start, turn))
+
+
 def _fits(xy, bars, design_xy, design_edges, reach: float, length_tol: float):
-    """Candidate places of one piece: (joints within ``reach``, rms, Placement), best first."""
+    """Candidate places of one piece: (joints within ``reach``, rms, Placement), best first.
+
+    The candidate motions are tried many at once (:data:`MOVED_JOINTS` joints moved and looked
+    up together); each set of joints one brings onto design nodes (the first candidate to bring
+    it) is then refined by a least-squares fit, the fits of as many joints made together
+    (:func:`fabkit.numerics.rigid_fit` is batched)."""
     from scipy.spatial import cKDTree
 
     tree = cKDTree(design_xy)
-    d_len = np.linalg.norm(design_xy[design_edges[:, 0]] - design_xy[design_edges[:, 1]], axis=1)
-    b_len = np.linalg.norm(xy[bars[:, 0]] - xy[bars[:, 1]], axis=1)
-    seen, out, tried = set(), [], 0
-    for anchor in np.argsort(-b_len, kind="stable")[:ANCHORS]:
-        a, b = bars[anchor]
-        u = xy[b] - xy[a]
-        for e in np.flatnonzero(np.abs(d_len - b_len[anchor]) <= length_tol):
-            for i, j in (design_edges[e], design_edges[e][::-1]):
-                if tried >= MAX_CANDIDATES:
-                    break
-                tried += 1
-                v = design_xy[j] - design_xy[i]
-                turn = np.arctan2(v[1], v[0]) - np.arctan2(u[1], u[0])
-                rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
-                moved = (xy - xy[a]) @ rot.T + design_xy[i]
-                dist, near = tree.query(moved, distance_upper_bound=reach)
-                hit = np.isfinite(dist)
-                if hit.sum() < min(3, len(xy)):
-                    continue
-                key = tuple(np.where(hit, near, -1).tolist())
-                if key in seen:
-                    continue
+    anchor, start, turn = _candidates(xy, bars, design_xy, design_edges, length_tol)
+    seen, hits, nears = set(), [], []
+    step = max(1, MOVED_JOINTS // len(xy))
+    for c0 in range(0, turn.size, step):
+        c, s = np.cos(turn[c0:c0 + step]), np.sin(turn[c0:c0 + step])
+        rot = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)
+        moved = (xy[None] - xy[anchor[c0:c0 + step]][:, None]) @ np.swapaxes(rot, -1, -2) \
+            + design_xy[start[c0:c0 + step]][:, None]
+        dist, near = tree.query(moved.reshape(-1, 2), distance_upper_bound=reach)
+        hit = np.isfinite(dist).reshape(-1, len(xy))
+        near = np.where(hit, near.reshape(hit.shape), -1)
+        for r in np.flatnonzero(hit.sum(axis=1) >= min(3, len(xy))).tolist():
+            key = near[r].tobytes()
+            if key not in seen:  # each set of joints on nodes once, where first met
                 seen.add(key)
-                fit = rigid_fit(xy[hit], design_xy[near[hit]])
-                if np.linalg.det(fit.rotation) < 0:  # pragma: no cover - a proper fit
-                    continue
-                # every joint to its nearest design node under the refined motion
-                refined = apply_fit(fit, xy)
-                dev, match = tree.query(refined)
-                out.append((int(hit.sum()), float(np.sqrt(np.mean(dev ** 2))),
-                            Placement(match, dev, fit.rotation, fit.shift)))
+                hits.append(hit[r])
+                nears.append(near[r])
+    if not hits:
+        return []
+    hit, near = np.array(hits), np.array(nears)
+    count = hit.sum(axis=1)
+    found = {}
+    for k in np.unique(count):
+        group = np.flatnonzero(count == k)
+        fit = rigid_fit(np.broadcast_to(xy, (len(group), *xy.shape))[hit[group]].reshape(-1, k, 2),
+                        design_xy[near[group][hit[group]]].reshape(-1, k, 2))
+        # every joint to its nearest design node under the refined motion
+        dev, match = tree.query(apply_fit(fit, xy).reshape(-1, 2))
+        dev, match = dev.reshape(len(group), -1), match.reshape(len(group), -1)
+        for g, n in enumerate(group.tolist()):
+            found[n] = (fit.rotation[g], fit.shift[g], dev[g], match[g])
+    out = []
+    for n in range(len(hit)):
+        rotation, shift, dev, match = found[n]
+        if np.linalg.det(rotation) < 0:  # pragma: no cover - a proper fit
+            continue
+        out.append((int(count[n]), float(np.sqrt(np.mean(dev ** 2))),
+                    Placement(match, dev, rotation, shift)))
     out.sort(key=lambda c: (-c[0], c[1]))
     return out[:MAX_PLACES]
 
