@@ -315,12 +315,12 @@ def test_branch_names_an_argument_that_is_not_a_network():
 
 # --- network peers ----------------------------------------------------------------------------
 
-def _peer(first: bytes | None):
-    """A local server that accepts every connection and sends ``first`` (None: nothing)."""
+def _serving(on_connection):
+    """A local server whose thread hands every connection it accepts to ``on_connection``,
+    until the server is closed."""
     server = socket.socket()
     server.bind(("127.0.0.1", 0))
     server.listen(8)
-    held = []
 
     def serve():
         while True:
@@ -328,12 +328,22 @@ def _peer(first: bytes | None):
                 conn, _ = server.accept()
             except OSError:
                 return
-            held.append(conn)
-            if first is not None:
-                conn.sendall(first)
+            on_connection(conn)
 
     threading.Thread(target=serve, daemon=True).start()
     return server
+
+
+def _peer(first: bytes | None):
+    """A local server that accepts every connection and sends ``first`` (None: nothing)."""
+    held = []
+
+    def greet(conn):
+        held.append(conn)  # kept open: the client sees silence, not a closed connection
+        if first is not None:
+            conn.sendall(first)
+
+    return _serving(greet)
 
 
 @pytest.mark.parametrize("first, words", [
@@ -509,24 +519,14 @@ def _message(payload: bytes) -> bytes:
 def _scripted_peer(replies):
     """A local server that, on each connection, sends a handshake message, then answers each
     read from the client with the next of ``replies`` (bytes sent as they are)."""
-    server = socket.socket()
-    server.bind(("127.0.0.1", 0))
-    server.listen(8)
+    def script(conn):
+        conn.sendall(_message(b"handshake"))
+        for reply in replies:
+            if not conn.recv(1 << 16):
+                break
+            conn.sendall(reply)
 
-    def serve():
-        while True:
-            try:
-                conn, _ = server.accept()
-            except OSError:
-                return
-            conn.sendall(_message(b"handshake"))
-            for reply in replies:
-                if not conn.recv(1 << 16):
-                    break
-                conn.sendall(reply)
-
-    threading.Thread(target=serve, daemon=True).start()
-    return server
+    return _serving(script)
 
 
 @pytest.mark.parametrize("reply, words", [
