@@ -10,6 +10,7 @@ with the commands it gives.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -122,6 +123,11 @@ DAMAGED_3MF = {
                                                    "(a whole number from 0), is missing"),
     "triangle index 10^23": (r'v1="[^"]*"', 'v1="100000000000000000000000"',
                              "object '1' triangle 0 v1: must be an index"),
+    "triangle index of a superscript digit": (r'v1="[^"]*"', 'v1="²"',
+                                              "object '1' triangle 0 v1: must be an index (a "
+                                              "whole number from 0), got '²'"),
+    "triangle index of Arabic-Indic digits": (r'v1="[^"]*"', 'v1="١"',
+                                              "object '1' triangle 0 v1: must be an index"),
     "triangle index negative": (r'v1="[^"]*"', 'v1="-1"',
                                 "object '1' triangle 0 v1: must be an index"),
     "triangle index past the vertices": (r'v1="[^"]*"', 'v1="99999"',
@@ -493,3 +499,21 @@ def test_the_fixture_files_are_what_the_cases_say(tmp_path, monkeypatch):
     pkg = read_package(path)
     assert len(pkg["mesh"].faces) == 80_000
     assert np.allclose(pkg["mesh"].bounds, [[0, 0, 0], [10, 10, 10]])
+
+
+# --- names: a chain's ports are d and ASCII digits --------------------------------------------
+
+def test_a_port_named_with_a_superscript_digit_is_a_port_not_a_chain_place(tmp_path, capsys):
+    """"d²" passes str.isdigit but not int: it names a port like any other (the export of such a
+    design ended in an internal error in the tolerance analysis's slop table)."""
+    text = (TEMPLATES / "fourbar.toml").read_text()
+    text = text.replace("ports = { d1 = [0, 1], d2 = [2, 3] }",
+                        'ports = { d1 = [0, 1], "d²" = [2, 3] }')
+    assert '"d²"' in text
+    (tmp_path / "fb.toml").write_text(text, encoding="utf-8")
+    rc = main(["export", str(tmp_path / "fb.toml"), "--to", "dxf", "-o", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert rc == 0 and "internal error" not in err, err
+    report = json.loads((tmp_path / "out" / "fourbar" / "report.json").read_text())
+    slop = {row["port"] for row in report["tolerance"]["slop"]["ports"]}
+    assert "d²" in slop

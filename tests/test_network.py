@@ -67,3 +67,11 @@ def test_network_errors_name_the_key_at_fault(nodes, edges, ports, key):
     with pytest.raises(NetworkError) as info:
         Network(nodes, edges, ports=ports)
     assert info.value.key == key
+
+
+def test_a_chain_port_is_d_and_ascii_digits():
+    from fabkit.model.network import chain_port_number, is_chain_port
+
+    assert [chain_port_number(p) for p in ("d1", "d12", "d007", "d", "d1_b", "d²", "d١", "x1")] \
+        == [1, 12, 7, None, None, None, None, None]
+    assert is_chain_port("d3") and not is_chain_port("d²") and not is_chain_port(3)

@@ -28,6 +28,7 @@ from ..model.rigidity import count_modes
 from ..plots.viz import figure_kit
 from . import ModuleMap, paper_module
 from .workprecision import collapsed_fixed_point
+from ..model.network import is_chain_port
 
 __all__ = [
     "CLASSES",
@@ -455,7 +456,7 @@ def stability_study(methods=None, *, budget: float = 60.0, cases=None, progress=
     for case in cases:
         ref = None
         port = case.plot_port
-        if case.fmap is not None and port.startswith("d") and port[1:].isdigit():
+        if case.fmap is not None and is_chain_port(port):
             kk = int(case.plot_port[1:]) - 1
             d0 = float(case.network.port_distance("d1"))
             grid = np.linspace(d0, case.to, 400)

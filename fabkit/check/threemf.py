@@ -76,7 +76,8 @@ def _numbers(values: list, path, where, *, integer: bool = False) -> np.ndarray:
     the k-th value is)."""
     def good(t) -> bool:
         if integer:
-            return isinstance(t, str) and t.isdigit() and len(t) < 19
+            # ASCII digits: "²" is a digit to str.isdigit, not to int
+            return isinstance(t, str) and t.isascii() and t.isdigit() and len(t) < 19
         try:
             return bool(np.isfinite(float(t)))
         except (ValueError, TypeError, OverflowError):

@@ -29,7 +29,7 @@ from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError, FabkitError, KinematicsError
 from ..io.workload import require
 from ..kinematics.constructive import place, plan_construction
-from ..model.network import Assembly, ChainPorts, checked_network, Network
+from ..model.network import Assembly, ChainPorts, checked_network, is_chain_port, Network
 from ..numerics import DOMAIN_RTOL, rigid_fit, TINY
 
 __all__ = [
@@ -890,7 +890,7 @@ def build_chain(section: dict, ctx) -> Network:
     limb = _chain_from_section({k: v for k, v in sub.items()
                                 if k not in ("at", "end", "join_mirror", "swap")}, ctx, "chain.branch")
     if at not in trunk.ports:
-        raise ctx.error("chain.branch.at", f"the chain has no port {at!r} (ports d1..d{len([p for p in trunk.ports if p[1:].isdigit()])})")
+        raise ctx.error("chain.branch.at", f"the chain has no port {at!r} (ports d1..d{len([p for p in trunk.ports if is_chain_port(p)])})")
     if end not in limb.ports:
         raise ctx.error("chain.branch.end", f"the branch has no port {end!r}")
     try:

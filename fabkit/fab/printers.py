@@ -23,7 +23,6 @@ pinning each pair (see docs/printing.md, "Joining split prints").
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +30,7 @@ import numpy as np
 from ..errors import FabricationError
 from ..numerics import MM_SLACK
 from ..settings.printers import Printer, PRINTERS
+from ..model.network import chain_port_number, is_chain_port
 
 __all__ = ["Placement", "bed_layout", "best_orientation", "chain_pieces", "split_to_fit"]
 
@@ -207,7 +207,7 @@ def chain_pieces(net, n_pieces: int) -> list[tuple[np.ndarray, str]]:
     FabricationError
         Not a chain, or more pieces than modules.
     """
-    chain = sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
+    chain = sorted((p for p in net.ports if is_chain_port(p)), key=chain_port_number)
     modules = len(chain) - 1
     if modules < 2 or n_pieces > modules:
         raise FabricationError(f"cannot split into {n_pieces} pieces: the network is not a chain "
@@ -275,7 +275,7 @@ def split_to_fit(net, outline, printer: Printer, *, margin: float | None = None)
         return whole, bed_layout([outline(whole[0][0])], printer, margin=margin)
     except FabricationError as exc:
         refusal = exc
-    chain = [p for p in net.ports if re.fullmatch(r"d\d+", p)]
+    chain = [p for p in net.ports if is_chain_port(p)]
     for n in range(2, len(chain)):
         try:
             pieces = chain_pieces(net, n)

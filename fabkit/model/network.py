@@ -6,6 +6,7 @@ maps, fabrication) derives from it.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from collections.abc import Mapping
@@ -14,7 +15,29 @@ import numpy as np
 
 from ..errors import ArgumentTypeError, NetworkError
 
-__all__ = ["Network", "Assembly", "checked_network"]
+__all__ = ["Network", "Assembly", "checked_network", "chain_port_number", "is_chain_port"]
+
+#: A chain's ports: ``d`` and a number in ASCII digits (d1, d2, ...). Only ASCII: ``str.isdigit``
+#: and ``\d`` also take other scripts' digits and signs such as "²", which ``int`` refuses: a
+#: port named "d²" is a port like any other, not a place along a chain.
+CHAIN_PORT = re.compile(r"d([0-9]+)")
+
+
+def chain_port_number(name) -> int | None:
+    """The number of a chain's port (``"d12"`` -> 12), None for any other name.
+
+    Examples
+    --------
+    >>> chain_port_number("d12"), chain_port_number("d1_b"), chain_port_number("d²")
+    (12, None, None)
+    """
+    m = CHAIN_PORT.fullmatch(name) if isinstance(name, str) else None
+    return int(m.group(1)) if m else None
+
+
+def is_chain_port(name) -> bool:
+    """True for a chain's port, ``d`` and a number (:func:`chain_port_number`)."""
+    return chain_port_number(name) is not None
 
 # Edges shorter than this fraction of the network's size are treated as zero-length.
 _ZERO_LENGTH_RTOL = 1e-12
@@ -49,9 +72,8 @@ class ChainPorts(Mapping):
 
     def row(self, name) -> int:
         """The row of ``pairs`` that holds a port, -1 for a name that is not one of them."""
-        if isinstance(name, str) and len(name) > 1 and name[0] == "d" and name[1:].isdigit() \
-                and name[1] != "0":
-            i = int(name[1:]) - 1
+        if is_chain_port(name) and name[1] != "0":
+            i = chain_port_number(name) - 1
             if i < self.pairs.shape[0]:
                 return i
         return -1

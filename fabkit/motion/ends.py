@@ -28,13 +28,13 @@ designed end lies on another branch of that map.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ConstructionError, DesignError, FabkitError, KinematicsError, TemplateError
 from ..kinematics import place
+from ..model.network import chain_port_number, is_chain_port
 
 __all__ = ["PortEnd", "MotionEnds", "judge_ends", "stated_ends"]
 
@@ -121,12 +121,12 @@ def stated_ends(design) -> dict | None:
 
 
 def _chain_ports(net) -> list[str]:
-    return sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
+    return sorted((p for p in net.ports if is_chain_port(p)), key=chain_port_number)
 
 
 def _ranges(names) -> str:
     """``d2, d3, d4, d7`` → ``d2–d4, d7`` (consecutive chain ports folded)."""
-    nums = [int(n[1:]) if re.fullmatch(r"d\d+", n) else None for n in names]
+    nums = [chain_port_number(n) for n in names]
     if any(k is None for k in nums):
         return ", ".join(names)
     out, run = [], [nums[0]]
@@ -143,7 +143,7 @@ def _ranges(names) -> str:
 
 def _modules_of(names) -> str:
     """The modules whose output ports these are (d_{k+1} is the output of module k)."""
-    ks = [int(n[1:]) - 1 for n in names if re.fullmatch(r"d\d+", n) and int(n[1:]) >= 2]
+    ks = [k - 1 for k in map(chain_port_number, names) if k is not None and k >= 2]
     if not ks:
         return ""
     if len(ks) == 1:
@@ -374,4 +374,5 @@ def _other_branch(design, trajectory, first, up, final, tol) -> str:
 
 
 def _index(port: str) -> int:
-    return int(port[1:]) if re.fullmatch(r"d\d+", port) else 10**9
+    k = chain_port_number(port)
+    return 10**9 if k is None else k

@@ -9,7 +9,6 @@ belong to it, at the chain's start) with a construction plan from its input pair
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +16,7 @@ import numpy as np
 from ..errors import ConstructionError, FabkitError
 from ..kinematics import plan_construction
 from ..kinematics.constructive import cached_plan
-from ..model.network import Network
+from ..model.network import is_chain_port, Network
 
 __all__ = ["Module", "chain_modules", "find_plan"]
 
@@ -71,7 +70,7 @@ def _node_sets(design) -> list[np.ndarray] | None:
             return [np.asarray(s, dtype=np.int64) for s in sheets]
         except (TypeError, ValueError):
             return None
-    chain = [p for p in net.ports if re.fullmatch(r"d\d+", p)]
+    chain = [p for p in net.ports if is_chain_port(p)]
     if sorted(chain) == ["d1", "d2"]:
         return [np.arange(net.n_nodes)]
     return None

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import re
 
 from ..errors import FabkitError
 from ..motion import trace_motion
 from ..status import Status
 from ..plots.viz import figure_kit, set_margins
+from ..model.network import chain_port_number, is_chain_port
 
 
 # --- the motion ------------------------------------------------------------------------------
@@ -46,8 +46,8 @@ def traced_motion(design, *, allow_singular_start=False, **overrides):
 
 
 def _chain_port_names(net) -> list[str]:
-    ports = [p for p in net.ports if re.fullmatch(r"d\d+", p)]
-    return sorted(ports, key=lambda p: int(p[1:]))
+    ports = [p for p in net.ports if is_chain_port(p)]
+    return sorted(ports, key=chain_port_number)
 
 
 def map_figure(traj, design):

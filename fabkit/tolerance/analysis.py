@@ -14,7 +14,7 @@ from ..io.workload import require
 from ..kinematics import make_problem, place, trace
 from ..status import Status
 from ..kinematics.trajectory import EventKind
-from ..model.network import Network
+from ..model.network import is_chain_port, Network
 from ..numerics import EDGE_RTOL, printed, project_to_lengths
 from ..builds.closure import play_ratio, self_stress_basis
 from .assembled import Assemblies, assemble_builds, MODEL_NAMES, slop_summary
@@ -405,7 +405,7 @@ def analyse_tolerance(design, spec: ToleranceSpec | None = None, *, trajectory=N
     problem = make_problem(net, m.drive, m.to, hold=m.hold)
     ports = chain_ports(net)
     pairs = np.array([net.port(p) for p in ports])
-    chain_cols = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
+    chain_cols = [k for k, p in enumerate(ports) if is_chain_port(p)]
     a, b = problem.drive
     n_chain = len(chain_cols)
     end_nodes = sorted(set(pairs[max(n_chain, 1) - 1].tolist()))
@@ -571,7 +571,7 @@ def _horizon(design, plan, dist, reached, ports, length_rms, size_mm, limit_mm, 
         lam_map = behaviour.chaos["lyapunov"]
         out["map_lyapunov"] = lam_map
         out["limit_modules"] = math.log(limit_mm / eps) / lam_map if limit_mm > eps else 0.0
-    chain = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
+    chain = [k for k, p in enumerate(ports) if is_chain_port(p)]
     ok = dist[reached]
     if len(chain) >= 3 and ok.shape[0] >= 5:
         spread = ok[:, chain].std(axis=0)

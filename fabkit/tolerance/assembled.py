@@ -24,6 +24,7 @@ from ..builds.slop import port_slop
 from ..numerics import TINY
 from ..numerics import one_blas_thread
 from .processes import bar_play_ends, nominal_room_mm
+from ..model.network import is_chain_port
 
 __all__ = ["Assemblies", "assemble_builds", "slop_summary", "MODEL_NAMES"]
 
@@ -276,7 +277,7 @@ def slop_summary(net, spec, ports, pairs, held, states, play_ends=None) -> dict 
         for r in port_slop(net, np.asarray(x) * spec.scale, room, held=list(held), ports=named):
             out[r.port][f"{state}_mm"] = r.largest if r.bounded and r.largest <= size_mm \
                 else None
-    chain = [p for p in named if p[:1] == "d" and p[1:].isdigit()]
+    chain = [p for p in named if is_chain_port(p)]
     output = chain[-1] if chain else list(named)[-1]
     rows = [{"port": p, **v} for p, v in out.items()]
     pins = spec.process == "print"

@@ -45,6 +45,7 @@ from ..maps import module_map
 from ..motion.intent import end_fixed_point, map_fixed_points, nominal_lock, template_intent
 from ..motion.modules import chain_modules
 from .folds import fold_states, FoldStates
+from ..model.network import is_chain_port
 
 __all__ = ["Behaviour", "Crystal", "infer_behaviour"]
 
@@ -287,7 +288,7 @@ def infer_behaviour(design, spec, trajectory, problem, plan, ports, pairs,
     else:
         x_end = np.asarray(trajectory.final)
     end_ports = _ports(x_end, pairs)
-    chain_idx = [k for k, p in enumerate(ports) if p[:1] == "d" and p[1:].isdigit()]
+    chain_idx = [k for k, p in enumerate(ports) if is_chain_port(p)]
     chain_pairs = pairs[chain_idx]
     p0 = _ports(x_start, chain_pairs)
     p1 = _ports(x_end, chain_pairs)

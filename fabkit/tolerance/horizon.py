@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 
 import numpy as np
 
@@ -10,6 +9,7 @@ from ..errors import ConstructionError, DesignError, KinematicsError
 from ..kinematics import make_problem, place, plan_construction
 from ..maps import module_map
 from .placement import chain_ports
+from ..model.network import is_chain_port
 
 #: |λ| below this (per module) counts as a neutral map: no exponential growth or decay.
 NEUTRAL_LYAPUNOV = 1e-6
@@ -49,7 +49,7 @@ def lyapunov_estimate(design, plan=None, *, iterations: int = 400, orbits: int =
         ``steps``; None when the design has no construction order or no d1/d2 ports.
     """
     net = design.network
-    chain = [p for p in chain_ports(net) if re.fullmatch(r"d\d+", p)]
+    chain = [p for p in chain_ports(net) if is_chain_port(p)]
     if len(chain) < 2 or design.motion.drive != chain[0] or design.motion.to is None:
         return None
     problem = make_problem(net, design.motion.drive, design.motion.to, hold=design.motion.hold)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,6 +13,7 @@ from ..kinematics import place
 from ..numerics import EDGE_RTOL
 from ..settings.origami import origami_settings
 from .processes import interp_rows, ProcessGeometry, PROFILE_SAMPLES, Sheet, state_profile
+from ..model.network import chain_port_number, is_chain_port
 
 #: Builds whose lengths must be realised and traced one by one (no construction order) are
 #: slow; their number is capped at this.
@@ -40,7 +40,7 @@ def chain_ports(net) -> list[str]:
     list of str
         ``["d1", "d2", ..., "d10", ...]`` by number, then the other port names sorted.
     """
-    chain = sorted((p for p in net.ports if re.fullmatch(r"d\d+", p)), key=lambda p: int(p[1:]))
+    chain = sorted((p for p in net.ports if is_chain_port(p)), key=chain_port_number)
     return chain + sorted(p for p in net.ports if p not in chain)
 
 
