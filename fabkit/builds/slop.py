@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from .. import arguments
 from ..errors import ArgumentTypeError, ArgumentValueError
@@ -224,6 +223,8 @@ def port_slop(net: Network, positions, room, *, held=(), ports=None) -> list[Por
 
 def _largest_increase(name: str, row: np.ndarray, a_eq, b_eq, bounds, e: int) -> float:
     """max ``row · u`` over the play polytope (room scaled to at most 1); ``inf`` if unbounded."""
+    from scipy.optimize import linprog  # here: the command line's parent process needs none of it
+
     c = np.concatenate([-row, np.zeros(e)])  # linprog minimises
     res = linprog(c, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status == 4:

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .. import arguments
 from ..errors import ArgumentTypeError, DesignError
@@ -210,6 +209,8 @@ class Map1D:
         |f(d) - d| and kept when it is below 1e-10. A map that is the identity on its whole
         domain returns one neutral point per domain end (see :meth:`is_identity`).
         """
+        from scipy.optimize import brentq
+
         lo, hi = self.domain
         scale = max(abs(lo), abs(hi), 1.0)
         if self.is_identity():
@@ -364,6 +365,8 @@ class Map1D:
         list of Cycle, sorted by their smallest value. Empty when f^p is the identity for a
         divisor p of m (every point is periodic: :meth:`is_identity` says so).
         """
+        from scipy.optimize import brentq
+
         m = arguments.whole("period", period)
         samples = arguments.whole("samples", samples, minimum=3)
         if m < 2:
@@ -422,6 +425,8 @@ class Map1D:
     # -- invariant range and Lyapunov exponent ------------------------------------------------
     def image(self, lo: float, hi: float, samples: int = 4001) -> tuple[float, float]:
         """The interval f([lo, hi]) (extrema refined where f' changes sign)."""
+        from scipy.optimize import brentq
+
         x = np.linspace(lo, hi, int(samples))
         f, df = self._values(x, derivative=True)
         vals = [np.nanmin(f), np.nanmax(f)]

@@ -5,7 +5,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .. import arguments
 from ..errors import ConstructionError, DesignError, FlatStateError
@@ -40,6 +39,8 @@ def _turning_point(ev, signs, inside, outside):
     has no place at all (its parents on one line: a flat state where branches meet, margin
     undefined); an undefined margin counts as -1, so the root search lands on that boundary
     too."""
+    from scipy.optimize import brentq  # here: the command line's parent process needs none of it
+
     def margin(x):
         m = float(ev(np.array([x]), signs, derivative=False)[2][0])
         return m if np.isfinite(m) else -1.0
