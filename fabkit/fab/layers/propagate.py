@@ -226,19 +226,25 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
                     jtrail.append((j, lj, hj))
                 lo[j], hi[j] = l2, h2
                 lo2, ho2 = l2 + o, h2 + o
+                # A placed bar passing the column keeps the column's bars to one side of it.
+                # Placed avoiders in a row narrow the same bars one after the other: one pass
+                # with their sides together lists each bar where the first pass did, and
+                # again nowhere else, so the order of ``touched`` that counts is the same.
+                keep = -1
                 for c, sl in avs:
                     zc = z[c]
                     if zc < 0:
+                        if keep != -1:
+                            _narrow(dom, z, bj, keep, add)
+                            keep = -1
                         dom[c] &= ~(up[lo2 - sl] & upto[ho2 + sl])
                         add(c)
                         continue
                     if l2 - sl <= zc <= h2 + sl:
                         return False
-                    side = up[zc + o + sl + 1] if l2 > zc else upto[zc + o - sl - 1]
-                    for c2 in bj:
-                        if z[c2] < 0:
-                            dom[c2] &= side
-                            add(c2)
+                    keep &= up[zc + o + sl + 1] if l2 > zc else upto[zc + o - sl - 1]
+                if keep != -1:
+                    _narrow(dom, z, bj, keep, add)
                 for i, bi in parts:  # close columns: disjoint spans, heads included
                     li = lo[i]
                     if li is None:
@@ -277,6 +283,12 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
                         return False
                     push((c, d.bit_length() - 1))
         return True
+
+    def _narrow(dom, z, bars, keep, add):
+        for c in bars:
+            if z[c] < 0:
+                dom[c] &= keep
+                add(c)
 
     def undo(zm, jm):
         while len(ztrail) > zm:
