@@ -291,16 +291,26 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
                 add(c)
 
     def undo(zm, jm):
-        while len(ztrail) > zm:
-            z[ztrail.pop()] = -1
-        while len(jtrail) > jm:
-            j, lo[j], hi[j] = jtrail.pop()
+        for b in ztrail[zm:]:
+            z[b] = -1
+        del ztrail[zm:]
+        for j, l2, h2 in reversed(jtrail[jm:]):  # a column's oldest span put back last
+            lo[j], hi[j] = l2, h2
+        del jtrail[jm:]
+
+    layers_in: dict = {}   # domain -> its layers, ascending
 
     def by_added_span(b, d):
         """The layers left in domain d, by the screw length they add to b's columns, then
         by height."""
-        c = added_span(joints_of[b], lo, hi, K)
-        return sorted((v for v in range(K) if (d >> v) & 1), key=c.__getitem__)  # stable
+        values = layers_in.get(d)
+        if values is None:
+            values = layers_in[d] = [v for v in range(K) if (d >> v) & 1]
+        for j in joints_of[b]:
+            if lo[j] is not None:
+                c = added_span(joints_of[b], lo, hi, K)
+                return sorted(values, key=c.__getitem__)  # stable
+        return values  # no column placed yet: nothing added anywhere, by height
 
     nodes = [0]
     # the bar to branch on: fewest layers left per failure weight, ties to the higher degree,
