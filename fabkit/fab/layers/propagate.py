@@ -352,9 +352,13 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
         best = choose(dom, narrowed)
         if best < 0:
             return list(z)
-        for v in by_added_span(best, dom[best]):
+        values = by_added_span(best, dom[best])
+        last = values[-1]
+        for v in values:
             zm, jm = len(ztrail), len(jtrail)
-            d2, n2 = dom[:], set(narrowed)
+            # the last layer tried works on this branch's own domains: the caller drops them
+            # (and undoes the trail past its own mark) once this branch returns
+            d2, n2 = (dom, narrowed) if v == last else (dom[:], set(narrowed))
             if assign(d2, best, v, n2):
                 found = solve(d2, n2)
                 if found is not None:
