@@ -16,6 +16,7 @@ from fabkit.errors import FabricationError
 from fabkit.writers.dxf import export_design
 from fabkit.fab.laser_plan import laser_plan
 from fabkit.fab.layers import Conflicts
+from fabkit.fab.layers import propagate
 from fabkit.fab.layers.propagate import deep_search, propagate_layers
 
 from conftest import TEMPLATES
@@ -149,12 +150,16 @@ def test_two_coincident_screws_stack_one_above_the_other_and_fewer_layers_are_ru
     assert r.layer is None or int(r.layer.max()) + 1 >= 6
 
 
-def test_the_deep_search_visits_the_same_branches_in_the_same_order():
+@pytest.mark.parametrize("candidate_bars", [0, 10_000])
+def test_the_deep_search_visits_the_same_branches_in_the_same_order(monkeypatch,
+                                                                    candidate_bars):
     # A path of 14 bars (bar b joins joints b and b + 1), each conflicting with the next three,
     # bars passing screws and spacers, and close columns four joints apart: the counts 1..11
     # are ruled out and 12 found after 1111 branches. The count of branches and the stacking
     # found pin the order in which the search places bars and the failures it learns from
-    # (a cheaper search must take the same branches: its budget is a count of them).
+    # (a cheaper search must take the same branches: its budget is a count of them). The bar
+    # to place is chosen among the narrowed bars or by scanning all: the same bar either way.
+    monkeypatch.setattr(propagate, "CANDIDATE_BARS", candidate_bars)
     n = 14
     screw = list(range(1, n))
     pairs = [(a, b) for a in range(n) for b in range(a + 1, min(n, a + 4))]
