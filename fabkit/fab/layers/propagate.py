@@ -331,8 +331,8 @@ def _search(rules: _Rules, K: int, node_limit: int, weight: list):
     def choose(dom, narrowed):
         """The bar to branch on (-1: none left). A bar never narrowed and never blamed has
         every layer at weight 1, the largest key there is (K): the smallest key is among the
-        narrowed and the weighted bars unless they are all at K, and only then is the first
-        unplaced bar of the scan order taken. When those bars are many, all are scanned."""
+        narrowed and the weighted bars unless they are all at K. Then, when those bars are
+        many, or when the narrowed bars are not kept (``None``), every bar is scanned."""
         best, least = -1, top
         if narrowed is not None and 2 * (len(narrowed) + len(weighted)) < n:
             br = n
