@@ -3,6 +3,7 @@ guide and coupon, and its as-built check passes; deep stacks are proven, not cap
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -15,6 +16,7 @@ from fabkit.errors import FabricationError
 from fabkit.writers.dxf import export_design
 from fabkit.fab.laser_plan import laser_plan
 from fabkit.fab.layers import Conflicts
+from fabkit.fab.layers import propagate
 from fabkit.fab.layers.propagate import deep_search, propagate_layers
 
 from conftest import TEMPLATES
@@ -146,3 +148,34 @@ def test_two_coincident_screws_stack_one_above_the_other_and_fewer_layers_are_ru
     # a budget too small decides nothing, and proves nothing
     r = deep_search(4, conf, joint_bars, 1, range(4, 10), node_limit=1)
     assert r.layer is None or int(r.layer.max()) + 1 >= 6
+
+
+@pytest.mark.parametrize("candidate_bars", [0, 10_000])
+def test_the_deep_search_visits_the_same_branches_in_the_same_order(monkeypatch,
+                                                                    candidate_bars):
+    # A path of 14 bars (bar b joins joints b and b + 1), each conflicting with the next three,
+    # bars passing screws and spacers, and close columns four joints apart: the counts 1..11
+    # are ruled out and 12 found after 1111 branches. The count of branches and the stacking
+    # found pin the order in which the search places bars and the failures it learns from
+    # (a cheaper search must take the same branches: its budget is a count of them). The bar
+    # to place is chosen among the narrowed bars or by scanning all: the same bar either way.
+    monkeypatch.setattr(propagate, "CANDIDATE_BARS", candidate_bars)
+    n = 14
+    screw = list(range(1, n))
+    pairs = [(a, b) for a in range(n) for b in range(a + 1, min(n, a + 4))]
+    keepout = [(b, j) for b in range(n) for j in screw
+               if j not in (b, b + 1) and (3 * b + j) % 7 == 0]
+    span = [(b, j) for b in range(n) for j in screw if j not in (b, b + 1)
+            and (b + 2 * j) % 9 == 0 and (b, j) not in keepout]
+    conf = _conflicts(n, pairs, keepout, [(j, j + 4) for j in screw if j + 4 < n and j % 3 == 0],
+                      screw)
+    conf = dataclasses.replace(conf, keepout_span=np.asarray(span, dtype=np.int64))
+    joint_bars = [np.array([j - 1, j]) for j in screw]
+    r = deep_search(n, conf, joint_bars, 1, range(1, 20), node_limit=3000, total_limit=12000)
+    assert r.nodes == 1111 and r.bound == 12
+    assert r.tried == tuple((k, "none") for k in range(1, 12)) + ((12, "found"),)
+    assert r.layer.tolist() == [3, 2, 0, 5, 7, 11, 10, 9, 2, 0, 4, 10, 7, 8]
+    # a budget that stops inside count 11 decides nothing there
+    r = deep_search(n, conf, joint_bars, 1, range(1, 20), node_limit=300, total_limit=1200)
+    assert r.nodes == 1201 and r.bound == 11 and r.layer is None
+    assert r.tried[-3:] == ((11, "budget"), (12, "budget"), (13, "budget"))
