@@ -307,16 +307,9 @@ def _near(lo, hi, group, rad, reach: float, allowed, done: float = -math.inf):
            + (group - group.min())[None, :]).ravel()
     start = lo[..., axis].ravel()
     stop = (hi[..., axis] + (rad + reach + float(rad.max()) + 2.0 * BOX_SLACK)[None, :]).ravel()
-    order = np.lexsort((start, run))
+    order, last = _sweep_order(run, start, stop)
     pos = np.empty_like(order)
     pos[order] = np.arange(order.size)
-    # where each box's reach ends among the sorted starts of its run: sort the ends in with
-    # the starts (an end after the starts it equals) and count the starts before it
-    merged = np.lexsort((np.r_[np.zeros(order.size, np.int8), np.ones(order.size, np.int8)],
-                         np.r_[start, stop], np.r_[run, run]))
-    ends = np.flatnonzero(merged >= order.size)
-    last = np.empty(order.size, dtype=np.int64)
-    last[merged[ends] - order.size] = ends - np.arange(order.size)
     counts = np.maximum(last - pos - 1, 0)
     total = int(counts.sum())
     if total * WINDOW_SAMPLES > BLOCK_ELEMENTS and n_s > 1:
@@ -332,6 +325,25 @@ def _near(lo, hi, group, rad, reach: float, allowed, done: float = -math.inf):
     if done > -math.inf:
         ok &= ~(sep <= done + rad[a] + rad[b] + BOX_SLACK)
     return fi[ok] // n_m, a[ok], b[ok]
+
+
+def _sweep_order(run, start, stop):
+    """The boxes sorted by run, then start (ties in index order), and where each box's reach
+    ends among them: the number of boxes of earlier runs, or of its run starting at or before
+    its ``stop``.
+
+    One stable sort of the starts and stops together ranks them (a stop after the starts it
+    equals); a run and a rank make one whole-number key, so the boxes sort on it alone, and each
+    stop's place among the sorted starts is a binary search: the order of sorting on run, start
+    and index, without sorts on several keys.
+    """
+    n = start.size
+    rank = np.empty(2 * n, dtype=np.int64)
+    rank[np.argsort(np.concatenate([start, stop]), kind="stable")] = np.arange(2 * n)
+    base = run.astype(np.int64) * (2 * n)
+    keys = base + rank[:n]
+    order = np.argsort(keys, kind="stable")
+    return order, np.searchsorted(keys[order], base + rank[n:])
 
 
 def _least(x, ends, group, rad, allowed, measure, reach: float):
