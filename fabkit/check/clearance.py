@@ -346,7 +346,7 @@ def _sweep_order(run, start, stop):
     return order, np.searchsorted(keys[order], base + rank[n:])
 
 
-def _least(x, ends, group, rad, allowed, measure, reach: float):
+def _least(x, ends, group, rad, allowed, measure, reach: float, windows=None):
     """Smallest gap over samples and pairs of parts, exactly, and where.
 
     Parts are segments between joints (``ends``, a column from its joint to itself) in
@@ -358,7 +358,8 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     within it (no pair left out can then do better) or it covers the whole motion, or no pair
     within it can beat the smallest gap of the blocks before. A grown reach measures only the
     pairs and windows the smaller one left out, and so do the halves of a block split at a
-    grown reach. Ties go to the earliest sample, then the lowest pair.
+    grown reach. Ties go to the earliest sample, then the lowest pair. ``windows``:
+    :func:`_windows` of ``x`` when the caller boxed it already.
 
     Returns
     -------
@@ -370,7 +371,7 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
         return best
     lo_all, hi_all = _extent(x, np.min), _extent(x, np.max)
     limit = float((hi_all - lo_all).max())
-    joint_lo, joint_hi = _windows(x)
+    joint_lo, joint_hi = _windows(x) if windows is None else windows
     size = WINDOW_SAMPLES * max(1, BLOCK_ELEMENTS // (8 * ends.shape[0]))
     # (first sample, end, reach measured already, reach to measure next)
     todo = [(s, min(s + size, x.shape[0]), -math.inf, reach)
@@ -476,8 +477,9 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
                                *_at(comps, row, ej[:, 0]), *_at(comps, row, ej[:, 1])) \
             - half[i] - half[j]
 
+    boxes = _windows(x)  # the joints boxed once for the three searches
     gap, s, i, j = _least(x, edges, layer, half, lambda i, j: _apart(edges[i], edges[j]), bars,
-                          reach)
+                          reach, boxes)
     if i >= 0:
         out.update(bar_gap=gap, bar_pair=[i, j], sample=s)
     if not columns or not len(columns["joints"]):
@@ -504,7 +506,7 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
                              *_at(comps, row, e[:, 1])) - half[i] - radius[j - n_e]
 
     gap, s, i, j = _least(x, ends, np.concatenate([layer, z]), np.concatenate([half, radius]),
-                          bar_and_column, screws, reach)
+                          bar_and_column, screws, reach, boxes)
     if i >= 0:
         out.update(screw_gap=gap, screw_at=[i, int(jid[col[j - n_e]])])
     # two columns that share a layer (met on each layer they share; the first is kept)
@@ -516,7 +518,7 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
         return np.sqrt(dx * dx + dy * dy) - 2.0 * r
 
     gap, s, i, j = _least(x, ends[n_e:], z, np.full(col.size, r), lambda i, j: col[i] != col[j],
-                          cols, reach)
+                          cols, reach, boxes)
     if i >= 0:
         out.update(column_gap=gap, column_pair=[int(jid[col[i]]), int(jid[col[j]])])
     return out
