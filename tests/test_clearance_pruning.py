@@ -140,3 +140,50 @@ def test_small_blocks_split_and_give_the_same_gaps(monkeypatch):
     edges = np.array([rng.choice(n, 2, replace=False) for _ in range(40)])
     _assert_same(edges, rng.integers(0, 3, 40), x, 5.0, _columns(rng, n, 3))
     assert any(splits)
+
+
+def _point_gap_pairs(x, p, q):
+    """Distance from points to segments written on (..., 2) arrays summed over their last axis."""
+    d = q - p
+    dd = (d * d).sum(-1)
+    t = np.clip(((x - p) * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    e = p + t[..., None] * d - x
+    return np.sqrt((e * e).sum(-1))
+
+
+def test_distances_on_components_are_those_of_point_pairs_to_the_bit():
+    """The gaps are measured on x and y apart: the very values of the (..., 2) formulas, with
+    segments of no length, shared ends and crossings among them."""
+    rng = np.random.default_rng(5)
+    p1, q1, p2, q2 = (rng.uniform(-50, 50, (4000, 2)) for _ in range(4))
+    q1[:300] = p1[:300]          # segments of no length
+    p2[300:600] = q1[300:600]    # touching at an end
+    p2[600:900] = np.round(p2[600:900])
+    q2[600:900] = np.round(q2[600:900])
+    got = point_gap(p1, p2, q2)
+    assert np.array_equal(got, _point_gap_pairs(p1, p2, q2))
+    seg = segment_gap(p1, q1, p2, q2)
+    ref = np.minimum(np.minimum(_point_gap_pairs(p1, p2, q2), _point_gap_pairs(q1, p2, q2)),
+                     np.minimum(_point_gap_pairs(p2, p1, q1), _point_gap_pairs(q2, p1, q1)))
+    crossing = seg == 0.0
+    assert np.array_equal(seg[~crossing], ref[~crossing])
+    assert 0 < crossing.sum() < len(seg)
+    # by hand: crossing diagonals, parallel bars 3 apart, a point 5 from a segment of no length
+    a, b, c, d = (np.array(v, dtype=float) for v in ([[0, 0], [0, 0]], [[2, 2], [1, 0]],
+                                                     [[0, 2], [0, 3]], [[2, 0], [1, 3]]))
+    assert segment_gap(a, b, c, d).tolist() == [0.0, 3.0]
+    assert point_gap(np.array([1.0, 1.0]), np.array([4.0, 5.0]), np.array([4.0, 5.0])) == 5.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_bars_on_a_whole_millimetre_grid_give_the_gaps_of_every_pair(seed):
+    """Joints on whole millimetres: boxes that start and end where others do (ties in the sort
+    and sweep) are all measured."""
+    rng = np.random.default_rng(100 + seed)
+    n, s = 24, 90
+    x = np.round(rng.uniform(0, 60, (1, n, 2)) + np.cumsum(rng.integers(-1, 2, (s, n, 2)),
+                                                          axis=0)).astype(float)
+    edges = np.array([rng.choice(n, 2, replace=False) for _ in range(40)])
+    layer = rng.integers(0, 3, len(edges))
+    got = _assert_same(edges, layer, x, 4.0, _columns(rng, n, 3))
+    assert got["bar_pair"] is not None

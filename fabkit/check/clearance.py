@@ -88,15 +88,26 @@ def joint_steps(x: np.ndarray) -> np.ndarray:
     """Largest joint move between consecutive configurations, shape (S - 1,)."""
     if x.shape[0] < 2:
         return np.zeros(0)
-    d = np.diff(x, axis=0)
-    return np.sqrt((d * d).sum(axis=-1)).max(axis=-1)
+    return _step_lengths(np.diff(x, axis=0))
 
 
 def _pair_steps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Largest joint move from each configuration of ``a`` to the same one of ``b``, as
     :func:`joint_steps` measures it."""
-    d = b - a
-    return np.sqrt((d * d).sum(axis=-1)).max(axis=-1)
+    return _step_lengths(b - a)
+
+
+def _step_lengths(d: np.ndarray) -> np.ndarray:
+    """Largest length of the moves ``d`` (..., N, 2) over their joints, shape (...,): the two
+    components squared and added (the bits of a sum over the last axis, without numpy's slow
+    reduction over an axis of two)."""
+    return np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]).max(axis=-1)
+
+
+def _extent(a: np.ndarray, reduce) -> np.ndarray:
+    """``reduce`` (``np.min`` or ``np.max``) of ``a`` (..., 2) over every axis but the last,
+    component by component (a reduction that keeps an axis of two is ten times slower)."""
+    return np.array([reduce(a[..., 0]), reduce(a[..., 1])])
 
 
 def fine_motion(net, motion, scale: float, limit: float, *, floor: float | None = None,
@@ -210,31 +221,65 @@ def _placed_fine(net, motion, traj, bound: float, floor: float) -> np.ndarray:
 
 def point_gap(x, p, q) -> np.ndarray:
     """Distance from points ``x`` to segments ``p``-``q`` (broadcast over leading axes)."""
-    d = q - p
-    dd = (d * d).sum(-1)
-    t = np.clip(((x - p) * d).sum(-1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    e = p + t[..., None] * d - x
-    return np.sqrt((e * e).sum(-1))
+    x, p, q = np.asarray(x), np.asarray(p), np.asarray(q)
+    return _point_gap_xy(x[..., 0], x[..., 1], p[..., 0], p[..., 1], q[..., 0], q[..., 1])
 
 
 def segment_gap(p1, q1, p2, q2) -> np.ndarray:
     """Distance between segments ``p1``-``q1`` and ``p2``-``q2`` in the plane (0 where they
     cross), broadcast over leading axes."""
-    d = np.minimum(np.minimum(point_gap(p1, p2, q2), point_gap(q1, p2, q2)),
-                   np.minimum(point_gap(p2, p1, q1), point_gap(q2, p1, q1)))
+    p1, q1, p2, q2 = (np.asarray(v) for v in (p1, q1, p2, q2))
+    return _segment_gap_xy(p1[..., 0], p1[..., 1], q1[..., 0], q1[..., 1],
+                           p2[..., 0], p2[..., 1], q2[..., 0], q2[..., 1])
 
-    def side(a, b, c):  # sign of the turn a -> b -> c
-        return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - \
-            (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
 
-    crossing = (side(p1, q1, p2) * side(p1, q1, q2) < 0) & (side(p2, q2, p1) * side(p2, q2, q1) < 0)
+# The distances are computed on x and y components apart: the same operations in the same order
+# as on (..., 2) arrays summed over their last axis (a + b of two terms), so the same bits, but
+# without numpy's slow reduction over an axis of two.
+
+def _segment_frame(px, py, qx, qy):
+    """(dx, dy, dd) of segments ``p``-``q``: their direction and its squared length (1 for a
+    segment of no length, whose parameter is then 0)."""
+    dx, dy = qx - px, qy - py
+    dd = dx * dx + dy * dy
+    return dx, dy, np.where(dd > 0, dd, 1.0)
+
+
+def _point_gap_xy(xx, xy, px, py, qx, qy, frame=None) -> np.ndarray:
+    """:func:`point_gap` on components; ``frame``: :func:`_segment_frame` of the segments."""
+    dx, dy, dd = _segment_frame(px, py, qx, qy) if frame is None else frame
+    t = np.clip(((xx - px) * dx + (xy - py) * dy) / dd, 0.0, 1.0)
+    ex, ey = px + t * dx - xx, py + t * dy - xy
+    return np.sqrt(ex * ex + ey * ey)
+
+
+def _segment_gap_xy(p1x, p1y, q1x, q1y, p2x, p2y, q2x, q2y) -> np.ndarray:
+    """:func:`segment_gap` on components."""
+    f1, f2 = _segment_frame(p1x, p1y, q1x, q1y), _segment_frame(p2x, p2y, q2x, q2y)
+    d = np.minimum(np.minimum(_point_gap_xy(p1x, p1y, p2x, p2y, q2x, q2y, f2),
+                              _point_gap_xy(q1x, q1y, p2x, p2y, q2x, q2y, f2)),
+                   np.minimum(_point_gap_xy(p2x, p2y, p1x, p1y, q1x, q1y, f1),
+                              _point_gap_xy(q2x, q2y, p1x, p1y, q1x, q1y, f1)))
+
+    def side(ax, ay, bx, by, cx, cy):  # sign of the turn a -> b -> c
+        return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+
+    crossing = ((side(p1x, p1y, q1x, q1y, p2x, p2y) * side(p1x, p1y, q1x, q1y, q2x, q2y) < 0)
+                & (side(p2x, p2y, q2x, q2y, p1x, p1y) * side(p2x, p2y, q2x, q2y, q1x, q1y) < 0))
     return np.where(crossing, 0.0, d)
 
 
-def _at(x, row, joint) -> np.ndarray:
-    """``x[s, joint]`` of a C-contiguous ``x`` (S, N, 2), given ``row = s * N``: one gather by
-    flat index, several times faster than indexing two axes."""
-    return np.take(x.reshape(-1, x.shape[-1]), row + joint, axis=0)
+def _components(x):
+    """The x and y coordinates of ``x`` (S, N, 2), each flat and contiguous (gathered by flat
+    index ``s * N + joint``, :func:`_at`)."""
+    return np.ascontiguousarray(x[..., 0]).ravel(), np.ascontiguousarray(x[..., 1]).ravel()
+
+
+def _at(xs, row, joint):
+    """``x[s, joint]`` as (x, y) components of :func:`_components` ``xs``, given ``row = s * N``:
+    one gather by flat index each, several times faster than indexing two axes."""
+    flat = row + joint
+    return np.take(xs[0], flat), np.take(xs[1], flat)
 
 
 def _windows(x):
@@ -257,21 +302,14 @@ def _near(lo, hi, group, rad, reach: float, allowed, done: float = -math.inf):
     (the caller splits it).
     """
     n_s, n_m = lo.shape[:2]
-    axis = int(np.argmax(hi.max(axis=(0, 1)) - lo.min(axis=(0, 1))))
+    axis = int(np.argmax(_extent(hi, np.max) - _extent(lo, np.min)))
     run = (np.arange(n_s)[:, None] * (int(group.max() - group.min()) + 1)
            + (group - group.min())[None, :]).ravel()
     start = lo[..., axis].ravel()
     stop = (hi[..., axis] + (rad + reach + float(rad.max()) + 2.0 * BOX_SLACK)[None, :]).ravel()
-    order = np.lexsort((start, run))
+    order, last = _sweep_order(run, start, stop)
     pos = np.empty_like(order)
     pos[order] = np.arange(order.size)
-    # where each box's reach ends among the sorted starts of its run: sort the ends in with
-    # the starts (an end after the starts it equals) and count the starts before it
-    merged = np.lexsort((np.r_[np.zeros(order.size, np.int8), np.ones(order.size, np.int8)],
-                         np.r_[start, stop], np.r_[run, run]))
-    ends = np.flatnonzero(merged >= order.size)
-    last = np.empty(order.size, dtype=np.int64)
-    last[merged[ends] - order.size] = ends - np.arange(order.size)
     counts = np.maximum(last - pos - 1, 0)
     total = int(counts.sum())
     if total * WINDOW_SAMPLES > BLOCK_ELEMENTS and n_s > 1:
@@ -281,15 +319,34 @@ def _near(lo, hi, group, rad, reach: float, allowed, done: float = -math.inf):
     flat_lo, flat_hi = lo.reshape(-1, 2), hi.reshape(-1, 2)
     a, b = np.minimum(fi % n_m, fj % n_m), np.maximum(fi % n_m, fj % n_m)
     lo_i, lo_j = np.take(flat_lo, fi, axis=0), np.take(flat_lo, fj, axis=0)
-    sep = np.maximum(lo_j - np.take(flat_hi, fi, axis=0),
-                     lo_i - np.take(flat_hi, fj, axis=0)).max(axis=1)
+    sep = np.maximum(lo_j - np.take(flat_hi, fi, axis=0), lo_i - np.take(flat_hi, fj, axis=0))
+    sep = np.maximum(sep[:, 0], sep[:, 1])  # not a reduction over an axis of two: slow
     ok = (sep <= reach + rad[a] + rad[b] + BOX_SLACK) & allowed(a, b)
     if done > -math.inf:
         ok &= ~(sep <= done + rad[a] + rad[b] + BOX_SLACK)
     return fi[ok] // n_m, a[ok], b[ok]
 
 
-def _least(x, ends, group, rad, allowed, measure, reach: float):
+def _sweep_order(run, start, stop):
+    """The boxes sorted by run, then start (ties in index order), and where each box's reach
+    ends among them: the number of boxes of earlier runs, or of its run starting at or before
+    its ``stop``.
+
+    One stable sort of the starts and stops together ranks them (a stop after the starts it
+    equals); a run and a rank make one whole-number key, so the boxes sort on it alone, and each
+    stop's place among the sorted starts is a binary search: the order of sorting on run, start
+    and index, without sorts on several keys.
+    """
+    n = start.size
+    rank = np.empty(2 * n, dtype=np.int64)
+    rank[np.argsort(np.concatenate([start, stop]), kind="stable")] = np.arange(2 * n)
+    base = run.astype(np.int64) * (2 * n)
+    keys = base + rank[:n]
+    order = np.argsort(keys, kind="stable")
+    return order, np.searchsorted(keys[order], base + rank[n:])
+
+
+def _least(x, ends, group, rad, allowed, measure, reach: float, windows=None):
     """Smallest gap over samples and pairs of parts, exactly, and where.
 
     Parts are segments between joints (``ends``, a column from its joint to itself) in
@@ -301,7 +358,8 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     within it (no pair left out can then do better) or it covers the whole motion, or no pair
     within it can beat the smallest gap of the blocks before. A grown reach measures only the
     pairs and windows the smaller one left out, and so do the halves of a block split at a
-    grown reach. Ties go to the earliest sample, then the lowest pair.
+    grown reach. Ties go to the earliest sample, then the lowest pair. ``windows``:
+    :func:`_windows` of ``x`` when the caller boxed it already.
 
     Returns
     -------
@@ -311,9 +369,9 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
     best = (math.inf, -1, -1, -1)
     if ends.shape[0] < 2:
         return best
-    lo_all, hi_all = x.min(axis=(0, 1)), x.max(axis=(0, 1))
+    lo_all, hi_all = _extent(x, np.min), _extent(x, np.max)
     limit = float((hi_all - lo_all).max())
-    joint_lo, joint_hi = _windows(x)
+    joint_lo, joint_hi = _windows(x) if windows is None else windows
     size = WINDOW_SAMPLES * max(1, BLOCK_ELEMENTS // (8 * ends.shape[0]))
     # (first sample, end, reach measured already, reach to measure next)
     todo = [(s, min(s + size, x.shape[0]), -math.inf, reach)
@@ -335,7 +393,8 @@ def _least(x, ends, group, rad, allowed, measure, reach: float):
             w, a, b = near
             s = (s0 + WINDOW_SAMPLES * w)[:, None] + np.arange(WINDOW_SAMPLES)
             inside = s < s1
-            s, a, b = s[inside], np.repeat(a, inside.sum(1)), np.repeat(b, inside.sum(1))
+            per = inside.sum(1)
+            s, a, b = s[inside], np.repeat(a, per), np.repeat(b, per)
             best = _smallest(measure, x, s, a, b, best)
             # every pair within r measured: none left out can beat best once it lies within r
             if r >= min(best[0], limit):
@@ -396,7 +455,8 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     edges = np.asarray(edges, dtype=np.int64)
     layer = np.asarray(layer, dtype=np.int64)
     half = 0.5 * np.broadcast_to(np.asarray(widths, dtype=np.float64), (len(edges),))
-    x = np.ascontiguousarray(x)  # gathered by flat index (:func:`_at`)
+    x = np.ascontiguousarray(x)
+    comps = _components(x)  # gathered by flat index (:func:`_at`)
     n_joints = x.shape[1]
     reach = 2.0 * float(half.max(initial=0.0))  # a bar's width: where neighbours stand
     out = {"bar_gap": math.inf, "bar_pair": None, "sample": None, "joint_gap": math.inf,
@@ -411,13 +471,15 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
         out.update(joint_gap=float(overlap[k]),
                    joint_pair=[int(a[~keep][k]), int(b[~keep][k])])
 
-    def bars(xs, s, i, j):
+    def bars(_, s, i, j):
         ei, ej, row = np.take(edges, i, axis=0), np.take(edges, j, axis=0), s * n_joints
-        return segment_gap(_at(xs, row, ei[:, 0]), _at(xs, row, ei[:, 1]),
-                           _at(xs, row, ej[:, 0]), _at(xs, row, ej[:, 1])) - half[i] - half[j]
+        return _segment_gap_xy(*_at(comps, row, ei[:, 0]), *_at(comps, row, ei[:, 1]),
+                               *_at(comps, row, ej[:, 0]), *_at(comps, row, ej[:, 1])) \
+            - half[i] - half[j]
 
+    boxes = _windows(x)  # the joints boxed once for the three searches
     gap, s, i, j = _least(x, edges, layer, half, lambda i, j: _apart(edges[i], edges[j]), bars,
-                          reach)
+                          reach, boxes)
     if i >= 0:
         out.update(bar_gap=gap, bar_pair=[i, j], sample=s)
     if not columns or not len(columns["joints"]):
@@ -438,24 +500,25 @@ def same_layer_gaps(edges, layer, x, widths, *, columns=None) -> dict:
     def bar_and_column(i, j):  # i < j: i a bar, j a column
         return (i < n_e) & (j >= n_e) & _apart(ends[i], ends[j])
 
-    def screws(xs, s, i, j):
+    def screws(_, s, i, j):
         e, row = np.take(edges, i, axis=0), s * n_joints
-        return point_gap(_at(xs, row, ends[j, 0]), _at(xs, row, e[:, 0]), _at(xs, row, e[:, 1])) \
-            - half[i] - radius[j - n_e]
+        return _point_gap_xy(*_at(comps, row, ends[j, 0]), *_at(comps, row, e[:, 0]),
+                             *_at(comps, row, e[:, 1])) - half[i] - radius[j - n_e]
 
     gap, s, i, j = _least(x, ends, np.concatenate([layer, z]), np.concatenate([half, radius]),
-                          bar_and_column, screws, reach)
+                          bar_and_column, screws, reach, boxes)
     if i >= 0:
         out.update(screw_gap=gap, screw_at=[i, int(jid[col[j - n_e]])])
     # two columns that share a layer (met on each layer they share; the first is kept)
 
-    def cols(xs, s, i, j):
+    def cols(_, s, i, j):
         row = s * n_joints
-        d = _at(xs, row, jid[col[i]]) - _at(xs, row, jid[col[j]])
-        return np.sqrt((d * d).sum(-1)) - 2.0 * r
+        (ax, ay), (bx, by) = _at(comps, row, jid[col[i]]), _at(comps, row, jid[col[j]])
+        dx, dy = ax - bx, ay - by
+        return np.sqrt(dx * dx + dy * dy) - 2.0 * r
 
     gap, s, i, j = _least(x, ends[n_e:], z, np.full(col.size, r), lambda i, j: col[i] != col[j],
-                          cols, reach)
+                          cols, reach, boxes)
     if i >= 0:
         out.update(column_gap=gap, column_pair=[int(jid[col[i]]), int(jid[col[j]])])
     return out

@@ -110,6 +110,12 @@ def _fixed_metadata():
         ezdxf.options.write_fixed_meta_data_for_testing = old
 
 
+def _floats(points) -> list:
+    """Points as lists of Python floats (the values ``float`` gives each coordinate), made by
+    numpy at once rather than a float at a time."""
+    return np.asarray(points, dtype=np.float64).tolist()
+
+
 def _fmt(v: float) -> str:
     return repr(float(v))
 
@@ -179,8 +185,8 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
 
         def closed_outline(vertices, layer, part):
             if s.flavour == "lwpolyline":
-                e = msp.add_lwpolyline([tuple(map(float, v)) for v in vertices], format="xyb",
-                                       close=True, dxfattribs={"layer": layer})
+                e = msp.add_lwpolyline(_floats(vertices), format="xyb", close=True,
+                                       dxfattribs={"layer": layer})
                 tag(e, part)
                 return
             for prim in bulge_primitives(vertices):
@@ -196,8 +202,8 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
             for label in part.labels:
                 if s.labels == "outlines":
                     for poly in label_outlines(label):
-                        msp.add_lwpolyline([tuple(map(float, p)) for p in poly], format="xy",
-                                           close=True, dxfattribs={"layer": "ENGRAVE"})
+                        msp.add_lwpolyline(_floats(poly), format="xy", close=True,
+                                           dxfattribs={"layer": "ENGRAVE"})
                 else:
                     t = msp.add_text(label.text, height=label.height, rotation=label.angle,
                                      dxfattribs={"layer": "ENGRAVE"})
