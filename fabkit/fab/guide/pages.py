@@ -32,7 +32,7 @@ import textwrap
 
 import numpy as np
 
-from ...plots.viz import checked_png, clipped_texts, figure_kit
+from ...plots.viz import checked_png, clipped_texts, figure_kit, figure_texts, frozen_heap
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .flow import column_lines, MIN_PT, STYLES
@@ -337,7 +337,6 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     """
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.text import Text
 
     s = plan.settings
     edges = np.asarray(plan.bars.edges)
@@ -368,7 +367,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     # substitutes a font for an unembedded one sets "S tand" for "Stand"). matplotlib's PDF
     # writer sizes its font subsets by ``ps.fonttype``: at its default (3) every character past
     # the first 256 (→, ×, …) goes to a second subset of the same font, embedded again
-    with matplotlib.rc_context({"pdf.fonttype": 42, "ps.fonttype": 42}), \
+    with frozen_heap(), matplotlib.rc_context({"pdf.fonttype": 42, "ps.fonttype": 42}), \
             PdfPages(buf, metadata={"Creator": "fabkit", "CreationDate": None, "ModDate": None,
                                     "Producer": "fabkit"}) as pdf:
         for k, sheet in enumerate(gp.sheets):
@@ -380,7 +379,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                 for key in ("labels", "shrunk", "dropped"):
                     stats[key] += lab.stats[key]
                 stats["dropped_on"] += [k + 1] * lab.stats["dropped"]
-            shown = [t for t in fig.findobj(Text) if t.get_text() and t.get_visible()]
+            shown = figure_texts(fig)
             texts.append([t.get_text() for t in shown])
             stats["smallest_pt"] = min([stats["smallest_pt"], *(t.get_fontsize() for t in shown)])
             pdf.savefig(fig)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...plots.viz import checked_png, figure_kit
+from ...plots.viz import checked_png, figure_kit, frozen_heap
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .plan import bar_name, frame_caption, GuidePlan
@@ -49,8 +49,9 @@ def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         ``rows``, ``px_per_mm``, ``labels``, ``overlaps`` (0), ``shrunk``, ``dropped``,
         ``clipped`` (texts that do not fit in the picture).
     """
-    fig, stats = assembly_figure(plan, gp)
-    png, stats["clipped"] = checked_png(fig, dpi=_DPI)
+    with frozen_heap():
+        fig, stats = assembly_figure(plan, gp)
+        png, stats["clipped"] = checked_png(fig, dpi=_DPI)
     return png, stats
 
 
