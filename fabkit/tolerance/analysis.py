@@ -41,6 +41,12 @@ __all__ = ["analyse_tolerance"]
 #: bars keep their lengths to the tracer's tolerance).
 PLAY_RTOL = 1e-6
 
+#: A build's trace stops where its play ratio passes the limit of :data:`PLAY_RTOL` by this
+#: much more (relative): the ratio of a configuration as the tracer holds it and as the trace
+#: returns it (moved rigidly into the caller's gauge) differ by round-off, and the trace must
+#: reach the configuration where the returned one runs out.
+PLAY_WATCH_MARGIN = 1e-9
+
 #: Builds per error source in the chart's curves (the first ones of the sample, same draws):
 #: the curves show where each source starts to matter; the margin itself uses every build.
 SOURCE_SAMPLES = 32
@@ -264,27 +270,47 @@ class _Projected:
         # a build with play moves without the bars its loops make redundant; they take their
         # lengths within the loops' play until it runs out (checked below)
         moving = net.with_nodes(x) if edges is None else Network(x, edges, net.ports)
+        # the trace stops once the loops are clearly out of play: the build is judged before
+        # that configuration, and tracing on (often to a turning or branch point, whose search
+        # costs several steps) only made configurations no maker's pull reaches
+        watch = None if edges is None else self._play_watch(net, x, builds, s)
+        extra = {} if watch is None else {"until": watch}
         try:
-            tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold)
+            tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold, **extra)
         except (KinematicsError, FabkitError):
             return None
         # a build that locks short of the target is judged where it locks, as a maker pushing
         # the drive until it stops would find it: at its own turning point (a built module's
         # crystal a little off the designed one), where a state of self-stress it moved with
         # vanishes, or where its loops run out of play (the AND gate's branch collapsed up to
-        # the junction)
+        # the junction). Where the play runs out comes first: what the tracer met beyond it (a
+        # failure, or the stop asked for above) is no part of the build's motion.
+        stop = None if edges is None else self._play_runs_out(net, tr.positions, builds, s)
+        if stop:
+            return tr.positions[stop - 1], True
         last = tr.events[-1].kind if tr.events else None
         locked = last in (EventKind.TURNING_POINT, EventKind.SELF_STRESS_LOST)
         if tr.status is Status.FAILED and last is not EventKind.SELF_STRESS_LOST:
             return tr.message or "its trace failed"
-        end = len(tr.positions) - 1
-        if edges is not None:
-            stop = self._play_runs_out(net, tr.positions, builds, s)
-            if stop == 0:
-                return "its loops leave their play as it starts to move"
-            if stop is not None:
-                end, locked = stop - 1, True
-        return (tr.positions[end], locked) if tr.success or locked else None
+        if stop == 0:
+            return "its loops leave their play as it starts to move"
+        return (tr.positions[-1], locked) if tr.success or locked else None
+
+    def _play_watch(self, net, x, builds, s):
+        """``until(y)`` for a build's trace: True once its loops are out of play by more than
+        :func:`_play_runs_out` asks (by :data:`PLAY_WATCH_MARGIN`, so that the configuration it
+        finds lies within the trace), None where that test costs a linear program per
+        configuration (several states of self-stress)."""
+        if self.stresses.shape[1] != 1:
+            return None
+        base, room = builds.base[s], builds.room[s]
+        start = float(play_ratio(self.stresses, net.lengths_at(x) - base, room))
+        limit = max(1.0, start) * (1.0 + PLAY_RTOL) * (1.0 + PLAY_WATCH_MARGIN)
+
+        def until(y) -> bool:
+            return bool(play_ratio(self.stresses, net.lengths_at(y) - base, room) > limit)
+
+        return until
 
     def _play_runs_out(self, net, positions, builds, s) -> int | None:
         """Index of the first configuration of a build's motion where its loops no longer close
