@@ -15,8 +15,8 @@ from ..kinematics import make_problem, place, trace
 from ..status import Status
 from ..kinematics.trajectory import EventKind
 from ..model.network import is_chain_port, Network
-from ..numerics import EDGE_RTOL, printed, project_to_lengths
-from ..builds.closure import play_ratio, self_stress_basis
+from ..numerics import EDGE_RTOL, printed, project_to_lengths, TINY
+from ..builds.closure import COMPATIBLE_RTOL, play_ratio, self_stress_basis
 from .assembled import Assemblies, assemble_builds, MODEL_NAMES, slop_summary
 from .behaviour import infer_behaviour
 from .criteria import (judge_modules, judge_port_states, judge_ports, judge_shape, Judged,
@@ -306,9 +306,20 @@ class _Projected:
         base, room = builds.base[s], builds.room[s]
         start = float(play_ratio(self.stresses, net.lengths_at(x) - base, room))
         limit = max(1.0, start) * (1.0 + PLAY_RTOL) * (1.0 + PLAY_WATCH_MARGIN)
+        # play_ratio's closed form for one state of self-stress, asked after every step
+        w = self.stresses[:, 0]
+        have = float(np.abs(w) @ room)
+        e0, e1 = (np.ascontiguousarray(net.edges[:, k]) for k in (0, 1))
 
         def until(y) -> bool:
-            return bool(play_ratio(self.stresses, net.lengths_at(y) - base, room) > limit)
+            diff = y.take(e0, axis=0)
+            diff -= y.take(e1, axis=0)
+            gap = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            gap -= base
+            need = abs(float(gap @ w))
+            if need <= COMPATIBLE_RTOL * max(float(np.abs(gap).max()), TINY):
+                return False  # compatible: a ratio of 0
+            return need > limit * have
 
         return until
 
