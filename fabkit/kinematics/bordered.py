@@ -93,6 +93,19 @@ def _cached(key, make):
     return got
 
 
+_LAPACK: list = []
+
+
+def _band_lapack() -> tuple:
+    """LAPACK's ``dgbtrf`` and ``dgbtrs``, imported at the first factorisation (scipy is not
+    imported with the module) and then looked up once, not at every solve."""
+    if not _LAPACK:
+        from scipy.linalg.lapack import dgbtrf, dgbtrs
+
+        _LAPACK.extend((dgbtrf, dgbtrs))
+    return _LAPACK[0], _LAPACK[1]
+
+
 def _frozen(a: np.ndarray) -> np.ndarray:
     """``a``, read-only: a kept ordering is shared by every system of its network."""
     a.setflags(write=False)
@@ -130,10 +143,8 @@ class _BandLU:
         # the inverse permutation by take rather than a scatter: the permutations cost a few
         # percent of a solve instead of a tenth
         y = b.take(into, axis=-1)
-        from scipy.linalg.lapack import dgbtrs as _gbtrs
-
-        sol, _ = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
-                        overwrite_b=1)
+        sol, _ = _band_lapack()[1](self.lub, self.kl, self.ku, y.T, self.piv,
+                                   trans=int(trans != "N"), overwrite_b=1)
         return sol.T.take(back, axis=-1)
 
     def det_sign(self) -> int:
@@ -317,7 +328,7 @@ class BorderedSystem:
         """Relative edge residual max |l² - L²| / (2 L²) from a residual vector."""
         rel = np.abs(r[:self.rest2.size])
         rel /= self.rest2
-        return float(rel.max())
+        return float(np.maximum.reduce(rel))  # NaN as max() gives it, without its wrapper
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
@@ -356,9 +367,7 @@ class BorderedSystem:
             band = ab.T.reshape(-1)  # a view: the band's columns one after the other
             band[flat] = fixed
             ab[kl + ku + ins - last_cpos, last_cpos] = last_vals
-            from scipy.linalg.lapack import dgbtrf as _gbtrf
-
-            lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
+            lub, piv, info = _band_lapack()[0](ab, kl, ku, overwrite_ab=1)
             if info != 0:
                 return None
             # moving the last row from the end to position ins is a cycle of m - ins entries

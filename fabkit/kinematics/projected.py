@@ -323,7 +323,7 @@ class Projected(StepMethod):
             else:
                 rhs[-1] = x[j] - cj
                 y = lu.solve(rhs)
-            nrm = max(float(y.max()), -float(y.min()))  # NaN or inf here if the solve failed
+            nrm = float(np.maximum.reduce(np.abs(y)))  # NaN or inf here if the solve failed
             if not math.isfinite(nrm):
                 return None
             x -= y  # the update is -y
