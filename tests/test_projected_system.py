@@ -105,3 +105,46 @@ def test_align_to_gauge_over_several_blocks():
     fit = rigid_fit(pos[:, [0, 1, 2]], ref[[0, 1, 2]])
     want = np.einsum("sab,snb->sna", fit.rotation, pos) + fit.shift[:, None, :]
     np.testing.assert_allclose(out, want, atol=1e-12)
+
+
+def test_a_second_system_of_the_same_bars_shares_the_orderings_and_solves_alike(fourbar):
+    """The orderings are kept for the next system of the same network (the tolerance analysis
+    traces a hundred builds of one design); its factors and solves are those of a fresh one."""
+    net = fabkit.chain(fourbar, copies=6)
+    first, x0 = _system(net)
+    second, _ = _system(net)
+    assert second._colperm is first._colperm and second._base_order is first._base_order
+    assert not second._colpos.flags.writeable  # shared, so read-only
+    xf = x0.ravel() + 1e-3 * np.random.default_rng(5).standard_normal(x0.size)
+    rhs = np.random.default_rng(6).standard_normal(first.n_rows)
+    for j in (3, 3, 17):  # the last row's placement is kept per column, too
+        a, b = first.factorize(xf, np.array([j]), np.array([1.0])), \
+            second.factorize(xf, np.array([j]), np.array([1.0]))
+        assert np.array_equal(a.solve(rhs), b.solve(rhs)) and a.det_sign() == b.det_sign()
+        want = np.linalg.solve(_dense(first, xf, j), rhs)
+        assert np.allclose(a.solve(rhs), want, rtol=1e-9, atol=1e-9)
+    # another gauge: its own row order, the same as a system made with it from the start
+    gcols = gauge_rows(x0, (4, 5))
+    first.regauge(gcols, x0.ravel()[gcols])
+    fresh = BorderedSystem(net.edges, net.edge_lengths ** 2, *x0.shape, gcols, x0.ravel()[gcols],
+                           None)
+    assert np.array_equal(first._base_order, fresh._base_order)
+    j = next(c for c in range(20, 40) if c not in gcols)  # a column the gauge leaves free
+    lu_a, lu_b = (s.factorize(xf, np.array([j]), np.array([1.0])) for s in (first, fresh))
+    assert np.array_equal(lu_a.solve(rhs), lu_b.solve(rhs))
+
+
+def test_until_ends_a_trace_where_the_caller_says_and_keeps_its_steps(fourbar):
+    """``until`` cuts a projected trace after the first configuration it holds for; the
+    configurations up to there are those of the trace without it."""
+    net = fabkit.chain(fourbar, copies=4)
+    full = fabkit.trace(net, drive="d1", to=2.5, method="projected")
+    a, b = net.port("d1")
+    middle = 0.5 * (float(full.drive[0]) + 2.5)
+    cut = fabkit.trace(net, drive="d1", to=2.5, method="projected",
+                       until=lambda x: float(np.linalg.norm(x[a] - x[b])) > middle)
+    k = len(cut.positions)
+    assert str(full.status) == "finished" and str(cut.status) == "failed"
+    assert "until" in cut.message and 2 < k < len(full.positions)
+    assert np.array_equal(cut.positions, full.positions[:k])
+    assert cut.drive[-1] > middle >= cut.drive[-2]

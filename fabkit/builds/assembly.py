@@ -194,16 +194,26 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     held_cols = np.concatenate([d * hp[:, [0]] + np.arange(d), d * hp[:, [1]] + np.arange(d)],
                                axis=1).ravel()
 
+    # where each bar's outer product lands in the dense saddle-point matrix (fixed: the bars'
+    # columns do not change between steps)
+    kkt_flat = _kkt_positions(bar_cols.reshape(e.shape[0], 2 * d), nx + p) if dense else None
+
     # the energy is minimised with every play a little narrower (``band``), so that a bar pulled
     # back to its play lands inside it rather than on its edge, and bars do not chatter across it
     band = np.where(c > 0, np.maximum(c - INSIDE * r, 0.0), 0.0)
+    low = -band
+    # contiguous index arrays: ``take`` gathers several times faster than indexing with a
+    # column of the edge array (the state is evaluated a few times per step)
+    e0, e1, h0, h1 = (np.ascontiguousarray(a[:, k]) for a in (e, hp) for k in (0, 1))
 
     def state(xx):
-        diff = xx[e[:, 0]] - xx[e[:, 1]]
+        diff = xx.take(e0, axis=0)
+        diff -= xx.take(e1, axis=0)
         ell = np.sqrt(np.einsum("ec,ec->e", diff, diff))
         delta = ell - r
-        excess = delta - np.clip(delta, -band, band)
-        hd = xx[hp[:, 0]] - xx[hp[:, 1]]
+        excess = delta - np.clip(delta, low, band)
+        hd = xx.take(h0, axis=0)
+        hd -= xx.take(h1, axis=0)
         hl = np.sqrt(np.einsum("ec,ec->e", hd, hd))
         within = delta - excess
         energy = 0.5 * float(np.sum(k * (excess ** 2 + INNER_STIFFNESS * within ** 2))) \
@@ -233,7 +243,7 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         cons_vals = np.concatenate([hu, -hu], axis=1).ravel()
         rhs = np.concatenate([-grad, -(hl - ht)])
         if dense:
-            sol = np.linalg.solve(_dense_kkt(rows, bar_cols, cons_vals, held_rows, held_cols,
+            sol = np.linalg.solve(_dense_kkt(rows, kkt_flat, cons_vals, held_rows, held_cols,
                                              nx, p, mu + damping), rhs)
         else:
             jac = sp.csr_matrix((rows.ravel(), (bar_rows, bar_cols)), shape=(e.shape[0], nx))
@@ -269,21 +279,26 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     return Assembled(x, ell, slack, excess, energy, bool(inside.all()), it)
 
 
-def _dense_kkt(rows, cols, cons_vals, held_rows, held_cols, nx: int, p: int,
+def _kkt_positions(cols: np.ndarray, size: int) -> np.ndarray:
+    """Flat positions in a (size, size) matrix of each bar's outer product, the bars' columns
+    ``cols`` of shape (E, 2d): the ``flat`` of :func:`_dense_kkt`."""
+    return (cols[:, :, None] * size + cols[:, None, :]).ravel()
+
+
+def _dense_kkt(rows, flat, cons_vals, held_rows, held_cols, nx: int, p: int,
                shift: float) -> np.ndarray:
     """The step's saddle-point matrix ``[[JᵀJ + shift·I, Cᵀ], [C, 0]]``, dense.
 
-    ``rows`` holds each bar's nonzero Jacobian entries (shape (E, 2d)) at its columns ``cols``
-    (flattened, E·2d); ``JᵀJ`` is the sum of each bar's outer product, added up with one
+    ``rows`` holds each bar's nonzero Jacobian entries (shape (E, 2d)), whose outer products
+    land at ``flat`` (:func:`_kkt_positions`); ``JᵀJ`` is their sum, added up with one
     ``bincount`` (a few hundred unknowns: building sparse matrices per step cost several times
     the solve itself). ``C`` (the held pairs) has ``cons_vals`` at ``held_rows``, ``held_cols``.
     """
     size = nx + p
-    c = cols.reshape(rows.shape)
-    flat = (c[:, :, None] * size + c[:, None, :]).ravel()
     m = np.bincount(flat, (rows[:, :, None] * rows[:, None, :]).ravel(),
                     minlength=size * size).reshape(size, size)
-    m[np.arange(nx), np.arange(nx)] += shift
+    diag = np.arange(nx)
+    m[diag, diag] += shift
     m[nx + held_rows, held_cols] = cons_vals
     m[held_cols, nx + held_rows] = cons_vals
     return m

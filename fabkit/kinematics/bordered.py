@@ -64,6 +64,54 @@ def gauge_rows(x: np.ndarray, gauge) -> np.ndarray:
 BAND_LIMIT = 64
 
 
+#: Systems of at most this many rows leave their orderings (:class:`BorderedSystem`) for the
+#: next system of the same bars and gauge: the tolerance analysis traces a hundred builds of one
+#: design, and the orderings cost a tenth of each short trace. Larger ones are traced once.
+STRUCTURE_CACHE_ROWS = 20_000
+
+#: Orderings kept (the most recent; a design's builds use a few choices of bars and gauges).
+STRUCTURE_CACHE_SIZE = 16
+
+_STRUCTURES: dict = {}
+
+#: Placements of the last row kept per system of at most STRUCTURE_CACHE_ROWS rows (one per
+#: coordinate that parametrised a step, each a row permutation).
+PLACEMENTS_KEPT = 32
+
+
+def _cached(key, make):
+    """``make()``, kept under ``key`` (None: not kept) among the last
+    :data:`STRUCTURE_CACHE_SIZE` results."""
+    if key is None:
+        return make()
+    got = _STRUCTURES.pop(key, None)
+    if got is None:
+        got = make()
+    _STRUCTURES[key] = got  # the most recent last
+    while len(_STRUCTURES) > STRUCTURE_CACHE_SIZE:
+        _STRUCTURES.pop(next(iter(_STRUCTURES)))
+    return got
+
+
+_LAPACK: list = []
+
+
+def _band_lapack() -> tuple:
+    """LAPACK's ``dgbtrf`` and ``dgbtrs``, imported at the first factorisation (scipy is not
+    imported with the module) and then looked up once, not at every solve."""
+    if not _LAPACK:
+        from scipy.linalg.lapack import dgbtrf, dgbtrs
+
+        _LAPACK.extend((dgbtrf, dgbtrs))
+    return _LAPACK[0], _LAPACK[1]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a``, read-only: a kept ordering is shared by every system of its network."""
+    a.setflags(write=False)
+    return a
+
+
 class _BandLU:
     """LU with partial pivoting (LAPACK ``gbtrf``) of ``A[rowperm][:, colperm]``, a permutation
     of A into a band of ``kl`` sub- and ``ku`` superdiagonals.
@@ -95,10 +143,8 @@ class _BandLU:
         # the inverse permutation by take rather than a scatter: the permutations cost a few
         # percent of a solve instead of a tenth
         y = b.take(into, axis=-1)
-        from scipy.linalg.lapack import dgbtrs as _gbtrs
-
-        sol, _ = _gbtrs(self.lub, self.kl, self.ku, y.T, self.piv, trans=int(trans != "N"),
-                        overwrite_b=1)
+        sol, _ = _band_lapack()[1](self.lub, self.kl, self.ku, y.T, self.piv,
+                                   trans=int(trans != "N"), overwrite_b=1)
         return sol.T.take(back, axis=-1)
 
     def det_sign(self) -> int:
@@ -174,51 +220,67 @@ class BorderedSystem:
         self._e1 = np.ascontiguousarray(self.edges[:, 1])
         # Band structure, fixed for the whole trace except the last row: coordinates ordered by
         # node along the structure (reverse Cuthill-McKee), rows by the mean position of their
-        # entries; the last row is inserted where its own entries lie.
+        # entries; the last row is inserted where its own entries lie. Both orderings depend on
+        # the bars and the gauge only, and are kept for the next system of the same network.
+        self._key = None
+        if self.n_rows <= STRUCTURE_CACHE_ROWS:
+            self._key = (n, d, np.ascontiguousarray(self.edges, dtype=np.int64).tobytes())
+        self._colperm, self._colpos, self._colperm_parity = _cached(
+            None if self._key is None else ("columns",) + self._key, self._order_columns)
+        self._order_rows()
+
+    def _order_columns(self) -> tuple:
+        """The coordinates ordered node by node along a reverse Cuthill-McKee ordering: the
+        permutation, its inverse and its parity."""
         import scipy.sparse as sp
         from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-        m = self.n_rows
+        n, d, m, e = self.n, self.d, self.n_rows, self.edges.shape[0]
         graph = sp.coo_matrix((np.ones(e), (self.edges[:, 0], self.edges[:, 1])), shape=(n, n))
         order = reverse_cuthill_mckee((graph + graph.T).tocsr(), symmetric_mode=True)
-        self._colperm = (d * order[:, None] + np.arange(d)).ravel()
-        self._colpos = np.empty(m, dtype=np.int64)
-        self._colpos[self._colperm] = np.arange(m)
-        self._colperm_parity = permutation_parity(self._colperm)
-        self._order_rows()
+        colperm = (d * order[:, None] + np.arange(d)).ravel()
+        colpos = np.empty(m, dtype=np.int64)
+        colpos[colperm] = np.arange(m)
+        return _frozen(colperm), _frozen(colpos), permutation_parity(colperm)
 
     def _order_rows(self):
         """Rows ordered by the mean position of their entries (the gauge rows by their one
         entry); the last row is inserted at each factorisation."""
+        key = None if self._key is None else ("rows", self.gcols.tobytes()) + self._key
+        (self._base_order, self._base_keys, self._fixed_rows, self._fixed_cpos, self._perm_sign,
+         self._entry_bpos, self._lower_head, self._lower_tail, self._upper_head,
+         self._upper_tail) = _cached(key, self._row_structure)
+        self._flat_key = self._flat = self._last_insert = None
+        self._placements = {}
+
+    def _row_structure(self) -> tuple:
+        """The row order of :meth:`_order_rows` and what the band assembly derives from it."""
         m = self.n_rows
         fixed_rows = np.concatenate([self._rows, self._grow])
         fixed_cpos = self._colpos[np.concatenate([self._cols, self.gcols])]
         key = (np.bincount(fixed_rows, weights=fixed_cpos, minlength=m - 1)
                / np.maximum(np.bincount(fixed_rows, minlength=m - 1), 1))
-        self._base_order = np.argsort(key, kind="stable")
-        self._base_keys = key[self._base_order]
-        self._fixed_rows, self._fixed_cpos = fixed_rows, fixed_cpos
-        self._perm_sign = permutation_parity(self._base_order) * self._colperm_parity
+        base_order = np.argsort(key, kind="stable")
+        perm_sign = permutation_parity(base_order) * self._colperm_parity
         # Band assembly without re-deriving the fixed entries at every factorisation: inserting
         # the last row at position ins moves the rows at or after it down by one, so an entry's
         # row is its base position plus (base position >= ins), and the band widths follow from
         # prefix and suffix maxima, over the rows in base order, of each row's reach below and
         # above the diagonal.
         bpos = np.empty(m - 1, dtype=np.int64)
-        bpos[self._base_order] = np.arange(m - 1)
-        self._entry_bpos = bpos[fixed_rows]
+        bpos[base_order] = np.arange(m - 1)
         e, d = self.rest2.size, self.d
         edge_cpos = fixed_cpos[:2 * d * e].reshape(2 * d, e)  # the entries' block layout
         gauge_cpos = fixed_cpos[2 * d * e:]
-        first = np.concatenate([edge_cpos.min(axis=0), gauge_cpos])[self._base_order]
-        last = np.concatenate([edge_cpos.max(axis=0), gauge_cpos])[self._base_order]
+        first = np.concatenate([edge_cpos.min(axis=0), gauge_cpos])[base_order]
+        last = np.concatenate([edge_cpos.max(axis=0), gauge_cpos])[base_order]
         position = np.arange(m - 1)
         lower, upper = position - first, last - position
-        self._lower_head = np.maximum.accumulate(lower)
-        self._lower_tail = np.maximum.accumulate(lower[::-1])[::-1]
-        self._upper_head = np.maximum.accumulate(upper)
-        self._upper_tail = np.maximum.accumulate(upper[::-1])[::-1]
-        self._flat_key = self._flat = self._last_insert = None
+        arrays = (base_order, key[base_order], fixed_rows, fixed_cpos, perm_sign,
+                  bpos[fixed_rows], np.maximum.accumulate(lower),
+                  np.maximum.accumulate(lower[::-1])[::-1], np.maximum.accumulate(upper),
+                  np.maximum.accumulate(upper[::-1])[::-1])
+        return tuple(_frozen(a) if isinstance(a, np.ndarray) else a for a in arrays)
 
     def regauge(self, gcols: np.ndarray, gvals: np.ndarray) -> None:
         """Hold other coordinates still (as many as before): the gauge rows and the row order
@@ -266,7 +328,7 @@ class BorderedSystem:
         """Relative edge residual max |l² - L²| / (2 L²) from a residual vector."""
         rel = np.abs(r[:self.rest2.size])
         rel /= self.rest2
-        return float(rel.max())
+        return float(np.maximum.reduce(rel))  # NaN as max() gives it, without its wrapper
 
     def rel_edge_residual(self, xf: np.ndarray) -> float:
         x = xf.reshape(self.n, self.d)
@@ -298,39 +360,14 @@ class BorderedSystem:
         else SuperLU), or None when the matrix is exactly singular."""
         m = self.n_rows
         fixed = self._entries(xf)
-        last_cpos = self._colpos[last_cols]
-        ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
-        if self._last_insert is not None and self._last_insert[0] == ins:
-            rowperm = self._last_insert[1]
-        else:
-            rowperm = np.insert(self._base_order, ins, m - 1)
-            self._last_insert = (ins, rowperm)
-        # rows before the new one keep their position, those from it on move down by one
-        kl = max(0, int((ins - last_cpos).max()),
-                 int(self._lower_head[ins - 1]) if ins > 0 else 0,
-                 int(self._lower_tail[ins]) + 1 if ins < m - 1 else 0)
-        ku = max(0, int((last_cpos - ins).max()),
-                 int(self._upper_head[ins - 1]) if ins > 0 else 0,
-                 int(self._upper_tail[ins]) - 1 if ins < m - 1 else 0)
+        ins, rowperm, kl, ku, last_cpos, flat = self._placement(last_cols)
         if kl + ku <= BAND_LIMIT:
             ldab = 2 * kl + ku + 1
-            # successive factorisations mostly hold the same coordinate (same ins and band):
-            # the entries' positions in the band are kept for the next one
-            key = (ldab, ins, kl + ku)
-            if self._flat_key == key:
-                flat = self._flat
-            else:  # flat index in the Fortran-ordered band
-                flat = self._entry_bpos + self._fixed_cpos * (ldab - 1)
-                flat += self._entry_bpos >= ins  # the rows from ins on move down by one
-                flat += kl + ku
-                self._flat_key, self._flat = key, flat
             ab = np.zeros((ldab, m), order="F")
             band = ab.T.reshape(-1)  # a view: the band's columns one after the other
             band[flat] = fixed
             ab[kl + ku + ins - last_cpos, last_cpos] = last_vals
-            from scipy.linalg.lapack import dgbtrf as _gbtrf
-
-            lub, piv, info = _gbtrf(ab, kl, ku, overwrite_ab=1)
+            lub, piv, info = _band_lapack()[0](ab, kl, ku, overwrite_ab=1)
             if info != 0:
                 return None
             # moving the last row from the end to position ins is a cycle of m - ins entries
@@ -346,6 +383,50 @@ class BorderedSystem:
             return _SuperLU(spla.splu(a, permc_spec="COLAMD"))
         except RuntimeError:
             return None
+
+    def _placement(self, last_cols: np.ndarray) -> tuple:
+        """Where a last row with entries in ``last_cols`` goes: (its row position, the row
+        permutation, kl, ku, the entries' column positions, the fixed entries' flat indices in
+        the band or None), kept for the next factorisations with the same columns (the step's
+        parametrising coordinate changes rarely)."""
+        key = last_cols.tobytes()
+        got = self._placements.get(key)
+        if got is not None:
+            return got
+        m = self.n_rows
+        last_cpos = self._colpos[last_cols]
+        ins = int(np.searchsorted(self._base_keys, last_cpos.mean(), side="right"))
+        if self._last_insert is not None and self._last_insert[0] == ins:
+            rowperm = self._last_insert[1]
+        else:
+            rowperm = np.insert(self._base_order, ins, m - 1)
+            self._last_insert = (ins, rowperm)
+        # rows before the new one keep their position, those from it on move down by one
+        kl = max(0, int((ins - last_cpos).max()),
+                 int(self._lower_head[ins - 1]) if ins > 0 else 0,
+                 int(self._lower_tail[ins]) + 1 if ins < m - 1 else 0)
+        ku = max(0, int((last_cpos - ins).max()),
+                 int(self._upper_head[ins - 1]) if ins > 0 else 0,
+                 int(self._upper_tail[ins]) - 1 if ins < m - 1 else 0)
+        flat = None
+        if kl + ku <= BAND_LIMIT:
+            ldab = 2 * kl + ku + 1
+            # successive factorisations mostly hold the same coordinate (same ins and band):
+            # the entries' positions in the band are kept for the next one
+            band_key = (ldab, ins, kl + ku)
+            if self._flat_key == band_key:
+                flat = self._flat
+            else:  # flat index in the Fortran-ordered band
+                flat = self._entry_bpos + self._fixed_cpos * (ldab - 1)
+                flat += self._entry_bpos >= ins  # the rows from ins on move down by one
+                flat += kl + ku
+                self._flat_key, self._flat = band_key, flat
+        got = (ins, rowperm, kl, ku, last_cpos, flat)
+        if self._key is not None:  # a small system: a few of them are kept
+            if len(self._placements) >= PLACEMENTS_KEPT:
+                self._placements.pop(next(iter(self._placements)))
+            self._placements[key] = got
+        return got
 
     @staticmethod
     def det_sign(lu) -> int:

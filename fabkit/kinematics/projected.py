@@ -139,6 +139,12 @@ class Projected(StepMethod):
         state of self-stress) may stray from its length before the trace stops there (default
         1e-9: a rigid bar). A build with joint play traces with its play here (its loops close
         within the play as they change along the motion).
+    until : callable or None
+        ``until(x) -> bool``, asked after every accepted step with the configuration x (shape
+        (N, d)); the trace ends there, status ``failed`` (the message says why), at the first one it holds
+        for (default None: never). x is in the tracer's frame, a rigid motion away from the
+        caller's gauge when the tracer holds another part still: ask it about lengths and
+        distances only.
     """
 
     name = "projected"
@@ -154,6 +160,7 @@ class Projected(StepMethod):
         "max_angle": 30.0,
         "detect_branch_points": True,
         "redundant_rtol": 1e-9,
+        "until": None,
     }
 
     def solve(self):
@@ -316,7 +323,7 @@ class Projected(StepMethod):
             else:
                 rhs[-1] = x[j] - cj
                 y = lu.solve(rhs)
-            nrm = max(float(y.max()), -float(y.min()))  # NaN or inf here if the solve failed
+            nrm = float(np.maximum.reduce(np.abs(y)))  # NaN or inf here if the solve failed
             if not math.isfinite(nrm):
                 return None
             x -= y  # the update is -y

@@ -10,6 +10,11 @@ branch point — and the event at the last of them). The base keeps the configur
 steps against ``max_steps``, refuses a non-finite configuration, turns the stop into events at the
 right index, and returns the :class:`~.base.Solved`; :meth:`~.base.Method.run` then builds the
 Trajectory. Control flows on these types, never on message text.
+
+A method that declares an ``until`` option lets its caller end the trace early: ``until(x)`` is
+asked after every accepted step (x of shape (N, d), in the method's frame) and the trace stops,
+``failed`` with a message that says so, after the first configuration it holds for (a build judged only up to
+where its loops run out of play need not be traced beyond it).
 """
 
 from __future__ import annotations
@@ -90,6 +95,14 @@ class StepMethod(Method):
         return Stop(Status.FAILED, f"no target after {self.opts['max_steps']} steps "
                                    f"({p.drive_name} = {drive:.10g})")
 
+    def _until_stop(self, step: int) -> Stop:
+        """The stop when the caller's ``until`` holds at the configuration of step ``step``."""
+        p = self.problem
+        x = self.positions[-1].reshape(p.start.shape)
+        drive = float(p.drive_of(x[None])[0])
+        return Stop(Status.FAILED, f"stopped at step {step} by the caller's until "
+                                   f"({p.drive_name} = {drive:.10g})")
+
     def solve(self) -> Solved:
         p = self.problem
         x0 = p.start.ravel().copy()
@@ -100,6 +113,7 @@ class StepMethod(Method):
         count = 1
         stop = self._start(x0)
         limit = int(self.opts["max_steps"])
+        until = self.opts.get("until")
 
         def accept(x):
             nonlocal count
@@ -123,6 +137,8 @@ class StepMethod(Method):
                             "with non-finite coordinates; the trace stops before it")
                 break
             accept(x)
+            if until is not None and until(x.reshape(p.start.shape)):
+                stop = self._until_stop(count - 1)
         for x in stop.append:
             x = np.asarray(x, dtype=np.float64)
             if x.shape == x0.shape and np.isfinite(x).all():

@@ -15,8 +15,8 @@ from ..kinematics import make_problem, place, trace
 from ..status import Status
 from ..kinematics.trajectory import EventKind
 from ..model.network import is_chain_port, Network
-from ..numerics import EDGE_RTOL, printed, project_to_lengths
-from ..builds.closure import play_ratio, self_stress_basis
+from ..numerics import EDGE_RTOL, printed, project_to_lengths, TINY
+from ..builds.closure import COMPATIBLE_RTOL, play_ratio, self_stress_basis
 from .assembled import Assemblies, assemble_builds, MODEL_NAMES, slop_summary
 from .behaviour import infer_behaviour
 from .criteria import (judge_modules, judge_port_states, judge_ports, judge_shape, Judged,
@@ -40,6 +40,16 @@ __all__ = ["analyse_tolerance"]
 #: forced together) by more than this (round-off of the ratio along a traced motion, whose other
 #: bars keep their lengths to the tracer's tolerance).
 PLAY_RTOL = 1e-6
+
+#: A build's trace stops where its play ratio passes the limit of :data:`PLAY_RTOL` by this
+#: much more (relative): the ratio of a configuration as the tracer holds it and as the trace
+#: returns it (moved rigidly into the caller's gauge) differ by round-off, and the trace must
+#: reach the configuration where the returned one runs out.
+PLAY_WATCH_MARGIN = 1e-9
+
+#: Coordinates of the build traces an analysis keeps for builds that go together alike (80 MB;
+#: the AND gate's 188 traces hold 2e6).
+MEMO_FLOATS = 10_000_000
 
 #: Builds per error source in the chart's curves (the first ones of the sample, same draws):
 #: the curves show where each source starts to matter; the margin itself uses every build.
@@ -162,6 +172,9 @@ class _Projected:
             keep[left_out] = False
             self.loop_free.append(net.edges[keep])
         self.states = behaviour.end == "switch"
+        # traces kept for builds that go together alike (see _traced)
+        self._memo: dict = {}
+        self._memo_floats = 0
         if self.states:
             drive = tuple(sorted(net.port(design.motion.drive)))
             self.driven = [tuple(sorted(map(int, p))) for p in pairs].index(drive)
@@ -264,27 +277,87 @@ class _Projected:
         # a build with play moves without the bars its loops make redundant; they take their
         # lengths within the loops' play until it runs out (checked below)
         moving = net.with_nodes(x) if edges is None else Network(x, edges, net.ports)
-        try:
-            tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold)
-        except (KinematicsError, FabkitError):
+        # the trace stops once the loops are clearly out of play: the build is judged before
+        # that configuration, and tracing on (often to a turning or branch point, whose search
+        # costs several steps) only made configurations no maker's pull reaches
+        watch = None if edges is None else self._play_watch(net, x, builds, s)
+        tr = self._traced(moving, m, edges, watch, net, builds, s)
+        if tr is None:
             return None
         # a build that locks short of the target is judged where it locks, as a maker pushing
         # the drive until it stops would find it: at its own turning point (a built module's
         # crystal a little off the designed one), where a state of self-stress it moved with
         # vanishes, or where its loops run out of play (the AND gate's branch collapsed up to
-        # the junction)
+        # the junction). Where the play runs out comes first: what the tracer met beyond it (a
+        # failure, or the stop asked for above) is no part of the build's motion.
+        stop = None if edges is None else self._play_runs_out(net, tr.positions, builds, s)
+        if stop:
+            return tr.positions[stop - 1], True
         last = tr.events[-1].kind if tr.events else None
         locked = last in (EventKind.TURNING_POINT, EventKind.SELF_STRESS_LOST)
         if tr.status is Status.FAILED and last is not EventKind.SELF_STRESS_LOST:
             return tr.message or "its trace failed"
-        end = len(tr.positions) - 1
-        if edges is not None:
-            stop = self._play_runs_out(net, tr.positions, builds, s)
-            if stop == 0:
-                return "its loops leave their play as it starts to move"
-            if stop is not None:
-                end, locked = stop - 1, True
-        return (tr.positions[end], locked) if tr.success or locked else None
+        if stop == 0:
+            return "its loops leave their play as it starts to move"
+        return (tr.positions[-1], locked) if tr.success or locked else None
+
+    def _traced(self, moving, m, edges, watch, net, builds, s):
+        """The trace of ``moving`` (None where the tracer refuses it), stopped by ``watch``.
+
+        Builds that go together alike share it: a run of one error source leaves the other
+        sources' parts nominal, so its builds often sit where another run's did, with other
+        play. The steps do not depend on the watch, which only cuts the trace short; a trace
+        cut by another build's watch serves this one when its own play runs out within it."""
+        key = (moving.nodes.tobytes(), None if edges is None else edges.tobytes())
+        kept = self._memo.get(key)
+        if kept is not None and (not kept[1]
+                                 or self._play_runs_out(net, kept[0].positions, builds, s)):
+            return kept[0]
+        fired = []
+
+        def until(y) -> bool:
+            if watch(y):
+                fired.append(True)
+                return True
+            return False
+
+        extra = {} if watch is None else {"until": until}
+        try:
+            tr = trace(moving, drive=m.drive, to=m.to, method="projected", hold=m.hold, **extra)
+        except (KinematicsError, FabkitError):
+            return None
+        size = tr.positions.size
+        if self._memo_floats + size <= MEMO_FLOATS:
+            self._memo[key] = (tr, bool(fired))
+            self._memo_floats += size
+        return tr
+
+    def _play_watch(self, net, x, builds, s):
+        """``until(y)`` for a build's trace: True once its loops are out of play by more than
+        :func:`_play_runs_out` asks (by :data:`PLAY_WATCH_MARGIN`, so that the configuration it
+        finds lies within the trace), None where that test costs a linear program per
+        configuration (several states of self-stress)."""
+        if self.stresses.shape[1] != 1:
+            return None
+        base, room = builds.base[s], builds.room[s]
+        start = float(play_ratio(self.stresses, net.lengths_at(x) - base, room))
+        limit = max(1.0, start) * (1.0 + PLAY_RTOL) * (1.0 + PLAY_WATCH_MARGIN)
+        # play_ratio's closed form for one state of self-stress, asked after every step
+        w = self.stresses[:, 0]
+        have = float(np.abs(w) @ room)
+        e0, e1 = (np.ascontiguousarray(net.edges[:, k]) for k in (0, 1))
+
+        def until(y) -> bool:
+            diff = y.take(e0, axis=0)
+            diff -= y.take(e1, axis=0)
+            gap = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            gap -= base
+            need = abs(float(gap @ w))
+            if need <= COMPATIBLE_RTOL * max(float(np.abs(gap).max()), TINY):
+                return False  # compatible: a ratio of 0
+            return need > limit * have
+
+        return until
 
     def _play_runs_out(self, net, positions, builds, s) -> int | None:
         """Index of the first configuration of a build's motion where its loops no longer close
