@@ -23,10 +23,11 @@ ROOT = Path(fabkit.__file__).parent
 
 def _count_traces(monkeypatch, design_path):
     """Export a design (every format, checked) and return the targets of every trace of the
-    design's own motion (``Design.trace``) and the number of tracer calls on the design's own
-    network made outside the as-built checks (which re-simulate the network read back)."""
+    design's own motion (``Design.trace``), the tracer calls on the design's own network made
+    outside the as-built checks (which re-simulate the network read back) and outside the laser
+    guide's functional test, and the functional test's (drive, target) pushes."""
     reference = load_template(design_path).network
-    designs, own = [], []
+    designs, own, function = [], [], []
     real_design_trace, real_problem = Design.trace, tracer.make_problem
 
     def design_trace(self, **overrides):
@@ -39,14 +40,17 @@ def _count_traces(monkeypatch, design_path):
             same = (net.nodes.shape == reference.nodes.shape
                     and np.array_equal(net.edges, reference.edges)
                     and np.array_equal(net.edge_lengths, reference.edge_lengths))
-            in_check = any("/fabkit/check/" in f.filename for f in traceback.extract_stack())
-            if same and not in_check:
+            stack = [f.filename for f in traceback.extract_stack()]
+            in_check = any("/fabkit/check/" in f for f in stack)
+            if same and any(f.endswith("/fabkit/fab/guide/function.py") for f in stack):
+                function.append((drive, float(to)))
+            elif same and not in_check:
                 own.append(float(np.nan if to is None else to))
         return real_problem(net, drive, to, **kwargs)
 
     monkeypatch.setattr(Design, "trace", design_trace)
     monkeypatch.setattr(tracer, "make_problem", make_problem)
-    return designs, own
+    return designs, own, function
 
 
 @pytest.mark.parametrize("name, windows", [
@@ -58,7 +62,7 @@ def _count_traces(monkeypatch, design_path):
 ])
 def test_an_export_traces_each_motion_window_once(monkeypatch, tmp_path, name, windows):
     path = TEMPLATES / f"{name}.toml"
-    designs, own = _count_traces(monkeypatch, path)
+    designs, own, _ = _count_traces(monkeypatch, path)
     res = export_one(path, None, tmp_path, {}, check=True, tolerance_samples=10,
                      previews=False)
     assert res.ok, res.message
@@ -285,8 +289,11 @@ def test_the_and_gate_laser_kit_is_planned_along_the_one_trace(monkeypatch, tmp_
     # a projected motion is traced once, with the node step the stacking needs
     # (fabkit.fab.laser_plan.trace_needs): the laser plan does not trace it again
     path = TEMPLATES / "and_gate.toml"
-    designs, own = _count_traces(monkeypatch, path)
+    designs, own, function = _count_traces(monkeypatch, path)
     res = export_one(path, ["dxf"], tmp_path, {}, check=False, tolerance_samples=0,
                      previews=False)
     assert res.ok, res.message
     assert len(designs) == 1 and len(own) == 1
+    # the guide's functional test pushes A, B, then A and B, once, though the guide's plan is
+    # made twice (for the kit's pictures, then with the verdict)
+    assert [p for p, _ in function] == ["d1", "d1_b", "d1", "d1_b"]
