@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from fabkit.check.motion import compare_motion, design_window
@@ -40,13 +41,56 @@ def test_the_motion_stage_keeps_the_options_it_traced_with(and_gate):
 
 
 def test_the_same_network_retraced_as_the_design_matches(and_gate):
+    from fabkit.model.network import Network
+
     design, _, motion = and_gate
     kit, reference = design_window(design, None, None, motion)
     assert kit.motion.options["max_node_step"] == motion.options["max_node_step"]
-    cmp = compare_motion(kit, design.network, MAP_RTOL, reference)
+    net = design.network
+    copy = Network(net.nodes.copy(), net.edges.copy(), net.ports, net.labels)
+    cmp = compare_motion(kit, copy, MAP_RTOL, reference)
+    assert cmp["trajectory"] is not reference  # traced again: another network object
     assert cmp["ok"], cmp
     assert cmp["worst"] == 0.0  # the same network, the same options: the same numbers
     assert cmp["same_end"]
+    assert cmp["trajectory"].n_steps == reference.n_steps == 2196
+    assert np.array_equal(cmp["trajectory"].positions, reference.positions)
+
+
+def test_the_design_s_own_network_is_not_traced_again(and_gate, monkeypatch):
+    """A kit whose files give back the design's joints to the bit and its bars in order is the
+    network the Motion stage traced: the check takes that trace (the retrace above gives it
+    bit for bit); one ulp off, or the bars in another order, and it traces again."""
+    from fabkit.check import motion as check_motion
+    from fabkit.check.motion import as_traced
+    from fabkit.model.network import Network
+
+    design, _, motion = and_gate
+    kit, reference = design_window(design, None, None, motion)
+    net = design.network
+    assert reference.network is net
+    assert reference.request["options"] == kit.motion.options
+    copy = Network(net.nodes.copy(), net.edges.copy(), dict(net.ports), net.labels)
+    assert as_traced(copy, reference) is net
+    nudged = net.nodes.copy()
+    nudged[5, 1] = np.nextafter(nudged[5, 1], np.inf)
+    assert as_traced(Network(nudged, net.edges, net.ports, net.labels), reference) is not net
+    turned = net.edges.copy()
+    turned[[0, 1]] = turned[[1, 0]]
+    assert as_traced(Network(net.nodes, turned, net.ports, net.labels), reference) is not net
+    other_ports = {**net.ports, "extra": (0, 2)}
+    assert as_traced(Network(net.nodes, net.edges, other_ports, net.labels),
+                     reference) is not net
+
+    def refused(*args, **kwargs):
+        raise AssertionError("traced again")
+
+    monkeypatch.setattr(check_motion, "trace", refused)
+    cmp = compare_motion(kit, as_traced(copy, reference), MAP_RTOL, reference)
+    assert cmp["trajectory"] is reference and cmp["ok"] and cmp["worst"] == 0.0
+    # the template's own options are not those the reference was traced with: traced again
+    with pytest.raises(AssertionError, match="traced again"):
+        compare_motion(design, net, MAP_RTOL, reference)
 
 
 def test_retraced_with_the_template_options_only_it_takes_another_branch(and_gate):

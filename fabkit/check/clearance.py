@@ -38,8 +38,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import FabkitError
-from ..kinematics import place, select_method, trace
+from ..kinematics import place, trace
 from ..kinematics.constructive import cached_plan
+from .motion import same_trace
 
 __all__ = ["FineMotion", "fine_motion", "same_layer_gaps", "segment_gap", "point_gap"]
 
@@ -141,7 +142,7 @@ def fine_motion(net, motion, scale: float, limit: float, *, floor: float | None 
     """
     if motion.to is None:
         raise FabkitError("the design gives no motion target (motion.to): nothing to sample")
-    traj = traced if _same_trace(net, motion, traced) else \
+    traj = traced if same_trace(net, motion, traced) else \
         trace(net, drive=motion.drive, to=motion.to, method=motion.method, hold=motion.hold,
               **motion.options)
     bound = limit / scale
@@ -165,18 +166,6 @@ def fine_motion(net, motion, scale: float, limit: float, *, floor: float | None 
     steps = joint_steps(x)
     return FineMotion(positions=x, max_step=float(steps.max(initial=0.0)),
                       status=str(traj.status))
-
-
-def _same_trace(net, motion, traced) -> bool:
-    """``traced`` is what tracing ``net`` as ``motion`` says gives: the same method (asked for,
-    or the one ``"auto"`` chooses) on the same network, drive, target, held ports and
-    options, whose trace is deterministic."""
-    if traced is None or traced.network is not net:
-        return False
-    if motion.method == "auto":
-        # under auto, held ports (virtual edges) may change the method chosen: traced again
-        return not motion.hold and traced.method == select_method(net, motion.drive)
-    return traced.method == motion.method
 
 
 def _placed_fine(net, motion, traj, bound: float, floor: float) -> np.ndarray:

@@ -51,7 +51,7 @@ from . import require_files
 from .clearance import fine_motion, same_layer_gaps
 from .sheet_layout import least_gap, MIN_WEB_MM
 from .items import Check, check, finish
-from .motion import compare_motion, design_window
+from .motion import as_traced, compare_motion, design_window
 
 __all__ = ["FORMAT", "SUFFIXES", "check_file", "check_documents", "read_sheet", "LENGTH_TOL",
            "parse_dxf"]
@@ -522,7 +522,8 @@ def _motion_checks(design, edges, lengths_mm, layer, scale, settings, report, me
         x = project_to_lengths(edges, lengths_mm, x_mm).positions / scale
     else:  # the design's own joints, not a round trip through mm (a branch point would see it)
         x = net.nodes
-    built = Network(x, edges, net.ports, net.labels)
+    # the design's own network, bar for bar, is not traced again (:func:`.motion.as_traced`)
+    built = as_traced(Network(x, edges, net.ports, net.labels), reference)
     err = float(np.abs(built.edge_lengths * scale - lengths_mm).max())
     modes = count_modes(built)
     # the design's own count: 1 for a mechanism, more for a design that starts at a branch

@@ -3,6 +3,8 @@ of the cheapest adequate method (:func:`select_method`)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from ..errors import ArgumentTypeError, ArgumentValueError, ConstructionError, KinematicsError
 from ..io.workload import require
 from ..model.network import Network
@@ -102,6 +104,7 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
     """
     if to is None:
         raise KinematicsError("`to` (the target value of the drive) is required")
+    request = {"drive": drive, "to": to, "method": method, "hold": hold, "options": dict(options)}
     problem = make_problem(net, drive, to, start=start, hold=hold, gauge=gauge, keep=keep,
                            ports=ports)
     if isinstance(method, type) and issubclass(method, Method):
@@ -134,7 +137,7 @@ def trace(net: Network, drive="d1", to=None, method="auto", *, start=None, hold=
     if "samples" in options and cls.options.get("samples") is not None:
         check_option(cls.name, "samples", options["samples"])
         _require_samples(net, int(options["samples"]))
-    return cls(problem, **options).run()
+    return replace(cls(problem, **options).run(), request=request)
 
 
 def _require_samples(net: Network, samples: int) -> None:

@@ -99,6 +99,10 @@ class Trajectory:
         With ``keep`` other than ``"all"``: the distance of every port of the network (or of the
         ports ``trace(..., ports=...)`` named) at every configuration, shape (S,) each (what
         :meth:`distance` reads for a port name).
+    request : Mapping or None
+        What :func:`fabkit.trace` was asked: ``drive``, ``to``, ``method``, ``hold`` and the
+        method ``options`` as given (None for a trajectory made otherwise). A check that would
+        trace a network again as it was traced reads here whether it was.
     """
 
     network: Network
@@ -115,6 +119,7 @@ class Trajectory:
     stats: dict = field(default_factory=dict)
     kept: np.ndarray | None = None
     port_values: Mapping | None = None
+    request: Mapping | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "status", expect(self.status, TRACE, "a trace"))
