@@ -3,6 +3,8 @@ that do not read as inches."""
 
 from __future__ import annotations
 
+import pytest
+
 import fabkit
 from fabkit.tolerance import analyse_tolerance, tolerance_figure, tolerance_spec
 from fabkit.plots.viz import clipped_texts, figure_kit
@@ -154,3 +156,28 @@ def test_figure_png_is_opaque_rgb_with_the_pixels_of_the_canvas():
     clear.patch.set_alpha(0.0)
     im = Image.open(io.BytesIO(figure_png(clear, dpi=50)))
     assert im.mode == "RGBA" and im.size == (100, 100) and np.asarray(im)[..., 3].min() == 0
+
+
+@pytest.mark.parametrize("n_layers", [1, 8, 9, 14, 24])
+def test_the_layer_legend_of_a_kit_picture_fits_under_its_drawing(n_layers):
+    """The AND gate's 14 layers ran its pictures' legend off both edges ("layer 0", "layer 1"
+    and "layer 13" cut off): the legend keeps to rows of LEGEND_COLUMNS, every entry inside the
+    picture, and the bottom margin grows with its rows so that it stays under the drawing (a
+    kit stacks at most 24 layers by default)."""
+    from fabkit.fab.guide.pictures import (bottom_margin, layer_legend, LEGEND_COLUMNS,
+                                           PICTURE_WIDTH)
+
+    top, drawing = 0.75, 2.0
+    bottom = bottom_margin(n_layers)
+    fig = figure_kit.figure(figsize=(PICTURE_WIDTH, top + drawing + bottom), dpi=100)
+    ax = fig.add_axes([0.3 / PICTURE_WIDTH, bottom / (top + drawing + bottom),
+                       (PICTURE_WIDTH - 0.6) / PICTURE_WIDTH, drawing / (top + drawing + bottom)])
+    ax.axis("off")  # as the pictures draw their rows
+    layer_legend(fig, n_layers)
+    assert clipped_texts(fig) == []
+    legend = fig.legends[0]
+    box = legend.get_window_extent(fig.canvas.get_renderer())
+    assert box.y1 <= ax.get_window_extent().y0 + 0.5  # under the drawing, not over it
+    assert 0 <= box.x0 and box.x1 <= PICTURE_WIDTH * 100
+    rows = {round(t.get_window_extent().y0) for t in legend.get_texts()}
+    assert len(rows) == -(-n_layers // LEGEND_COLUMNS)

@@ -15,7 +15,8 @@ from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Label
                    page_brackets, row_axes)
 from .plan import bar_name, frame_caption, GuidePlan
 
-__all__ = ["assembly_picture", "assembly_figure", "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
+__all__ = ["assembly_picture", "assembly_figure", "bottom_margin", "layer_legend", "LEGEND_COLUMNS",
+           "motion_picture", "MIN_PX_PER_MM", "PICTURE_WIDTH"]
 
 #: Width of the pictures (inches at :data:`_DPI`: 1100 pixels, the width of a report's column,
 #: where they show at their own size).
@@ -27,15 +28,48 @@ MIN_PX_PER_MM = 1.6
 #: No more than this (a small design is not blown up past legibility into a poster).
 MAX_PX_PER_MM = 4.0
 _MARGIN, _GAP, _TOP, _BOTTOM, _BAND = 0.3, 0.45, 0.75, 0.55, 0.5
+#: Columns of the layer legend: at 9 pt an entry ("layer 13" and its swatch) takes about 1.05
+#: inches, so nine fill the picture's width; 12 ran off both edges of the AND gate's pictures
+#: (14 layers: "layer 0", "layer 1" and "layer 13" cut off).
+LEGEND_COLUMNS = 8
+#: Height of a further row of the legend (inches): the bottom margin grows by it.
+_LEGEND_ROW = 0.2
 
 
-def _legend(fig, n_layers: int):
+def _legend_rows(n_layers: int) -> int:
+    return max(1, -(-int(n_layers) // LEGEND_COLUMNS))
+
+
+def bottom_margin(n_layers: int) -> float:
+    """The bottom margin of a picture (inches): room under the drawing for the rows of
+    :func:`layer_legend`.
+
+    Parameters
+    ----------
+    n_layers : int
+
+    Returns
+    -------
+    float
+    """
+    return _BOTTOM + _LEGEND_ROW * (_legend_rows(n_layers) - 1)
+
+
+def layer_legend(fig, n_layers: int):
+    """The layers' colours, in rows of at most :data:`LEGEND_COLUMNS` at the bottom of ``fig``
+    (in the room :func:`bottom_margin` keeps).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    n_layers : int
+    """
     from matplotlib.patches import Rectangle
 
     handles = [Rectangle((0, 0), 1, 1, fc=layer_colour(z), alpha=0.5, ec="k", lw=0.5)
                for z in range(n_layers)]
     fig.legend(handles, [f"layer {z}" for z in range(n_layers)], loc="lower center",
-               ncol=min(n_layers, 12), fontsize=9, frameon=False)
+               ncol=min(n_layers, LEGEND_COLUMNS), fontsize=9, frameon=False)
 
 
 def assembly_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
@@ -82,7 +116,7 @@ def assembly_figure(plan, gp: GuidePlan):
                                  max_scale=MAX_PX_PER_MM / _DPI, min_scale=MIN_PX_PER_MM / _DPI,
                                  band_in=band)
     height = (_TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1)
-              + band * len(ext) + _BOTTOM)
+              + band * len(ext) + bottom_margin(plan.stacking.n_layers))
     fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
     stats = {"rows": len(rows), "px_per_mm": scale * _DPI, "labels": 0, "overlaps": 0,
              "shrunk": 0, "dropped": 0}
@@ -111,7 +145,7 @@ def assembly_figure(plan, gp: GuidePlan):
     fig.suptitle(f"{plan.design.name}: assembly, {plan.stacking.n_layers} layers (0 = bottom), "
                  f"{len(rows)} row{'s' if len(rows) > 1 else ''}, {scale * _DPI:.2g} px per mm"
                  f"{pages_note}", fontsize=11, y=1 - 0.3 / height)
-    _legend(fig, plan.stacking.n_layers)
+    layer_legend(fig, plan.stacking.n_layers)
     return fig, stats
 
 
@@ -151,7 +185,8 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
     if cols == 1:
         ext = [(x0, e[1], x1, e[3]) for e in ext]  # one x range: the held joint stays put
         scale = min(width / (x1 - x0), MAX_PX_PER_MM / _DPI)
-        height = _TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1) + _BOTTOM
+        height = (_TOP + sum((e[3] - e[1]) * scale for e in ext) + _GAP * (len(ext) - 1)
+                  + bottom_margin(plan.stacking.n_layers))
         fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
         axes = [ax for ax, _ in row_axes(fig, ext, scale, _MARGIN, _TOP, _GAP, width)]
     else:
@@ -159,7 +194,7 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
         rows = int(np.ceil(len(frames) / cols))
         scale = min((width - _GAP * (cols - 1)) / (cols * (x1 - x0)), MAX_PX_PER_MM / _DPI)
         w, h = (x1 - x0) * scale, (y1 - y0) * scale
-        height = _TOP + rows * h + _GAP * (rows - 1) + _BOTTOM
+        height = _TOP + rows * h + _GAP * (rows - 1) + bottom_margin(plan.stacking.n_layers)
         fig = figure_kit.figure(figsize=(PICTURE_WIDTH, height))
         axes = []
         for k in range(len(frames)):
@@ -185,6 +220,6 @@ def motion_picture(plan, gp: GuidePlan) -> tuple[bytes, dict]:
             side.set_color("0.85")
     fig.suptitle(f"{plan.design.name}: the motion test with the stacking layers, to one scale "
                  f"({scale * _DPI:.2g} px per mm)", fontsize=11, y=1 - 0.3 / height)
-    _legend(fig, plan.stacking.n_layers)
+    layer_legend(fig, plan.stacking.n_layers)
     png, clipped = checked_png(fig, dpi=_DPI)
     return png, {"columns": cols, "px_per_mm": scale * _DPI, "clipped": clipped}
