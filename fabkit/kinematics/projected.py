@@ -429,11 +429,16 @@ class Projected(StepMethod):
         rotations."""
         c = x - centre
         n, d = x.shape
+        if d == 2:  # filled in place: the same entries as the columns stacked below, at a
+            # third of the cost (asked at every step of a trace that holds another part still)
+            f = np.zeros((n, 2, 3))
+            f[:, 0, 0] = 1.0
+            f[:, 1, 1] = 1.0
+            f[:, 0, 2] = -c[:, 1]
+            f[:, 1, 2] = c[:, 0]
+            return f.reshape(2 * n, 3)
         cols = [np.tile(np.eye(d)[a], n) for a in range(d)]
-        if d == 2:
-            cols.append(np.column_stack([-c[:, 1], c[:, 0]]).ravel())
-        else:
-            cols += [np.cross(np.eye(3)[a], c).ravel() for a in range(3)]
+        cols += [np.cross(np.eye(3)[a], c).ravel() for a in range(3)]
         return np.column_stack(cols)
 
     def _held(self, fields: np.ndarray, t: np.ndarray, gauge) -> np.ndarray:
