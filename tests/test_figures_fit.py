@@ -181,3 +181,20 @@ def test_the_layer_legend_of_a_kit_picture_fits_under_its_drawing(n_layers):
     assert 0 <= box.x0 and box.x1 <= PICTURE_WIDTH * 100
     rows = {round(t.get_window_extent().y0) for t in legend.get_texts()}
     assert len(rows) == -(-n_layers // LEGEND_COLUMNS)
+
+
+def test_a_kit_picture_that_cuts_a_text_off_is_a_warning_of_the_export(monkeypatch):
+    """The pictures measure their texts on the drawing their PNG is made of; a text cut off at
+    the edge is said in the laser format's report (its ``warnings``), not shipped unnoticed.
+    Drawn 3 inches wide, the four-bar's pictures cut off their titles."""
+    from fabkit.fab.guide import pictures
+    from fabkit.writers.dxf import export_design
+
+    design = fabkit.load_template(TEMPLATES / "fourbar.toml")
+    assert "warnings" not in export_design(design).report  # as drawn: every text inside
+    monkeypatch.setattr(pictures, "PICTURE_WIDTH", 3.0)
+    warnings = export_design(design).report["warnings"]
+    assert [w.split(":")[0] for w in warnings] == ["laser_assembly.png",
+                                                    "laser_layers_motion.png"]
+    assert all("text cut off at the picture's edge: " in w for w in warnings)
+    assert "fourbar: assembly, 3 layers" in warnings[0]

@@ -478,10 +478,16 @@ def write(plan: LaserPlan, *, verdict_pages: bool = True) -> ExportResult:
         bom = bill_of_materials(plan, _listed(sorted(files)), None)
         gp, pages, carried = guide_plan(plan, bom, None), {}, dict.fromkeys(VERDICT_FILES, b"")
     files.update(carried)
-    files["laser_assembly.png"] = assembly_picture(plan, gp)[0]
-    files["laser_layers_motion.png"] = motion_picture(plan, gp)[0]
+    pictures = {"laser_assembly.png": assembly_picture(plan, gp),
+                "laser_layers_motion.png": motion_picture(plan, gp)}
+    files.update({name: png for name, (png, _) in pictures.items()})
+    # a text a picture cuts off at its edge is said, not shipped unnoticed (the report's
+    # warnings); the pictures measure it on the drawing their PNG is made of
+    cut = [f"{name}: text cut off at the picture's edge: {', '.join(map(str, st['clipped']))}"
+           for name, (_, st) in pictures.items() if st["clipped"]]
     # the guide's page count rides with the report (a report never counts a PDF's pages)
-    return ExportResult(files=files, report={"format": FORMAT, **bom, **pages})
+    return ExportResult(files=files, report={"format": FORMAT, **bom, **pages,
+                                             **({"warnings": cut} if cut else {})})
 
 
 #: The files that carry the verdict: made again once ``fabkit export`` has judged the design.
