@@ -50,6 +50,9 @@ def _count_traces(monkeypatch, design_path):
 
     monkeypatch.setattr(Design, "trace", design_trace)
     monkeypatch.setattr(tracer, "make_problem", make_problem)
+    # the functional test is made once per design and kept for the process: an earlier export of
+    # the same design in this worker (another test file) would leave none of its pushes to count
+    monkeypatch.setattr("fabkit.fab.guide.function._MADE", {})
     return designs, own, function
 
 
