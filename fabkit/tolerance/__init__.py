@@ -42,14 +42,34 @@ and its verdict), :mod:`.result` (the result object) and :mod:`.figure` (its pic
 
 from __future__ import annotations
 
-from .analysis import analyse_tolerance
-from .figure import keep_chart, tolerance_figure
-from .horizon import lyapunov_estimate
-from .processes import PROCESSES, SOURCES
-from .result import ToleranceResult
-from .spec import (PROCESS_FORMATS, TOLERANCE_KEYS, ToleranceSpec, design_process, key_process,
-                   made_process, model_summary, perturbed_lengths, refuse_foreign,
-                   stated_process, tolerance_spec)
+# Names provided by the modules of the package, imported on first use: the command line's
+# parent process reads the settings' keys and processes (:mod:`.spec`) and needs none of the
+# analysis (scipy.sparse, the builds' assembly).
+_LAZY = {
+    "analyse_tolerance": "analysis",
+    "keep_chart": "figure",
+    "tolerance_figure": "figure",
+    "lyapunov_estimate": "horizon",
+    "PROCESSES": "processes",
+    "SOURCES": "processes",
+    "ToleranceResult": "result",
+    **dict.fromkeys(("PROCESS_FORMATS", "TOLERANCE_KEYS", "ToleranceSpec", "design_process",
+                     "key_process", "made_process", "model_summary", "perturbed_lengths",
+                     "refuse_foreign", "stated_process", "tolerance_spec"), "spec"),
+}
+
+
+def __getattr__(name):
+    import importlib
+
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
+
 
 __all__ = ["ToleranceSpec", "ToleranceResult", "tolerance_spec", "analyse_tolerance",
            "perturbed_lengths", "lyapunov_estimate", "tolerance_figure", "TOLERANCE_KEYS",
