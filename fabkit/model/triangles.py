@@ -7,7 +7,6 @@ Its own module because the print settings (which print a network gets) and the h
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..errors import FabricationError
 from ..model.network import Network
@@ -66,15 +65,19 @@ def rigid_triangles(net: Network, given=None) -> np.ndarray:
                                    f"{sides[t, s].tolist()} is not an edge of the network")
     else:
         # triangles i < j < k from the upper-triangular adjacency: every 2-path i-j-k closed by i-k
-        up = sp.csr_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n))
-        up.sum_duplicates()
-        deg = np.diff(up.indptr)
+        # (its rows as CSR arrays: the sorted distinct keys are the entries row by row, columns
+        # ascending; numpy alone, so reading print settings loads no scipy)
+        pairs = np.unique(keys)
+        cols = pairs % n
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(np.bincount(pairs // n, minlength=n), out=indptr[1:])
+        deg = np.diff(indptr)
         counts = deg[e[:, 1]]
         i = np.repeat(e[:, 0], counts)
         j = np.repeat(e[:, 1], counts)
-        starts = np.repeat(up.indptr[e[:, 1]], counts)
+        starts = np.repeat(indptr[e[:, 1]], counts)
         offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-        k = up.indices[starts + offsets]
+        k = cols[starts + offsets]
         closed = np.isin(i * n + k, keys)
         tri = np.stack([i[closed], j[closed], k[closed]], axis=1)
     if tri.size == 0:
