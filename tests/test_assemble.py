@@ -80,6 +80,31 @@ def test_a_chain_picks_the_mirroring_its_module_needs(super_stable, fourbar):
     np.testing.assert_array_equal(plain.nodes, chain(fourbar, 4, mirror="none").nodes)
 
 
+def test_stacked_nodes_counts_what_brute_force_counts():
+    # every pair measured (numpy, all N^2) against the count of the sorted sweep, on clouds
+    # with many exact and near repeats, a column of equal x (a straight chain) and 1-3 dims;
+    # a tiny chunk makes the sweep measure its candidates in many pieces
+    import fabkit.design.assemble as assemble
+
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        n, d = int(rng.integers(0, 120)), int(rng.integers(1, 4))
+        x = rng.integers(0, 5, (n, d)) * rng.choice([1e-10, 0.25, 1.0])
+        x = x + rng.normal(0.0, 1e-11, (n, d)) * (trial % 2)
+        if trial % 5 == 0:
+            x[:, 0] = 0.0
+        tol = float(rng.choice([1e-9, 0.3]))
+        gaps = np.linalg.norm(x[:, None] - x[None], axis=-1)[np.triu_indices(n, 1)]
+        want = int((gaps <= tol).sum())
+        assert assemble.stacked_nodes(x, tol) == want
+        old = assemble.STACKED_CHUNK
+        try:
+            assemble.STACKED_CHUNK = 3
+            assert assemble.stacked_nodes(x, tol) == want
+        finally:
+            assemble.STACKED_CHUNK = old
+
+
 def test_modules_that_stand_on_one_another_either_way_are_refused(super_stable, monkeypatch):
     import fabkit.design.assemble as assemble
 

@@ -45,11 +45,11 @@ print(json.dumps({"runs": [" ".join(a) for a in runs], "codes": codes, "first": 
 """
 
 
-def _run(runs, heavy=HEAVY) -> dict:
+def _run(runs, heavy=HEAVY, env=None) -> dict:
     proc = subprocess.run([sys.executable, "-c", _RUN, json.dumps(heavy), json.dumps(runs)],
                           capture_output=True, text=True, cwd=ROOT, timeout=300,
                           env={"MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin",
-                               "PYTHONPATH": str(ROOT)})
+                               "PYTHONPATH": str(ROOT), **(env or {})})
     assert proc.returncode == 0, proc.stderr[-2000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -99,3 +99,19 @@ def test_the_defaults_named_in_the_help_are_those_of_the_models():
 
     assert DEFAULT_STEPS == MODEL_STEPS
     assert TOLERANCE_SAMPLES == ToleranceSpec().samples
+
+
+def test_the_parent_of_an_export_loads_none_of_the_work_s_libraries(tmp_path):
+    # ``fabkit export`` loads each template in its own process (to name its folder, order the
+    # work and refuse bad settings before any starts) and hands it to a worker: the work's
+    # libraries are the workers' to load. The chain here is built by the parent too (it looks
+    # for the mirroring its modules need, and is a print made of triangles). Its worker ends
+    # as it is handed the design, so only the parent is measured.
+    from fabkit.pipeline import FAULT_ENV
+
+    name = "printed_planar_chain10"
+    argv = ["export", name, "-o", str(tmp_path / "out"), "--jobs", "1"]
+    work = tuple(lib for lib in HEAVY if lib != "pydantic")  # the settings' schema is read
+    found = _run([argv], heavy=work, env={FAULT_ENV: f"{name}@taken:exit"})
+    assert found["codes"][" ".join(argv)] != 0  # the first design's worker did end
+    assert not found["first"], _leaks(found)

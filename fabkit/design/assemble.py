@@ -340,12 +340,55 @@ def _mirror_flags(mirror, k: int) -> list[bool]:
     return list(mirror)
 
 
+#: Candidate pairs :func:`stacked_nodes` measures at once (bounds its memory when many nodes
+#: share a coordinate, as the nodes of a straight chain do).
+STACKED_CHUNK = 1 << 20
+
+
+def stacked_nodes(nodes, tol: float) -> int:
+    """How many pairs of nodes stand within ``tol`` of one another.
+
+    Sorted along the coordinate of widest spread, only pairs within ``tol`` along it are
+    measured (numpy alone: a template's chain is built by the command line's parent process
+    too, which loads no scipy).
+
+    Parameters
+    ----------
+    nodes : array_like, shape (N, d)
+    tol : float
+        Largest distance of a pair counted (inclusive).
+
+    Returns
+    -------
+    int
+        Unordered pairs ``i < j`` with ``|x_i - x_j| <= tol``.
+    """
+    x = np.asarray(nodes, dtype=float)
+    n = x.shape[0]
+    if n < 2:
+        return 0
+    axis = int(np.argmax(np.ptp(x, axis=0)))
+    x = x[np.argsort(x[:, axis], kind="stable")]
+    key = x[:, axis]
+    rows = np.arange(n)
+    # node i's candidates are the nodes i+1 .. ends[i]-1 after it in that order
+    counts = np.searchsorted(key, key + tol, side="right") - rows - 1
+    total, start = 0, 0
+    while start < n:
+        upto = np.cumsum(counts[start:])
+        stop = start + max(1, int(np.searchsorted(upto, STACKED_CHUNK, side="right")))
+        c = counts[start:stop]
+        i = np.repeat(rows[start:stop], c)
+        j = i + 1 + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        d = x[j] - x[i]
+        total += int(np.count_nonzero(np.einsum("ij,ij->i", d, d) <= tol * tol))
+        start = stop
+    return total
+
+
 def _stacked_nodes(net: Network) -> int:
     """How many pairs of a network's nodes stand on one another (:data:`COINCIDENT_RTOL`)."""
-    from scipy.spatial import cKDTree
-
-    tol = COINCIDENT_RTOL * max(float(net.size), 1.0)
-    return len(cKDTree(net.nodes).query_pairs(tol))
+    return stacked_nodes(net.nodes, COINCIDENT_RTOL * max(float(net.size), 1.0))
 
 
 #: Modules of a chain that ``mirror="auto"`` builds to look for nodes standing on one another:
