@@ -110,10 +110,22 @@ def _fixed_metadata():
         ezdxf.options.write_fixed_meta_data_for_testing = old
 
 
-def _floats(points) -> list:
-    """Points as lists of Python floats (the values ``float`` gives each coordinate), made by
-    numpy at once rather than a float at a time."""
-    return np.asarray(points, dtype=np.float64).tolist()
+def _add_polyline(msp, points, layer: str):
+    """A closed LWPOLYLINE of ``points`` (rows x, y or x, y, bulge) on ``layer``.
+
+    Its vertex array is made by numpy at once: ezdxf's ``add_lwpolyline`` appends the
+    vertices one at a time (an array concatenation each), the larger part of writing a
+    sheet's engraved labels. The file is the same to the byte."""
+    from ezdxf.entities.lwpolyline import LWPolylinePoints
+
+    p = np.asarray(points, dtype=np.float64)
+    rows = np.zeros((p.shape[0], 5))
+    rows[:, :2] = p[:, :2]
+    if p.shape[1] > 2:
+        rows[:, 4] = p[:, 2]
+    e = msp.add_lwpolyline((), close=True, dxfattribs={"layer": layer})
+    e.lwpoints = LWPolylinePoints(rows.tolist())
+    return e
 
 
 def _fmt(v: float) -> str:
@@ -185,9 +197,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
 
         def closed_outline(vertices, layer, part):
             if s.flavour == "lwpolyline":
-                e = msp.add_lwpolyline(_floats(vertices), format="xyb", close=True,
-                                       dxfattribs={"layer": layer})
-                tag(e, part)
+                tag(_add_polyline(msp, vertices, layer), part)
                 return
             for prim in bulge_primitives(vertices):
                 if prim[0] == "line":
@@ -202,8 +212,7 @@ def sheet_dxf(sheet, plan: LaserPlan, n_sheets: int, header: dict | None = None)
             for label in part.labels:
                 if s.labels == "outlines":
                     for poly in label_outlines(label):
-                        msp.add_lwpolyline(_floats(poly), format="xy", close=True,
-                                           dxfattribs={"layer": "ENGRAVE"})
+                        _add_polyline(msp, poly, "ENGRAVE")
                 else:
                     t = msp.add_text(label.text, height=label.height, rotation=label.angle,
                                      dxfattribs={"layer": "ENGRAVE"})
