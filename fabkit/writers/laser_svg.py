@@ -57,8 +57,10 @@ def _outline_path(vertices, H: float) -> str:
 
 def _poly_path(points, H: float) -> str:
     p = np.asarray(points, dtype=np.float64)
-    head = f"M {_f(p[0, 0])} {_f(H - p[0, 1])}"
-    return head + " " + " ".join(f"L {_f(x)} {_f(H - y)}" for x, y in p[1:]) + " Z"
+    # Python floats, flipped at once: iterating the array's rows made two numpy scalars a vertex
+    xs, ys = p[:, 0].tolist(), (H - p[:, 1]).tolist()
+    head = f"M {_f(xs[0])} {_f(ys[0])}"
+    return head + " " + " ".join(f"L {_f(x)} {_f(y)}" for x, y in zip(xs[1:], ys[1:])) + " Z"
 
 
 def _kerf_text(settings) -> str:
