@@ -248,3 +248,37 @@ def test_cli_export_to_dxf(tmp_path, capsys):
     assert code == 2 and "--set: laser.kerf: must be >= 0, got -1" in err  # a usage error
     assert not list((tmp_path / "bad").rglob("*.dxf"))
 
+
+
+def test_polylines_given_as_one_array_write_the_bytes_of_ezdxf_s_own_vertex_by_vertex():
+    # the writer hands ezdxf a polyline's vertices as one array; ezdxf's add_lwpolyline, which
+    # appends them one at a time, must write the same file: no vertex, one, bulges of both
+    # signs, coordinates that need all 17 digits
+    from fabkit.writers.dxf import _add_polyline
+
+    rng = np.random.default_rng(3)
+    polylines = [np.zeros((0, 2)), np.array([[1.5, 2.25]]), rng.normal(0, 300, (40, 2)),
+                 np.column_stack([rng.normal(0, 1, (7, 2)), [0.5, 0, -0.25, 1, 0, -1, 1e-9]])]
+
+    def written(add) -> str:
+        fixed = ezdxf.options.write_fixed_meta_data_for_testing
+        ezdxf.options.write_fixed_meta_data_for_testing = True  # no clock, no random GUIDs
+        try:
+            doc = ezdxf.new("R2010", setup=False)
+            for p in polylines:
+                add(doc.modelspace(), p)
+            out = io.StringIO()
+            doc.write(out)
+        finally:
+            ezdxf.options.write_fixed_meta_data_for_testing = fixed
+        return out.getvalue()
+
+    ours = written(lambda msp, p: _add_polyline(msp, p, "CUT"))
+    theirs = written(lambda msp, p: msp.add_lwpolyline(
+        p.tolist(), format="xyb" if p.shape[1] == 3 else "xy", close=True,
+        dxfattribs={"layer": "CUT"}))
+    # (a polyline of no vertex is left out of the file by ezdxf, ours as its own)
+    back = [e.get_points("xyb") for e in ezdxf.read(io.StringIO(ours)).modelspace()]
+    assert [len(p) for p in back] == [1, 40, 7]
+    assert [b for *_, b in back[2]] == [0.5, 0, -0.25, 1, 0, -1, 1e-9]
+    assert ours == theirs

@@ -119,6 +119,8 @@ def _add_polyline(msp, points, layer: str):
     from ezdxf.entities.lwpolyline import LWPolylinePoints
 
     p = np.asarray(points, dtype=np.float64)
+    if p.size == 0:
+        p = np.zeros((0, 2))
     rows = np.zeros((p.shape[0], 5))
     rows[:, :2] = p[:, :2]
     if p.shape[1] > 2:
