@@ -36,6 +36,7 @@ from ...plots.viz import checked_png, clipped_texts, figure_kit, figure_texts, f
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .flow import column_lines, MIN_PT, STYLES
+from .pdf_text import LAYER_GID, add_text_layer, text_runs
 from .plan import bar_name, frame_caption, GuidePlan, modules_text, ROOM_PT
 
 __all__ = ["A4", "render_pages", "BOTTOM_IN"]
@@ -71,7 +72,7 @@ def _draw_blocks(fig, blocks, top_in: float) -> float:
         if block.title is not None:
             size, pitch, _, _ = STYLES["head"]
             fig.text(_LEFT / A4[0], 1 - y / H, block.title, fontsize=size, weight="bold",
-                     va="top")
+                     va="top", gid=LAYER_GID)
             y += size * pitch / 72.0
         size, pitch, _, mono = STYLES[block.style]
         cols = column_lines(block)
@@ -80,15 +81,18 @@ def _draw_blocks(fig, blocks, top_in: float) -> float:
             for k, line in enumerate(lines):
                 if line:
                     fig.text((_LEFT + c * width) / A4[0], 1 - (y + k * size * pitch / 72.0) / H,
-                             line, fontsize=size, va="top", family=_MONO if mono else None)
+                             line, fontsize=size, va="top", family=_MONO if mono else None,
+                             gid=LAYER_GID)
         y += max((len(c) for c in cols), default=0) * size * pitch / 72.0 + 6.0 / 72.0
     return y
 
 
 def _header(fig, title: str, sub: str | None = None):
-    fig.text(0.5, 0.972, title, ha="center", va="center", fontsize=12.5, weight="bold")
+    fig.text(0.5, 0.972, title, ha="center", va="center", fontsize=12.5, weight="bold",
+             gid=LAYER_GID)
     if sub:
-        fig.text(_LEFT / A4[0], 0.948, _wrap(sub, 132), ha="left", va="top", fontsize=7.5)
+        fig.text(_LEFT / A4[0], 0.948, _wrap(sub, 132), ha="left", va="top", fontsize=7.5,
+                 gid=LAYER_GID)
 
 
 def _page_extent(x, edges, bars, r):
@@ -344,7 +348,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     r = 0.5 * s.bar_width
     stats = {"pages": 0, "labels": 0, "overlaps": 0, "shrunk": 0, "dropped": 0, "dropped_on": [],
              "clipped": [], "smallest_pt": float("inf")}
-    images, texts = [], []
+    images, texts, runs = [], [], []
     buf = io.BytesIO()
 
     def drawer(sheet):
@@ -382,7 +386,15 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             shown = figure_texts(fig)
             texts.append([t.get_text() for t in shown])
             stats["smallest_pt"] = min([stats["smallest_pt"], *(t.get_fontsize() for t in shown)])
+            # the running text goes to the PDF's text layer (.pdf_text), not through matplotlib;
+            # the figure keeps it for the PNG and the clipping check
+            layer = [t for t in shown if t.get_gid() == LAYER_GID]
+            runs.append(text_runs(fig, layer))
+            for t in layer:
+                t.set_visible(False)
             pdf.savefig(fig)
+            for t in layer:
+                t.set_visible(True)
             if pngs or k == 0:  # one raster drawing gives the PNG and the clipping check
                 png, clipped = checked_png(fig, dpi=dpi)
                 images.append(png)
@@ -391,4 +403,4 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             if check:
                 stats["clipped"] += [(k + 1, t) for t in clipped]
             stats["pages"] += 1
-    return buf.getvalue(), images, texts, stats
+    return add_text_layer(buf.getvalue(), runs), images, texts, stats

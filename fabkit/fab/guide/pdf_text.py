@@ -1,0 +1,435 @@
+"""The guide's running text written into its PDF directly, not glyph by glyph by matplotlib.
+
+matplotlib lays out and draws every text of a PDF glyph by glyph through FreeType (a few tens of
+microseconds a glyph on the developers' machine: the running text of the AND gate's 22 pages,
+some 40 000 characters, cost 2.4 s of its 6.9 s of pages). The guide's running text (the
+headers and the lines of its blocks, each a text of its own with no rotation) needs none of
+that: :func:`text_runs` places each such text where matplotlib would (its alignment measured
+with the font's own metrics, read once with fontTools), the page is saved by matplotlib with
+those texts hidden, and :func:`add_text_layer` appends them to the finished PDF as an
+incremental update (the PDF standard's way of adding to a file: new objects, a new cross-reference
+section pointing back at the old one): a content stream per page that draws the runs in the same
+DejaVu faces, embedded as TrueType subsets like matplotlib's own, with a ToUnicode map so every
+reader extracts the words. The figure keeps the texts, so a page's PNG and the clipping check
+draw and measure them as before.
+
+Glyphs are set at their advance widths, without kerning (a line is at most a few tenths of a
+point longer than matplotlib sets it) and without ligatures (``fi`` stays two glyphs, as a
+reader searching the text wants).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import re
+import zlib
+from dataclasses import dataclass
+from functools import lru_cache
+
+from ...errors import FabkitError
+
+__all__ = ["LAYER_GID", "TextRun", "add_text_layer", "text_runs"]
+
+#: ``gid`` of a figure text that goes to the text layer (set on the guide's running text).
+LAYER_GID = "fabkit-pdf-text"
+
+#: Text coordinates are written to this many decimals of a point (1/1000 pt: far below a
+#: printer's dot, and the same text always gives the same bytes).
+COORD_DECIMALS = 3
+
+#: zlib level of the layer's streams (matplotlib's own streams use zlib's default, 6).
+ZLIB_LEVEL = 6
+
+
+@dataclass(frozen=True)
+class TextRun:
+    """One line of text at its baseline.
+
+    Attributes
+    ----------
+    x, y : float
+        Start of the baseline, points from the page's lower-left corner.
+    size : float
+        Points.
+    font : str
+        Path of the TrueType file (as matplotlib's font manager finds it for the text).
+    text : str
+    rgb : tuple of float
+        Fill colour, each in [0, 1].
+    """
+
+    x: float
+    y: float
+    size: float
+    font: str
+    text: str
+    rgb: tuple = (0.0, 0.0, 0.0)
+
+
+class _Face:
+    """A TrueType font's metrics for layout: advances and ink bounds per character."""
+
+    def __init__(self, path: str):
+        from fontTools.ttLib import TTFont
+
+        self.path = path
+        font = TTFont(path, lazy=True)
+        self.upem = float(font["head"].unitsPerEm)
+        self.cmap = font.getBestCmap() or {}
+        self.hmtx = font["hmtx"].metrics
+        self.glyf = font["glyf"] if "glyf" in font else None
+        os2 = font["OS/2"] if "OS/2" in font else None
+        if os2 is not None:
+            self.ascent, self.descent = float(os2.sTypoAscender), float(-os2.sTypoDescender)
+            self.line_gap = float(os2.sTypoLineGap)
+        else:
+            hhea = font["hhea"]
+            self.ascent, self.descent = float(hhea.ascent), float(-hhea.descent)
+            self.line_gap = float(hhea.lineGap)
+        self.ps_name = re.sub(r"[^A-Za-z0-9-]", "", font["name"].getDebugName(6) or "Font")
+        self._ink: dict = {}
+
+    def glyph(self, ch: str) -> str:
+        return self.cmap.get(ord(ch), ".notdef")
+
+    def advance(self, text: str) -> float:
+        """Advance width of ``text`` in font units."""
+        return float(sum(self.hmtx[self.glyph(ch)][0] for ch in text))
+
+    def ink(self, text: str) -> tuple[float, float]:
+        """Highest and lowest point of the glyphs of ``text`` (font units, y up)."""
+        top, bottom = 0.0, 0.0
+        for ch in set(text):
+            if ch not in self._ink:
+                g = self.glyf[self.glyph(ch)] if self.glyf is not None else None
+                box = (float(getattr(g, "yMax", 0.0)), float(getattr(g, "yMin", 0.0))) \
+                    if g is not None and getattr(g, "numberOfContours", 0) != 0 else (0.0, 0.0)
+                self._ink[ch] = box
+            top, bottom = max(top, self._ink[ch][0]), min(bottom, self._ink[ch][1])
+        return top, bottom
+
+
+@lru_cache(maxsize=8)
+def _face(path: str) -> _Face:
+    return _Face(path)
+
+
+def text_runs(fig, texts) -> list[TextRun]:
+    """Where the figure's ``texts`` stand on the page, as :class:`TextRun` lines.
+
+    Each text is laid out as matplotlib (3.11) lays out a text of ``linespacing="normal"``: a
+    line reaches at least the font's typographic ascent above its baseline and its descent
+    below, lines of a text of several lines are a line gap apart, and the box so made is
+    aligned by the text's ``ha`` and ``va`` at its position (any transform: the position is
+    taken to the figure's pixels, then to points).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        Saved at 72 dpi (a PDF page: one unit is one point).
+    texts : iterable of matplotlib.text.Text
+        Without rotation.
+
+    Returns
+    -------
+    list of TextRun
+
+    Raises
+    ------
+    FabkitError
+        A rotated text, or one in math mode.
+    """
+    from matplotlib.colors import to_rgb
+    from matplotlib.font_manager import findfont
+
+    runs = []
+    for t in texts:
+        if t.get_rotation() % 360.0 != 0.0:
+            raise FabkitError(f"the PDF text layer sets no rotated text ({t.get_text()[:40]!r})")
+        x, y = t.get_transform().transform(t.get_position())
+        # display units of the figure at its dpi → points
+        x, y = x * 72.0 / fig.dpi, y * 72.0 / fig.dpi
+        face = _face(findfont(t.get_fontproperties()))
+        size = float(t.get_fontsize())
+        scale = size / face.upem
+        lines = t.get_text().split("\n")
+        gap = face.line_gap * scale if len(lines) > 1 else 0.0
+        metrics = []
+        for line in lines:
+            top, bottom = face.ink(line) if line else (0.0, 0.0)
+            a = max(top * scale, face.ascent * scale) + gap / 2
+            d = max(-bottom * scale, face.descent * scale) + gap / 2
+            metrics.append((face.advance(line) * scale, a, d))
+        height = sum(a + d for _, a, d in metrics)
+        width = max(w for w, _, _ in metrics)
+        va, ha = t.get_verticalalignment(), t.get_horizontalalignment()
+        if va == "top":
+            top_y = y
+        elif va == "bottom":
+            top_y = y + height
+        elif va == "center":
+            top_y = y + height / 2
+        elif va == "baseline":
+            top_y = y + metrics[0][1]
+        else:  # center_baseline
+            top_y = y + (metrics[0][1] - metrics[0][2]) / 2 + metrics[0][2]
+        left = {"left": x, "center": x - width / 2, "right": x - width}[ha]
+        malign = ha  # the guide sets no multialignment of its own
+        rgb = tuple(float(c) for c in to_rgb(t.get_color()))
+        base = top_y
+        for line, (w, a, d) in zip(lines, metrics):
+            base -= a
+            shift = {"left": 0.0, "center": (width - w) / 2, "right": width - w}[malign]
+            if line:
+                runs.append(TextRun(left + shift, base, size, face.path, line, rgb))
+            base -= d
+    return runs
+
+
+# -- the PDF ------------------------------------------------------------------------------------
+
+def _fmt(v: float) -> str:
+    s = f"{v:.{COORD_DECIMALS}f}".rstrip("0").rstrip(".")
+    return "0" if s in ("", "-0") else s
+
+
+def _stream(data: bytes) -> bytes:
+    packed = zlib.compress(data, ZLIB_LEVEL)
+    return (b"<< /Length %d /Filter /FlateDecode >>\nstream\n" % len(packed) + packed
+            + b"\nendstream")
+
+
+class _Pdf:
+    """The objects of a PDF written with a classic cross-reference table (matplotlib's)."""
+
+    def __init__(self, data: bytes):
+        self.data = data
+        m = re.search(rb"startxref\s+(\d+)\s+%%EOF\s*$", data)
+        if m is None:
+            raise FabkitError("the guide's PDF has no cross-reference table at its end")
+        self.xref = int(m.group(1))
+        if data[self.xref:self.xref + 4] != b"xref":
+            raise FabkitError("the guide's PDF uses a cross-reference stream, which the text "
+                              "layer does not read")
+        self.offsets: dict[int, int] = {}
+        pos = self.xref + 4
+        sub = re.compile(rb"\s*(\d+) (\d+)\s*\n")
+        while True:
+            m = sub.match(data, pos)
+            if m is None:
+                break
+            start, count = int(m.group(1)), int(m.group(2))
+            pos = m.end()
+            for k in range(count):
+                entry = data[pos:pos + 20]
+                if entry[17:18] == b"n":
+                    self.offsets[start + k] = int(entry[:10])
+                pos += 20
+        m = re.compile(rb"\s*trailer\s*<<(.*?)>>\s*startxref", re.S).match(data, pos)
+        if m is None:
+            raise FabkitError("the guide's PDF has no trailer after its cross-reference table")
+        self.trailer = m.group(1)
+        self.size = int(self._key(self.trailer, rb"/Size (\d+)"))
+
+    @staticmethod
+    def _key(text: bytes, pattern: bytes) -> bytes:
+        m = re.search(pattern, text)
+        if m is None:
+            raise FabkitError(f"the guide's PDF lacks {pattern.decode()!r} where the text "
+                              "layer looks for it")
+        return m.group(1)
+
+    def body(self, num: int) -> bytes:
+        """The text of object ``num`` between ``obj`` and ``endobj`` (dictionaries only)."""
+        at = self.offsets.get(num)
+        if at is None:
+            raise FabkitError(f"the guide's PDF has no object {num}")
+        m = re.compile(rb"%d 0 obj\s*(.*?)\s*endobj" % num, re.S).match(self.data, at)
+        if m is None:
+            raise FabkitError(f"object {num} of the guide's PDF is not where its table says")
+        return m.group(1)
+
+    def ref(self, num: int, key: bytes) -> int:
+        return int(self._key(self.body(num), rb"/" + key + rb" (\d+) 0 R"))
+
+    def pages(self) -> list[int]:
+        root = int(self._key(self.trailer, rb"/Root (\d+) 0 R"))
+        kids = self._key(self.body(self.ref(root, b"Pages")), rb"/Kids\s*\[([^\]]*)\]")
+        return [int(k) for k in re.findall(rb"(\d+) 0 R", kids)]
+
+
+def _subset_tag(glyphs) -> str:
+    digest = hashlib.sha1("\0".join(sorted(glyphs)).encode()).digest()
+    return "".join(chr(65 + b % 26) for b in digest[:6])
+
+
+def _font_objects(face: _Face, chars: set, first: int) -> tuple[list[bytes], dict]:
+    """The five objects of ``face`` subset to ``chars`` (numbered from ``first``: Type0 font,
+    CID font, descriptor, font file, ToUnicode map) and each character's 2-byte code."""
+    from fontTools import subset
+    from fontTools.ttLib import TTFont
+
+    options = subset.Options()
+    options.layout_features = []
+    options.name_IDs = ["*"]
+    options.notdef_outline = True
+    options.recalc_bounds = True
+    options.drop_tables += ["GSUB", "GPOS", "GDEF", "kern", "FFTM"]
+    sub = subset.Subsetter(options)
+    sub.populate(unicodes=sorted(ord(c) for c in chars))
+    font = TTFont(face.path, recalcTimestamp=False)  # the same text, the same bytes
+    sub.subset(font)
+    order = font.getGlyphOrder()
+    gid = {name: k for k, name in enumerate(order)}
+    cmap = font.getBestCmap() or {}
+    codes = {c: gid.get(cmap.get(ord(c), ".notdef"), 0) for c in chars}
+    buf = io.BytesIO()
+    font.save(buf)
+    program = buf.getvalue()
+    name = f"{_subset_tag(order)}+{face.ps_name}".encode()
+    k = 1000.0 / face.upem
+    metrics = font["hmtx"].metrics
+    widths = b" ".join(b"%d [ %s ]" % (g, _fmt(metrics[n][0] * k).encode())
+                       for g, n in enumerate(order))
+    head = font["head"]
+    bbox = " ".join(_fmt(v * k) for v in (head.xMin, head.yMin, head.xMax, head.yMax))
+    t0, cid, desc, file_, tounicode = range(first, first + 5)
+    unicode_of: dict = {}
+    for c in sorted(chars):
+        unicode_of.setdefault(codes[c], c)
+    cmap_text = "\n".join(f"<{g:04X}> <{u.encode('utf-16-be').hex().upper()}>"
+                          for g, u in sorted(unicode_of.items()))
+    to_unicode = ("/CIDInit /ProcSet findresource begin\n12 dict begin\nbegincmap\n"
+                  "/CIDSystemInfo << /Registry (Adobe) /Ordering (UCS) /Supplement 0 >> def\n"
+                  "/CMapName /Adobe-Identity-UCS def\n/CMapType 2 def\n"
+                  "1 begincodespacerange\n<0000> <FFFF>\nendcodespacerange\n"
+                  f"{len(unicode_of)} beginbfchar\n{cmap_text}\nendbfchar\n"
+                  "endcmap\nCMapName currentdict /CMap defineresource pop\nend\nend\n").encode()
+    packed = zlib.compress(program, ZLIB_LEVEL)
+    objects = [
+        b"<< /Type /Font /Subtype /Type0 /BaseFont /%s /Encoding /Identity-H "
+        b"/DescendantFonts [ %d 0 R ] /ToUnicode %d 0 R >>" % (name, cid, tounicode),
+        b"<< /Type /Font /Subtype /CIDFontType2 /BaseFont /%s /CIDSystemInfo << /Registry "
+        b"(Adobe) /Ordering (Identity) /Supplement 0 >> /FontDescriptor %d 0 R "
+        b"/CIDToGIDMap /Identity /W [ %s ] >>" % (name, desc, widths),
+        b"<< /Type /FontDescriptor /FontName /%s /Flags 32 /FontBBox [ %s ] /Ascent %s "
+        b"/Descent %s /CapHeight 0 /ItalicAngle 0 /StemV 0 /FontFile2 %d 0 R >>"
+        % (name, bbox.encode(), _fmt(face.ascent * k).encode(),
+           _fmt(-face.descent * k).encode(), file_),
+        b"<< /Length %d /Length1 %d /Filter /FlateDecode >>\nstream\n" % (len(packed),
+                                                                          len(program))
+        + packed + b"\nendstream",
+        _stream(to_unicode),
+    ]
+    return objects, codes
+
+
+def _page_stream(runs, names: dict, codes: dict) -> bytes:
+    out, rgb = ["Q", "BT"], None
+    for r in runs:
+        if r.rgb != rgb:
+            rgb = r.rgb
+            out.append(" ".join(_fmt(c) for c in rgb) + " rg")
+        hexed = "".join(f"{codes[r.font][c]:04X}" for c in r.text)
+        out.append(f"/{names[r.font]} {_fmt(r.size)} Tf 1 0 0 1 {_fmt(r.x)} {_fmt(r.y)} Tm "
+                   f"<{hexed}> Tj")
+    out.append("ET")
+    return ("\n".join(out) + "\n").encode()
+
+
+def add_text_layer(pdf: bytes, runs_per_page) -> bytes:
+    """``pdf`` with each page's runs drawn over it (an incremental update of the file).
+
+    Parameters
+    ----------
+    pdf : bytes
+        A PDF written by matplotlib (a classic cross-reference table; pages that share one
+        resource dictionary or have their own).
+    runs_per_page : sequence of list of TextRun
+        One list per page, in page order.
+
+    Returns
+    -------
+    bytes
+        The same file with the new objects appended; ``pdf`` itself when there are no runs.
+
+    Raises
+    ------
+    FabkitError
+        The PDF is not laid out as matplotlib writes it (then nothing is changed), or has another
+        number of pages.
+    """
+    runs_per_page = [list(r) for r in runs_per_page]
+    if not any(runs_per_page):
+        return pdf
+    doc = _Pdf(pdf)
+    pages = doc.pages()
+    if len(pages) != len(runs_per_page):
+        raise FabkitError(f"the text layer has {len(runs_per_page)} pages for a PDF of "
+                          f"{len(pages)}")
+    fonts = sorted({r.font for runs in runs_per_page for r in runs})
+    chars = {f: set() for f in fonts}
+    for runs in runs_per_page:
+        for r in runs:
+            chars[r.font].update(r.text)
+    new: dict[int, bytes] = {}
+    nxt = doc.size
+    names, codes, refs = {}, {}, []
+    for k, path in enumerate(fonts):
+        objects, codes[path] = _font_objects(_face(path), chars[path], nxt)
+        names[path] = f"FkText{k + 1}"
+        refs.append(b"/%s %d 0 R" % (names[path].encode(), nxt))  # the Type0 font, first
+        for obj in objects:
+            new[nxt] = obj
+            nxt += 1
+    font_refs = b" ".join(refs)
+    save = nxt
+    new[save] = _stream(b"q\n")
+    nxt += 1
+    rewritten: dict[int, int] = {}  # a page's resources → their copy with the layer's fonts
+    for page, runs in zip(pages, runs_per_page):
+        if not runs:
+            continue
+        body = doc.body(page)
+        res = int(doc._key(body, rb"/Resources (\d+) 0 R"))
+        contents = doc._key(body, rb"/Contents (\d+ 0 R|\[[^\]]*\])")
+        if res not in rewritten:
+            res_body = doc.body(res)
+            m = re.search(rb"/Font (\d+) 0 R", res_body)
+            if m is not None:
+                inner = doc.body(int(m.group(1))).strip()
+                if not (inner.startswith(b"<<") and inner.endswith(b">>")):
+                    raise FabkitError("the guide's PDF has a font dictionary the text layer "
+                                      "cannot extend")
+                new[nxt] = inner[:-2] + b" " + font_refs + b" >>"
+                res_body = res_body[:m.start()] + b"/Font %d 0 R" % nxt + res_body[m.end():]
+            else:
+                res_body = res_body.replace(b"<<", b"<< /Font << " + font_refs + b" >>", 1)
+            nxt += 1
+            new[nxt] = res_body
+            rewritten[res] = nxt
+            nxt += 1
+        new[nxt] = _stream(_page_stream(runs, names, codes))
+        text = nxt
+        nxt += 1
+        inner = contents.strip(b"[]").strip() if contents.startswith(b"[") else contents
+        body = body.replace(b"/Resources %d 0 R" % res, b"/Resources %d 0 R" % rewritten[res], 1)
+        body = body.replace(b"/Contents " + contents,
+                            b"/Contents [ %d 0 R %s %d 0 R ]" % (save, inner, text), 1)
+        new[page] = body
+    out = bytearray(pdf)
+    if not out.endswith(b"\n"):
+        out += b"\n"
+    where = {}
+    for num in sorted(new):
+        where[num] = len(out)
+        out += b"%d 0 obj\n" % num + new[num] + b"\nendobj\n"
+    xref = len(out)
+    out += b"xref\n0 1\n0000000000 65535 f \n"
+    for num in sorted(where):
+        out += b"%d 1\n%010d 00000 n \n" % (num, where[num])
+    keep = b" ".join(re.findall(rb"/(?:Root|Info) \d+ 0 R", doc.trailer))
+    out += (b"trailer\n<< /Size %d %s /Prev %d >>\nstartxref\n%d\n%%%%EOF\n"
+            % (max(nxt, doc.size), keep, doc.xref, xref))
+    return bytes(out)
