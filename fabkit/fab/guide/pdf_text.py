@@ -38,6 +38,11 @@ LAYER_GID = "fabkit-pdf-text"
 #: printer's dot, and the same text always gives the same bytes).
 COORD_DECIMALS = 3
 
+#: Font tables the layer's subsets leave out: glyphs are placed by their advances alone (no
+#: shaping, kerning or ligatures). Removed before subsetting: the subsetter otherwise decodes
+#: the layout tables only to drop them (three times the time, 0.14 → 0.05 s a face).
+UNUSED_TABLES = ("GSUB", "GPOS", "GDEF", "kern", "FFTM")
+
 #: zlib level of the layer's streams (matplotlib's own streams use zlib's default, 6).
 ZLIB_LEVEL = 6
 
@@ -275,10 +280,13 @@ def _font_objects(face: _Face, chars: set, first: int) -> tuple[list[bytes], dic
     options.name_IDs = ["*"]
     options.notdef_outline = True
     options.recalc_bounds = True
-    options.drop_tables += ["GSUB", "GPOS", "GDEF", "kern", "FFTM"]
+    options.drop_tables += list(UNUSED_TABLES)
     sub = subset.Subsetter(options)
     sub.populate(unicodes=sorted(ord(c) for c in chars))
     font = TTFont(face.path, recalcTimestamp=False)  # the same text, the same bytes
+    for tag in UNUSED_TABLES:  # dropped before the subsetter reads them (the same bytes)
+        if tag in font:
+            del font[tag]
     sub.subset(font)
     order = font.getGlyphOrder()
     gid = {name: k for k, name in enumerate(order)}
