@@ -432,7 +432,8 @@ def _travelling(exc: BaseException) -> BaseException:
 
 
 def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -> None:
-    """A worker process: run the tasks it is sent on ``conn`` until it gets None.
+    """A worker process: run the tasks it is sent on ``conn`` until it gets None, then end
+    (:func:`_end_worker`).
 
     Everything goes back on the same pipe with blocking sends (no feeder thread), so what the
     parent reads was sent, and a task it has sent and not heard back about is known to be in
@@ -480,9 +481,9 @@ def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -
             try:
                 task = conn.recv()
             except EOFError:  # the parent closed its end
-                return
+                _end_worker()
             if task is None:
-                return
+                _end_worker()
             index, func, args, kwargs = task
             send(("taken", index))
             _to_parent = lambda payload, index=index: send(("event", index, payload))  # noqa: E731
@@ -501,6 +502,21 @@ def _worker_main(parent_pid: int, conn, blas_threads: int | None, beat: float) -
         # (when it did not send it) reports how this worker ended
         signal.signal(exc.signum, signal.SIG_DFL)
         os.kill(os.getpid(), exc.signum)
+
+
+def _end_worker() -> None:
+    """End a worker whose tasks are done, without the interpreter's teardown.
+
+    Every result has gone back on the pipe and every file a task wrote is closed (the tasks
+    write atomically and close what they open); the teardown would only free the heap of a
+    whole export, module by module: 0.3-0.6 s of CPU after ``printed_planar_chain10``, a twentieth
+    of its export, with the parent waiting on it. Buffered output is flushed first."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(0)
 
 
 # --- in the parent ----------------------------------------------------------------------------
