@@ -181,3 +181,52 @@ def test_bad_input_is_refused_by_name_and_nothing_is_written():
     texts[0].set_rotation(90)
     with pytest.raises(FabkitError, match="rotated text"):
         text_runs(fig, texts)
+
+
+def test_a_label_and_its_white_patch_stand_where_matplotlib_draws_them():
+    """A label of the guide's drawings (the Labeller's text: centred, bold or not, on a white
+    patch of 85 % opacity over a coloured bar): PDFium finds its characters where matplotlib
+    sets them, and the rendered page shows the same patch: the pixels of the label's
+    surroundings agree with matplotlib's drawing to a few levels of 255."""
+    from fabkit.fab.guide.draw import Labeller
+    from fabkit.plots.viz import figure_kit
+
+    def page():
+        fig = figure_kit.figure(figsize=(8.27, 11.69))
+        ax = fig.add_axes([0.1, 0.5, 0.8, 0.4])
+        ax.set_xlim(0, 100)
+        ax.set_ylim(0, 50)
+        ax.plot([0, 100], [25, 25], color="#d62728", lw=30, solid_capstyle="butt")
+        lab = Labeller(ax)
+        assert lab.put("B12 L3", [(50, 25)], 9) and lab.put("J7", [(20, 25)], 8, weight="bold")
+        return fig, lab.placed
+
+    fig, placed = page()
+    plain = _pdf(fig)
+    fig, placed = page()
+    runs = text_runs(fig, placed)
+    assert all(r.box is not None and r.box_rgba == (1.0, 1.0, 1.0, 0.85) for r in runs)
+    for t in placed:
+        t.set_visible(False)
+    layered = add_text_layer(_pdf(fig), [runs])
+    want, got = _lines(_chars(plain)), _lines(_chars(layered))
+    assert sorted(want) == sorted(got)
+    a = sorted(_chars(plain), key=lambda c: (c[1], c[2]))
+    b = sorted(_chars(layered), key=lambda c: (c[1], c[2]))
+    assert [c[0] for c in a] == [c[0] for c in b]
+    for ca, cb in zip(a, b):
+        assert abs(ca[1] - cb[1]) < 0.6 and abs(ca[2] - cb[2]) < 0.3, (ca, cb)
+    # the band of the bar around the labels, rendered at 2 px per point
+    shots = []
+    for pdf in (plain, layered):
+        img = pdfium.PdfDocument(pdf)[0].render(scale=2).to_pil().convert("RGB")
+        shots.append(np.asarray(img, dtype=float))
+    h = shots[0].shape[0]
+    band = slice(int(h * (1 - 0.7)) - 12, int(h * (1 - 0.7)) + 12)  # y = 25 of 0..50
+    diff = np.abs(shots[0][band] - shots[1][band])
+    assert diff.mean() < 3.0, diff.mean()
+    # the patch lightens the bar: whiter than the bar far from any label
+    x_label = int(shots[0].shape[1] * 0.5)
+    x_bare = int(shots[0].shape[1] * 0.7)
+    mid = int(h * 0.3)
+    assert shots[1][mid, x_label - 30:x_label + 30].mean() > shots[1][mid, x_bare].mean() + 40

@@ -15,6 +15,7 @@ import numpy as np
 from ...numerics import MM_SLACK
 from ...plots.viz import figure_kit
 from ..bars import stadium_polygon
+from .pdf_text import LAYER_GID
 
 __all__ = ["Labeller", "draw_bars", "label_joints", "label_bars", "layer_colour",
            "split_evenly", "extent", "best_rows", "row_axes", "page_brackets"]
@@ -63,8 +64,9 @@ class Labeller:
         self.stats = {"labels": 0, "shrunk": 0, "dropped": 0}
 
     def _text(self, x, y, text, fs, colour, weight):
+        # a guide page sets it in its PDF's text layer (.pdf_text), its white patch with it
         return self.ax.text(x, y, text, fontsize=fs, ha="center", va="center", color=colour,
-                            weight=weight, zorder=10,
+                            weight=weight, zorder=10, gid=LAYER_GID,
                             bbox=dict(boxstyle="square,pad=0.1", fc="white", ec="none",
                                       alpha=0.85))
 

@@ -1,12 +1,13 @@
-"""The guide's running text written into its PDF directly, not glyph by glyph by matplotlib.
+"""The guide's text written into its PDF directly, not glyph by glyph by matplotlib.
 
 matplotlib lays out and draws every text of a PDF glyph by glyph through FreeType (a few tens of
 microseconds a glyph on the developers' machine: the running text of the AND gate's 22 pages,
-some 40 000 characters, cost 2.4 s of its 6.9 s of pages). The guide's running text (the
-headers and the lines of its blocks, each a text of its own with no rotation) needs none of
-that: :func:`text_runs` places each such text where matplotlib would (its alignment measured
-with the font's own metrics, read once with fontTools), the page is saved by matplotlib with
-those texts hidden, and :func:`add_text_layer` appends them to the finished PDF as an
+some 40 000 characters, cost 2.4 s of its 6.9 s of pages). The guide's text (the headers, the
+lines of its blocks and the labels of its drawings, marked with :data:`LAYER_GID`, none
+rotated) needs none of that: :func:`text_runs` places each such text where matplotlib would
+(its alignment measured with the font's own metrics, read once with fontTools; a label's white
+patch with it), the page is saved by matplotlib with those texts hidden, and
+:func:`add_text_layer` appends them to the finished PDF as an
 incremental update (the PDF standard's way of adding to a file: new objects, a new cross-reference
 section pointing back at the old one): a content stream per page that draws the runs in the same
 DejaVu faces, embedded as TrueType subsets like matplotlib's own, with a ToUnicode map so every
@@ -62,6 +63,11 @@ class TextRun:
     text : str
     rgb : tuple of float
         Fill colour, each in [0, 1].
+    box : tuple of float or None
+        ``(x0, y0, x1, y1)`` in points: a rectangle filled under the text (a label's white
+        patch), or None.
+    box_rgba : tuple of float
+        The rectangle's fill colour and opacity.
     """
 
     x: float
@@ -70,6 +76,8 @@ class TextRun:
     font: str
     text: str
     rgb: tuple = (0.0, 0.0, 0.0)
+    box: tuple | None = None
+    box_rgba: tuple = (1.0, 1.0, 1.0, 1.0)
 
 
 class _Face:
@@ -182,14 +190,34 @@ def text_runs(fig, texts) -> list[TextRun]:
         left = {"left": x, "center": x - width / 2, "right": x - width}[ha]
         malign = ha  # the guide sets no multialignment of its own
         rgb = tuple(float(c) for c in to_rgb(t.get_color()))
+        box, box_rgba = _box(t, left, top_y, width, height, size)
         base = top_y
         for line, (w, a, d) in zip(lines, metrics):
             base -= a
             shift = {"left": 0.0, "center": (width - w) / 2, "right": width - w}[malign]
             if line:
-                runs.append(TextRun(left + shift, base, size, face.path, line, rgb))
+                runs.append(TextRun(left + shift, base, size, face.path, line, rgb, box,
+                                    box_rgba))
+                box = None  # a text's patch is drawn once, under its first line
             base -= d
     return runs
+
+
+def _box(t, left, top, width, height, size):
+    """The text's patch (``bbox=``) as the rectangle matplotlib draws for a square box style:
+    the text's box grown by the style's pad (a fraction of the font size); (None, white)
+    without one."""
+    patch = t.get_bbox_patch()
+    if patch is None or not patch.get_visible():
+        return None, (1.0, 1.0, 1.0, 1.0)
+    style = patch.get_boxstyle()
+    edge = patch.get_edgecolor()
+    if type(style).__name__ != "Square" or (patch.get_linewidth() > 0 and edge[3] > 0):
+        raise FabkitError("the PDF text layer draws a text's box only as a square without an "
+                          f"edge ({t.get_text()[:40]!r})")
+    pad = float(style.pad) * size
+    rgba = tuple(float(c) for c in patch.get_facecolor())
+    return (left - pad, top - height - pad, left + width + pad, top + pad), rgba
 
 
 # -- the PDF ------------------------------------------------------------------------------------
@@ -333,17 +361,41 @@ def _font_objects(face: _Face, chars: set, first: int) -> tuple[list[bytes], dic
     return objects, codes
 
 
-def _page_stream(runs, names: dict, codes: dict) -> bytes:
-    out, rgb = ["Q", "BT"], None
+def _page_stream(runs, names: dict, codes: dict, opacity: dict) -> bytes:
+    """The page's layer: ``Q`` (matplotlib's drawing was wrapped in ``q``), then each run's
+    box and text in order (a label's patch under it, as matplotlib draws them)."""
+    out = ["Q"]
     for r in runs:
-        if r.rgb != rgb:
-            rgb = r.rgb
-            out.append(" ".join(_fmt(c) for c in rgb) + " rg")
+        if r.box is not None and r.box_rgba[3] > 0:
+            x0, y0, x1, y1 = r.box
+            alpha = f" /{opacity[r.box_rgba[3]]} gs" if r.box_rgba[3] < 1 else ""
+            out.append(f"q{alpha} " + " ".join(_fmt(c) for c in r.box_rgba[:3])
+                       + f" rg {_fmt(x0)} {_fmt(y0)} {_fmt(x1 - x0)} {_fmt(y1 - y0)} re f Q")
         hexed = "".join(f"{codes[r.font][c]:04X}" for c in r.text)
-        out.append(f"/{names[r.font]} {_fmt(r.size)} Tf 1 0 0 1 {_fmt(r.x)} {_fmt(r.y)} Tm "
-                   f"<{hexed}> Tj")
-    out.append("ET")
+        out.append("BT " + " ".join(_fmt(c) for c in r.rgb)
+                   + f" rg /{names[r.font]} {_fmt(r.size)} Tf 1 0 0 1 {_fmt(r.x)} {_fmt(r.y)} "
+                   f"Tm <{hexed}> Tj ET")
     return ("\n".join(out) + "\n").encode()
+
+
+def _extended(doc: _Pdf, res_body: bytes, key: bytes, entries: bytes, number: int):
+    """``res_body`` (a resource dictionary) with ``entries`` added to its ``key`` dictionary:
+    ``(body, new dictionary or None)``; the new dictionary, when the old one was an object of
+    its own, is to be written as object ``number`` and referred to."""
+    if not entries:
+        return res_body, None
+    m = re.search(rb"/" + key + rb"\s+(\d+) 0 R", res_body)
+    if m is not None:
+        inner = doc.body(int(m.group(1))).strip()
+        if not (inner.startswith(b"<<") and inner.endswith(b">>")):
+            raise FabkitError(f"the guide's PDF has a /{key.decode()} entry the text layer "
+                              "cannot extend")
+        return (res_body[:m.start()] + b"/%s %d 0 R" % (key, number) + res_body[m.end():],
+                inner[:-2].rstrip() + b" " + entries + b" >>")
+    if re.search(rb"/" + key + rb"\b", res_body):
+        raise FabkitError(f"the guide's PDF has a /{key.decode()} entry the text layer "
+                          "cannot extend")
+    return res_body.replace(b"<<", b"<< /%s << %s >>" % (key, entries), 1), None
 
 
 def add_text_layer(pdf: bytes, runs_per_page) -> bytes:
@@ -392,6 +444,11 @@ def add_text_layer(pdf: bytes, runs_per_page) -> bytes:
             new[nxt] = obj
             nxt += 1
     font_refs = b" ".join(refs)
+    alphas = sorted({r.box_rgba[3] for runs in runs_per_page for r in runs
+                     if r.box is not None and 0 < r.box_rgba[3] < 1})
+    opacity = {a: f"FkAlpha{k + 1}" for k, a in enumerate(alphas)}
+    states = b" ".join(b"/%s << /ca %s >>" % (opacity[a].encode(), _fmt(a).encode())
+                       for a in alphas)
     save = nxt
     new[save] = _stream(b"q\n")
     nxt += 1
@@ -404,21 +461,15 @@ def add_text_layer(pdf: bytes, runs_per_page) -> bytes:
         contents = doc._key(body, rb"/Contents (\d+ 0 R|\[[^\]]*\])")
         if res not in rewritten:
             res_body = doc.body(res)
-            m = re.search(rb"/Font (\d+) 0 R", res_body)
-            if m is not None:
-                inner = doc.body(int(m.group(1))).strip()
-                if not (inner.startswith(b"<<") and inner.endswith(b">>")):
-                    raise FabkitError("the guide's PDF has a font dictionary the text layer "
-                                      "cannot extend")
-                new[nxt] = inner[:-2] + b" " + font_refs + b" >>"
-                res_body = res_body[:m.start()] + b"/Font %d 0 R" % nxt + res_body[m.end():]
-            else:
-                res_body = res_body.replace(b"<<", b"<< /Font << " + font_refs + b" >>", 1)
-            nxt += 1
+            for key, entries in ((b"Font", font_refs), (b"ExtGState", states)):
+                res_body, extended = _extended(doc, res_body, key, entries, nxt)
+                if extended is not None:
+                    new[nxt] = extended
+                    nxt += 1
             new[nxt] = res_body
             rewritten[res] = nxt
             nxt += 1
-        new[nxt] = _stream(_page_stream(runs, names, codes))
+        new[nxt] = _stream(_page_stream(runs, names, codes, opacity))
         text = nxt
         nxt += 1
         inner = contents.strip(b"[]").strip() if contents.startswith(b"[") else contents
