@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from fabkit.errors import FabkitError
-from fabkit.fab.guide.pdf_text import LAYER_GID, TextRun, add_text_layer, text_runs
+from fabkit.fab.guide.pdf_text import LAYER_GID, TextRun, add_text_layer, off_page, text_runs
 
 pdfium = pytest.importorskip("pypdfium2")
 
@@ -230,3 +230,51 @@ def test_a_label_and_its_white_patch_stand_where_matplotlib_draws_them():
     x_bare = int(shots[0].shape[1] * 0.7)
     mid = int(h * 0.3)
     assert shots[1][mid, x_label - 30:x_label + 30].mean() > shots[1][mid, x_bare].mean() + 40
+
+
+def test_off_page_names_the_texts_pdfium_finds_past_the_page():
+    """``off_page`` names exactly the runs that PDFium finds characters of beyond the page box
+    (a line pushed past each edge, and lines inside), once each."""
+    from matplotlib.font_manager import findfont
+
+    font = findfont("DejaVu Sans")
+    w, h = 595.44, 841.68
+    runs = [TextRun(40.0, 700.0, 10.0, font, "inside, near the left"),
+            TextRun(w - 60.0, 650.0, 10.0, font, "past the right edge"),
+            TextRun(-5.0, 600.0, 10.0, font, "past the left edge"),
+            TextRun(100.0, h - 4.0, 10.0, font, "past the top"),
+            TextRun(100.0, 1.0, 10.0, font, "past the bottom (descender)"),
+            TextRun(w - 120.0, 500.0, 10.0, font, "ends inside"),
+            TextRun(w - 60.0, 450.0, 10.0, font, "past the right edge")]
+    got = off_page(runs, w, h)
+    assert got == ["past the right edge", "past the left edge", "past the top",
+                   "past the bottom (descender)"]
+    fig, texts = _figure()
+    for t in texts:
+        t.set_visible(False)
+    page = pdfium.PdfDocument(add_text_layer(_pdf(fig), [runs]))[0]
+    tp = page.get_textpage()
+    beyond = set()
+    for i in range(tp.count_chars()):
+        x0, y0, x1, y1 = tp.get_charbox(i)
+        if x1 > x0 and (x0 < -0.5 or x1 > w + 0.5 or y0 < -0.5 or y1 > h + 0.5):
+            beyond.add(min(range(len(runs)), key=lambda k: abs(runs[k].y - 0.5 * (y0 + y1))))
+    # PDFium's glyph boxes past the edge lie on the five lines of the four texts named, and on
+    # no other line
+    assert sorted(beyond) == [1, 2, 3, 4, 6]
+    assert {runs[k].text for k in beyond} == set(got)
+
+
+def test_the_guide_reports_its_texts_past_a_page():
+    """A guide whose stats list texts past their page gives the laser format one warning per
+    page, and the report stage adds them to the writer's warnings (the pictures')."""
+    from fabkit.writers.dxf import guide_cut
+
+    class Guide:
+        stats = {"clipped": [(3, "J12: B3 L1 / B4 L2"), (3, "B7 L0"), (5, "a title")]}
+
+    assert guide_cut(Guide()) == [
+        "laser_guide.pdf: text past the edge of page 3: J12: B3 L1 / B4 L2, B7 L0",
+        "laser_guide.pdf: text past the edge of page 5: a title"]
+    Guide.stats = {"clipped": []}
+    assert guide_cut(Guide()) == []

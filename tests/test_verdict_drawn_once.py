@@ -79,3 +79,34 @@ def test_an_export_holds_the_judged_guide_and_the_writers_other_files(plan, tmp_
         assert (folder / name).read_bytes() == files[name], name
     assert report["formats"]["dxf"]["report"]["guide_pages"] == fmt["guide_pages"]
     assert set(report["formats"]["dxf"]["files"]) == set(whole.files)
+
+
+def test_the_report_stage_adds_the_guides_warnings_to_the_writers(plan, monkeypatch):
+    """A guide whose text reaches past a page: the report stage's ``with_verdict`` says so in
+    the laser format's warnings, after the writer's own (a picture's), which it keeps."""
+    from types import SimpleNamespace
+
+    from fabkit.pipeline.design import carry_verdict
+
+    drawn = dxf.guide_pages
+
+    def clipped(*args, **kwargs):
+        guide = drawn(*args, **kwargs)
+        guide.stats["clipped"] = [(2, "a stack line too long")]
+        return guide
+
+    monkeypatch.setattr(dxf, "guide_pages", clipped)
+    result = SimpleNamespace(files={"laser_sheet1.dxf": b""},
+                             status=SimpleNamespace(produced=True),
+                             report={"warnings": ["laser_assembly.png: text cut off"]})
+    art = SimpleNamespace(plans={dxf.PROCESS: plan}, formats={"dxf": result}, files={})
+    written = {}
+    stage = SimpleNamespace(write=lambda name, data: written.__setitem__(name, data))
+    verdict = SimpleNamespace(as_dict=lambda: {"level": "ok", "headline": "ok", "text": "ok",
+                                               "findings": []})
+    again = carry_verdict(stage, SimpleNamespace(chosen=[("dxf", dxf)]), art, verdict)
+    assert sorted(again) == sorted(dxf.VERDICT_FILES) == sorted(written)
+    assert result.report["warnings"] == [
+        "laser_assembly.png: text cut off",
+        "laser_guide.pdf: text past the edge of page 2: a stack line too long"]
+    assert result.report["guide_pages"] > 1

@@ -261,7 +261,10 @@ def carry_verdict(stage_dir: OutputFolder, plan, art: Artefacts, verdict) -> lis
             stage_dir.write(name, data)
             art.files[name] = data
             again.append(name)
+        more = report.pop("warnings", None)  # added to the writer's warnings, not over them
         result.report.update(report)
+        if more:
+            result.report["warnings"] = [*(result.report.get("warnings") or []), *more]
     return again
 
 

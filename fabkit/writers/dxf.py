@@ -496,6 +496,8 @@ def write(plan: LaserPlan, *, verdict_pages: bool = True) -> ExportResult:
     # warnings); the pictures measure it on the drawing their PNG is made of
     cut = [f"{name}: text cut off at the picture's edge: {', '.join(map(str, st['clipped']))}"
            for name, (_, st) in pictures.items() if st["clipped"]]
+    if verdict_pages:
+        cut += guide_cut(guide)
     # the guide's page count rides with the report (a report never counts a PDF's pages)
     return ExportResult(files=files, report={"format": FORMAT, **bom, **pages,
                                              **({"warnings": cut} if cut else {})})
@@ -567,11 +569,35 @@ def with_verdict(plan: LaserPlan, names, verdict: dict) -> tuple:
     files : dict of str to bytes
         :data:`VERDICT_FILES`.
     report : dict
-        What changes in the format's report: ``verdict`` and ``guide_pages``.
+        What changes in the format's report: ``verdict``, ``guide_pages`` and, when a text of
+        the guide reaches past its page, ``warnings`` to add (:func:`guide_cut`).
     """
     kit = [n for n in names if n not in VERDICT_FILES]
     bom, guide, files = verdict_files(plan, kit, verdict)
-    return files, {"verdict": bom["verdict"], "guide_pages": int(guide.stats["pages"])}
+    report = {"verdict": bom["verdict"], "guide_pages": int(guide.stats["pages"])}
+    cut = guide_cut(guide)
+    if cut:
+        report["warnings"] = cut  # added to the format's warnings (the pictures' own)
+    return files, report
+
+
+def guide_cut(guide) -> list[str]:
+    """The format's warnings for the guide's texts that reach past their page (none).
+
+    Parameters
+    ----------
+    guide : fabkit.fab.guide.Guide
+
+    Returns
+    -------
+    list of str
+        One line per page with such texts.
+    """
+    pages: dict[int, list] = {}
+    for page, text in guide.stats["clipped"]:
+        pages.setdefault(int(page), []).append(str(text))
+    return [f"laser_guide.pdf: text past the edge of page {p}: {', '.join(t)}"
+            for p, t in sorted(pages.items())]
 
 
 def export_design(design, settings=None, *, motion=None) -> ExportResult:

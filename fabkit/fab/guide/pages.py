@@ -36,7 +36,7 @@ from ...plots.viz import checked_png, clipped_texts, figure_kit, figure_texts, f
 from .draw import (best_rows, draw_bars, extent, label_bars, label_joints, Labeller, layer_colour,
                    page_brackets, row_axes)
 from .flow import column_lines, MIN_PT, STYLES
-from .pdf_text import LAYER_GID, add_text_layer, text_runs
+from .pdf_text import LAYER_GID, add_text_layer, off_page, text_runs
 from .plan import bar_name, frame_caption, GuidePlan, modules_text, ROOM_PT
 
 __all__ = ["A4", "render_pages", "BOTTOM_IN"]
@@ -323,7 +323,9 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                  check: bool = False):
     """Draw the pages of a guide plan.
 
-    ``check``: also list every text that does not fit on its page (``stats["clipped"]``).
+    ``check``: also list every text that does not fit on its page (``stats["clipped"]``); the
+    texts of the PDF's text layer are measured on every page without it, and so are the texts
+    of the pages drawn as PNG.
 
     Returns
     -------
@@ -337,7 +339,7 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
         ``pages``, ``labels`` placed, ``overlaps`` (pairs of label boxes that overlap, 0),
         ``shrunk``, ``dropped`` (labels with no free place) and ``dropped_on`` (the page of
         each), ``smallest_pt`` (the smallest text set on any page); with ``check``,
-        ``clipped`` ((page, text) that does not fit on its page).
+        ``clipped`` ((page, text) that does not fit on its page: see ``check``).
     """
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
@@ -390,6 +392,9 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             # the figure keeps it for the PNG and the clipping check
             layer = [t for t in shown if t.get_gid() == LAYER_GID]
             runs.append(text_runs(fig, layer))
+            # every page's layer text is measured as set, at no cost: its clipping is known
+            # for every page, not only for the pages drawn as PNG
+            edge = off_page(runs[-1], *(72.0 * v for v in fig.get_size_inches()))
             for t in layer:
                 t.set_visible(False)
             pdf.savefig(fig)
@@ -400,7 +405,8 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
                 images.append(png)
             else:
                 clipped = clipped_texts(fig) if check else []
-            if check:
-                stats["clipped"] += [(k + 1, t) for t in clipped]
+            # what a drawing measured (the PNG pages, every page with ``check``) and the
+            # layer's own measure, each text once
+            stats["clipped"] += [(k + 1, t) for t in dict.fromkeys([*clipped, *edge])]
             stats["pages"] += 1
     return add_text_layer(buf.getvalue(), runs), images, texts, stats

@@ -30,7 +30,7 @@ from functools import lru_cache
 
 from ...errors import FabkitError
 
-__all__ = ["LAYER_GID", "TextRun", "add_text_layer", "text_runs"]
+__all__ = ["LAYER_GID", "TextRun", "add_text_layer", "off_page", "text_runs"]
 
 #: ``gid`` of a figure text that goes to the text layer (set on the guide's running text).
 LAYER_GID = "fabkit-pdf-text"
@@ -218,6 +218,37 @@ def _box(t, left, top, width, height, size):
     pad = float(style.pad) * size
     rgba = tuple(float(c) for c in patch.get_facecolor())
     return (left - pad, top - height - pad, left + width + pad, top + pad), rgba
+
+
+def off_page(runs, width: float, height: float, slack: float = 0.5) -> list[str]:
+    """The texts of ``runs`` whose glyphs reach past a page of ``width`` × ``height`` points.
+
+    A run's extent is its advance along the baseline and its glyphs' ink above and below it,
+    measured from the font's tables as the layer sets it; ``slack`` (points) is what a text may
+    touch beyond the edge (matplotlib's clipping check allows half a pixel too).
+
+    Parameters
+    ----------
+    runs : iterable of TextRun
+    width, height : float
+        The page, points.
+    slack : float
+
+    Returns
+    -------
+    list of str
+        In the order of ``runs``, each text once.
+    """
+    out: list[str] = []
+    for r in runs:
+        face = _face(r.font)
+        scale = r.size / face.upem
+        top, bottom = face.ink(r.text)
+        x1 = r.x + face.advance(r.text) * scale
+        if (r.x < -slack or x1 > width + slack or r.y + bottom * scale < -slack
+                or r.y + top * scale > height + slack) and r.text not in out:
+            out.append(r.text)
+    return out
 
 
 # -- the PDF ------------------------------------------------------------------------------------
