@@ -338,8 +338,8 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
     stats : dict
         ``pages``, ``labels`` placed, ``overlaps`` (pairs of label boxes that overlap, 0),
         ``shrunk``, ``dropped`` (labels with no free place) and ``dropped_on`` (the page of
-        each), ``smallest_pt`` (the smallest text set on any page); with ``check``,
-        ``clipped`` ((page, text) that does not fit on its page: see ``check``).
+        each), ``smallest_pt`` (the smallest text set on any page), ``clipped`` ((page,
+        text) that does not fit on its page: which texts are measured, see ``check``).
     """
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
@@ -388,8 +388,8 @@ def render_pages(gp: GuidePlan, plan, *, dpi: int = 100, pngs: bool = False,
             shown = figure_texts(fig)
             texts.append([t.get_text() for t in shown])
             stats["smallest_pt"] = min([stats["smallest_pt"], *(t.get_fontsize() for t in shown)])
-            # the running text goes to the PDF's text layer (.pdf_text), not through matplotlib;
-            # the figure keeps it for the PNG and the clipping check
+            # the headers, block lines and labels go to the PDF's text layer (.pdf_text), not
+            # through matplotlib; the figure keeps them for the PNG and the clipping check
             layer = [t for t in shown if t.get_gid() == LAYER_GID]
             runs.append(text_runs(fig, layer))
             # every page's layer text is measured as set, at no cost: its clipping is known

@@ -294,10 +294,10 @@ class _Pdf:
         if m is None:
             raise FabkitError("the guide's PDF has no trailer after its cross-reference table")
         self.trailer = m.group(1)
-        self.size = int(self._key(self.trailer, rb"/Size (\d+)"))
+        self.size = int(self.find(self.trailer, rb"/Size (\d+)"))
 
     @staticmethod
-    def _key(text: bytes, pattern: bytes) -> bytes:
+    def find(text: bytes, pattern: bytes) -> bytes:
         m = re.search(pattern, text)
         if m is None:
             raise FabkitError(f"the guide's PDF lacks {pattern.decode()!r} where the text "
@@ -315,11 +315,11 @@ class _Pdf:
         return m.group(1)
 
     def ref(self, num: int, key: bytes) -> int:
-        return int(self._key(self.body(num), rb"/" + key + rb" (\d+) 0 R"))
+        return int(self.find(self.body(num), rb"/" + key + rb" (\d+) 0 R"))
 
     def pages(self) -> list[int]:
-        root = int(self._key(self.trailer, rb"/Root (\d+) 0 R"))
-        kids = self._key(self.body(self.ref(root, b"Pages")), rb"/Kids\s*\[([^\]]*)\]")
+        root = int(self.find(self.trailer, rb"/Root (\d+) 0 R"))
+        kids = self.find(self.body(self.ref(root, b"Pages")), rb"/Kids\s*\[([^\]]*)\]")
         return [int(k) for k in re.findall(rb"(\d+) 0 R", kids)]
 
 
@@ -488,8 +488,8 @@ def add_text_layer(pdf: bytes, runs_per_page) -> bytes:
         if not runs:
             continue
         body = doc.body(page)
-        res = int(doc._key(body, rb"/Resources (\d+) 0 R"))
-        contents = doc._key(body, rb"/Contents (\d+ 0 R|\[[^\]]*\])")
+        res = int(doc.find(body, rb"/Resources (\d+) 0 R"))
+        contents = doc.find(body, rb"/Contents (\d+ 0 R|\[[^\]]*\])")
         if res not in rewritten:
             res_body = doc.body(res)
             for key, entries in ((b"Font", font_refs), (b"ExtGState", states)):
