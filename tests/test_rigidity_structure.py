@@ -189,3 +189,26 @@ def test_edge_lookup_finds_edges_in_either_order():
     edges = np.array([[3, 1], [0, 2], [2, 3]])
     find = EdgeLookup(edges, 4)
     assert find([1, 2, 3, 0], [3, 0, 2, 1]).tolist() == [0, 1, 2, -1]
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_intersection_sines_keep_the_bits_of_the_unit_vectors_formula(d):
+    """The sines are the determinant (2D: cross product) of the unit bar directions, each
+    direction divided by numpy's norm of it: computed column by column, the same bits."""
+    from fabkit.model.certificate import intersection_sines
+
+    rng = np.random.default_rng(d)
+    x = rng.standard_normal((400, d)) * 50.0
+    order = rng.permutation(400)[:300]
+    parents = np.stack([rng.integers(0, 400, 300) for _ in range(d)], axis=1)
+    parents[parents == order[:, None]] = 0
+    parents[5, 1] = parents[5, 0]  # two bars along one line: a sine of 0
+    x[order[7]] = x[parents[7, 0]]  # a bar of no length: a zero direction, not a NaN
+    vec = x[parents] - x[order][:, None, :]
+    norm = np.linalg.norm(vec, axis=2)
+    unit = vec / np.where(norm > 0, norm, 1.0)[..., None]
+    want = (np.abs(unit[:, 0, 0] * unit[:, 1, 1] - unit[:, 0, 1] * unit[:, 1, 0]) if d == 2
+            else np.abs(np.linalg.det(unit)))
+    got = intersection_sines(x, order, parents)
+    assert got.tobytes() == want.tobytes()
+    assert got[5] == pytest.approx(0.0, abs=1e-12) and np.isfinite(got).all()

@@ -98,6 +98,12 @@ class Certificate:
     detail: str
 
 
+def _unit(vec) -> np.ndarray:
+    """Unit vectors along the last axis (a zero vector stays zero)."""
+    norm = row_norms(vec)
+    return vec / np.where(norm > 0, norm, 1.0)[..., None]
+
+
 def intersection_sines(x, order, parents) -> np.ndarray:
     """Sine of each placement's intersection: 2D, of the angle between the node's two bars;
     3D, the determinant of its three unit bar directions (two for the gauge node, whose sine is
@@ -115,11 +121,12 @@ def intersection_sines(x, order, parents) -> np.ndarray:
     if order.size == 0:
         return np.zeros(0)
     d = x.shape[1]
-    vec = x[np.where(parents >= 0, parents, order[:, None])] - x[order][:, None, :]
-    norm = row_norms(vec)
-    unit = vec / np.where(norm > 0, norm, 1.0)[..., None]
-    if d == 2:
-        return np.abs(unit[:, 0, 0] * unit[:, 1, 1] - unit[:, 0, 1] * unit[:, 1, 0])
+    at = np.where(parents >= 0, parents, order[:, None])
+    if d == 2:  # the two bars apart: each row gathered once (a million-module chain's plan)
+        xo = x[order]
+        u0, u1 = (_unit(x[np.ascontiguousarray(at[:, k])] - xo) for k in (0, 1))
+        return np.abs(u0[:, 0] * u1[:, 1] - u0[:, 1] * u1[:, 0])
+    unit = _unit(x[at] - x[order][:, None, :])
     out = np.abs(np.linalg.det(unit))
     gauge = parents[:, 2] < 0
     if gauge.any():

@@ -490,14 +490,16 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
         return None  # a parent placed after its child (or never)
     x = net.nodes
-    measured = row_norms(x[order][:, None, :] - x[par])
+    # each node and its two parents gathered once (a million-module chain: 3·10⁶ rows each)
+    xo, x0, x1 = x[order], x[np.ascontiguousarray(par[:, 0])], x[np.ascontiguousarray(par[:, 1])]
+    dpv = xo - x0
+    measured = np.stack([row_norms(dpv), row_norms(xo - x1)], axis=1)
     if not np.allclose(measured, rad, rtol=TILE_LENGTH_RTOL, atol=0.0):
         return None
     rad = measured  # the chain's own rest lengths (its joins carry their own round-off)
-    dpq = x[par[:, 1]] - x[par[:, 0]]
-    dpv = x[order] - x[par[:, 0]]
+    dpq = x1 - x0
     cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
-    norm = row_norms(dpq) * row_norms(dpv)
+    norm = row_norms(dpq) * measured[:, 0]
     if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
