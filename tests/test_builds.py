@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import fabkit
-from fabkit.builds.assembly import assemble, bar_stress
+from fabkit.builds.assembly import assemble, bar_stress, SETTLE_RTOL
 from fabkit.builds.closure import play_ratio, self_stress_basis
 from fabkit.builds.materials import MATERIALS, bar_stiffness, process_material
 from fabkit.model.network import Network
@@ -155,8 +155,21 @@ def test_small_play_agrees_with_the_first_order_criterion(and_gate):
     assert "MPa" in none.sentence() and "0 of 40 builds assemble" in none.sentence()
 
 
-def test_the_tolerance_analysis_reports_assembly_and_slop(and_gate):
+def test_the_tolerance_analysis_reports_assembly_and_slop(and_gate, monkeypatch):
+    import fabkit.tolerance.analysis as analysis
+
+    settles = []
+
+    def recording(*args, settle=None, **kwargs):
+        settles.append(settle)
+        return assemble_builds(*args, settle=settle, **kwargs)
+
+    monkeypatch.setattr(analysis, "assemble_builds", recording)
     res = analyse_tolerance(and_gate, tolerance_spec(and_gate, samples=20), attribute=False)
+    # the main run's builds are reported where they sit: polished; the margin's runs only say
+    # which builds keep the behaviour: settled once they close
+    assert settles[0] is None and len(settles) >= 2
+    assert all(s == SETTLE_RTOL for s in settles[1:])
     d = res.as_dict()
     assert d["assembly"]["assemble"] >= 19 and d["assembly"]["self_stresses"] == 1
     assert "builds assemble within their play" in d["verdict"]
@@ -183,6 +196,37 @@ def test_an_and_gate_cut_twenty_times_worse_is_flagged_for_the_builds_it_cannot_
     assert res.flagged and a["not_buildable"] > 0 and a["model"] == "elastic"
     assert f"{a['not_buildable']} cannot be put together" in res.verdict
     assert res.keep_fraction <= 1 - a["not_buildable"] / 10
+
+
+def test_a_settled_build_closes_where_a_polished_one_does_within_its_own_room(and_gate):
+    """At ten times a laser kit's errors the AND gate's builds close, then trade bars at the
+    edges of their play for many steps; settled once closed (the margin's runs), each closes
+    exactly when the polished assembly closes it, every bar within its own room of its own
+    length (measured here from the pins), in fewer steps; a build that never closes is
+    untouched."""
+    spec, builds = _builds(and_gate)
+    builds = sample_builds(process_geometry(and_gate, spec, None, None), spec,
+                           np.random.default_rng(spec.seed), gain=np.full(40, 10.0)).select(
+        np.arange(12))
+    net = and_gate.network
+    s = spec.scale
+    material = process_material(spec.process, spec.material)
+    x0 = net.nodes * s
+    steps = {None: 0, SETTLE_RTOL: 0}
+    for b in range(12):
+        rest, room = builds.base[b] * s, builds.room[b] * s
+        k = bar_stiffness(material, spec.section_mm2, rest)
+        polished = assemble(net.edges, rest, room, x0, stiffness=k)
+        settled = assemble(net.edges, rest, room, x0, stiffness=k, settle=SETTLE_RTOL)
+        steps[None] += polished.iterations
+        steps[SETTLE_RTOL] += settled.iterations
+        assert settled.closes == polished.closes
+        if settled.closes:
+            misfit = np.abs(_lengths(settled.positions, net.edges) - rest)
+            assert np.all(misfit <= room + 1e-7 * rest)
+        else:
+            assert np.array_equal(settled.positions, polished.positions)
+    assert steps[SETTLE_RTOL] < 0.8 * steps[None]
 
 
 def test_port_states_are_judged_from_hand_numbers():

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..numerics import TINY
 
-__all__ = ["Assembled", "assemble", "bar_stress", "CLOSE_RTOL"]
+__all__ = ["Assembled", "assemble", "bar_stress", "CLOSE_RTOL", "SETTLE_RTOL"]
 
 #: A build closes within its play when no bar is strained past its play by more than this
 #: fraction of its rest length: 1e-7 is 0.00001 mm on a 100 mm bar and 0.0003 MPa in acrylic,
@@ -57,6 +57,15 @@ MIN_LINE_STEP = 1e-8
 #: A flat loop (bars along one line) gives way only to second order: the solver stops after
 #: three steps that lower the energy by less than this fraction.
 STALL_RTOL = 1e-6
+
+#: Stall fraction for a build that only has to say whether it closes and how it then moves (a
+#: probe of the tolerance margin, not a reported placement): once no bar is past its play, the
+#: energy left is the inner stiffness' tie-break between placements the play allows, and the
+#: solver stops after three steps that lower it by less than this fraction. At ten times a laser
+#: kit's errors the AND gate's builds close in a few dozen steps, then trade bars at the edges of
+#: their play for up to 300 more, to placements 0.2–1.8 mm from where they settle (a build's play
+#: is that wide): polishing them to :data:`STALL_RTOL` buys nothing (tests/test_builds.py).
+SETTLE_RTOL = 1e-2
 
 #: Cap on the steps. A kit whose loops run through bars without play (a print's bar that
 #: carries both its pins) closes slowly, its bars at the edges of their play trading places in
@@ -130,7 +139,7 @@ def _check(edges, rest, room, x0, stiffness):
 
 
 def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
-             max_iterations: int = MAX_STEPS) -> Assembled:
+             max_iterations: int = MAX_STEPS, settle: float | None = None) -> Assembled:
     """Put a build together: the least-energy placement of pins whose bars have play.
 
     Parameters
@@ -152,6 +161,9 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         Held distances (default: their distances in ``x0``).
     max_iterations : int
         Cap on the Gauss-Newton steps.
+    settle : float, optional
+        Stall fraction once every bar is within its play (:data:`SETTLE_RTOL` for a build whose
+        placement is not reported); default :data:`STALL_RTOL` throughout.
 
     Returns
     -------
@@ -202,6 +214,7 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     # back to its play lands inside it rather than on its edge, and bars do not chatter across it
     band = np.where(c > 0, np.maximum(c - INSIDE * r, 0.0), 0.0)
     low = -band
+    close_tol = CLOSE_RTOL * r
     # contiguous index arrays: ``take`` gathers several times faster than indexing with a
     # column of the edge array (the state is evaluated a few times per step)
     e0, e1, h0, h1 = (np.ascontiguousarray(a[:, k]) for a in (e, hp) for k in (0, 1))
@@ -267,7 +280,9 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         damping = max(mu, damping / 4.0) if t == 1.0 else min(damping * 4.0, 1e6 * k.max())
         if t * float(np.abs(dx).max()) <= step_tol:
             break
-        stall = stall + 1 if old - merit(energy, hl, penalty) <= STALL_RTOL * abs(old) else 0
+        closed = settle is not None and bool(np.all(np.abs(excess) <= close_tol))
+        quiet = settle if closed else STALL_RTOL
+        stall = stall + 1 if old - merit(energy, hl, penalty) <= quiet * abs(old) else 0
         if stall >= 3:
             break
     delta = ell - r

@@ -150,7 +150,8 @@ class Assemblies:
                 "sentence": self.sentence()}
 
 
-def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
+def assemble_builds(net, builds, spec, start, play_ends=None, *,
+                    settle: float | None = None) -> Assemblies:
     """Put every build together with its play; force it where the play does not close it.
 
     Parameters
@@ -165,6 +166,10 @@ def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
     play_ends : numpy.ndarray, shape (E,), optional
         A pin-jointed print: per bar, its ends that turn on a pin (what clearance to print
         follows from the room a loop needs).
+    settle : float, optional
+        The builds' stall fraction once they close (:func:`fabkit.builds.assembly.assemble`):
+        :data:`~fabkit.builds.assembly.SETTLE_RTOL` where only whether a build keeps its
+        behaviour is asked, not where it sits.
 
     Returns
     -------
@@ -197,7 +202,7 @@ def assemble_builds(net, builds, spec, start, play_ends=None) -> Assemblies:
     positions = np.repeat(np.asarray(start, dtype=np.float64)[None], m, axis=0)
     with one_blas_thread():
         assembled = [assemble(net.edges, rest[b], room[b], x0,
-                              stiffness=bar_stiffness(material, area, rest[b]))
+                              stiffness=bar_stiffness(material, area, rest[b]), settle=settle)
                      for b in range(m)]
     for b, a in enumerate(assembled):
         positions[b] = a.positions / s
