@@ -450,5 +450,19 @@ def test_chain_records_its_assembly_and_the_plan_is_tiled_from_it(module):
     plain = net.with_nodes(net.nodes)
     assert plain.assembly is None and _tiled_chain_plan(plain, plain.port("d1")) is None
     assert net.with_ports(dict(net.ports)).assembly is net.assembly
+    # its radii and sides are the chain's own, bit for bit those of the pairwise formulas
+    x, order, par = net.nodes, tiled.order, tiled.parents
+    for k in (0, 1):
+        assert np.array_equal(tiled.radii[:, k], np.linalg.norm(x[order] - x[par[:, k]], axis=1))
+    dpv, dpq = x[order] - x[par[:, 0]], x[par[:, 1]] - x[par[:, 0]]
+    cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
+    assert np.array_equal(tiled.signs, np.where(cross > 0, 1.0, -1.0))
+    # the record with geometry that does not fit it: one node moved by 1e-6 of a bar is
+    # refused (the node-by-node search takes over), one moved by round-off is not
+    for shift, planned in ((1e-6, False), (1e-13, True)):
+        moved = net.nodes.copy()
+        moved[order[len(order) // 2]] += shift * float(np.mean(net.edge_lengths))
+        other = fabkit.Network(moved, net.edges, net.ports, net.labels, net.assembly)
+        assert (_tiled_chain_plan(other, other.port("d1")) is not None) == planned
     with pytest.raises(fabkit.NetworkError, match="assembly"):
         fabkit.Network(m.nodes, m.edges, assembly={"copies": []})

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import ConstructionError, FlatStateError
 from .network import Network
-from ..numerics import FLAT_SIDE_SINE, TINY, row_norms
+from ..numerics import FLAT_SIDE_SINE, TINY
 
 __all__ = ["ConstructionPlan", "PartialConstruction", "plan_construction",
            "search_construction", "cached_plan", "edge_ids", "EdgeLookup", "SearchGraph"]
@@ -487,19 +487,40 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     if order.size != n - 2 or np.any(step[order] == 0):
         return None
     step[order] = np.arange(1, order.size + 1)
-    if np.any(step[par] < 0) or np.any(step[par] >= step[order][:, None]):
-        return None  # a parent placed after its child (or never)
+    # Node and parent columns one at a time (a million-module chain: 3·10⁶ rows, 24 MB a
+    # column): a pair of columns would be a temporary of 48 MB for every operation, each
+    # taking fresh pages from the system. The same operations on the same numbers: the bits
+    # of the pairwise version.
+    p0, p1 = np.ascontiguousarray(par[:, 0]), np.ascontiguousarray(par[:, 1])
+    placed = step.take(order)
+    for p in (p0, p1):
+        at_parent = step.take(p)
+        if np.any(at_parent < 0) or np.any(at_parent >= placed):
+            return None  # a parent placed after its child (or never)
+    del placed, at_parent
     x = net.nodes
-    # each node and its two parents gathered once (a million-module chain: 3·10⁶ rows each)
-    xo, x0, x1 = x[order], x[np.ascontiguousarray(par[:, 0])], x[np.ascontiguousarray(par[:, 1])]
-    dpv = xo - x0
-    measured = np.stack([row_norms(dpv), row_norms(xo - x1)], axis=1)
-    if not np.allclose(measured, rad, rtol=TILE_LENGTH_RTOL, atol=0.0):
-        return None
-    rad = measured  # the chain's own rest lengths (its joins carry their own round-off)
-    dpq = x1 - x0
-    cross = dpq[:, 0] * dpv[:, 1] - dpq[:, 1] * dpv[:, 0]
-    norm = row_norms(dpq) * measured[:, 0]
+    cx, cy = np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1])
+    ox, oy = cx.take(order), cy.take(order)
+    ax, ay = cx.take(p0), cy.take(p0)
+    vx, vy = ox - ax, oy - ay  # node from its first parent
+    r0 = np.sqrt(vx * vx + vy * vy)
+    wx, wy = ox - cx.take(p1), oy - cy.take(p1)  # node from its second parent
+    del ox, oy
+    r1 = np.sqrt(wx * wx + wy * wy)
+    del wx, wy
+    # |measured - designed| <= rtol·|designed| for every radius: np.allclose's test (atol 0) on
+    # finite numbers, without its temporaries
+    for col, r in enumerate((r0, r1)):
+        off = np.abs(r - rad[:, col])
+        if not np.all(off <= TILE_LENGTH_RTOL * np.abs(rad[:, col])):
+            return None
+    rad[:, 0], rad[:, 1] = r0, r1  # the chain's own rest lengths (its joins carry their own
+    # round-off)
+    qx, qy = cx.take(p1) - ax, cy.take(p1) - ay  # second parent from the first
+    del ax, ay
+    cross = qx * vy - qy * vx
+    norm = np.sqrt(qx * qx + qy * qy)
+    norm *= r0
     if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
