@@ -229,6 +229,18 @@ def test_a_settled_build_closes_where_a_polished_one_does_within_its_own_room(an
     assert steps[SETTLE_RTOL] < 0.8 * steps[None]
 
 
+def test_a_settled_build_still_reaches_its_held_distance():
+    """Settling waits for the held pairs too: a four-bar whose first bar is 0.3 mm long, with
+    0.2 mm of play per bar, held at a diagonal of 130 mm, closes at that diagonal either way."""
+    rest = np.array([100.3, 100.0, 100.0, 100.0])
+    four = BRACED[:4]
+    for settle in (None, SETTLE_RTOL):
+        a = assemble(four, rest, 0.2, SQUARE, held=[(0, 2)], targets=[130.0], settle=settle)
+        assert a.closes
+        assert abs(float(np.linalg.norm(a.positions[0] - a.positions[2])) - 130.0) <= 1e-7 * 130
+        assert np.all(np.abs(_lengths(a.positions, four) - rest) <= 0.2 + 1e-7 * rest)
+
+
 def test_port_states_are_judged_from_hand_numbers():
     from fabkit.tolerance.criteria import judge_port_states
 
@@ -280,6 +292,9 @@ def test_bad_input_is_named():
         assemble(BRACED, _lengths(SQUARE, BRACED), -0.1, SQUARE)
     with pytest.raises(ValueError, match="x0"):
         assemble(BRACED, _lengths(SQUARE, BRACED), 0.1, SQUARE[:, :1])
+    for settle in (0.0, -1e-2, np.nan, np.inf):
+        with pytest.raises(ValueError, match="settle"):
+            assemble(BRACED, _lengths(SQUARE, BRACED), 0.1, SQUARE, settle=settle)
     with pytest.raises(ValueError, match="room"):
         play_ratio(np.ones((6, 1)), np.zeros(6), np.full(6, np.nan))
     with pytest.raises(ValueError, match="no bar material"):

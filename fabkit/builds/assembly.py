@@ -19,6 +19,7 @@ own lengths as the loops let them be (:data:`INNER_STIFFNESS`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,7 +173,8 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
     Raises
     ------
     ValueError
-        Shapes, non-finite or out-of-range values, nodes that do not exist.
+        Shapes, non-finite or out-of-range values, nodes that do not exist, a ``settle`` that
+        is not a positive number.
 
     Examples
     --------
@@ -194,6 +196,8 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
           else np.asarray(targets, dtype=np.float64).reshape(-1))
     if ht.shape != (hp.shape[0],) or not np.all(np.isfinite(ht)) or np.any(ht <= 0):
         raise ValueError(f"`targets` must hold {hp.shape[0]} positive distances")
+    if settle is not None and not (math.isfinite(settle) and settle > 0):
+        raise ValueError(f"`settle` must be a positive fraction, got {settle!r}")
     nx, p = n * d, hp.shape[0]
     mu = PROXIMAL * float(np.mean(k)) if k.size else 1.0
     x_ref = x.copy()
@@ -280,7 +284,9 @@ def assemble(edges, rest, room, x0, *, stiffness=None, held=(), targets=None,
         damping = max(mu, damping / 4.0) if t == 1.0 else min(damping * 4.0, 1e6 * k.max())
         if t * float(np.abs(dx).max()) <= step_tol:
             break
-        closed = settle is not None and bool(np.all(np.abs(excess) <= close_tol))
+        # closed: every bar within its play and every held pair at its distance
+        closed = settle is not None and bool(np.all(np.abs(excess) <= close_tol)
+                                             and np.all(np.abs(hl - ht) <= CLOSE_RTOL * ht))
         quiet = settle if closed else STALL_RTOL
         stall = stall + 1 if old - merit(energy, hl, penalty) <= quiet * abs(old) else 0
         if stall >= 3:
