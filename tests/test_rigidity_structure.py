@@ -189,6 +189,25 @@ def test_edge_lookup_finds_edges_in_either_order():
     edges = np.array([[3, 1], [0, 2], [2, 3]])
     find = EdgeLookup(edges, 4)
     assert find([1, 2, 3, 0], [3, 0, 2, 1]).tolist() == [0, 1, 2, -1]
+    assert find(3, 2).tolist() == 2 and find([[0], [2]], [[2], [0]]).tolist() == [[1], [1]]
+    assert EdgeLookup(np.zeros((0, 2)), 4)([0, 1], [1, 2]).tolist() == [-1, -1]
+
+
+def test_edge_lookup_agrees_with_a_dictionary():
+    """Random graphs (repeated edges: the first one is found), queried with every pair of
+    nodes in both orders, against a dictionary built edge by edge."""
+    rng = np.random.default_rng(3)
+    for n in (2, 7, 40):
+        edges = rng.integers(0, n, size=(3 * n, 2))
+        edges = edges[edges[:, 0] != edges[:, 1]]
+        first = {}
+        for k, (a, b) in enumerate(edges.tolist()):
+            first.setdefault(frozenset((a, b)), k)
+        i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+        got = EdgeLookup(edges, n)(i.ravel(), j.ravel())
+        want = [first.get(frozenset((a, b)), -1) if a != b else -1
+                for a, b in zip(i.ravel().tolist(), j.ravel().tolist())]
+        assert got.tolist() == want
 
 
 @pytest.mark.parametrize("d", [2, 3])

@@ -160,16 +160,23 @@ class EdgeLookup:
 
     def __call__(self, i, j) -> np.ndarray:
         """Indices of the edges joining ``i[k]`` and ``j[k]`` (either order), -1 where none."""
-        i = np.asarray(i, dtype=np.int64)
-        j = np.asarray(j, dtype=np.int64)
-        want = np.minimum(i, j) * self.n + np.maximum(i, j)
-        out = np.full(want.shape, -1, dtype=np.int64)
+        i, j = np.broadcast_arrays(np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64))
+        shape = i.shape
         if self.keys.size == 0:
-            return out
-        pos = np.minimum(np.searchsorted(self.keys, want), self.keys.size - 1)
-        found = self.keys[pos] == want
-        out[found] = self.order[pos[found]]
-        return out
+            return np.full(shape, -1, dtype=np.int64)
+        # flat, and in place where it can be: a million-module chain asks 6·10⁶ pairs at once,
+        # and every temporary of that size is fresh memory
+        i, j = i.reshape(-1), j.reshape(-1)
+        want = np.minimum(i, j)
+        want *= self.n
+        want += np.maximum(i, j)
+        pos = np.searchsorted(self.keys, want)
+        np.minimum(pos, self.keys.size - 1, out=pos)
+        missing = self.keys.take(pos) != want
+        del want
+        out = self.order.take(pos)
+        out[missing] = -1
+        return out.reshape(shape)
 
 
 def edge_ids(edges: np.ndarray, n_nodes: int, i, j) -> np.ndarray:
@@ -524,5 +531,8 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
-                            signs=np.where(cross > 0, 1.0, -1.0), reference=np.array(x),
+                            signs=np.where(cross > 0, 1.0, -1.0),
+                            # the network's own nodes where they are read-only (a copy of 48 MB
+                            # for a million modules otherwise)
+                            reference=x if not x.flags.writeable else np.array(x),
                             gauge_perp=np.zeros(2))
