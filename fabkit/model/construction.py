@@ -495,9 +495,9 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
         return None
     step[order] = np.arange(1, order.size + 1)
     # Node and parent columns one at a time (a million-module chain: 3·10⁶ rows, 24 MB a
-    # column): a pair of columns would be a temporary of 48 MB for every operation, each
-    # taking fresh pages from the system. The same operations on the same numbers: the bits
-    # of the pairwise version.
+    # column): the same operations on the same numbers as on pairs of columns, so the same
+    # bits, without gathering and reducing (N, 2) temporaries (the plan of a 10⁶-module chain
+    # took 0.31-0.34 s of user time instead of 0.44).
     p0, p1 = np.ascontiguousarray(par[:, 0]), np.ascontiguousarray(par[:, 1])
     placed = step.take(order)
     for p in (p0, p1):
@@ -521,8 +521,8 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
         off = np.abs(r - rad[:, col])
         if not np.all(off <= TILE_LENGTH_RTOL * np.abs(rad[:, col])):
             return None
-    rad[:, 0], rad[:, 1] = r0, r1  # the chain's own rest lengths (its joins carry their own
-    # round-off)
+    # the chain's own rest lengths (its joins carry their own round-off)
+    rad[:, 0], rad[:, 1] = r0, r1
     qx, qy = cx.take(p1) - ax, cy.take(p1) - ay  # second parent from the first
     del ax, ay
     cross = qx * vy - qy * vx
