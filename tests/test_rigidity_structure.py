@@ -210,6 +210,37 @@ def test_edge_lookup_agrees_with_a_dictionary():
         assert got.tolist() == want
 
 
+
+@pytest.mark.parametrize("name, kinds", [("super_stable_chain", 1), ("curvature_chain", 3),
+                                         ("fourbar", None)])
+def test_a_tiled_plan_knows_its_edges_and_a_wrong_hint_is_refused(name, kinds):
+    """A chain's plan tiled from its modules' plans carries the edge of every (node, parent)
+    pair, equal to a dictionary lookup pair by pair; a hint that names one wrong edge is
+    refused whole, and the certificate with no hint (looked up) is the same, field by field."""
+    from dataclasses import replace
+
+    net = fabkit.load_template(ROOT / "templates" / f"{name}.toml").network
+    plan = cached_plan(net, net.port("d1"))
+    if kinds is None:  # not a chain: planned by the search, with no hint
+        assert plan.parent_edges is None and plan.hinted_edges(net.edges) is None
+        return
+    assert len(net.assembly.modules) == kinds
+    by_pair = {frozenset(e): k for k, e in enumerate(net.edges.tolist())}
+    want = [[by_pair[frozenset((v, p))] for p in ps]
+            for v, ps in zip(plan.order.tolist(), plan.parents.tolist())]
+    assert plan.parent_edges.tolist() == want
+    assert plan.hinted_edges(net.edges).tolist() == np.ravel(want).tolist()
+    for k in (0, len(want) // 2, -1):
+        wrong = plan.parent_edges.copy()
+        wrong[k] = wrong[k][::-1]  # the node's two bars swapped between its parents
+        assert replace(plan, parent_edges=wrong).hinted_edges(net.edges) is None
+    past = plan.parent_edges.copy()
+    past[0, 0] = net.n_edges
+    assert replace(plan, parent_edges=past).hinted_edges(net.edges) is None
+    hinted = certify(net)
+    net._cache[("construction_plan", tuple(net.port("d1")))] = replace(plan, parent_edges=None)
+    assert certify(net) == hinted and hinted.kind == "structure"
+
 @pytest.mark.parametrize("d", [2, 3])
 def test_intersection_sines_keep_the_bits_of_the_unit_vectors_formula(d):
     """The sines are the determinant (2D: cross product) of the unit bar directions, each

@@ -249,13 +249,16 @@ def _decide_extras(part: _Part, x, edges, rtol: float) -> None:
                           f"within a factor {band:.0f} of the threshold {rtol:.0e}")
 
 
-def _part_from(found, x, edges, find: EdgeLookup, taken, bar: bool) -> _Part:
-    """A part from a construction found over the edges not ``taken``."""
+def _part_from(found, x, edges, find: EdgeLookup, taken, bar: bool,
+               used: np.ndarray | None = None) -> _Part:
+    """A part from a construction found over the edges not ``taken``; ``used``: the edges of
+    its (node, parent) pairs row by row, when already known (checked, see
+    :meth:`ConstructionPlan.hinted_edges`), else looked up."""
     n = x.shape[0]
     order, parents = found.order, found.parents
-    has = parents >= 0
-    child = np.broadcast_to(order[:, None], parents.shape)[has]
-    used = find(child, parents[has])
+    if used is None:
+        has = parents >= 0
+        used = find(np.broadcast_to(order[:, None], parents.shape)[has], parents[has])
     if bar:
         used = np.concatenate([find([found.seed[0]], [found.seed[1]]), used])
     inside = np.zeros(n, dtype=bool)
@@ -298,6 +301,12 @@ def _last(mapping):
     return next(reversed(mapping))
 
 
+def _joined(edges: np.ndarray, a: int, b: int) -> bool:
+    """Whether a bar joins nodes a and b (a scan: no lookup table is built for one pair)."""
+    e0, e1 = edges[:, 0], edges[:, 1]
+    return bool(np.any(((e0 == a) & (e1 == b)) | ((e0 == b) & (e1 == a))))
+
+
 def _whole(net: Network, x, positions_given: bool, find: EdgeLookup):
     """A construction of the whole network from one of the first seeds, or the reason none."""
     edges = net.edges
@@ -314,7 +323,7 @@ def _whole(net: Network, x, positions_given: bool, find: EdgeLookup):
         if tried >= MAX_SEEDS:
             break
         seed = (int(seed[0]), int(seed[1]))
-        if find([seed[0]], [seed[1]])[0] >= 0:
+        if _joined(edges, *seed):
             continue  # a port on a bar: not a seed of a motion
         tried += 1
         try:
@@ -326,7 +335,8 @@ def _whole(net: Network, x, positions_given: bool, find: EdgeLookup):
         found = PartialConstruction(seed=plan.seed, order=plan.order, parents=plan.parents,
                                     radii=plan.radii, signs=plan.signs,
                                     gauge_perp=plan.gauge_perp, placed=np.ones(n, dtype=bool))
-        part = _part_from(found, x, edges, find, np.zeros(edges.shape[0], dtype=bool), bar=False)
+        part = _part_from(found, x, edges, find, np.zeros(edges.shape[0], dtype=bool), bar=False,
+                          used=plan.hinted_edges(edges))
         if part.margin < MIN_SINE:
             reasons.append(f"from {seed} the flattest intersection has a sine of "
                            f"{part.margin:.1e}, below {MIN_SINE:.1e}")

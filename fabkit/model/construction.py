@@ -60,6 +60,11 @@ class ConstructionPlan:
     reference : numpy.ndarray, shape (N, dim)
     gauge_perp : numpy.ndarray, shape (dim,)
         3D only: unit vector fixing the rotation about the seed axis.
+    parent_edges : numpy.ndarray of int, shape (K, dim), or None
+        For every (placed node, parent) pair, the index of its edge in the network the plan
+        was made for, where the planner knows it without a search (a chain's plan tiled from
+        its modules' plans: each copy's bars are its module's, offset); None otherwise. A
+        hint: :meth:`hinted_edges` checks it before anything relies on it.
     """
 
     dim: int
@@ -70,6 +75,7 @@ class ConstructionPlan:
     signs: np.ndarray
     reference: np.ndarray
     gauge_perp: np.ndarray
+    parent_edges: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -90,6 +96,35 @@ class ConstructionPlan:
                 if p >= 0:
                     idx[row, c] = lookup[(min(v, p), max(v, p))]
         return idx
+
+    def hinted_edges(self, edges: np.ndarray) -> np.ndarray | None:
+        """:attr:`parent_edges` of the (placed node, parent) pairs row by row (the parents'
+        slots that hold a parent), checked against ``edges``: None when there is no hint or
+        one of its edges does not join its pair. Networks refuse duplicate bars, so a checked
+        index is the only edge of its pair, as a search (:class:`EdgeLookup`) would find."""
+        hint = self.parent_edges
+        if hint is None or hint.shape != self.parents.shape:
+            return None
+        has = self.parents >= 0
+        every = bool(has.all())
+        ids = hint.reshape(-1) if every else hint[has]
+        e = np.ascontiguousarray(edges, dtype=np.int64).reshape(-1, 2)
+        if ids.size and (int(ids.min()) < 0 or int(ids.max()) >= e.shape[0]):
+            return None
+        child = np.repeat(self.order, has.shape[1]) if every else \
+            np.broadcast_to(self.order[:, None], has.shape)[has]
+        parent = self.parents.reshape(-1) if every else self.parents[has]
+        # each hinted edge joins its node and that parent, in either order (a million-module
+        # chain: 6·10⁶ pairs, one column at a time)
+        flat = e.reshape(-1)
+        at = ids * 2
+        end0 = flat.take(at)
+        at += 1
+        end1 = flat.take(at)
+        del at
+        ok = (end0 == child) & (end1 == parent)
+        ok |= (end0 == parent) & (end1 == child)
+        return ids if bool(ok.all()) else None
 
     @cached_property
     def lists(self) -> tuple[list, list, list, list]:
@@ -152,17 +187,24 @@ class EdgeLookup:
     """
 
     def __init__(self, edges: np.ndarray, n_nodes: int):
-        e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+        self.edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
         self.n = int(n_nodes)
+
+    @cached_property
+    def _sorted(self) -> tuple[np.ndarray, np.ndarray]:
+        """(edge order, sorted keys), sorted at the first question: a caller that never asks
+        (a chain whose plan knows its edges) never pays for the sort."""
+        e = self.edges
         keys = np.minimum(e[:, 0], e[:, 1]) * self.n + np.maximum(e[:, 0], e[:, 1])
-        self.order = np.argsort(keys, kind="stable")
-        self.keys = keys[self.order]
+        order = np.argsort(keys, kind="stable")
+        return order, keys[order]
 
     def __call__(self, i, j) -> np.ndarray:
         """Indices of the edges joining ``i[k]`` and ``j[k]`` (either order), -1 where none."""
         i, j = np.broadcast_arrays(np.asarray(i, dtype=np.int64), np.asarray(j, dtype=np.int64))
         shape = i.shape
-        if self.keys.size == 0:
+        order, keys = self._sorted
+        if keys.size == 0:
             return np.full(shape, -1, dtype=np.int64)
         # flat, and in place where it can be: a million-module chain asks 6·10⁶ pairs at once,
         # and every temporary of that size is fresh memory
@@ -170,11 +212,11 @@ class EdgeLookup:
         want = np.minimum(i, j)
         want *= self.n
         want += np.maximum(i, j)
-        pos = np.searchsorted(self.keys, want)
-        np.minimum(pos, self.keys.size - 1, out=pos)
-        missing = self.keys.take(pos) != want
+        pos = np.searchsorted(keys, want)
+        np.minimum(pos, keys.size - 1, out=pos)
+        missing = keys.take(pos) != want
         del want
-        out = self.order.take(pos)
+        out = order.take(pos)
         out[missing] = -1
         return out.reshape(shape)
 
@@ -480,13 +522,28 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     order = np.empty(total, dtype=np.int64)
     par = np.empty((total, 2), dtype=np.int64)
     rad = np.empty((total, 2))
+    # fabkit.chain lays each copy's bars out as its module's, after the earlier copies' bars:
+    # the edge of a placement is its module's edge, offset (a hint, checked where it is used)
+    bars = np.array([m.n_edges for m in layout.modules], dtype=np.int64)[layout.kind]
+    bar_starts = np.concatenate([[0], np.cumsum(bars)[:-1]])
+    hinted = int(bars.sum()) == net.n_edges
+    pedge = np.empty((total, 2), dtype=np.int64) if hinted else None
     for q, mp in enumerate(plans):
         members = np.flatnonzero(layout.kind == q)
         index = layout.index[q]  # (copies, module nodes)
-        at = (starts[members][:, None] + np.arange(mp.order.size)).ravel()
+        # one kind of module: its copies fill the plan in order (a slice, not a scatter)
+        at = slice(None) if members.size == layout.kind.size else \
+            (starts[members][:, None] + np.arange(mp.order.size)).ravel()
         order[at] = index[:, mp.order].ravel()
         par[at] = index[:, mp.parents].reshape(-1, 2)
         rad[at] = np.broadcast_to(mp.radii, (len(members),) + mp.radii.shape).reshape(-1, 2)
+        if pedge is not None:
+            module = layout.modules[q]
+            local = EdgeLookup(module.edges, module.n_nodes)(mp.order[:, None], mp.parents)
+            if np.any(local < 0):
+                pedge = None
+            else:
+                pedge[at] = (bar_starts[members][:, None, None] + local).reshape(-1, 2)
     n = net.n_nodes
     a, b = drive
     step = np.full(n, -1, dtype=np.int64)
@@ -535,4 +592,4 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
                             # the network's own nodes where they are read-only (a copy of 48 MB
                             # for a million modules otherwise)
                             reference=x if not x.flags.writeable else np.array(x),
-                            gauge_perp=np.zeros(2))
+                            gauge_perp=np.zeros(2), parent_edges=pedge)
