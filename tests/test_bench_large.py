@@ -117,12 +117,16 @@ def test_cli_large_part_writes_its_chart(tmp_path, monkeypatch, capsys):
 
 def test_certified_points_record_proved_counts_and_thinned_traces():
     pts = large.certified_points(counts=(100, 1000), traces=(50, 200), projected=100, bundled=20,
-                                 memory=300, budget=60, repeats=1)
+                                 memory=300, builds=(100, 1000), budget=60, repeats=1)
     for p in pts["counts"]:
         assert p["outcome"] == "ok" and p["counts"] == [4, 3, 1, 0] and not p["ambiguous"]
         assert p["certificate"] == "structure"
         assert p["margin"] == pytest.approx(3 ** 0.5 / 2, abs=1e-12)  # the module's sine
-    (info,) = pts["info"]
+    # each chain built in a child process: 2 + 3k nodes, 6k bars, k + 1 ports
+    assert [(p["modules"], p["outcome"], p["nodes"], p["edges"], p["ports"])
+            for p in pts["builds"]] == [(100, "ok", 302, 600, 101), (1000, "ok", 3002, 6000, 1001)]
+    assert all(p["time_s"] > 0 and len(p["times"]) == 1 for p in pts["builds"])
+    (info,) = pts["info"]  # on the largest chain counted unless told
     assert info["outcome"] == "ok" and info["modules"] == 1000 and not info["ambiguous"]
     assert info["modes"].startswith("4 zero modes = 3 rigid + 1 conformational")
     assert info["certificate"].startswith("structure: every node placed")
@@ -144,6 +148,11 @@ def test_certified_points_record_proved_counts_and_thinned_traces():
     assert goals["no_ambiguous_chain"]["met"]
     assert not goals["count_modes_100000_mirrored"]["met"]  # not measured at 100 000 here
     assert not goals["trace_memory_1000000"]["met"]  # nor at a million
+    for name in ("count_modes_1000000_mirrored", "chain_build_1000000", "info_1000000_mirrored"):
+        assert not goals[name]["met"] and goals[name]["time_s"] is None
+    asked = large.certified_points(counts=(), traces=(), projected=None, bundled=None,
+                                   info=(100, 200), budget=60, repeats=1)["info"]
+    assert [(p["modules"], p["outcome"]) for p in asked] == [(100, "ok"), (200, "ok")]
 
 
 def test_the_memory_row_has_a_budget_of_its_own(monkeypatch):
@@ -159,16 +168,21 @@ def test_the_memory_row_has_a_budget_of_its_own(monkeypatch):
     assert large.MEMORY_BUDGET >= 2 * 78.0
 
 
-def _cert(counts=None, info=None, traces=None, projected=None, memory=None):
+def _cert(counts=None, info=None, traces=None, projected=None, memory=None, builds=None):
     return {"counts": counts or [], "info": info or [], "traces": traces or [],
-            "projected": projected or [], "bundled": [], "memory": memory or []}
+            "projected": projected or [], "bundled": [], "memory": memory or [],
+            "builds": builds or []}
 
 
 def test_certified_targets_judge_the_figures():
+    exact = {"outcome": "ok", "counts": [4, 3, 1, 0], "ambiguous": False,
+             "certificate": "structure", "margin": 0.87}
     good = _cert(
-        counts=[{"modules": 100_000, "outcome": "ok", "time_s": 1.0, "counts": [4, 3, 1, 0],
-                 "ambiguous": False, "certificate": "structure", "margin": 0.87}],
-        info=[{"modules": 100_000, "outcome": "ok", "time_s": 3.0, "ambiguous": False}],
+        counts=[{"modules": 100_000, "time_s": 0.15, **exact},
+                {"modules": 1_000_000, "time_s": 1.65, **exact}],
+        builds=[{"modules": 1_000_000, "outcome": "ok", "time_s": 1.9}],
+        info=[{"modules": 100_000, "outcome": "ok", "time_s": 3.0, "ambiguous": False},
+              {"modules": 1_000_000, "outcome": "ok", "time_s": 4.5, "ambiguous": False}],
         traces=[{"modules": m, "keep": "ports", "outcome": "ok", "status": "finished",
                  "time_s": t, "max_edge_error": 1e-11} for m, t in ((10_000, 0.5), (100_000, 5.5))],
         projected=[{"method": "constructive", "outcome": "ok", "time_s": 0.5,
@@ -181,9 +195,16 @@ def test_certified_targets_judge_the_figures():
     assert all(g["met"] for g in goals.values()), goals
     assert goals["constructive_trace_100000"]["ratio"] == pytest.approx(11.0)
     assert goals["projected_vs_constructive_10000_mirrored"]["ratio"] == pytest.approx(2.4)
+    assert goals["count_modes_1000000_mirrored"]["ratio"] == pytest.approx(11.0)
+    # a million-module count within 2 s but more than 11x the 100 000 one is not linear
+    steep = _cert(counts=[{**good["counts"][0], "time_s": 0.1}, good["counts"][1]])
+    assert large.certified_targets(steep)["count_modes_1000000_mirrored"]["ratio"] == \
+        pytest.approx(16.5)
+    assert not large.certified_targets(steep)["count_modes_1000000_mirrored"]["met"]
     bad = _cert(
-        counts=[{**good["counts"][0], "time_s": 6.0}],
-        info=[{**good["info"][0], "ambiguous": True}],
+        counts=[{**good["counts"][0], "time_s": 6.0}, {**good["counts"][1], "time_s": 2.1}],
+        builds=[{**good["builds"][0], "time_s": 2.1}],
+        info=[{**good["info"][0], "ambiguous": True}, {**good["info"][1], "time_s": 5.5}],
         traces=[{**good["traces"][0]}, {**good["traces"][1], "time_s": 6.5}],
         projected=[good["projected"][0], {**good["projected"][1], "time_s": 1.6}],
         memory=[{**good["memory"][0], "peak_rss_mb": 1100.0}])

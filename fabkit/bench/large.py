@@ -344,6 +344,21 @@ def _count_row(net, budget, repeats) -> dict:
     return pt
 
 
+def _build_row(k: int, budget, repeats) -> dict:
+    """:func:`mirrored_chain` of k modules built (the module loaded once, outside the timing),
+    as :func:`_count_row` times a count: in a child process, each repeat a fresh chain."""
+    module = paper_module("super_stable")
+
+    def evaluate(net):
+        return {"nodes": net.n_nodes, "edges": net.n_edges, "ports": len(net.ports)}
+
+    outcome, times, info = run_budgeted(
+        lambda: chain(module, copies=int(k), mirror="alternate"), evaluate, budget, repeats)
+    pt = {"modules": int(k), "outcome": outcome, **timing(times, info), "budget_s": budget}
+    pt.update(info if isinstance(info, dict) else {"message": info})
+    return pt
+
+
 def _limit_cpu_of_child(seconds: float):
     """A ``preexec_fn`` that lets a child process use ``seconds`` of CPU time (rounded up), then
     has the kernel end it with SIGXCPU (and no core file); None where there are no such
@@ -476,7 +491,7 @@ def _memory_row(k: int, budget: float) -> dict:
 
 def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
                      projected: int | None = 10_000, bundled: int | None = 1000,
-                     memory: int | None = None, budget: float = 60.0,
+                     memory: int | None = None, builds=(), info=None, budget: float = 60.0,
                      memory_budget: float = MEMORY_BUDGET, repeats: int = 3,
                      progress=None) -> dict:
     """The measurements of exact counts and linear traces on the mirrored super-stable chain.
@@ -484,8 +499,11 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     Parameters
     ----------
     counts : sequence of int
-        Chain sizes (modules) whose modes :func:`fabkit.count_modes` counts; ``fabkit info`` runs
-        on the largest.
+        Chain sizes (modules) whose modes :func:`fabkit.count_modes` counts.
+    builds : sequence of int
+        Chain sizes whose building (:func:`fabkit.chain`) is timed.
+    info : sequence of int, optional
+        Chain sizes ``fabkit info`` runs on (default: the largest of ``counts``).
     traces : sequence of int
         Chain sizes traced by ``constructive`` (101 samples) from √3 to D₂* + 1e-12, keeping the
         ports only and keeping everything.
@@ -505,11 +523,12 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
     Returns
     -------
     dict
-        ``counts``, ``info``, ``traces``, ``projected``, ``bundled``, ``memory``: lists of
-        rows.
+        ``counts``, ``builds``, ``info``, ``traces``, ``projected``, ``bundled``, ``memory``:
+        lists of rows.
     """
     to = default_chain_target()
-    out = {"counts": [], "info": [], "traces": [], "projected": [], "bundled": [], "memory": []}
+    out = {"counts": [], "builds": [], "info": [], "traces": [], "projected": [], "bundled": [],
+           "memory": []}
 
     def note(kind, pt):
         out[kind].append(pt)
@@ -521,8 +540,11 @@ def certified_points(*, counts=(10_000, 100_000), traces=(10_000, 100_000),
         pt = _count_row(net, budget, repeats)
         pt["modules"] = int(k)
         note("counts", pt)
-    if counts:
-        note("info", _info_row(int(max(counts)), budget, repeats))
+        del net  # a million-module chain is half a gigabyte: gone before the next row
+    for k in builds:
+        note("builds", _build_row(int(k), budget, repeats))
+    for k in (info if info is not None else [max(counts)] if counts else []):
+        note("info", _info_row(int(k), budget, repeats))
     for k in traces:
         net = mirrored_chain(k)
         for keep in ("ports", "all"):
@@ -570,13 +592,35 @@ def certified_targets(points: dict) -> dict:
         "margin": big.get("margin") if big else None,
         "met": bool(big and big["time_s"] <= 5.0 and big["counts"] == [4, 3, 1, 0]
                     and not big["ambiguous"] and big["certificate"] == "structure")}
-    info = next((p for p in points.get("info", []) if p.get("modules") == 100_000), None)
-    goals["info_100000_mirrored"] = {
-        "target": "fabkit info on the 100 000-module mirrored chain <= 10 s, not ambiguous",
-        "time_s": info["time_s"] if info else None,
-        "wall_s": info.get("wall_s") if info else None,
-        "met": bool(info and info["outcome"] == "ok" and info["time_s"] <= 10.0
-                    and not info["ambiguous"])}
+    huge = counts.get(1_000_000)
+    ratio = huge["time_s"] / big["time_s"] if huge and big and big["time_s"] > 0 else None
+    goals["count_modes_1000000_mirrored"] = {
+        "target": "count_modes on the 1 000 000-module mirrored chain <= 2 s and <= 11x the "
+                  "100 000-module count, exact",
+        "time_s": huge["time_s"] if huge else None,
+        "wall_s": huge.get("wall_s") if huge else None,
+        "ratio": ratio, "wall_ratio": _wall_ratio(huge, big),
+        "counts": huge.get("counts") if huge else None,
+        "met": bool(huge and ratio is not None and huge["time_s"] <= 2.0 and ratio <= 11.0
+                    and huge["counts"] == [4, 3, 1, 0] and not huge["ambiguous"]
+                    and huge["certificate"] == "structure")}
+    built = next((p for p in points.get("builds", []) if p.get("modules") == 1_000_000
+                  and p.get("outcome") == "ok"), None)
+    goals["chain_build_1000000"] = {
+        "target": "the 1 000 000-module mirrored chain built (fabkit.chain) in <= 2 s",
+        "time_s": built["time_s"] if built else None,
+        "wall_s": built.get("wall_s") if built else None,
+        "met": bool(built and built["time_s"] <= 2.0)}
+    for k, limit in ((100_000, 10.0), (1_000_000, 5.0)):
+        info = next((p for p in points.get("info", []) if p.get("modules") == k), None)
+        spaced = f"{k:_}".replace("_", " ")
+        goals[f"info_{k}_mirrored"] = {
+            "target": f"fabkit info on the {spaced}-module mirrored chain <= {limit:g} s, not "
+                      "ambiguous",
+            "time_s": info["time_s"] if info else None,
+            "wall_s": info.get("wall_s") if info else None,
+            "met": bool(info and info["outcome"] == "ok" and info["time_s"] <= limit
+                        and not info["ambiguous"])}
     done = {(p["modules"], p["keep"]): p for p in points.get("traces", [])
             if p["outcome"] == "ok" and p.get("status") == "finished"}
     a, b = done.get((100_000, "ports")), done.get((10_000, "ports"))
@@ -623,7 +667,7 @@ def certified_line(kind: str, p: dict) -> str:
     """One line of progress for a row of :func:`certified_points`."""
     t = clock_text(p)
     what = {"counts": "count_modes", "info": "fabkit info", "bundled": "count_modes",
-            "memory": "trace, peak memory"}.get(kind)
+            "builds": "fabkit.chain (build)", "memory": "trace, peak memory"}.get(kind)
     if kind == "traces":
         what = f"constructive keep={p['keep']}"
     elif kind == "projected":

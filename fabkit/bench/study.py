@@ -47,7 +47,10 @@ MODES = {
              "large": {"modes": (10, 100, 300, 1000, 3000, 10000),
                        "chains": (10, 100, 1000, 10000),
                        "lattice": (3, 10, 20, 30, 50, 70, 100),
-                       "certified": {"counts": (10000, 100000), "traces": (10000, 100000),
+                       "certified": {"counts": (10000, 100000, 1_000_000),
+                                     "builds": (10000, 100000, 1_000_000),
+                                     "info": (100000, 1_000_000),
+                                     "traces": (10000, 100000),
                                      "projected": 10000, "bundled": 100000,
                                      "memory": 1_000_000}},
              # k = 100: the 10⁴-cell lattice (one sparse LP a build takes about a minute)
