@@ -229,6 +229,8 @@ def test_a_tiled_plan_knows_its_edges_and_a_wrong_hint_is_refused(name, kinds):
     want = [[by_pair[frozenset((v, p))] for p in ps]
             for v, ps in zip(plan.order.tolist(), plan.parents.tolist())]
     assert plan.parent_edges.tolist() == want
+    assert plan.edge_index(net).tolist() == want  # from the checked hint
+    assert replace(plan, parent_edges=None).edge_index(net).tolist() == want  # by dictionary
     assert plan.hinted_edges(net.edges).tolist() == np.ravel(want).tolist()
     for k in (0, len(want) // 2, -1):
         wrong = plan.parent_edges.copy()

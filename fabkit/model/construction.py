@@ -89,6 +89,11 @@ class ConstructionPlan:
         numpy.ndarray of int, shape (K, dim)
             -1 where a node has no parent in that slot (the 3D gauge node's free slot).
         """
+        hinted = self.hinted_edges(net.edges)
+        if hinted is not None:  # a tiled chain's plan: its edges known and checked
+            idx = np.full(self.parents.shape, -1, dtype=np.int64)
+            idx[self.parents >= 0] = hinted
+            return idx
         lookup = {(min(i, j), max(i, j)): k for k, (i, j) in enumerate(net.edges.tolist())}
         idx = np.full(self.parents.shape, -1, dtype=np.int64)
         for row, (v, par) in enumerate(zip(self.order.tolist(), self.parents.tolist())):
