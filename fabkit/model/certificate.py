@@ -122,10 +122,32 @@ def intersection_sines(x, order, parents) -> np.ndarray:
         return np.zeros(0)
     d = x.shape[1]
     at = np.where(parents >= 0, parents, order[:, None])
-    if d == 2:  # the two bars apart: each row gathered once (a million-module chain's plan)
-        xo = x[order]
-        u0, u1 = (_unit(x[np.ascontiguousarray(at[:, k])] - xo) for k in (0, 1))
-        return np.abs(u0[:, 0] * u1[:, 1] - u0[:, 1] * u1[:, 0])
+    if d == 2:
+        # coordinate by coordinate, in place: the operations of the unit-vector formula below
+        # (row_norms' sums, the same divisions and products), so the same bits, without its
+        # (N, 2) temporaries (a million-module chain's plan has 3·10⁶ rows)
+        cx, cy = np.ascontiguousarray(x[:, 0]), np.ascontiguousarray(x[:, 1])
+        ox, oy = cx.take(order), cy.take(order)
+
+        def unit(k):
+            p = np.ascontiguousarray(at[:, k])
+            ux, uy = cx.take(p), cy.take(p)
+            ux -= ox
+            uy -= oy
+            norm = ux * ux
+            norm += uy * uy
+            np.sqrt(norm, out=norm)
+            np.copyto(norm, 1.0, where=~(norm > 0))  # a bar of no length stays zero
+            ux /= norm
+            uy /= norm
+            return ux, uy
+
+        u0x, u0y = unit(0)
+        u1x, u1y = unit(1)
+        u0x *= u1y
+        u0y *= u1x
+        u0x -= u0y
+        return np.abs(u0x, out=u0x)
     unit = _unit(x[at] - x[order][:, None, :])
     out = np.abs(np.linalg.det(unit))
     gauge = parents[:, 2] < 0

@@ -592,6 +592,8 @@ def _tiled_chain_plan(net: Network, drive) -> ConstructionPlan | None:
     norm *= r0
     if np.any(np.abs(cross) < FLAT_SIDE_SINE * norm):
         return None  # a flat reference: let the search raise its precise error
+    if pedge is not None:
+        pedge.setflags(write=False)  # a caller reads the checked hint as its own, not a copy
     return ConstructionPlan(dim=2, seed=(int(a), int(b)), order=order, parents=par, radii=rad,
                             signs=np.where(cross > 0, 1.0, -1.0),
                             # the network's own nodes where they are read-only (a copy of 48 MB
